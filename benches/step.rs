@@ -1,0 +1,96 @@
+//! One simulation step at several cloth sizes, and what each optional effect costs.
+//!
+//! `cargo bench --bench step`
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use rustcloth::scene::{FloorSpec, SphereSpec};
+use rustcloth::{Scene, Simulation};
+
+fn scene(n: u32) -> Scene {
+    let mut scene = Scene::default();
+    scene.cloth.nx = n;
+    scene.cloth.ny = n;
+    scene
+}
+
+fn bench_step(c: &mut Criterion) {
+    let mut group = c.benchmark_group("step");
+    for n in [64u32, 128, 256] {
+        let mut sim = Simulation::new(scene(n)).unwrap();
+        group.throughput(Throughput::Elements((n * n) as u64));
+        group.bench_with_input(
+            BenchmarkId::from_parameter(format!("{n}x{n}")),
+            &n,
+            |b, _| b.iter(|| sim.step(1).unwrap()),
+        );
+    }
+    group.finish();
+}
+
+/// Each effect switched off in turn at 128x128: the saving a scene gets by not asking for it.
+fn bench_effects(c: &mut Criterion) {
+    let mut full = scene(128);
+    full.air_drag = 0.001;
+    full.floor = Some(FloorSpec::default());
+    full.spheres = vec![SphereSpec::default()];
+    let variants: Vec<(&str, Scene)> = vec![
+        ("all", full.clone()),
+        (
+            "no_bend",
+            Scene {
+                cloth: rustcloth::scene::ClothSpec {
+                    k_bend: 0.0,
+                    ..full.cloth.clone()
+                },
+                ..full.clone()
+            },
+        ),
+        (
+            "no_shear",
+            Scene {
+                cloth: rustcloth::scene::ClothSpec {
+                    k_shear: 0.0,
+                    ..full.cloth.clone()
+                },
+                ..full.clone()
+            },
+        ),
+        (
+            "no_air_drag",
+            Scene {
+                air_drag: 0.0,
+                ..full.clone()
+            },
+        ),
+        (
+            "no_gravity",
+            Scene {
+                gravity: [0.0; 3],
+                ..full.clone()
+            },
+        ),
+        (
+            "no_floor",
+            Scene {
+                floor: None,
+                ..full.clone()
+            },
+        ),
+        (
+            "no_spheres",
+            Scene {
+                spheres: vec![],
+                ..full.clone()
+            },
+        ),
+    ];
+    let mut group = c.benchmark_group("effects_128");
+    for (name, scene) in variants {
+        let mut sim = Simulation::new(scene).unwrap();
+        group.bench_function(name, |b| b.iter(|| sim.step(1).unwrap()));
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench_step, bench_effects);
+criterion_main!(benches);

@@ -1,0 +1,45 @@
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::{contact_velocity, Collider};
+use crate::state::{Kinematics, Particles};
+
+/// The half-space `y < height + thickness`. A half-space cannot be tunnelled through: a particle
+/// below the plane at the end of a step is caught however fast it came.
+pub struct Floor {
+    /// Height of the plane in m.
+    pub height: f32,
+    /// Coulomb friction coefficient.
+    pub friction: f32,
+    /// Gap kept between particles and the plane, in m.
+    pub thickness: f32,
+}
+
+impl Collider for Floor {
+    fn name(&self) -> &'static str {
+        "floor"
+    }
+
+    fn resolve(
+        &self,
+        _start: &Kinematics,
+        next: &mut Kinematics,
+        particles: &Particles,
+        chunk: usize,
+    ) {
+        let top = self.height + self.thickness;
+        let Kinematics { pos, vel } = next;
+        pos.par_chunks_mut(chunk)
+            .zip(vel.par_chunks_mut(chunk))
+            .enumerate()
+            .for_each(|(c, (pos, mut vel))| {
+                for i in 0..pos.len() {
+                    if pos.y[i] < top && particles.is_dynamic(c * chunk + i) {
+                        pos.y[i] = top;
+                        let v = contact_velocity(vel.get(i), Vec3::Y, self.friction);
+                        vel.set(i, v);
+                    }
+                }
+            });
+    }
+}

@@ -1,0 +1,78 @@
+//! Colliders: static shapes the cloth cannot enter. Each runs after integration over the state
+//! at the end of the step, with the state at its start available for swept tests.
+//!
+//! Contact model, the same for every shape: a particle that ends the step inside (closer to
+//! the surface than the collider's `thickness`) is moved onto the surface, loses the velocity
+//! component into the surface, and the tangential velocity is reduced by Coulomb friction,
+//! `|dv_t| <= mu |dv_n|`, stopping it altogether when the normal impulse is large enough.
+
+mod floor;
+mod sphere;
+
+use glam::Vec3;
+
+pub use floor::Floor;
+pub use sphere::Spheres;
+
+use crate::state::{Kinematics, Particles};
+
+/// A static collider.
+pub trait Collider: Send + Sync {
+    /// Name in `effects` and `profile()`.
+    fn name(&self) -> &'static str;
+
+    /// Moves every dynamic particle of `next` that ended inside the collider out of it.
+    /// `start` holds the positions at the start of the step.
+    fn resolve(
+        &self,
+        start: &Kinematics,
+        next: &mut Kinematics,
+        particles: &Particles,
+        chunk: usize,
+    );
+}
+
+/// Velocity after contact with a surface of outward unit normal `n` and friction `mu`.
+#[inline]
+pub fn contact_velocity(v: Vec3, n: Vec3, mu: f32) -> Vec3 {
+    let vn = v.dot(n);
+    if vn >= 0.0 {
+        return v; // already leaving the surface
+    }
+    let tangential = v - vn * n;
+    let speed = tangential.length();
+    let normal_impulse = -vn; // velocity change along n, per unit mass
+    if speed <= mu * normal_impulse {
+        Vec3::ZERO // static friction holds
+    } else {
+        tangential * (1.0 - mu * normal_impulse / speed)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn contact_removes_the_inward_velocity_and_applies_coulomb_friction() {
+        let n = Vec3::Y;
+        // Leaving: untouched.
+        assert_eq!(
+            contact_velocity(Vec3::new(1.0, 2.0, 0.0), n, 0.5),
+            Vec3::new(1.0, 2.0, 0.0)
+        );
+        // Frictionless: tangential part kept.
+        assert_eq!(
+            contact_velocity(Vec3::new(1.0, -2.0, 0.0), n, 0.0),
+            Vec3::new(1.0, 0.0, 0.0)
+        );
+        // Sliding: |dv_t| = mu |dv_n| = 0.5 * 2 = 1 off a tangential speed of 3.
+        let v = contact_velocity(Vec3::new(3.0, -2.0, 0.0), n, 0.5);
+        assert!((v - Vec3::new(2.0, 0.0, 0.0)).length() < 1e-6, "{v}");
+        // Sticking: friction would reverse the motion, so it stops.
+        assert_eq!(
+            contact_velocity(Vec3::new(0.5, -2.0, 0.0), n, 0.5),
+            Vec3::ZERO
+        );
+    }
+}

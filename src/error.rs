@@ -1,0 +1,106 @@
+//! The one error type of the core. Every fallible public call returns it; nothing panics on
+//! bad input. The Python binding maps each variant onto the exception a user would catch.
+
+use std::fmt;
+
+/// What went wrong, with the name of the parameter at fault.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Error {
+    /// A value of the right type that makes no sense (negative stiffness, `dt = nan`, an unknown
+    /// scene key, a wrong array shape). Maps to `ValueError`.
+    InvalidValue { name: String, message: String },
+    /// A value of the wrong type (a string where a number belongs). Maps to `TypeError`.
+    InvalidType { name: String, message: String },
+    /// A particle index outside `0..len`. Maps to `IndexError`.
+    IndexOutOfRange {
+        name: String,
+        index: i64,
+        len: usize,
+    },
+    /// A step produced a non-finite state; the simulation was rolled back to the state before
+    /// that step. Maps to `rustcloth.SimulationDiverged`.
+    Diverged { step: u64, particle: usize },
+}
+
+impl Error {
+    pub(crate) fn value(name: impl Into<String>, message: impl Into<String>) -> Self {
+        Error::InvalidValue {
+            name: name.into(),
+            message: message.into(),
+        }
+    }
+
+    pub(crate) fn index(name: impl Into<String>, index: i64, len: usize) -> Self {
+        Error::IndexOutOfRange {
+            name: name.into(),
+            index,
+            len,
+        }
+    }
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Error::InvalidValue { name, message } | Error::InvalidType { name, message } => {
+                write!(f, "{name}: {message}")
+            }
+            Error::IndexOutOfRange { name, index, len } => {
+                write!(
+                    f,
+                    "{name}: index {index} is out of range for {len} particles"
+                )
+            }
+            Error::Diverged { step, particle } => write!(
+                f,
+                "the simulation diverged at step {step}: particle {particle} became non-finite; \
+                 the state before that step was restored (try a smaller dt, more substeps, or \
+                 the implicit_euler integrator)"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for Error {}
+
+pub type Result<T> = std::result::Result<T, Error>;
+
+/// Checks that `value` is finite and, where `positive`, strictly above zero, or at least zero
+/// otherwise. Shared by scene validation and the setters.
+pub(crate) fn check_scalar<T>(name: &str, value: T, bound: Bound) -> Result<()>
+where
+    T: Into<f64> + Copy + fmt::Display,
+{
+    let x: f64 = value.into();
+    let ok = x.is_finite()
+        && match bound {
+            Bound::Any => true,
+            Bound::NonNegative => x >= 0.0,
+            Bound::Positive => x > 0.0,
+        };
+    if ok {
+        Ok(())
+    } else {
+        let want = match bound {
+            Bound::Any => "a finite number",
+            Bound::NonNegative => "a finite number >= 0",
+            Bound::Positive => "a finite number > 0",
+        };
+        Err(Error::value(name, format!("must be {want}, got {value}")))
+    }
+}
+
+/// Checks each component of a vector with [`check_scalar`].
+pub(crate) fn check_vector(name: &str, value: &[f32], bound: Bound) -> Result<()> {
+    for (axis, &c) in value.iter().enumerate() {
+        check_scalar(&format!("{name}[{axis}]"), c, bound)?;
+    }
+    Ok(())
+}
+
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Bound {
+    Any,
+    NonNegative,
+    Positive,
+}

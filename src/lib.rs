@@ -1,0 +1,36 @@
+//! rustcloth: a mass-spring cloth solver.
+//!
+//! A cloth is an `nx` x `ny` grid of particles joined by structural, shear and bending springs
+//! (the 12-neighbour stencil), pushed by gravity and air drag, stepped with a fixed time step
+//! by one of several integrators, and kept out of a floor and spheres. A [`Scene`] describes
+//! it; a [`Simulation`] runs it.
+//!
+//! ```
+//! use rustcloth::{Scene, Simulation};
+//!
+//! let scene = Scene::builtin("hanging").unwrap();
+//! let mut sim = Simulation::new(scene).unwrap();
+//! sim.step(100).unwrap();
+//! assert!((sim.time() - 0.1).abs() < 1e-9);
+//! ```
+//!
+//! This crate is pure Rust; the Python binding lives behind the `python` feature.
+
+pub mod collisions;
+pub mod error;
+pub mod forces;
+pub mod grid;
+pub mod integrators;
+pub mod pins;
+pub mod profile;
+pub mod scene;
+pub mod simulation;
+pub mod soa;
+pub mod state;
+
+#[cfg(feature = "python")]
+mod python;
+
+pub use error::{Error, Result};
+pub use scene::Scene;
+pub use simulation::{Energy, Simulation};

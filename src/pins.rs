@@ -1,0 +1,43 @@
+//! Kinematic pins: pinned particles moved to a target position by the user (dragging).
+
+use glam::Vec3;
+
+use crate::state::Kinematics;
+
+/// Pinned particles with a target. Each step puts the particle exactly on its target and gives
+/// it the velocity of that move, `(target - x) / h`, so spring damping sees the motion. In the
+/// pipeline only while at least one target is set.
+#[derive(Clone, Debug, Default)]
+pub struct KinematicPins {
+    targets: Vec<(usize, Vec3)>,
+}
+
+impl KinematicPins {
+    pub const NAME: &'static str = "kinematic_pins";
+
+    pub fn is_empty(&self) -> bool {
+        self.targets.is_empty()
+    }
+
+    pub fn set(&mut self, p: usize, target: Vec3) {
+        match self.targets.iter_mut().find(|(q, _)| *q == p) {
+            Some(entry) => entry.1 = target,
+            None => self.targets.push((p, target)),
+        }
+    }
+
+    pub fn remove(&mut self, p: usize) {
+        self.targets.retain(|(q, _)| *q != p);
+    }
+
+    pub fn clear(&mut self) {
+        self.targets.clear();
+    }
+
+    pub fn apply(&self, h: f32, start: &Kinematics, next: &mut Kinematics) {
+        for &(p, target) in &self.targets {
+            next.vel.set(p, (target - start.pos.get(p)) / h);
+            next.pos.set(p, target);
+        }
+    }
+}

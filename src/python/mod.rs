@@ -1,0 +1,275 @@
+//! The Python extension module `rustcloth._core`: the one place that knows about Python.
+//!
+//! It converts arguments (conv.rs), maps errors (errors.rs) and releases the GIL while the
+//! solver steps. The public Python API in `python/rustcloth/` wraps these classes.
+
+mod conv;
+mod errors;
+
+use numpy::{PyArray1, PyArray2, PyArrayMethods};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+use crate::scene::{Scene, INTEGRATORS};
+use crate::Simulation;
+use conv::{from_toml, index_from_any, to_toml, vec3_from_any, vec3s_from_array, vec3s_to_array};
+use errors::{value_error, IntoPyResult};
+
+fn scene_from_dict(obj: &Bound<'_, PyAny>) -> PyResult<Scene> {
+    Scene::from_toml_value(to_toml(obj, "")?).py()
+}
+
+fn scene_to_dict<'py>(py: Python<'py>, scene: &Scene) -> PyResult<Bound<'py, PyAny>> {
+    let value = toml::Value::try_from(scene).expect("a scene always serialises");
+    let dict = from_toml(py, &value)?;
+    // TOML has no null: spell out the absent floor as None, as users write it.
+    let dict = dict.cast_into::<PyDict>()?;
+    if !dict.contains("floor")? {
+        dict.set_item("floor", py.None())?;
+    }
+    Ok(dict.into_any())
+}
+
+/// Validates a scene dict and returns it with every default filled in.
+#[pyfunction]
+fn normalize_scene<'py>(py: Python<'py>, scene: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
+    let scene = scene_from_dict(scene)?;
+    scene_to_dict(py, &scene)
+}
+
+/// Parses and validates a TOML scene document into a full scene dict.
+#[pyfunction]
+fn scene_from_toml<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py, PyAny>> {
+    scene_to_dict(py, &Scene::from_toml_str(text).py()?)
+}
+
+/// A scene dict as a TOML document.
+#[pyfunction]
+fn scene_to_toml(scene: &Bound<'_, PyAny>) -> PyResult<String> {
+    Ok(scene_from_dict(scene)?.to_toml_string())
+}
+
+/// Names of the built-in scenes.
+#[pyfunction]
+fn builtin_scenes() -> Vec<&'static str> {
+    Scene::builtin_names()
+}
+
+/// The built-in scene `name` as a dict.
+#[pyfunction]
+fn builtin_scene<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>> {
+    scene_to_dict(py, &Scene::builtin(name).py()?)
+}
+
+/// The solver. See `rustcloth.Simulation` for the documented API.
+#[pyclass(name = "Simulation", module = "rustcloth._core", subclass)]
+struct PySimulation {
+    inner: Simulation,
+}
+
+#[pymethods]
+impl PySimulation {
+    #[new]
+    fn new(scene: &Bound<'_, PyAny>) -> PyResult<Self> {
+        let scene = scene_from_dict(scene)?;
+        Ok(PySimulation {
+            inner: Simulation::new(scene).py()?,
+        })
+    }
+
+    fn step(&mut self, py: Python<'_>, n: i64) -> PyResult<()> {
+        if n < 0 {
+            return Err(value_error(
+                "n",
+                format!("must be an integer >= 0, got {n}"),
+            ));
+        }
+        let sim = &mut self.inner;
+        py.detach(|| sim.step(n as u64)).py()
+    }
+
+    fn advance(&mut self, py: Python<'_>, seconds: f64) -> PyResult<u64> {
+        let sim = &mut self.inner;
+        py.detach(|| sim.advance(seconds)).py()
+    }
+
+    #[getter]
+    fn positions<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        vec3s_to_array(py, self.inner.positions())
+    }
+
+    #[getter]
+    fn velocities<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        vec3s_to_array(py, self.inner.velocities())
+    }
+
+    fn set_positions(&mut self, positions: &Bound<'_, PyAny>) -> PyResult<()> {
+        let n = self.inner.grid().len();
+        let values = vec3s_from_array(positions, "positions", n)?;
+        self.inner.set_positions(&values).py()
+    }
+
+    fn set_velocities(&mut self, velocities: &Bound<'_, PyAny>) -> PyResult<()> {
+        let n = self.inner.grid().len();
+        let values = vec3s_from_array(velocities, "velocities", n)?;
+        self.inner.set_velocities(&values).py()
+    }
+
+    #[getter]
+    fn triangles<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<u32>>> {
+        let tris = self.inner.triangles();
+        let flat: Vec<u32> = tris.iter().flatten().copied().collect();
+        PyArray1::from_vec(py, flat).reshape([tris.len(), 3])
+    }
+
+    #[getter]
+    fn normals<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        vec3s_to_array(py, self.inner.normals())
+    }
+
+    #[pyo3(signature = (index, target=None))]
+    fn pin(&mut self, index: &Bound<'_, PyAny>, target: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
+        let index = index_from_any(index, "index", self.inner.grid().len())?;
+        let target = target.map(|t| vec3_from_any(t, "target")).transpose()?;
+        self.inner.pin(index, target).py()
+    }
+
+    fn unpin(&mut self, index: &Bound<'_, PyAny>) -> PyResult<()> {
+        let index = index_from_any(index, "index", self.inner.grid().len())?;
+        self.inner.unpin(index).py()
+    }
+
+    fn cut(&mut self, index: &Bound<'_, PyAny>) -> PyResult<()> {
+        let index = index_from_any(index, "index", self.inner.grid().len())?;
+        self.inner.cut(index).py()
+    }
+
+    /// `(kinetic, gravitational, elastic)` in J.
+    fn energy(&self) -> (f64, f64, f64) {
+        let e = self.inner.energy();
+        (e.kinetic, e.gravitational, e.elastic)
+    }
+
+    #[getter]
+    fn time(&self) -> f64 {
+        self.inner.time()
+    }
+
+    #[getter]
+    fn steps(&self) -> u64 {
+        self.inner.steps()
+    }
+
+    #[getter]
+    fn dt(&self) -> f64 {
+        self.inner.dt()
+    }
+
+    #[setter]
+    fn set_dt(&mut self, dt: f64) -> PyResult<()> {
+        self.inner.set_dt(dt).py()
+    }
+
+    #[getter]
+    fn substeps(&self) -> u32 {
+        self.inner.scene().substeps
+    }
+
+    #[setter]
+    fn set_substeps(&mut self, substeps: i64) -> PyResult<()> {
+        self.inner.set_substeps(substeps).py()
+    }
+
+    #[getter]
+    fn integrator(&self) -> String {
+        self.inner.scene().integrator.clone()
+    }
+
+    #[setter]
+    fn set_integrator(&mut self, name: &str) -> PyResult<()> {
+        self.inner.set_integrator(name).py()
+    }
+
+    #[getter]
+    fn effects(&self) -> Vec<&'static str> {
+        self.inner.effects()
+    }
+
+    /// `(passes, steps, total_seconds)` with `passes` a list of `(name, seconds, calls)`.
+    fn profile<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyList>, u64, f64)> {
+        let profile = self.inner.profile();
+        let passes = PyList::empty(py);
+        for p in profile.passes() {
+            passes.append((p.name, p.time.as_secs_f64(), p.calls))?;
+        }
+        Ok((passes, profile.steps, profile.total.as_secs_f64()))
+    }
+
+    fn reset(&mut self) -> PyResult<()> {
+        self.inner.reset().py()
+    }
+
+    #[getter]
+    fn pinned<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<bool>> {
+        PyArray1::from_slice(py, &self.inner.particles().pinned)
+    }
+
+    #[getter]
+    fn alive<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<bool>> {
+        PyArray1::from_slice(py, &self.inner.particles().alive)
+    }
+
+    #[getter]
+    fn masses<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f32>> {
+        PyArray1::from_slice(py, &self.inner.particles().mass)
+    }
+
+    fn spring_strain<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f32>> {
+        PyArray1::from_vec(py, self.inner.spring_strain())
+    }
+
+    fn max_stretch(&self) -> f32 {
+        self.inner.max_stretch()
+    }
+
+    fn memory_bytes(&self) -> usize {
+        self.inner.memory_bytes()
+    }
+
+    #[getter]
+    fn topology_version(&self) -> u64 {
+        self.inner.topology_version()
+    }
+
+    #[getter]
+    fn nx(&self) -> usize {
+        self.inner.grid().nx
+    }
+
+    #[getter]
+    fn ny(&self) -> usize {
+        self.inner.grid().ny
+    }
+
+    #[getter]
+    fn num_particles(&self) -> usize {
+        self.inner.grid().len()
+    }
+
+    /// The scene with the run-time settings as they are now.
+    fn scene_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        scene_to_dict(py, self.inner.scene())
+    }
+}
+
+#[pymodule]
+fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PySimulation>()?;
+    m.add_function(wrap_pyfunction!(normalize_scene, m)?)?;
+    m.add_function(wrap_pyfunction!(scene_from_toml, m)?)?;
+    m.add_function(wrap_pyfunction!(scene_to_toml, m)?)?;
+    m.add_function(wrap_pyfunction!(builtin_scenes, m)?)?;
+    m.add_function(wrap_pyfunction!(builtin_scene, m)?)?;
+    m.add("INTEGRATORS", INTEGRATORS.to_vec())?;
+    Ok(())
+}

@@ -1,0 +1,481 @@
+//! The scene: everything that describes a simulation before it starts (cloth, forces,
+//! colliders, stepping). Read from TOML or, through the Python binding, from a dict with the
+//! same keys; validated in one place, [`Scene::validate`], so every caller gets the same errors.
+//!
+//! Units are SI throughout: metres, kilograms, seconds, newtons.
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{check_scalar, check_vector, Bound, Error, Result};
+use crate::grid::Grid;
+
+/// The time integrators the solver offers, by their scene names.
+pub const INTEGRATORS: &[&str] = &["explicit_euler", "symplectic_euler"];
+
+/// Upper bound on particles per scene: indices are exposed as `u32` and the triangle list must
+/// fit a GPU index buffer. 4096 x 4096 is far beyond interactive rates anyway.
+pub const MAX_PARTICLES: usize = 1 << 24;
+
+/// A whole scene. Field defaults are those of [`Scene::default`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Scene {
+    /// Time integrator, one of [`INTEGRATORS`]. Default `"symplectic_euler"`: as cheap as
+    /// explicit Euler, but its energy stays bounded instead of growing.
+    pub integrator: String,
+    /// Fixed time step in s. Default 0.001. Explicit integrators are stable only while
+    /// `dt / substeps * sqrt(4 (k_structural + k_shear + k_bend) / m)` stays below about 2.
+    /// Kept in f64 so that step counts and `time = steps * dt` are exact for decimal steps;
+    /// the solver steps in f32.
+    pub dt: f64,
+    /// Substeps per step: each step runs `substeps` steps of `dt / substeps`. Default 1. More
+    /// substeps buy stability with stiff springs at a proportional cost.
+    pub substeps: u32,
+    /// Gravitational acceleration in m/s^2. Default `[0, -9.81, 0]`; zero removes the pass.
+    pub gravity: [f32; 3],
+    /// Air drag coefficient in N s/m per particle, `f = -air_drag * v`. Default 0 (no pass).
+    pub air_drag: f32,
+    pub cloth: ClothSpec,
+    /// An infinite floor; absent means none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub floor: Option<FloorSpec>,
+    /// Spheres the cloth collides with; empty means none.
+    pub spheres: Vec<SphereSpec>,
+}
+
+/// The plane the cloth starts in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Plane {
+    /// Grid `i` along +x, `j` along +z: a horizontal sheet.
+    Xz,
+    /// Grid `i` along +x, `j` along +y: a vertical sheet.
+    Xy,
+}
+
+/// A pin: a named group of particles or one `[i, j]` grid position.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum PinSpec {
+    Named(String),
+    Cell([i64; 2]),
+}
+
+/// Names accepted in `cloth.pins`; "top" is the row `j = ny - 1`.
+pub const PIN_GROUPS: &[&str] = &[
+    "top_corners",
+    "bottom_corners",
+    "corners",
+    "top_edge",
+    "bottom_edge",
+    "left_edge",
+    "right_edge",
+    "center",
+];
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ClothSpec {
+    /// Particles along `i` (>= 2). Default 32.
+    pub nx: u32,
+    /// Particles along `j` (>= 2). Default 32.
+    pub ny: u32,
+    /// Extent along `i` and `j` in m. Default `[1, 1]`.
+    pub size: [f32; 2],
+    /// Centre of the cloth in m. Default `[0, 1, 0]`.
+    pub center: [f32; 3],
+    /// Starting plane. Default `"xz"`.
+    pub plane: Plane,
+    /// Mass of each particle in kg. Default 0.001 when `mass` is not given either.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub particle_mass: Option<f32>,
+    /// Total mass in kg, shared equally; give this or `particle_mass`, not both.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mass: Option<f32>,
+    /// Stiffness of the structural springs in N/m. Default 200. Zero removes the family.
+    /// Explicit integrators need `dt * sqrt(4 (k_structural + k_shear + k_bend) / m)` below
+    /// about 2; stiffer springs need a smaller `dt`, more substeps or `implicit_euler`.
+    pub k_structural: f32,
+    /// Stiffness of the shear springs in N/m. Default 50. Zero removes the family.
+    pub k_shear: f32,
+    /// Stiffness of the bending springs in N/m. Default 10. Zero removes the family.
+    pub k_bend: f32,
+    /// Damping along each spring in N s/m, `c ((v_b - v_a) . u) u`. Default 0.01. Damps
+    /// stretching oscillations without slowing rigid motion.
+    pub damping: f32,
+    /// Pinned particles. Default `["top_corners"]`.
+    pub pins: Vec<PinSpec>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FloorSpec {
+    /// Height of the floor plane (y) in m. Default 0.
+    pub height: f32,
+    /// Coulomb friction coefficient (dimensionless). Default 0.3.
+    pub friction: f32,
+    /// Particles are kept this far above the plane, in m. Default 0.002.
+    pub thickness: f32,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SphereSpec {
+    /// Centre in m. Default `[0, 0.5, 0]`.
+    pub center: [f32; 3],
+    /// Radius in m. Default 0.3.
+    pub radius: f32,
+    /// Coulomb friction coefficient. Default 0.2.
+    pub friction: f32,
+    /// Particles are kept this far outside the surface, in m. Default 0.002.
+    pub thickness: f32,
+}
+
+impl Default for Scene {
+    fn default() -> Self {
+        Scene {
+            integrator: "symplectic_euler".into(),
+            dt: 0.001,
+            substeps: 1,
+            gravity: [0.0, -9.81, 0.0],
+            air_drag: 0.0,
+            cloth: ClothSpec::default(),
+            floor: None,
+            spheres: Vec::new(),
+        }
+    }
+}
+
+impl Default for ClothSpec {
+    fn default() -> Self {
+        ClothSpec {
+            nx: 32,
+            ny: 32,
+            size: [1.0, 1.0],
+            center: [0.0, 1.0, 0.0],
+            plane: Plane::Xz,
+            particle_mass: None,
+            mass: None,
+            k_structural: 200.0,
+            k_shear: 50.0,
+            k_bend: 10.0,
+            damping: 0.01,
+            pins: vec![PinSpec::Named("top_corners".into())],
+        }
+    }
+}
+
+impl Default for FloorSpec {
+    fn default() -> Self {
+        FloorSpec {
+            height: 0.0,
+            friction: 0.3,
+            thickness: 0.002,
+        }
+    }
+}
+
+impl Default for SphereSpec {
+    fn default() -> Self {
+        SphereSpec {
+            center: [0.0, 0.5, 0.0],
+            radius: 0.3,
+            friction: 0.2,
+            thickness: 0.002,
+        }
+    }
+}
+
+/// Built-in scenes: name, TOML source. The files live in the repository's `scenes/`.
+const BUILTIN: &[(&str, &str)] = &[
+    ("hanging", include_str!("../scenes/hanging.toml")),
+    ("drape", include_str!("../scenes/drape.toml")),
+    ("freefall", include_str!("../scenes/freefall.toml")),
+    ("curtain", include_str!("../scenes/curtain.toml")),
+];
+
+impl Scene {
+    /// Parses and validates a TOML document.
+    pub fn from_toml_str(text: &str) -> Result<Scene> {
+        let deserializer = toml::de::Deserializer::parse(text)
+            .map_err(|e| Error::value("scene", format!("not valid TOML: {}", e.message())))?;
+        Self::from_deserializer(deserializer)
+    }
+
+    /// Builds and validates a scene from an already parsed TOML value (the binding converts a
+    /// Python dict into one).
+    pub fn from_toml_value(value: toml::Value) -> Result<Scene> {
+        Self::from_deserializer(value)
+    }
+
+    fn from_deserializer<'de, D>(deserializer: D) -> Result<Scene>
+    where
+        D: serde::Deserializer<'de, Error = toml::de::Error>,
+    {
+        let scene: Scene = serde_path_to_error::deserialize(deserializer).map_err(|e| {
+            let path = e.path().to_string();
+            let name = if path == "." {
+                "scene".to_string()
+            } else {
+                path
+            };
+            let message = e.inner().message().to_string();
+            // serde reports a value of the wrong kind as "invalid type: ..."; everything else
+            // (unknown keys, out-of-range integers, unknown variants) is a bad value.
+            if message.starts_with("invalid type") {
+                Error::InvalidType { name, message }
+            } else {
+                Error::InvalidValue { name, message }
+            }
+        })?;
+        scene.validate()?;
+        Ok(scene)
+    }
+
+    /// Serialises to TOML with every key spelled out.
+    pub fn to_toml_string(&self) -> String {
+        toml::to_string(self).expect("a validated scene always serialises")
+    }
+
+    /// The built-in scene called `name`.
+    pub fn builtin(name: &str) -> Result<Scene> {
+        match BUILTIN.iter().find(|(n, _)| *n == name) {
+            Some((_, text)) => Scene::from_toml_str(text),
+            None => Err(Error::value(
+                "name",
+                format!(
+                    "unknown scene {name:?}; built-in scenes are {:?}",
+                    Self::builtin_names()
+                ),
+            )),
+        }
+    }
+
+    pub fn builtin_names() -> Vec<&'static str> {
+        BUILTIN.iter().map(|(n, _)| *n).collect()
+    }
+
+    pub fn grid(&self) -> Grid {
+        Grid {
+            nx: self.cloth.nx as usize,
+            ny: self.cloth.ny as usize,
+        }
+    }
+
+    /// Mass of each particle in kg.
+    pub fn particle_mass(&self) -> f32 {
+        match (self.cloth.particle_mass, self.cloth.mass) {
+            (Some(m), _) => m,
+            (None, Some(total)) => total / self.grid().len() as f32,
+            (None, None) => 0.001,
+        }
+    }
+
+    /// Checks every value; the error names the first offending parameter and its value.
+    pub fn validate(&self) -> Result<()> {
+        if !INTEGRATORS.contains(&self.integrator.as_str()) {
+            return Err(Error::value(
+                "integrator",
+                format!(
+                    "unknown integrator {:?}; valid ones are {INTEGRATORS:?}",
+                    self.integrator
+                ),
+            ));
+        }
+        check_scalar("dt", self.dt, Bound::Positive)?;
+        if self.substeps == 0 {
+            return Err(Error::value("substeps", "must be an integer >= 1, got 0"));
+        }
+        check_vector("gravity", &self.gravity, Bound::Any)?;
+        check_scalar("air_drag", self.air_drag, Bound::NonNegative)?;
+        self.cloth.validate()?;
+        if let Some(floor) = &self.floor {
+            check_scalar("floor.height", floor.height, Bound::Any)?;
+            check_scalar("floor.friction", floor.friction, Bound::NonNegative)?;
+            check_scalar("floor.thickness", floor.thickness, Bound::NonNegative)?;
+        }
+        for (s, sphere) in self.spheres.iter().enumerate() {
+            check_vector(&format!("spheres[{s}].center"), &sphere.center, Bound::Any)?;
+            check_scalar(
+                &format!("spheres[{s}].radius"),
+                sphere.radius,
+                Bound::Positive,
+            )?;
+            check_scalar(
+                &format!("spheres[{s}].friction"),
+                sphere.friction,
+                Bound::NonNegative,
+            )?;
+            check_scalar(
+                &format!("spheres[{s}].thickness"),
+                sphere.thickness,
+                Bound::NonNegative,
+            )?;
+        }
+        Ok(())
+    }
+}
+
+impl ClothSpec {
+    fn validate(&self) -> Result<()> {
+        for (name, n) in [("cloth.nx", self.nx), ("cloth.ny", self.ny)] {
+            if n < 2 {
+                return Err(Error::value(
+                    name,
+                    format!("must be an integer >= 2, got {n}"),
+                ));
+            }
+        }
+        let count = self.nx as usize * self.ny as usize;
+        if count > MAX_PARTICLES {
+            return Err(Error::value(
+                "cloth.nx",
+                format!(
+                    "nx * ny = {} * {} = {count} particles exceeds the limit of {MAX_PARTICLES}",
+                    self.nx, self.ny
+                ),
+            ));
+        }
+        check_vector("cloth.size", &self.size, Bound::Positive)?;
+        check_vector("cloth.center", &self.center, Bound::Any)?;
+        match (self.particle_mass, self.mass) {
+            (Some(_), Some(_)) => {
+                return Err(Error::value(
+                    "cloth.mass",
+                    "give either cloth.particle_mass or cloth.mass (the total), not both",
+                ))
+            }
+            (Some(m), None) => check_scalar("cloth.particle_mass", m, Bound::Positive)?,
+            (None, Some(m)) => check_scalar("cloth.mass", m, Bound::Positive)?,
+            (None, None) => {}
+        }
+        check_scalar("cloth.k_structural", self.k_structural, Bound::NonNegative)?;
+        check_scalar("cloth.k_shear", self.k_shear, Bound::NonNegative)?;
+        check_scalar("cloth.k_bend", self.k_bend, Bound::NonNegative)?;
+        check_scalar("cloth.damping", self.damping, Bound::NonNegative)?;
+        let grid = Grid {
+            nx: self.nx as usize,
+            ny: self.ny as usize,
+        };
+        for (n, pin) in self.pins.iter().enumerate() {
+            pin_indices(pin, grid).map_err(|e| match e {
+                Error::InvalidValue { message, .. } => {
+                    Error::value(format!("cloth.pins[{n}]"), message)
+                }
+                other => other,
+            })?;
+        }
+        Ok(())
+    }
+
+    /// Every pinned particle index, sorted and without repeats.
+    pub fn pinned_indices(&self) -> Vec<usize> {
+        let grid = Grid {
+            nx: self.nx as usize,
+            ny: self.ny as usize,
+        };
+        let mut out: Vec<usize> = self
+            .pins
+            .iter()
+            .flat_map(|pin| pin_indices(pin, grid).unwrap_or_default())
+            .collect();
+        out.sort_unstable();
+        out.dedup();
+        out
+    }
+}
+
+/// The particles a pin entry names.
+fn pin_indices(pin: &PinSpec, grid: Grid) -> Result<Vec<usize>> {
+    let (nx, ny) = (grid.nx, grid.ny);
+    let (last_i, last_j) = (nx - 1, ny - 1);
+    let row = |j: usize| (0..nx).map(move |i| grid.index(i, j));
+    let column = |i: usize| (0..ny).map(move |j| grid.index(i, j));
+    Ok(match pin {
+        PinSpec::Cell([i, j]) => {
+            let inside = (0..nx as i64).contains(i) && (0..ny as i64).contains(j);
+            if !inside {
+                return Err(Error::value(
+                    "pins",
+                    format!("[{i}, {j}] is outside the {nx} x {ny} grid"),
+                ));
+            }
+            vec![grid.index(*i as usize, *j as usize)]
+        }
+        PinSpec::Named(name) => match name.as_str() {
+            "top_corners" => vec![grid.index(0, last_j), grid.index(last_i, last_j)],
+            "bottom_corners" => vec![grid.index(0, 0), grid.index(last_i, 0)],
+            "corners" => vec![
+                grid.index(0, 0),
+                grid.index(last_i, 0),
+                grid.index(0, last_j),
+                grid.index(last_i, last_j),
+            ],
+            "top_edge" => row(last_j).collect(),
+            "bottom_edge" => row(0).collect(),
+            "left_edge" => column(0).collect(),
+            "right_edge" => column(last_i).collect(),
+            "center" => vec![grid.index(nx / 2, ny / 2)],
+            other => {
+                return Err(Error::value(
+                    "pins",
+                    format!("unknown pin group {other:?}; valid ones are {PIN_GROUPS:?} or [i, j]"),
+                ))
+            }
+        },
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_validate_and_round_trip_through_toml() {
+        let scene = Scene::default();
+        scene.validate().unwrap();
+        let again = Scene::from_toml_str(&scene.to_toml_string()).unwrap();
+        assert_eq!(scene, again);
+    }
+
+    #[test]
+    fn every_builtin_scene_parses() {
+        for name in Scene::builtin_names() {
+            Scene::builtin(name).unwrap_or_else(|e| panic!("{name}: {e}"));
+        }
+    }
+
+    #[test]
+    fn errors_name_the_parameter_and_value() {
+        let err = Scene::from_toml_str("dt = -1.0").unwrap_err();
+        assert_eq!(
+            err,
+            Error::value("dt", "must be a finite number > 0, got -1")
+        );
+        let err = Scene::from_toml_str("[cloth]\nk_shear = nan").unwrap_err();
+        assert!(err.to_string().contains("cloth.k_shear"), "{err}");
+        let err = Scene::from_toml_str("[cloth]\nnx = \"many\"").unwrap_err();
+        assert!(
+            matches!(err, Error::InvalidType { ref name, .. } if name == "cloth.nx"),
+            "{err}"
+        );
+        let err = Scene::from_toml_str("[cloth]\nwidth = 3").unwrap_err();
+        assert!(err.to_string().contains("unknown field `width`"), "{err}");
+        let err = Scene::from_toml_str("[cloth]\npins = [[40, 0]]").unwrap_err();
+        assert!(err.to_string().starts_with("cloth.pins[0]"), "{err}");
+        let err = Scene::from_toml_str("[cloth]\nmass = 1.0\nparticle_mass = 0.1").unwrap_err();
+        assert!(err.to_string().contains("not both"), "{err}");
+    }
+
+    #[test]
+    fn named_pins_pick_the_documented_particles() {
+        let mut cloth = ClothSpec {
+            nx: 4,
+            ny: 3,
+            ..Default::default()
+        };
+        assert_eq!(cloth.pinned_indices(), vec![8, 11]);
+        cloth.pins = vec![PinSpec::Named("left_edge".into()), PinSpec::Cell([3, 0])];
+        assert_eq!(cloth.pinned_indices(), vec![0, 3, 4, 8]);
+    }
+}

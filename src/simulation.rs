@@ -1,0 +1,703 @@
+//! The simulation: a scene compiled into a pipeline of passes, and the state it steps.
+//!
+//! One step of `dt` is `substeps` substeps of `h = dt / substeps`, each running these passes in
+//! order, only those the scene needs:
+//!
+//! 1. forces (gravity, air drag, each spring family), evaluated by the integrator as often as
+//!    its scheme needs;
+//! 2. the integrator, writing the end-of-step state into a second buffer;
+//! 3. kinematic pins (while the user drags a pinned particle);
+//! 4. colliders (spheres, then the floor).
+//!
+//! The buffers are swapped only when the integrator reports a finite result, so a step that
+//! diverges leaves the previous state in place.
+
+use std::time::Instant;
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use crate::collisions::{Collider, Floor, Spheres};
+use crate::error::{check_scalar, Bound, Error, Result};
+use crate::forces::{AirDrag, ForceInput, ForceModel, ForceTerm, Gravity, SpringForce, Springs};
+use crate::grid::{Family, Grid, SpringKind};
+use crate::integrators::{self, Integrator, StepContext};
+use crate::pins::KinematicPins;
+use crate::profile::Profile;
+use crate::scene::{Plane, Scene};
+use crate::soa::Vec3s;
+use crate::state::{Kinematics, Particles};
+
+/// Fewest particles per parallel work item: below this, scheduling costs more than it saves.
+const MIN_CHUNK: usize = 2048;
+
+/// Requested time within this fraction of a step of the next step boundary counts as reaching
+/// it, so that `advance` sums of frame times (1/60 s sixty times) land on the same whole number
+/// of steps as one call with their exact total. Far above f64 rounding, far below any real
+/// frame-time difference.
+const ADVANCE_TOLERANCE: f64 = 1e-6;
+
+/// Kinetic, gravitational potential and elastic energy in J.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Energy {
+    pub kinetic: f64,
+    /// `-sum m g . x`, zero at the origin.
+    pub gravitational: f64,
+    /// `sum k (l - L)^2 / 2` over the springs of the active families.
+    pub elastic: f64,
+}
+
+impl Energy {
+    pub fn total(&self) -> f64 {
+        self.kinetic + self.gravitational + self.elastic
+    }
+}
+
+/// The passes a scene compiles into.
+struct Pipeline {
+    forces: ForceModel,
+    integrator: Box<dyn Integrator>,
+    colliders: Vec<Box<dyn Collider>>,
+}
+
+impl Pipeline {
+    fn compile(scene: &Scene) -> Result<Pipeline> {
+        let mut terms: Vec<Box<dyn ForceTerm>> = Vec::new();
+        let g = Vec3::from(scene.gravity);
+        if g != Vec3::ZERO {
+            terms.push(Box::new(Gravity { g }));
+        }
+        if scene.air_drag > 0.0 {
+            terms.push(Box::new(AirDrag { c: scene.air_drag }));
+        }
+        let cloth = &scene.cloth;
+        for (family, k) in [
+            (Family::Structural, cloth.k_structural),
+            (Family::Shear, cloth.k_shear),
+            (Family::Bend, cloth.k_bend),
+        ] {
+            if k > 0.0 {
+                terms.push(Box::new(SpringForce {
+                    family,
+                    k,
+                    c: cloth.damping,
+                }));
+            }
+        }
+        let mut colliders: Vec<Box<dyn Collider>> = Vec::new();
+        if !scene.spheres.is_empty() {
+            colliders.push(Box::new(Spheres::new(&scene.spheres)));
+        }
+        if let Some(floor) = &scene.floor {
+            colliders.push(Box::new(Floor {
+                height: floor.height,
+                friction: floor.friction,
+                thickness: floor.thickness,
+            }));
+        }
+        Ok(Pipeline {
+            forces: ForceModel::new(terms),
+            integrator: integrators::by_name(&scene.integrator)?,
+            colliders,
+        })
+    }
+}
+
+/// Data derived from the state on request and kept until the state changes.
+#[derive(Default)]
+struct Derived {
+    normals: Vec3s,
+    normals_valid: bool,
+    triangles: Vec<[u32; 3]>,
+    triangles_valid: bool,
+}
+
+/// A running cloth simulation.
+pub struct Simulation {
+    scene: Scene,
+    grid: Grid,
+    particles: Particles,
+    springs: Springs,
+    /// The state at the current time.
+    state: Kinematics,
+    /// Where each substep writes its result; swapped with `state` when it is finite.
+    scratch: Kinematics,
+    /// Copy of the state at the start of a step, kept only with several substeps.
+    step_start: Option<Kinematics>,
+    force: Vec3s,
+    pipeline: Pipeline,
+    pins: KinematicPins,
+    steps: u64,
+    /// Requested but not yet simulated time, in s.
+    accumulator: f64,
+    profile: Profile,
+    derived: Derived,
+    topology_version: u64,
+}
+
+impl Simulation {
+    /// Builds the cloth the scene describes, at rest.
+    pub fn new(scene: Scene) -> Result<Simulation> {
+        scene.validate()?;
+        let grid = scene.grid();
+        let n = grid.len();
+        let state = Kinematics {
+            pos: initial_positions(&scene),
+            vel: Vec3s::zeros(n),
+        };
+        let springs = Springs::new(grid, &state.pos);
+        let mut particles = Particles::new(n, scene.particle_mass());
+        for p in scene.cloth.pinned_indices() {
+            particles.pinned[p] = true;
+            particles.refresh(p);
+        }
+        let pipeline = Pipeline::compile(&scene)?;
+        let step_start = (scene.substeps > 1).then(|| Kinematics::zeros(n));
+        Ok(Simulation {
+            grid,
+            particles,
+            springs,
+            scratch: Kinematics::zeros(n),
+            step_start,
+            state,
+            force: Vec3s::zeros(n),
+            pipeline,
+            pins: KinematicPins::default(),
+            steps: 0,
+            accumulator: 0.0,
+            profile: Profile::default(),
+            derived: Derived::default(),
+            topology_version: 0,
+            scene,
+        })
+    }
+
+    // ----- stepping -------------------------------------------------------------------------
+
+    /// Advances exactly `n` steps of `dt`. If a step produces a non-finite state, the state
+    /// from before that step is kept and [`Error::Diverged`] names the step and the particle.
+    pub fn step(&mut self, n: u64) -> Result<()> {
+        on_pool(|| (0..n).try_for_each(|_| self.step_once()))
+    }
+
+    /// Adds `seconds` of requested time and runs the whole steps it covers, carrying the
+    /// remainder to the next call; returns the steps taken. The result depends only on the total
+    /// time requested, not on how it was split into calls.
+    pub fn advance(&mut self, seconds: f64) -> Result<u64> {
+        if !(seconds.is_finite() && seconds >= 0.0) {
+            return Err(Error::value(
+                "seconds",
+                format!("must be a finite number >= 0, got {seconds}"),
+            ));
+        }
+        let dt = self.scene.dt;
+        let pending = self.accumulator + seconds;
+        let n = (pending / dt + ADVANCE_TOLERANCE).floor().max(0.0) as u64;
+        let mut taken = 0;
+        let outcome = on_pool(|| {
+            while taken < n {
+                self.step_once()?;
+                taken += 1;
+            }
+            Ok(())
+        });
+        self.accumulator = pending - taken as f64 * dt;
+        outcome.map(|()| n)
+    }
+
+    fn step_once(&mut self) -> Result<()> {
+        let started = Instant::now();
+        let substeps = self.scene.substeps;
+        let h = (self.scene.dt / substeps as f64) as f32;
+        if let Some(backup) = &mut self.step_start {
+            backup.copy_from(&self.state);
+        }
+        for _ in 0..substeps {
+            if !self.substep(h) {
+                let particle = first_non_finite(&self.scratch).unwrap_or(0);
+                if let Some(backup) = &self.step_start {
+                    self.state.copy_from(backup);
+                }
+                self.invalidate_state();
+                return Err(Error::Diverged {
+                    step: self.steps + 1,
+                    particle,
+                });
+            }
+        }
+        self.steps += 1;
+        self.profile.steps += 1;
+        self.invalidate_state();
+        self.profile.total += started.elapsed();
+        Ok(())
+    }
+
+    /// One substep of length `h`; false (and `state` untouched) if it came out non-finite.
+    fn substep(&mut self, h: f32) -> bool {
+        let chunk = chunk_len(self.grid.len());
+        let pipeline = &mut self.pipeline;
+        let started = Instant::now();
+        let forces_before = self.profile.force_time;
+        let mut ctx = StepContext {
+            grid: self.grid,
+            current: &self.state,
+            next: &mut self.scratch,
+            particles: &self.particles,
+            springs: &self.springs,
+            forces: &pipeline.forces,
+            force: &mut self.force,
+            chunk,
+            profile: &mut self.profile,
+        };
+        let finite = pipeline.integrator.step(h, &mut ctx);
+        let own_time = started
+            .elapsed()
+            .saturating_sub(self.profile.force_time - forces_before);
+        self.profile.add(pipeline.integrator.name(), own_time);
+        if !finite {
+            return false;
+        }
+        if !self.pins.is_empty() {
+            let t = Instant::now();
+            self.pins.apply(h, &self.state, &mut self.scratch);
+            self.profile.add(KinematicPins::NAME, t.elapsed());
+        }
+        for collider in &pipeline.colliders {
+            let t = Instant::now();
+            collider.resolve(&self.state, &mut self.scratch, &self.particles, chunk);
+            self.profile.add(collider.name(), t.elapsed());
+        }
+        std::mem::swap(&mut self.state, &mut self.scratch);
+        true
+    }
+
+    fn invalidate_state(&mut self) {
+        self.derived.normals_valid = false;
+    }
+
+    fn invalidate_topology(&mut self) {
+        self.derived.triangles_valid = false;
+        self.topology_version += 1;
+    }
+
+    // ----- reading the state ----------------------------------------------------------------
+
+    pub fn grid(&self) -> Grid {
+        self.grid
+    }
+
+    /// The scene, with the run-time settings (integrator, substeps) as they are now.
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    pub fn positions(&self) -> &Vec3s {
+        &self.state.pos
+    }
+
+    pub fn velocities(&self) -> &Vec3s {
+        &self.state.vel
+    }
+
+    pub fn particles(&self) -> &Particles {
+        &self.particles
+    }
+
+    pub fn springs(&self) -> &Springs {
+        &self.springs
+    }
+
+    pub fn steps(&self) -> u64 {
+        self.steps
+    }
+
+    /// Simulated time in s: `steps * dt`, exact in the step count rather than accumulated.
+    pub fn time(&self) -> f64 {
+        self.steps as f64 * self.scene.dt
+    }
+
+    pub fn dt(&self) -> f64 {
+        self.scene.dt
+    }
+
+    /// The passes a step runs, in order.
+    pub fn effects(&self) -> Vec<&'static str> {
+        let mut out: Vec<&'static str> = self.pipeline.forces.names().collect();
+        out.push(self.pipeline.integrator.name());
+        if !self.pins.is_empty() {
+            out.push(KinematicPins::NAME);
+        }
+        out.extend(self.pipeline.colliders.iter().map(|c| c.name()));
+        out
+    }
+
+    pub fn profile(&self) -> &Profile {
+        &self.profile
+    }
+
+    /// Increments whenever the triangle list changes (a cut).
+    pub fn topology_version(&self) -> u64 {
+        self.topology_version
+    }
+
+    /// Energy of the current state.
+    pub fn energy(&self) -> Energy {
+        let g = Vec3::from(self.scene.gravity);
+        let (pos, vel, particles) = (&self.state.pos, &self.state.vel, &self.particles);
+        let (kinetic, gravitational) = (0..self.grid.len())
+            .into_par_iter()
+            .with_min_len(MIN_CHUNK)
+            .filter(|&p| particles.alive[p])
+            .map(|p| {
+                let m = particles.mass[p] as f64;
+                (
+                    0.5 * m * vel.get(p).length_squared() as f64,
+                    -m * g.dot(pos.get(p)) as f64,
+                )
+            })
+            .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+        let mut elastic = 0.0;
+        for family in Family::ALL {
+            let k = self.family_stiffness(family) as f64;
+            if k == 0.0 {
+                continue;
+            }
+            for kind in family.kinds() {
+                self.springs.for_each(self.grid, kind, |a, b, rest| {
+                    let stretch = (pos.get(b) - pos.get(a)).length() as f64 - rest as f64;
+                    elastic += 0.5 * k * stretch * stretch;
+                });
+            }
+        }
+        Energy {
+            kinetic,
+            gravitational,
+            elastic,
+        }
+    }
+
+    fn family_stiffness(&self, family: Family) -> f32 {
+        let cloth = &self.scene.cloth;
+        match family {
+            Family::Structural => cloth.k_structural,
+            Family::Shear => cloth.k_shear,
+            Family::Bend => cloth.k_bend,
+        }
+    }
+
+    /// Per particle, the largest relative stretch `l / L - 1` of the live springs of the active
+    /// families that touch it (0 for a particle with none).
+    pub fn spring_strain(&self) -> Vec<f32> {
+        let mut strain = vec![0.0f32; self.grid.len()];
+        let pos = &self.state.pos;
+        for family in Family::ALL
+            .into_iter()
+            .filter(|&f| self.family_stiffness(f) > 0.0)
+        {
+            for kind in family.kinds() {
+                self.springs.for_each(self.grid, kind, |a, b, rest| {
+                    if rest > 0.0 {
+                        let s = (pos.get(b) - pos.get(a)).length() / rest - 1.0;
+                        strain[a] = strain[a].max(s);
+                        strain[b] = strain[b].max(s);
+                    }
+                });
+            }
+        }
+        strain
+    }
+
+    /// The largest relative stretch `l / L - 1` over all live springs.
+    pub fn max_stretch(&self) -> f32 {
+        self.spring_strain().into_iter().fold(0.0, f32::max)
+    }
+
+    /// The triangles of the live cloth, two per grid cell, computed on first request after a
+    /// change of topology.
+    pub fn triangles(&mut self) -> &[[u32; 3]] {
+        if !self.derived.triangles_valid {
+            self.derived.triangles = self.grid.triangles(&self.particles.alive);
+            self.derived.triangles_valid = true;
+        }
+        &self.derived.triangles
+    }
+
+    /// Unit vertex normals (area-weighted average of the incident live triangles), computed on
+    /// first request after the state changed. A particle with no live triangle gets `e_i x e_j`
+    /// of the starting plane.
+    pub fn normals(&mut self) -> &Vec3s {
+        if !self.derived.normals_valid {
+            let fallback = plane_axes(self.scene.cloth.plane);
+            let fallback = fallback.0.cross(fallback.1);
+            let (grid, pos, alive) = (self.grid, &self.state.pos, &self.particles.alive);
+            let normals = &mut self.derived.normals;
+            if normals.len() != grid.len() {
+                *normals = Vec3s::zeros(grid.len());
+            }
+            let chunk = chunk_len(grid.len());
+            normals
+                .par_chunks_mut(chunk)
+                .enumerate()
+                .for_each(|(c, mut out)| {
+                    for i in 0..out.len() {
+                        let n = vertex_normal(grid, pos, alive, c * chunk + i);
+                        out.set(i, n.try_normalize().unwrap_or(fallback));
+                    }
+                });
+            self.derived.normals_valid = true;
+        }
+        &self.derived.normals
+    }
+
+    /// Heap memory held by the simulation, in bytes.
+    pub fn memory_bytes(&self) -> usize {
+        self.state.heap_bytes()
+            + self.scratch.heap_bytes()
+            + self.step_start.as_ref().map_or(0, Kinematics::heap_bytes)
+            + self.force.heap_bytes()
+            + self.particles.heap_bytes()
+            + self.springs.heap_bytes()
+            + self.derived.normals.heap_bytes()
+            + self.derived.triangles.capacity() * size_of::<[u32; 3]>()
+    }
+
+    // ----- changing the state ---------------------------------------------------------------
+
+    /// Replaces every position (m). Rejects non-finite values, changing nothing.
+    pub fn set_positions(&mut self, pos: &Vec3s) -> Result<()> {
+        self.check_state_array("positions", pos)?;
+        self.state.pos.copy_from(pos);
+        self.invalidate_state();
+        Ok(())
+    }
+
+    /// Replaces every velocity (m/s). Rejects non-finite values, changing nothing. Particles
+    /// that cannot move (pinned, cut) keep zero velocity.
+    pub fn set_velocities(&mut self, vel: &Vec3s) -> Result<()> {
+        self.check_state_array("velocities", vel)?;
+        self.state.vel.copy_from(vel);
+        for p in 0..self.grid.len() {
+            if !self.particles.is_dynamic(p) {
+                self.state.vel.set(p, Vec3::ZERO);
+            }
+        }
+        self.invalidate_state();
+        Ok(())
+    }
+
+    fn check_state_array(&self, name: &str, values: &Vec3s) -> Result<()> {
+        let n = self.grid.len();
+        if values.len() != n || values.y.len() != n || values.z.len() != n {
+            return Err(Error::value(
+                name,
+                format!("must hold {n} vectors, got {}", values.len()),
+            ));
+        }
+        if let Some(p) = (0..n).find(|&p| !values.get(p).is_finite()) {
+            return Err(Error::value(
+                name,
+                format!("row {p} is not finite: {:?}", values.get(p).to_array()),
+            ));
+        }
+        Ok(())
+    }
+
+    fn check_index(&self, name: &str, index: i64) -> Result<usize> {
+        let n = self.grid.len();
+        if (0..n as i64).contains(&index) {
+            Ok(index as usize)
+        } else {
+            Err(Error::index(name, index, n))
+        }
+    }
+
+    /// Pins particle `index`: it stops and integration no longer moves it. With a `target`
+    /// (m), the particle moves there over the next step and stays (a kinematic pin); calling
+    /// again with a new target drags it.
+    pub fn pin(&mut self, index: i64, target: Option<Vec3>) -> Result<()> {
+        let p = self.check_index("index", index)?;
+        if let Some(t) = target {
+            if !t.is_finite() {
+                return Err(Error::value(
+                    "target",
+                    format!("must be finite, got {:?}", t.to_array()),
+                ));
+            }
+        }
+        if !self.particles.alive[p] {
+            return Err(Error::value(
+                "index",
+                format!("particle {p} was cut and cannot be pinned"),
+            ));
+        }
+        self.particles.pinned[p] = true;
+        self.particles.refresh(p);
+        match target {
+            Some(t) => self.pins.set(p, t),
+            None => {
+                self.pins.remove(p);
+                self.state.vel.set(p, Vec3::ZERO);
+            }
+        }
+        Ok(())
+    }
+
+    /// Releases particle `index`; it keeps its current velocity. Unpinning a particle that is
+    /// not pinned does nothing.
+    pub fn unpin(&mut self, index: i64) -> Result<()> {
+        let p = self.check_index("index", index)?;
+        self.particles.pinned[p] = false;
+        self.particles.refresh(p);
+        self.pins.remove(p);
+        Ok(())
+    }
+
+    /// Removes particle `index` and every spring touching it from the cloth; its triangles
+    /// leave the mesh. Cutting a particle twice does nothing the second time.
+    pub fn cut(&mut self, index: i64) -> Result<()> {
+        let p = self.check_index("index", index)?;
+        if !self.particles.alive[p] {
+            return Ok(());
+        }
+        self.particles.alive[p] = false;
+        self.particles.pinned[p] = false;
+        self.particles.refresh(p);
+        self.pins.remove(p);
+        self.state.vel.set(p, Vec3::ZERO);
+        self.springs.remove_particle(self.grid, p);
+        self.invalidate_topology();
+        self.invalidate_state();
+        Ok(())
+    }
+
+    /// Switches the integrator at run time; the state carries over.
+    pub fn set_integrator(&mut self, name: &str) -> Result<()> {
+        self.pipeline.integrator = integrators::by_name(name)?;
+        self.scene.integrator = name.to_string();
+        Ok(())
+    }
+
+    /// Changes the number of substeps per step (>= 1).
+    pub fn set_substeps(&mut self, substeps: i64) -> Result<()> {
+        if !(1..=u32::MAX as i64).contains(&substeps) {
+            return Err(Error::value(
+                "substeps",
+                format!("must be an integer >= 1, got {substeps}"),
+            ));
+        }
+        self.scene.substeps = substeps as u32;
+        if substeps > 1 && self.step_start.is_none() {
+            self.step_start = Some(Kinematics::zeros(self.grid.len()));
+        }
+        Ok(())
+    }
+
+    /// Changes the time step (s, > 0); the carried remainder of `advance` is kept in seconds.
+    pub fn set_dt(&mut self, dt: f64) -> Result<()> {
+        check_scalar("dt", dt, Bound::Positive)?;
+        self.scene.dt = dt;
+        Ok(())
+    }
+
+    /// Back to the scene's starting state (keeping the run-time integrator and substeps).
+    pub fn reset(&mut self) -> Result<()> {
+        *self = Simulation::new(self.scene.clone())?;
+        Ok(())
+    }
+}
+
+/// Runs `f` on a thread of rayon's pool, so that the parallel loops of every pass inside it
+/// fork from a worker (cheap) instead of each being injected into the pool from outside (a
+/// cross-thread wake-up per pass, which dominates the step of a small cloth).
+fn on_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
+    rayon::scope(|_| f())
+}
+
+/// Particles per parallel work item for `n` particles: about four items per thread, so the
+/// load balances, but never so small that scheduling dominates.
+fn chunk_len(n: usize) -> usize {
+    let per_thread = n.div_ceil(4 * rayon::current_num_threads());
+    per_thread.max(MIN_CHUNK)
+}
+
+fn plane_axes(plane: Plane) -> (Vec3, Vec3) {
+    match plane {
+        Plane::Xz => (Vec3::X, Vec3::Z),
+        Plane::Xy => (Vec3::X, Vec3::Y),
+    }
+}
+
+/// `center + (i/(nx-1) - 1/2) size[0] e1 + (j/(ny-1) - 1/2) size[1] e2`.
+fn initial_positions(scene: &Scene) -> Vec3s {
+    let grid = scene.grid();
+    let cloth = &scene.cloth;
+    let (e1, e2) = plane_axes(cloth.plane);
+    let center = Vec3::from(cloth.center);
+    Vec3s::from_fn(grid.len(), |p| {
+        let (i, j) = grid.coords(p);
+        let u = i as f32 / (grid.nx - 1) as f32 - 0.5;
+        let v = j as f32 / (grid.ny - 1) as f32 - 0.5;
+        center + u * cloth.size[0] * e1 + v * cloth.size[1] * e2
+    })
+}
+
+/// Sum of the area-weighted normals of the live triangles around particle `p`; see
+/// [`Grid::triangles`] for the split of each cell into `(a, b, d)` and `(a, d, c)`.
+fn vertex_normal(grid: Grid, pos: &Vec3s, alive: &[bool], p: usize) -> Vec3 {
+    let (i, j) = grid.coords(p);
+    let mut sum = Vec3::ZERO;
+    let mut add = |tri: [usize; 3]| {
+        if tri.iter().all(|&q| alive[q]) {
+            let (a, b, c) = (pos.get(tri[0]), pos.get(tri[1]), pos.get(tri[2]));
+            sum += (b - a).cross(c - a);
+        }
+    };
+    // The four cells with p as a corner, by the cell's lower-left corner (ci, cj).
+    for (di, dj) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+        if i < di || j < dj || i - di + 1 >= grid.nx || j - dj + 1 >= grid.ny {
+            continue;
+        }
+        let a = grid.index(i - di, j - dj);
+        let (b, c) = (a + 1, a + grid.nx);
+        let d = c + 1;
+        if p != c {
+            add([a, b, d]); // p is a, b or d
+        }
+        if p != b {
+            add([a, d, c]); // p is a, d or c
+        }
+    }
+    sum
+}
+
+/// The first particle whose position or velocity is not finite.
+fn first_non_finite(state: &Kinematics) -> Option<usize> {
+    (0..state.pos.len()).find(|&p| !(state.pos.get(p).is_finite() && state.vel.get(p).is_finite()))
+}
+
+/// Every spring of the stencil as `(anchor, partner, kind)`; for tests and reference code.
+pub fn stencil(grid: Grid) -> Vec<(usize, usize, SpringKind)> {
+    SpringKind::ALL
+        .into_iter()
+        .flat_map(|kind| {
+            (0..grid.len()).filter_map(move |p| grid.partner(p, kind).map(|q| (p, q, kind)))
+        })
+        .collect()
+}
+
+/// Total force on each particle of the current state, for tests and diagnostics.
+pub fn total_force(sim: &Simulation) -> Vec3s {
+    let mut out = Vec3s::zeros(sim.grid.len());
+    let input = ForceInput {
+        grid: sim.grid,
+        pos: &sim.state.pos,
+        vel: &sim.state.vel,
+        mass: &sim.particles.mass,
+        springs: &sim.springs,
+    };
+    let mut scratch = Profile::default();
+    sim.pipeline
+        .forces
+        .evaluate(&input, &mut out, chunk_len(sim.grid.len()), &mut scratch);
+    out
+}

@@ -1,0 +1,164 @@
+//! Structure-of-arrays storage for per-particle 3-vectors.
+//!
+//! The hot loops run over one component at a time for many particles, so each component is its
+//! own contiguous `f32` array: the compiler vectorises across particles, and row slices of the
+//! grid map straight onto slices of these arrays. glam's `Vec3` is the interface for scalar code.
+
+use glam::Vec3;
+
+/// `n` 3-vectors stored as three arrays.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Vec3s {
+    pub x: Vec<f32>,
+    pub y: Vec<f32>,
+    pub z: Vec<f32>,
+}
+
+impl Vec3s {
+    pub fn zeros(n: usize) -> Self {
+        Vec3s {
+            x: vec![0.0; n],
+            y: vec![0.0; n],
+            z: vec![0.0; n],
+        }
+    }
+
+    pub fn from_fn(n: usize, mut f: impl FnMut(usize) -> Vec3) -> Self {
+        let mut out = Self::zeros(n);
+        for i in 0..n {
+            out.set(i, f(i));
+        }
+        out
+    }
+
+    pub fn len(&self) -> usize {
+        self.x.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.x.is_empty()
+    }
+
+    #[inline]
+    pub fn get(&self, i: usize) -> Vec3 {
+        Vec3::new(self.x[i], self.y[i], self.z[i])
+    }
+
+    #[inline]
+    pub fn set(&mut self, i: usize, v: Vec3) {
+        self.x[i] = v.x;
+        self.y[i] = v.y;
+        self.z[i] = v.z;
+    }
+
+    pub fn fill(&mut self, v: Vec3) {
+        self.x.fill(v.x);
+        self.y.fill(v.y);
+        self.z.fill(v.z);
+    }
+
+    pub fn copy_from(&mut self, other: &Vec3s) {
+        self.x.copy_from_slice(&other.x);
+        self.y.copy_from_slice(&other.y);
+        self.z.copy_from_slice(&other.z);
+    }
+
+    /// Interleaves into `out` as `[x0, y0, z0, x1, ...]`, the layout of an `(N, 3)` array.
+    pub fn write_interleaved(&self, out: &mut [f32]) {
+        for (i, p) in out.chunks_exact_mut(3).enumerate() {
+            p[0] = self.x[i];
+            p[1] = self.y[i];
+            p[2] = self.z[i];
+        }
+    }
+
+    /// The inverse of [`Vec3s::write_interleaved`].
+    pub fn read_interleaved(&mut self, data: &[f32]) {
+        for (i, p) in data.chunks_exact(3).enumerate() {
+            self.x[i] = p[0];
+            self.y[i] = p[1];
+            self.z[i] = p[2];
+        }
+    }
+
+    /// Bytes of heap memory held.
+    pub fn heap_bytes(&self) -> usize {
+        (self.x.capacity() + self.y.capacity() + self.z.capacity()) * size_of::<f32>()
+    }
+
+    /// Mutable views of the three components restricted to `range`.
+    pub fn slices_mut(&mut self, range: std::ops::Range<usize>) -> Vec3SliceMut<'_> {
+        Vec3SliceMut {
+            x: &mut self.x[range.clone()],
+            y: &mut self.y[range.clone()],
+            z: &mut self.z[range],
+        }
+    }
+
+    /// Read-only views of the three components restricted to `range`.
+    pub fn slices(&self, range: std::ops::Range<usize>) -> Vec3Slice<'_> {
+        Vec3Slice {
+            x: &self.x[range.clone()],
+            y: &self.y[range.clone()],
+            z: &self.z[range],
+        }
+    }
+}
+
+/// Read-only component slices of equal length.
+#[derive(Clone, Copy)]
+pub struct Vec3Slice<'a> {
+    pub x: &'a [f32],
+    pub y: &'a [f32],
+    pub z: &'a [f32],
+}
+
+/// Mutable component slices of equal length.
+pub struct Vec3SliceMut<'a> {
+    pub x: &'a mut [f32],
+    pub y: &'a mut [f32],
+    pub z: &'a mut [f32],
+}
+
+impl Vec3SliceMut<'_> {
+    pub fn len(&self) -> usize {
+        self.x.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.x.is_empty()
+    }
+
+    #[inline]
+    pub fn get(&self, i: usize) -> Vec3 {
+        Vec3::new(self.x[i], self.y[i], self.z[i])
+    }
+
+    #[inline]
+    pub fn set(&mut self, i: usize, v: Vec3) {
+        self.x[i] = v.x;
+        self.y[i] = v.y;
+        self.z[i] = v.z;
+    }
+
+    pub fn fill(&mut self, v: Vec3) {
+        self.x.fill(v.x);
+        self.y.fill(v.y);
+        self.z.fill(v.z);
+    }
+}
+
+impl Vec3s {
+    /// Parallel iterator over consecutive chunks of `chunk` particles (the last may be shorter).
+    pub fn par_chunks_mut(
+        &mut self,
+        chunk: usize,
+    ) -> impl rayon::iter::IndexedParallelIterator<Item = Vec3SliceMut<'_>> {
+        use rayon::prelude::*;
+        self.x
+            .par_chunks_mut(chunk)
+            .zip(self.y.par_chunks_mut(chunk))
+            .zip(self.z.par_chunks_mut(chunk))
+            .map(|((x, y), z)| Vec3SliceMut { x, y, z })
+    }
+}

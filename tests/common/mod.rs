@@ -1,0 +1,76 @@
+//! Scaffolding shared by the Rust integration tests.
+#![allow(dead_code)]
+
+use std::hash::{Hash, Hasher};
+
+use glam::Vec3;
+use rustcloth::scene::{ClothSpec, Plane};
+use rustcloth::{Scene, Simulation};
+
+/// A cloth with no pins, no gravity and no colliders: add what a test needs.
+pub fn bare_scene(nx: u32, ny: u32) -> Scene {
+    Scene {
+        gravity: [0.0; 3],
+        cloth: ClothSpec {
+            nx,
+            ny,
+            pins: vec![],
+            ..ClothSpec::default()
+        },
+        ..Scene::default()
+    }
+}
+
+/// Two particles joined by one structural spring of rest length 1 m: a 2 x 2 grid in the
+/// xy plane with its top row cut away. Particle 0 is at the origin, particle 1 at x = 1.
+pub fn two_particle_spring(k: f32, mass: f32, integrator: &str, dt: f64) -> Simulation {
+    let scene = Scene {
+        integrator: integrator.into(),
+        dt,
+        cloth: ClothSpec {
+            nx: 2,
+            ny: 2,
+            size: [1.0, 1.0],
+            center: [0.5, 0.5, 0.0],
+            plane: Plane::Xy,
+            particle_mass: Some(mass),
+            k_structural: k,
+            k_shear: 0.0,
+            k_bend: 0.0,
+            damping: 0.0,
+            pins: vec![],
+            ..ClothSpec::default()
+        },
+        ..bare_scene(2, 2)
+    };
+    let mut sim = Simulation::new(scene).unwrap();
+    sim.cut(2).unwrap();
+    sim.cut(3).unwrap();
+    sim
+}
+
+/// A hash of every bit of the state, for bitwise comparisons.
+pub fn state_hash(sim: &Simulation) -> u64 {
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    for v in [sim.positions(), sim.velocities()] {
+        for c in [&v.x, &v.y, &v.z] {
+            for x in c.iter() {
+                x.to_bits().hash(&mut h);
+            }
+        }
+    }
+    h.finish()
+}
+
+pub fn position(sim: &Simulation, p: usize) -> Vec3 {
+    sim.positions().get(p)
+}
+
+/// Runs `f` on a rayon pool of `threads` threads.
+pub fn with_threads<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> R {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap()
+        .install(f)
+}

@@ -1,0 +1,274 @@
+//! The solver against analytic solutions and invariants of the model.
+
+mod common;
+
+use common::*;
+use glam::{Quat, Vec3};
+use rustcloth::scene::{FloorSpec, SphereSpec};
+use rustcloth::simulation::total_force;
+use rustcloth::soa::Vec3s;
+use rustcloth::{Scene, Simulation};
+
+#[test]
+fn free_fall_matches_the_discrete_closed_form_of_each_integrator() {
+    // x_n = x_0 + h^2 g n (n + 1) / 2 for symplectic Euler (the new velocity moves the
+    // particle), n (n - 1) / 2 for explicit Euler (the old one does).
+    for (integrator, lag) in [("symplectic_euler", 1.0), ("explicit_euler", -1.0)] {
+        let mut scene = bare_scene(8, 8);
+        scene.integrator = integrator.into();
+        scene.gravity = [0.0, -9.81, 0.0];
+        let mut sim = Simulation::new(scene).unwrap();
+        let y0 = position(&sim, 0).y as f64;
+        let n = 500u64;
+        sim.step(n).unwrap();
+        let h = sim.dt();
+        let expected =
+            y0 - 9.81 * h * h * (n * n) as f64 / 2.0 - lag * 9.81 * h * h * n as f64 / 2.0;
+        for p in 0..64 {
+            let y = position(&sim, p).y as f64;
+            assert!(
+                (y - expected).abs() < 2e-5,
+                "{integrator}: particle {p} at {y}, expected {expected}"
+            );
+        }
+        let v = sim.velocities().get(0).y as f64;
+        assert!(
+            (v + 9.81 * h * n as f64).abs() < 1e-4,
+            "{integrator}: v = {v}"
+        );
+    }
+}
+
+#[test]
+fn a_two_particle_spring_oscillates_with_period_two_pi_sqrt_m_over_k() {
+    let (k, m) = (50.0f32, 0.02f32);
+    let expected = 2.0 * std::f64::consts::PI * (m as f64 / k as f64).sqrt();
+    for integrator in ["symplectic_euler", "explicit_euler"] {
+        let mut sim = two_particle_spring(k, m, integrator, 1e-5);
+        sim.pin(0, None).unwrap();
+        // Stretch by 1 cm and let go.
+        let mut pos = sim.positions().clone();
+        pos.x[1] = 1.01;
+        sim.set_positions(&pos).unwrap();
+        // Time the upward zero crossings of the displacement over three periods.
+        let mut crossings = Vec::new();
+        let mut prev = 0.01f64;
+        while crossings.len() < 4 {
+            sim.step(1).unwrap();
+            let d = position(&sim, 1).x as f64 - 1.0;
+            if prev < 0.0 && d >= 0.0 {
+                // Linear interpolation between the two samples.
+                crossings.push(sim.time() - sim.dt() * d / (d - prev));
+            }
+            prev = d;
+            assert!(sim.time() < 10.0 * expected, "{integrator}: no oscillation");
+        }
+        let period = (crossings[3] - crossings[0]) / 3.0;
+        let error = (period - expected).abs() / expected;
+        assert!(
+            error < 2e-3,
+            "{integrator}: period {period}, expected {expected}"
+        );
+    }
+}
+
+#[test]
+fn springs_exert_no_force_at_rest_nor_under_rigid_motion() {
+    let mut scene = bare_scene(12, 9);
+    scene.cloth.damping = 0.5;
+    let mut sim = Simulation::new(scene).unwrap();
+    let at_rest = total_force(&sim);
+    for p in 0..sim.grid().len() {
+        assert!(
+            at_rest.get(p).length() < 1e-4,
+            "particle {p}: {}",
+            at_rest.get(p)
+        );
+    }
+    // A rigid rotation about an arbitrary point with a rigid angular velocity: no stretch and
+    // no closing speed along any spring.
+    let rotation = Quat::from_axis_angle(Vec3::new(1.0, 2.0, -0.5).normalize(), 1.1);
+    let pivot = Vec3::new(0.3, -2.0, 1.0);
+    let omega = Vec3::new(0.4, -1.5, 2.0);
+    let pos0 = sim.positions().clone();
+    let pos = Vec3s::from_fn(pos0.len(), |p| pivot + rotation * (pos0.get(p) - pivot));
+    let vel = Vec3s::from_fn(pos0.len(), |p| omega.cross(pos.get(p) - pivot));
+    sim.set_positions(&pos).unwrap();
+    sim.set_velocities(&vel).unwrap();
+    let rotated = total_force(&sim);
+    for p in 0..sim.grid().len() {
+        // k = 200 N/m: 1e-3 N is a length error of 5 micrometres, f32 rounding of ~1 m.
+        assert!(
+            rotated.get(p).length() < 1e-3,
+            "particle {p}: {}",
+            rotated.get(p)
+        );
+    }
+}
+
+#[test]
+fn spring_forces_conserve_momentum() {
+    let mut sim = Simulation::new(bare_scene(10, 10)).unwrap();
+    let n = sim.grid().len();
+    let vel = Vec3s::from_fn(n, |p| {
+        Vec3::new(
+            (p % 7) as f32 - 3.0,
+            (p % 5) as f32 * 0.3,
+            (p % 3) as f32 - 1.0,
+        )
+    });
+    sim.set_velocities(&vel).unwrap();
+    let momentum = |sim: &Simulation| {
+        (0..n)
+            .map(|p| sim.velocities().get(p).as_dvec3())
+            .sum::<glam::DVec3>()
+    };
+    let before = momentum(&sim);
+    sim.step(200).unwrap();
+    let after = momentum(&sim);
+    assert!((after - before).length() < 1e-3, "{before} -> {after}");
+}
+
+#[test]
+fn elastic_energy_of_a_stretched_spring_is_half_k_x_squared() {
+    let mut sim = two_particle_spring(80.0, 0.01, "symplectic_euler", 1e-3);
+    let mut pos = sim.positions().clone();
+    pos.x[1] = 1.25;
+    sim.set_positions(&pos).unwrap();
+    let e = sim.energy();
+    assert!((e.elastic - 0.5 * 80.0 * 0.25 * 0.25).abs() < 1e-5, "{e:?}");
+    assert_eq!(e.kinetic, 0.0);
+}
+
+#[test]
+fn pinned_particles_stay_bitwise_put() {
+    let mut sim = Simulation::new(Scene::builtin("hanging").unwrap()).unwrap();
+    let pinned: Vec<usize> = (0..sim.grid().len())
+        .filter(|&p| sim.particles().pinned[p])
+        .collect();
+    assert_eq!(pinned.len(), 2);
+    let before: Vec<[u32; 3]> = pinned
+        .iter()
+        .map(|&p| position(&sim, p).to_array().map(f32::to_bits))
+        .collect();
+    sim.step(400).unwrap();
+    let after: Vec<[u32; 3]> = pinned
+        .iter()
+        .map(|&p| position(&sim, p).to_array().map(f32::to_bits))
+        .collect();
+    assert_eq!(before, after);
+    // The cloth itself did move.
+    assert!(position(&sim, 0).y < 1.0);
+}
+
+#[test]
+fn a_kinematic_pin_carries_its_particle_to_the_target() {
+    let mut sim = Simulation::new(Scene::builtin("hanging").unwrap()).unwrap();
+    let target = Vec3::new(0.2, 2.0, -0.1);
+    sim.pin(5, Some(target)).unwrap();
+    assert!(sim.effects().contains(&"kinematic_pins"));
+    sim.step(3).unwrap();
+    assert_eq!(position(&sim, 5), target);
+    sim.unpin(5).unwrap();
+    assert!(!sim.effects().contains(&"kinematic_pins"));
+}
+
+fn assert_outside_colliders(sim: &Simulation, floor: f32, sphere: Option<(Vec3, f32)>) {
+    for p in 0..sim.grid().len() {
+        let x = position(sim, p);
+        assert!(x.is_finite());
+        assert!(x.y >= floor, "particle {p} below the floor: {x}");
+        if let Some((c, r)) = sphere {
+            assert!((x - c).length() >= r, "particle {p} inside the sphere: {x}");
+        }
+    }
+}
+
+#[test]
+fn fast_particles_never_end_a_step_inside_the_floor_or_a_sphere() {
+    let center = Vec3::new(0.0, 0.3, 0.0);
+    let mut scene = bare_scene(24, 24);
+    scene.gravity = [0.0, -9.81, 0.0];
+    scene.cloth.center = [0.0, 1.0, 0.0];
+    scene.floor = Some(FloorSpec {
+        height: 0.0,
+        friction: 0.3,
+        thickness: 0.002,
+    });
+    scene.spheres = vec![SphereSpec {
+        center: center.to_array(),
+        radius: 0.1,
+        friction: 0.2,
+        thickness: 0.001,
+    }];
+    for speed in [10.0f32, 100.0, 700.0] {
+        let mut sim = Simulation::new(scene.clone()).unwrap();
+        let n = sim.grid().len();
+        sim.set_velocities(&Vec3s::from_fn(n, |_| Vec3::new(0.0, -speed, 0.0)))
+            .unwrap();
+        for _ in 0..40 {
+            sim.step(1).unwrap();
+            assert_outside_colliders(&sim, 0.002, Some((center, 0.101)));
+        }
+        // At 700 m/s a particle crosses the 0.2 m sphere in 0.3 ms, well inside one step: the
+        // ones above the sphere must still be above it, not through it.
+        for p in 0..n {
+            let x = position(&sim, p);
+            if (x.x - center.x).hypot(x.z - center.z) < 0.05 {
+                assert!(
+                    x.y > center.y,
+                    "speed {speed}: particle {p} tunnelled to {x}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn a_sphere_the_cloth_never_reaches_changes_nothing() {
+    let mut scene = Scene::builtin("hanging").unwrap();
+    let plain = Simulation::new(scene.clone());
+    scene.spheres = vec![SphereSpec {
+        center: [50.0, 0.0, 0.0],
+        radius: 1.0,
+        ..SphereSpec::default()
+    }];
+    let mut with_sphere = Simulation::new(scene).unwrap();
+    let mut plain = plain.unwrap();
+    for _ in 0..20 {
+        plain.step(25).unwrap();
+        with_sphere.step(25).unwrap();
+        assert_eq!(state_hash(&plain), state_hash(&with_sphere));
+    }
+    assert!(with_sphere.effects().contains(&"spheres"));
+}
+
+#[test]
+fn only_requested_effects_run() {
+    let mut scene = bare_scene(4, 4);
+    scene.cloth.k_bend = 0.0;
+    let sim = Simulation::new(scene.clone()).unwrap();
+    assert_eq!(
+        sim.effects(),
+        ["structural_springs", "shear_springs", "symplectic_euler"]
+    );
+    scene.gravity = [0.0, -1.0, 0.0];
+    scene.air_drag = 0.1;
+    scene.cloth.k_bend = 1.0;
+    scene.floor = Some(FloorSpec::default());
+    scene.spheres = vec![SphereSpec::default()];
+    let sim = Simulation::new(scene).unwrap();
+    assert_eq!(
+        sim.effects(),
+        [
+            "gravity",
+            "air_drag",
+            "structural_springs",
+            "shear_springs",
+            "bend_springs",
+            "symplectic_euler",
+            "spheres",
+            "floor"
+        ]
+    );
+}
