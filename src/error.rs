@@ -78,20 +78,27 @@ where
             Bound::NonNegative => x >= 0.0,
             Bound::Positive => x > 0.0,
         };
-    if ok {
-        Ok(())
-    } else {
+    if !ok {
         let want = match bound {
             Bound::Any => "a finite number",
             Bound::NonNegative => "a finite number >= 0",
             Bound::Positive => "a finite number > 0",
         };
-        Err(Error::value(name, format!("must be {want}, got {value}")))
+        return Err(Error::value(name, format!("must be {want}, got {value}")));
     }
+    // Scene values are f64 but the solver runs in f32: beyond f32's range is as unusable as
+    // infinity.
+    if x.abs() > f32::MAX as f64 {
+        return Err(Error::value(
+            name,
+            format!("must be within f32 range (|x| <= 3.4e38), got {value}"),
+        ));
+    }
+    Ok(())
 }
 
 /// Checks each component of a vector with [`check_scalar`].
-pub(crate) fn check_vector(name: &str, value: &[f32], bound: Bound) -> Result<()> {
+pub(crate) fn check_vector(name: &str, value: &[f64], bound: Bound) -> Result<()> {
     for (axis, &c) in value.iter().enumerate() {
         check_scalar(&format!("{name}[{axis}]"), c, bound)?;
     }

@@ -32,9 +32,9 @@ pub struct Scene {
     /// substeps buy stability with stiff springs at a proportional cost.
     pub substeps: u32,
     /// Gravitational acceleration in m/s^2. Default `[0, -9.81, 0]`; zero removes the pass.
-    pub gravity: [f32; 3],
+    pub gravity: [f64; 3],
     /// Air drag coefficient in N s/m per particle, `f = -air_drag * v`. Default 0 (no pass).
-    pub air_drag: f32,
+    pub air_drag: f64,
     pub cloth: ClothSpec,
     /// An infinite floor; absent means none.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -81,28 +81,28 @@ pub struct ClothSpec {
     /// Particles along `j` (>= 2). Default 32.
     pub ny: u32,
     /// Extent along `i` and `j` in m. Default `[1, 1]`.
-    pub size: [f32; 2],
+    pub size: [f64; 2],
     /// Centre of the cloth in m. Default `[0, 1, 0]`.
-    pub center: [f32; 3],
+    pub center: [f64; 3],
     /// Starting plane. Default `"xz"`.
     pub plane: Plane,
     /// Mass of each particle in kg. Default 0.001 when `mass` is not given either.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub particle_mass: Option<f32>,
+    pub particle_mass: Option<f64>,
     /// Total mass in kg, shared equally; give this or `particle_mass`, not both.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub mass: Option<f32>,
+    pub mass: Option<f64>,
     /// Stiffness of the structural springs in N/m. Default 200. Zero removes the family.
     /// Explicit integrators need `dt * sqrt(4 (k_structural + k_shear + k_bend) / m)` below
     /// about 2; stiffer springs need a smaller `dt`, more substeps or `implicit_euler`.
-    pub k_structural: f32,
+    pub k_structural: f64,
     /// Stiffness of the shear springs in N/m. Default 50. Zero removes the family.
-    pub k_shear: f32,
+    pub k_shear: f64,
     /// Stiffness of the bending springs in N/m. Default 10. Zero removes the family.
-    pub k_bend: f32,
+    pub k_bend: f64,
     /// Damping along each spring in N s/m, `c ((v_b - v_a) . u) u`. Default 0.01. Damps
     /// stretching oscillations without slowing rigid motion.
-    pub damping: f32,
+    pub damping: f64,
     /// Pinned particles. Default `["top_corners"]`.
     pub pins: Vec<PinSpec>,
 }
@@ -111,24 +111,24 @@ pub struct ClothSpec {
 #[serde(deny_unknown_fields, default)]
 pub struct FloorSpec {
     /// Height of the floor plane (y) in m. Default 0.
-    pub height: f32,
+    pub height: f64,
     /// Coulomb friction coefficient (dimensionless). Default 0.3.
-    pub friction: f32,
+    pub friction: f64,
     /// Particles are kept this far above the plane, in m. Default 0.002.
-    pub thickness: f32,
+    pub thickness: f64,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SphereSpec {
     /// Centre in m. Default `[0, 0.5, 0]`.
-    pub center: [f32; 3],
+    pub center: [f64; 3],
     /// Radius in m. Default 0.3.
-    pub radius: f32,
+    pub radius: f64,
     /// Coulomb friction coefficient. Default 0.2.
-    pub friction: f32,
+    pub friction: f64,
     /// Particles are kept this far outside the surface, in m. Default 0.002.
-    pub thickness: f32,
+    pub thickness: f64,
 }
 
 impl Default for Scene {
@@ -263,10 +263,10 @@ impl Scene {
     }
 
     /// Mass of each particle in kg.
-    pub fn particle_mass(&self) -> f32 {
+    pub fn particle_mass(&self) -> f64 {
         match (self.cloth.particle_mass, self.cloth.mass) {
             (Some(m), _) => m,
-            (None, Some(total)) => total / self.grid().len() as f32,
+            (None, Some(total)) => total / self.grid().len() as f64,
             (None, None) => 0.001,
         }
     }

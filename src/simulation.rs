@@ -14,7 +14,7 @@
 
 use std::time::Instant;
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::collisions::{Collider, Floor, Spheres};
@@ -63,12 +63,14 @@ struct Pipeline {
 impl Pipeline {
     fn compile(scene: &Scene) -> Result<Pipeline> {
         let mut terms: Vec<Box<dyn ForceTerm>> = Vec::new();
-        let g = Vec3::from(scene.gravity);
+        let g = DVec3::from(scene.gravity).as_vec3();
         if g != Vec3::ZERO {
             terms.push(Box::new(Gravity { g }));
         }
         if scene.air_drag > 0.0 {
-            terms.push(Box::new(AirDrag { c: scene.air_drag }));
+            terms.push(Box::new(AirDrag {
+                c: scene.air_drag as f32,
+            }));
         }
         let cloth = &scene.cloth;
         for (family, k) in [
@@ -79,8 +81,8 @@ impl Pipeline {
             if k > 0.0 {
                 terms.push(Box::new(SpringForce {
                     family,
-                    k,
-                    c: cloth.damping,
+                    k: k as f32,
+                    c: cloth.damping as f32,
                 }));
             }
         }
@@ -90,9 +92,9 @@ impl Pipeline {
         }
         if let Some(floor) = &scene.floor {
             colliders.push(Box::new(Floor {
-                height: floor.height,
-                friction: floor.friction,
-                thickness: floor.thickness,
+                height: floor.height as f32,
+                friction: floor.friction as f32,
+                thickness: floor.thickness as f32,
             }));
         }
         Ok(Pipeline {
@@ -146,7 +148,7 @@ impl Simulation {
             vel: Vec3s::zeros(n),
         };
         let springs = Springs::new(grid, &state.pos);
-        let mut particles = Particles::new(n, scene.particle_mass());
+        let mut particles = Particles::new(n, scene.particle_mass() as f32);
         for p in scene.cloth.pinned_indices() {
             particles.pinned[p] = true;
             particles.refresh(p);
@@ -342,7 +344,7 @@ impl Simulation {
 
     /// Energy of the current state.
     pub fn energy(&self) -> Energy {
-        let g = Vec3::from(self.scene.gravity);
+        let g = DVec3::from(self.scene.gravity);
         let (pos, vel, particles) = (&self.state.pos, &self.state.vel, &self.particles);
         let (kinetic, gravitational) = (0..self.grid.len())
             .into_par_iter()
@@ -352,13 +354,13 @@ impl Simulation {
                 let m = particles.mass[p] as f64;
                 (
                     0.5 * m * vel.get(p).length_squared() as f64,
-                    -m * g.dot(pos.get(p)) as f64,
+                    -m * g.dot(pos.get(p).as_dvec3()),
                 )
             })
             .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
         let mut elastic = 0.0;
         for family in Family::ALL {
-            let k = self.family_stiffness(family) as f64;
+            let k = self.family_stiffness(family);
             if k == 0.0 {
                 continue;
             }
@@ -376,7 +378,7 @@ impl Simulation {
         }
     }
 
-    fn family_stiffness(&self, family: Family) -> f32 {
+    fn family_stiffness(&self, family: Family) -> f64 {
         let cloth = &self.scene.cloth;
         match family {
             Family::Structural => cloth.k_structural,
@@ -632,12 +634,13 @@ fn initial_positions(scene: &Scene) -> Vec3s {
     let grid = scene.grid();
     let cloth = &scene.cloth;
     let (e1, e2) = plane_axes(cloth.plane);
-    let center = Vec3::from(cloth.center);
+    let (e1, e2) = (e1.as_dvec3(), e2.as_dvec3());
+    let center = DVec3::from(cloth.center);
     Vec3s::from_fn(grid.len(), |p| {
         let (i, j) = grid.coords(p);
-        let u = i as f32 / (grid.nx - 1) as f32 - 0.5;
-        let v = j as f32 / (grid.ny - 1) as f32 - 0.5;
-        center + u * cloth.size[0] * e1 + v * cloth.size[1] * e2
+        let u = i as f64 / (grid.nx - 1) as f64 - 0.5;
+        let v = j as f64 / (grid.ny - 1) as f64 - 0.5;
+        (center + u * cloth.size[0] * e1 + v * cloth.size[1] * e2).as_vec3()
     })
 }
 

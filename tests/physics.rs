@@ -41,8 +41,8 @@ fn free_fall_matches_the_discrete_closed_form_of_each_integrator() {
 
 #[test]
 fn a_two_particle_spring_oscillates_with_period_two_pi_sqrt_m_over_k() {
-    let (k, m) = (50.0f32, 0.02f32);
-    let expected = 2.0 * std::f64::consts::PI * (m as f64 / k as f64).sqrt();
+    let (k, m) = (50.0f64, 0.02f64);
+    let expected = 2.0 * std::f64::consts::PI * (m / k).sqrt();
     for integrator in ["symplectic_euler", "explicit_euler"] {
         let mut sim = two_particle_spring(k, m, integrator, 1e-5);
         sim.pin(0, None).unwrap();
@@ -196,7 +196,7 @@ fn fast_particles_never_end_a_step_inside_the_floor_or_a_sphere() {
         thickness: 0.002,
     });
     scene.spheres = vec![SphereSpec {
-        center: center.to_array(),
+        center: center.as_dvec3().to_array(),
         radius: 0.1,
         friction: 0.2,
         thickness: 0.001,

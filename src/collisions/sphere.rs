@@ -1,4 +1,4 @@
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use super::{contact_velocity, Collider};
@@ -28,9 +28,9 @@ impl Spheres {
         let spheres = specs
             .iter()
             .map(|s| Sphere {
-                center: Vec3::from(s.center),
-                reach: s.radius + s.thickness,
-                friction: s.friction,
+                center: DVec3::from(s.center).as_vec3(),
+                reach: (s.radius + s.thickness) as f32,
+                friction: s.friction as f32,
             })
             .collect();
         Spheres { spheres }
