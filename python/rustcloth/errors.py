@@ -1,0 +1,50 @@
+"""Exceptions raised by rustcloth.
+
+Each one subclasses :class:`RustclothError` *and* the built-in exception a caller would
+naturally catch, so ``except ValueError`` works as well as ``except rustcloth.RustclothError``.
+The Rust core raises them by name (``src/python/errors.rs``).
+"""
+
+from __future__ import annotations
+
+
+class RustclothError(Exception):
+    """Base class of every rustcloth error."""
+
+
+class ParameterError(RustclothError, ValueError):
+    """A value that makes no sense: a negative stiffness, ``dt = nan``, an unknown scene key,
+    an array of the wrong shape. ``parameter`` names it."""
+
+    def __init__(self, message: str, parameter: str = "") -> None:
+        super().__init__(message)
+        self.parameter = parameter
+
+
+class ParameterTypeError(RustclothError, TypeError):
+    """A value of the wrong type: a string where a number belongs, an integer array where
+    floats belong. ``parameter`` names it."""
+
+    def __init__(self, message: str, parameter: str = "") -> None:
+        super().__init__(message)
+        self.parameter = parameter
+
+
+class ParticleIndexError(RustclothError, IndexError):
+    """A particle index outside ``0 .. num_particles - 1``."""
+
+    def __init__(self, message: str, parameter: str = "", index: int = 0) -> None:
+        super().__init__(message)
+        self.parameter = parameter
+        self.index = index
+
+
+class SimulationDiverged(RustclothError, FloatingPointError):
+    """A step produced a non-finite state. The simulation was restored to the state before
+    that step; ``step`` is the 1-based number of the step that failed and ``particle`` the first
+    particle that went non-finite."""
+
+    def __init__(self, message: str, step: int = 0, particle: int = 0) -> None:
+        super().__init__(message)
+        self.step = step
+        self.particle = particle

@@ -1,0 +1,126 @@
+"""Bad input: every kind raises a clear exception that names the parameter and the value, and
+leaves the simulation exactly as it was. No Rust panic reaches Python."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import rustcloth
+from conftest import small_scene, state_digest
+from rustcloth import Scene, Simulation
+
+BAD_SCENES = [
+    # (changes, exception, text that must appear in the message)
+    ({"dt": 0.0}, ValueError, "dt"),
+    ({"dt": -0.001}, ValueError, "dt"),
+    ({"dt": math.nan}, ValueError, "dt"),
+    ({"dt": math.inf}, ValueError, "dt"),
+    ({"dt": "fast"}, TypeError, "dt"),
+    ({"substeps": 0}, ValueError, "substeps"),
+    ({"substeps": -2}, ValueError, "substeps"),
+    ({"substeps": 1.5}, TypeError, "substeps"),
+    ({"gravity": [0, math.nan, 0]}, ValueError, "gravity[1]"),
+    ({"gravity": [0, -9.81]}, ValueError, "gravity"),
+    ({"air_drag": -1.0}, ValueError, "air_drag"),
+    ({"integrator": "leapfrog"}, ValueError, "symplectic_euler"),
+    ({"wind": 3.0}, ValueError, "wind"),
+    ({"cloth": {"nx": 1}}, ValueError, "cloth.nx"),
+    ({"cloth": {"ny": 0}}, ValueError, "cloth.ny"),
+    ({"cloth": {"nx": -4}}, ValueError, "cloth.nx"),
+    ({"cloth": {"nx": 100_000, "ny": 100_000}}, ValueError, "cloth.nx"),
+    ({"cloth": {"size": [1.0, 0.0]}}, ValueError, "cloth.size[1]"),
+    ({"cloth": {"particle_mass": 0.0}}, ValueError, "cloth.particle_mass"),
+    ({"cloth": {"particle_mass": 0.1, "mass": 1.0}}, ValueError, "not both"),
+    ({"cloth": {"mass": -1.0}}, ValueError, "cloth.mass"),
+    ({"cloth": {"k_structural": -5.0}}, ValueError, "cloth.k_structural"),
+    ({"cloth": {"k_shear": math.inf}}, ValueError, "cloth.k_shear"),
+    ({"cloth": {"k_bend": math.nan}}, ValueError, "cloth.k_bend"),
+    ({"cloth": {"damping": -0.1}}, ValueError, "cloth.damping"),
+    ({"cloth": {"plane": "yz"}}, ValueError, "cloth.plane"),
+    ({"cloth": {"pins": ["everywhere"]}}, ValueError, "cloth.pins[0]"),
+    ({"cloth": {"pins": [[99, 0]]}}, ValueError, "cloth.pins[0]"),
+    ({"cloth": {"colour": "red"}}, ValueError, "colour"),
+    ({"cloth": {"center": [0, 1e39, 0]}}, ValueError, "cloth.center[1]"),
+    ({"floor": {"friction": -0.3}}, ValueError, "floor.friction"),
+    ({"floor": {"height": math.nan}}, ValueError, "floor.height"),
+    ({"spheres": [{"radius": 0.0}]}, ValueError, "spheres[0].radius"),
+    ({"spheres": [{"radius": 0.2}, {"radius": -1.0}]}, ValueError, "spheres[1].radius"),
+    ({"spheres": [{"center": [0, 0]}]}, ValueError, "spheres[0].center"),
+    ({"spheres": [{"radius": 0.2, "mass": 3}]}, ValueError, "mass"),
+]
+
+
+@pytest.mark.parametrize(("changes", "exception", "text"), BAD_SCENES)
+def test_bad_scenes_raise_naming_the_parameter(changes, exception, text):
+    with pytest.raises(exception) as info:
+        small_scene(**changes)
+    assert isinstance(info.value, rustcloth.RustclothError)
+    assert text in str(info.value)
+
+
+def test_bad_toml_is_a_value_error():
+    with pytest.raises(ValueError, match="TOML"):
+        Scene.from_toml_str("dt = = 3")
+
+
+@pytest.fixture
+def stepped():
+    sim = Simulation(small_scene())
+    sim.step(20)
+    return sim
+
+
+def unchanged_after(sim, action, exception, text):
+    before = (state_digest(sim), sim.steps, sim.effects, sim.topology_version, sim.pinned.tobytes())
+    with pytest.raises(exception) as info:
+        action(sim)
+    assert text in str(info.value), str(info.value)
+    after = (state_digest(sim), sim.steps, sim.effects, sim.topology_version, sim.pinned.tobytes())
+    assert before == after
+
+
+BAD_CALLS = [
+    (lambda s: s.set_positions(np.zeros((5, 3), np.float32)), ValueError, "positions"),
+    (lambda s: s.set_positions(np.zeros((48, 2), np.float32)), ValueError, "(48, 3)"),
+    (lambda s: s.set_positions(np.zeros((48, 3), np.int64)), TypeError, "float32 or float64"),
+    (lambda s: s.set_positions([[0.0, 0.0, 0.0]] * 48), TypeError, "numpy array"),
+    (lambda s: s.set_positions(np.full((48, 3), np.nan, np.float32)), ValueError, "not finite"),
+    (lambda s: s.set_velocities(np.full((48, 3), np.inf)), ValueError, "velocities"),
+    (lambda s: s.pin(48), IndexError, "index 48"),
+    (lambda s: s.pin(-1), IndexError, "index -1"),
+    (lambda s: s.pin(2**70), IndexError, "index"),
+    (lambda s: s.pin(1.5), TypeError, "index"),
+    (lambda s: s.pin(True), TypeError, "index"),
+    (lambda s: s.pin(3, target=[0.0, math.nan, 0.0]), ValueError, "target"),
+    (lambda s: s.pin(3, target=[0.0, 1.0]), ValueError, "target"),
+    (lambda s: s.pin(3, target="up"), TypeError, "target"),
+    (lambda s: s.unpin(10_000), IndexError, "index"),
+    (lambda s: s.cut(-5), IndexError, "index"),
+    (lambda s: s.step(-1), ValueError, "n"),
+    (lambda s: s.step(2.5), TypeError, ""),
+    (lambda s: s.advance(-0.1), ValueError, "seconds"),
+    (lambda s: s.advance(math.nan), ValueError, "seconds"),
+    (lambda s: setattr(s, "integrator", "rk5"), ValueError, "symplectic_euler"),
+    (lambda s: setattr(s, "substeps", 0), ValueError, "substeps"),
+    (lambda s: setattr(s, "dt", -1.0), ValueError, "dt"),
+    (lambda s: setattr(s, "dt", math.inf), ValueError, "dt"),
+]
+
+
+@pytest.mark.parametrize(("action", "exception", "text"), BAD_CALLS)
+def test_bad_calls_raise_and_leave_the_simulation_unchanged(stepped, action, exception, text):
+    unchanged_after(stepped, action, exception, text)
+
+
+def test_pinning_a_cut_particle_is_refused(stepped):
+    stepped.cut(5)
+    unchanged_after(stepped, lambda s: s.pin(5), ValueError, "cut")
+
+
+def test_the_wrong_type_of_scene_is_a_type_error():
+    with pytest.raises(TypeError, match="scene"):
+        Simulation(42)
+    with pytest.raises(TypeError, match="must be strings"):
+        Simulation({1: 2})
