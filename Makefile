@@ -1,0 +1,66 @@
+# One entry point for every chore. `make demo` and `make test` set everything up on a fresh
+# Debian machine with Rust and Python 3.11: Debian packages (as root), the virtualenv, the build.
+
+SHELL := bash
+.SHELLFLAGS := -eu -o pipefail -c
+export PATH := $(HOME)/.cargo/bin:$(PATH)
+
+PYTHON ?= $(shell command -v python3.11 || command -v python3)
+VENV := .venv
+PY := $(VENV)/bin/python
+RUST_SOURCES := $(shell find src benches -name '*.rs') Cargo.toml Cargo.lock $(wildcard scenes/*.toml)
+
+.PHONY: all demo test test-long lint fmt bench bench-peers setup system-deps clean
+
+all: test
+
+## Set-up ---------------------------------------------------------------------------------
+
+system-deps:
+	@scripts/system-deps.sh
+
+$(VENV)/.ready: pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q 'maturin>=1.9,<2'
+	touch $@
+
+# The extension module, built in release mode into the package (an editable install), with the
+# package's dependencies and the test extras.
+$(VENV)/.built: $(VENV)/.ready $(RUST_SOURCES) pyproject.toml
+	$(VENV)/bin/maturin develop --release --extras test -q
+	touch $@
+
+setup: system-deps $(VENV)/.built
+
+## Main jobs -------------------------------------------------------------------------------
+
+demo: setup
+	$(PY) -m rustcloth demo
+
+test: setup lint
+	cargo test -q
+	$(PY) -m pytest -q -m "not long"
+
+test-long: setup
+	$(PY) -m pytest -q
+
+lint: setup
+	cargo fmt --check
+	cargo clippy -q --all-targets --all-features -- -D warnings
+	$(VENV)/bin/ruff check python tests benches
+
+fmt:
+	cargo fmt
+	$(VENV)/bin/ruff check --fix python tests benches
+
+bench: setup
+	cargo bench --bench step
+	$(PY) benches/bench_numpy.py
+
+bench-peers: setup
+	benches/peers/setup.sh
+	.venv-peers/bin/python benches/peers/run.py
+
+clean:
+	rm -rf target $(VENV) python/rustcloth/*.so
