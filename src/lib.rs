@@ -21,6 +21,7 @@ pub mod error;
 pub mod forces;
 pub mod grid;
 pub mod integrators;
+pub mod interaction;
 pub mod pins;
 pub mod profile;
 pub mod scene;

@@ -116,25 +116,28 @@ struct Derived {
 
 /// A running cloth simulation.
 pub struct Simulation {
-    scene: Scene,
-    grid: Grid,
-    particles: Particles,
-    springs: Springs,
+    pub(crate) scene: Scene,
+    pub(crate) grid: Grid,
+    pub(crate) particles: Particles,
+    pub(crate) springs: Springs,
     /// The state at the current time.
-    state: Kinematics,
+    pub(crate) state: Kinematics,
     /// Where each substep writes its result; swapped with `state` when it is finite.
     scratch: Kinematics,
     /// Copy of the state at the start of a step, kept only with several substeps.
     step_start: Option<Kinematics>,
     force: Vec3s,
     pipeline: Pipeline,
-    pins: KinematicPins,
+    pub(crate) pins: KinematicPins,
     steps: u64,
     /// Requested but not yet simulated time, in s.
     accumulator: f64,
     profile: Profile,
     derived: Derived,
     topology_version: u64,
+    /// Increments whenever positions change (a step, `set_positions`, a reset): caches of
+    /// derived data (normals, picking structures) compare against it.
+    state_version: u64,
 }
 
 impl Simulation {
@@ -170,6 +173,7 @@ impl Simulation {
             profile: Profile::default(),
             derived: Derived::default(),
             topology_version: 0,
+            state_version: 0,
             scene,
         })
     }
@@ -273,11 +277,12 @@ impl Simulation {
         true
     }
 
-    fn invalidate_state(&mut self) {
+    pub(crate) fn invalidate_state(&mut self) {
         self.derived.normals_valid = false;
+        self.state_version += 1;
     }
 
-    fn invalidate_topology(&mut self) {
+    pub(crate) fn invalidate_topology(&mut self) {
         self.derived.triangles_valid = false;
         self.topology_version += 1;
     }
@@ -335,6 +340,11 @@ impl Simulation {
 
     pub fn profile(&self) -> &Profile {
         &self.profile
+    }
+
+    /// Increments whenever positions change.
+    pub fn state_version(&self) -> u64 {
+        self.state_version
     }
 
     /// Increments whenever the triangle list changes (a cut).
