@@ -10,7 +10,13 @@ use crate::error::{check_scalar, check_vector, Bound, Error, Result};
 use crate::grid::Grid;
 
 /// The time integrators the solver offers, by their scene names.
-pub const INTEGRATORS: &[&str] = &["explicit_euler", "symplectic_euler"];
+pub const INTEGRATORS: &[&str] = &[
+    "explicit_euler",
+    "symplectic_euler",
+    "verlet",
+    "rk4",
+    "implicit_euler",
+];
 
 /// Upper bound on particles per scene: indices are exposed as `u32` and the triangle list must
 /// fit a GPU index buffer. 4096 x 4096 is far beyond interactive rates anyway.
@@ -35,6 +41,12 @@ pub struct Scene {
     pub gravity: [f64; 3],
     /// Air drag coefficient in N s/m per particle, `f = -air_drag * v`. Default 0 (no pass).
     pub air_drag: f64,
+    /// `implicit_euler` only: relative residual `|r| / |b|` at which the conjugate gradient
+    /// stops. Default 1e-4. Smaller costs iterations; float32 stalls a little below 1e-6.
+    pub cg_tolerance: f64,
+    /// `implicit_euler` only: most CG iterations per step. Default 200. A solve that reaches
+    /// it is counted as not converged in `profile()` and warned about once.
+    pub cg_max_iterations: u32,
     pub cloth: ClothSpec,
     /// An infinite floor; absent means none.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -139,6 +151,8 @@ impl Default for Scene {
             substeps: 1,
             gravity: [0.0, -9.81, 0.0],
             air_drag: 0.0,
+            cg_tolerance: 1e-4,
+            cg_max_iterations: 200,
             cloth: ClothSpec::default(),
             floor: None,
             spheres: Vec::new(),
@@ -255,6 +269,14 @@ impl Scene {
         BUILTIN.iter().map(|(n, _)| *n).collect()
     }
 
+    /// The linear-solver settings of `implicit_euler`.
+    pub fn solver_settings(&self) -> crate::integrators::SolverSettings {
+        crate::integrators::SolverSettings {
+            tolerance: self.cg_tolerance as f32,
+            max_iterations: self.cg_max_iterations,
+        }
+    }
+
     pub fn grid(&self) -> Grid {
         Grid {
             nx: self.cloth.nx as usize,
@@ -288,6 +310,13 @@ impl Scene {
         }
         check_vector("gravity", &self.gravity, Bound::Any)?;
         check_scalar("air_drag", self.air_drag, Bound::NonNegative)?;
+        check_scalar("cg_tolerance", self.cg_tolerance, Bound::Positive)?;
+        if self.cg_max_iterations == 0 {
+            return Err(Error::value(
+                "cg_max_iterations",
+                "must be an integer >= 1, got 0",
+            ));
+        }
         self.cloth.validate()?;
         if let Some(floor) = &self.floor {
             check_scalar("floor.height", floor.height, Bound::Any)?;

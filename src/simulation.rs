@@ -99,7 +99,7 @@ impl Pipeline {
         }
         Ok(Pipeline {
             forces: ForceModel::new(terms),
-            integrator: integrators::by_name(&scene.integrator)?,
+            integrator: integrators::by_name(&scene.integrator, scene.solver_settings())?,
             colliders,
         })
     }
@@ -342,6 +342,11 @@ impl Simulation {
         &self.profile
     }
 
+    /// Statistics of the linear solver, when the integrator solves one (`implicit_euler`).
+    pub fn solver_stats(&self) -> Option<crate::integrators::SolverStats> {
+        self.pipeline.integrator.solver_stats()
+    }
+
     /// Increments whenever positions change.
     pub fn state_version(&self) -> u64 {
         self.state_version
@@ -480,6 +485,7 @@ impl Simulation {
         self.check_state_array("positions", pos)?;
         self.state.pos.copy_from(pos);
         self.invalidate_state();
+        self.pipeline.integrator.reset_history();
         Ok(())
     }
 
@@ -494,6 +500,7 @@ impl Simulation {
             }
         }
         self.invalidate_state();
+        self.pipeline.integrator.reset_history();
         Ok(())
     }
 
@@ -584,7 +591,7 @@ impl Simulation {
 
     /// Switches the integrator at run time; the state carries over.
     pub fn set_integrator(&mut self, name: &str) -> Result<()> {
-        self.pipeline.integrator = integrators::by_name(name)?;
+        self.pipeline.integrator = integrators::by_name(name, self.scene.solver_settings())?;
         self.scene.integrator = name.to_string();
         Ok(())
     }
@@ -598,6 +605,7 @@ impl Simulation {
             ));
         }
         self.scene.substeps = substeps as u32;
+        self.pipeline.integrator.reset_history();
         if substeps > 1 && self.step_start.is_none() {
             self.step_start = Some(Kinematics::zeros(self.grid.len()));
         }
@@ -608,6 +616,7 @@ impl Simulation {
     pub fn set_dt(&mut self, dt: f64) -> Result<()> {
         check_scalar("dt", dt, Bound::Positive)?;
         self.scene.dt = dt;
+        self.pipeline.integrator.reset_history();
         Ok(())
     }
 

@@ -86,6 +86,17 @@ impl Vec3s {
         (self.x.capacity() + self.y.capacity() + self.z.capacity()) * size_of::<f32>()
     }
 
+    /// Component `c` (0 = x, 1 = y, 2 = z) restricted to `range`.
+    #[inline]
+    pub fn component(&self, c: usize, range: &std::ops::Range<usize>) -> &[f32] {
+        let v = match c {
+            0 => &self.x,
+            1 => &self.y,
+            _ => &self.z,
+        };
+        &v[range.clone()]
+    }
+
     /// Mutable views of the three components restricted to `range`.
     pub fn slices_mut(&mut self, range: std::ops::Range<usize>) -> Vec3SliceMut<'_> {
         Vec3SliceMut {
@@ -121,6 +132,16 @@ pub struct Vec3SliceMut<'a> {
 }
 
 impl Vec3SliceMut<'_> {
+    /// Component `c` (0 = x, 1 = y, 2 = z).
+    #[inline]
+    pub fn component_mut(&mut self, c: usize) -> &mut [f32] {
+        match c {
+            0 => &mut *self.x,
+            1 => &mut *self.y,
+            _ => &mut *self.z,
+        }
+    }
+
     pub fn len(&self) -> usize {
         self.x.len()
     }

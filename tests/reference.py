@@ -87,17 +87,67 @@ class ReferenceCloth:
         np.add.at(f, self.b, -fs)
         return f
 
+    def accel(self, x: np.ndarray, v: np.ndarray) -> np.ndarray:
+        return self.forces(x, v) * self.inv_mass[:, None]
+
     def step(self, n: int = 1) -> None:
         moving = (self.inv_mass > 0)[:, None]
+        h = self.h
         for _ in range(n * self.substeps):
-            a = self.forces(self.x, self.v) * self.inv_mass[:, None]
+            x0, v0 = self.x, self.v
             if self.integrator == "symplectic_euler":
-                v = self.v + self.h * a
-                x = self.x + self.h * v
+                v = v0 + h * self.accel(x0, v0)
+                x = x0 + h * v
             elif self.integrator == "explicit_euler":
-                x = self.x + self.h * self.v
-                v = self.v + self.h * a
+                x = x0 + h * v0
+                v = v0 + h * self.accel(x0, v0)
+            elif self.integrator == "verlet":
+                # Stoermer: x1 = 2 x0 - x_prev + h^2 a, v1 = (x1 - x0) / h, with the Taylor
+                # start x_prev = x0 - h v0 + h^2 a / 2 on the first step.
+                a = self.accel(x0, v0)
+                x_prev = x0 - h * v0 + (0.5 * h * h * a if not self.verlet_primed else 0.0)
+                self.verlet_primed = True
+                x = 2 * x0 - x_prev + h * h * a
+                v = (x - x0) / h
+            elif self.integrator == "rk4":
+                k1x, k1v = v0, self.accel(x0, v0)
+                k2x, k2v = v0 + h / 2 * k1v, self.accel(x0 + h / 2 * k1x, v0 + h / 2 * k1v)
+                k3x, k3v = v0 + h / 2 * k2v, self.accel(x0 + h / 2 * k2x, v0 + h / 2 * k2v)
+                k4x, k4v = v0 + h * k3v, self.accel(x0 + h * k3x, v0 + h * k3v)
+                x = x0 + h / 6 * (k1x + 2 * k2x + 2 * k3x + k4x)
+                v = v0 + h / 6 * (k1v + 2 * k2v + 2 * k3v + k4v)
+            elif self.integrator == "implicit_euler":
+                v = v0 + self.implicit_dv(x0, v0)
+                x = x0 + h * v
             else:
                 raise ValueError(self.integrator)
             self.x = np.where(moving, x, self.x)
             self.v = np.where(moving, v, self.v)
+
+    verlet_primed = False
+
+    def implicit_dv(self, x: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Solve (M - h df/dv - h^2 df/dx) dv = h (f + h df/dx v) densely, pinned particles
+        removed, with the compressed-spring fix g = max(0, 1 - L/l)."""
+        n, h = len(x), self.h
+        stiffness = np.zeros((3 * n, 3 * n))  # -df/dx
+        damping = np.zeros((3 * n, 3 * n))  # -df/dv
+        eye = np.eye(3)
+        for a, b, k, rest in zip(self.a, self.b, self.k, self.rest, strict=True):
+            d = x[b] - x[a]
+            length = np.linalg.norm(d)
+            u = d / length if length > 0 else np.zeros(3)
+            g = max(0.0, 1.0 - rest / length) if length > 0 else 0.0
+            blocks = ((stiffness, k * ((1 - g) * np.outer(u, u) + g * eye)),
+                      (damping, self.c * np.outer(u, u)))
+            for matrix, block in blocks:
+                for p, q, sign in ((a, a, 1), (b, b, 1), (a, b, -1), (b, a, -1)):
+                    matrix[3 * p:3 * p + 3, 3 * q:3 * q + 3] += sign * block
+        damping += self.drag * np.eye(3 * n)
+        mass = np.repeat(self.mass, 3)
+        matrix = np.diag(mass) + h * damping + h * h * stiffness
+        rhs = h * (self.forces(x, v).ravel() - h * stiffness @ v.ravel())
+        free = np.repeat(self.inv_mass > 0, 3)
+        dv = np.zeros(3 * n)
+        dv[free] = np.linalg.solve(matrix[np.ix_(free, free)], rhs[free])
+        return dv.reshape(n, 3)

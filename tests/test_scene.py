@@ -11,6 +11,7 @@ def test_defaults_are_filled_in_and_documented_keys_exist():
     d = Scene().to_dict()
     assert set(d) == {
         "integrator", "dt", "substeps", "gravity", "air_drag", "cloth", "floor", "spheres",
+        "cg_tolerance", "cg_max_iterations",
     }
     assert set(d["cloth"]) >= {
         "nx", "ny", "size", "center", "plane", "k_structural", "k_shear", "k_bend",

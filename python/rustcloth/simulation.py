@@ -40,6 +40,10 @@ class Profile:
     passes: dict[str, PassTime] = field(default_factory=dict)
     steps: int = 0
     total_seconds: float = 0.0
+    solver: dict[str, float] | None = None
+    """For ``implicit_euler``: conjugate-gradient ``solves``, ``iterations`` (total),
+    ``last_iterations``, ``last_residual`` (relative) and ``not_converged`` (solves that hit
+    ``cg_max_iterations``). None for the explicit integrators."""
 
     def per_step_ms(self) -> dict[str, float]:
         """Milliseconds per step spent in each pass."""
@@ -52,6 +56,13 @@ class Profile:
         for name, p in self.passes.items():
             share = p.seconds / self.total_seconds if self.total_seconds else 0.0
             lines.append(f"  {name:<20} {1e3 * p.seconds / n:9.4f} ms/step  {share:6.1%}")
+        if self.solver:
+            s = self.solver
+            mean = s["iterations"] / max(s["solves"], 1)
+            lines.append(
+                f"  CG: {mean:.1f} iterations/solve, last residual {s['last_residual']:.1e}, "
+                f"{s['not_converged']} of {s['solves']} solves hit the iteration cap"
+            )
         return "\n".join(lines)
 
 
@@ -112,6 +123,7 @@ class Simulation(_core.Simulation):
             passes={name: PassTime(name, seconds, calls) for name, seconds, calls in passes},
             steps=steps,
             total_seconds=total,
+            solver=self.solver_stats(),
         )
 
     def __repr__(self) -> str:

@@ -14,6 +14,10 @@ impl ForceTerm for AirDrag {
         "air_drag"
     }
 
+    fn linearization(&self) -> super::Linearization {
+        super::Linearization::Drag { c: self.c }
+    }
+
     fn accumulate(&self, input: &ForceInput, range: Range<usize>, out: &mut Vec3SliceMut) {
         let vel = input.vel.slices(range);
         for (f, v) in [

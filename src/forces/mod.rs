@@ -43,6 +43,26 @@ pub trait ForceTerm: Send + Sync {
     /// Adds this term's force on the particles `range` into `out`, whose slices cover exactly
     /// `range`. Must only read `input` and write `out`.
     fn accumulate(&self, input: &ForceInput, range: Range<usize>, out: &mut Vec3SliceMut);
+
+    /// How the force depends on the state, for implicit integrators.
+    fn linearization(&self) -> Linearization {
+        Linearization::Constant
+    }
+}
+
+/// The shape of a force term's Jacobians `df/dx`, `df/dv`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Linearization {
+    /// Independent of the state (gravity).
+    Constant,
+    /// `f = -c v`: `df/dv = -c I`.
+    Drag { c: f32 },
+    /// The springs of a family with stiffness `k` and damping `c` (see `forces/springs.rs`).
+    Springs {
+        family: crate::grid::Family,
+        k: f32,
+        c: f32,
+    },
 }
 
 /// The force terms of a scene, in the order they are summed.
@@ -60,6 +80,10 @@ impl ForceModel {
 
     pub fn names(&self) -> impl Iterator<Item = &'static str> + '_ {
         self.terms.iter().map(|t| t.name())
+    }
+
+    pub fn linearizations(&self) -> impl Iterator<Item = Linearization> + '_ {
+        self.terms.iter().map(|t| t.linearization())
     }
 
     /// Writes the total force on every particle into `out` and returns the sweep's wall time,

@@ -101,67 +101,84 @@ impl ForceTerm for SpringForce {
         self.family.pass_name()
     }
 
+    fn linearization(&self) -> super::Linearization {
+        super::Linearization::Springs {
+            family: self.family,
+            k: self.k,
+            c: self.c,
+        }
+    }
+
     fn accumulate(&self, input: &ForceInput, range: Range<usize>, out: &mut Vec3SliceMut) {
         let n = input.grid.len();
         for kind in self.family.kinds() {
-            let o = input.grid.offset(kind);
             let rest = &input.springs.rest[kind.index()];
             let active = &input.springs.active[kind.index()];
-            // Particles that anchor a spring of this kind: partner a + o, spring slot a.
-            let anchors = range.start..range.end.min(n.saturating_sub(o));
-            if !anchors.is_empty() {
-                let pair = Pair {
-                    a: anchors.start,
-                    b: anchors.start + o,
-                    spring: anchors.start,
-                };
-                self.gather(input, pair, anchors.len(), rest, active, range.start, out);
-            }
-            // Particles at the far end of a spring: partner a - o, spring slot a - o.
-            let partners = range.start.max(o)..range.end;
-            if !partners.is_empty() {
-                let pair = Pair {
-                    a: partners.start,
-                    b: partners.start - o,
-                    spring: partners.start - o,
-                };
-                self.gather(input, pair, partners.len(), rest, active, range.start, out);
+            for run in neighbour_runs(n, input.grid.offset(kind), range.clone())
+                .into_iter()
+                .flatten()
+            {
+                self.gather(input, run, rest, active, range.start, out);
             }
         }
     }
 }
 
-/// First indices of a run of `len` (particle, neighbour, spring slot) triples.
-struct Pair {
-    a: usize,
-    b: usize,
-    spring: usize,
+/// A run of `len` consecutive particles `a..`, their neighbours `b..` along one spring kind,
+/// and the slots `spring..` where those springs are stored.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Run {
+    pub a: usize,
+    pub b: usize,
+    pub spring: usize,
+    pub len: usize,
+}
+
+/// The particles of `range` that have a neighbour along a spring kind of index offset `o`, as
+/// at most two runs: those that anchor the spring (neighbour `a + o`, slot `a`) and those at its
+/// far end (neighbour `a - o`, slot `a - o`). Slots of springs that do not exist are inactive,
+/// so the runs need no row-boundary checks.
+pub fn neighbour_runs(n: usize, o: usize, range: Range<usize>) -> [Option<Run>; 2] {
+    let anchors = range.start..range.end.min(n.saturating_sub(o));
+    let ends = range.start.max(o)..range.end;
+    [
+        (!anchors.is_empty()).then(|| Run {
+            a: anchors.start,
+            b: anchors.start + o,
+            spring: anchors.start,
+            len: anchors.len(),
+        }),
+        (!ends.is_empty()).then(|| Run {
+            a: ends.start,
+            b: ends.start - o,
+            spring: ends.start - o,
+            len: ends.len(),
+        }),
+    ]
 }
 
 impl SpringForce {
     /// Adds to `out[a - out_start ..]` the force on particles `a..a+len` from their springs to
     /// `b..b+len`. One straight loop over equal-length slices: the compiler vectorises it.
-    #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn gather(
         &self,
         input: &ForceInput,
-        pair: Pair,
-        len: usize,
+        run: Run,
         rest: &[f32],
         active: &[f32],
         out_start: usize,
         out: &mut Vec3SliceMut,
     ) {
-        let (pos, vel) = (input.pos, input.vel);
-        let a = pair.a..pair.a + len;
-        let b = pair.b..pair.b + len;
+        let (pos, vel, len) = (input.pos, input.vel, run.len);
+        let a = run.a..run.a + len;
+        let b = run.b..run.b + len;
         let (xa, ya, za) = (&pos.x[a.clone()], &pos.y[a.clone()], &pos.z[a.clone()]);
         let (xb, yb, zb) = (&pos.x[b.clone()], &pos.y[b.clone()], &pos.z[b.clone()]);
         let (vxa, vya, vza) = (&vel.x[a.clone()], &vel.y[a.clone()], &vel.z[a.clone()]);
         let (vxb, vyb, vzb) = (&vel.x[b.clone()], &vel.y[b.clone()], &vel.z[b]);
-        let rest = &rest[pair.spring..pair.spring + len];
-        let active = &active[pair.spring..pair.spring + len];
+        let rest = &rest[run.spring..run.spring + len];
+        let active = &active[run.spring..run.spring + len];
         let o = a.start - out_start..a.end - out_start;
         let (fx, fy, fz) = (&mut out.x[o.clone()], &mut out.y[o.clone()], &mut out.z[o]);
         let (k, c) = (self.k, self.c);

@@ -6,12 +6,18 @@
 //! finite, so rolling back a diverged step costs nothing.
 
 mod explicit_euler;
+mod implicit_euler;
+mod rk4;
 mod symplectic_euler;
+mod verlet;
 
 use rayon::prelude::*;
 
 pub use explicit_euler::ExplicitEuler;
+pub use implicit_euler::{ImplicitEuler, SolverSettings, SolverStats};
+pub use rk4::Rk4;
 pub use symplectic_euler::SymplecticEuler;
+pub use verlet::Verlet;
 
 use crate::error::{Error, Result};
 use crate::forces::{ForceInput, ForceModel, Springs};
@@ -59,13 +65,25 @@ pub trait Integrator: Send + Sync {
     /// Writes into `ctx.next` the state one step `h` (s) after `ctx.current`. Particles with
     /// `inv_mass == 0` are copied unchanged. Returns whether every written value is finite.
     fn step(&mut self, h: f32, ctx: &mut StepContext) -> bool;
+
+    /// Called when the state was changed from outside (new positions or velocities, a new
+    /// step size): an integrator that keeps history must start afresh.
+    fn reset_history(&mut self) {}
+
+    /// Linear-solver statistics, for integrators that solve a system each step.
+    fn solver_stats(&self) -> Option<implicit_euler::SolverStats> {
+        None
+    }
 }
 
 /// The integrator called `name` in a scene.
-pub fn by_name(name: &str) -> Result<Box<dyn Integrator>> {
+pub fn by_name(name: &str, solver: SolverSettings) -> Result<Box<dyn Integrator>> {
     match name {
         "explicit_euler" => Ok(Box::new(ExplicitEuler)),
         "symplectic_euler" => Ok(Box::new(SymplecticEuler)),
+        "verlet" => Ok(Box::new(Verlet::default())),
+        "rk4" => Ok(Box::new(Rk4::default())),
+        "implicit_euler" => Ok(Box::new(ImplicitEuler::new(solver))),
         _ => Err(Error::value(
             "integrator",
             format!("unknown integrator {name:?}; valid ones are {INTEGRATORS:?}"),
@@ -142,4 +160,33 @@ pub fn one_stage_update(
         }
         probe
     })
+}
+
+/// Like [`par_update`] over two state buffers at once, chunk by chunk.
+pub fn par_update2(
+    a: &mut Kinematics,
+    b: &mut Kinematics,
+    chunk: usize,
+    update: impl Fn(std::ops::Range<usize>, UpdateChunk, UpdateChunk) -> f32 + Sync + Send,
+) -> bool {
+    let (Kinematics { pos: ap, vel: av }, Kinematics { pos: bp, vel: bv }) = (a, b);
+    ap.par_chunks_mut(chunk)
+        .zip(av.par_chunks_mut(chunk))
+        .zip(bp.par_chunks_mut(chunk).zip(bv.par_chunks_mut(chunk)))
+        .enumerate()
+        .map(|(c, ((ap, av), (bp, bv)))| {
+            let range = c * chunk..c * chunk + ap.len();
+            let a = UpdateChunk {
+                range: range.clone(),
+                pos: ap,
+                vel: av,
+            };
+            let b = UpdateChunk {
+                range: range.clone(),
+                pos: bp,
+                vel: bv,
+            };
+            update(range, a, b)
+        })
+        .all(|probe| !probe.is_nan())
 }

@@ -65,6 +65,35 @@ fn builtin_scene<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>
 #[pyclass(name = "Simulation", module = "rustcloth._core", subclass)]
 struct PySimulation {
     inner: Simulation,
+    /// Whether the one warning about an unconverged linear solve was given.
+    warned_not_converged: bool,
+}
+
+impl PySimulation {
+    /// Warns once per simulation when the implicit solver stopped at its iteration cap.
+    fn warn_if_not_converged(&mut self, py: Python<'_>) -> PyResult<()> {
+        let Some(stats) = self.inner.solver_stats() else {
+            return Ok(());
+        };
+        if stats.not_converged > 0 && !self.warned_not_converged {
+            self.warned_not_converged = true;
+            let message = format!(
+                "implicit_euler: the conjugate gradient stopped at cg_max_iterations = {} with \
+                 relative residual {:.2e} > cg_tolerance = {:.0e} ({} of {} solves so far); \
+                 the step was taken with the partial solution. Raise cg_max_iterations, loosen \
+                 cg_tolerance or reduce dt. profile() counts these.",
+                self.inner.scene().cg_max_iterations,
+                stats.last_residual,
+                self.inner.scene().cg_tolerance,
+                stats.not_converged,
+                stats.solves,
+            );
+            let message = std::ffi::CString::new(message).expect("no NUL in the message");
+            let category = py.get_type::<pyo3::exceptions::PyRuntimeWarning>();
+            PyErr::warn(py, category.as_any(), &message, 1)?;
+        }
+        Ok(())
+    }
 }
 
 #[pymethods]
@@ -74,6 +103,7 @@ impl PySimulation {
         let scene = scene_from_dict(scene)?;
         Ok(PySimulation {
             inner: Simulation::new(scene).py()?,
+            warned_not_converged: false,
         })
     }
 
@@ -85,12 +115,31 @@ impl PySimulation {
             ));
         }
         let sim = &mut self.inner;
-        py.detach(|| sim.step(n as u64)).py()
+        let outcome = py.detach(|| sim.step(n as u64)).py();
+        self.warn_if_not_converged(py)?;
+        outcome
     }
 
     fn advance(&mut self, py: Python<'_>, seconds: f64) -> PyResult<u64> {
         let sim = &mut self.inner;
-        py.detach(|| sim.advance(seconds)).py()
+        let outcome = py.detach(|| sim.advance(seconds)).py();
+        self.warn_if_not_converged(py)?;
+        outcome
+    }
+
+    /// Statistics of the implicit solver as a dict (`solves`, `iterations`, `last_iterations`,
+    /// `last_residual`, `not_converged`), or None for integrators that solve nothing.
+    fn solver_stats<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let Some(stats) = self.inner.solver_stats() else {
+            return Ok(None);
+        };
+        let dict = PyDict::new(py);
+        dict.set_item("solves", stats.solves)?;
+        dict.set_item("iterations", stats.iterations)?;
+        dict.set_item("last_iterations", stats.last_iterations)?;
+        dict.set_item("last_residual", stats.last_residual)?;
+        dict.set_item("not_converged", stats.not_converged)?;
+        Ok(Some(dict))
     }
 
     #[getter]

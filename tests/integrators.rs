@@ -1,0 +1,197 @@
+//! Every integrator: convergence order, energy behaviour, stability.
+
+mod common;
+
+use common::*;
+use rustcloth::scene::PinSpec;
+use rustcloth::{Scene, Simulation};
+
+const ALL: [&str; 5] = [
+    "explicit_euler",
+    "symplectic_euler",
+    "verlet",
+    "rk4",
+    "implicit_euler",
+];
+
+/// Position error at t = 1 s of a mass on a spring (k = 100 N/m, m = 1 kg, so omega = 10
+/// rad/s) released 0.5 m from rest: `x(t) = L + 0.5 cos(10 t)`. Stiff enough that truncation
+/// error dominates float32 round-off over each dt ladder below.
+fn oscillator_error(integrator: &str, steps: u64) -> f64 {
+    let dt = 1.0 / steps as f64;
+    let mut sim = two_particle_spring(100.0, 1.0, integrator, dt);
+    sim.pin(0, None).unwrap();
+    let mut pos = sim.positions().clone();
+    pos.x[1] = 1.5;
+    sim.set_positions(&pos).unwrap();
+    sim.step(steps).unwrap();
+    let exact = 1.0 + 0.5 * 10.0f64.cos();
+    (position(&sim, 1).x as f64 - exact).abs()
+}
+
+#[test]
+fn halving_dt_divides_the_error_by_the_order_of_each_method() {
+    // (integrator, expected error ratio per halving, steps per second)
+    let cases = [
+        ("explicit_euler", 2.0, [4000, 8000, 16000]),
+        ("symplectic_euler", 2.0, [1000, 2000, 4000]),
+        ("implicit_euler", 2.0, [4000, 8000, 16000]),
+        ("verlet", 4.0, [250, 500, 1000]),
+        ("rk4", 16.0, [40, 80, 160]),
+    ];
+    for (integrator, order_ratio, ladder) in cases {
+        let errors: Vec<f64> = ladder
+            .iter()
+            .map(|&n| oscillator_error(integrator, n))
+            .collect();
+        for pair in errors.windows(2) {
+            let ratio = pair[0] / pair[1];
+            assert!(
+                (ratio / order_ratio - 1.0).abs() < 0.25,
+                "{integrator}: errors {errors:?}, ratio {ratio}, expected about {order_ratio}"
+            );
+        }
+    }
+}
+
+/// A cloth pinned at two corners, swinging, with every dissipation switched off.
+fn undamped_swing(integrator: &str) -> Simulation {
+    let mut scene = Scene::builtin("hanging").unwrap();
+    scene.integrator = integrator.into();
+    scene.air_drag = 0.0;
+    scene.cloth.damping = 0.0;
+    scene.cloth.nx = 12;
+    scene.cloth.ny = 12;
+    // Soft springs: omega dt is about 0.25 for the stiffest mode, where RK4 is accurate.
+    scene.cloth.k_structural = 50.0;
+    scene.cloth.k_shear = 10.0;
+    scene.cloth.k_bend = 2.0;
+    scene.substeps = 1;
+    scene.dt = 0.0005;
+    Simulation::new(scene).unwrap()
+}
+
+/// Energy drift over 10,000 steps: (largest |E - E0|, last E - E0) relative to the energy
+/// exchanged by the swing (the initial potential energy above the final hanging state is of
+/// the order of m g times the drop).
+fn energy_drift(integrator: &str) -> (f64, f64) {
+    let mut sim = undamped_swing(integrator);
+    let e0 = sim.energy().total();
+    let scale = sim.energy().gravitational.abs().max(1e-9) * 0.1;
+    let mut worst: f64 = 0.0;
+    for _ in 0..100 {
+        if sim.step(100).is_err() {
+            return (f64::INFINITY, f64::INFINITY); // energy grew until the state overflowed
+        }
+        worst = worst.max((sim.energy().total() - e0).abs());
+    }
+    (worst / scale, (sim.energy().total() - e0) / scale)
+}
+
+#[test]
+fn symplectic_methods_keep_energy_bounded_explicit_gains_implicit_loses() {
+    let (symplectic, _) = energy_drift("symplectic_euler");
+    let (verlet, _) = energy_drift("verlet");
+    let (rk4, _) = energy_drift("rk4");
+    let (explicit, explicit_last) = energy_drift("explicit_euler");
+    let (implicit, implicit_last) = energy_drift("implicit_euler");
+    assert!(symplectic < 0.05, "symplectic Euler drift {symplectic}");
+    assert!(verlet < 0.05, "Verlet drift {verlet}");
+    assert!(
+        explicit_last > 0.05,
+        "explicit Euler should gain energy, drift {explicit_last}"
+    );
+    assert!(
+        implicit_last < -0.05,
+        "implicit Euler should lose energy, drift {implicit_last}"
+    );
+    assert!(
+        rk4 < verlet && verlet < explicit,
+        "rk4 {rk4} < verlet {verlet} < explicit {explicit}"
+    );
+    assert!(implicit.is_finite());
+}
+
+#[test]
+fn implicit_euler_is_stable_far_beyond_the_explicit_limit() {
+    let mut scene = Scene::builtin("hanging").unwrap();
+    scene.cloth.nx = 16;
+    scene.cloth.ny = 16;
+    scene.substeps = 1;
+    scene.dt = 1.0 / 30.0;
+    let m = scene.particle_mass();
+    // Explicit limit: dt sqrt(4 sum k / m) = 2, so sum k = m / dt^2; take 100 times that.
+    let k_limit = m / (scene.dt * scene.dt);
+    scene.cloth.k_structural = 100.0 * k_limit;
+    scene.cloth.k_shear = 20.0 * k_limit;
+    scene.cloth.k_bend = 5.0 * k_limit;
+    for integrator in ["symplectic_euler", "explicit_euler"] {
+        let mut sim = Simulation::new(Scene {
+            integrator: integrator.into(),
+            ..scene.clone()
+        })
+        .unwrap();
+        assert!(sim.step(60).is_err(), "{integrator} should diverge here");
+    }
+    let mut sim = Simulation::new(Scene {
+        integrator: "implicit_euler".into(),
+        ..scene
+    })
+    .unwrap();
+    for _ in 0..60 {
+        sim.step(5).unwrap();
+        let pos = sim.positions();
+        for p in 0..pos.len() {
+            let x = pos.get(p);
+            assert!(
+                x.is_finite() && x.abs().max_element() < 10.0,
+                "particle {p} at {x}"
+            );
+        }
+    }
+    assert!(sim.max_stretch() < 0.5, "stretch {}", sim.max_stretch());
+    let stats = sim.solver_stats().unwrap();
+    assert_eq!(stats.solves, 300);
+    assert!(stats.last_iterations > 0);
+}
+
+#[test]
+fn every_integrator_keeps_pins_bitwise_and_is_thread_count_deterministic() {
+    for integrator in ALL {
+        let mut scene = Scene::builtin("drape").unwrap();
+        scene.integrator = integrator.into();
+        scene.dt = 0.0005;
+        scene.cloth.nx = 40;
+        scene.cloth.ny = 40;
+        scene.cloth.pins = vec![PinSpec::Named("top_corners".into())];
+        let run = |threads| {
+            with_threads(threads, || {
+                let mut sim = Simulation::new(scene.clone()).unwrap();
+                let p = sim.grid().len() - 1;
+                let before = position(&sim, p);
+                sim.step(80).unwrap();
+                assert_eq!(
+                    position(&sim, p).to_array().map(f32::to_bits),
+                    before.to_array().map(f32::to_bits)
+                );
+                state_hash(&sim)
+            })
+        };
+        assert_eq!(run(1), run(3), "{integrator}");
+    }
+}
+
+#[test]
+fn every_integrator_falls_freely_at_g() {
+    for integrator in ALL {
+        let mut scene = bare_scene(6, 6);
+        scene.integrator = integrator.into();
+        scene.gravity = [0.0, -9.81, 0.0];
+        let mut sim = Simulation::new(scene).unwrap();
+        let y0 = position(&sim, 0).y as f64;
+        sim.step(1000).unwrap();
+        let drop = y0 - position(&sim, 0).y as f64;
+        // 1 s of free fall: g/2 = 4.905 m, up to the first-order start error of g dt / 2.
+        assert!((drop - 4.905).abs() < 0.006, "{integrator}: dropped {drop}");
+    }
+}
