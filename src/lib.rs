@@ -25,6 +25,7 @@ pub mod interaction;
 pub mod pins;
 pub mod profile;
 pub mod scene;
+pub mod simd;
 pub mod simulation;
 pub mod soa;
 pub mod state;

@@ -113,21 +113,34 @@ def test_divergence_restores_the_last_finite_state_and_names_the_step():
     assert sim.steps == good[2]
 
 
+DIGEST_SCRIPT = textwrap.dedent(
+    """
+    import hashlib, sys, rustcloth
+    scene = rustcloth.load_scene("drape")
+    scene = scene.replace(integrator=sys.argv[1], cloth={"nx": 96, "ny": 96, "pins": ["corners"]})
+    sim = rustcloth.Simulation(scene)
+    sim.step(40)
+    print(hashlib.sha256(sim.positions.tobytes() + sim.velocities.tobytes()).hexdigest())
+    """
+)
+
+
+def digest_with(env: dict[str, str], integrator: str = "symplectic_euler") -> str:
+    out = subprocess.run([sys.executable, "-c", DIGEST_SCRIPT, integrator],
+                         env=dict(os.environ, **env), check=True, capture_output=True, text=True)
+    return out.stdout.strip()
+
+
+@pytest.mark.parametrize("integrator", rustcloth.INTEGRATORS)
+def test_state_is_bitwise_identical_across_vector_instruction_sets(integrator):
+    # The hot loops are compiled for SSE2, AVX2 and AVX-512 and chosen at run time; none
+    # reorders arithmetic, so all give the same bits (where the CPU has them; otherwise the
+    # request falls back and the comparison is trivially true).
+    digests = {digest_with({"RUSTCLOTH_SIMD": isa}, integrator)
+               for isa in ("baseline", "avx2", "avx512")}
+    assert len(digests) == 1, digests
+
+
 def test_state_is_bitwise_identical_across_thread_counts():
-    script = textwrap.dedent(
-        """
-        import hashlib, rustcloth
-        scene = rustcloth.load_scene("drape")
-        scene = scene.replace(cloth={"nx": 96, "ny": 96, "pins": ["corners"]})
-        sim = rustcloth.Simulation(scene)
-        sim.step(40)
-        print(hashlib.sha256(sim.positions.tobytes() + sim.velocities.tobytes()).hexdigest())
-        """
-    )
-    digests = set()
-    for threads in ("1", "2", "3"):
-        env = dict(os.environ, RAYON_NUM_THREADS=threads)
-        out = subprocess.run([sys.executable, "-c", script], env=env, check=True,
-                             capture_output=True, text=True)
-        digests.add(out.stdout.strip())
+    digests = {digest_with({"RAYON_NUM_THREADS": threads}) for threads in ("1", "2", "3")}
     assert len(digests) == 1, digests

@@ -110,6 +110,13 @@ impl ForceTerm for SpringForce {
     }
 
     fn accumulate(&self, input: &ForceInput, range: Range<usize>, out: &mut Vec3SliceMut) {
+        crate::simd::dispatch!(self.accumulate_lanes(input, range.clone(), out))
+    }
+}
+
+impl SpringForce {
+    #[inline(always)]
+    fn accumulate_lanes(&self, input: &ForceInput, range: Range<usize>, out: &mut Vec3SliceMut) {
         let n = input.grid.len();
         for kind in self.family.kinds() {
             let rest = &input.springs.rest[kind.index()];

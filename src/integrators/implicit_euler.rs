@@ -4,7 +4,7 @@
 
 use rayon::prelude::*;
 
-use super::{par_update, Integrator, StepContext};
+use super::{par_update, FiniteCheck, Integrator, StepContext};
 use crate::forces::springs::neighbour_runs;
 use crate::forces::Linearization;
 use crate::grid::SpringKind;
@@ -289,7 +289,7 @@ impl Integrator for ImplicitEuler {
         // v' = v + dv, x' = x + h v'.
         let (cur, dv) = (ctx.current, &work.dv);
         par_update(ctx.next, chunk, |mut out| {
-            let mut probe = 0.0f32;
+            let mut check = FiniteCheck::default();
             for (i, p) in out.range.clone().enumerate() {
                 let (x, v) = (cur.pos.get(p), cur.vel.get(p));
                 let (x_new, v_new) = if w[p] > 0.0 {
@@ -300,9 +300,11 @@ impl Integrator for ImplicitEuler {
                 };
                 out.pos.set(i, x_new);
                 out.vel.set(i, v_new);
-                probe += (x_new + v_new).element_sum() * 0.0;
+                for value in x_new.to_array().into_iter().chain(v_new.to_array()) {
+                    check.watch(value);
+                }
             }
-            probe
+            check
         })
     }
 }

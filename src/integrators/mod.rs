@@ -99,14 +99,43 @@ pub struct UpdateChunk<'a> {
     pub vel: Vec3SliceMut<'a>,
 }
 
-/// Runs `update` over every chunk of `next` in parallel and reports whether all of it is
-/// finite afterwards. `update` returns a probe: a sum of `value * 0` over what it wrote, which
-/// is NaN exactly when something non-finite was written. That costs one multiply-add per value
-/// in a loop that is already streaming them, instead of a second pass over memory.
+/// Watches the values an update loop writes for a non-finite one: an OR over "all exponent
+/// bits set" (infinity or NaN). Integer OR is associative, so the loop still vectorises (a float
+/// sum would serialise it), and the check costs two integer operations per value in a loop that
+/// is streaming those values anyway, instead of a second pass over memory.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct FiniteCheck(u32);
+
+impl FiniteCheck {
+    #[inline(always)]
+    pub fn watch(&mut self, x: f32) {
+        // Exponent bits all set: x.abs() >= infinity as integers, branch-free.
+        self.0 |= ((x.to_bits() & 0x7fff_ffff) >= 0x7f80_0000) as u32;
+    }
+
+    pub fn all_finite(self) -> bool {
+        self.0 == 0
+    }
+}
+
+/// All ones for a particle that integration must not move (`inv_mass == 0`), else zero.
+#[inline(always)]
+pub fn hold_mask(inv_mass: f32) -> u32 {
+    ((inv_mass == 0.0) as u32).wrapping_neg()
+}
+
+/// `old` where `mask` is all ones, `new` where it is zero, bit for bit.
+#[inline(always)]
+pub fn select_bits(mask: u32, old: f32, new: f32) -> f32 {
+    f32::from_bits((old.to_bits() & mask) | (new.to_bits() & !mask))
+}
+
+/// Runs `update` over every chunk of `next` in parallel and reports whether everything it
+/// wrote is finite, as the [`FiniteCheck`] each chunk returns says.
 pub fn par_update(
     next: &mut Kinematics,
     chunk: usize,
-    update: impl Fn(UpdateChunk) -> f32 + Sync + Send,
+    update: impl Fn(UpdateChunk) -> FiniteCheck + Sync + Send,
 ) -> bool {
     let Kinematics { pos, vel } = next;
     pos.par_chunks_mut(chunk)
@@ -116,7 +145,7 @@ pub fn par_update(
             let range = c * chunk..c * chunk + pos.len();
             update(UpdateChunk { range, pos, vel })
         })
-        .all(|probe| !probe.is_nan())
+        .all(|check| check.all_finite())
 }
 
 /// The update shared by the one-stage explicit schemes: with `dv = h f / m` from the force at the
@@ -125,41 +154,64 @@ pub fn par_update(
 pub fn one_stage_update(
     ctx: &mut StepContext,
     h: f32,
-    rule: impl Fn(f32, f32, f32) -> (f32, f32) + Sync + Send,
+    rule: impl Fn(f32, f32, f32) -> (f32, f32) + Sync + Send + Copy,
 ) -> bool {
     ctx.eval_forces_at(ctx.current);
     let (cur, force, inv_mass) = (ctx.current, &*ctx.force, &ctx.particles.inv_mass);
     par_update(ctx.next, ctx.chunk, |out| {
         let r = out.range.clone();
-        let (x, v, f) = (
-            cur.pos.slices(r.clone()),
-            cur.vel.slices(r.clone()),
-            force.slices(r.clone()),
-        );
-        let w = &inv_mass[r];
-        let mut probe = 0.0f32;
-        for (dst_x, dst_v, x, v, f) in [
-            (&mut *out.pos.x, &mut *out.vel.x, x.x, v.x, f.x),
-            (&mut *out.pos.y, &mut *out.vel.y, x.y, v.y, f.y),
-            (&mut *out.pos.z, &mut *out.vel.z, x.z, v.z, f.z),
-        ] {
-            let (dst_x, dst_v, x, v, f) = (
-                &mut dst_x[..w.len()],
-                &mut dst_v[..w.len()],
-                &x[..w.len()],
-                &v[..w.len()],
-                &f[..w.len()],
+        let w = &inv_mass[r.clone()];
+        let mut check = FiniteCheck::default();
+        for (c, (dst_x, dst_v)) in [
+            (out.pos.x, out.vel.x),
+            (out.pos.y, out.vel.y),
+            (out.pos.z, out.vel.z),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let (x, v, f) = (
+                cur.pos.component(c, &r),
+                cur.vel.component(c, &r),
+                force.component(c, &r),
             );
-            for i in 0..w.len() {
-                let (x_new, v_new) = rule(x[i], v[i], h * f[i] * w[i]);
-                let moving = w[i] > 0.0;
-                dst_x[i] = if moving { x_new } else { x[i] };
-                dst_v[i] = if moving { v_new } else { v[i] };
-                probe += dst_x[i] * 0.0 + dst_v[i] * 0.0;
-            }
+            check.0 |= crate::simd::dispatch!(update_component(rule, h, x, v, f, w, dst_x, dst_v));
         }
-        probe
+        check
     })
+}
+
+/// One component of [`one_stage_update`] over a chunk; returns the [`FiniteCheck`] bits.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn update_component(
+    rule: impl Fn(f32, f32, f32) -> (f32, f32),
+    h: f32,
+    x: &[f32],
+    v: &[f32],
+    f: &[f32],
+    w: &[f32],
+    dst_x: &mut [f32],
+    dst_v: &mut [f32],
+) -> u32 {
+    let n = w.len();
+    let (x, v, f, dst_x, dst_v) = (&x[..n], &v[..n], &f[..n], &mut dst_x[..n], &mut dst_v[..n]);
+    let mut check = FiniteCheck::default();
+    for i in 0..n {
+        let (x_new, v_new) = rule(x[i], v[i], h * f[i] * w[i]);
+        // Held particles keep their bits: a blend of bit patterns rather than a branch, so
+        // that the loop vectorises.
+        let keep = hold_mask(w[i]);
+        let (x_out, v_out) = (
+            select_bits(keep, x[i], x_new),
+            select_bits(keep, v[i], v_new),
+        );
+        dst_x[i] = x_out;
+        dst_v[i] = v_out;
+        check.watch(x_out);
+        check.watch(v_out);
+    }
+    check.0
 }
 
 /// Like [`par_update`] over two state buffers at once, chunk by chunk.
@@ -167,14 +219,14 @@ pub fn par_update2(
     a: &mut Kinematics,
     b: &mut Kinematics,
     chunk: usize,
-    update: impl Fn(std::ops::Range<usize>, UpdateChunk, UpdateChunk) -> f32 + Sync + Send,
-) -> bool {
+    update: impl Fn(std::ops::Range<usize>, UpdateChunk, UpdateChunk) + Sync + Send,
+) {
     let (Kinematics { pos: ap, vel: av }, Kinematics { pos: bp, vel: bv }) = (a, b);
     ap.par_chunks_mut(chunk)
         .zip(av.par_chunks_mut(chunk))
         .zip(bp.par_chunks_mut(chunk).zip(bv.par_chunks_mut(chunk)))
         .enumerate()
-        .map(|(c, ((ap, av), (bp, bv)))| {
+        .for_each(|(c, ((ap, av), (bp, bv)))| {
             let range = c * chunk..c * chunk + ap.len();
             let a = UpdateChunk {
                 range: range.clone(),
@@ -187,6 +239,5 @@ pub fn par_update2(
                 vel: bv,
             };
             update(range, a, b)
-        })
-        .all(|probe| !probe.is_nan())
+        });
 }

@@ -1,4 +1,4 @@
-use super::{par_update, par_update2, Integrator, StepContext};
+use super::{par_update, par_update2, FiniteCheck, Integrator, StepContext};
 use crate::state::Kinematics;
 
 /// Classic fourth-order Runge-Kutta on the first-order system `x' = v, v' = f(x, v) / m`:
@@ -60,7 +60,6 @@ impl Integrator for Rk4 {
                         tv[i] = v[i] + step_to * a;
                     }
                 }
-                0.0
             });
         }
 
@@ -69,7 +68,7 @@ impl Integrator for Rk4 {
         let (f, stage, sum) = (&*ctx.force, &*stage, &*sum);
         par_update(ctx.next, ctx.chunk, |mut out| {
             let r = out.range.clone();
-            let mut probe = 0.0f32;
+            let mut check = FiniteCheck::default();
             for c in 0..3 {
                 let (x, v, f) = (
                     cur.pos.component(c, &r),
@@ -86,10 +85,11 @@ impl Integrator for Rk4 {
                     let moving = wi > 0.0;
                     dx[i] = if moving { x_new } else { x[i] };
                     dv[i] = if moving { v_new } else { v[i] };
-                    probe += dx[i] * 0.0 + dv[i] * 0.0;
+                    check.watch(dx[i]);
+                    check.watch(dv[i]);
                 }
             }
-            probe
+            check
         })
     }
 }

@@ -1,0 +1,87 @@
+//! Run-time choice of the vector instruction set for the hot loops.
+//!
+//! The hot loops are written once, as plain loops over `f32` slices that the compiler
+//! vectorises. Each is compiled three times on x86-64: for the baseline (SSE2, 4 lanes), for
+//! AVX2 (8 lanes) and for AVX-512 (16 lanes), and [`isa`] picks the widest the CPU has. A wheel
+//! built here therefore runs on any x86-64 machine and still uses what this one offers.
+//!
+//! The three builds give bitwise identical results: Rust never contracts `a * b + c` into a
+//! fused multiply-add, and vectorising these loops does not reorder any sum, so every lane
+//! performs the same correctly rounded operations as the scalar code.
+//!
+//! `RUSTCLOTH_SIMD=baseline|avx2|avx512` forces a choice (never beyond what the CPU has), for
+//! tests and for measuring what the wide units buy.
+
+use std::sync::OnceLock;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Isa {
+    Baseline,
+    Avx2,
+    Avx512,
+}
+
+/// The instruction set the hot loops use in this process.
+pub fn isa() -> Isa {
+    static CHOICE: OnceLock<Isa> = OnceLock::new();
+    *CHOICE.get_or_init(|| {
+        let best = detect();
+        match std::env::var("RUSTCLOTH_SIMD").as_deref() {
+            Ok("baseline") => Isa::Baseline,
+            Ok("avx2") if best != Isa::Baseline => Isa::Avx2,
+            _ => best,
+        }
+    })
+}
+
+fn detect() -> Isa {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if is_x86_feature_detected!("avx512f") && is_x86_feature_detected!("avx512vl") {
+            return Isa::Avx512;
+        }
+        if is_x86_feature_detected!("avx2") {
+            return Isa::Avx2;
+        }
+    }
+    Isa::Baseline
+}
+
+/// Calls `$body` (an expression using only `#[inline(always)]` code, so that it is compiled
+/// inside the wrapper) from a function compiled for the chosen instruction set.
+macro_rules! dispatch {
+    ($body:expr) => {{
+        #[cfg(target_arch = "x86_64")]
+        {
+            #[target_feature(enable = "avx512f,avx512vl,avx2")]
+            unsafe fn avx512<R>(f: impl FnOnce() -> R) -> R {
+                f()
+            }
+            #[target_feature(enable = "avx2")]
+            unsafe fn avx2<R>(f: impl FnOnce() -> R) -> R {
+                f()
+            }
+            match $crate::simd::isa() {
+                // SAFETY: `isa()` only returns an instruction set the CPU reported.
+                $crate::simd::Isa::Avx512 => unsafe {
+                    avx512(
+                        #[inline(always)]
+                        || $body,
+                    )
+                },
+                $crate::simd::Isa::Avx2 => unsafe {
+                    avx2(
+                        #[inline(always)]
+                        || $body,
+                    )
+                },
+                $crate::simd::Isa::Baseline => $body,
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            $body
+        }
+    }};
+}
+pub(crate) use dispatch;
