@@ -3,6 +3,7 @@
     demo [SCENE]        the desktop demo (headless progress when no renderer/display)
     run [SCENE]         simulate headless and print per-second progress and a summary
     render SCENE ...    render frames offscreen (see ``render --help``)
+    accuracy [--quick]  the accuracy-versus-time study: docs/accuracy.md and .png
     scenes              list the built-in scenes
 """
 
@@ -54,10 +55,14 @@ def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = argparse.ArgumentParser(prog="rustcloth", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("command", choices=["demo", "run", "render", "scenes"])
+    parser.add_argument("command", choices=["demo", "run", "render", "accuracy", "scenes"])
     args, rest = parser.parse_known_args(argv[:1])
     rest = argv[1:]
     try:
+        if args.command == "accuracy":
+            from . import accuracy
+
+            return accuracy.main(rest)
         if args.command == "scenes":
             print("\n".join(scenes()))
             return 0

@@ -5,10 +5,10 @@
 use rayon::prelude::*;
 
 use super::{par_update, FiniteCheck, Integrator, StepContext};
-use crate::forces::springs::neighbour_runs;
+use crate::forces::springs::{neighbour_runs, Run};
 use crate::forces::Linearization;
 use crate::grid::SpringKind;
-use crate::soa::Vec3s;
+use crate::soa::{Vec3SliceMut, Vec3s};
 
 /// Settings of the linear solve.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -40,6 +40,8 @@ pub struct SolverStats {
     pub last_residual: f32,
     /// Solves that stopped at the iteration cap above the tolerance.
     pub not_converged: u64,
+    /// The largest final `|r| / |b|` among those.
+    pub worst_residual: f32,
 }
 
 /// Backward Euler: find `dv` with
@@ -77,12 +79,14 @@ struct Work {
     p: Vec3s,
     q: Vec3s,
     diag: Vec3s,
+    /// Per-chunk partial sums of one and of two dot products.
     partials: Vec<f64>,
+    partials2: Vec<[f64; 2]>,
 }
 
-/// Particles per partial sum of a dot product: fixed, so that sums are bitwise the same for
-/// any number of threads.
-const REDUCE_CHUNK: usize = 4096;
+/// Particles per work item of the CG passes, and per partial sum of their dot products: fixed,
+/// so that the sums are bitwise the same for any number of threads.
+const REDUCE_CHUNK: usize = 1024;
 
 impl Work {
     fn new(n: usize) -> Self {
@@ -99,6 +103,7 @@ impl Work {
             q: Vec3s::zeros(n),
             diag: Vec3s::zeros(n),
             partials: vec![0.0; n.div_ceil(REDUCE_CHUNK)],
+            partials2: vec![[0.0; 2]; n.div_ceil(REDUCE_CHUNK)],
         }
     }
 }
@@ -173,110 +178,107 @@ impl Integrator for ImplicitEuler {
             let rhs_and_diag = rhs.par_chunks_mut(chunk).zip(diag.par_chunks_mut(chunk));
             rhs_and_diag.enumerate().for_each(|(c, (mut b, mut d))| {
                 let range = c * chunk..c * chunk + b.len();
-                for (i, p) in range.clone().enumerate() {
-                    b.set(i, h * f.get(p));
-                    let m = mass[p] + h * drag;
-                    d.set(i, glam::Vec3::splat(m));
-                }
-                for (&(k, o), &(_, hc)) in offsets.iter().zip(kinds.iter()) {
-                    for run in neighbour_runs(grid_n, o, range.clone())
-                        .into_iter()
-                        .flatten()
+                crate::simd::dispatch!({
+                    for (comp, (b, d)) in [
+                        (&mut *b.x, &mut *d.x),
+                        (&mut *b.y, &mut *d.y),
+                        (&mut *b.z, &mut *d.z),
+                    ]
+                    .into_iter()
+                    .enumerate()
                     {
-                        for t in 0..run.len {
-                            let (a, nb, s) = (run.a + t, run.b + t, run.spring + t);
-                            let (al, be, us) = (alpha[k][s], beta[k][s], u[k].get(s));
-                            // K = C - h c u u^T (the damping part has no x-derivative).
-                            let alpha_k = al - hc * springs.active[k][s];
-                            let dvel = vel.get(a) - vel.get(nb);
-                            let kv = be * dvel + alpha_k * us.dot(dvel) * us;
-                            let i = a - range.start;
-                            b.set(i, b.get(i) - kv);
-                            d.set(i, d.get(i) + glam::Vec3::splat(be) + al * us * us);
+                        let f = f.component(comp, &range);
+                        for (i, p) in range.clone().enumerate() {
+                            b[i] = h * f[i];
+                            d[i] = mass[p] + h * drag;
                         }
                     }
-                }
-                for (i, p) in range.enumerate() {
-                    if w[p] == 0.0 {
-                        b.set(i, glam::Vec3::ZERO); // held particles: filtered out
+                    for (&(k, o), &(_, hc)) in offsets.iter().zip(kinds.iter()) {
+                        let blocks = Blocks {
+                            alpha: &alpha[k],
+                            beta: &beta[k],
+                            u: &u[k],
+                        };
+                        for run in neighbour_runs(grid_n, o, range.clone())
+                            .into_iter()
+                            .flatten()
+                        {
+                            // K = C - h c u u^T: the damping part has no x-derivative.
+                            let stiffness_only = Some((hc, &springs.active[k][..]));
+                            blocks.apply(run, vel, stiffness_only, -1.0, &mut b, range.start);
+                            blocks.add_diagonal(run, &mut d, range.start);
+                        }
                     }
-                }
+                    filter_held(&mut b, &w[range.clone()]);
+                })
             });
         }
 
         // Preconditioned conjugate gradient from dv = 0.
         let settings = self.settings;
-        let product = |work: &mut Work| {
+        // q = A p, returning p . q.
+        let product = |work: &mut Work| -> f64 {
             let Work {
                 alpha,
                 beta,
                 u,
                 p,
                 q,
+                partials,
                 ..
             } = work;
             let p = &*p;
-            q.par_chunks_mut(chunk).enumerate().for_each(|(c, mut q)| {
-                let range = c * chunk..c * chunk + q.len();
-                for (i, a) in range.clone().enumerate() {
-                    q.set(i, (mass[a] + h * drag) * p.get(a));
-                }
-                for &(k, o) in &offsets {
-                    for run in neighbour_runs(grid_n, o, range.clone())
-                        .into_iter()
-                        .flatten()
-                    {
-                        for t in 0..run.len {
-                            let (a, nb, s) = (run.a + t, run.b + t, run.spring + t);
-                            let dp = p.get(a) - p.get(nb);
-                            let us = u[k].get(s);
-                            let i = a - range.start;
-                            q.set(
-                                i,
-                                q.get(i) + beta[k][s] * dp + alpha[k][s] * us.dot(dp) * us,
-                            );
+            q.par_chunks_mut(REDUCE_CHUNK)
+                .zip(partials.par_iter_mut())
+                .enumerate()
+                .for_each(|(c, (mut q, partial))| {
+                    let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + q.len();
+                    *partial = crate::simd::dispatch!({
+                        for (comp, q) in [&mut *q.x, &mut *q.y, &mut *q.z].into_iter().enumerate() {
+                            let p = p.component(comp, &range);
+                            for (i, a) in range.clone().enumerate() {
+                                q[i] = (mass[a] + h * drag) * p[i];
+                            }
                         }
-                    }
-                }
-                for (i, a) in range.enumerate() {
-                    if w[a] == 0.0 {
-                        q.set(i, glam::Vec3::ZERO);
-                    }
-                }
-            });
+                        for &(k, o) in &offsets {
+                            let blocks = Blocks {
+                                alpha: &alpha[k],
+                                beta: &beta[k],
+                                u: &u[k],
+                            };
+                            for run in neighbour_runs(grid_n, o, range.clone())
+                                .into_iter()
+                                .flatten()
+                            {
+                                blocks.apply(run, p, None, 1.0, &mut q, range.start);
+                            }
+                        }
+                        filter_held(&mut q, &w[range.clone()]);
+                        chunk_dot(p.slices(range.clone()), &q)
+                    });
+                });
+            partials.iter().sum()
         };
-        work.dv.fill(glam::Vec3::ZERO);
-        work.r.copy_from(&work.rhs);
-        precondition(&work.r, &work.diag, &mut work.z);
-        work.p.copy_from(&work.z);
-        let b_norm = dot(&work.rhs, &work.rhs, &mut work.partials).sqrt();
-        let mut rz = dot(&work.r, &work.z, &mut work.partials);
+        // Preconditioned conjugate gradient from dv = 0, three parallel passes per iteration
+        // with the dot products fused into them. Partial sums are over fixed chunks and added
+        // in order, so the solve is bitwise the same for any number of threads.
+        let (b_dot_b, mut rz) = start_solve(work);
+        let b_norm = b_dot_b.sqrt();
         let mut residual = if b_norm > 0.0 { 1.0 } else { 0.0 };
         let mut iterations = 0;
         while residual > settings.tolerance as f64 && iterations < settings.max_iterations {
-            product(work);
-            let pq = dot(&work.p, &work.q, &mut work.partials);
+            let pq = product(work);
             if pq <= 0.0 || !pq.is_finite() {
                 break; // breakdown: the matrix is not positive definite along p
             }
-            let step = (rz / pq) as f32;
-            axpy(&mut work.dv, step, &work.p);
-            axpy(&mut work.r, -step, &work.q);
+            let (r_dot_r, rz_new) = advance_solution(work, (rz / pq) as f32);
             iterations += 1;
-            residual = dot(&work.r, &work.r, &mut work.partials).sqrt() / b_norm;
-            precondition(&work.r, &work.diag, &mut work.z);
-            let rz_new = dot(&work.r, &work.z, &mut work.partials);
-            let beta = (rz_new / rz) as f32;
+            residual = r_dot_r.sqrt() / b_norm;
+            if residual <= settings.tolerance as f64 {
+                break;
+            }
+            next_direction(work, (rz_new / rz) as f32);
             rz = rz_new;
-            // p = z + beta p
-            let Work { p, z, .. } = work;
-            let z = &*z;
-            p.par_chunks_mut(chunk).enumerate().for_each(|(c, mut p)| {
-                for i in 0..p.len() {
-                    let a = c * chunk + i;
-                    p.set(i, z.get(a) + beta * p.get(i));
-                }
-            });
         }
         self.stats.solves += 1;
         self.stats.iterations += iterations as u64;
@@ -284,6 +286,7 @@ impl Integrator for ImplicitEuler {
         self.stats.last_residual = residual as f32;
         if residual > settings.tolerance as f64 {
             self.stats.not_converged += 1;
+            self.stats.worst_residual = self.stats.worst_residual.max(residual as f32);
         }
 
         // v' = v + dv, x' = x + h v'.
@@ -309,6 +312,85 @@ impl Integrator for ImplicitEuler {
     }
 }
 
+/// One spring kind's blocks `C_s = alpha_s u_s u_s^T + beta_s I`, indexed by spring slot.
+struct Blocks<'a> {
+    alpha: &'a [f32],
+    beta: &'a [f32],
+    u: &'a Vec3s,
+}
+
+impl Blocks<'_> {
+    /// `out[a] += scale * C_s (p_a - p_b)` over a run of particles `a` with neighbours `b`.
+    /// With `stiffness_only = Some((h c, active))`, the damping part `h c u u^T` is left out of
+    /// `C`, which leaves `h^2 K`.
+    #[inline(always)]
+    fn apply(
+        &self,
+        run: Run,
+        p: &Vec3s,
+        stiffness_only: Option<(f32, &[f32])>,
+        scale: f32,
+        out: &mut Vec3SliceMut,
+        out_start: usize,
+    ) {
+        let n = run.len;
+        let (a, b, s) = (
+            run.a..run.a + n,
+            run.b..run.b + n,
+            run.spring..run.spring + n,
+        );
+        let (pax, pay, paz) = (p.component(0, &a), p.component(1, &a), p.component(2, &a));
+        let (pbx, pby, pbz) = (p.component(0, &b), p.component(1, &b), p.component(2, &b));
+        let (ux, uy, uz) = (
+            self.u.component(0, &s),
+            self.u.component(1, &s),
+            self.u.component(2, &s),
+        );
+        let (alpha, beta) = (&self.alpha[s.clone()], &self.beta[s.clone()]);
+        let (cut, active) = match stiffness_only {
+            Some((hc, active)) => (hc, &active[s]),
+            None => (0.0, alpha), // any slice of the right length: multiplied by zero
+        };
+        let o = a.start - out_start..a.end - out_start;
+        let (ox, oy, oz) = (&mut out.x[o.clone()], &mut out.y[o.clone()], &mut out.z[o]);
+        for i in 0..n {
+            let (dx, dy, dz) = (pax[i] - pbx[i], pay[i] - pby[i], paz[i] - pbz[i]);
+            let along = (alpha[i] - cut * active[i]) * (ux[i] * dx + uy[i] * dy + uz[i] * dz);
+            ox[i] += scale * (beta[i] * dx + along * ux[i]);
+            oy[i] += scale * (beta[i] * dy + along * uy[i]);
+            oz[i] += scale * (beta[i] * dz + along * uz[i]);
+        }
+    }
+
+    /// `out[a] += diag(C_s)` over a run.
+    #[inline(always)]
+    fn add_diagonal(&self, run: Run, out: &mut Vec3SliceMut, out_start: usize) {
+        let n = run.len;
+        let s = run.spring..run.spring + n;
+        let (alpha, beta) = (&self.alpha[s.clone()], &self.beta[s.clone()]);
+        let o = run.a - out_start..run.a - out_start + n;
+        for (comp, out) in [&mut *out.x, &mut *out.y, &mut *out.z]
+            .into_iter()
+            .enumerate()
+        {
+            let (u, out) = (self.u.component(comp, &s), &mut out[o.clone()]);
+            for i in 0..n {
+                out[i] += beta[i] + alpha[i] * u[i] * u[i];
+            }
+        }
+    }
+}
+
+/// Zeroes the rows of held particles (`inv_mass == 0`): they are filtered out of the solve.
+#[inline(always)]
+fn filter_held(v: &mut Vec3SliceMut, inv_mass: &[f32]) {
+    for comp in [&mut *v.x, &mut *v.y, &mut *v.z] {
+        for (x, w) in comp.iter_mut().zip(inv_mass) {
+            *x = if *w == 0.0 { 0.0 } else { *x };
+        }
+    }
+}
+
 /// The blocks of every spring of `kind` at the current state.
 fn build_blocks(work: &mut Work, kind: SpringKind, h: f32, k: f32, c: f32, ctx: &StepContext) {
     let n = ctx.grid.len();
@@ -328,62 +410,176 @@ fn build_blocks(work: &mut Work, kind: SpringKind, h: f32, k: f32, c: f32, ctx: 
         .zip(beta.par_chunks_mut(chunk))
         .zip(u.par_chunks_mut(chunk))
         .enumerate()
-        .for_each(|(ci, ((alpha, beta), mut u))| {
-            for i in 0..alpha.len() {
-                let s = ci * chunk + i;
-                if active[s] == 0.0 || s + o >= n {
-                    alpha[i] = 0.0;
-                    beta[i] = 0.0;
-                    u.set(i, glam::Vec3::ZERO);
-                    continue;
+        .for_each(|(ci, ((alpha, beta), u))| {
+            // Slots whose partner would be off the end hold no spring (active = 0).
+            let start = ci * chunk;
+            let len = alpha.len().min(n.saturating_sub(o).saturating_sub(start));
+            let (s, t) = (start..start + len, start + o..start + o + len);
+            let (ax, ay, az) = (
+                pos.component(0, &s),
+                pos.component(1, &s),
+                pos.component(2, &s),
+            );
+            let (bx, by, bz) = (
+                pos.component(0, &t),
+                pos.component(1, &t),
+                pos.component(2, &t),
+            );
+            let (rest, active) = (&rest[s.clone()], &active[s]);
+            crate::simd::dispatch!({
+                for i in 0..len {
+                    let (dx, dy, dz) = (bx[i] - ax[i], by[i] - ay[i], bz[i] - az[i]);
+                    let l = (dx * dx + dy * dy + dz * dz).sqrt();
+                    let inv_l = if l > 0.0 { 1.0 / l } else { 0.0 };
+                    let g = (1.0 - rest[i] * inv_l).max(0.0) * (l > 0.0) as u32 as f32;
+                    alpha[i] = active[i] * (h * c + h * h * k * (1.0 - g));
+                    beta[i] = active[i] * (h * h * k * g);
+                    u.x[i] = dx * inv_l;
+                    u.y[i] = dy * inv_l;
+                    u.z[i] = dz * inv_l;
                 }
-                let d = pos.get(s + o) - pos.get(s);
-                let l = d.length();
-                let dir = if l > 0.0 { d / l } else { glam::Vec3::ZERO };
-                let g = if l > 0.0 {
-                    (1.0 - rest[s] / l).max(0.0)
-                } else {
-                    0.0
-                };
-                alpha[i] = h * c + h * h * k * (1.0 - g);
-                beta[i] = h * h * k * g;
-                u.set(i, dir);
+            });
+            alpha[len..].fill(0.0);
+            beta[len..].fill(0.0);
+            for comp in [&mut *u.x, &mut *u.y, &mut *u.z] {
+                comp[len..].fill(0.0);
             }
         });
 }
 
-fn precondition(r: &Vec3s, diag: &Vec3s, z: &mut Vec3s) {
-    for (z, (r, d)) in [
-        (&mut z.x, (&r.x, &diag.x)),
-        (&mut z.y, (&r.y, &diag.y)),
-        (&mut z.z, (&r.z, &diag.z)),
-    ] {
-        z.par_iter_mut()
-            .zip(r.par_iter())
-            .zip(d.par_iter())
-            .for_each(|((z, r), d)| *z = r / d);
-    }
+/// `dv = 0, r = b, z = P^-1 r, p = z`; returns `(b . b, r . z)`.
+fn start_solve(work: &mut Work) -> (f64, f64) {
+    let Work {
+        rhs,
+        diag,
+        dv,
+        r,
+        z,
+        p,
+        partials2,
+        ..
+    } = work;
+    let (rhs, diag) = (&*rhs, &*diag);
+    dv.fill(glam::Vec3::ZERO);
+    r.copy_from(rhs);
+    z.par_chunks_mut(REDUCE_CHUNK)
+        .zip(partials2.par_iter_mut())
+        .enumerate()
+        .for_each(|(c, (z, partial))| {
+            let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + z.len();
+            let (b, d) = (rhs.slices(range.clone()), diag.slices(range));
+            let mut sums = [0.0f64; 2];
+            for (z, b, d) in [(z.x, b.x, d.x), (z.y, b.y, d.y), (z.z, b.z, d.z)] {
+                for i in 0..z.len() {
+                    z[i] = b[i] / d[i];
+                }
+                sums[0] += dot(b, b);
+                sums[1] += dot(b, z);
+            }
+            *partial = sums;
+        });
+    p.copy_from(z);
+    sum_pairs(partials2)
 }
 
-fn axpy(y: &mut Vec3s, a: f32, x: &Vec3s) {
-    for (y, x) in [(&mut y.x, &x.x), (&mut y.y, &x.y), (&mut y.z, &x.z)] {
-        y.par_iter_mut()
-            .zip(x.par_iter())
-            .for_each(|(y, x)| *y += a * x);
-    }
+/// `dv += step p, r -= step q, z = P^-1 r`; returns `(r . r, r . z)`.
+fn advance_solution(work: &mut Work, step: f32) -> (f64, f64) {
+    let Work {
+        dv,
+        r,
+        z,
+        p,
+        q,
+        diag,
+        partials2,
+        ..
+    } = work;
+    let (p, q, diag) = (&*p, &*q, &*diag);
+    let chunks = dv
+        .par_chunks_mut(REDUCE_CHUNK)
+        .zip(r.par_chunks_mut(REDUCE_CHUNK));
+    chunks
+        .zip(z.par_chunks_mut(REDUCE_CHUNK))
+        .zip(partials2.par_iter_mut())
+        .enumerate()
+        .for_each(|(c, (((dv, r), z), partial))| {
+            let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + dv.len();
+            *partial = crate::simd::dispatch!({
+                let mut sums = [0.0f64; 2];
+                let (p, q, d) = (
+                    p.slices(range.clone()),
+                    q.slices(range.clone()),
+                    diag.slices(range),
+                );
+                for (dv, r, z, p, q, d) in [
+                    (dv.x, r.x, z.x, p.x, q.x, d.x),
+                    (dv.y, r.y, z.y, p.y, q.y, d.y),
+                    (dv.z, r.z, z.z, p.z, q.z, d.z),
+                ] {
+                    for i in 0..dv.len() {
+                        dv[i] += step * p[i];
+                        r[i] -= step * q[i];
+                        z[i] = r[i] / d[i];
+                    }
+                    sums[0] += dot(r, r);
+                    sums[1] += dot(r, z);
+                }
+                sums
+            });
+        });
+    sum_pairs(partials2)
 }
 
-/// `a . b` in f64, summed in fixed chunks so the result does not depend on the thread count.
-fn dot(a: &Vec3s, b: &Vec3s, partials: &mut [f64]) -> f64 {
-    let n = a.len();
-    partials.par_iter_mut().enumerate().for_each(|(c, out)| {
-        let range = c * REDUCE_CHUNK..((c + 1) * REDUCE_CHUNK).min(n);
-        let mut sum = 0.0f64;
-        for comp in 0..3 {
-            let (x, y) = (a.component(comp, &range), b.component(comp, &range));
-            sum += x.iter().zip(y).map(|(x, y)| (x * y) as f64).sum::<f64>();
+/// `p = z + beta p`.
+fn next_direction(work: &mut Work, beta: f32) {
+    let Work { p, z, .. } = work;
+    let z = &*z;
+    p.par_chunks_mut(REDUCE_CHUNK)
+        .enumerate()
+        .for_each(|(c, p)| {
+            let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + p.len();
+            let z = z.slices(range);
+            for (p, z) in [(p.x, z.x), (p.y, z.y), (p.z, z.z)] {
+                for i in 0..p.len() {
+                    p[i] = z[i] + beta * p[i];
+                }
+            }
+        });
+}
+
+/// Dot product of one chunk's three components, in f64.
+#[inline(always)]
+fn chunk_dot(a: crate::soa::Vec3Slice, b: &Vec3SliceMut) -> f64 {
+    dot(a.x, b.x) + dot(a.y, b.y) + dot(a.z, b.z)
+}
+
+/// `a . b`: sixteen independent float32 lanes (so the loop vectorises without reordering any
+/// sum, and every instruction set gives the same bits), added up in f64 at the end.
+#[inline(always)]
+fn dot(a: &[f32], b: &[f32]) -> f64 {
+    const LANES: usize = 16;
+    let n = a.len().min(b.len());
+    let (a, b) = (&a[..n], &b[..n]);
+    let mut lanes = [0.0f32; LANES];
+    let whole = n / LANES * LANES;
+    for (x, y) in a[..whole]
+        .chunks_exact(LANES)
+        .zip(b[..whole].chunks_exact(LANES))
+    {
+        for l in 0..LANES {
+            lanes[l] += x[l] * y[l];
         }
-        *out = sum;
-    });
-    partials.iter().sum()
+    }
+    let tail: f64 = a[whole..]
+        .iter()
+        .zip(&b[whole..])
+        .map(|(x, y)| (x * y) as f64)
+        .sum();
+    lanes.iter().map(|&l| l as f64).sum::<f64>() + tail
+}
+
+fn sum_pairs(partials: &[[f64; 2]]) -> (f64, f64) {
+    partials
+        .iter()
+        .fold((0.0, 0.0), |acc, s| (acc.0 + s[0], acc.1 + s[1]))
 }

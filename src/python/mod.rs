@@ -79,11 +79,11 @@ impl PySimulation {
             self.warned_not_converged = true;
             let message = format!(
                 "implicit_euler: the conjugate gradient stopped at cg_max_iterations = {} with \
-                 relative residual {:.2e} > cg_tolerance = {:.0e} ({} of {} solves so far); \
+                 relative residual up to {:.2e} > cg_tolerance = {:.0e} ({} of {} solves so far); \
                  the step was taken with the partial solution. Raise cg_max_iterations, loosen \
                  cg_tolerance or reduce dt. profile() counts these.",
                 self.inner.scene().cg_max_iterations,
-                stats.last_residual,
+                stats.worst_residual,
                 self.inner.scene().cg_tolerance,
                 stats.not_converged,
                 stats.solves,
@@ -139,6 +139,7 @@ impl PySimulation {
         dict.set_item("last_iterations", stats.last_iterations)?;
         dict.set_item("last_residual", stats.last_residual)?;
         dict.set_item("not_converged", stats.not_converged)?;
+        dict.set_item("worst_residual", stats.worst_residual)?;
         Ok(Some(dict))
     }
 
