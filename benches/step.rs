@@ -92,5 +92,25 @@ fn bench_effects(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench_step, bench_effects);
+/// One step of each integrator at 128x128. RK4 should cost about four force evaluations;
+/// implicit Euler's cost is dominated by its CG iterations (printed after the group).
+fn bench_integrators(c: &mut Criterion) {
+    let mut group = c.benchmark_group("integrators_128");
+    for integrator in rustcloth::scene::INTEGRATORS {
+        let mut scene = scene(128);
+        scene.integrator = integrator.to_string();
+        let mut sim = Simulation::new(scene).unwrap();
+        group.bench_function(*integrator, |b| b.iter(|| sim.step(1).unwrap()));
+        if let Some(stats) = sim.solver_stats() {
+            println!(
+                "{integrator}: {:.1} CG iterations per step (last residual {:.1e})",
+                stats.iterations as f64 / stats.solves.max(1) as f64,
+                stats.last_residual
+            );
+        }
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench_step, bench_effects, bench_integrators);
 criterion_main!(benches);
