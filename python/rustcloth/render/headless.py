@@ -1,0 +1,126 @@
+"""Offscreen rendering through EGL: numbered PNGs, optional GIF/MP4, scripted interaction."""
+
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+from PIL import Image
+
+from .context import create_standalone_context
+from .interaction import Interaction, Pointer, ScriptPlayer
+from .renderer import Renderer, default_camera
+
+
+@dataclass
+class RenderStats:
+    frames: int
+    physics_s: float
+    render_s: float
+    steps: int
+
+    def summary(self) -> str:
+        n = max(self.frames, 1)
+        return (f"{self.frames} frames: physics {1e3 * self.physics_s / n:.2f} ms/frame "
+                f"({self.steps} steps), rendering {1e3 * self.render_s / n:.2f} ms/frame "
+                "(incl. read-back)")
+
+
+def _progress(done: int, total: int, stream: Any = sys.stdout) -> None:
+    width = 30
+    filled = width * done // max(total, 1)
+    stream.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} frames")
+    if done == total:
+        stream.write("\n")
+    stream.flush()
+
+
+def render_frames(
+    sim: Any, size: tuple[int, int], frames: int, fps: float, script: list[dict[str, Any]] | None,
+    view: str = "lit", progress: bool = True, sink: Any = None,
+) -> tuple[list[npt.NDArray[np.uint8]], RenderStats]:
+    """Simulate and render ``frames`` frames at ``fps`` offscreen; returns RGB frames (rows top
+    to bottom) unless ``sink`` (called with each frame index and image) takes them."""
+    ctx = create_standalone_context()
+    try:
+        w, h = size
+        renderer = Renderer(ctx, sim, size)
+        renderer.view = view
+        camera = default_camera(sim.scene.to_dict(), w / h)
+        color = ctx.renderbuffer(size, 4)
+        fbo = ctx.framebuffer(color_attachments=[color])
+        interaction = Interaction(sim, renderer.spacing)
+        pointer = Pointer(interaction, camera, size)
+        player = ScriptPlayer(script) if script else None
+        out: list[npt.NDArray[np.uint8]] = []
+        physics = render = 0.0
+        steps = 0
+        image = np.empty((h, w, 3), dtype=np.uint8)
+        for k in range(frames):
+            t = k / fps
+            if player is not None:
+                player.update(t, pointer, renderer.positions)
+            renderer.highlight = interaction.grabbed
+            renderer.set_stroke(interaction.stroke(), interaction.stroke_version)
+            if k > 0:
+                t0 = time.perf_counter()
+                steps += sim.advance(1.0 / fps)
+                physics += time.perf_counter() - t0
+            t0 = time.perf_counter()
+            renderer.update()
+            renderer.render(fbo, camera)
+            fbo.read_into(image, components=3)
+            render += time.perf_counter() - t0
+            frame = image[::-1].copy()
+            if sink is not None:
+                sink(k, frame)
+            else:
+                out.append(frame)
+            if progress:
+                _progress(k + 1, frames)
+        err = ctx.error
+        if err != "GL_NO_ERROR":
+            raise RuntimeError(f"OpenGL error while rendering: {err}")
+        return out, RenderStats(frames, physics, render, steps)
+    finally:
+        ctx.release()
+
+
+def write_outputs(
+    sim: Any, out_dir: Path, size: tuple[int, int], frames: int, fps: float,
+    script: list[dict[str, Any]] | None, gif: bool, mp4: bool, view: str = "lit",
+) -> tuple[list[Path], RenderStats]:
+    """Render to ``out_dir/frame_0000.png`` ... plus ``animation.gif``/``.mp4`` when asked."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    written: list[Path] = []
+    keep: list[npt.NDArray[np.uint8]] = []
+
+    def sink(k: int, frame: npt.NDArray[np.uint8]) -> None:
+        path = out_dir / f"frame_{k:04d}.png"
+        Image.fromarray(frame).save(path)
+        written.append(path)
+        if gif or mp4:
+            keep.append(frame)
+
+    _, stats = render_frames(sim, size, frames, fps, script, view=view, sink=sink)
+    if gif:
+        import imageio.v3 as iio
+
+        path = out_dir / "animation.gif"
+        iio.imwrite(path, np.stack(keep), duration=1000.0 / fps, loop=0)
+        written.append(path)
+    if mp4:
+        import imageio.v3 as iio
+
+        path = out_dir / "animation.mp4"
+        try:
+            iio.imwrite(path, np.stack(keep), fps=fps, codec="libx264")
+            written.append(path)
+        except Exception as err:  # the ffmpeg plugin is optional
+            print(f"MP4 skipped: {err} (pip install imageio-ffmpeg)", file=sys.stderr)
+    return written, stats

@@ -1,0 +1,25 @@
+#version 330 core
+// Geometry pass: world-space attributes for the G-buffer. Cloth, floor, spheres and the
+// pick marker share this program; `model` places the static meshes.
+uniform mat4 view_proj;
+uniform mat4 model;
+
+in vec3 in_position;
+in vec3 in_normal;
+in vec2 in_uv;
+in float in_scalar;
+
+out vec3 v_world;
+out vec3 v_normal;
+out vec2 v_uv;
+out float v_scalar;
+
+void main() {
+    vec4 world = model * vec4(in_position, 1.0);
+    v_world = world.xyz;
+    // Models are rotation + uniform scale, so the upper 3x3 transforms normals correctly.
+    v_normal = mat3(model) * in_normal;
+    v_uv = in_uv;
+    v_scalar = in_scalar;
+    gl_Position = view_proj * world;
+}

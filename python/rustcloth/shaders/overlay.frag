@@ -1,0 +1,6 @@
+#version 330 core
+// Overlay pass: text rasterised by Pillow, alpha-blended over the frame.
+uniform sampler2D text;
+in vec2 v_uv;
+out vec4 f_color;
+void main() { f_color = texture(text, v_uv); }
