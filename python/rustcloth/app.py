@@ -304,7 +304,8 @@ class Demo:
 def main_demo(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(prog="rustcloth demo", description="the desktop demo")
     parser.add_argument("scene", nargs="?", default="drape", help=f"one of {', '.join(scenes())}")
-    parser.add_argument("--size", type=_parse_size, default=(1280, 720), help="WxH window")
+    parser.add_argument("--size", type=_parse_size, default=None,
+                        help="WxH window (default 1280x720; 640x480 for the headless fallback)")
     parser.add_argument("--frames", type=int, default=None, help="quit after N frames")
     parser.add_argument("--script", type=Path, help="JSON events to replay (see docs)")
     parser.add_argument("--out", type=Path, default=Path("out/demo"),
@@ -316,12 +317,14 @@ def main_demo(argv: list[str]) -> int:
         return 2
     script = json.loads(args.script.read_text()) if args.script else None
     try:
-        demo = Demo(args.scene, args.size, script=script,
+        demo = Demo(args.scene, args.size or (1280, 720), script=script,
                     fixed_dt=1 / 60 if script else None)
     except DisplayUnavailable as err:
         print(f"{err}: rendering headless to {args.out} instead")
-        return main_render([args.scene, "--out", str(args.out), "--gif", "--frames", "150",
-                            "--size", "640x480", "--demo-script"]
+        w, h = args.size or (640, 480)
+        return main_render([args.scene, "--out", str(args.out), "--gif",
+                            "--frames", str(args.frames or 150), "--size", f"{w}x{h}",
+                            "--demo-script"]
                            + (["--script", str(args.script)] if args.script else []))
     except GLUnavailable as err:
         print(err, file=sys.stderr)

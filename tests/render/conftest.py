@@ -142,10 +142,11 @@ def gl_ctx() -> Iterator[Any]:
 
 @pytest.fixture
 def ctx(gl_ctx: Any) -> Iterator[Any]:
-    """The shared context; any GL error a test leaves behind fails it."""
-    assert gl_ctx.error == "GL_NO_ERROR"
-    yield gl_ctx
-    assert gl_ctx.error == "GL_NO_ERROR"
+    """The shared context, made current; any GL error a test leaves behind fails it."""
+    with gl_ctx:
+        assert gl_ctx.error == "GL_NO_ERROR"
+        yield gl_ctx
+        assert gl_ctx.error == "GL_NO_ERROR"
 
 
 def real_simulation(scene: str | dict[str, Any]) -> Any:
@@ -160,8 +161,16 @@ def real_simulation(scene: str | dict[str, Any]) -> Any:
 
 
 @pytest.fixture
-def standin() -> StandInSimulation:
-    return StandInSimulation()
+def make_real() -> Any:
+    """:func:`real_simulation`, by fixture for the same reason as ``standin_cls``."""
+    return real_simulation
+
+
+@pytest.fixture
+def standin_cls() -> type[StandInSimulation]:
+    """The stand-in class, handed out by fixture: ``from conftest import`` would be ambiguous
+    next to the suite's top-level conftest."""
+    return StandInSimulation
 
 
 @pytest.fixture(scope="session")

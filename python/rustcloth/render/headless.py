@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import moderngl
 import numpy as np
 import numpy.typing as npt
 from PIL import Image
@@ -31,7 +32,8 @@ class RenderStats:
                 "(incl. read-back)")
 
 
-def _progress(done: int, total: int, stream: Any = sys.stdout) -> None:
+def _progress(done: int, total: int, stream: Any = None) -> None:
+    stream = sys.stdout if stream is None else stream
     width = 30
     filled = width * done // max(total, 1)
     stream.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} frames")
@@ -43,10 +45,14 @@ def _progress(done: int, total: int, stream: Any = sys.stdout) -> None:
 def render_frames(
     sim: Any, size: tuple[int, int], frames: int, fps: float, script: list[dict[str, Any]] | None,
     view: str = "lit", progress: bool = True, sink: Any = None,
+    ctx: moderngl.Context | None = None,
 ) -> tuple[list[npt.NDArray[np.uint8]], RenderStats]:
     """Simulate and render ``frames`` frames at ``fps`` offscreen; returns RGB frames (rows top
-    to bottom) unless ``sink`` (called with each frame index and image) takes them."""
-    ctx = create_standalone_context()
+    to bottom) unless ``sink`` (called with each frame index and image) takes them. Uses
+    ``ctx`` if given, else a standalone EGL context of its own."""
+    own = ctx is None
+    if ctx is None:
+        ctx = create_standalone_context()
     try:
         w, h = size
         renderer = Renderer(ctx, sim, size)
@@ -88,7 +94,8 @@ def render_frames(
             raise RuntimeError(f"OpenGL error while rendering: {err}")
         return out, RenderStats(frames, physics, render, steps)
     finally:
-        ctx.release()
+        if own:
+            ctx.release()
 
 
 def write_outputs(

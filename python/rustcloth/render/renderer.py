@@ -24,8 +24,10 @@ _CHANNELS = {"position": 1, "normal": 2, "albedo": 3, "material": 4, "depth": 5,
 # Colour-map range for the cloth debug views: strain 10% and speed 3 m/s map to red.
 _SCALAR_SCALE = {"strain": 10.0, "speed": 1.0 / 3.0, "pinned": 1.0}
 
-CLOTH_FRONT = (0.62, 0.16, 0.14)
-CLOTH_BACK = (0.86, 0.80, 0.66)
+# The core winds its triangles so the front faces down on a flat-laid cloth: the red weave
+# therefore goes on the back, which is what a draped cloth shows on top.
+CLOTH_FRONT = (0.86, 0.80, 0.66)
+CLOTH_BACK = (0.62, 0.16, 0.14)
 FLOOR_COLOR = (0.42, 0.43, 0.45)
 SPHERE_COLOR = (0.35, 0.45, 0.62)
 MARKER_COLOR = (1.0, 0.85, 0.1)

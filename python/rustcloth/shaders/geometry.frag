@@ -51,9 +51,9 @@ void main() {
         if (!gl_FrontFacing) {
             n = -n;
             mat = MAT_CLOTH_BACK;
-            albedo = woven(v_uv, back_color, back_color * 0.85);
+            albedo = woven(v_uv, back_color, back_color * vec3(0.55, 0.65, 1.1));
         } else {
-            albedo = woven(v_uv, base_color, base_color * vec3(0.55, 0.65, 1.1));
+            albedo = woven(v_uv, base_color, base_color * 0.85);
         }
         if (cloth_mode == 1) {
             albedo = heat(v_scalar * scalar_scale);
