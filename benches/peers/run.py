@@ -1,0 +1,481 @@
+"""Side-by-side peer benchmark: rustcloth vs numpy, Taichi and newton on the same cloth.
+
+Every implementation runs in its own subprocess (clean peak RSS, its own thread pool), the
+implementations interleaved within each repeat, and the median over repeats is reported; the
+ratios are taken between medians measured in this one run. Writes ``docs/benchmarks.md`` and
+prints the tables.
+
+    .venv-peers/bin/python benches/peers/run.py                 # 128, 256, 512
+    .venv-peers/bin/python benches/peers/run.py --quick         # 128 only, 100 steps, 1 repeat
+    .venv-peers/bin/python benches/peers/run.py --sizes 128 256 --repeats 5 --only rustcloth numpy
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import json
+import os
+import platform
+import statistics
+import subprocess
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent.parent
+sys.path.insert(0, str(HERE))
+
+from common import QUICK_STEPS, STEPS  # noqa: E402
+
+# Flops and bytes per particle per step, counted from the model's formulas (see the roofline
+# section written into docs/benchmarks.md).
+FLOPS_PER_SPRING_GATHER = 30  # one end: d, |d|^2, sqrt, 1/l, k(l-L), dv.d, s, s d, f += s d
+FLOPS_PER_SPRING_SCATTER = 33  # both ends: + f_b -= s d
+FLOPS_UPDATE = 16  # + m g, v += (h/m) f, x += h v
+FLOPS_GATHER = 12 * FLOPS_PER_SPRING_GATHER + FLOPS_UPDATE  # 376
+FLOPS_SCATTER = 6 * FLOPS_PER_SPRING_SCATTER + FLOPS_UPDATE  # 214
+BYTES_STATE = 48  # read x, v and write x, v: 4 x 12 B (float32)
+BYTES_TYPICAL = 48 + 4 + 24  # + inverse mass + 6 stored rest lengths
+
+
+@dataclass
+class Impl:
+    key: str
+    label: str
+    script: str
+    threads: int
+    args: list[str] = field(default_factory=list)
+    env: dict[str, str] = field(default_factory=dict)
+    gather: bool = True  # 12 spring evaluations per particle (else 6, scattered)
+    colliders: bool = False
+    python: str | None = None
+
+
+def implementations(rust_python: str) -> list[Impl]:
+    return [
+        Impl(
+            "rustcloth-1",
+            "rustcloth",
+            "impl_rustcloth.py",
+            1,
+            env={"RAYON_NUM_THREADS": "1"},
+            colliders=True,
+            python=rust_python,
+        ),
+        Impl(
+            "rustcloth-2",
+            "rustcloth",
+            "impl_rustcloth.py",
+            2,
+            env={"RAYON_NUM_THREADS": "2"},
+            colliders=True,
+            python=rust_python,
+        ),
+        Impl("numpy", "numpy (numpy_cloth.py)", "impl_numpy.py", 1, gather=False),
+        Impl("taichi-1", "Taichi gather", "impl_taichi.py", 1),
+        Impl("taichi-2", "Taichi gather", "impl_taichi.py", 2),
+        Impl(
+            "taichi-atomic-2",
+            "Taichi per-spring atomic",
+            "impl_taichi.py",
+            2,
+            args=["--variant", "atomic"],
+            gather=False,
+        ),
+        Impl("newton", "newton SolverSemiImplicit", "impl_newton.py", 1, gather=False),
+    ]
+
+
+def rustcloth_python(explicit: str | None) -> str:
+    """This interpreter if it can import rustcloth, else the lead's development venv."""
+    candidates = [explicit] if explicit else [sys.executable, str(ROOT / ".venv/bin/python")]
+    for py in candidates:
+        ok = subprocess.run([py, "-c", "import rustcloth"], capture_output=True, cwd="/")
+        if ok.returncode == 0:
+            return py
+    return candidates[0]
+
+
+def run_one(impl: Impl, n: int, steps: int, colliders: bool, timeout: float) -> dict:
+    cmd = [
+        impl.python or sys.executable,
+        str(HERE / impl.script),
+        "--n",
+        str(n),
+        "--steps",
+        str(steps),
+        "--threads",
+        str(impl.threads),
+        *impl.args,
+    ]
+    if colliders:
+        cmd.append("--colliders")
+    env = {
+        **os.environ,
+        "OMP_NUM_THREADS": "1",
+        "OPENBLAS_NUM_THREADS": "1",
+        "MKL_NUM_THREADS": "1",
+        **impl.env,
+    }
+    try:
+        proc = subprocess.run(
+            cmd, capture_output=True, text=True, env=env, timeout=timeout, cwd=str(ROOT)
+        )
+    except subprocess.TimeoutExpired:
+        return {"error": f"timed out after {timeout:.0f} s"}
+    for line in proc.stdout.splitlines():
+        if line.startswith("RESULT "):
+            return json.loads(line[len("RESULT ") :])
+    tail = (proc.stderr or proc.stdout).strip().splitlines()[-3:]
+    return {"error": f"exit {proc.returncode}: " + " | ".join(tail)}
+
+
+def median_result(results: list[dict]) -> dict:
+    good = [r for r in results if "error" not in r]
+    if not good:
+        return results[-1] if results else {"error": "not run"}
+    out = dict(good[0])
+    for key in ("setup_s", "warmup_s", "run_s", "ms_per_step", "peak_rss_mb", "min_y"):
+        out[key] = statistics.median(r[key] for r in good)
+    out["ms_all"] = [r["ms_per_step"] for r in good]
+    out["finite"] = all(r["finite"] for r in good)
+    return out
+
+
+def machine_info() -> dict:
+    cpu = "unknown"
+    mhz = None
+    flags: set[str] = set()
+    family = None
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            key, _, value = line.partition(":")
+            key, value = key.strip(), value.strip()
+            if key == "model name" and cpu == "unknown":
+                cpu = value
+            elif key == "cpu MHz" and mhz is None:
+                mhz = float(value)
+            elif key == "flags" and not flags:
+                flags = set(value.split())
+            elif key == "cpu family" and family is None:
+                family = int(value)
+    except OSError:
+        pass
+    if "avx512f" in flags:
+        simd = "AVX-512"
+        lanes = 16
+    elif "avx2" in flags:
+        simd, lanes = "AVX2", 8
+    else:
+        simd, lanes = "SSE2", 4
+    # 2 FMA pipes x lanes x 2 flops per FMA (Zen 4 splits 512-bit ops: count 256-bit there).
+    if simd == "AVX-512" and family is not None and family == 25:
+        lanes = 8
+    flops_per_cycle = 2 * lanes * 2 if "fma" in flags else 2 * lanes
+    return {
+        "cpu": cpu,
+        "cpu_family": family,
+        "cores": os.cpu_count(),
+        "mhz": mhz,
+        "simd": simd,
+        "flops_per_cycle": flops_per_cycle,
+        "peak_gflops_core": (mhz or 0) / 1e3 * flops_per_cycle,
+        "python": platform.python_version(),
+        "kernel": platform.release(),
+    }
+
+
+def fmt(value: float | None, digits: int = 3) -> str:
+    if value is None:
+        return "n/a"
+    if value == 0:
+        return "0"
+    mag = abs(value)
+    if mag >= 100:
+        return f"{value:,.0f}"
+    if mag >= 10:
+        return f"{value:.1f}"
+    return f"{value:.{digits}g}"
+
+
+def size_table(n: int, steps: int, impls: list[Impl], res: dict[str, dict]) -> list[str]:
+    particles = n * n
+    r1 = res.get("rustcloth-1", {})
+    r2 = res.get("rustcloth-2", {})
+    ref_y = r1.get("min_y", r2.get("min_y"))
+    lines = [
+        f"### {n} x {n} ({particles:,} particles, {steps} steps timed)",
+        "",
+        "| implementation | threads | set-up s | warm-up s (5 steps, incl. JIT) | ms/step | "
+        "steps/s | M particle-updates/s | peak RSS MB | rustcloth 1t speed-up | "
+        "rustcloth 2t speed-up | min y (m) | min y - rustcloth |",
+        "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|",
+    ]
+    for impl in impls:
+        r = res.get(impl.key)
+        if r is None:
+            continue
+        if "error" in r:
+            lines.append(
+                f"| {impl.label} | {impl.threads} | not measured: {r['error']} |" + " |" * 9
+            )
+            continue
+        ms = r["ms_per_step"]
+        s1 = ms / r1["ms_per_step"] if "ms_per_step" in r1 else None
+        s2 = ms / r2["ms_per_step"] if "ms_per_step" in r2 else None
+        dy = r["min_y"] - ref_y if ref_y is not None else None
+        flag = "" if dy is None or abs(dy) <= 1e-3 else " **MISMATCH**"
+        lines.append(
+            f"| {impl.label} | {impl.threads} | {fmt(r['setup_s'])} | {fmt(r['warmup_s'])} | "
+            f"{fmt(ms)} | {fmt(1e3 / ms)} | {fmt(particles / ms / 1e3)} | "
+            f"{fmt(r['peak_rss_mb'])} | {fmt(s1)} | {fmt(s2)} | {r['min_y']:.5f} | "
+            f"{'n/a' if dy is None else f'{dy:+.1e}'}{flag}"
+            + ("" if r["finite"] else " (NON-FINITE)")
+            + " |"
+        )
+    lines.append("")
+    return lines
+
+
+def roofline_lines(sizes, impls, results, bw, machine) -> list[str]:
+    peak1 = machine["peak_gflops_core"]
+    bw1 = max(bw.get("copy_1t_gbs", 0), bw.get("add_1t_gbs", 0))
+    bw2 = max(bw.get("copy_2t_gbs", 0), bw.get("add_2t_gbs", 0))
+    lines = [
+        "## Roofline",
+        "",
+        "Counted from the model's formulas, float32, per particle per step:",
+        "",
+        f"* **flops**: one spring evaluation (one end) is {FLOPS_PER_SPRING_GATHER} flops "
+        "(d = x_b - x_a: 3, |d|^2: 5, sqrt: 1, 1/l: 1, k (l - L): 2, (v_b - v_a) . d: 8, "
+        "(... ) c / l + ...: 3, s = .../l: 1, s d: 3, f += s d: 3), of which one sqrt and one "
+        f"divide; {FLOPS_PER_SPRING_SCATTER} when both ends are updated (f_b -= s d). The "
+        f"update (gravity, v += (h/m) f, x += h v) is {FLOPS_UPDATE}. A per-particle gather "
+        f"evaluates 12 springs: **{FLOPS_GATHER} flops/particle**; evaluating each spring once "
+        f"(6 per particle, scattered: numpy, newton, Taichi atomic) is **{FLOPS_SCATTER} "
+        "flops/particle** (plus the scatter's read-modify-write of a force buffer).",
+        f"* **bytes**: at least the state, read and written once: x and v in, x and v out, "
+        f"4 x 12 B = **{BYTES_STATE} B/particle**; with an inverse mass and 6 stored rest "
+        f"lengths read too, {BYTES_TYPICAL} B. Neighbour reads hit in cache when rows are "
+        "streamed (a gather touches rows j-2..j+2). A per-spring scatter also writes and "
+        "re-reads a force buffer (+24 B) and numpy's temporaries add far more.",
+        f"* arithmetic intensity, gather: {FLOPS_GATHER}/{BYTES_STATE} = "
+        f"{FLOPS_GATHER / BYTES_STATE:.1f} flop/B (state only), "
+        f"{FLOPS_GATHER / BYTES_TYPICAL:.1f} flop/B with inverse mass and rest lengths.",
+        "",
+        "Machine bounds (measured by `benches/peers/membw.py`, numpy stream-like loops on "
+        "256 MiB float32 arrays, reads + writes counted, best of 8):",
+        "",
+        "| | 1 thread | 2 threads |",
+        "|---|--:|--:|",
+        f"| copy a = b, GB/s | {fmt(bw.get('copy_1t_gbs'))} | {fmt(bw.get('copy_2t_gbs'))} |",
+        f"| add a = b + c, GB/s | {fmt(bw.get('add_1t_gbs'))} | {fmt(bw.get('add_2t_gbs'))} |",
+        f"| peak flops estimate, GFLOP/s | {fmt(peak1)} | {fmt(2 * peak1)} |",
+        "",
+        f"The peak is an estimate, not a measurement: {machine['mhz']:.0f} MHz (from "
+        f"/proc/cpuinfo; the VM hides turbo) x {machine['flops_per_cycle']} flops/cycle "
+        f"({machine['simd']}, 2 FMA pipes, FMA = 2 flops). The spring evaluation has one sqrt "
+        "and one divide per spring and few FMAs, so the reachable ceiling is several times "
+        "lower than this (sqrt/divide throughput and add/mul pairs that do not fuse).",
+        "",
+        f"With state-only traffic the memory bound is {BYTES_STATE} B / {fmt(bw1)} GB/s = "
+        f"{BYTES_STATE / bw1:.2f} ns/particle on one thread (the whole state of the 512 x 512 "
+        "cloth, 6 MiB for x and v, fits in the 32 MiB L3, so even this is pessimistic); the "
+        f"compute bound for the gather is {FLOPS_GATHER} / {fmt(peak1)} GFLOP/s = "
+        f"{FLOPS_GATHER / peak1:.2f} ns/particle. So the model is compute bound on this "
+        "machine. Achieved rates (medians above):",
+        "",
+        "| size | implementation | threads | ns/particle/step | GFLOP/s (counted) | "
+        "% of peak flops | GB/s (state only) | % of memory bw |",
+        "|---|---|--:|--:|--:|--:|--:|--:|",
+    ]
+    for n in sizes:
+        for impl in impls:
+            r = results.get(n, {}).get(impl.key)
+            if not r or "error" in r:
+                continue
+            ns = r["ms_per_step"] * 1e6 / (n * n)
+            flops = FLOPS_GATHER if impl.gather else FLOPS_SCATTER
+            gflops = flops / ns
+            gbs = BYTES_STATE / ns
+            peak = peak1 * impl.threads
+            bw_t = bw1 if impl.threads == 1 else bw2
+            lines.append(
+                f"| {n} | {impl.label} | {impl.threads} | {fmt(ns)} | {fmt(gflops)} | "
+                f"{100 * gflops / peak:.1f} | {fmt(gbs)} | {100 * gbs / bw_t:.1f} |"
+            )
+    lines.append("")
+    return lines
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    p.add_argument("--sizes", type=int, nargs="+", default=[128, 256, 512])
+    p.add_argument("--quick", action="store_true", help="128 only, 100 steps, 1 repeat")
+    p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--only", nargs="+", help="implementation keys to run (default: all)")
+    p.add_argument("--no-colliders", action="store_true", help="skip the floor + sphere table")
+    p.add_argument("--rustcloth-python", help="interpreter that imports rustcloth")
+    p.add_argument("--output", default=str(ROOT / "docs/benchmarks.md"))
+    p.add_argument("--no-write", action="store_true", help="print only")
+    p.add_argument("--timeout", type=float, default=600.0, help="per subprocess, s")
+    args = p.parse_args()
+    if args.quick:
+        args.sizes, args.repeats = [128], 1
+    steps_for = QUICK_STEPS if args.quick else STEPS
+
+    rust_py = rustcloth_python(args.rustcloth_python)
+    impls = implementations(rust_py)
+    if args.only:
+        unknown = set(args.only) - {i.key for i in impls}
+        if unknown:
+            raise SystemExit(
+                f"unknown implementations {sorted(unknown)}; known: {[i.key for i in impls]}"
+            )
+        impls = [i for i in impls if i.key in args.only]
+
+    machine = machine_info()
+    print(
+        f"machine: {machine['cpu']}, {machine['cores']} cores; rustcloth via {rust_py}", flush=True
+    )
+    bw_run = run_one(Impl("membw", "membw", "membw.py", 1), 0, 0, False, args.timeout)
+    bw = {k: v for k, v in bw_run.items() if k.endswith("_gbs")}
+    print("memory bandwidth:", {k: round(v, 1) for k, v in bw.items()}, flush=True)
+
+    results: dict[int, dict[str, dict]] = {}
+    collider_results: dict[int, dict[str, dict]] = {}
+    for n in args.sizes:
+        steps = steps_for.get(n, 100)
+        raw: dict[str, list[dict]] = {i.key: [] for i in impls}
+        raw_c: dict[str, list[dict]] = {i.key: [] for i in impls if i.colliders}
+        for rep in range(args.repeats):
+            for impl in impls:
+                r = run_one(impl, n, steps, False, args.timeout)
+                raw[impl.key].append(r)
+                print(
+                    f"  n={n} rep={rep} {impl.key}: "
+                    + (
+                        r["error"]
+                        if "error" in r
+                        else f"{r['ms_per_step']:.4g} ms/step, min y {r['min_y']:.5f}"
+                    ),
+                    flush=True,
+                )
+                if impl.colliders and not args.no_colliders:
+                    rc = run_one(impl, n, steps, True, args.timeout)
+                    raw_c[impl.key].append(rc)
+                    print(
+                        f"  n={n} rep={rep} {impl.key} +colliders: "
+                        + (
+                            rc["error"]
+                            if "error" in rc
+                            else f"{rc['ms_per_step']:.4g} ms/step, min y {rc['min_y']:.5f}"
+                        ),
+                        flush=True,
+                    )
+        results[n] = {k: median_result(v) for k, v in raw.items()}
+        collider_results[n] = {k: median_result(v) for k, v in raw_c.items() if v}
+
+    # Versions, from the runs themselves.
+    versions = {}
+    for per_size in results.values():
+        for key, r in per_size.items():
+            if "version" in r:
+                versions[key.split("-")[0]] = r["version"]
+
+    timed = ", ".join(f"{steps_for.get(n, 100)} steps at {n}" for n in args.sizes)
+    lines = [
+        "# Peer benchmarks",
+        "",
+        "Written by `benches/peers/run.py` (`make bench-peers`); do not edit by hand.",
+        "",
+        "rustcloth against the same mass-spring cloth written with numpy "
+        "(`benches/numpy_cloth.py`), Taichi (CPU) and NVIDIA newton (`SolverSemiImplicit`, "
+        "Warp CPU device).",
+        "",
+        "## Scene",
+        "",
+        "N x N particles, spacing 0.01 m, particle mass 1e-3 kg, structural + shear + bend "
+        "springs (12 neighbours, 6 springs per particle), k = 50 N/m for every family, spring "
+        "damping 0.01 N s/m, no air drag, gravity -9.81 m/s^2, symplectic Euler, dt = 1e-3 s, "
+        "plane xy (the cloth hangs), the two corners of the top edge pinned, no colliders. "
+        f"5 warm-up steps, then {timed} "
+        "timed. Each implementation runs in its own process (peak RSS = `ru_maxrss` of that "
+        "process, so it includes the interpreter and the libraries); within each repeat the "
+        f"implementations run back to back, {args.repeats} repeat(s), medians reported; "
+        "the speed-ups (peer ms/step / rustcloth ms/step, > 1: rustcloth faster) are between "
+        "medians of this one run. Cross-check: the lowest particle's y after the run, which "
+        "must agree with rustcloth's to 1e-3 m. The machine is shared (2 cores, other jobs "
+        "running), so absolute numbers are noisy; the ratios are what to read.",
+        "",
+        "## Machine and versions",
+        "",
+        f"* date: {dt.datetime.now(dt.UTC).strftime('%Y-%m-%d %H:%M UTC')}",
+        f"* CPU: {machine['cpu']} (family {machine['cpu_family']}), {machine['cores']} cores "
+        f"visible, {machine['mhz']} MHz reported, {machine['simd']}; Linux {machine['kernel']}",
+        f"* Python {machine['python']}; "
+        + "; ".join(f"{k}: {v}" for k, v in sorted(versions.items())),
+        f"* rustcloth from `{rust_py}`",
+        "* threads: rustcloth `RAYON_NUM_THREADS=1` and `2` (separate processes); numpy 1 "
+        "(elementwise ufuncs); Taichi `cpu_max_num_threads` = 1 and 2; newton/Warp CPU 1 "
+        "(Warp runs CPU kernels on one thread)",
+        "",
+        "## Results",
+        "",
+    ]
+    for n in args.sizes:
+        lines += size_table(n, steps_for.get(n, 100), impls, results[n])
+    if not args.no_colliders:
+        lines += [
+            "## With a floor and a sphere",
+            "",
+            "The same scenes plus a floor 5 mm below the cloth's lower edge (friction 0.3, "
+            "thickness 2 mm) and a sphere of radius 0.2 x the cloth's width just under the "
+            "middle of the lower edge (friction 0.2). Only rustcloth has colliders: numpy, "
+            "Taichi and newton are n/a (newton has shape contacts, but through its collision "
+            "pipeline with a penalty model that is not this one).",
+            "",
+        ]
+        for n in args.sizes:
+            coll = collider_results.get(n, {})
+            table = size_table(n, steps_for.get(n, 100), [i for i in impls if i.colliders], coll)
+            # speed-ups within this table are between rustcloth runs; add the no-collider cost
+            lines += table[:-1]
+            for impl in impls:
+                if not impl.colliders:
+                    lines.append(f"| {impl.label} | {impl.threads} | n/a |" + " |" * 9)
+            for key in ("rustcloth-1", "rustcloth-2"):
+                a, b = coll.get(key, {}), results[n].get(key, {})
+                if "ms_per_step" in a and "ms_per_step" in b:
+                    lines.append("")
+                    lines.append(
+                        f"{key}: colliders cost x{a['ms_per_step'] / b['ms_per_step']:.2f} "
+                        "the collider-free step time."
+                    )
+            lines.append("")
+    lines += roofline_lines(args.sizes, impls, results, bw, machine)
+    lines += [
+        "## Raw per-repeat ms/step",
+        "",
+        "```",
+        *(
+            f"{n} {k}: {[round(x, 4) for x in r.get('ms_all', [])]}"
+            for n in args.sizes
+            for k, r in results[n].items()
+        ),
+        "```",
+        "",
+    ]
+    text = "\n".join(lines)
+    print()
+    print(text)
+    if not args.no_write:
+        Path(args.output).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.output).write_text(text)
+        print(f"wrote {args.output}")
+
+
+if __name__ == "__main__":
+    main()
