@@ -33,11 +33,12 @@ float shadow_factor(vec3 p, vec3 n) {
     if (any(lessThan(s, vec3(0.0))) || any(greaterThan(s, vec3(1.0)))) return 1.0;
     float bias = 0.0015;
     float lit = 0.0;
-    // 5x5 percentage-closer filter on top of the hardware 2x2 compare: soft, stable edges.
-    for (int y = -2; y <= 2; ++y)
-        for (int x = -2; x <= 2; ++x)
-            lit += texture(shadow_map, vec3(s.xy + vec2(x, y) * shadow_texel, s.z - bias));
-    return lit / 25.0;
+    // 3x3 percentage-closer filter over hardware-filtered 2x2 compares: soft, stable edges
+    // at a third of the cost of a 5x5 kernel (llvmpipe is fill-rate bound).
+    for (int y = -1; y <= 1; ++y)
+        for (int x = -1; x <= 1; ++x)
+            lit += texture(shadow_map, vec3(s.xy + vec2(x, y) * 1.5 * shadow_texel, s.z - bias));
+    return lit / 9.0;
 }
 
 vec3 tonemap(vec3 c) {
