@@ -75,12 +75,11 @@ def test_demo_runs_120_frames_with_scripted_grab_drag_and_cut(make_real: Any, xd
     assert proc.returncode == 0, proc.stderr[-3000:]
     report = json.loads(proc.stdout.strip().splitlines()[-1])
     assert report["frames"] == 120 and report["error"] == "GL_NO_ERROR"
-    # The drag: mid-drag the grabbed particle sits under the cursor, well away from its start
-    # and towards the scripted target.
+    # The drag: mid-drag the grabbed particle sits under the cursor (on the camera-facing
+    # plane through where it was grabbed), well away from where it was grabbed.
     assert report["grabbed"] is not None
     assert report["miss"] < 0.05 * report["size"]
-    moved, wanted = np.array(report["moved"]), np.array(report["wanted"])
-    assert moved @ wanted / np.linalg.norm(wanted) > 0.25 * np.linalg.norm(wanted)
+    assert np.linalg.norm(report["moved"]) > 0.2 * report["size"]
     # The cut: particles removed along the stroke, new topology, stroke kept for highlighting.
     assert 0 < report["cut"] and report["alive"] < report["n"]
     assert report["topology"] > 0 and report["stroke"] > 0
