@@ -244,8 +244,7 @@ class Demo:
                         self.physics_ms = 1e3 * (time.perf_counter() - t0) / steps
                 t0 = time.perf_counter()
                 self.renderer.highlight = self.interaction.grabbed
-                self.renderer.set_stroke(self.interaction.stroke(),
-                                         self.interaction.stroke_version)
+                self.renderer.sync_stroke(self.interaction)
                 self.renderer.update()
                 if now - self._overlay_at > 0.25:
                     from .render.overlay import text_panel

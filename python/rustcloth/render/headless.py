@@ -72,7 +72,7 @@ def render_frames(
             if player is not None:
                 player.update(t, pointer, renderer.positions)
             renderer.highlight = interaction.grabbed
-            renderer.set_stroke(interaction.stroke(), interaction.stroke_version)
+            renderer.sync_stroke(interaction)
             if k > 0:
                 t0 = time.perf_counter()
                 steps += sim.advance(1.0 / fps)

@@ -273,12 +273,14 @@ class Renderer:
             return np.linalg.norm(sim.velocities, axis=1).astype(np.float32)
         return np.asarray(sim.pinned, dtype=np.float32)
 
-    def set_stroke(self, segments: npt.NDArray[np.float32], version: int) -> None:
-        """World-space line segments (M*2, 3) of the cut stroke; written only when changed."""
-        if version == self._stroke_version:
+    def sync_stroke(self, source: Any) -> None:
+        """Upload the cut stroke of ``source`` (an :class:`Interaction`: ``stroke_version`` and
+        ``stroke()`` giving world-space segments (M*2, 3)) only when it changed, so a frame
+        without cutting allocates nothing here."""
+        if source.stroke_version == self._stroke_version:
             return
-        self._stroke_version = version
-        data = np.ascontiguousarray(segments, dtype=np.float32).reshape(-1, 3)
+        self._stroke_version = source.stroke_version
+        data = np.ascontiguousarray(source.stroke(), dtype=np.float32).reshape(-1, 3)
         if data.nbytes > self.stroke_vbo.size:
             self.stroke_vbo.orphan(2 * data.nbytes)
         if data.size:
