@@ -86,12 +86,29 @@ def test_demo_runs_120_frames_with_scripted_grab_drag_and_cut(make_real: Any, xd
     assert "fps" in report["title"]
 
 
-def test_closing_the_window_mid_run_exits_cleanly(make_real: Any, xdisplay: str) -> None:
+def test_keys_and_closing_the_window_mid_run(make_real: Any, xdisplay: str) -> None:
     if make_real("hanging") is None:
         pytest.skip("the compiled core is not built into the venv")
     code = textwrap.dedent("""
-        from rustcloth import app
+        import glfw
+        from rustcloth import app, scenes
         demo = app.Demo("hanging", (160, 120))
+        demo.run(2)
+        def key(k):
+            demo.on_key(demo.window, k, 0, glfw.PRESS, 0)
+        key(glfw.KEY_V); assert demo.renderer.view == "position"
+        integrator = demo.sim.integrator
+        key(glfw.KEY_I); assert demo.sim.integrator != integrator
+        substeps = demo.sim.substeps
+        key(glfw.KEY_EQUAL); assert demo.sim.substeps == substeps + 1
+        key(glfw.KEY_MINUS); assert demo.sim.substeps == substeps
+        key(glfw.KEY_SPACE); assert demo.paused
+        steps = demo.sim.steps
+        key(glfw.KEY_N); assert demo.sim.steps == steps + 1
+        key(glfw.KEY_R); assert demo.sim.steps == 0
+        key(glfw.KEY_2); assert demo.scene_name == scenes()[1]
+        key(glfw.KEY_H); assert demo.show_help
+        demo.on_scroll(demo.window, 0.0, 1.0)
         demo.run(5)
         demo.glfw.set_window_should_close(demo.window, True)
         rc = demo.run(1000)
@@ -100,7 +117,7 @@ def test_closing_the_window_mid_run_exits_cleanly(make_real: Any, xdisplay: str)
     """)
     proc = _run_python(code, env={"DISPLAY": xdisplay})
     assert proc.returncode == 0, proc.stderr[-3000:]
-    assert proc.stdout.split()[-3:] == ["rc", "0", "5"]
+    assert proc.stdout.split()[-3:] == ["rc", "0", "5"]  # stopped at once, no more frames
     assert "Traceback" not in proc.stderr
 
 

@@ -129,5 +129,7 @@ def write_outputs(
             iio.imwrite(path, np.stack(keep), fps=fps, codec="libx264")
             written.append(path)
         except Exception as err:  # the ffmpeg plugin is optional
-            print(f"MP4 skipped: {err} (pip install imageio-ffmpeg)", file=sys.stderr)
+            reason = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+            print(f"MP4 skipped ({reason}); it needs the imageio-ffmpeg package",
+                  file=sys.stderr)
     return written, stats
