@@ -131,8 +131,9 @@ class Demo:
             self.paused = True
             self.sim.step(1)
         elif key == glfw.KEY_R:
-            self.sim.reset()
             self.interaction.clear()
+            self.sim.reset()
+            self.renderer.invalidate_topology()
         elif glfw.KEY_1 <= key <= glfw.KEY_9:
             names = scenes()
             k = key - glfw.KEY_1

@@ -59,6 +59,11 @@ class Interaction:
         self.segments: list[npt.NDArray[np.float32]] = []
         self.stroke_version = 0
         self.cut_count = 0
+        self._last_hit: npt.NDArray[np.float32] | None = None
+
+    def begin_stroke(self) -> None:
+        """A new cut gesture: its line does not join the previous one."""
+        self._last_hit = None
 
     def pick(self, ray: Ray, radius_factor: float = 1.5) -> tuple[int, float] | None:
         if hasattr(self.sim, "pick"):
@@ -100,8 +105,12 @@ class Interaction:
 
     def cut(self, rays: list[Ray], camera: Camera) -> int:
         """Cut where the rays of one stroke sample hit the cloth; returns particles cut."""
-        if hasattr(self.sim, "cut_stroke"):
-            cut = int(self.sim.cut_stroke(rays) or 0)
+        if hasattr(self.sim, "cut_stroke") or hasattr(self.sim, "cut_ray"):
+            if hasattr(self.sim, "cut_stroke"):
+                cut = int(self.sim.cut_stroke(rays) or 0)
+            else:
+                cut = sum(int(self.sim.cut_ray(o, d) or 0) for o, d in rays)
+            # The core does the hit test; the stroke is drawn on the plane through the target.
             hits = [camera.drag_plane_point(r, camera.target) for r in rays]
         else:
             cut, hits = 0, []
@@ -115,6 +124,10 @@ class Interaction:
                     self.sim.cut(hit[0])
                     alive[hit[0]] = False
                     cut += 1
+        if hits and self._last_hit is not None:
+            hits.insert(0, self._last_hit)  # join up with the previous frame's samples
+        if hits:
+            self._last_hit = np.asarray(hits[-1], dtype=np.float32)
         if len(hits) >= 2:
             pts = np.asarray(hits, dtype=np.float32)
             self.segments.append(np.stack([pts[:-1], pts[1:]], axis=1).reshape(-1, 3))
@@ -143,8 +156,8 @@ class Pointer:
         self.size = size
         self.mode: str | None = None
         self.pos = (0.0, 0.0)
-        self.cut_supported = hasattr(interaction.sim, "cut") or hasattr(
-            interaction.sim, "cut_stroke")
+        self.cut_supported = any(
+            hasattr(interaction.sim, name) for name in ("cut", "cut_ray", "cut_stroke"))
 
     def ray(self, x: float, y: float) -> Ray:
         return self.camera.ray(x, y, *self.size)
@@ -155,6 +168,7 @@ class Pointer:
         if mode == "grab":
             self.interaction.grab(self.ray(x, y))
         elif mode == "cut":
+            self.interaction.begin_stroke()
             self.interaction.cut([self.ray(x, y)], self.camera)
 
     def move(self, x: float, y: float) -> None:
@@ -261,19 +275,19 @@ class ScriptPlayer:
 
 
 def default_script(sim: Any) -> list[dict[str, Any]]:
-    """A grab, drag and cut that suit any built-in scene: grab the particle at the cloth's
-    middle, pull it sideways and up, let go, then cut across the cloth."""
+    """A cut, grab and drag that suit any built-in scene: once the cloth has settled a little,
+    cut across it, then lift the particle at its middle and let go."""
     nx, ny = sim.nx, sim.ny
     scene = sim.scene.to_dict()
     size = float(max(scene["cloth"]["size"]))
     middle = (ny // 2) * nx + nx // 2
     p = sim.positions[middle]
-    target = [float(p[0]) + 0.45 * size, float(p[1]) + 0.25 * size, float(p[2]) + 0.2 * size]
+    target = [float(p[0]), float(p[1]) + 0.12 * size, float(p[2])]
     row = (2 * ny) // 3
     return [
-        {"t": 0.4, "action": "grab", "particle": middle},
-        {"t": 0.45, "action": "drag", "world": target, "duration": 1.0},
-        {"t": 1.8, "action": "release"},
-        {"t": 2.2, "action": "cut", "duration": 0.5,
+        {"t": 1.0, "action": "cut", "duration": 0.6,
          "path": [{"particle": row * nx + 1}, {"particle": row * nx + nx - 2}]},
+        {"t": 2.0, "action": "grab", "particle": middle},
+        {"t": 2.05, "action": "drag", "world": target, "duration": 0.6},
+        {"t": 3.0, "action": "release"},
     ]

@@ -265,6 +265,11 @@ class Renderer:
         if self.view in _SCALAR_SCALE:
             self.cloth_scalar.write(self._scalar(self.view))
 
+    def invalidate_topology(self) -> None:
+        """Force an index upload next frame: ``reset()`` sets ``topology_version`` back to 0,
+        so a reset followed by a cut within one frame could repeat the cached version."""
+        self._topology = -1
+
     def _scalar(self, view: str) -> npt.NDArray[np.float32]:
         sim: Any = self.sim
         if view == "strain":
