@@ -195,3 +195,37 @@ fn every_integrator_falls_freely_at_g() {
         assert!((drop - 4.905).abs() < 0.006, "{integrator}: dropped {drop}");
     }
 }
+
+#[test]
+fn the_stability_estimate_separates_stable_from_unstable_steps() {
+    // The stiffest mode of an undamped cloth; the estimate must hold within about 10 %.
+    for integrator in ["symplectic_euler", "verlet", "rk4"] {
+        let mut scene = bare_scene(16, 16);
+        scene.integrator = integrator.into();
+        scene.cloth.damping = 0.0;
+        scene.gravity = [0.0, -9.81, 0.0];
+        scene.cloth.pins = vec![PinSpec::Named("top_corners".into())];
+        let limit = Simulation::new(scene.clone()).unwrap().stable_dt().unwrap();
+        let survives = |dt: f64| {
+            let mut sim = Simulation::new(Scene {
+                dt,
+                ..scene.clone()
+            })
+            .unwrap();
+            sim.step(3000).is_ok() && sim.max_stretch() < 1.0
+        };
+        assert!(
+            survives(0.9 * limit),
+            "{integrator} unstable at 0.9 x {limit}"
+        );
+        assert!(
+            !survives(1.15 * limit),
+            "{integrator} stable at 1.15 x {limit}"
+        );
+    }
+    let implicit = Scene {
+        integrator: "implicit_euler".into(),
+        ..bare_scene(4, 4)
+    };
+    assert_eq!(Simulation::new(implicit).unwrap().stable_dt(), None);
+}

@@ -13,6 +13,7 @@ from .errors import (
     ParticleIndexError,
     RustclothError,
     SimulationDiverged,
+    StabilityWarning,
 )
 from .scene import Scene, load_scene, scenes
 from .simulation import Energy, PassTime, Profile, Simulation
@@ -34,6 +35,7 @@ __all__ = [
     "Scene",
     "Simulation",
     "SimulationDiverged",
+    "StabilityWarning",
     "load_scene",
     "scenes",
 ]

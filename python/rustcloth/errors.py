@@ -48,3 +48,8 @@ class SimulationDiverged(RustclothError, FloatingPointError):
         super().__init__(message)
         self.step = step
         self.particle = particle
+
+
+class StabilityWarning(RuntimeWarning):
+    """The scene's ``dt`` exceeds the largest step its integrator is estimated to be stable
+    at (``Simulation.stable_dt()``); expect ``SimulationDiverged``."""

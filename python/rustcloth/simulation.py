@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
 from . import _core
+from .errors import StabilityWarning
 from .scene import Scene, load_scene
 
 
@@ -97,7 +99,16 @@ class Simulation(_core.Simulation):
         return super().__new__(cls, _as_scene(scene).to_dict())
 
     def __init__(self, scene: Scene | Mapping[str, Any] | str | None = None) -> None:
-        pass  # everything happens in __new__, where the Rust object is built
+        # The Rust object was built in __new__; here only the stability check.
+        limit = self.stable_dt()
+        if limit is not None and self.dt > limit:
+            warnings.warn(
+                f"dt = {self.dt:g} s exceeds the estimated stability limit of {limit:.3g} s for "
+                f"{self.integrator} with {self.substeps} substep(s); use a smaller dt, more "
+                f"substeps, softer springs or implicit_euler",
+                StabilityWarning,
+                stacklevel=2,
+            )
 
     def step(self, n: int = 1) -> None:
         """Advance exactly ``n`` steps of ``dt``.

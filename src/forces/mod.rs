@@ -109,14 +109,14 @@ impl ForceModel {
             });
         let wall = start.elapsed();
         profile.force_time += wall;
-        let cpu: Vec<u64> = self
+        let cpu_total = self
             .cpu_nanos
             .iter()
-            .map(|n| n.swap(0, Ordering::Relaxed))
-            .collect();
-        let cpu_total = cpu.iter().sum::<u64>().max(1) as f64;
-        for (term, nanos) in self.terms.iter().zip(cpu) {
-            profile.add(term.name(), wall.mul_f64(nanos as f64 / cpu_total));
+            .map(|n| n.load(Ordering::Relaxed))
+            .sum::<u64>();
+        for (term, nanos) in self.terms.iter().zip(&self.cpu_nanos) {
+            let share = nanos.swap(0, Ordering::Relaxed) as f64 / cpu_total.max(1) as f64;
+            profile.add(term.name(), wall.mul_f64(share));
         }
         wall
     }

@@ -72,6 +72,8 @@ struct Work {
     u: [Vec3s; 6],
     /// Which spring kinds take part, with their family's `h c` (damping part of `alpha`).
     kinds: Vec<(SpringKind, f32)>,
+    /// `(kind index, index offset)` of the same kinds (kept to reuse its allocation).
+    offsets: Vec<(usize, usize)>,
     rhs: Vec3s,
     dv: Vec3s,
     r: Vec3s,
@@ -95,6 +97,7 @@ impl Work {
             beta: Default::default(),
             u: Default::default(),
             kinds: Vec::new(),
+            offsets: Vec::new(),
             rhs: Vec3s::zeros(n),
             dv: Vec3s::zeros(n),
             r: Vec3s::zeros(n),
@@ -156,11 +159,14 @@ impl Integrator for ImplicitEuler {
         let mass = &ctx.particles.mass;
         let chunk = ctx.chunk;
         let grid_n = ctx.grid.len();
-        let offsets: Vec<(usize, usize)> = work
-            .kinds
-            .iter()
-            .map(|&(kind, _)| (kind.index(), ctx.grid.offset(kind)))
-            .collect();
+        work.offsets.clear();
+        let grid = ctx.grid;
+        work.offsets.extend(
+            work.kinds
+                .iter()
+                .map(|&(kind, _)| (kind.index(), grid.offset(kind))),
+        );
+        let offsets = std::mem::take(&mut work.offsets);
 
         // Right-hand side b = h f - h^2 K v (K v gathered like a force), and the Jacobi
         // diagonal of A = M + h drag I + sum C.
@@ -288,6 +294,8 @@ impl Integrator for ImplicitEuler {
             self.stats.not_converged += 1;
             self.stats.worst_residual = self.stats.worst_residual.max(residual as f32);
         }
+
+        work.offsets = offsets; // hand the allocation back for the next step
 
         // v' = v + dv, x' = x + h v'.
         let (cur, dv) = (ctx.current, &work.dv);

@@ -255,6 +255,12 @@ impl PySimulation {
         Ok((passes, profile.steps, profile.total.as_secs_f64()))
     }
 
+    /// The largest `dt` (s) at which the current integrator is estimated to stay stable with
+    /// the current substeps, or None when any `dt` is (implicit Euler, or no springs).
+    fn stable_dt(&self) -> Option<f64> {
+        self.inner.stable_dt()
+    }
+
     fn reset(&mut self) -> PyResult<()> {
         self.inner.reset().py()
     }
