@@ -10,7 +10,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 RUST_SOURCES := $(shell find src benches -name '*.rs') Cargo.toml Cargo.lock $(wildcard scenes/*.toml)
 
-.PHONY: all demo test test-long lint fmt bench bench-peers setup system-deps clean
+.PHONY: all demo test test-long lint fmt bench bench-peers accuracy setup system-deps clean
 
 all: test
 
@@ -57,6 +57,10 @@ fmt:
 bench: setup
 	cargo bench --bench step
 	$(PY) benches/bench_numpy.py
+
+# The accuracy-versus-time study: regenerates docs/accuracy.md and docs/accuracy.png.
+accuracy: setup
+	$(PY) -m rustcloth accuracy --out docs
 
 bench-peers: setup
 	benches/peers/setup.sh
