@@ -29,7 +29,7 @@ HELP = [
     "left drag: grab and drag     right drag / shift+left: cut",
     "middle drag / alt+left: orbit    scroll: zoom",
     "space: pause   N: step   R: reset   1-9: scenes",
-    "I: integrator   +/-: substeps   V: debug view",
+    "I: integrator   +/-: substeps   V: debug view   O: SSAO",
     "H: help   Esc: quit",
 ]
 
@@ -149,6 +149,8 @@ class Demo:
             self.renderer.view = VIEWS[(VIEWS.index(self.renderer.view) + 1) % len(VIEWS)]
         elif key == glfw.KEY_H:
             self.show_help = not self.show_help
+        elif key == glfw.KEY_O:
+            self.renderer.ssao = not self.renderer.ssao
 
     def cycle_integrator(self) -> None:
         current = self.sim.integrator
@@ -352,6 +354,7 @@ def main_render(argv: list[str]) -> int:
     parser.add_argument("--demo-script", action="store_true",
                         help="use the built-in grab, drag and cut script")
     parser.add_argument("--view", choices=VIEWS, default="lit")
+    parser.add_argument("--ssao", action="store_true", help="screen-space ambient occlusion")
     args = parser.parse_args(argv)
     if args.scene not in scenes():
         print(f"unknown scene {args.scene!r}; available scenes: {', '.join(scenes())}",
@@ -374,7 +377,8 @@ def main_render(argv: list[str]) -> int:
     out = args.out or Path("out") / args.scene
     try:
         written, stats = write_outputs(sim, out, args.size, args.frames, args.fps, script,
-                                       gif=args.gif, mp4=args.mp4, view=args.view)
+                                       gif=args.gif, mp4=args.mp4, view=args.view,
+                                       ssao=args.ssao)
     except GLUnavailable as err:
         print(err, file=sys.stderr)
         return 1

@@ -62,6 +62,19 @@ def test_shadow_darkens_the_floor_under_the_cloth(standin_cls: Any, ctx: Any) ->
     assert abs(lit_on[clear].mean() - lit_off[clear].mean()) < 2.0
 
 
+def test_ssao_darkens_some_covered_pixels_only(standin_cls: Any, ctx: Any) -> None:
+    r = Renderer(ctx, standin_cls(amp=0.1), SIZE, shadow_size=512)
+    r.fxaa = False  # FXAA would blend the change into neighbouring pixels either way
+    cam = _camera()
+    plain = _frame(ctx, r, cam).astype(np.float32)
+    r.ssao = True
+    shaded = _frame(ctx, r, cam).astype(np.float32)
+    ao = np.frombuffer(r.ao.read(), dtype=np.uint8).reshape(SIZE[1], SIZE[0]) / 255.0
+    covered = r.read_gbuffer()["material"] > 0
+    assert (ao[~covered] == 1.0).all() and ao[covered].mean() < 1.0
+    assert (shaded <= plain + 1.0).all() and (shaded < plain - 1.0).any()
+
+
 def test_golden_image(standin_cls: Any, ctx: Any) -> None:
     """One fixed scene and camera against a committed render; llvmpipe is deterministic, the
     tolerance allows for other Mesa versions. RUSTCLOTH_UPDATE_GOLDEN=1 rewrites it."""

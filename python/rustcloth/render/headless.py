@@ -45,7 +45,7 @@ def _progress(done: int, total: int, stream: Any = None) -> None:
 def render_frames(
     sim: Any, size: tuple[int, int], frames: int, fps: float, script: list[dict[str, Any]] | None,
     view: str = "lit", progress: bool = True, sink: Any = None,
-    ctx: moderngl.Context | None = None,
+    ctx: moderngl.Context | None = None, ssao: bool = False,
 ) -> tuple[list[npt.NDArray[np.uint8]], RenderStats]:
     """Simulate and render ``frames`` frames at ``fps`` offscreen; returns RGB frames (rows top
     to bottom) unless ``sink`` (called with each frame index and image) takes them. Uses
@@ -57,6 +57,7 @@ def render_frames(
         w, h = size
         renderer = Renderer(ctx, sim, size)
         renderer.view = view
+        renderer.ssao = ssao
         camera = default_camera(sim.scene.to_dict(), w / h)
         color = ctx.renderbuffer(size, 4)
         fbo = ctx.framebuffer(color_attachments=[color])
@@ -101,6 +102,7 @@ def render_frames(
 def write_outputs(
     sim: Any, out_dir: Path, size: tuple[int, int], frames: int, fps: float,
     script: list[dict[str, Any]] | None, gif: bool, mp4: bool, view: str = "lit",
+    ssao: bool = False,
 ) -> tuple[list[Path], RenderStats]:
     """Render to ``out_dir/frame_0000.png`` ... plus ``animation.gif``/``.mp4`` when asked."""
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -114,7 +116,7 @@ def write_outputs(
         if gif or mp4:
             keep.append(frame)
 
-    _, stats = render_frames(sim, size, frames, fps, script, view=view, sink=sink)
+    _, stats = render_frames(sim, size, frames, fps, script, view=view, sink=sink, ssao=ssao)
     if gif:
         import imageio.v3 as iio
 

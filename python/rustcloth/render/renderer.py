@@ -91,6 +91,7 @@ class Renderer:
         self.view = "lit"
         self.shadows = True
         self.fxaa = True
+        self.ssao = False
         self.highlight: int | None = None
         self.light_dir = np.array([-0.45, -1.0, -0.35], dtype=np.float32)
         self.light_dir /= np.linalg.norm(self.light_dir)
@@ -102,11 +103,13 @@ class Renderer:
         self.lighting = load_program(ctx, "fullscreen.vert", "lighting.frag")
         self.debug = load_program(ctx, "fullscreen.vert", "debug.frag")
         self.fxaa_prog = load_program(ctx, "fullscreen.vert", "fxaa.frag")
+        self.ssao_prog = load_program(ctx, "fullscreen.vert", "ssao.frag")
         self.lines = load_program(ctx, "lines.vert", "lines.frag")
         self.overlay_prog = load_program(ctx, "overlay.vert", "overlay.frag")
         # Full-screen passes draw one triangle from gl_VertexID: no vertex buffers.
         self.fullscreen = {
-            p: ctx.vertex_array(p, []) for p in (self.lighting, self.debug, self.fxaa_prog)
+            p: ctx.vertex_array(p, [])
+            for p in (self.lighting, self.debug, self.fxaa_prog, self.ssao_prog)
         }
 
         self.shadow_depth = ctx.depth_texture((shadow_size, shadow_size))
@@ -150,7 +153,8 @@ class Renderer:
         size = (max(1, int(size[0])), max(1, int(size[1])))
         if size == self.size:
             return
-        for name in ("gbuffer", "g_position", "g_normal", "g_albedo", "g_depth", "lit_fbo", "lit"):
+        for name in ("gbuffer", "g_position", "g_normal", "g_albedo", "g_depth", "lit_fbo", "lit",
+                     "ao_fbo", "ao"):
             old = getattr(self, name, None)
             if old is not None:
                 old.release()
@@ -171,6 +175,10 @@ class Renderer:
         self.lit.filter = (moderngl.LINEAR, moderngl.LINEAR)
         self.lit.repeat_x = self.lit.repeat_y = False
         self.lit_fbo = ctx.framebuffer(color_attachments=[self.lit])
+        self.ao = ctx.texture(size, 1, dtype="f1")
+        self.ao.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        self.ao.repeat_x = self.ao.repeat_y = False
+        self.ao_fbo = ctx.framebuffer(color_attachments=[self.ao])
 
     def set_simulation(self, sim: ClothSource) -> None:
         """Bind a (new) simulation: cloth buffers sized for it and the scene's static meshes."""
@@ -349,6 +357,16 @@ class Renderer:
             self._draw_geometry(g, self.sphere_vao, gl_bytes(model), MAT_MARKER, MARKER_COLOR)
 
         ctx.disable(moderngl.DEPTH_TEST)
+        if self.ssao and self.view == "lit":
+            # SSAO pass: occlusion of the ambient and fill light from the G-buffer.
+            self.ao_fbo.use()
+            a = self.ssao_prog
+            self._bind(a, {"g_position": self.g_position, "g_normal": self.g_normal,
+                           "g_albedo": self.g_albedo})
+            a["view_proj"].write(view_proj)
+            a["eye"].value = tuple(camera.eye)
+            a["radius"].value = 0.15 * self.scene_size
+            self.fullscreen[a].render(moderngl.TRIANGLES, vertices=3)
         self.lit_fbo.use()
         if self.view in _CHANNELS:
             # Debug pass: one raw G-buffer channel instead of lighting.
@@ -365,7 +383,9 @@ class Renderer:
             # Lighting pass: key light with PCF shadows, eight point lights, ambient.
             lp = self.lighting
             self._bind(lp, {"g_position": self.g_position, "g_normal": self.g_normal,
-                            "g_albedo": self.g_albedo, "shadow_map": self.shadow_depth})
+                            "g_albedo": self.g_albedo, "shadow_map": self.shadow_depth,
+                            "ao_map": self.ao})
+            lp["ao_enabled"].value = self.ssao
             lp["light_view_proj"].write(gl_bytes(self.light_view_proj))
             lp["light_dir"].value = tuple(self.light_dir)
             lp["light_color"].value = tuple(self.light_color)

@@ -8,6 +8,8 @@ uniform sampler2D g_position;
 uniform sampler2D g_normal;
 uniform sampler2D g_albedo;
 uniform sampler2DShadow shadow_map;
+uniform sampler2D ao_map;
+uniform bool ao_enabled;
 
 uniform mat4 light_view_proj;
 uniform vec3 light_dir;      // direction the light travels, unit
@@ -68,7 +70,12 @@ void main() {
     vec3 l = -light_dir;
     vec3 h = normalize(l + v);
     float ndl = max(dot(n, l), 0.0);
-    vec3 color = ambient * albedo;
+    float ao = 1.0;
+    if (ao_enabled) {
+        // 2x2 box filter of the noisy SSAO term, free with one bilinear tap between texels.
+        ao = texture(ao_map, v_uv + 0.5 / vec2(textureSize(ao_map, 0))).r;
+    }
+    vec3 color = ambient * albedo * ao;
     color += shadow_factor(p, n) * light_color
              * (albedo * ndl + spec_strength * pow(max(dot(n, h), 0.0), shininess) * float(ndl > 0.0));
 
@@ -81,7 +88,7 @@ void main() {
         float pndl = max(dot(n, pl), 0.0);
         vec3 ph = normalize(pl + v);
         // Fill lights get a softer lobe than the key so they read as rims, not hot spots.
-        color += point_color[i] * att * (albedo * pndl
+        color += point_color[i] * att * mix(1.0, ao, 0.6) * (albedo * pndl
                  + 0.5 * spec_strength * pow(max(dot(n, ph), 0.0), 0.5 * shininess) * float(pndl > 0.0));
     }
     f_color = vec4(pow(tonemap(color), vec3(1.0 / 2.2)), 1.0);
