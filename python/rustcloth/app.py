@@ -255,7 +255,7 @@ class Demo:
                     self.renderer.set_overlay(text_panel(self.status_lines()))
                     glfw.set_window_title(self.window, " | ".join(self.status_lines()[:2]))
                     self._overlay_at = now
-                self.renderer.render(self.ctx.detect_framebuffer(), self.camera)
+                self.renderer.render(self.ctx.screen, self.camera)
                 glfw.swap_buffers(self.window)
                 self.render_ms = 1e3 * (time.perf_counter() - t0)
                 self.frames += 1
@@ -270,37 +270,39 @@ class Demo:
     def _scripted_input(self, t: float) -> None:
         """Scripted gestures go through the same mouse handlers as real glfw events."""
         assert self.script is not None
-        demo = self
-        glfw = self.glfw
-
-        class _Via:
-            """Pointer facade: scripted press/move/release become button and cursor events."""
-
-            size = demo.pointer.size
-            camera = demo.camera
-
-            @property
-            def pos(self) -> tuple[float, float]:
-                return demo.pointer.pos
-
-            def press(self, mode: str, x: float, y: float) -> None:
-                button, mods = {"grab": (glfw.MOUSE_BUTTON_LEFT, 0),
-                                "cut": (glfw.MOUSE_BUTTON_RIGHT, 0),
-                                "orbit": (glfw.MOUSE_BUTTON_MIDDLE, 0)}[mode]
-                demo.mouse_button(button, glfw.PRESS, mods, x, y)
-
-            def move(self, x: float, y: float) -> None:
-                demo.pointer.move(x, y)
-
-            def release(self) -> None:
-                demo.mouse_button(glfw.MOUSE_BUTTON_LEFT, glfw.RELEASE, 0, *demo.pointer.pos)
-
-        self.script.update(t, _Via(), self.renderer.positions)  # type: ignore[arg-type]
+        self.script.update(t, _ScriptedMouse(self), self.renderer.positions)  # type: ignore[arg-type]
 
     def close(self) -> None:
         self.renderer.set_overlay(None)
         self.glfw.destroy_window(self.window)
         self.glfw.terminate()
+
+
+class _ScriptedMouse:
+    """What a :class:`ScriptPlayer` drives, turning its press/move/release into the demo's
+    button and cursor handlers (a scripted cut is a right-button drag, an orbit a middle one)."""
+
+    def __init__(self, demo: Demo) -> None:
+        self.demo = demo
+        self.size = demo.pointer.size
+        self.camera = demo.camera
+
+    @property
+    def pos(self) -> tuple[float, float]:
+        return self.demo.pointer.pos
+
+    def press(self, mode: str, x: float, y: float) -> None:
+        glfw = self.demo.glfw
+        button = {"grab": glfw.MOUSE_BUTTON_LEFT, "cut": glfw.MOUSE_BUTTON_RIGHT,
+                  "orbit": glfw.MOUSE_BUTTON_MIDDLE}[mode]
+        self.demo.mouse_button(button, glfw.PRESS, 0, x, y)
+
+    def move(self, x: float, y: float) -> None:
+        self.demo.pointer.move(x, y)
+
+    def release(self) -> None:
+        glfw = self.demo.glfw
+        self.demo.mouse_button(glfw.MOUSE_BUTTON_LEFT, glfw.RELEASE, 0, *self.demo.pointer.pos)
 
 
 def main_demo(argv: list[str]) -> int:
