@@ -68,8 +68,14 @@ class Demo:
         self.glfw = glfw
         if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
             raise DisplayUnavailable("no display (DISPLAY is not set)")
+        # glfw errors become our one-line messages below instead of Python warnings.
+        errors: list[str] = []
+        glfw.ERROR_REPORTING = "ignore"
+        glfw.set_error_callback(lambda code, text: errors.append(
+            text.decode(errors="replace") if isinstance(text, bytes) else str(text)))
         if not glfw.init():
-            raise DisplayUnavailable("no display (glfw could not initialise the window system)")
+            why = errors[-1] if errors else "glfw could not initialise the window system"
+            raise DisplayUnavailable(f"no display ({why})")
         glfw.window_hint(glfw.CONTEXT_VERSION_MAJOR, 3)
         glfw.window_hint(glfw.CONTEXT_VERSION_MINOR, 3)
         glfw.window_hint(glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE)
@@ -78,9 +84,10 @@ class Demo:
         self.window = glfw.create_window(size[0], size[1], "rustcloth", None, None)
         if not self.window:
             glfw.terminate()
+            why = errors[-1] if errors else "Mesa's GL driver is missing or too old"
             raise GLUnavailable(
-                "no OpenGL 3.3 core context for the window (Mesa's GL driver is missing or too "
-                f"old); install the Debian packages {APT_PACKAGES}"
+                f"no OpenGL 3.3 core context for the window ({why}); install the Debian "
+                f"packages {APT_PACKAGES}"
             )
         glfw.make_context_current(self.window)
         glfw.swap_interval(0 if script else 1)
@@ -324,19 +331,22 @@ def main_demo(argv: list[str]) -> int:
         demo = Demo(args.scene, args.size or (1280, 720), script=script,
                     fixed_dt=1 / 60 if script else None)
     except DisplayUnavailable as err:
-        print(f"{err}: rendering headless to {args.out} instead")
-        w, h = args.size or (640, 480)
-        return main_render([args.scene, "--out", str(args.out), "--gif",
-                            "--frames", str(args.frames or 150), "--size", f"{w}x{h}",
-                            "--demo-script"]
-                           + (["--script", str(args.script)] if args.script else []))
+        no_display = str(err)
     except GLUnavailable as err:
         print(err, file=sys.stderr)
         return 1
-    try:
-        return demo.run(args.frames)
-    finally:
-        demo.close()
+    else:
+        try:
+            return demo.run(args.frames)
+        finally:
+            demo.close()
+    # Outside the handler, so an error in the fallback is not chained to the display error.
+    print(f"{no_display}: rendering headless to {args.out} instead")
+    w, h = args.size or (640, 480)
+    return main_render([args.scene, "--out", str(args.out), "--gif",
+                        "--frames", str(args.frames or 150), "--size", f"{w}x{h}",
+                        "--demo-script"]
+                       + (["--script", str(args.script)] if args.script else []))
 
 
 # -- headless --------------------------------------------------------------------------------

@@ -33,12 +33,15 @@ class RenderStats:
 
 
 def _progress(done: int, total: int, stream: Any = None) -> None:
+    """A bar redrawn in place on a terminal; a line per tenth of the way in a log or pipe."""
     stream = sys.stdout if stream is None else stream
     width = 30
     filled = width * done // max(total, 1)
-    stream.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} frames")
-    if done == total:
-        stream.write("\n")
+    bar = f"[{'#' * filled}{'.' * (width - filled)}] {done}/{total} frames"
+    if stream.isatty():
+        stream.write(f"\r{bar}" + ("\n" if done == total else ""))
+    elif done == total or (10 * done) // total != (10 * (done - 1)) // total:
+        stream.write(bar + "\n")
     stream.flush()
 
 
