@@ -656,7 +656,11 @@ impl Simulation {
 
     /// Back to the scene's starting state (keeping the run-time integrator and substeps).
     pub fn reset(&mut self) -> Result<()> {
+        // The versions keep counting up, so a cache stamped before the reset never matches.
+        let (topology, state) = (self.topology_version + 1, self.state_version + 1);
         *self = Simulation::new(self.scene.clone())?;
+        self.topology_version = topology;
+        self.state_version = state;
         Ok(())
     }
 }

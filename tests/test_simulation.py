@@ -111,8 +111,12 @@ def test_runtime_settings_and_reset(sim):
     sim.dt = 0.0005
     sim.step(10)
     assert sim.scene.integrator == "explicit_euler" and sim.scene.substeps == 3
+    version = sim.topology_version
     sim.reset()
     assert sim.steps == 0 and sim.integrator == "explicit_euler"
+    # Regression (renderer report): reset set the version back to 0, so a cache stamped with
+    # an old version could match again. Versions only ever grow.
+    assert sim.topology_version > version
     np.testing.assert_array_equal(sim.positions, Simulation(small_scene()).positions)
 
 
