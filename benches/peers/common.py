@@ -115,10 +115,13 @@ def measure(
     t1 = time.perf_counter()
     step(sim, WARMUP)
     positions(sim)  # also synchronises
+    u2 = resource.getrusage(resource.RUSAGE_SELF)
     t2 = time.perf_counter()
     step(sim, args.steps)
     x = positions(sim)
     t3 = time.perf_counter()
+    u3 = resource.getrusage(resource.RUSAGE_SELF)
+    cpu = (u3.ru_utime + u3.ru_stime) - (u2.ru_utime + u2.ru_stime)
     x = np.asarray(x, dtype=np.float64).reshape(-1, 3)
     result = {
         "n": args.n,
@@ -130,6 +133,7 @@ def measure(
         "warmup_s": t2 - t1,
         "run_s": t3 - t2,
         "ms_per_step": 1e3 * (t3 - t2) / args.steps,
+        "cpu_per_wall": cpu / (t3 - t2),  # ~ threads actually busy (all threads' CPU time)
         "min_y": float(x[:, 1].min()),
         "finite": bool(np.isfinite(x).all()),
         "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,

@@ -17,9 +17,11 @@ import datetime as dt
 import json
 import os
 import platform
+import shutil
 import statistics
 import subprocess
 import sys
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -137,11 +139,29 @@ def median_result(results: list[dict]) -> dict:
     if not good:
         return results[-1] if results else {"error": "not run"}
     out = dict(good[0])
-    for key in ("setup_s", "warmup_s", "run_s", "ms_per_step", "peak_rss_mb", "min_y"):
+    for key in (
+        "setup_s",
+        "warmup_s",
+        "run_s",
+        "ms_per_step",
+        "cpu_per_wall",
+        "peak_rss_mb",
+        "min_y",
+    ):
         out[key] = statistics.median(r[key] for r in good)
     out["ms_all"] = [r["ms_per_step"] for r in good]
     out["finite"] = all(r["finite"] for r in good)
     return out
+
+
+def git_describe() -> str:
+    def git(*a: str) -> str:
+        p = subprocess.run(["git", *a], capture_output=True, text=True, cwd=str(ROOT))
+        return p.stdout.strip()
+
+    head = git("rev-parse", "--short", "HEAD") or "unknown"
+    dirty = git("status", "--porcelain", "--", "src", "Cargo.toml", "Cargo.lock", "python")
+    return f"commit {head}" + (" (Rust/Python sources modified in the tree)" if dirty else "")
 
 
 def machine_info() -> dict:
@@ -209,9 +229,9 @@ def size_table(n: int, steps: int, impls: list[Impl], res: dict[str, dict]) -> l
         f"### {n} x {n} ({particles:,} particles, {steps} steps timed)",
         "",
         "| implementation | threads | set-up s | warm-up s (5 steps, incl. JIT) | ms/step | "
-        "steps/s | M particle-updates/s | peak RSS MB | rustcloth 1t speed-up | "
-        "rustcloth 2t speed-up | min y (m) | min y - rustcloth |",
-        "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|",
+        "CPU s / wall s | steps/s | M particle-updates/s | peak RSS MB | "
+        "ms/step / rustcloth 1t | ms/step / rustcloth 2t | min y (m) | min y - rustcloth |",
+        "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|",
     ]
     for impl in impls:
         r = res.get(impl.key)
@@ -219,7 +239,7 @@ def size_table(n: int, steps: int, impls: list[Impl], res: dict[str, dict]) -> l
             continue
         if "error" in r:
             lines.append(
-                f"| {impl.label} | {impl.threads} | not measured: {r['error']} |" + " |" * 9
+                f"| {impl.label} | {impl.threads} | not measured: {r['error']} |" + " |" * 10
             )
             continue
         ms = r["ms_per_step"]
@@ -229,7 +249,8 @@ def size_table(n: int, steps: int, impls: list[Impl], res: dict[str, dict]) -> l
         flag = "" if dy is None or abs(dy) <= 1e-3 else " **MISMATCH**"
         lines.append(
             f"| {impl.label} | {impl.threads} | {fmt(r['setup_s'])} | {fmt(r['warmup_s'])} | "
-            f"{fmt(ms)} | {fmt(1e3 / ms)} | {fmt(particles / ms / 1e3)} | "
+            f"{fmt(ms)} | {r.get('cpu_per_wall', 0):.2f} | {fmt(1e3 / ms)} | "
+            f"{fmt(particles / ms / 1e3)} | "
             f"{fmt(r['peak_rss_mb'])} | {fmt(s1)} | {fmt(s2)} | {r['min_y']:.5f} | "
             f"{'n/a' if dy is None else f'{dy:+.1e}'}{flag}"
             + ("" if r["finite"] else " (NON-FINITE)")
@@ -239,10 +260,43 @@ def size_table(n: int, steps: int, impls: list[Impl], res: dict[str, dict]) -> l
     return lines
 
 
-def roofline_lines(sizes, impls, results, bw, machine) -> list[str]:
-    peak1 = machine["peak_gflops_core"]
-    bw1 = max(bw.get("copy_1t_gbs", 0), bw.get("add_1t_gbs", 0))
-    bw2 = max(bw.get("copy_2t_gbs", 0), bw.get("add_2t_gbs", 0))
+def measure_peak() -> dict[int, dict]:
+    """Compile and run peakflops.c (FMA and sqrt + divide throughput), 1 and 2 threads."""
+    cc = shutil.which("cc") or shutil.which("gcc")
+    if not cc:
+        return {}
+    with tempfile.TemporaryDirectory() as tmp:
+        exe = os.path.join(tmp, "peakflops")
+        build = subprocess.run(
+            [cc, "-O3", "-march=native", "-fno-math-errno", "-pthread",
+             str(HERE / "peakflops.c"), "-o", exe, "-lm"],
+            capture_output=True, text=True,
+        )  # fmt: skip
+        if build.returncode != 0:
+            return {}
+        out: dict[int, dict] = {}
+        for threads in (1, 2):
+            runs = []
+            for _ in range(3):
+                p = subprocess.run([exe, str(threads)], capture_output=True, text=True)
+                if p.returncode == 0:
+                    runs.append(json.loads(p.stdout))
+            if runs:
+                out[threads] = {
+                    "fma_gflops": max(r["fma_gflops"] for r in runs),
+                    "sqrt_div_gpairs": max(r["sqrt_div_gpairs"] for r in runs),
+                }
+        return out
+
+
+def roofline_lines(sizes, impls, results, bw, machine, peak) -> list[str]:
+    est1 = machine["peak_gflops_core"]
+    bw_t = {
+        1: max(bw.get("copy_1t_gbs", 0), bw.get("add_1t_gbs", 0)),
+        2: max(bw.get("copy_2t_gbs", 0), bw.get("add_2t_gbs", 0)),
+    }
+    fma = {t: peak.get(t, {}).get("fma_gflops") or est1 * t for t in (1, 2)}
+    sqd = {t: peak.get(t, {}).get("sqrt_div_gpairs") for t in (1, 2)}
     lines = [
         "## Roofline",
         "",
@@ -250,13 +304,15 @@ def roofline_lines(sizes, impls, results, bw, machine) -> list[str]:
         "",
         f"* **flops**: one spring evaluation (one end) is {FLOPS_PER_SPRING_GATHER} flops "
         "(d = x_b - x_a: 3, |d|^2: 5, sqrt: 1, 1/l: 1, k (l - L): 2, (v_b - v_a) . d: 8, "
-        "(... ) c / l + ...: 3, s = .../l: 1, s d: 3, f += s d: 3), of which one sqrt and one "
-        f"divide; {FLOPS_PER_SPRING_SCATTER} when both ends are updated (f_b -= s d). The "
-        f"update (gravity, v += (h/m) f, x += h v) is {FLOPS_UPDATE}. A per-particle gather "
-        f"evaluates 12 springs: **{FLOPS_GATHER} flops/particle**; evaluating each spring once "
+        "c (...) / l + ...: 3, s = (...) / l: 1, s d: 3, f += s d: 3), of which **one sqrt "
+        f"and one divide**; {FLOPS_PER_SPRING_SCATTER} when both ends are updated "
+        f"(f_b -= s d). The update (gravity, v += (h/m) f, x += h v) is {FLOPS_UPDATE}. A "
+        f"per-particle gather (rustcloth, Taichi gather) evaluates 12 springs: "
+        f"**{FLOPS_GATHER} flops/particle, 12 sqrt + 12 div**; evaluating each spring once "
         f"(6 per particle, scattered: numpy, newton, Taichi atomic) is **{FLOPS_SCATTER} "
-        "flops/particle** (plus the scatter's read-modify-write of a force buffer).",
-        f"* **bytes**: at least the state, read and written once: x and v in, x and v out, "
+        "flops/particle, 6 sqrt + 6 div** (plus the scatter's read-modify-write of a force "
+        "buffer).",
+        "* **bytes**: at least the state, read and written once: x and v in, x and v out, "
         f"4 x 12 B = **{BYTES_STATE} B/particle**; with an inverse mass and 6 stored rest "
         f"lengths read too, {BYTES_TYPICAL} B. Neighbour reads hit in cache when rows are "
         "streamed (a gather touches rows j-2..j+2). A per-spring scatter also writes and "
@@ -265,30 +321,50 @@ def roofline_lines(sizes, impls, results, bw, machine) -> list[str]:
         f"{FLOPS_GATHER / BYTES_STATE:.1f} flop/B (state only), "
         f"{FLOPS_GATHER / BYTES_TYPICAL:.1f} flop/B with inverse mass and rest lengths.",
         "",
-        "Machine bounds (measured by `benches/peers/membw.py`, numpy stream-like loops on "
-        "256 MiB float32 arrays, reads + writes counted, best of 8):",
+        "Machine ceilings, measured in this run: memory bandwidth by `benches/peers/membw.py` "
+        "(numpy stream-like loops on 256 MiB float32 arrays, reads + writes counted, no "
+        "write-allocate, best of 8); FMA and sqrt + divide throughput by "
+        "`benches/peers/peakflops.c` (cc -O3 -march=native; 12 independent chains on 16-lane "
+        "vectors, best of 3). On a shared 2-core VM the 2-thread figures are whatever the "
+        "other jobs left.",
         "",
         "| | 1 thread | 2 threads |",
         "|---|--:|--:|",
         f"| copy a = b, GB/s | {fmt(bw.get('copy_1t_gbs'))} | {fmt(bw.get('copy_2t_gbs'))} |",
         f"| add a = b + c, GB/s | {fmt(bw.get('add_1t_gbs'))} | {fmt(bw.get('add_2t_gbs'))} |",
-        f"| peak flops estimate, GFLOP/s | {fmt(peak1)} | {fmt(2 * peak1)} |",
+        f"| FMA peak, GFLOP/s (measured) | {fmt(fma[1])} | {fmt(fma[2])} |",
+        f"| sqrt + divide pairs, G/s (measured) | {fmt(sqd[1])} | {fmt(sqd[2])} |",
+        f"| FMA peak estimate, GFLOP/s ({machine['mhz']:.0f} MHz x "
+        f"{machine['flops_per_cycle']} flop/cycle, {machine['simd']}) | {fmt(est1)} | "
+        f"{fmt(2 * est1)} |",
         "",
-        f"The peak is an estimate, not a measurement: {machine['mhz']:.0f} MHz (from "
-        f"/proc/cpuinfo; the VM hides turbo) x {machine['flops_per_cycle']} flops/cycle "
-        f"({machine['simd']}, 2 FMA pipes, FMA = 2 flops). The spring evaluation has one sqrt "
-        "and one divide per spring and few FMAs, so the reachable ceiling is several times "
-        "lower than this (sqrt/divide throughput and add/mul pairs that do not fuse).",
-        "",
-        f"With state-only traffic the memory bound is {BYTES_STATE} B / {fmt(bw1)} GB/s = "
-        f"{BYTES_STATE / bw1:.2f} ns/particle on one thread (the whole state of the 512 x 512 "
-        "cloth, 6 MiB for x and v, fits in the 32 MiB L3, so even this is pessimistic); the "
-        f"compute bound for the gather is {FLOPS_GATHER} / {fmt(peak1)} GFLOP/s = "
-        f"{FLOPS_GATHER / peak1:.2f} ns/particle. So the model is compute bound on this "
-        "machine. Achieved rates (medians above):",
-        "",
-        "| size | implementation | threads | ns/particle/step | GFLOP/s (counted) | "
-        "% of peak flops | GB/s (state only) | % of memory bw |",
+    ]
+    if sqd[1]:
+        gather_ceilings = {
+            "memory": BYTES_STATE / bw_t[1],
+            "FMA arithmetic": FLOPS_GATHER / fma[1],
+            "sqrt + divide": 12 / sqd[1],
+        }
+        binding = max(gather_ceilings, key=gather_ceilings.get)
+        lines += [
+            f"Per particle and step on one thread: memory {BYTES_STATE} B / {fmt(bw_t[1])} "
+            f"GB/s = {BYTES_STATE / bw_t[1]:.2f} ns (and the whole state of the 512 x 512 "
+            "cloth, 6 MiB of x and v, fits in the 32 MiB L3, so this is pessimistic); "
+            f"arithmetic {FLOPS_GATHER} / {fmt(fma[1])} GFLOP/s = {FLOPS_GATHER / fma[1]:.2f} "
+            f"ns for the gather; **sqrt + divide: 12 / {fmt(sqd[1])} G/s = "
+            f"{12 / sqd[1]:.2f} ns for the gather, 6 / {fmt(sqd[1])} = {6 / sqd[1]:.2f} ns "
+            f"evaluating each spring once**. For the gather the binding ceiling is "
+            f"**{binding}**: the model is compute bound on this machine, memory is not the "
+            "limit. The FMA ceiling is optimistic (it counts an FMA as 2 flops; this kernel's "
+            "adds and multiplies mostly do not fuse), and the exact sqrt and divide cost "
+            "about as much as all the other arithmetic (an approximate rsqrt with a Newton "
+            "step would lift that part). The bound below is the largest of the three "
+            "ceilings for the implementation's spring count and thread count.",
+            "",
+        ]
+    lines += [
+        "| size | implementation | threads | ns/particle/step | bound ns | % of bound | "
+        "GFLOP/s (counted) | GB/s (state only) |",
         "|---|---|--:|--:|--:|--:|--:|--:|",
     ]
     for n in sizes:
@@ -296,15 +372,17 @@ def roofline_lines(sizes, impls, results, bw, machine) -> list[str]:
             r = results.get(n, {}).get(impl.key)
             if not r or "error" in r:
                 continue
+            t = impl.threads
             ns = r["ms_per_step"] * 1e6 / (n * n)
             flops = FLOPS_GATHER if impl.gather else FLOPS_SCATTER
-            gflops = flops / ns
-            gbs = BYTES_STATE / ns
-            peak = peak1 * impl.threads
-            bw_t = bw1 if impl.threads == 1 else bw2
+            springs = 12 if impl.gather else 6
+            ceilings = [BYTES_STATE / bw_t[t], flops / fma[t]]
+            if sqd[t]:
+                ceilings.append(springs / sqd[t])
+            bound = max(ceilings)
             lines.append(
-                f"| {n} | {impl.label} | {impl.threads} | {fmt(ns)} | {fmt(gflops)} | "
-                f"{100 * gflops / peak:.1f} | {fmt(gbs)} | {100 * gbs / bw_t:.1f} |"
+                f"| {n} | {impl.label} | {t} | {fmt(ns)} | {bound:.2f} | "
+                f"{100 * bound / ns:.1f} | {fmt(flops / ns)} | {fmt(BYTES_STATE / ns)} |"
             )
     lines.append("")
     return lines
@@ -342,6 +420,8 @@ def main() -> None:
     )
     bw_run = run_one(Impl("membw", "membw", "membw.py", 1), 0, 0, False, args.timeout)
     bw = {k: v for k, v in bw_run.items() if k.endswith("_gbs")}
+    peak = measure_peak()
+    print("compute peak:", peak, flush=True)
     print("memory bandwidth:", {k: round(v, 1) for k, v in bw.items()}, flush=True)
 
     results: dict[int, dict[str, dict]] = {}
@@ -405,10 +485,13 @@ def main() -> None:
         "timed. Each implementation runs in its own process (peak RSS = `ru_maxrss` of that "
         "process, so it includes the interpreter and the libraries); within each repeat the "
         f"implementations run back to back, {args.repeats} repeat(s), medians reported; "
-        "the speed-ups (peer ms/step / rustcloth ms/step, > 1: rustcloth faster) are between "
+        "the ratios (ms/step / rustcloth's ms/step: > 1 means rustcloth is faster) are between "
         "medians of this one run. Cross-check: the lowest particle's y after the run, which "
-        "must agree with rustcloth's to 1e-3 m. The machine is shared (2 cores, other jobs "
-        "running), so absolute numbers are noisy; the ratios are what to read.",
+        "must agree with rustcloth's to 1e-3 m. CPU s / wall s is the process's CPU time over "
+        "the timed steps divided by their wall time: about the number of threads that were "
+        "really busy. The machine is shared (2 cores, other jobs running), so absolute "
+        "numbers are noisy and a second thread often finds its core taken; the ratios are "
+        "what to read.",
         "",
         "## Machine and versions",
         "",
@@ -417,7 +500,7 @@ def main() -> None:
         f"visible, {machine['mhz']} MHz reported, {machine['simd']}; Linux {machine['kernel']}",
         f"* Python {machine['python']}; "
         + "; ".join(f"{k}: {v}" for k, v in sorted(versions.items())),
-        f"* rustcloth from `{rust_py}`",
+        f"* rustcloth from `{rust_py}`; repository at {git_describe()}",
         "* threads: rustcloth `RAYON_NUM_THREADS=1` and `2` (separate processes); numpy 1 "
         "(elementwise ufuncs); Taichi `cpu_max_num_threads` = 1 and 2; newton/Warp CPU 1 "
         "(Warp runs CPU kernels on one thread)",
@@ -445,7 +528,7 @@ def main() -> None:
             lines += table[:-1]
             for impl in impls:
                 if not impl.colliders:
-                    lines.append(f"| {impl.label} | {impl.threads} | n/a |" + " |" * 9)
+                    lines.append(f"| {impl.label} | {impl.threads} | n/a |" + " |" * 10)
             for key in ("rustcloth-1", "rustcloth-2"):
                 a, b = coll.get(key, {}), results[n].get(key, {})
                 if "ms_per_step" in a and "ms_per_step" in b:
@@ -455,7 +538,7 @@ def main() -> None:
                         "the collider-free step time."
                     )
             lines.append("")
-    lines += roofline_lines(args.sizes, impls, results, bw, machine)
+    lines += roofline_lines(args.sizes, impls, results, bw, machine, peak)
     lines += [
         "## Raw per-repeat ms/step",
         "",
