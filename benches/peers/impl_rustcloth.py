@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import os
 import sys
+import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
@@ -26,7 +27,13 @@ def main() -> None:
         ),
         step=lambda sim, k: sim.step(k),
         positions=lambda sim: sim.positions,
-        info={"version": getattr(rustcloth, "__version__", "0.1.0"), "module": rustcloth.__file__},
+        info={
+            "version": getattr(rustcloth, "__version__", "0.1.0"),
+            "module": rustcloth.__file__,
+            "built": time.strftime(
+                "%Y-%m-%d %H:%M UTC", time.gmtime(os.path.getmtime(rustcloth._core.__file__))
+            ),
+        },
     )
 
 

@@ -260,6 +260,44 @@ def size_table(n: int, steps: int, impls: list[Impl], res: dict[str, dict]) -> l
     return lines
 
 
+def summary_lines(sizes, impls, results) -> list[str]:
+    """rustcloth's speed-up over each peer at the same thread count, and the cross-check."""
+    head = "| peer | threads | " + " | ".join(f"{n} x {n}" for n in sizes) + " |"
+    lines = [
+        "Summary: rustcloth's speed-up over each peer at the same thread count (peer "
+        "ms/step / rustcloth ms/step, medians of this run):",
+        "",
+        head,
+        "|---|--:|" + "--:|" * len(sizes),
+    ]
+    worst = 0.0
+    for impl in impls:
+        if impl.key.startswith("rustcloth"):
+            continue
+        ref = "rustcloth-1" if impl.threads == 1 else "rustcloth-2"
+        cells = []
+        for n in sizes:
+            r, b = results[n].get(impl.key, {}), results[n].get(ref, {})
+            ok = "ms_per_step" in r and "ms_per_step" in b
+            cells.append(f"{r['ms_per_step'] / b['ms_per_step']:.1f}x" if ok else "n/a")
+            if ok:
+                worst = max(worst, abs(r["min_y"] - b["min_y"]))
+        lines.append(f"| {impl.label} | {impl.threads} | " + " | ".join(cells) + " |")
+    cells = []
+    for n in sizes:
+        a, b = results[n].get("rustcloth-1", {}), results[n].get("rustcloth-2", {})
+        ok = "ms_per_step" in a and "ms_per_step" in b
+        cells.append(f"{a['ms_per_step'] / b['ms_per_step']:.2f}x" if ok else "n/a")
+    lines += [
+        "| (rustcloth 2 threads over 1 thread) | 2 | " + " | ".join(cells) + " |",
+        "",
+        f"Cross-check: every implementation's lowest y after the run is within {worst:.1e} m "
+        "of rustcloth's (tolerance 1e-3 m).",
+        "",
+    ]
+    return lines
+
+
 def measure_peak() -> dict[int, dict]:
     """Compile and run peakflops.c (FMA and sqrt + divide throughput), 1 and 2 threads."""
     cc = shutil.which("cc") or shutil.which("gcc")
@@ -459,6 +497,9 @@ def main() -> None:
         collider_results[n] = {k: median_result(v) for k, v in raw_c.items() if v}
 
     # Versions, from the runs themselves.
+    built = next(
+        (r["built"] for per in results.values() for r in per.values() if "built" in r), "?"
+    )
     versions = {}
     for per_size in results.values():
         for key, r in per_size.items():
@@ -500,7 +541,8 @@ def main() -> None:
         f"visible, {machine['mhz']} MHz reported, {machine['simd']}; Linux {machine['kernel']}",
         f"* Python {machine['python']}; "
         + "; ".join(f"{k}: {v}" for k, v in sorted(versions.items())),
-        f"* rustcloth from `{rust_py}`; repository at {git_describe()}",
+        f"* rustcloth from `{rust_py}`, extension built {built} from the working tree; "
+        f"repository at {git_describe()} when measured",
         "* threads: rustcloth `RAYON_NUM_THREADS=1` and `2` (separate processes); numpy 1 "
         "(elementwise ufuncs); Taichi `cpu_max_num_threads` = 1 and 2; newton/Warp CPU 1 "
         "(Warp runs CPU kernels on one thread)",
@@ -508,6 +550,7 @@ def main() -> None:
         "## Results",
         "",
     ]
+    lines += summary_lines(args.sizes, impls, results)
     for n in args.sizes:
         lines += size_table(n, steps_for.get(n, 100), impls, results[n])
     if not args.no_colliders:
