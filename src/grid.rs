@@ -78,6 +78,18 @@ impl Family {
         }
     }
 
+    /// [`Family::kinds`] as a static slice.
+    pub fn kinds_slice(self) -> &'static [SpringKind] {
+        const STRUCTURAL: [SpringKind; 2] = [SpringKind::StructuralI, SpringKind::StructuralJ];
+        const SHEAR: [SpringKind; 2] = [SpringKind::ShearDiagonal, SpringKind::ShearAntiDiagonal];
+        const BEND: [SpringKind; 2] = [SpringKind::BendI, SpringKind::BendJ];
+        match self {
+            Family::Structural => &STRUCTURAL,
+            Family::Shear => &SHEAR,
+            Family::Bend => &BEND,
+        }
+    }
+
     /// The pass name under which the family's force appears in `effects` and `profile()`.
     pub fn pass_name(self) -> &'static str {
         match self {

@@ -19,7 +19,7 @@ use rayon::prelude::*;
 
 use crate::collisions::{Collider, Floor, Spheres};
 use crate::error::{check_scalar, Bound, Error, Result};
-use crate::forces::{AirDrag, ForceInput, ForceModel, ForceTerm, Gravity, SpringForce, Springs};
+use crate::forces::{AirDrag, ForceModel, ForceTerm, Gravity, SpringForce, Springs, StateRef};
 use crate::grid::{Family, Grid, SpringKind};
 use crate::integrators::{self, Integrator, StepContext};
 use crate::pins::KinematicPins;
@@ -250,7 +250,7 @@ impl Simulation {
             next: &mut self.scratch,
             particles: &self.particles,
             springs: &self.springs,
-            forces: &pipeline.forces,
+            forces: &mut pipeline.forces,
             force: &mut self.force,
             chunk,
             profile: &mut self.profile,
@@ -506,6 +506,7 @@ impl Simulation {
             + self.scratch.heap_bytes()
             + self.step_start.as_ref().map_or(0, Kinematics::heap_bytes)
             + self.force.heap_bytes()
+            + self.pipeline.forces.heap_bytes()
             + self.particles.heap_bytes()
             + self.springs.heap_bytes()
             + self.derived.normals.heap_bytes()
@@ -746,9 +747,9 @@ pub fn stencil(grid: Grid) -> Vec<(usize, usize, SpringKind)> {
 }
 
 /// Total force on each particle of the current state, for tests and diagnostics.
-pub fn total_force(sim: &Simulation) -> Vec3s {
+pub fn total_force(sim: &mut Simulation) -> Vec3s {
     let mut out = Vec3s::zeros(sim.grid.len());
-    let input = ForceInput {
+    let state = StateRef {
         grid: sim.grid,
         pos: &sim.state.pos,
         vel: &sim.state.vel,
@@ -756,8 +757,9 @@ pub fn total_force(sim: &Simulation) -> Vec3s {
         springs: &sim.springs,
     };
     let mut scratch = Profile::default();
+    let chunk = chunk_len(sim.grid.len());
     sim.pipeline
         .forces
-        .evaluate(&input, &mut out, chunk_len(sim.grid.len()), &mut scratch);
+        .evaluate(state, &mut out, chunk, &mut scratch);
     out
 }

@@ -15,6 +15,15 @@ pub struct Vec3s {
 }
 
 impl Vec3s {
+    /// An empty set, usable in constants.
+    pub const fn new_const() -> Self {
+        Vec3s {
+            x: Vec::new(),
+            y: Vec::new(),
+            z: Vec::new(),
+        }
+    }
+
     pub fn zeros(n: usize) -> Self {
         Vec3s {
             x: vec![0.0; n],

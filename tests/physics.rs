@@ -77,7 +77,7 @@ fn springs_exert_no_force_at_rest_nor_under_rigid_motion() {
     let mut scene = bare_scene(12, 9);
     scene.cloth.damping = 0.5;
     let mut sim = Simulation::new(scene).unwrap();
-    let at_rest = total_force(&sim);
+    let at_rest = total_force(&mut sim);
     for p in 0..sim.grid().len() {
         assert!(
             at_rest.get(p).length() < 1e-4,
@@ -95,7 +95,7 @@ fn springs_exert_no_force_at_rest_nor_under_rigid_motion() {
     let vel = Vec3s::from_fn(pos0.len(), |p| omega.cross(pos.get(p) - pivot));
     sim.set_positions(&pos).unwrap();
     sim.set_velocities(&vel).unwrap();
-    let rotated = total_force(&sim);
+    let rotated = total_force(&mut sim);
     for p in 0..sim.grid().len() {
         // k = 200 N/m: 1e-3 N is a length error of 5 micrometres, f32 rounding of ~1 m.
         assert!(

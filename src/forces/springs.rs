@@ -109,23 +109,107 @@ impl ForceTerm for SpringForce {
         }
     }
 
+    fn prepared_kinds(&self) -> &[SpringKind] {
+        self.family.kinds_slice()
+    }
+
+    fn prepare(
+        &self,
+        input: &ForceInput,
+        kind: SpringKind,
+        range: Range<usize>,
+        out: &mut Vec3SliceMut,
+    ) {
+        crate::simd::dispatch!(self.spring_forces(input, kind, range.clone(), out))
+    }
+
     fn accumulate(&self, input: &ForceInput, range: Range<usize>, out: &mut Vec3SliceMut) {
-        crate::simd::dispatch!(self.accumulate_lanes(input, range.clone(), out))
+        crate::simd::dispatch!(self.gather(input, range.clone(), out))
     }
 }
 
 impl SpringForce {
+    /// The force on the anchor of every spring of `kind` anchored in `range`; zero for slots
+    /// with no spring. One straight loop over equal-length slices: the compiler vectorises it.
     #[inline(always)]
-    fn accumulate_lanes(&self, input: &ForceInput, range: Range<usize>, out: &mut Vec3SliceMut) {
+    fn spring_forces(
+        &self,
+        input: &ForceInput,
+        kind: SpringKind,
+        range: Range<usize>,
+        out: &mut Vec3SliceMut,
+    ) {
+        let (n, o) = (input.grid.len(), input.grid.offset(kind));
+        let len = range
+            .len()
+            .min(n.saturating_sub(o).saturating_sub(range.start));
+        let (a, b) = (
+            range.start..range.start + len,
+            range.start + o..range.start + o + len,
+        );
+        let (pos, vel) = (input.pos, input.vel);
+        let (xa, ya, za) = (
+            pos.component(0, &a),
+            pos.component(1, &a),
+            pos.component(2, &a),
+        );
+        let (xb, yb, zb) = (
+            pos.component(0, &b),
+            pos.component(1, &b),
+            pos.component(2, &b),
+        );
+        let (vxa, vya, vza) = (
+            vel.component(0, &a),
+            vel.component(1, &a),
+            vel.component(2, &a),
+        );
+        let (vxb, vyb, vzb) = (
+            vel.component(0, &b),
+            vel.component(1, &b),
+            vel.component(2, &b),
+        );
+        let rest = &input.springs.rest[kind.index()][a.clone()];
+        let active = &input.springs.active[kind.index()][a];
+        let (fx, fy, fz) = (&mut out.x[..len], &mut out.y[..len], &mut out.z[..len]);
+        let (k, c) = (self.k, self.c);
+        for i in 0..len {
+            let (dx, dy, dz) = (xb[i] - xa[i], yb[i] - ya[i], zb[i] - za[i]);
+            let l = (dx * dx + dy * dy + dz * dz).sqrt();
+            let inv_l = if l > 0.0 { 1.0 / l } else { 0.0 };
+            let (ux, uy, uz) = (dx * inv_l, dy * inv_l, dz * inv_l);
+            let closing = (vxb[i] - vxa[i]) * ux + (vyb[i] - vya[i]) * uy + (vzb[i] - vza[i]) * uz;
+            let s = active[i] * (k * (l - rest[i]) + c * closing);
+            fx[i] = s * ux;
+            fy[i] = s * uy;
+            fz[i] = s * uz;
+        }
+        for f in [&mut *out.x, &mut *out.y, &mut *out.z] {
+            f[len..].fill(0.0);
+        }
+    }
+
+    /// Adds each particle's spring forces from the table: `+F` of the springs it anchors, `-F`
+    /// of the springs it ends.
+    #[inline(always)]
+    fn gather(&self, input: &ForceInput, range: Range<usize>, out: &mut Vec3SliceMut) {
         let n = input.grid.len();
         for kind in self.family.kinds() {
-            let rest = &input.springs.rest[kind.index()];
-            let active = &input.springs.active[kind.index()];
-            for run in neighbour_runs(n, input.grid.offset(kind), range.clone())
-                .into_iter()
-                .flatten()
-            {
-                self.gather(input, run, rest, active, range.start, out);
+            let table = &input.spring_table[kind.index()];
+            let [anchors, ends] = neighbour_runs(n, input.grid.offset(kind), range.clone());
+            for (run, sign) in [(anchors, 1.0f32), (ends, -1.0)] {
+                let Some(run) = run else { continue };
+                let s = run.spring..run.spring + run.len;
+                let o = run.a - range.start..run.a - range.start + run.len;
+                for (comp, f) in [&mut *out.x, &mut *out.y, &mut *out.z]
+                    .into_iter()
+                    .enumerate()
+                {
+                    let (t, f) = (table.component(comp, &s), &mut f[o.clone()]);
+                    for i in 0..f.len() {
+                        // sign * t is exactly the force the far end computes for itself.
+                        f[i] += sign * t[i];
+                    }
+                }
             }
         }
     }
@@ -162,43 +246,4 @@ pub fn neighbour_runs(n: usize, o: usize, range: Range<usize>) -> [Option<Run>; 
             len: ends.len(),
         }),
     ]
-}
-
-impl SpringForce {
-    /// Adds to `out[a - out_start ..]` the force on particles `a..a+len` from their springs to
-    /// `b..b+len`. One straight loop over equal-length slices: the compiler vectorises it.
-    #[inline(always)]
-    fn gather(
-        &self,
-        input: &ForceInput,
-        run: Run,
-        rest: &[f32],
-        active: &[f32],
-        out_start: usize,
-        out: &mut Vec3SliceMut,
-    ) {
-        let (pos, vel, len) = (input.pos, input.vel, run.len);
-        let a = run.a..run.a + len;
-        let b = run.b..run.b + len;
-        let (xa, ya, za) = (&pos.x[a.clone()], &pos.y[a.clone()], &pos.z[a.clone()]);
-        let (xb, yb, zb) = (&pos.x[b.clone()], &pos.y[b.clone()], &pos.z[b.clone()]);
-        let (vxa, vya, vza) = (&vel.x[a.clone()], &vel.y[a.clone()], &vel.z[a.clone()]);
-        let (vxb, vyb, vzb) = (&vel.x[b.clone()], &vel.y[b.clone()], &vel.z[b]);
-        let rest = &rest[run.spring..run.spring + len];
-        let active = &active[run.spring..run.spring + len];
-        let o = a.start - out_start..a.end - out_start;
-        let (fx, fy, fz) = (&mut out.x[o.clone()], &mut out.y[o.clone()], &mut out.z[o]);
-        let (k, c) = (self.k, self.c);
-        for i in 0..len {
-            let (dx, dy, dz) = (xb[i] - xa[i], yb[i] - ya[i], zb[i] - za[i]);
-            let l = (dx * dx + dy * dy + dz * dz).sqrt();
-            let inv_l = if l > 0.0 { 1.0 / l } else { 0.0 };
-            let (ux, uy, uz) = (dx * inv_l, dy * inv_l, dz * inv_l);
-            let closing = (vxb[i] - vxa[i]) * ux + (vyb[i] - vya[i]) * uy + (vzb[i] - vza[i]) * uz;
-            let s = active[i] * (k * (l - rest[i]) + c * closing);
-            fx[i] += s * ux;
-            fy[i] += s * uy;
-            fz[i] += s * uz;
-        }
-    }
 }

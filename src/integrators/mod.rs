@@ -20,7 +20,7 @@ pub use symplectic_euler::SymplecticEuler;
 pub use verlet::Verlet;
 
 use crate::error::{Error, Result};
-use crate::forces::{ForceInput, ForceModel, Springs};
+use crate::forces::{ForceModel, Springs, StateRef};
 use crate::grid::Grid;
 use crate::profile::Profile;
 use crate::scene::INTEGRATORS;
@@ -34,7 +34,7 @@ pub struct StepContext<'a> {
     pub next: &'a mut Kinematics,
     pub particles: &'a Particles,
     pub springs: &'a Springs,
-    pub forces: &'a ForceModel,
+    pub forces: &'a mut ForceModel,
     /// Scratch for the total force, one vector per particle.
     pub force: &'a mut Vec3s,
     /// Particles per parallel work item.
@@ -45,7 +45,7 @@ pub struct StepContext<'a> {
 impl StepContext<'_> {
     /// Evaluates the total force at `state` into `self.force`.
     pub fn eval_forces_at(&mut self, state: &Kinematics) {
-        let input = ForceInput {
+        let state = StateRef {
             grid: self.grid,
             pos: &state.pos,
             vel: &state.vel,
@@ -53,7 +53,7 @@ impl StepContext<'_> {
             springs: self.springs,
         };
         self.forces
-            .evaluate(&input, self.force, self.chunk, self.profile);
+            .evaluate(state, self.force, self.chunk, self.profile);
     }
 }
 
