@@ -430,7 +430,7 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     p.add_argument("--sizes", type=int, nargs="+", default=[128, 256, 512])
     p.add_argument("--quick", action="store_true", help="128 only, 100 steps, 1 repeat")
-    p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--repeats", type=int, default=5)
     p.add_argument("--only", nargs="+", help="implementation keys to run (default: all)")
     p.add_argument("--no-colliders", action="store_true", help="skip the floor + sphere table")
     p.add_argument("--rustcloth-python", help="interpreter that imports rustcloth")
@@ -469,7 +469,8 @@ def main() -> None:
         raw: dict[str, list[dict]] = {i.key: [] for i in impls}
         raw_c: dict[str, list[dict]] = {i.key: [] for i in impls if i.colliders}
         for rep in range(args.repeats):
-            for impl in impls:
+            # alternate the order so that no implementation always runs first or last
+            for impl in impls if rep % 2 == 0 else impls[::-1]:
                 r = run_one(impl, n, steps, False, args.timeout)
                 raw[impl.key].append(r)
                 print(
@@ -525,7 +526,8 @@ def main() -> None:
         f"5 warm-up steps, then {timed} "
         "timed. Each implementation runs in its own process (peak RSS = `ru_maxrss` of that "
         "process, so it includes the interpreter and the libraries); within each repeat the "
-        f"implementations run back to back, {args.repeats} repeat(s), medians reported; "
+        "implementations run back to back (the order reversed every other repeat), "
+        f"{args.repeats} repeat(s), medians reported; "
         "the ratios (ms/step / rustcloth's ms/step: > 1 means rustcloth is faster) are between "
         "medians of this one run. Cross-check: the lowest particle's y after the run, which "
         "must agree with rustcloth's to 1e-3 m. CPU s / wall s is the process's CPU time over "
