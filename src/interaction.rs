@@ -1,7 +1,354 @@
-//! Interaction with the cloth: picking particles with a ray, dragging them, cutting them.
+//! Interaction with the cloth: picking particles and triangles with a ray, dragging a
+//! particle, cutting the cloth along a mouse stroke.
 //!
-//! Everything here is built on request and cached: a step never pays for it.
+//! Everything here is built on request and cached: a step never pays for it. The caches
+//! compare [`Simulation::state_version`] and [`Simulation::topology_version`] with the versions
+//! they were last brought up to date with:
+//!
+//! - no tree yet: the first query builds it (`O(n log n)`);
+//! - the cloth moved: the next query moves every leaf box and refits the tree (`O(n)`, no
+//!   rebuild);
+//! - particles were cut: their leaves are removed from the tree (`O(log n)` each; the tree is
+//!   not rebuilt). A cut made here (`cut_ray`, `cut_stroke`) removes the leaves at once and,
+//!   since a cut moves nothing, spares the next query a refit; after a cut made elsewhere
+//!   (`Simulation::cut`) the next query finds the dead particles in an `O(n)` scan.
+//!
+//! The particle tree and the triangle tree are kept separately, so picking particles never
+//! pays for the triangles and the other way round.
+
+use glam::Vec3;
+
+use crate::error::{Error, Result};
+use crate::picking::{
+    cell_triangle, triangle_slots, ParticleBvh, ParticleHit, Ray, TriangleBvh, TriangleHit,
+};
+use crate::Simulation;
+
+/// A tree and the versions of the simulation it was last brought up to date with.
+struct Cached<T> {
+    tree: T,
+    state_version: u64,
+    topology_version: u64,
+}
+
+/// A grabbed particle and the pin state to restore on release.
+#[derive(Clone, Copy, Debug)]
+struct Grab {
+    index: usize,
+    was_pinned: bool,
+    /// The kinematic target it had before, if any.
+    previous_target: Option<Vec3>,
+}
+
+/// Counts of the work done on the picking trees, to check that they are lazy.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BvhStats {
+    pub particle_builds: u64,
+    pub particle_refits: u64,
+    /// Leaves removed from the particle tree after cuts.
+    pub particle_removals: u64,
+    pub triangle_builds: u64,
+    pub triangle_refits: u64,
+    pub triangle_removals: u64,
+}
 
 /// Cached picking structures and the current grab; empty until a query asks for them.
 #[derive(Default)]
-pub struct InteractionState {}
+pub struct InteractionState {
+    /// `None`: half the smaller grid spacing.
+    pick_radius: Option<f32>,
+    particles: Option<Cached<ParticleBvh>>,
+    triangles: Option<Cached<TriangleBvh>>,
+    /// Stable triangle id -> position in `Simulation::triangles()`, for `topology_version`.
+    triangle_rank: Option<(u64, Vec<u32>)>,
+    grab: Option<Grab>,
+    stats: BvhStats,
+}
+
+impl Simulation {
+    // ----- picking --------------------------------------------------------------------------
+
+    /// Half-size in m of the box around each particle that `pick` tests the ray against.
+    /// Defaults to half the smaller grid spacing, so that neighbouring boxes just touch.
+    pub fn pick_radius(&self) -> f32 {
+        self.interaction
+            .pick_radius
+            .unwrap_or_else(|| self.default_pick_radius())
+    }
+
+    fn default_pick_radius(&self) -> f32 {
+        let size = self.scene.cloth.size;
+        let dx = size[0] / (self.grid.nx - 1) as f64;
+        let dy = size[1] / (self.grid.ny - 1) as f64;
+        (0.5 * dx.min(dy)) as f32
+    }
+
+    /// Sets the pick radius (m, finite and > 0). The particle tree is refitted at the next
+    /// query, not rebuilt.
+    pub fn set_pick_radius(&mut self, radius: f64) -> Result<()> {
+        let r = radius as f32;
+        if !(radius.is_finite() && r.is_finite() && r > 0.0) {
+            return Err(Error::value(
+                "radius",
+                format!("must be a finite number > 0, got {radius}"),
+            ));
+        }
+        self.interaction.pick_radius = Some(r);
+        Ok(())
+    }
+
+    /// The live particle whose box the ray `origin + t direction` (t >= 0) enters first, as
+    /// `(index, distance along the ray in m)`; ties go to the particle nearer the ray. `None`
+    /// if the ray misses every particle. Errors (changing nothing) on a non-finite origin or
+    /// a zero or non-finite direction.
+    pub fn pick(&mut self, origin: Vec3, direction: Vec3) -> Result<Option<(usize, f32)>> {
+        let ray = Ray::new(origin, direction)?;
+        Ok(self.pick_hit(&ray).map(|h| (h.index, h.distance)))
+    }
+
+    /// [`Simulation::pick`] with the full hit (including the distance from the ray).
+    pub fn pick_hit(&mut self, ray: &Ray) -> Option<ParticleHit> {
+        self.sync_particle_tree();
+        let cache = self.interaction.particles.as_ref()?;
+        cache.tree.cast(ray, &self.state.pos)
+    }
+
+    /// The live triangle (an entry of [`Simulation::triangles`]) the ray hits first, as
+    /// `(triangle index, distance in m, barycentric weights of its three vertices)`.
+    pub fn pick_triangle(
+        &mut self,
+        origin: Vec3,
+        direction: Vec3,
+    ) -> Result<Option<(usize, f32, [f32; 3])>> {
+        let ray = Ray::new(origin, direction)?;
+        Ok(self
+            .pick_triangle_hit(&ray)
+            .map(|h| (h.index, h.distance, h.barycentric)))
+    }
+
+    /// [`Simulation::pick_triangle`] as a [`TriangleHit`] whose `index` is the position in
+    /// [`Simulation::triangles`].
+    pub fn pick_triangle_hit(&mut self, ray: &Ray) -> Option<TriangleHit> {
+        self.sync_triangle_tree();
+        let cache = self.interaction.triangles.as_ref()?;
+        let mut hit = cache.tree.cast(ray, &self.state.pos)?;
+        hit.index = self.triangle_rank(hit.index);
+        Some(hit)
+    }
+
+    /// Work done on the picking trees so far.
+    pub fn bvh_stats(&self) -> BvhStats {
+        self.interaction.stats
+    }
+
+    fn sync_particle_tree(&mut self) {
+        let radius = self.pick_radius();
+        let (sv, tv) = (self.state_version(), self.topology_version());
+        let (pos, alive) = (&self.state.pos, &self.particles.alive);
+        let stats = &mut self.interaction.stats;
+        match &mut self.interaction.particles {
+            None => {
+                self.interaction.particles = Some(Cached {
+                    tree: ParticleBvh::build(pos, alive, radius),
+                    state_version: sv,
+                    topology_version: tv,
+                });
+                stats.particle_builds += 1;
+            }
+            Some(cache) => {
+                if cache.topology_version != tv {
+                    stats.particle_removals += cache.tree.remove_dead(alive) as u64;
+                    cache.topology_version = tv;
+                }
+                if cache.state_version != sv || cache.tree.radius() != radius {
+                    cache.tree.refit(pos, radius);
+                    stats.particle_refits += 1;
+                    cache.state_version = sv;
+                }
+            }
+        }
+    }
+
+    fn sync_triangle_tree(&mut self) {
+        let (sv, tv) = (self.state_version(), self.topology_version());
+        let (grid, pos, alive) = (self.grid, &self.state.pos, &self.particles.alive);
+        let stats = &mut self.interaction.stats;
+        match &mut self.interaction.triangles {
+            None => {
+                self.interaction.triangles = Some(Cached {
+                    tree: TriangleBvh::build(grid, pos, alive),
+                    state_version: sv,
+                    topology_version: tv,
+                });
+                stats.triangle_builds += 1;
+            }
+            Some(cache) => {
+                if cache.topology_version != tv {
+                    stats.triangle_removals += cache.tree.remove_dead(alive) as u64;
+                    cache.topology_version = tv;
+                }
+                if cache.state_version != sv {
+                    cache.tree.refit(pos);
+                    stats.triangle_refits += 1;
+                    cache.state_version = sv;
+                }
+            }
+        }
+    }
+
+    /// Position of live triangle `id` in `triangles()`: the number of live ids before it
+    /// (the list is built in id order). The table is rebuilt once per topology change.
+    fn triangle_rank(&mut self, id: usize) -> usize {
+        let tv = self.topology_version();
+        let stale = self
+            .interaction
+            .triangle_rank
+            .as_ref()
+            .is_none_or(|(v, _)| *v != tv);
+        if stale {
+            let alive = &self.particles.alive;
+            let mut next = 0u32;
+            let rank = (0..triangle_slots(self.grid))
+                .map(|t| {
+                    let r = next;
+                    if cell_triangle(self.grid, t).iter().all(|&q| alive[q]) {
+                        next += 1;
+                    }
+                    r
+                })
+                .collect();
+            self.interaction.triangle_rank = Some((tv, rank));
+        }
+        self.interaction.triangle_rank.as_ref().unwrap().1[id] as usize
+    }
+
+    // ----- dragging -------------------------------------------------------------------------
+
+    /// Grabs particle `index`: it becomes a kinematic pin at its current position, which
+    /// [`Simulation::drag_to`] moves. Grabbing while holding another particle releases that
+    /// one first. Errors on an index out of range or a cut particle.
+    pub fn grab(&mut self, index: i64) -> Result<()> {
+        let p = self.check_index("index", index)?;
+        if !self.particles.alive[p] {
+            return Err(Error::value(
+                "index",
+                format!("particle {p} was cut and cannot be grabbed"),
+            ));
+        }
+        self.release();
+        let grab = Grab {
+            index: p,
+            was_pinned: self.particles.pinned[p],
+            previous_target: self.pins.target(p),
+        };
+        self.pin(index, Some(self.state.pos.get(p)))?;
+        self.interaction.grab = Some(grab);
+        Ok(())
+    }
+
+    /// Moves the grabbed particle's target to `target` (m): over the next step the particle
+    /// moves there, and the cloth follows through its springs. Without a grab (or once the
+    /// grabbed particle was cut) this does nothing. Errors on a non-finite target.
+    pub fn drag_to(&mut self, target: Vec3) -> Result<()> {
+        if !target.is_finite() {
+            return Err(Error::value(
+                "target",
+                format!("must be finite, got {:?}", target.to_array()),
+            ));
+        }
+        if let Some(p) = self.grabbed() {
+            self.pins.set(p, target);
+        }
+        Ok(())
+    }
+
+    /// Lets go of the grabbed particle, restoring the pin state it had before the grab: a
+    /// free particle keeps the velocity of the drag; a statically pinned one stays pinned where
+    /// it is now; one that had a kinematic target gets it back. Without a grab this does
+    /// nothing.
+    pub fn release(&mut self) {
+        let Some(grab) = self.interaction.grab.take() else {
+            return;
+        };
+        let p = grab.index;
+        if !self.particles.alive[p] {
+            return; // cut while grabbed: the cut already removed the pin
+        }
+        match (grab.was_pinned, grab.previous_target) {
+            (false, _) => {
+                self.particles.pinned[p] = false;
+                self.particles.refresh(p);
+                self.pins.remove(p);
+            }
+            (true, Some(target)) => self.pins.set(p, target),
+            (true, None) => {
+                self.pins.remove(p);
+                self.state.vel.set(p, Vec3::ZERO);
+            }
+        }
+    }
+
+    /// The particle being dragged, if any (a grabbed particle that was cut is let go).
+    pub fn grabbed(&self) -> Option<usize> {
+        self.interaction
+            .grab
+            .map(|g| g.index)
+            .filter(|&p| self.particles.alive[p])
+    }
+
+    // ----- cutting --------------------------------------------------------------------------
+
+    /// Cuts the particle [`Simulation::pick`] finds along the ray; returns it, or `None` if the
+    /// ray hits nothing.
+    pub fn cut_ray(&mut self, origin: Vec3, direction: Vec3) -> Result<Option<usize>> {
+        let ray = Ray::new(origin, direction)?;
+        Ok(self.cut_along(&ray))
+    }
+
+    /// Cuts, ray after ray, the particle each ray of a mouse stroke picks (a later ray sees
+    /// the cloth without the particles cut before it); returns the particles cut, in order.
+    /// Every ray is checked before anything is cut, so bad input changes nothing. Sample the
+    /// stroke densely enough (about one ray per grid spacing on screen) to leave no gaps.
+    pub fn cut_stroke(&mut self, rays: &[(Vec3, Vec3)]) -> Result<Vec<usize>> {
+        let rays = rays
+            .iter()
+            .enumerate()
+            .map(|(k, &(o, d))| {
+                Ray::named(
+                    o,
+                    d,
+                    &format!("rays[{k}].origin"),
+                    &format!("rays[{k}].direction"),
+                )
+            })
+            .collect::<Result<Vec<_>>>()?;
+        Ok(rays.iter().filter_map(|ray| self.cut_along(ray)).collect())
+    }
+
+    fn cut_along(&mut self, ray: &Ray) -> Option<usize> {
+        let p = self.pick_hit(ray)?.index;
+        self.cut_keeping_caches(p);
+        Some(p)
+    }
+
+    /// [`Simulation::cut`] for a live particle, removing its leaves from the trees that were
+    /// up to date: a cut moves nothing, so they stay valid without a refit.
+    fn cut_keeping_caches(&mut self, p: usize) {
+        let before = (self.state_version(), self.topology_version());
+        self.cut(p as i64).expect("a picked particle is in range");
+        let after = (self.state_version(), self.topology_version());
+        let stats = &mut self.interaction.stats;
+        if let Some(cache) = &mut self.interaction.particles {
+            if (cache.state_version, cache.topology_version) == before {
+                stats.particle_removals += cache.tree.remove(p) as u64;
+                (cache.state_version, cache.topology_version) = after;
+            }
+        }
+        if let Some(cache) = &mut self.interaction.triangles {
+            if (cache.state_version, cache.topology_version) == before {
+                stats.triangle_removals += cache.tree.remove_around(p) as u64;
+                (cache.state_version, cache.topology_version) = after;
+            }
+        }
+    }
+}

@@ -1,0 +1,450 @@
+//! Ray queries against the cloth: particles (a small box around each) and triangles, each
+//! through a parry3d [`Bvh`], each with a brute-force scan that gives the same answer.
+//!
+//! Both trees are keyed by stable ids (the particle index; for triangles `2 * cell + half`, see
+//! [`cell_triangle`]), so a cut removes leaves instead of renumbering them, and a moved cloth
+//! updates the leaf boxes and refits the tree (`O(n)`) instead of rebuilding it (`O(n log n)`).
+//!
+//! **Exactness.** The BVH answer is bit-for-bit the brute-force answer. Both use the same
+//! leaf test and the same total order of hits (distance along the ray, then distance from the
+//! ray to the particle, then index), and the traversal only prunes a node whose entry distance
+//! is *strictly* greater than the best hit so far. The ray-box test ([`ray_aabb`]) is monotone
+//! in the box bounds, so a node's entry distance is never greater than that of a leaf it
+//! contains, in floating point as well as in exact arithmetic. Triangle leaf boxes are widened
+//! by a small margin so that the rounding of the ray-triangle test cannot put a hit outside
+//! them.
+
+use std::cmp::Ordering;
+
+use glam::Vec3;
+use parry3d::bounding_volume::Aabb;
+use parry3d::partitioning::{Bvh, BvhBuildStrategy, BvhWorkspace, TraversalAction};
+
+use crate::error::{Error, Result};
+use crate::grid::Grid;
+use crate::soa::Vec3s;
+
+/// A ray with a unit direction; distances along it are in m.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ray {
+    pub origin: Vec3,
+    /// Unit length.
+    pub dir: Vec3,
+}
+
+impl Ray {
+    /// A ray from `origin` along `direction` (any non-zero length; normalised here). Rejects a
+    /// non-finite origin and a zero or non-finite direction.
+    pub fn new(origin: Vec3, direction: Vec3) -> Result<Ray> {
+        Self::named(origin, direction, "origin", "direction")
+    }
+
+    /// [`Ray::new`] with the parameter names an error should carry.
+    pub fn named(origin: Vec3, direction: Vec3, origin_name: &str, dir_name: &str) -> Result<Ray> {
+        if !origin.is_finite() {
+            return Err(Error::value(
+                origin_name,
+                format!("must be finite, got {:?}", origin.to_array()),
+            ));
+        }
+        let dir = direction
+            .is_finite()
+            .then(|| direction.try_normalize())
+            .flatten()
+            .ok_or_else(|| {
+                Error::value(
+                    dir_name,
+                    format!(
+                        "must be a finite, non-zero vector, got {:?}",
+                        direction.to_array()
+                    ),
+                )
+            })?;
+        Ok(Ray { origin, dir })
+    }
+
+    pub fn at(&self, t: f32) -> Vec3 {
+        self.origin + t * self.dir
+    }
+}
+
+/// Distance along `ray` at which it enters the box `[mins, maxs]`, 0 if it starts inside, or
+/// `None` if it misses (or the box lies behind the origin). Monotone in the bounds: a box that
+/// contains another is entered no later.
+#[inline]
+pub fn ray_aabb(ray: &Ray, mins: Vec3, maxs: Vec3) -> Option<f32> {
+    let (o, d) = (ray.origin.to_array(), ray.dir.to_array());
+    let (lo, hi) = (mins.to_array(), maxs.to_array());
+    let mut enter = 0.0f32;
+    let mut exit = f32::INFINITY;
+    for k in 0..3 {
+        if d[k] == 0.0 {
+            if o[k] < lo[k] || o[k] > hi[k] {
+                return None;
+            }
+        } else {
+            let a = (lo[k] - o[k]) / d[k];
+            let b = (hi[k] - o[k]) / d[k];
+            let (near, far) = if d[k] > 0.0 { (a, b) } else { (b, a) };
+            enter = enter.max(near);
+            exit = exit.min(far);
+        }
+    }
+    (enter <= exit).then_some(enter)
+}
+
+/// A particle hit by a ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ParticleHit {
+    pub index: usize,
+    /// Distance along the ray to the particle's box, in m (0 if the ray starts inside it).
+    pub distance: f32,
+    /// Distance from the ray's line to the particle, in m: breaks ties in `distance`.
+    pub offset: f32,
+}
+
+impl ParticleHit {
+    /// The order in which hits win: nearer along the ray, then nearer to the ray, then the
+    /// lower index. Total, so the winner does not depend on the order of the scan.
+    pub fn cmp_key(&self, other: &ParticleHit) -> Ordering {
+        self.distance
+            .total_cmp(&other.distance)
+            .then(self.offset.total_cmp(&other.offset))
+            .then(self.index.cmp(&other.index))
+    }
+}
+
+fn particle_box(p: Vec3, radius: f32) -> (Vec3, Vec3) {
+    (p - Vec3::splat(radius), p + Vec3::splat(radius))
+}
+
+/// The ray against particle `index` at `p`, a box of half-size `radius`.
+#[inline]
+pub fn hit_particle(ray: &Ray, index: usize, p: Vec3, radius: f32) -> Option<ParticleHit> {
+    let (lo, hi) = particle_box(p, radius);
+    let distance = ray_aabb(ray, lo, hi)?;
+    Some(ParticleHit {
+        index,
+        distance,
+        offset: (p - ray.origin).cross(ray.dir).length(),
+    })
+}
+
+/// The winning particle by testing every live one: the reference the BVH is tested against,
+/// and the faster choice for a single query on a cloth that has just moved (no refit).
+pub fn pick_particle_brute_force(
+    ray: &Ray,
+    pos: &Vec3s,
+    alive: &[bool],
+    radius: f32,
+) -> Option<ParticleHit> {
+    (0..pos.len())
+        .filter(|&p| alive[p])
+        .filter_map(|p| hit_particle(ray, p, pos.get(p), radius))
+        .min_by(ParticleHit::cmp_key)
+}
+
+/// The ray against triangle `(a, b, c)` (Moeller-Trumbore, both sides): the distance along the
+/// ray and the barycentric weights of `a`, `b`, `c` at the hit.
+#[inline]
+pub fn ray_triangle(ray: &Ray, a: Vec3, b: Vec3, c: Vec3) -> Option<(f32, [f32; 3])> {
+    let e1 = b - a;
+    let e2 = c - a;
+    let pv = ray.dir.cross(e2);
+    let det = e1.dot(pv);
+    if det == 0.0 || !det.is_finite() {
+        return None; // the ray runs parallel to the triangle, or the triangle is degenerate
+    }
+    let inv = 1.0 / det;
+    let tv = ray.origin - a;
+    let u = tv.dot(pv) * inv;
+    if !(0.0..=1.0).contains(&u) {
+        return None;
+    }
+    let qv = tv.cross(e1);
+    let v = ray.dir.dot(qv) * inv;
+    if v < 0.0 || u + v > 1.0 {
+        return None;
+    }
+    let t = e2.dot(qv) * inv;
+    (t >= 0.0 && t.is_finite()).then_some((t, [1.0 - u - v, u, v]))
+}
+
+/// A triangle hit by a ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TriangleHit {
+    /// Position in the list of triangles searched (for the BVH: the stable id).
+    pub index: usize,
+    /// Distance along the ray, in m.
+    pub distance: f32,
+    /// Weights of the triangle's three vertices, in the triangle's order; they sum to 1.
+    pub barycentric: [f32; 3],
+}
+
+impl TriangleHit {
+    fn cmp_key(&self, other: &TriangleHit) -> Ordering {
+        self.distance
+            .total_cmp(&other.distance)
+            .then(self.index.cmp(&other.index))
+    }
+}
+
+/// The nearest triangle of `triangles` by testing each: the reference for the triangle BVH.
+pub fn pick_triangle_brute_force(
+    ray: &Ray,
+    pos: &Vec3s,
+    triangles: &[[u32; 3]],
+) -> Option<TriangleHit> {
+    triangles
+        .iter()
+        .enumerate()
+        .filter_map(|(index, tri)| {
+            let [a, b, c] = tri.map(|q| pos.get(q as usize));
+            let (distance, barycentric) = ray_triangle(ray, a, b, c)?;
+            Some(TriangleHit {
+                index,
+                distance,
+                barycentric,
+            })
+        })
+        .min_by(TriangleHit::cmp_key)
+}
+
+/// Number of triangle ids of `grid`: two per cell.
+pub fn triangle_slots(grid: Grid) -> usize {
+    2 * (grid.nx - 1) * (grid.ny - 1)
+}
+
+/// The vertices of triangle `id`: cell `id / 2` (cell `(i, j)` is `j * (nx - 1) + i`) and half
+/// `id % 2`, in the order and winding of [`Grid::triangles`].
+pub fn cell_triangle(grid: Grid, id: usize) -> [usize; 3] {
+    let cell = id / 2;
+    let (i, j) = (cell % (grid.nx - 1), cell / (grid.nx - 1));
+    let a = grid.index(i, j);
+    let (b, c) = (a + 1, a + grid.nx);
+    let d = c + 1;
+    if id % 2 == 0 {
+        [a, b, d]
+    } else {
+        [a, d, c]
+    }
+}
+
+/// The BVH over the boxes of the live particles, leaf id = particle index.
+pub struct ParticleBvh {
+    bvh: Bvh,
+    workspace: BvhWorkspace,
+    in_tree: Vec<bool>,
+    leaves: usize,
+    radius: f32,
+}
+
+impl ParticleBvh {
+    /// Builds the tree over the live particles (binned SAH build, `O(n log n)`).
+    pub fn build(pos: &Vec3s, alive: &[bool], radius: f32) -> Self {
+        let leaves = (0..pos.len()).filter(|&p| alive[p]).map(|p| {
+            let (lo, hi) = particle_box(pos.get(p), radius);
+            (p, Aabb::new(lo, hi))
+        });
+        let bvh = Bvh::from_iter(BvhBuildStrategy::Binned, leaves);
+        ParticleBvh {
+            bvh,
+            workspace: BvhWorkspace::default(),
+            in_tree: alive.to_vec(),
+            leaves: alive.iter().filter(|&&a| a).count(),
+            radius,
+        }
+    }
+
+    pub fn radius(&self) -> f32 {
+        self.radius
+    }
+
+    /// Number of leaves (live particles when last synchronised).
+    pub fn len(&self) -> usize {
+        self.leaves
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.leaves == 0
+    }
+
+    /// Moves every leaf box to the particle's new position (and size `radius`) and refits the
+    /// tree bottom-up: `O(n)`, the topology of the tree is kept.
+    pub fn refit(&mut self, pos: &Vec3s, radius: f32) {
+        self.radius = radius;
+        for p in (0..pos.len()).filter(|&p| self.in_tree[p]) {
+            let (lo, hi) = particle_box(pos.get(p), radius);
+            self.bvh
+                .update_partially_if_present(Aabb::new(lo, hi), p as u32, 0.0);
+        }
+        if !self.is_empty() {
+            self.bvh.refit(&mut self.workspace);
+        }
+    }
+
+    /// Removes particle `p`'s leaf (`O(tree height)`); false if it had none.
+    pub fn remove(&mut self, p: usize) -> bool {
+        if !std::mem::take(&mut self.in_tree[p]) {
+            return false;
+        }
+        self.bvh.remove(p as u32);
+        self.leaves -= 1;
+        true
+    }
+
+    /// Removes the leaves of every particle no longer alive; returns how many.
+    pub fn remove_dead(&mut self, alive: &[bool]) -> usize {
+        let dead: Vec<usize> = (0..alive.len())
+            .filter(|&p| self.in_tree[p] && !alive[p])
+            .collect();
+        dead.into_iter().filter(|&p| self.remove(p)).count()
+    }
+
+    /// The nearest particle along `ray`; `pos` must be the positions the tree was fitted to.
+    pub fn cast(&self, ray: &Ray, pos: &Vec3s) -> Option<ParticleHit> {
+        let mut best: Option<ParticleHit> = None;
+        self.bvh.traverse(|node| {
+            if let Some(p) = node.leaf_data() {
+                let hit = hit_particle(ray, p as usize, pos.get(p as usize), self.radius);
+                if let Some(hit) = hit {
+                    if best.is_none_or(|b| hit.cmp_key(&b) == Ordering::Less) {
+                        best = Some(hit);
+                    }
+                }
+                return TraversalAction::Continue;
+            }
+            match ray_aabb(ray, node.mins(), node.maxs()) {
+                Some(t) if best.is_none_or(|b| t <= b.distance) => TraversalAction::Continue,
+                _ => TraversalAction::Prune,
+            }
+        });
+        best
+    }
+}
+
+/// The BVH over the live triangles, leaf id = stable triangle id ([`cell_triangle`]).
+pub struct TriangleBvh {
+    grid: Grid,
+    bvh: Bvh,
+    workspace: BvhWorkspace,
+    in_tree: Vec<bool>,
+    leaves: usize,
+}
+
+/// A triangle's box, widened by a margin far above the rounding of [`ray_triangle`] so that
+/// every hit it reports lies inside.
+fn triangle_box(pos: &Vec3s, tri: [usize; 3]) -> Aabb {
+    let [a, b, c] = tri.map(|q| pos.get(q));
+    let (lo, hi) = (a.min(b).min(c), a.max(b).max(c));
+    let margin = 1e-5 * (1.0 + lo.abs().max(hi.abs()).max_element());
+    Aabb::new(lo - Vec3::splat(margin), hi + Vec3::splat(margin))
+}
+
+impl TriangleBvh {
+    pub fn build(grid: Grid, pos: &Vec3s, alive: &[bool]) -> Self {
+        let in_tree: Vec<bool> = (0..triangle_slots(grid))
+            .map(|id| cell_triangle(grid, id).iter().all(|&q| alive[q]))
+            .collect();
+        let leaves = (0..in_tree.len())
+            .filter(|&id| in_tree[id])
+            .map(|id| (id, triangle_box(pos, cell_triangle(grid, id))));
+        let bvh = Bvh::from_iter(BvhBuildStrategy::Binned, leaves);
+        TriangleBvh {
+            grid,
+            bvh,
+            workspace: BvhWorkspace::default(),
+            leaves: in_tree.iter().filter(|&&t| t).count(),
+            in_tree,
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.leaves
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.leaves == 0
+    }
+
+    /// Whether triangle `id` is a leaf.
+    pub fn contains(&self, id: usize) -> bool {
+        self.in_tree[id]
+    }
+
+    pub fn refit(&mut self, pos: &Vec3s) {
+        for id in (0..self.in_tree.len()).filter(|&id| self.in_tree[id]) {
+            let aabb = triangle_box(pos, cell_triangle(self.grid, id));
+            self.bvh.update_partially_if_present(aabb, id as u32, 0.0);
+        }
+        if !self.is_empty() {
+            self.bvh.refit(&mut self.workspace);
+        }
+    }
+
+    /// Removes the leaves of triangles with a dead vertex; returns how many.
+    pub fn remove_dead(&mut self, alive: &[bool]) -> usize {
+        let dead: Vec<usize> = (0..self.in_tree.len())
+            .filter(|&id| self.in_tree[id])
+            .filter(|&id| !cell_triangle(self.grid, id).iter().all(|&q| alive[q]))
+            .collect();
+        dead.into_iter().filter(|&id| self.remove(id)).count()
+    }
+
+    /// Removes the (at most six) triangles around particle `p`; returns how many.
+    pub fn remove_around(&mut self, p: usize) -> usize {
+        let (i, j) = self.grid.coords(p);
+        let mut removed = 0;
+        // The four cells with p as a corner, by their lower-left corner.
+        for (di, dj) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+            let (Some(ci), Some(cj)) = (i.checked_sub(di), j.checked_sub(dj)) else {
+                continue;
+            };
+            if ci + 1 >= self.grid.nx || cj + 1 >= self.grid.ny {
+                continue;
+            }
+            let cell = cj * (self.grid.nx - 1) + ci;
+            for id in [2 * cell, 2 * cell + 1] {
+                if cell_triangle(self.grid, id).contains(&p) && self.remove(id) {
+                    removed += 1;
+                }
+            }
+        }
+        removed
+    }
+
+    fn remove(&mut self, id: usize) -> bool {
+        if !std::mem::take(&mut self.in_tree[id]) {
+            return false;
+        }
+        self.bvh.remove(id as u32);
+        self.leaves -= 1;
+        true
+    }
+
+    /// The nearest triangle along `ray` (`index` is the stable id).
+    pub fn cast(&self, ray: &Ray, pos: &Vec3s) -> Option<TriangleHit> {
+        let mut best: Option<TriangleHit> = None;
+        self.bvh.traverse(|node| {
+            if let Some(id) = node.leaf_data() {
+                let [a, b, c] = cell_triangle(self.grid, id as usize).map(|q| pos.get(q));
+                if let Some((distance, barycentric)) = ray_triangle(ray, a, b, c) {
+                    let hit = TriangleHit {
+                        index: id as usize,
+                        distance,
+                        barycentric,
+                    };
+                    if best.is_none_or(|b| hit.cmp_key(&b) == Ordering::Less) {
+                        best = Some(hit);
+                    }
+                }
+                return TraversalAction::Continue;
+            }
+            match ray_aabb(ray, node.mins(), node.maxs()) {
+                Some(t) if best.is_none_or(|b| t <= b.distance) => TraversalAction::Continue,
+                _ => TraversalAction::Prune,
+            }
+        });
+        best
+    }
+}
