@@ -230,6 +230,23 @@ pub fn cell_triangle(grid: Grid, id: usize) -> [usize; 3] {
     }
 }
 
+/// A binned-SAH BVH over `(leaf id, box)` pairs.
+///
+/// parry3d 0.31.1's `Bvh::from_iter` special-cases one or two leaves by writing the slots of
+/// leaf ids 0 and 1, and panics ("key not present") when the ids are others, as they are once
+/// particles have been cut. So few leaves are inserted one by one instead.
+fn build_bvh(leaves: impl Iterator<Item = (usize, Aabb)>) -> Bvh {
+    let leaves: Vec<(usize, Aabb)> = leaves.collect();
+    if leaves.len() > 2 {
+        return Bvh::from_iter(BvhBuildStrategy::Binned, leaves);
+    }
+    let mut bvh = Bvh::new();
+    for (id, aabb) in leaves {
+        bvh.insert(aabb, id as u32);
+    }
+    bvh
+}
+
 /// The BVH over the boxes of the live particles, leaf id = particle index.
 pub struct ParticleBvh {
     bvh: Bvh,
@@ -246,7 +263,7 @@ impl ParticleBvh {
             let (lo, hi) = particle_box(pos.get(p), radius);
             (p, Aabb::new(lo, hi))
         });
-        let bvh = Bvh::from_iter(BvhBuildStrategy::Binned, leaves);
+        let bvh = build_bvh(leaves);
         ParticleBvh {
             bvh,
             workspace: BvhWorkspace::default(),
@@ -349,7 +366,7 @@ impl TriangleBvh {
         let leaves = (0..in_tree.len())
             .filter(|&id| in_tree[id])
             .map(|id| (id, triangle_box(pos, cell_triangle(grid, id))));
-        let bvh = Bvh::from_iter(BvhBuildStrategy::Binned, leaves);
+        let bvh = build_bvh(leaves);
         TriangleBvh {
             grid,
             bvh,
