@@ -15,14 +15,60 @@
 //!
 //! The particle tree and the triangle tree are kept separately, so picking particles never
 //! pays for the triangles and the other way round.
+//!
+//! A refit reads every position and rewrites the tree, so one query after the cloth moved is
+//! cheaper without the tree: a straight scan of the positions gives the same answer (bit for
+//! bit). [`PickStrategy::Auto`], the default, therefore scans for the first query on a new
+//! state and refits only when a second query comes on the same state (a cut stroke of several
+//! rays refits at once). docs/picking.md has the measurements.
 
 use glam::Vec3;
 
 use crate::error::{Error, Result};
 use crate::picking::{
-    cell_triangle, triangle_slots, ParticleBvh, ParticleHit, Ray, TriangleBvh, TriangleHit,
+    cell_triangle, pick_particle_scan, pick_triangle_scan, triangle_slots, ParticleBvh,
+    ParticleHit, Ray, TriangleBvh, TriangleHit,
 };
 use crate::Simulation;
+
+/// How `pick`, `pick_triangle` and the cuts find what a ray hits. All three give the same
+/// answer; they differ in cost.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PickStrategy {
+    /// A scan for the first query on each new state of the cloth (`O(n)`, cheaper than a
+    /// refit), the tree (refitted, `O(n)` once, then `O(log n)` per query) from the second
+    /// query on the same state, and for cut strokes of more than one ray.
+    #[default]
+    Auto,
+    /// Always the tree, refitted after every move.
+    Bvh,
+    /// Always a scan; no tree is ever built.
+    Scan,
+}
+
+impl PickStrategy {
+    pub const NAMES: [&'static str; 3] = ["auto", "bvh", "scan"];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            PickStrategy::Auto => "auto",
+            PickStrategy::Bvh => "bvh",
+            PickStrategy::Scan => "scan",
+        }
+    }
+
+    pub fn by_name(name: &str) -> Result<PickStrategy> {
+        match name {
+            "auto" => Ok(PickStrategy::Auto),
+            "bvh" => Ok(PickStrategy::Bvh),
+            "scan" => Ok(PickStrategy::Scan),
+            _ => Err(Error::value(
+                "strategy",
+                format!("must be one of {:?}, got {name:?}", Self::NAMES),
+            )),
+        }
+    }
+}
 
 /// A tree and the versions of the simulation it was last brought up to date with.
 struct Cached<T> {
@@ -43,10 +89,13 @@ struct Grab {
 /// Counts of the work done on the picking trees, to check that they are lazy.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct BvhStats {
+    /// Particle queries answered by a scan instead of the tree.
+    pub particle_scans: u64,
     pub particle_builds: u64,
     pub particle_refits: u64,
     /// Leaves removed from the particle tree after cuts.
     pub particle_removals: u64,
+    pub triangle_scans: u64,
     pub triangle_builds: u64,
     pub triangle_refits: u64,
     pub triangle_removals: u64,
@@ -62,6 +111,10 @@ pub struct InteractionState {
     /// Stable triangle id -> position in `Simulation::triangles()`, for `topology_version`.
     triangle_rank: Option<(u64, Vec<u32>)>,
     grab: Option<Grab>,
+    strategy: PickStrategy,
+    /// `(state_version, topology_version)` of the last particle / triangle scan.
+    particle_scanned_at: Option<(u64, u64)>,
+    triangle_scanned_at: Option<(u64, u64)>,
     stats: BvhStats,
 }
 
@@ -108,9 +161,68 @@ impl Simulation {
 
     /// [`Simulation::pick`] with the full hit (including the distance from the ray).
     pub fn pick_hit(&mut self, ray: &Ray) -> Option<ParticleHit> {
+        self.pick_particle(ray, false)
+    }
+
+    /// `many`: more queries on this state follow (a cut stroke), so the tree pays off.
+    fn pick_particle(&mut self, ray: &Ray, many: bool) -> Option<ParticleHit> {
+        if !self.use_particle_tree(many) {
+            self.interaction.stats.particle_scans += 1;
+            let r = self.pick_radius();
+            return pick_particle_scan(ray, &self.state.pos, &self.particles.alive, r);
+        }
         self.sync_particle_tree();
         let cache = self.interaction.particles.as_ref()?;
         cache.tree.cast(ray, &self.state.pos)
+    }
+
+    fn versions(&self) -> (u64, u64) {
+        (self.state_version(), self.topology_version())
+    }
+
+    fn use_particle_tree(&mut self, many: bool) -> bool {
+        let now = self.versions();
+        let radius = self.pick_radius();
+        let interaction = &mut self.interaction;
+        match interaction.strategy {
+            PickStrategy::Bvh => true,
+            PickStrategy::Scan => false,
+            PickStrategy::Auto => {
+                let synced = interaction.particles.as_ref().is_some_and(|c| {
+                    (c.state_version, c.topology_version) == now && c.tree.radius() == radius
+                });
+                let again = interaction.particle_scanned_at == Some(now);
+                interaction.particle_scanned_at = Some(now);
+                synced || again || many
+            }
+        }
+    }
+
+    fn use_triangle_tree(&mut self) -> bool {
+        let now = self.versions();
+        let interaction = &mut self.interaction;
+        match interaction.strategy {
+            PickStrategy::Bvh => true,
+            PickStrategy::Scan => false,
+            PickStrategy::Auto => {
+                let synced = interaction
+                    .triangles
+                    .as_ref()
+                    .is_some_and(|c| (c.state_version, c.topology_version) == now);
+                let again = interaction.triangle_scanned_at == Some(now);
+                interaction.triangle_scanned_at = Some(now);
+                synced || again
+            }
+        }
+    }
+
+    /// How queries are answered (see [`PickStrategy`]).
+    pub fn pick_strategy(&self) -> PickStrategy {
+        self.interaction.strategy
+    }
+
+    pub fn set_pick_strategy(&mut self, strategy: PickStrategy) {
+        self.interaction.strategy = strategy;
     }
 
     /// The live triangle (an entry of [`Simulation::triangles`]) the ray hits first, as
@@ -129,9 +241,14 @@ impl Simulation {
     /// [`Simulation::pick_triangle`] as a [`TriangleHit`] whose `index` is the position in
     /// [`Simulation::triangles`].
     pub fn pick_triangle_hit(&mut self, ray: &Ray) -> Option<TriangleHit> {
-        self.sync_triangle_tree();
-        let cache = self.interaction.triangles.as_ref()?;
-        let mut hit = cache.tree.cast(ray, &self.state.pos)?;
+        let mut hit = if self.use_triangle_tree() {
+            self.sync_triangle_tree();
+            let cache = self.interaction.triangles.as_ref()?;
+            cache.tree.cast(ray, &self.state.pos)?
+        } else {
+            self.interaction.stats.triangle_scans += 1;
+            pick_triangle_scan(ray, self.grid, &self.state.pos, &self.particles.alive)?
+        };
         hit.index = self.triangle_rank(hit.index);
         Some(hit)
     }
@@ -302,7 +419,7 @@ impl Simulation {
     /// ray hits nothing.
     pub fn cut_ray(&mut self, origin: Vec3, direction: Vec3) -> Result<Option<usize>> {
         let ray = Ray::new(origin, direction)?;
-        Ok(self.cut_along(&ray))
+        Ok(self.cut_along(&ray, false))
     }
 
     /// Cuts, ray after ray, the particle each ray of a mouse stroke picks (a later ray sees
@@ -322,11 +439,15 @@ impl Simulation {
                 )
             })
             .collect::<Result<Vec<_>>>()?;
-        Ok(rays.iter().filter_map(|ray| self.cut_along(ray)).collect())
+        let many = rays.len() > 1;
+        Ok(rays
+            .iter()
+            .filter_map(|ray| self.cut_along(ray, many))
+            .collect())
     }
 
-    fn cut_along(&mut self, ray: &Ray) -> Option<usize> {
-        let p = self.pick_hit(ray)?.index;
+    fn cut_along(&mut self, ray: &Ray, many: bool) -> Option<usize> {
+        let p = self.pick_particle(ray, many)?.index;
         self.cut_keeping_caches(p);
         Some(p)
     }

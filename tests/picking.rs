@@ -5,7 +5,10 @@ mod common;
 use common::{bare_scene, position, state_hash};
 use glam::Vec3;
 use rustcloth::grid::SpringKind;
-use rustcloth::picking::{pick_particle_brute_force, pick_triangle_brute_force, Ray};
+use rustcloth::interaction::PickStrategy;
+use rustcloth::picking::{
+    pick_particle_brute_force, pick_particle_scan, pick_triangle_brute_force, Ray,
+};
 use rustcloth::scene::{PinSpec, Plane};
 use rustcloth::soa::Vec3s;
 use rustcloth::{Error, Scene, Simulation};
@@ -79,10 +82,7 @@ fn random_ray(rng: &mut Rng, sim: &Simulation) -> Ray {
         2 => [Vec3::X, Vec3::NEG_Y, Vec3::Z][rng.below(3)],
         _ => rng.vec3(1.0),
     };
-    Ray::new(origin, dir).unwrap_or(Ray {
-        origin,
-        dir: Vec3::X,
-    })
+    Ray::new(origin, dir).unwrap_or_else(|_| Ray::new(origin, Vec3::X).unwrap())
 }
 
 /// Both trees against the brute-force scans, for `rays` random rays.
@@ -98,6 +98,9 @@ fn check_against_brute_force(rng: &mut Rng, sim: &mut Simulation, rays: usize) -
             sim.pick_radius(),
         );
         assert_eq!(bvh, brute, "particles, ray {ray:?}");
+        let alive = &sim.particles().alive;
+        let scan = pick_particle_scan(&ray, sim.positions(), alive, sim.pick_radius());
+        assert_eq!(scan, brute, "particle scan, ray {ray:?}");
         hits += bvh.is_some() as usize;
 
         let bvh = sim.pick_triangle_hit(&ray);
@@ -122,7 +125,9 @@ fn the_bvh_answers_exactly_as_a_brute_force_scan_on_random_deformed_cloths() {
     for case in 0..60 {
         let (nx, ny) = (2 + rng.below(14) as u32, 2 + rng.below(14) as u32);
         let mut sim = Simulation::new(bare_scene(nx, ny)).unwrap();
-        if case % 3 == 0 {
+        let strategy = [PickStrategy::Bvh, PickStrategy::Auto, PickStrategy::Scan][case % 3];
+        sim.set_pick_strategy(strategy);
+        if case % 4 == 0 {
             sim.set_pick_radius(rng.f32(0.001, 0.2) as f64).unwrap();
         }
         deform(&mut rng, &mut sim);
@@ -143,7 +148,11 @@ fn the_bvh_answers_exactly_as_a_brute_force_scan_on_random_deformed_cloths() {
         deform(&mut rng, &mut sim);
         hits += check_against_brute_force(&mut rng, &mut sim, 40);
         let stats = sim.bvh_stats();
-        assert_eq!((stats.particle_builds, stats.triangle_builds), (1, 1));
+        let builds = (stats.particle_builds, stats.triangle_builds);
+        match strategy {
+            PickStrategy::Scan => assert_eq!(builds, (0, 0)),
+            _ => assert_eq!(builds, (1, 1)),
+        }
     }
     assert!(hits > 3000, "the rays should mostly hit: {hits}");
 }
@@ -151,6 +160,7 @@ fn the_bvh_answers_exactly_as_a_brute_force_scan_on_random_deformed_cloths() {
 #[test]
 fn trees_are_built_on_the_first_query_refitted_after_moving_and_untouched_by_step() {
     let mut sim = Simulation::new(hanging_scene(16, 12)).unwrap();
+    sim.set_pick_strategy(PickStrategy::Bvh);
     sim.step(20).unwrap();
     assert_eq!(
         sim.bvh_stats(),
@@ -190,8 +200,73 @@ fn trees_are_built_on_the_first_query_refitted_after_moving_and_untouched_by_ste
 }
 
 #[test]
+fn auto_scans_for_one_query_per_state_and_uses_the_tree_for_more() {
+    let mut sim = Simulation::new(hanging_scene(16, 12)).unwrap();
+    assert_eq!(sim.pick_strategy(), PickStrategy::Auto);
+    let down = Vec3::NEG_Z;
+    let at = |sim: &Simulation| position(sim, 100) + Vec3::Z;
+    let pick = |sim: &mut Simulation| sim.pick(at(sim), down).unwrap().map(|h| h.0);
+    assert_eq!(pick(&mut sim), Some(100));
+    let s = sim.bvh_stats();
+    assert_eq!(
+        (s.particle_scans, s.particle_builds),
+        (1, 0),
+        "one query: a scan"
+    );
+    assert_eq!(pick(&mut sim), Some(100));
+    assert_eq!(pick(&mut sim), Some(100));
+    let s = sim.bvh_stats();
+    assert_eq!(
+        (s.particle_scans, s.particle_builds),
+        (1, 1),
+        "then the tree"
+    );
+    for frame in 0..5 {
+        sim.step(16).unwrap();
+        assert_eq!(pick(&mut sim), Some(100), "frame {frame}");
+    }
+    let s = sim.bvh_stats();
+    assert_eq!(
+        (s.particle_scans, s.particle_refits),
+        (6, 0),
+        "one pick a frame: scans"
+    );
+    assert_eq!(pick(&mut sim), Some(100));
+    assert_eq!(sim.bvh_stats().particle_refits, 1, "a second pick refits");
+    // A stroke of several rays refits at once and stays on the tree through its cuts.
+    sim.step(1).unwrap();
+    let stroke: Vec<_> = [100, 101, 102]
+        .map(|p| (position(&sim, p) + Vec3::Z, down))
+        .into();
+    assert_eq!(sim.cut_stroke(&stroke).unwrap(), vec![100, 101, 102]);
+    let s = sim.bvh_stats();
+    assert_eq!(
+        (s.particle_scans, s.particle_refits, s.particle_removals),
+        (6, 2, 3)
+    );
+    // Triangles likewise.
+    sim.pick_triangle(at(&sim), down).unwrap();
+    sim.pick_triangle(at(&sim), down).unwrap();
+    let s = sim.bvh_stats();
+    assert_eq!((s.triangle_scans, s.triangle_builds), (1, 1));
+    // Scan never builds.
+    let mut sim = Simulation::new(hanging_scene(8, 8)).unwrap();
+    sim.set_pick_strategy(PickStrategy::Scan);
+    for _ in 0..3 {
+        sim.pick(Vec3::new(0.0, 1.0, 1.0), down).unwrap();
+        sim.pick_triangle(Vec3::new(0.0, 1.0, 1.0), down).unwrap();
+    }
+    let stroke = [(Vec3::new(0.0, 1.0, 1.0), down); 2];
+    sim.cut_stroke(&stroke).unwrap();
+    let s = sim.bvh_stats();
+    assert_eq!((s.particle_builds, s.triangle_builds), (0, 0));
+    assert_eq!((s.particle_scans, s.triangle_scans), (5, 3));
+}
+
+#[test]
 fn a_changed_pick_radius_refits_and_is_used() {
     let mut sim = Simulation::new(bare_scene(5, 5)).unwrap();
+    sim.set_pick_strategy(PickStrategy::Bvh);
     // Flat in the xz plane at y = 0, spacing 0.25; the ray passes 0.1 beside particle 12.
     let p = position(&sim, 12);
     let origin = p + Vec3::new(0.1, 1.0, 0.0);

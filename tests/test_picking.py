@@ -164,9 +164,10 @@ def rays(draw, sim):
 
 
 @property_settings
-@given(data=st.data())
-def test_pick_equals_a_brute_force_scan_on_random_deformed_cloths(data):
+@given(data=st.data(), strategy=st.sampled_from(["auto", "bvh", "scan"]))
+def test_pick_equals_a_brute_force_scan_on_random_deformed_cloths(data, strategy):
     sim = data.draw(deformed_cloths())
+    sim.pick_strategy = strategy
     for _ in range(5):
         origin, direction = data.draw(rays(sim))
         assert_pick_matches_reference(sim, origin, direction)
@@ -177,6 +178,7 @@ def test_pick_equals_a_brute_force_scan_on_random_deformed_cloths(data):
 @given(data=st.data())
 def test_after_the_cloth_moves_the_refitted_trees_still_answer_exactly(data):
     sim = data.draw(deformed_cloths())
+    sim.pick_strategy = "bvh"
     origin, direction = data.draw(rays(sim))
     sim.pick(origin, direction)
     sim.pick_triangle(origin, direction)
@@ -361,6 +363,23 @@ def test_drag_and_release_without_a_grab_do_nothing(sim):
     sim.release()
     assert sim.grabbed() is None
     assert state_digest(sim) == before
+
+
+def test_auto_scans_for_one_pick_per_frame_and_refits_for_more():
+    sim = Simulation(small_scene())
+    assert sim.pick_strategy == "auto"
+    at, down = sim.positions[20] + [0.0, 0.0, 1.0], [0, 0, -1]
+    for _ in range(3):
+        sim.step(16)
+        assert sim.pick(at, down)[0] == 20
+    stats = sim.bvh_stats()
+    assert (stats["particle_scans"], stats["particle_builds"]) == (3, 0)
+    assert sim.pick(at, down)[0] == 20
+    assert sim.bvh_stats()["particle_builds"] == 1
+    sim.pick_strategy = "scan"
+    assert sim.pick_strategy == "scan"
+    with pytest.raises(ValueError, match="strategy"):
+        sim.pick_strategy = "octree"
 
 
 def test_the_pick_radius_is_a_property():

@@ -6,6 +6,7 @@ use pyo3::prelude::*;
 use super::conv::{index_from_any, vec3_from_any};
 use super::errors::{type_error, value_error, IntoPyResult};
 use super::PySimulation;
+use crate::interaction::PickStrategy;
 
 /// `(origin, direction)` of ray `k` of a stroke: any pair of length-3 sequences, or a
 /// `(2, 3)` array.
@@ -80,6 +81,22 @@ impl PySimulation {
         self.inner.set_pick_radius(radius).py()
     }
 
+    /// How queries find what a ray hits: ``"auto"`` (default: a scan of every particle for the
+    /// first query after the cloth moved, the BVH, refitted, from the second query on the same
+    /// state and for cut strokes), ``"bvh"`` (always the tree) or ``"scan"`` (never a tree).
+    /// All three give the same answers.
+    #[getter]
+    fn pick_strategy(&self) -> &'static str {
+        self.inner.pick_strategy().name()
+    }
+
+    #[setter]
+    fn set_pick_strategy(&mut self, strategy: &str) -> PyResult<()> {
+        let strategy = PickStrategy::by_name(strategy).py()?;
+        self.inner.set_pick_strategy(strategy);
+        Ok(())
+    }
+
     /// Grabs particle ``index``: a kinematic pin at its current position that ``drag_to``
     /// moves. Grabbing another particle releases the first. Raises ``IndexError`` out of range
     /// and ``ValueError`` for a cut particle.
@@ -140,14 +157,16 @@ impl PySimulation {
         py.detach(|| sim.cut_stroke(&rays)).py()
     }
 
-    /// Work done on the picking trees so far: builds, refits and leaves removed by cuts, for
-    /// the particle and the triangle tree.
+    /// Work done on the picking trees so far: queries answered by a scan, builds, refits and
+    /// leaves removed by cuts, for the particle and the triangle tree.
     fn bvh_stats(&self) -> std::collections::HashMap<&'static str, u64> {
         let s = self.inner.bvh_stats();
         [
+            ("particle_scans", s.particle_scans),
             ("particle_builds", s.particle_builds),
             ("particle_refits", s.particle_refits),
             ("particle_removals", s.particle_removals),
+            ("triangle_scans", s.triangle_scans),
             ("triangle_builds", s.triangle_builds),
             ("triangle_refits", s.triangle_refits),
             ("triangle_removals", s.triangle_removals),
