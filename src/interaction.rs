@@ -19,8 +19,8 @@
 //! A refit reads every position and rewrites the tree, so one query after the cloth moved is
 //! cheaper without the tree: a straight scan of the positions gives the same answer (bit for
 //! bit). [`PickStrategy::Auto`], the default, therefore scans for the first query on a new
-//! state and refits only when a second query comes on the same state (a cut stroke of several
-//! rays refits at once). docs/picking.md has the measurements.
+//! state and refits only when a second query comes on the same state (a cut stroke of five
+//! rays or more refits at once). docs/picking.md has the measurements.
 
 use glam::Vec3;
 
@@ -31,13 +31,18 @@ use crate::picking::{
 };
 use crate::Simulation;
 
+/// Under [`PickStrategy::Auto`], a cut stroke of at least this many rays refits the particle
+/// tree and queries it; a shorter one scans for each ray. A refit costs about 4.5 scans
+/// (docs/picking.md), a tree query almost nothing.
+pub const STROKE_TREE_MIN_RAYS: usize = 5;
+
 /// How `pick`, `pick_triangle` and the cuts find what a ray hits. All three give the same
 /// answer; they differ in cost.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum PickStrategy {
     /// A scan for the first query on each new state of the cloth (`O(n)`, cheaper than a
     /// refit), the tree (refitted, `O(n)` once, then `O(log n)` per query) from the second
-    /// query on the same state, and for cut strokes of more than one ray.
+    /// query on the same state, and for cut strokes of [`STROKE_TREE_MIN_RAYS`] rays or more.
     #[default]
     Auto,
     /// Always the tree, refitted after every move.
@@ -439,7 +444,7 @@ impl Simulation {
                 )
             })
             .collect::<Result<Vec<_>>>()?;
-        let many = rays.len() > 1;
+        let many = rays.len() >= STROKE_TREE_MIN_RAYS;
         Ok(rays
             .iter()
             .filter_map(|ray| self.cut_along(ray, many))

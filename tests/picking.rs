@@ -5,7 +5,7 @@ mod common;
 use common::{bare_scene, position, state_hash};
 use glam::Vec3;
 use rustcloth::grid::SpringKind;
-use rustcloth::interaction::PickStrategy;
+use rustcloth::interaction::{PickStrategy, STROKE_TREE_MIN_RAYS};
 use rustcloth::picking::{
     pick_particle_brute_force, pick_particle_scan, pick_triangle_brute_force, Ray,
 };
@@ -233,17 +233,25 @@ fn auto_scans_for_one_query_per_state_and_uses_the_tree_for_more() {
     );
     assert_eq!(pick(&mut sim), Some(100));
     assert_eq!(sim.bvh_stats().particle_refits, 1, "a second pick refits");
-    // A stroke of several rays refits at once and stays on the tree through its cuts.
+    // A stroke of several rays refits at once and stays on the tree through its cuts; a short
+    // one scans for each ray.
     sim.step(1).unwrap();
-    let stroke: Vec<_> = [100, 101, 102]
-        .map(|p| (position(&sim, p) + Vec3::Z, down))
-        .into();
-    assert_eq!(sim.cut_stroke(&stroke).unwrap(), vec![100, 101, 102]);
+    let ray = |sim: &Simulation, p: usize| (position(sim, p) + Vec3::Z, down);
+    let stroke: Vec<_> = (100..100 + STROKE_TREE_MIN_RAYS)
+        .map(|p| ray(&sim, p))
+        .collect();
+    let cut = sim.cut_stroke(&stroke).unwrap();
+    assert_eq!(cut, (100..100 + STROKE_TREE_MIN_RAYS).collect::<Vec<_>>());
     let s = sim.bvh_stats();
-    assert_eq!(
-        (s.particle_scans, s.particle_refits, s.particle_removals),
-        (6, 2, 3)
-    );
+    assert_eq!((s.particle_scans, s.particle_refits), (6, 2));
+    assert_eq!(s.particle_removals, STROKE_TREE_MIN_RAYS as u64);
+    sim.pick(at(&sim), down).unwrap(); // the tree is up to date: used, no scan
+    assert_eq!(sim.bvh_stats().particle_scans, 6);
+    sim.step(1).unwrap();
+    let stroke = [ray(&sim, 120), ray(&sim, 121)];
+    assert_eq!(sim.cut_stroke(&stroke).unwrap(), vec![120, 121]);
+    let s = sim.bvh_stats();
+    assert_eq!((s.particle_scans, s.particle_refits), (8, 2));
     // Triangles likewise.
     sim.pick_triangle(at(&sim), down).unwrap();
     sim.pick_triangle(at(&sim), down).unwrap();
