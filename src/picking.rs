@@ -159,11 +159,17 @@ pub fn pick_particle_brute_force(
         .min_by(ParticleHit::cmp_key)
 }
 
-/// [`pick_particle_brute_force`] as the compiler can vectorise it: the entry distance of every
-/// particle in one straight pass over the coordinate arrays (the same arithmetic as
-/// [`ray_aabb`], so the same bits), a minimum, and the tie-break among the particles at that
-/// minimum. The cheapest exact answer for one query on a cloth that has just moved: it reads
-/// each position once, where a refit reads it and then rewrites the tree.
+/// Particles per block of [`pick_particle_scan`]: consecutive indices, so a piece of a grid
+/// row, close together on the cloth.
+const SCAN_BLOCK: usize = 64;
+
+/// [`pick_particle_brute_force`] without a tree, at about the cost of reading each position
+/// once: one vectorised pass bounds each block of [`SCAN_BLOCK`] consecutive particles; blocks
+/// are visited nearest first, testing their particles, until the next block starts farther
+/// than the best hit. A block's box (its bounds widened by the radius) contains its particles'
+/// boxes, and [`ray_aabb`] is monotone, so the answer is the brute force's, bit for bit. The
+/// cheapest exact answer for one query on a cloth that has just moved: a refit reads every
+/// position too, and then rewrites the tree.
 pub fn pick_particle_scan(
     ray: &Ray,
     pos: &Vec3s,
@@ -171,42 +177,35 @@ pub fn pick_particle_scan(
     radius: f32,
 ) -> Option<ParticleHit> {
     let n = pos.len();
-    let (o, d, inv) = (ray.origin, ray.dir, ray.inv_dir);
-    let mut enter = vec![0.0f32; n];
-    let (xs, ys, zs) = (&pos.x[..n], &pos.y[..n], &pos.z[..n]);
-    let alive = &alive[..n];
-    for p in 0..n {
-        let (nx, fx) = slab(o.x, d.x, inv.x, xs[p] - radius, xs[p] + radius);
-        let (ny, fy) = slab(o.y, d.y, inv.y, ys[p] - radius, ys[p] + radius);
-        let (nz, fz) = slab(o.z, d.z, inv.z, zs[p] - radius, zs[p] + radius);
-        let t = 0.0f32.max(nx).max(ny).max(nz);
-        let hit = (t <= fx.min(fy).min(fz)) & alive[p];
-        enter[p] = if hit { t } else { f32::INFINITY };
-    }
-    // Eight running minima, so that the reduction vectorises too.
-    let mut lanes = [f32::INFINITY; 8];
-    let chunks = enter.chunks_exact(8);
-    let tail = chunks
-        .remainder()
-        .iter()
-        .fold(f32::INFINITY, |a, &t| a.min(t));
-    for chunk in chunks {
-        for k in 0..8 {
-            lanes[k] = lanes[k].min(chunk[k]);
+    let r = Vec3::splat(radius);
+    let mut blocks: Vec<(f32, usize)> = (0..n.div_ceil(SCAN_BLOCK))
+        .filter_map(|b| {
+            let range = b * SCAN_BLOCK..((b + 1) * SCAN_BLOCK).min(n);
+            let (x, y, z) = (
+                min_max(&pos.x[range.clone()]),
+                min_max(&pos.y[range.clone()]),
+                min_max(&pos.z[range]),
+            );
+            let (lo, hi) = (Vec3::new(x.0, y.0, z.0), Vec3::new(x.1, y.1, z.1));
+            Some((ray_aabb(ray, lo - r, hi + r)?, b))
+        })
+        .collect();
+    blocks.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    let mut best: Option<ParticleHit> = None;
+    for (enter, b) in blocks {
+        if best.is_some_and(|h| enter > h.distance) {
+            break;
+        }
+        let block = b * SCAN_BLOCK..((b + 1) * SCAN_BLOCK).min(n);
+        for p in block.filter(|&p| alive[p]) {
+            if let Some(hit) = hit_particle(ray, p, pos.get(p), radius) {
+                if best.is_none_or(|h| hit.cmp_key(&h) == Ordering::Less) {
+                    best = Some(hit);
+                }
+            }
         }
     }
-    let best = lanes.iter().fold(tail, |a, &t| a.min(t));
-    if best == f32::INFINITY {
-        return None;
-    }
-    (0..n)
-        .filter(|&p| enter[p] == best)
-        .map(|p| ParticleHit {
-            index: p,
-            distance: best,
-            offset: (pos.get(p) - ray.origin).cross(ray.dir).length(),
-        })
-        .min_by(ParticleHit::cmp_key)
+    best
 }
 
 /// The ray against triangle `(a, b, c)` (Moeller-Trumbore, both sides): the distance along the
@@ -275,29 +274,93 @@ pub fn pick_triangle_brute_force(
         .min_by(TriangleHit::cmp_key)
 }
 
-/// The nearest live triangle by testing each, with `index` its stable id
-/// ([`cell_triangle`]): the same answer as [`TriangleBvh::cast`] without a tree.
+/// The nearest live triangle, with `index` its stable id ([`cell_triangle`]): the same
+/// answer as [`TriangleBvh::cast`] and as testing every triangle, without a tree.
+///
+/// One pass over the positions bounds each row of particles; the strip of cells between two
+/// rows lies in the union of their bounds (widened like a triangle's box). Strips are visited
+/// nearest first and their triangles tested until the next strip starts farther than the best
+/// hit, so a ray across the cloth tests a few strips, not every triangle.
 pub fn pick_triangle_scan(
     ray: &Ray,
     grid: Grid,
     pos: &Vec3s,
     alive: &[bool],
 ) -> Option<TriangleHit> {
-    (0..triangle_slots(grid))
-        .filter_map(|id| {
+    let nx = grid.nx;
+    let rows: Vec<(Vec3, Vec3)> = (0..grid.ny)
+        .map(|j| {
+            let r = j * nx..(j + 1) * nx;
+            let (x, y, z) = (
+                min_max(&pos.x[r.clone()]),
+                min_max(&pos.y[r.clone()]),
+                min_max(&pos.z[r]),
+            );
+            (Vec3::new(x.0, y.0, z.0), Vec3::new(x.1, y.1, z.1))
+        })
+        .collect();
+    let mut strips: Vec<(f32, usize)> = (0..grid.ny - 1)
+        .filter_map(|j| {
+            let lo = rows[j].0.min(rows[j + 1].0);
+            let hi = rows[j].1.max(rows[j + 1].1);
+            let margin = box_margin(lo, hi);
+            let t = ray_aabb(ray, lo - Vec3::splat(margin), hi + Vec3::splat(margin))?;
+            Some((t, j))
+        })
+        .collect();
+    strips.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    let mut best: Option<TriangleHit> = None;
+    for (enter, j) in strips {
+        if best.is_some_and(|b| enter > b.distance) {
+            break;
+        }
+        let first = 2 * j * (nx - 1);
+        for id in first..first + 2 * (nx - 1) {
             let tri = cell_triangle(grid, id);
             if !tri.iter().all(|&q| alive[q]) {
-                return None;
+                continue;
             }
             let [a, b, c] = tri.map(|q| pos.get(q));
-            let (distance, barycentric) = ray_triangle(ray, a, b, c)?;
-            Some(TriangleHit {
-                index: id,
-                distance,
-                barycentric,
-            })
-        })
-        .min_by(TriangleHit::cmp_key)
+            if let Some((distance, barycentric)) = ray_triangle(ray, a, b, c) {
+                let hit = TriangleHit {
+                    index: id,
+                    distance,
+                    barycentric,
+                };
+                if best.is_none_or(|b| hit.cmp_key(&b) == Ordering::Less) {
+                    best = Some(hit);
+                }
+            }
+        }
+    }
+    best
+}
+
+/// Smallest and largest of `xs` (finite), in eight lanes so that it vectorises.
+fn min_max(xs: &[f32]) -> (f32, f32) {
+    let mut lo = [f32::INFINITY; 8];
+    let mut hi = [f32::NEG_INFINITY; 8];
+    let chunks = xs.chunks_exact(8);
+    let tail = chunks.remainder();
+    for chunk in chunks {
+        for k in 0..8 {
+            lo[k] = lo[k].min(chunk[k]);
+            hi[k] = hi[k].max(chunk[k]);
+        }
+    }
+    let lo = tail.iter().chain(&lo).fold(f32::INFINITY, |a, &x| a.min(x));
+    let hi = tail
+        .iter()
+        .chain(&hi)
+        .fold(f32::NEG_INFINITY, |a, &x| a.max(x));
+    (lo, hi)
+}
+
+/// How far a triangle's box (or a box around several) is widened: far above the rounding of
+/// [`ray_triangle`] at these coordinates. Grows with the box, so a box that contains another
+/// is widened at least as much.
+fn box_margin(lo: Vec3, hi: Vec3) -> f32 {
+    1e-5 * (1.0 + lo.abs().max(hi.abs()).max_element())
 }
 
 /// Number of triangle ids of `grid`: two per cell.
@@ -443,7 +506,7 @@ pub struct TriangleBvh {
 fn triangle_box(pos: &Vec3s, tri: [usize; 3]) -> Aabb {
     let [a, b, c] = tri.map(|q| pos.get(q));
     let (lo, hi) = (a.min(b).min(c), a.max(b).max(c));
-    let margin = 1e-5 * (1.0 + lo.abs().max(hi.abs()).max_element());
+    let margin = box_margin(lo, hi);
     Aabb::new(lo - Vec3::splat(margin), hi + Vec3::splat(margin))
 }
 

@@ -7,7 +7,8 @@ use glam::Vec3;
 use rustcloth::grid::SpringKind;
 use rustcloth::interaction::{PickStrategy, STROKE_TREE_MIN_RAYS};
 use rustcloth::picking::{
-    pick_particle_brute_force, pick_particle_scan, pick_triangle_brute_force, Ray,
+    cell_triangle, pick_particle_brute_force, pick_particle_scan, pick_triangle_brute_force,
+    pick_triangle_scan, Ray,
 };
 use rustcloth::scene::{PinSpec, Plane};
 use rustcloth::soa::Vec3s;
@@ -107,6 +108,19 @@ fn check_against_brute_force(rng: &mut Rng, sim: &mut Simulation, rays: usize) -
         let tris = sim.triangles().to_vec();
         let brute = pick_triangle_brute_force(&ray, sim.positions(), &tris);
         assert_eq!(bvh, brute, "triangles, ray {ray:?}");
+        let (grid, alive) = (sim.grid(), &sim.particles().alive);
+        let scan = pick_triangle_scan(&ray, grid, sim.positions(), alive);
+        assert_eq!(
+            scan.is_some(),
+            brute.is_some(),
+            "triangle scan, ray {ray:?}"
+        );
+        if let (Some(scan), Some(brute)) = (scan, brute) {
+            let vertices = cell_triangle(grid, scan.index).map(|q| q as u32);
+            assert_eq!(vertices, tris[brute.index], "triangle scan, ray {ray:?}");
+            assert_eq!(scan.distance, brute.distance);
+            assert_eq!(scan.barycentric, brute.barycentric);
+        }
         if let Some(hit) = bvh {
             let [a, b, c] = tris[hit.index].map(|q| sim.positions().get(q as usize));
             let w = hit.barycentric;
