@@ -9,8 +9,8 @@ use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criteri
 use glam::Vec3;
 use rustcloth::interaction::PickStrategy;
 use rustcloth::picking::{
-    pick_particle_brute_force, pick_particle_scan, pick_triangle_brute_force, ParticleBvh, Ray,
-    TriangleBvh,
+    pick_particle_brute_force, pick_particle_scan, pick_triangle_brute_force, pick_triangle_scan,
+    ParticleBvh, Ray, TriangleBvh,
 };
 use rustcloth::soa::Vec3s;
 use rustcloth::{Scene, Simulation};
@@ -125,6 +125,12 @@ fn bench_triangles(c: &mut Criterion) {
             b.iter(|| {
                 k = (k + 1) % rays.len();
                 pick_triangle_brute_force(&rays[k], pos, &tris)
+            })
+        });
+        group.bench_function(id("triangle_query_scan"), |b| {
+            b.iter(|| {
+                k = (k + 1) % rays.len();
+                pick_triangle_scan(&rays[k], grid, pos, alive)
             })
         });
     }
