@@ -379,6 +379,9 @@ impl Simulation {
             ));
         }
         if let Some(p) = self.grabbed() {
+            // Pinned again in case `unpin` was called during the drag.
+            self.particles.pinned[p] = true;
+            self.particles.refresh(p);
             self.pins.set(p, target);
         }
         Ok(())
@@ -402,10 +405,16 @@ impl Simulation {
                 self.particles.refresh(p);
                 self.pins.remove(p);
             }
-            (true, Some(target)) => self.pins.set(p, target),
-            (true, None) => {
-                self.pins.remove(p);
-                self.state.vel.set(p, Vec3::ZERO);
+            (true, previous) => {
+                self.particles.pinned[p] = true;
+                self.particles.refresh(p);
+                match previous {
+                    Some(target) => self.pins.set(p, target),
+                    None => {
+                        self.pins.remove(p);
+                        self.state.vel.set(p, Vec3::ZERO);
+                    }
+                }
             }
         }
     }

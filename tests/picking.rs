@@ -544,11 +544,13 @@ fn release_restores_the_pin_state_from_before_the_grab() {
     sim.release();
     assert!(!sim.particles().pinned[2]);
     assert_eq!(sim.velocities().get(2), v);
-    // A statically pinned corner: released, it stays pinned where it was dragged, at rest.
+    // A statically pinned corner: released, it stays pinned where it was dragged, at rest,
+    // even if it was unpinned during the drag.
     sim.grab(corner as i64).unwrap();
     let moved = position(&sim, corner) + Vec3::X * 0.05;
     sim.drag_to(moved).unwrap();
     sim.step(2).unwrap();
+    sim.unpin(corner as i64).unwrap();
     sim.release();
     assert!(sim.particles().pinned[corner]);
     assert_eq!(sim.velocities().get(corner), Vec3::ZERO);
