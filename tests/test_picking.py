@@ -63,7 +63,9 @@ def particle_hits(sim, origin, direction, grow=0.0):
 
 def triangle_hits(sim, origin, direction, margin=0.0):
     """Per row of ``sim.triangles``: distance along the ray to the triangle (inf for a miss)
-    and the barycentric weights. ``margin`` > 0 widens the triangles, < 0 shrinks them."""
+    and whether the triangle is well shaped (not nearly degenerate, where float32 and float64
+    disagree). ``margin`` > 0 widens the triangles, < 0 shrinks them and drops badly shaped
+    ones."""
     tris = sim.triangles
     pos = sim.positions.astype(np.float64)
     o = np.asarray(origin, np.float32).astype(np.float64)
@@ -81,9 +83,10 @@ def triangle_hits(sim, origin, direction, margin=0.0):
         v = (qv @ d) * inv
         t = np.einsum("ij,ij->i", e2, qv) * inv
         w = np.stack([1 - u - v, u, v], axis=1)
-    ok = (np.abs(det) > 1e-3 * scale) if margin < 0 else (det != 0)
+    well_shaped = np.abs(det) > 1e-3 * scale
+    ok = well_shaped if margin < 0 else (det != 0)
     hit = ok & (w.min(axis=1) >= -margin) & (t >= -margin)
-    return np.where(hit, t, np.inf), w
+    return np.where(hit, t, np.inf), well_shaped
 
 
 def assert_pick_matches_reference(sim, origin, direction):
@@ -96,25 +99,33 @@ def assert_pick_matches_reference(sim, origin, direction):
     index, distance = got
     assert sim.alive[index]
     assert np.isfinite(loose[index]), "the BVH hit a particle the reference misses"
-    assert abs(distance - loose[index]) < 10 * TOL * (1 + distance)
+    exact, _ = particle_hits(sim, origin, direction)
+    if np.isfinite(exact[index]):  # else a hit within rounding of the box's edge
+        assert abs(distance - exact[index]) < TOL * (1 + distance)
     best = strict.min()
     assert distance <= best + 10 * TOL * (1 + best)
-    # Ties along the ray: no particle entered as early lies clearly nearer the ray.
-    tied = loose <= distance + 10 * TOL * (1 + distance)
-    assert offset[index] <= offset[tied & np.isfinite(strict)].min(initial=np.inf) + 10 * TOL
+    # Ties along the ray: when the ray starts inside several boxes (distance 0, exact in float32
+    # as well), the particle nearest the ray wins. (Other near-ties are decided by float32
+    # rounding, which a float64 reference cannot reproduce; tests/picking.rs checks them bit
+    # for bit against the Rust brute force.)
+    if distance == 0.0:
+        tied = strict == 0.0
+        assert offset[index] <= offset[tied].min(initial=np.inf) + 10 * TOL
 
 
 def assert_pick_triangle_matches_reference(sim, origin, direction):
     got = sim.pick_triangle(origin, direction)
     strict, _ = triangle_hits(sim, origin, direction, margin=-TOL)
-    loose, weights = triangle_hits(sim, origin, direction, margin=TOL)
+    loose, well_shaped = triangle_hits(sim, origin, direction, margin=TOL)
     if got is None:
         assert np.isinf(strict).all(), "the reference hits a triangle the BVH missed"
         return
     index, distance, bary = got
-    assert np.isfinite(loose[index])
     assert distance <= strict.min() + 10 * TOL * (1 + distance)
     assert abs(sum(bary) - 1.0) < 1e-5
+    if not well_shaped[index]:
+        return  # a sliver: float32 rounding decides whether it is hit
+    assert np.isfinite(loose[index])
     corners = sim.positions[sim.triangles[index]].astype(np.float64)
     point = np.asarray(bary) @ corners
     expected = np.asarray(origin, np.float32) + distance * unit(direction)
