@@ -26,6 +26,11 @@ impl KinematicPins {
         }
     }
 
+    /// The target of particle `p`, if it has one.
+    pub fn target(&self, p: usize) -> Option<Vec3> {
+        self.targets.iter().find(|(q, _)| *q == p).map(|&(_, t)| t)
+    }
+
     pub fn remove(&mut self, p: usize) {
         self.targets.retain(|(q, _)| *q != p);
     }

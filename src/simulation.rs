@@ -22,6 +22,7 @@ use crate::error::{check_scalar, Bound, Error, Result};
 use crate::forces::{AirDrag, ForceModel, ForceTerm, Gravity, SpringForce, Springs, StateRef};
 use crate::grid::{Family, Grid, SpringKind};
 use crate::integrators::{self, Integrator, StepContext};
+use crate::interaction::InteractionState;
 use crate::pins::KinematicPins;
 use crate::profile::Profile;
 use crate::scene::{Plane, Scene};
@@ -138,6 +139,8 @@ pub struct Simulation {
     /// Increments whenever positions change (a step, `set_positions`, a reset): caches of
     /// derived data (normals, picking structures) compare against it.
     state_version: u64,
+    /// Picking trees and the grab (src/interaction.rs); built on request, never in a step.
+    pub(crate) interaction: InteractionState,
 }
 
 impl Simulation {
@@ -174,6 +177,7 @@ impl Simulation {
             derived: Derived::default(),
             topology_version: 0,
             state_version: 0,
+            interaction: InteractionState::default(),
             scene,
         })
     }
@@ -556,7 +560,7 @@ impl Simulation {
         Ok(())
     }
 
-    fn check_index(&self, name: &str, index: i64) -> Result<usize> {
+    pub(crate) fn check_index(&self, name: &str, index: i64) -> Result<usize> {
         let n = self.grid.len();
         if (0..n as i64).contains(&index) {
             Ok(index as usize)

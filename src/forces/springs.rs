@@ -54,7 +54,9 @@ impl Springs {
         Springs { rest, active }
     }
 
-    /// Removes every spring that touches particle `p`.
+    /// Removes every spring that touches particle `p`, and the bending springs that pass over
+    /// it (`(i-1, j)-(i+1, j)` and `(i, j-1)-(i, j+1)`): they span the hole, and left in place
+    /// they would hold the cloth together across a cut one particle wide.
     pub fn remove_particle(&mut self, grid: Grid, p: usize) {
         for kind in SpringKind::ALL {
             let k = kind.index();
@@ -62,6 +64,12 @@ impl Springs {
             let o = grid.offset(kind);
             if p >= o && grid.partner(p - o, kind) == Some(p) {
                 self.active[k][p - o] = 0.0;
+            }
+        }
+        for kind in [SpringKind::BendI, SpringKind::BendJ] {
+            let half = grid.offset(kind) / 2;
+            if p >= half && grid.partner(p - half, kind) == Some(p + half) {
+                self.active[kind.index()][p - half] = 0.0;
             }
         }
     }

@@ -5,6 +5,7 @@
 
 mod conv;
 mod errors;
+mod interaction;
 
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
@@ -63,8 +64,8 @@ fn builtin_scene<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>
 
 /// The solver. See `rustcloth.Simulation` for the documented API.
 #[pyclass(name = "Simulation", module = "rustcloth._core", subclass)]
-struct PySimulation {
-    inner: Simulation,
+pub(crate) struct PySimulation {
+    pub(crate) inner: Simulation,
     /// Whether the one warning about an unconverged linear solve was given.
     warned_not_converged: bool,
 }

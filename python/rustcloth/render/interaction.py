@@ -107,9 +107,9 @@ class Interaction:
         """Cut where the rays of one stroke sample hit the cloth; returns particles cut."""
         if hasattr(self.sim, "cut_stroke") or hasattr(self.sim, "cut_ray"):
             if hasattr(self.sim, "cut_stroke"):
-                cut = int(self.sim.cut_stroke(rays) or 0)
+                cut = len(self.sim.cut_stroke(rays))
             else:
-                cut = sum(int(self.sim.cut_ray(o, d) or 0) for o, d in rays)
+                cut = sum(self.sim.cut_ray(o, d) is not None for o, d in rays)
             # The core does the hit test; the stroke is drawn on the plane through the target.
             hits = [camera.drag_plane_point(r, camera.target) for r in rays]
         else:
