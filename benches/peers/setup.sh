@@ -7,7 +7,7 @@
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
-VENV="$ROOT/.venv-peers"
+VENV="${PEERS_VENV:-$ROOT/.venv-peers}"  # PEERS_VENV: elsewhere (testing this script)
 PYTHON="${PYTHON:-$(command -v python3.11 || command -v python3)}"
 
 # Pins checked on Python 3.11 / x86_64 Linux / no GPU (2026-11-24).
