@@ -57,11 +57,7 @@ pub fn to_toml(obj: &Bound<'_, PyAny>, path: &str) -> PyResult<toml::Value> {
             .collect::<PyResult<Vec<_>>>()?;
         Ok(toml::Value::Array(items))
     } else {
-        let kind = obj
-            .get_type()
-            .name()
-            .map(|n| n.to_string())
-            .unwrap_or_default();
+        let kind = type_name(obj);
         Err(type_error(
             name,
             format!("unsupported value of type {kind}: {obj}"),
@@ -97,11 +93,7 @@ pub fn from_toml<'py>(py: Python<'py>, value: &toml::Value) -> PyResult<Bound<'p
 /// An `(n, 3)` float32 or float64 numpy array as SoA vectors.
 pub fn vec3s_from_array(obj: &Bound<'_, PyAny>, name: &str, n: usize) -> PyResult<Vec3s> {
     let Ok(untyped) = obj.cast::<PyUntypedArray>() else {
-        let kind = obj
-            .get_type()
-            .name()
-            .map(|n| n.to_string())
-            .unwrap_or_default();
+        let kind = type_name(obj);
         return Err(type_error(
             name,
             format!("must be a numpy array of shape ({n}, 3), got {kind}"),
@@ -177,15 +169,19 @@ pub fn index_from_any(obj: &Bound<'_, PyAny>, name: &str, len: usize) -> PyResul
             }))
         }
         Err(_) => {
-            let kind = obj
-                .get_type()
-                .name()
-                .map(|n| n.to_string())
-                .unwrap_or_default();
+            let kind = type_name(obj);
             Err(type_error(
                 name,
                 format!("must be an integer index, got {kind} {obj}"),
             ))
         }
     }
+}
+
+/// The Python type name of `obj`, for messages.
+fn type_name(obj: &Bound<'_, PyAny>) -> String {
+    obj.get_type()
+        .name()
+        .map(|n| n.to_string())
+        .unwrap_or_default()
 }
