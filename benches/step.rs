@@ -99,6 +99,11 @@ fn bench_integrators(c: &mut Criterion) {
     for integrator in rustcloth::scene::INTEGRATORS {
         let mut scene = scene(128);
         scene.integrator = integrator.to_string();
+        // A step costs the same at any dt (but implicit Euler's CG iterations); keep each
+        // integrator inside its stability limit so the state stays meaningful.
+        if let Some(limit) = Simulation::new(scene.clone()).unwrap().stable_dt() {
+            scene.dt = scene.dt.min(0.5 * limit);
+        }
         let mut sim = Simulation::new(scene).unwrap();
         group.bench_function(*integrator, |b| b.iter(|| sim.step(1).unwrap()));
         if let Some(stats) = sim.solver_stats() {
