@@ -141,6 +141,15 @@ pub struct Vec3SliceMut<'a> {
 }
 
 impl Vec3SliceMut<'_> {
+    /// The sub-range `range` of these slices.
+    pub fn sub_mut(&mut self, range: std::ops::Range<usize>) -> Vec3SliceMut<'_> {
+        Vec3SliceMut {
+            x: &mut self.x[range.clone()],
+            y: &mut self.y[range.clone()],
+            z: &mut self.z[range],
+        }
+    }
+
     /// Component `c` (0 = x, 1 = y, 2 = z).
     #[inline]
     pub fn component_mut(&mut self, c: usize) -> &mut [f32] {

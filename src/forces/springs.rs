@@ -202,7 +202,7 @@ impl SpringForce {
     fn gather(&self, input: &ForceInput, range: Range<usize>, out: &mut Vec3SliceMut) {
         let n = input.grid.len();
         for kind in self.family.kinds() {
-            let table = &input.spring_table[kind.index()];
+            let table = input.spring_table;
             let [anchors, ends] = neighbour_runs(n, input.grid.offset(kind), range.clone());
             for (run, sign) in [(anchors, 1.0f32), (ends, -1.0)] {
                 let Some(run) = run else { continue };
@@ -212,7 +212,7 @@ impl SpringForce {
                     .into_iter()
                     .enumerate()
                 {
-                    let (t, f) = (table.component(comp, &s), &mut f[o.clone()]);
+                    let (t, f) = (table.component(kind, comp, &s), &mut f[o.clone()]);
                     for i in 0..f.len() {
                         // sign * t is exactly the force the far end computes for itself.
                         f[i] += sign * t[i];
