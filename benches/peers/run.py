@@ -65,6 +65,7 @@ def implementations(rust_python: str) -> list[Impl]:
             env={"RAYON_NUM_THREADS": "1"},
             colliders=True,
             python=rust_python,
+            gather=False,  # each spring evaluated once into per-block tables, then gathered
         ),
         Impl(
             "rustcloth-2",
@@ -74,6 +75,7 @@ def implementations(rust_python: str) -> list[Impl]:
             env={"RAYON_NUM_THREADS": "2"},
             colliders=True,
             python=rust_python,
+            gather=False,
         ),
         Impl("numpy", "numpy (numpy_cloth.py)", "impl_numpy.py", 1, gather=False),
         Impl("taichi-1", "Taichi gather", "impl_taichi.py", 1),
@@ -345,11 +347,12 @@ def roofline_lines(sizes, impls, results, bw, machine, peak) -> list[str]:
         "c (...) / l + ...: 3, s = (...) / l: 1, s d: 3, f += s d: 3), of which **one sqrt "
         f"and one divide**; {FLOPS_PER_SPRING_SCATTER} when both ends are updated "
         f"(f_b -= s d). The update (gravity, v += (h/m) f, x += h v) is {FLOPS_UPDATE}. A "
-        f"per-particle gather (rustcloth, Taichi gather) evaluates 12 springs: "
+        f"per-particle gather (Taichi gather) evaluates 12 springs: "
         f"**{FLOPS_GATHER} flops/particle, 12 sqrt + 12 div**; evaluating each spring once "
-        f"(6 per particle, scattered: numpy, newton, Taichi atomic) is **{FLOPS_SCATTER} "
-        "flops/particle, 6 sqrt + 6 div** (plus the scatter's read-modify-write of a force "
-        "buffer).",
+        f"(6 per particle: numpy, newton and Taichi atomic scatter them; rustcloth writes them "
+        f"to a per-block table, about 10 % of them twice at block edges, and gathers) is "
+        f"**{FLOPS_SCATTER} flops/particle, 6 sqrt + 6 div** (plus the scatter's "
+        "read-modify-write of a force buffer, or the table's write and read).",
         "* **bytes**: at least the state, read and written once: x and v in, x and v out, "
         f"4 x 12 B = **{BYTES_STATE} B/particle**; with an inverse mass and 6 stored rest "
         f"lengths read too, {BYTES_TYPICAL} B. Neighbour reads hit in cache when rows are "
