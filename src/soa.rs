@@ -133,6 +133,17 @@ pub struct Vec3Slice<'a> {
     pub z: &'a [f32],
 }
 
+impl<'a> Vec3Slice<'a> {
+    /// The sub-range `range` of these slices.
+    pub fn slices_at(&self, range: std::ops::Range<usize>) -> Vec3Slice<'a> {
+        Vec3Slice {
+            x: &self.x[range.clone()],
+            y: &self.y[range.clone()],
+            z: &self.z[range],
+        }
+    }
+}
+
 /// Mutable component slices of equal length.
 pub struct Vec3SliceMut<'a> {
     pub x: &'a mut [f32],

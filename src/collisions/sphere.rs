@@ -3,6 +3,7 @@ use rayon::prelude::*;
 
 use super::{contact_velocity, Collider};
 use crate::scene::SphereSpec;
+use crate::soa::Vec3Slice;
 use crate::state::{Kinematics, Particles};
 
 /// Static spheres, tested with a swept (continuous) test so that a particle fast enough to
@@ -74,6 +75,33 @@ impl Sphere {
     }
 }
 
+/// Particles screened per batch (a stack buffer of flags).
+const SCREEN: usize = 256;
+
+impl Spheres {
+    /// Marks the particles whose step from `p0` to `p1` could touch some sphere: the segment
+    /// comes within `reach` of the centre only if `|p1 - c| < reach + |p1 - p0|`. Inflated a
+    /// little so that rounding never screens out a particle the exact test would catch; the
+    /// exact test decides.
+    #[inline(always)]
+    fn screen(&self, p0: Vec3Slice, p1: (&[f32], &[f32], &[f32]), out: &mut [bool]) {
+        let n = out.len();
+        let (x1, y1, z1) = (&p1.0[..n], &p1.1[..n], &p1.2[..n]);
+        let (x0, y0, z0) = (&p0.x[..n], &p0.y[..n], &p0.z[..n]);
+        out.fill(false);
+        for sphere in &self.spheres {
+            let c = sphere.center;
+            for i in 0..n {
+                let (dx, dy, dz) = (x1[i] - x0[i], y1[i] - y0[i], z1[i] - z0[i]);
+                let travel = (dx * dx + dy * dy + dz * dz).sqrt();
+                let (rx, ry, rz) = (x1[i] - c.x, y1[i] - c.y, z1[i] - c.z);
+                let limit = (sphere.reach + travel) * (1.0 + 1e-4) + 1e-6;
+                out[i] |= rx * rx + ry * ry + rz * rz < limit * limit;
+            }
+        }
+    }
+}
+
 impl Collider for Spheres {
     fn name(&self) -> &'static str {
         "spheres"
@@ -91,16 +119,34 @@ impl Collider for Spheres {
             .zip(vel.par_chunks_mut(chunk))
             .enumerate()
             .for_each(|(c, (mut pos, mut vel))| {
-                for i in 0..pos.len() {
-                    let p = c * chunk + i;
-                    if !particles.is_dynamic(p) {
-                        continue;
-                    }
-                    let p0 = start.pos.get(p);
-                    for sphere in &self.spheres {
-                        if let Some((n, surface)) = sphere.contact(p0, pos.get(i)) {
-                            pos.set(i, surface);
-                            vel.set(i, contact_velocity(vel.get(i), n, sphere.friction));
+                let first = c * chunk;
+                let start_pos = start.pos.slices(first..first + pos.len());
+                let mut candidates = [false; SCREEN];
+                for block in (0..pos.len()).step_by(SCREEN) {
+                    let len = SCREEN.min(pos.len() - block);
+                    let p0 = start_pos.slices_at(block..block + len);
+                    // A cheap, vectorised screen first; the exact swept test only where the
+                    // particle could touch a sphere (a few percent of the cloth at most).
+                    crate::simd::dispatch!(self.screen(
+                        p0,
+                        (
+                            &pos.x[block..block + len],
+                            &pos.y[block..block + len],
+                            &pos.z[block..block + len]
+                        ),
+                        &mut candidates[..len],
+                    ));
+                    for j in (0..len).filter(|&j| candidates[j]) {
+                        let (i, p) = (block + j, first + block + j);
+                        if !particles.is_dynamic(p) {
+                            continue;
+                        }
+                        let p0 = start.pos.get(p);
+                        for sphere in &self.spheres {
+                            if let Some((n, surface)) = sphere.contact(p0, pos.get(i)) {
+                                pos.set(i, surface);
+                                vel.set(i, contact_velocity(vel.get(i), n, sphere.friction));
+                            }
                         }
                     }
                 }
