@@ -20,7 +20,7 @@ use rayon::prelude::*;
 use crate::collisions::{Collider, Floor, Spheres};
 use crate::error::{check_scalar, Bound, Error, Result};
 use crate::forces::{AirDrag, ForceModel, ForceTerm, Gravity, SpringForce, Springs, StateRef};
-use crate::grid::{Family, Grid, SpringKind};
+use crate::grid::{Family, Grid};
 use crate::integrators::{self, Integrator, StepContext};
 use crate::interaction::InteractionState;
 use crate::pins::KinematicPins;
@@ -738,16 +738,6 @@ fn vertex_normal(grid: Grid, pos: &Vec3s, alive: &[bool], p: usize) -> Vec3 {
 /// The first particle whose position or velocity is not finite.
 fn first_non_finite(state: &Kinematics) -> Option<usize> {
     (0..state.pos.len()).find(|&p| !(state.pos.get(p).is_finite() && state.vel.get(p).is_finite()))
-}
-
-/// Every spring of the stencil as `(anchor, partner, kind)`; for tests and reference code.
-pub fn stencil(grid: Grid) -> Vec<(usize, usize, SpringKind)> {
-    SpringKind::ALL
-        .into_iter()
-        .flat_map(|kind| {
-            (0..grid.len()).filter_map(move |p| grid.partner(p, kind).map(|q| (p, q, kind)))
-        })
-        .collect()
 }
 
 /// Total force on each particle of the current state, for tests and diagnostics.

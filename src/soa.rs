@@ -15,15 +15,6 @@ pub struct Vec3s {
 }
 
 impl Vec3s {
-    /// An empty set, usable in constants.
-    pub const fn new_const() -> Self {
-        Vec3s {
-            x: Vec::new(),
-            y: Vec::new(),
-            z: Vec::new(),
-        }
-    }
-
     pub fn zeros(n: usize) -> Self {
         Vec3s {
             x: vec![0.0; n],
@@ -78,15 +69,6 @@ impl Vec3s {
             p[0] = self.x[i];
             p[1] = self.y[i];
             p[2] = self.z[i];
-        }
-    }
-
-    /// The inverse of [`Vec3s::write_interleaved`].
-    pub fn read_interleaved(&mut self, data: &[f32]) {
-        for (i, p) in data.chunks_exact(3).enumerate() {
-            self.x[i] = p[0];
-            self.y[i] = p[1];
-            self.z[i] = p[2];
         }
     }
 

@@ -119,10 +119,6 @@ impl ImplicitEuler {
             work: None,
         }
     }
-
-    pub fn stats(&self) -> SolverStats {
-        self.stats
-    }
 }
 
 impl Integrator for ImplicitEuler {
