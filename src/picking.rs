@@ -234,6 +234,53 @@ pub fn ray_triangle(ray: &Ray, a: Vec3, b: Vec3, c: Vec3) -> Option<(f32, [f32; 
     (t >= 0.0 && t.is_finite()).then_some((t, [1.0 - u - v, u, v]))
 }
 
+/// What the BVH search needs of a hit: its distance along the ray and a total order.
+trait Hit: Copy {
+    fn distance(&self) -> f32;
+    fn cmp_key(&self, other: &Self) -> Ordering;
+}
+
+impl Hit for ParticleHit {
+    fn distance(&self) -> f32 {
+        self.distance
+    }
+
+    fn cmp_key(&self, other: &Self) -> Ordering {
+        ParticleHit::cmp_key(self, other)
+    }
+}
+
+impl Hit for TriangleHit {
+    fn distance(&self) -> f32 {
+        self.distance
+    }
+
+    fn cmp_key(&self, other: &Self) -> Ordering {
+        TriangleHit::cmp_key(self, other)
+    }
+}
+
+/// The winning hit among the leaves `leaf_hit` reports, visiting only nodes whose box the ray
+/// enters no farther than the best hit so far.
+fn nearest_hit<H: Hit>(bvh: &Bvh, ray: &Ray, leaf_hit: impl Fn(u32) -> Option<H>) -> Option<H> {
+    let mut best: Option<H> = None;
+    bvh.traverse(|node| {
+        if let Some(leaf) = node.leaf_data() {
+            if let Some(hit) = leaf_hit(leaf) {
+                if best.is_none_or(|b| hit.cmp_key(&b) == Ordering::Less) {
+                    best = Some(hit);
+                }
+            }
+            return TraversalAction::Continue;
+        }
+        match ray_aabb(ray, node.mins(), node.maxs()) {
+            Some(t) if best.is_none_or(|b| t <= b.distance()) => TraversalAction::Continue,
+            _ => TraversalAction::Prune,
+        }
+    });
+    best
+}
+
 /// A triangle hit by a ray.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TriangleHit {
@@ -473,23 +520,9 @@ impl ParticleBvh {
 
     /// The nearest particle along `ray`; `pos` must be the positions the tree was fitted to.
     pub fn cast(&self, ray: &Ray, pos: &Vec3s) -> Option<ParticleHit> {
-        let mut best: Option<ParticleHit> = None;
-        self.bvh.traverse(|node| {
-            if let Some(p) = node.leaf_data() {
-                let hit = hit_particle(ray, p as usize, pos.get(p as usize), self.radius);
-                if let Some(hit) = hit {
-                    if best.is_none_or(|b| hit.cmp_key(&b) == Ordering::Less) {
-                        best = Some(hit);
-                    }
-                }
-                return TraversalAction::Continue;
-            }
-            match ray_aabb(ray, node.mins(), node.maxs()) {
-                Some(t) if best.is_none_or(|b| t <= b.distance) => TraversalAction::Continue,
-                _ => TraversalAction::Prune,
-            }
-        });
-        best
+        nearest_hit(&self.bvh, ray, |p| {
+            hit_particle(ray, p as usize, pos.get(p as usize), self.radius)
+        })
     }
 }
 
@@ -592,27 +625,13 @@ impl TriangleBvh {
 
     /// The nearest triangle along `ray` (`index` is the stable id).
     pub fn cast(&self, ray: &Ray, pos: &Vec3s) -> Option<TriangleHit> {
-        let mut best: Option<TriangleHit> = None;
-        self.bvh.traverse(|node| {
-            if let Some(id) = node.leaf_data() {
-                let [a, b, c] = cell_triangle(self.grid, id as usize).map(|q| pos.get(q));
-                if let Some((distance, barycentric)) = ray_triangle(ray, a, b, c) {
-                    let hit = TriangleHit {
-                        index: id as usize,
-                        distance,
-                        barycentric,
-                    };
-                    if best.is_none_or(|b| hit.cmp_key(&b) == Ordering::Less) {
-                        best = Some(hit);
-                    }
-                }
-                return TraversalAction::Continue;
-            }
-            match ray_aabb(ray, node.mins(), node.maxs()) {
-                Some(t) if best.is_none_or(|b| t <= b.distance) => TraversalAction::Continue,
-                _ => TraversalAction::Prune,
-            }
-        });
-        best
+        nearest_hit(&self.bvh, ray, |id| {
+            let [a, b, c] = cell_triangle(self.grid, id as usize).map(|q| pos.get(q));
+            ray_triangle(ray, a, b, c).map(|(distance, barycentric)| TriangleHit {
+                index: id as usize,
+                distance,
+                barycentric,
+            })
+        })
     }
 }
