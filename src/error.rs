@@ -17,9 +17,36 @@ pub enum Error {
         index: i64,
         len: usize,
     },
-    /// A step produced a non-finite state; the simulation was rolled back to the state before
-    /// that step. Maps to `rustcloth.SimulationDiverged`.
-    Diverged { step: u64, particle: usize },
+    /// A step went wrong (see [`Trouble`]) and, where the scene asked for it, retrying it with
+    /// more substeps did not help; the simulation was rolled back to the state before step
+    /// `step`, so `steps()` reads `step - 1`. Maps to `rustcloth.SimulationDiverged`.
+    Diverged {
+        step: u64,
+        particle: usize,
+        reason: Trouble,
+        /// Most substeps the step was tried with.
+        substeps: u32,
+    },
+}
+
+/// How a step went wrong.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Trouble {
+    /// A position or velocity became infinite or NaN.
+    NonFinite,
+    /// A spring grew longer than the watchdog's `max_stretch` times its rest length; `stretch`
+    /// is the ratio `l / L` of the first such spring found.
+    Overstretched { stretch: f32, limit: f32 },
+}
+
+impl Trouble {
+    /// Its name in Python (`SimulationDiverged.reason`).
+    pub fn name(&self) -> &'static str {
+        match self {
+            Trouble::NonFinite => "non_finite",
+            Trouble::Overstretched { .. } => "overstretched",
+        }
+    }
 }
 
 impl Error {
@@ -51,12 +78,28 @@ impl fmt::Display for Error {
                     "{name}: index {index} is out of range for {len} particles"
                 )
             }
-            Error::Diverged { step, particle } => write!(
-                f,
-                "the simulation diverged at step {step}: particle {particle} became non-finite; \
-                 the state before that step was restored (try a smaller dt, more substeps, or \
-                 the implicit_euler integrator)"
-            ),
+            Error::Diverged {
+                step,
+                particle,
+                reason,
+                substeps,
+            } => {
+                write!(f, "the simulation diverged at step {step}: ")?;
+                match reason {
+                    Trouble::NonFinite => write!(f, "particle {particle} became non-finite")?,
+                    Trouble::Overstretched { stretch, limit } => write!(
+                        f,
+                        "a spring at particle {particle} stretched to {stretch:.3} times its rest \
+                         length, beyond the watchdog's max_stretch = {limit}"
+                    )?,
+                }
+                write!(
+                    f,
+                    " with {substeps} substep(s); the state before that step was restored (try a \
+                     smaller dt, more substeps, watchdog.on_trouble = \"substep\", strain \
+                     limiting, or the implicit_euler integrator)"
+                )
+            }
         }
     }
 }

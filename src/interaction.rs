@@ -413,6 +413,7 @@ impl Simulation {
                     None => {
                         self.pins.remove(p);
                         self.state.vel.set(p, Vec3::ZERO);
+                        self.invalidate_state();
                     }
                 }
             }

@@ -30,10 +30,11 @@ pub mod simd;
 pub mod simulation;
 pub mod soa;
 pub mod state;
+pub mod watchdog;
 
 #[cfg(feature = "python")]
 mod python;
 
-pub use error::{Error, Result};
+pub use error::{Error, Result, Trouble};
 pub use scene::Scene;
 pub use simulation::{Energy, Simulation};

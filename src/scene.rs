@@ -53,6 +53,78 @@ pub struct Scene {
     pub floor: Option<FloorSpec>,
     /// Spheres the cloth collides with; empty means none.
     pub spheres: Vec<SphereSpec>,
+    /// What a step does when it goes wrong (see `src/watchdog.rs`).
+    pub watchdog: WatchdogSpec,
+    /// Provot strain limiting after each substep; absent means none (no pass).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub strain_limit: Option<StrainLimitSpec>,
+}
+
+/// What a step does on trouble: a non-finite value, or (with `max_stretch`) a spring stretched
+/// beyond the limit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum OnTrouble {
+    /// Restore the last good state and raise `SimulationDiverged`.
+    Raise,
+    /// Retry the failed step with twice the substeps, then four times, ... up to
+    /// `max_substeps`; raise only if that fails too. Retries are counted in `watchdog_stats`.
+    Substep,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct WatchdogSpec {
+    /// Largest allowed stretch of any live spring, as the ratio `l / L` of its length to its
+    /// rest length (> 1). Absent by default: only non-finite values count as trouble. Checked
+    /// for free while the forces are evaluated (one compare per spring), one substep late, so a
+    /// state is judged when the next substep starts from it. Set it well above what the scene
+    /// legitimately reaches: dragging a particle with the mouse stretches its springs too.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_stretch: Option<f64>,
+    /// `"raise"` (default) or `"substep"`; see [`OnTrouble`].
+    pub on_trouble: OnTrouble,
+    /// Most substeps a retried step may use, with `on_trouble = "substep"`. Default 64: a step
+    /// that needs more than that is better served by a smaller `dt` or `implicit_euler`.
+    pub max_substeps: u32,
+    /// With `on_trouble = "substep"`: steps after a rescued step that keep its substeps before
+    /// the scene's own are tried again. Default 100. A stiff scene whose every step needs more
+    /// substeps then fails once per `hold_steps` rather than every other step; 0 retries each
+    /// step on its own.
+    pub hold_steps: u32,
+}
+
+impl Default for WatchdogSpec {
+    fn default() -> Self {
+        WatchdogSpec {
+            max_stretch: None,
+            on_trouble: OnTrouble::Raise,
+            max_substeps: 64,
+            hold_steps: 100,
+        }
+    }
+}
+
+/// Provot (1995) strain limiting: after each substep, structural and shear springs longer than
+/// `(1 + max_strain)` times their rest length are shortened back, and the velocities corrected.
+/// Lets a soft cloth (cheap, large `dt`) keep a stiff cloth's shape under load.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct StrainLimitSpec {
+    /// Largest allowed strain `(l - L) / L` (> 0). Default 0.1, Provot's 10 %.
+    pub max_strain: f64,
+    /// Jacobi iterations per substep (>= 1). Default 4. More iterations get closer to the limit
+    /// where many springs are over it at once, at one pass over the springs each.
+    pub iterations: u32,
+}
+
+impl Default for StrainLimitSpec {
+    fn default() -> Self {
+        StrainLimitSpec {
+            max_strain: 0.1,
+            iterations: 4,
+        }
+    }
 }
 
 /// The plane the cloth starts in.
@@ -156,6 +228,8 @@ impl Default for Scene {
             cloth: ClothSpec::default(),
             floor: None,
             spheres: Vec::new(),
+            watchdog: WatchdogSpec::default(),
+            strain_limit: None,
         }
     }
 }
@@ -340,6 +414,36 @@ impl Scene {
                 sphere.thickness,
                 Bound::NonNegative,
             )?;
+        }
+        self.watchdog.validate()?;
+        if let Some(limit) = &self.strain_limit {
+            check_scalar("strain_limit.max_strain", limit.max_strain, Bound::Positive)?;
+            if limit.iterations == 0 {
+                return Err(Error::value(
+                    "strain_limit.iterations",
+                    "must be an integer >= 1, got 0",
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl WatchdogSpec {
+    fn validate(&self) -> Result<()> {
+        if let Some(r) = self.max_stretch {
+            if !(r.is_finite() && r > 1.0) {
+                return Err(Error::value(
+                    "watchdog.max_stretch",
+                    format!("must be a finite ratio > 1, got {r}"),
+                ));
+            }
+        }
+        if self.max_substeps == 0 {
+            return Err(Error::value(
+                "watchdog.max_substeps",
+                "must be an integer >= 1, got 0",
+            ));
         }
         Ok(())
     }

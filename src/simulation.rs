@@ -18,7 +18,7 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::collisions::{Collider, Floor, Spheres};
-use crate::error::{check_scalar, Bound, Error, Result};
+use crate::error::{check_scalar, Bound, Error, Result, Trouble};
 use crate::forces::{AirDrag, ForceModel, ForceTerm, Gravity, SpringForce, Springs, StateRef};
 use crate::grid::{Family, Grid};
 use crate::integrators::{self, Integrator, StepContext};
@@ -28,6 +28,7 @@ use crate::profile::Profile;
 use crate::scene::{Plane, Scene};
 use crate::soa::Vec3s;
 use crate::state::{Kinematics, Particles};
+use crate::watchdog::{find_overstretched, Failure, Watchdog, WatchdogStats};
 
 /// Fewest particles per parallel work item: below this, scheduling costs more than it saves.
 const MIN_CHUNK: usize = 2048;
@@ -141,6 +142,8 @@ pub struct Simulation {
     state_version: u64,
     /// Picking trees and the grab (src/interaction.rs); built on request, never in a step.
     pub(crate) interaction: InteractionState,
+    /// Trouble detection and recovery (src/watchdog.rs).
+    watchdog: Watchdog,
 }
 
 impl Simulation {
@@ -159,7 +162,9 @@ impl Simulation {
             particles.pinned[p] = true;
             particles.refresh(p);
         }
-        let pipeline = Pipeline::compile(&scene)?;
+        let mut pipeline = Pipeline::compile(&scene)?;
+        let watchdog = Watchdog::new(&scene.watchdog, n);
+        pipeline.forces.set_stretch_limit(watchdog.stretch_limit());
         let step_start = (scene.substeps > 1).then(|| Kinematics::zeros(n));
         Ok(Simulation {
             grid,
@@ -178,6 +183,7 @@ impl Simulation {
             topology_version: 0,
             state_version: 0,
             interaction: InteractionState::default(),
+            watchdog,
             scene,
         })
     }
@@ -187,7 +193,10 @@ impl Simulation {
     /// Advances exactly `n` steps of `dt`. If a step produces a non-finite state, the state
     /// from before that step is kept and [`Error::Diverged`] names the step and the particle.
     pub fn step(&mut self, n: u64) -> Result<()> {
-        on_pool(|| (0..n).try_for_each(|_| self.step_once()))
+        on_pool(|| {
+            (0..n).try_for_each(|_| self.step_once())?;
+            self.judge_newest_state()
+        })
     }
 
     /// Adds `seconds` of requested time and runs the whole steps it covers, carrying the
@@ -203,51 +212,103 @@ impl Simulation {
         let dt = self.scene.dt;
         let pending = self.accumulator + seconds;
         let n = (pending / dt + ADVANCE_TOLERANCE).floor().max(0.0) as u64;
-        let mut taken = 0;
+        let before = self.steps;
         let outcome = on_pool(|| {
-            while taken < n {
-                self.step_once()?;
-                taken += 1;
-            }
-            Ok(())
+            (0..n).try_for_each(|_| self.step_once())?;
+            self.judge_newest_state()
         });
-        self.accumulator = pending - taken as f64 * dt;
+        // Counted from `steps`, not from the calls: a failed step can also roll back the step
+        // before it (see src/watchdog.rs).
+        self.accumulator = pending - (self.steps as f64 - before as f64) * dt;
         outcome.map(|()| n)
     }
 
+    /// One step of `dt`, with the watchdog's recovery when it goes wrong.
     fn step_once(&mut self) -> Result<()> {
         let started = Instant::now();
-        let substeps = self.scene.substeps;
-        let h = (self.scene.dt / substeps as f64) as f32;
-        if let Some(backup) = &mut self.step_start {
-            backup.copy_from(&self.state);
-        }
-        for _ in 0..substeps {
-            if !self.substep(h) {
-                let particle = first_non_finite(&self.scratch).unwrap_or(0);
-                if let Some(backup) = &self.step_start {
-                    self.state.copy_from(backup);
-                }
-                self.invalidate_state();
-                return Err(Error::Diverged {
-                    step: self.steps + 1,
-                    particle,
-                });
+        let target = self.steps + 1;
+        // Recovering from trouble found one step late reruns the previous step, moving `steps`
+        // back by one; the loop then runs this step again.
+        while self.steps < target {
+            if let Err(failure) = self.attempt_step() {
+                self.recover(failure)?;
             }
         }
-        self.steps += 1;
-        self.profile.steps += 1;
-        self.invalidate_state();
         self.profile.total += started.elapsed();
         Ok(())
     }
 
-    /// One substep of length `h`; false (and `state` untouched) if it came out non-finite.
-    fn substep(&mut self, h: f32) -> bool {
+    /// Checks the newest state against the stretch limit before a call hands it back. Inside a
+    /// run of steps each state is judged for free by the force loop of the step that continues
+    /// from it; the last one of a call has no such step, and an unstable mode can grow tenfold
+    /// in a step, so it gets this one scan (per call, not per step; only with a limit set).
+    fn judge_newest_state(&mut self) -> Result<()> {
+        // Without a limit, or with nothing stepped since the last judgement, nothing to do.
+        if !std::mem::take(&mut self.watchdog.unjudged) {
+            return Ok(());
+        }
+        match self.overstretched_in(&self.state, true) {
+            Some(failure) => self.recover(failure),
+            None => Ok(()),
+        }
+    }
+
+    /// Substeps for the next step: the scene's, or more while the watchdog holds a rescued
+    /// step's count.
+    fn step_substeps(&mut self) -> u32 {
+        match self.watchdog.hold {
+            Some((substeps, until)) if self.steps + 1 < until => {
+                self.watchdog.stats.held_steps += 1;
+                substeps
+            }
+            Some(_) => {
+                self.watchdog.hold = None;
+                self.pipeline.integrator.reset_history(); // the substep length changes
+                self.scene.substeps
+            }
+            None => self.scene.substeps,
+        }
+    }
+
+    /// One step. On failure nothing of the failed substep is kept: the state is where that
+    /// substep started, and with several substeps the step's start is in `step_start`.
+    fn attempt_step(&mut self) -> std::result::Result<(), Failure> {
+        let substeps = self.step_substeps();
+        let h = (self.scene.dt / substeps as f64) as f32;
+        if substeps > 1 {
+            let n = self.grid.len();
+            self.step_start
+                .get_or_insert_with(|| Kinematics::zeros(n))
+                .copy_from(&self.state);
+        }
+        for j in 0..substeps {
+            self.substep(h).map_err(|failure| Failure {
+                in_start_state: failure.in_start_state && j == 0,
+                substeps,
+                ..failure
+            })?;
+        }
+        // The step's start state is in `step_start`, or with one substep in `scratch`, which
+        // the substep's swap left holding it.
+        match self.step_start.as_mut().filter(|_| substeps > 1) {
+            Some(start) => self.watchdog.step_completed(start, substeps),
+            None => self.watchdog.step_completed(&mut self.scratch, substeps),
+        }
+        self.steps += 1;
+        self.profile.steps += 1;
+        self.state_stepped();
+        Ok(())
+    }
+
+    /// One substep of length `h`. On success its result becomes `state`; on failure `state` is
+    /// untouched. Trouble in the state the substep starts from (a spring over the watchdog's
+    /// limit) is reported with `in_start_state`.
+    fn substep(&mut self, h: f32) -> std::result::Result<(), Failure> {
         let chunk = chunk_len(self.grid.len());
         let pipeline = &mut self.pipeline;
         let started = Instant::now();
         let forces_before = self.profile.force_time;
+        pipeline.forces.arm_stretch_watch();
         let mut ctx = StepContext {
             grid: self.grid,
             current: &self.state,
@@ -264,8 +325,27 @@ impl Simulation {
             .elapsed()
             .saturating_sub(self.profile.force_time - forces_before);
         self.profile.add(pipeline.integrator.name(), own_time);
+        if pipeline.forces.overstretched() {
+            // The force loop and this scan run the same arithmetic, so the scan finds the spring.
+            let found = self.overstretched_in(&self.state, true);
+            debug_assert!(found.is_some(), "stretch watch and scan disagree");
+            return Err(found.unwrap_or(Failure {
+                reason: Trouble::Overstretched {
+                    stretch: f32::NAN,
+                    limit: self.watchdog.stretch_limit().unwrap_or(f32::NAN),
+                },
+                particle: 0,
+                in_start_state: true,
+                substeps: self.scene.substeps,
+            }));
+        }
         if !finite {
-            return false;
+            return Err(Failure {
+                reason: Trouble::NonFinite,
+                particle: first_non_finite(&self.scratch).unwrap_or(0),
+                in_start_state: false,
+                substeps: self.scene.substeps,
+            });
         }
         if !self.pins.is_empty() {
             let t = Instant::now();
@@ -278,12 +358,137 @@ impl Simulation {
             self.profile.add(collider.name(), t.elapsed());
         }
         std::mem::swap(&mut self.state, &mut self.scratch);
-        true
+        Ok(())
     }
 
-    pub(crate) fn invalidate_state(&mut self) {
+    /// The first spring of `state` beyond the watchdog's stretch limit, as a failure. A full
+    /// pass over the springs: only for the trouble path and the end of a retried step.
+    fn overstretched_in(&self, state: &Kinematics, in_start_state: bool) -> Option<Failure> {
+        let limit = self.watchdog.stretch_limit()?;
+        let kinds = self.pipeline.forces.spring_kinds();
+        let (particle, stretch) =
+            find_overstretched(self.grid, &self.springs, &state.pos, &kinds, limit)?;
+        Some(Failure {
+            reason: Trouble::Overstretched { stretch, limit },
+            particle,
+            in_start_state,
+            substeps: self.scene.substeps,
+        })
+    }
+
+    /// Puts back the good state before the step to blame, then retries that step or reports
+    /// it, as the scene asks.
+    fn recover(&mut self, failure: Failure) -> Result<()> {
+        self.watchdog.stats.caught += 1;
+        let mut failure = failure;
+        if failure.in_start_state {
+            // The step to blame is the last completed one, with the substeps it ran with.
+            failure.substeps = self.watchdog.last_substeps;
+        }
+        let substeps = failure.substeps;
+        if failure.in_start_state {
+            // The last completed step produced a state beyond the limit: undo it.
+            match self.watchdog.previous.as_ref() {
+                Some(previous) if self.watchdog.previous_valid => {
+                    self.state.copy_from(previous);
+                    self.watchdog.previous_valid = false;
+                    self.steps -= 1;
+                }
+                // The state came from the user or the scene, not from a step: nothing to undo
+                // or retry, and the state stays as it is.
+                _ => return Err(diverged(self.steps + 1, failure, substeps)),
+            }
+        } else if substeps > 1 {
+            if let Some(start) = &self.step_start {
+                self.state.copy_from(start);
+            }
+        }
+        self.state_stepped();
+        let step = self.steps + 1;
+        if self.watchdog.retries() {
+            self.retry_step(step, failure)
+        } else {
+            Err(diverged(step, failure, substeps))
+        }
+    }
+
+    /// Reruns step `step` from the current state with 2, 4, ... times the scene's substeps, up
+    /// to the watchdog's `max_substeps`. On failure the state is back where it started.
+    fn retry_step(&mut self, step: u64, failure: Failure) -> Result<()> {
+        let n = self.grid.len();
+        let mut start = self
+            .watchdog
+            .retry_start
+            .take()
+            .unwrap_or_else(|| Kinematics::zeros(n));
+        start.copy_from(&self.state);
+        let (mut last, mut tried) = (failure, failure.substeps);
+        let mut substeps = tried.saturating_mul(2);
+        let mut outcome = Err(());
+        while substeps <= self.watchdog.spec.max_substeps {
+            tried = substeps;
+            self.pipeline.integrator.reset_history();
+            match self.run_substeps(substeps) {
+                Ok(()) => {
+                    outcome = Ok(());
+                    break;
+                }
+                Err(f) => {
+                    last = f;
+                    self.state.copy_from(&start);
+                }
+            }
+            substeps = substeps.saturating_mul(2);
+        }
+        // The substep length changes again after the retry.
+        self.pipeline.integrator.reset_history();
+        self.state_stepped();
+        let result = match outcome {
+            Ok(()) => {
+                let stats = &mut self.watchdog.stats;
+                stats.retried += 1;
+                stats.max_substeps_used = stats.max_substeps_used.max(tried);
+                let hold = self.watchdog.spec.hold_steps as u64;
+                self.watchdog.hold = (hold > 0).then_some((tried, step + 1 + hold));
+                self.watchdog.step_completed(&mut start, tried);
+                self.steps = step;
+                self.profile.steps += 1;
+                Ok(())
+            }
+            Err(()) => Err(diverged(step, last, tried)),
+        };
+        self.watchdog.retry_start = Some(start);
+        result
+    }
+
+    /// `substeps` substeps of `dt / substeps`, and a check of the end state: a retried step must
+    /// not hand on a state the next step would reject.
+    fn run_substeps(&mut self, substeps: u32) -> std::result::Result<(), Failure> {
+        let h = (self.scene.dt / substeps as f64) as f32;
+        for _ in 0..substeps {
+            self.watchdog.stats.retry_substeps += 1;
+            self.substep(h).map_err(|failure| Failure {
+                substeps,
+                ..failure
+            })?;
+        }
+        match self.overstretched_in(&self.state, false) {
+            Some(failure) => Err(failure),
+            None => Ok(()),
+        }
+    }
+
+    /// A step changed the state: caches of derived data are stale.
+    fn state_stepped(&mut self) {
         self.derived.normals_valid = false;
         self.state_version += 1;
+    }
+
+    /// Something other than a step changed the state: caches are stale, and the watchdog must
+    /// not blame (and undo) the last step for trouble in this state.
+    pub(crate) fn invalidate_state(&mut self) {
+        self.state_stepped();
+        self.watchdog.previous_valid = false;
     }
 
     pub(crate) fn invalidate_topology(&mut self) {
@@ -378,6 +583,11 @@ impl Simulation {
             _ => 2.0 / omega,
         };
         Some(h * self.scene.substeps as f64)
+    }
+
+    /// What the watchdog caught and retried so far.
+    pub fn watchdog_stats(&self) -> WatchdogStats {
+        self.watchdog.stats
     }
 
     /// Statistics of the linear solver, when the integrator solves one (`implicit_euler`).
@@ -509,6 +719,7 @@ impl Simulation {
         self.state.heap_bytes()
             + self.scratch.heap_bytes()
             + self.step_start.as_ref().map_or(0, Kinematics::heap_bytes)
+            + self.watchdog.heap_bytes()
             + self.force.heap_bytes()
             + self.pipeline.forces.heap_bytes()
             + self.particles.heap_bytes()
@@ -595,6 +806,7 @@ impl Simulation {
             None => {
                 self.pins.remove(p);
                 self.state.vel.set(p, Vec3::ZERO);
+                self.invalidate_state();
             }
         }
         Ok(())
@@ -667,6 +879,15 @@ impl Simulation {
         self.topology_version = topology;
         self.state_version = state;
         Ok(())
+    }
+}
+
+fn diverged(step: u64, failure: Failure, substeps: u32) -> Error {
+    Error::Diverged {
+        step,
+        particle: failure.particle,
+        reason: failure.reason,
+        substeps,
     }
 }
 

@@ -77,7 +77,7 @@ fn a_diverging_step_is_rolled_back_and_reported() {
             }
             assert!(sim.steps() < 10_000, "never diverged");
         };
-        let Error::Diverged { step, particle } = err else {
+        let Error::Diverged { step, particle, .. } = err else {
             panic!("{err:?}")
         };
         assert_eq!(step, last_good.1 + 1);

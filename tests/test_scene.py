@@ -11,13 +11,16 @@ def test_defaults_are_filled_in_and_documented_keys_exist():
     d = Scene().to_dict()
     assert set(d) == {
         "integrator", "dt", "substeps", "gravity", "air_drag", "cloth", "floor", "spheres",
-        "cg_tolerance", "cg_max_iterations",
+        "cg_tolerance", "cg_max_iterations", "watchdog", "strain_limit",
     }
     assert set(d["cloth"]) >= {
         "nx", "ny", "size", "center", "plane", "k_structural", "k_shear", "k_bend",
         "damping", "pins",
     }
-    assert d["floor"] is None and d["spheres"] == []
+    assert d["floor"] is None and d["spheres"] == [] and d["strain_limit"] is None
+    assert d["watchdog"] == {
+        "max_stretch": None, "on_trouble": "raise", "max_substeps": 64, "hold_steps": 100,
+    }
     assert d["integrator"] == "symplectic_euler"
 
 

@@ -40,14 +40,28 @@ class ParticleIndexError(RustclothError, IndexError):
 
 
 class SimulationDiverged(RustclothError, FloatingPointError):
-    """A step produced a non-finite state. The simulation was restored to the state before
-    that step; ``step`` is the 1-based number of the step that failed and ``particle`` the first
-    particle that went non-finite."""
+    """A step went wrong and was not saved. The simulation was restored to the state before
+    that step, so ``Simulation.steps`` reads ``step - 1``.
 
-    def __init__(self, message: str, step: int = 0, particle: int = 0) -> None:
+    ``step`` is the 1-based number of the step that failed, ``particle`` the first particle at
+    fault, ``reason`` ``"non_finite"`` (a value became infinite or NaN) or ``"overstretched"``
+    (a spring grew beyond the scene's ``watchdog.max_stretch``), and ``substeps`` the most
+    substeps the step was tried with (more than the scene's when ``watchdog.on_trouble =
+    "substep"`` retried it)."""
+
+    def __init__(
+        self,
+        message: str,
+        step: int = 0,
+        particle: int = 0,
+        reason: str = "non_finite",
+        substeps: int = 1,
+    ) -> None:
         super().__init__(message)
         self.step = step
         self.particle = particle
+        self.reason = reason
+        self.substeps = substeps
 
 
 class StabilityWarning(RuntimeWarning):

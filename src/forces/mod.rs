@@ -11,7 +11,7 @@ mod gravity;
 pub mod springs;
 
 use std::ops::Range;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 use glam::Vec3;
@@ -47,6 +47,9 @@ pub struct ForceInput<'a> {
     /// Force on each spring's anchor, per spring kind, for the springs the particles being
     /// accumulated need; filled by [`ForceTerm::prepare`] before [`ForceTerm::accumulate`].
     pub spring_table: &'a SpringTable,
+    /// When set, [`ForceTerm::prepare`] also reports whether a live spring is longer than this
+    /// many times its rest length (the watchdog's stretch check).
+    pub stretch_watch: Option<f32>,
 }
 
 /// Per-spring anchor forces for one block of particles: for each kind, the springs anchored
@@ -86,14 +89,16 @@ pub trait ForceTerm: Send + Sync {
 
     /// Writes the force on the anchor of each spring of `kind` anchored in `range` into `out`
     /// (slices covering exactly `range`). Runs for every range before any `accumulate`, so a
-    /// spring's force is computed once and both its ends read it.
+    /// spring's force is computed once and both its ends read it. Returns whether one of these
+    /// springs is stretched beyond `input.stretch_watch` (always false when that is `None`).
     fn prepare(
         &self,
         _input: &ForceInput,
         _kind: SpringKind,
         _range: Range<usize>,
         _out: &mut Vec3SliceMut,
-    ) {
+    ) -> bool {
+        false
     }
 
     /// How the force depends on the state, for implicit integrators.
@@ -138,6 +143,12 @@ pub struct ForceModel {
     tables_for: (usize, usize),
     /// CPU nanoseconds per term during the current evaluation, summed over threads.
     cpu_nanos: Vec<AtomicU64>,
+    /// The watchdog's stretch limit (`l / L`), checked by an evaluation only when armed.
+    stretch_limit: Option<f32>,
+    /// Whether the next evaluation checks the stretch limit.
+    watch_armed: bool,
+    /// Whether the last armed evaluation found a spring beyond the limit.
+    overstretched: AtomicBool,
 }
 
 /// Particles per block: its spring table (six kinds, plus up to two grid rows of springs before
@@ -159,7 +170,27 @@ impl ForceModel {
             tables: Vec::new(),
             tables_for: (0, 0),
             cpu_nanos,
+            stretch_limit: None,
+            watch_armed: false,
+            overstretched: AtomicBool::new(false),
         }
+    }
+
+    /// Sets the watchdog's stretch limit, a ratio `l / L` (None: no stretch check).
+    pub fn set_stretch_limit(&mut self, limit: Option<f32>) {
+        self.stretch_limit = limit;
+    }
+
+    /// Makes the next evaluation (only) check every live spring against the stretch limit, in
+    /// the same loop that computes its force: one compare per spring, no extra pass.
+    pub fn arm_stretch_watch(&mut self) {
+        self.watch_armed = self.stretch_limit.is_some();
+        self.overstretched.store(false, Ordering::Relaxed);
+    }
+
+    /// Whether the last armed evaluation found a spring beyond the stretch limit.
+    pub fn overstretched(&self) -> bool {
+        self.overstretched.load(Ordering::Relaxed)
     }
 
     pub fn names(&self) -> impl Iterator<Item = &'static str> + '_ {
@@ -168,6 +199,11 @@ impl ForceModel {
 
     pub fn linearizations(&self) -> impl Iterator<Item = Linearization> + '_ {
         self.terms.iter().map(|t| t.linearization())
+    }
+
+    /// The spring kinds whose forces the model computes: those the stretch watch checks.
+    pub fn spring_kinds(&self) -> Vec<SpringKind> {
+        self.prepared.iter().map(|&(_, kind)| kind).collect()
     }
 
     /// Heap memory of the spring tables.
@@ -214,11 +250,17 @@ impl ForceModel {
             mass,
             springs,
         } = state;
+        let stretch_watch = if std::mem::take(&mut self.watch_armed) {
+            self.stretch_limit
+        } else {
+            None
+        };
         let Self {
             terms,
             prepared,
             tables,
             cpu_nanos,
+            overstretched,
             ..
         } = self;
         let timed = |t: usize, work: &mut dyn FnMut()| {
@@ -234,6 +276,7 @@ impl ForceModel {
             mass,
             springs,
             spring_table: &blank,
+            stretch_watch,
         };
         let sweep = |(c, (mut f, table)): (usize, (Vec3SliceMut, &mut SpringTable))| {
             let range = c * chunk..c * chunk + f.len();
@@ -246,7 +289,9 @@ impl ForceModel {
                     table.origin[kind.index()] = lo;
                     let mut slots = table.kinds[kind.index()].slices_mut(0..block.end - lo);
                     timed(t, &mut || {
-                        terms[t].prepare(&prepare_input, kind, lo..block.end, &mut slots)
+                        if terms[t].prepare(&prepare_input, kind, lo..block.end, &mut slots) {
+                            overstretched.store(true, Ordering::Relaxed);
+                        }
                     });
                 }
                 let input = ForceInput {
@@ -256,6 +301,7 @@ impl ForceModel {
                     mass,
                     springs,
                     spring_table: table,
+                    stretch_watch: None,
                 };
                 let mut f_block = f.sub_mut(block.start - range.start..block.end - range.start);
                 for (t, term) in terms.iter().enumerate() {

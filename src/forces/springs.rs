@@ -127,8 +127,25 @@ impl ForceTerm for SpringForce {
         kind: SpringKind,
         range: Range<usize>,
         out: &mut Vec3SliceMut,
-    ) {
-        crate::simd::dispatch!(self.spring_forces(input, kind, range.clone(), out))
+    ) -> bool {
+        // The check is a separate instantiation, so a scene without a stretch limit pays
+        // nothing for it.
+        match input.stretch_watch {
+            None => crate::simd::dispatch!(self.spring_forces::<false>(
+                input,
+                kind,
+                range.clone(),
+                out,
+                0.0
+            )),
+            Some(limit) => crate::simd::dispatch!(self.spring_forces::<true>(
+                input,
+                kind,
+                range.clone(),
+                out,
+                limit
+            )),
+        }
     }
 
     fn accumulate(&self, input: &ForceInput, range: Range<usize>, out: &mut Vec3SliceMut) {
@@ -139,14 +156,17 @@ impl ForceTerm for SpringForce {
 impl SpringForce {
     /// The force on the anchor of every spring of `kind` anchored in `range`; zero for slots
     /// with no spring. One straight loop over equal-length slices: the compiler vectorises it.
+    /// With `WATCH`, also returns whether a live spring is longer than `limit` times its rest
+    /// length ([`spring_overstretched`], the same arithmetic, gives the same answer).
     #[inline(always)]
-    fn spring_forces(
+    fn spring_forces<const WATCH: bool>(
         &self,
         input: &ForceInput,
         kind: SpringKind,
         range: Range<usize>,
         out: &mut Vec3SliceMut,
-    ) {
+        limit: f32,
+    ) -> bool {
         let (n, o) = (input.grid.len(), input.grid.offset(kind));
         let len = range
             .len()
@@ -180,9 +200,14 @@ impl SpringForce {
         let active = &input.springs.active[kind.index()][a];
         let (fx, fy, fz) = (&mut out.x[..len], &mut out.y[..len], &mut out.z[..len]);
         let (k, c) = (self.k, self.c);
+        // An integer OR, like `FiniteCheck`, so the loop still vectorises.
+        let mut over = 0u32;
         for i in 0..len {
             let (dx, dy, dz) = (xb[i] - xa[i], yb[i] - ya[i], zb[i] - za[i]);
             let l = (dx * dx + dy * dy + dz * dz).sqrt();
+            if WATCH {
+                over |= spring_overstretched(l, rest[i], active[i], limit) as u32;
+            }
             let inv_l = if l > 0.0 { 1.0 / l } else { 0.0 };
             let (ux, uy, uz) = (dx * inv_l, dy * inv_l, dz * inv_l);
             let closing = (vxb[i] - vxa[i]) * ux + (vyb[i] - vya[i]) * uy + (vzb[i] - vza[i]) * uz;
@@ -194,6 +219,7 @@ impl SpringForce {
         for f in [&mut *out.x, &mut *out.y, &mut *out.z] {
             f[len..].fill(0.0);
         }
+        over != 0
     }
 
     /// Adds each particle's spring forces from the table: `+F` of the springs it anchors, `-F`
@@ -221,6 +247,13 @@ impl SpringForce {
             }
         }
     }
+}
+
+/// Whether a spring of length `l` (m), rest length `rest` and `active` flag (0 or 1) is longer
+/// than `limit` times its rest length. A dead slot (`active = 0`) never is.
+#[inline(always)]
+pub fn spring_overstretched(l: f32, rest: f32, active: f32, limit: f32) -> bool {
+    active * l > limit * rest
 }
 
 /// A run of `len` consecutive particles `a..`, their neighbours `b..` along one spring kind,

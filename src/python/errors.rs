@@ -19,9 +19,12 @@ pub fn to_py(err: Error) -> PyErr {
         Error::IndexOutOfRange { name, index, .. } => {
             ParticleIndexError::new_err((message, name, index))
         }
-        Error::Diverged { step, particle } => {
-            SimulationDiverged::new_err((message, step, particle))
-        }
+        Error::Diverged {
+            step,
+            particle,
+            reason,
+            substeps,
+        } => SimulationDiverged::new_err((message, step, particle, reason.name(), substeps)),
     }
 }
 

@@ -23,10 +23,17 @@ fn scene_from_dict(obj: &Bound<'_, PyAny>) -> PyResult<Scene> {
 fn scene_to_dict<'py>(py: Python<'py>, scene: &Scene) -> PyResult<Bound<'py, PyAny>> {
     let value = toml::Value::try_from(scene).expect("a scene always serialises");
     let dict = from_toml(py, &value)?;
-    // TOML has no null: spell out the absent floor as None, as users write it.
+    // TOML has no null: spell out absent optional keys as None, as users write them.
     let dict = dict.cast_into::<PyDict>()?;
-    if !dict.contains("floor")? {
-        dict.set_item("floor", py.None())?;
+    for key in ["floor", "strain_limit"] {
+        if !dict.contains(key)? {
+            dict.set_item(key, py.None())?;
+        }
+    }
+    let watchdog = dict.get_item("watchdog")?.expect("always serialised");
+    let watchdog = watchdog.cast_into::<PyDict>()?;
+    if !watchdog.contains("max_stretch")? {
+        watchdog.set_item("max_stretch", py.None())?;
     }
     Ok(dict.into_any())
 }
@@ -260,6 +267,18 @@ impl PySimulation {
     /// the current substeps, or None when any `dt` is (implicit Euler, or no springs).
     fn stable_dt(&self) -> Option<f64> {
         self.inner.stable_dt()
+    }
+
+    /// What the watchdog caught and retried since the start.
+    fn watchdog_stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let stats = self.inner.watchdog_stats();
+        let out = PyDict::new(py);
+        out.set_item("caught", stats.caught)?;
+        out.set_item("retried", stats.retried)?;
+        out.set_item("retry_substeps", stats.retry_substeps)?;
+        out.set_item("max_substeps_used", stats.max_substeps_used)?;
+        out.set_item("held_steps", stats.held_steps)?;
+        Ok(out)
     }
 
     fn reset(&mut self) -> PyResult<()> {
