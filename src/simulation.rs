@@ -17,7 +17,7 @@ use std::time::Instant;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
-use crate::collisions::{Collider, Floor, Spheres};
+use crate::collisions::{Collider, Floor, FloorLevel, Spheres};
 use crate::error::{check_scalar, Bound, Error, Result, Trouble};
 use crate::forces::{AirDrag, ForceModel, ForceTerm, Gravity, SpringForce, Springs, StateRef};
 use crate::grid::{Family, Grid};
@@ -90,7 +90,11 @@ impl Pipeline {
         }
         let mut colliders: Vec<Box<dyn Collider>> = Vec::new();
         if !scene.spheres.is_empty() {
-            colliders.push(Box::new(Spheres::new(&scene.spheres)));
+            let floor = scene
+                .floor
+                .as_ref()
+                .map(|f| FloorLevel((f.height + f.thickness) as f32));
+            colliders.push(Box::new(Spheres::new(&scene.spheres, floor)));
         }
         if let Some(floor) = &scene.floor {
             colliders.push(Box::new(Floor {
@@ -552,37 +556,19 @@ impl Simulation {
     }
 
     /// The largest step `dt` (s) at which the current integrator is estimated to stay stable
-    /// with the scene's substeps, or None when any step is (implicit Euler, or no springs).
-    ///
-    /// The stiffest mode of the cloth at rest has `omega^2 = 4 (k_structural + k_shear +
-    /// k_bend) / m` to within 5 % (checked against the eigenvalues of the assembled stiffness
-    /// matrix), with `m` the lightest moving particle. Symplectic Euler and Verlet need
-    /// `h omega < 2`, RK4 `h omega < 2 sqrt 2`; explicit Euler is unstable for every undamped
-    /// mode and needs `h < 2 gamma / omega^2`, `gamma` the spring damping rate of that mode,
-    /// `3 c / m` with all three families (0 when `damping = 0`: never stable).
+    /// with the current substeps, or None when any step is (implicit Euler, or no springs).
+    /// [`Scene::stable_dt`] with the lightest moving particle's mass, which bounds the stiffest
+    /// mode also when masses differ (`set_masses`).
     pub fn stable_dt(&self) -> Option<f64> {
-        let cloth = &self.scene.cloth;
-        let families = [cloth.k_structural, cloth.k_shear, cloth.k_bend];
-        let k_sum: f64 = families.iter().sum();
         let m = (0..self.grid.len())
             .filter(|&p| self.particles.is_dynamic(p))
             .map(|p| self.particles.mass[p] as f64)
             .fold(f64::INFINITY, f64::min);
-        if k_sum == 0.0 || !m.is_finite() {
+        if !m.is_finite() {
             return None;
         }
-        let omega = (4.0 * k_sum / m).sqrt();
-        let h = match self.pipeline.integrator.name() {
-            "implicit_euler" => return None,
-            "rk4" => 2.0 * std::f64::consts::SQRT_2 / omega,
-            "explicit_euler" => {
-                let active = families.iter().filter(|&&k| k > 0.0).count() as f64;
-                let gamma = active * cloth.damping / m + self.scene.air_drag / m;
-                2.0 * gamma / (omega * omega)
-            }
-            _ => 2.0 / omega,
-        };
-        Some(h * self.scene.substeps as f64)
+        crate::scene::stable_substep(&self.scene, self.pipeline.integrator.name(), m)
+            .map(|h| h * self.scene.substeps as f64)
     }
 
     /// What the watchdog caught and retried so far.
@@ -750,6 +736,35 @@ impl Simulation {
             }
         }
         self.invalidate_state();
+        self.pipeline.integrator.reset_history();
+        Ok(())
+    }
+
+    /// Replaces every particle's mass (kg, each finite and > 0, within float32), for cloths of
+    /// uneven weight: a weighted hem, a heavy patch. Rejects a bad value, changing nothing.
+    /// Pinned and cut particles keep their new mass for when they move again. The explicit
+    /// integrators' stable step follows the lightest particle (`stable_dt`).
+    pub fn set_masses(&mut self, masses: &[f64]) -> Result<()> {
+        let n = self.grid.len();
+        if masses.len() != n {
+            return Err(Error::value(
+                "masses",
+                format!("must hold {n} values, got {}", masses.len()),
+            ));
+        }
+        for (p, &m) in masses.iter().enumerate() {
+            check_scalar(&format!("masses[{p}]"), m, Bound::Positive)?;
+            if (m as f32) == 0.0 || !(1.0 / m as f32).is_finite() {
+                return Err(Error::value(
+                    format!("masses[{p}]"),
+                    format!("must be representable in float32 with a finite inverse, got {m}"),
+                ));
+            }
+        }
+        for (p, &m) in masses.iter().enumerate() {
+            self.particles.mass[p] = m as f32;
+            self.particles.refresh(p);
+        }
         self.pipeline.integrator.reset_history();
         Ok(())
     }

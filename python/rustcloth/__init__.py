@@ -15,7 +15,7 @@ from .errors import (
     SimulationDiverged,
     StabilityWarning,
 )
-from .scene import Scene, load_scene, scenes
+from .scene import Scene, StabilityReport, load_scene, scenes
 from .simulation import Energy, PassTime, Profile, Simulation
 
 INTEGRATORS: tuple[str, ...] = tuple(_core.INTEGRATORS)
@@ -35,6 +35,7 @@ __all__ = [
     "Scene",
     "Simulation",
     "SimulationDiverged",
+    "StabilityReport",
     "StabilityWarning",
     "load_scene",
     "scenes",

@@ -8,13 +8,17 @@ exists is a scene that runs. See the README for every key, its unit and default.
 from __future__ import annotations
 
 import copy
+import math
 import os
+import warnings
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from . import _core
+from .errors import StabilityWarning
 
 
 def _plain(value: Any) -> Any:
@@ -87,6 +91,31 @@ class Scene:
                 data[key] = value
         return Scene.from_dict(data)
 
+    def stability_report(self, warn: bool = True) -> StabilityReport:
+        """How the scene's step compares with the largest stable step of each integrator.
+
+        Estimated from the stiffest mode of the cloth, ``omega = sqrt(4 (k_structural + k_shear
+        + k_bend) / m)`` (within 5 % of the assembled stiffness matrix's largest eigenvalue):
+        symplectic Euler and Verlet need ``omega h < 2`` with ``h = dt / substeps``, RK4
+        ``omega h < 2 sqrt 2``, explicit Euler ``h < 2 gamma / omega^2`` (``gamma`` the spring
+        damping rate), implicit Euler nothing. With ``warn``, a scene whose integrator is past its
+        limit raises a :class:`~rustcloth.errors.StabilityWarning` as well.
+        """
+        limits: dict[str, float | None] = {}
+        omega = 0.0
+        for name in _core.INTEGRATORS:
+            limits[name], omega = _core.scene_stability(self._data, name)
+        report = StabilityReport(
+            integrator=self._data["integrator"],
+            dt=self._data["dt"],
+            substeps=self._data["substeps"],
+            omega=omega,
+            stable_dt=limits,
+        )
+        if warn and not report.stable:
+            warnings.warn(str(report), StabilityWarning, stacklevel=2)
+        return report
+
     def __getattr__(self, name: str) -> Any:
         try:
             return copy.deepcopy(self._data[name])
@@ -110,6 +139,57 @@ class Scene:
             f"Scene({cloth['nx']}x{cloth['ny']} cloth, {self._data['integrator']}, "
             f"dt={self._data['dt']:g}" + "".join(f", {e}" for e in extras) + ")"
         )
+
+
+@dataclass(frozen=True)
+class StabilityReport:
+    """The result of :meth:`Scene.stability_report`. ``stable_dt`` maps each integrator to the
+    largest stable ``dt`` (s) with the scene's substeps, or None where any ``dt`` is."""
+
+    integrator: str
+    dt: float
+    substeps: int
+    #: Angular frequency of the stiffest mode, rad/s.
+    omega: float
+    stable_dt: dict[str, float | None]
+
+    @property
+    def limit(self) -> float | None:
+        """The largest stable ``dt`` of the scene's own integrator."""
+        return self.stable_dt[self.integrator]
+
+    @property
+    def stable(self) -> bool:
+        return self.limit is None or self.dt <= self.limit
+
+    def substeps_needed(self, integrator: str | None = None) -> int | None:
+        """Fewest substeps at which ``integrator`` (default: the scene's) is stable at the
+        scene's ``dt``; None if it never is (explicit Euler without damping) or always is."""
+        limit = self.stable_dt[integrator or self.integrator]
+        if limit is None:
+            return None
+        per_substep = limit / self.substeps
+        if per_substep <= 0.0:
+            return None
+        return max(1, math.ceil(self.dt / per_substep))
+
+    def __str__(self) -> str:
+        lines = [
+            f"dt = {self.dt:g} s with {self.substeps} substep(s); stiffest mode "
+            f"omega = {self.omega:.4g} rad/s"
+        ]
+        for name, limit in self.stable_dt.items():
+            mark = "*" if name == self.integrator else " "
+            if limit is None:
+                verdict = "stable at any dt" if name == "implicit_euler" else "no springs"
+            elif limit == 0.0:
+                verdict = "never stable (no damping)"
+            else:
+                needed = self.substeps_needed(name)
+                ok = "ok" if self.dt <= limit else f"UNSTABLE, needs {needed} substeps"
+                verdict = f"stable up to dt = {limit:.3g} s: {ok}"
+            lines.append(f"{mark} {name:17s} {verdict}")
+        return "\n".join(lines)
 
 
 def scenes() -> list[str]:

@@ -12,7 +12,7 @@ mod sphere;
 use glam::Vec3;
 
 pub use floor::Floor;
-pub use sphere::Spheres;
+pub use sphere::{FloorLevel, Spheres};
 
 use crate::state::{Kinematics, Particles};
 

@@ -12,12 +12,20 @@ pub struct Spheres {
     spheres: Vec<Sphere>,
 }
 
+/// The lowest height (m) a particle may have when the scene also has a floor: its height plus
+/// its thickness.
+#[derive(Clone, Copy, Debug)]
+pub struct FloorLevel(pub f32);
+
 #[derive(Clone, Copy, Debug)]
 struct Sphere {
     center: Vec3,
     /// Radius plus thickness: the surface particles are kept on.
     reach: f32,
     friction: f32,
+    /// The floor's level where the sphere reaches below it (a ball standing on the floor),
+    /// else minus infinity. See [`Sphere::surface`].
+    floor: f32,
 }
 
 /// Projections land this far outside `reach` (relative), so that rounding in `center + n * reach`
@@ -25,13 +33,22 @@ struct Sphere {
 const SURFACE_MARGIN: f32 = 1e-5;
 
 impl Spheres {
-    pub fn new(specs: &[SphereSpec]) -> Self {
+    /// The spheres of a scene; `floor` is the floor's level when the scene has one.
+    pub fn new(specs: &[SphereSpec], floor: Option<FloorLevel>) -> Self {
         let spheres = specs
             .iter()
-            .map(|s| Sphere {
-                center: DVec3::from(s.center).as_vec3(),
-                reach: (s.radius + s.thickness) as f32,
-                friction: s.friction as f32,
+            .map(|s| {
+                let center = DVec3::from(s.center).as_vec3();
+                let reach = (s.radius + s.thickness) as f32;
+                Sphere {
+                    center,
+                    reach,
+                    friction: s.friction as f32,
+                    floor: floor
+                        .map(|f| f.0)
+                        .filter(|&f| center.y - reach < f)
+                        .unwrap_or(f32::NEG_INFINITY),
+                }
             })
             .collect();
         Spheres { spheres }
@@ -40,14 +57,26 @@ impl Spheres {
 
 impl Sphere {
     /// Where the particle moving from `p0` to `p1` ends up, and the contact normal if it
-    /// touched: the entry point of the segment into the sphere when it started outside, the
-    /// nearest surface point when it started inside.
+    /// touched: the surface point nearest `p1` when `p1` is inside on the side it came from or
+    /// it started inside; the entry point of the segment when it crossed the middle or passed
+    /// right through (tunnelling).
     #[inline]
     fn contact(&self, p0: Vec3, p1: Vec3) -> Option<(Vec3, Vec3)> {
+        // Judge the end point where the floor pass, which runs next, will leave it: a particle
+        // under the floor beside a ball standing on it is lifted, possibly into the ball.
+        let p1 = Vec3::new(p1.x, p1.y.max(self.floor), p1.z);
         let r2 = self.reach * self.reach;
         let rel1 = p1 - self.center;
         let rel0 = p0 - self.center;
         let started_outside = rel0.length_squared() >= r2;
+        let ends_inside = rel1.length_squared() < r2;
+        if started_outside && ends_inside && rel1.dot(rel0) > 0.0 {
+            // Stopped short of the middle: the nearest surface point keeps the particle's motion
+            // along the surface, as the floor does. The entry point would drop that motion from
+            // the position while the velocity kept it, and a cloth resting on the sphere gained
+            // energy every step (see the regression test in tests/stability.rs).
+            return Some(self.surface(rel1.normalize_or(rel0.normalize_or(Vec3::Y))));
+        }
         if started_outside {
             // Solve |rel0 + t d|^2 = reach^2 for the first t in [0, 1].
             let d = p1 - p0;
@@ -61,16 +90,38 @@ impl Sphere {
                 return None;
             }
             let t = (-b - disc.sqrt()) / a;
-            if t > 1.0 && rel1.length_squared() >= r2 {
+            if t > 1.0 && !ends_inside {
                 return None;
             }
             let n = (rel0 + t.clamp(0.0, 1.0) * d).normalize_or(rel0.normalize_or(Vec3::Y));
-            Some((n, self.center + n * (self.reach * (1.0 + SURFACE_MARGIN))))
-        } else if rel1.length_squared() < r2 {
-            let n = rel1.normalize_or(rel0.normalize_or(Vec3::Y));
-            Some((n, self.center + n * (self.reach * (1.0 + SURFACE_MARGIN))))
+            Some(self.surface(n))
+        } else if ends_inside {
+            Some(self.surface(rel1.normalize_or(rel0.normalize_or(Vec3::Y))))
         } else {
             None
+        }
+    }
+
+    /// The point just outside the surface along the outward normal `n`, and the normal there.
+    ///
+    /// Where the sphere reaches below the floor, that point can lie under it, and the floor
+    /// pass, which runs next, would lift the particle straight back into the sphere: a cloth
+    /// caught in the crease between a ball and the floor it stands on sank into the ball. Such a
+    /// point moves up the surface to the floor's level instead, in the same vertical plane,
+    /// where both constraints hold.
+    #[inline]
+    fn surface(&self, n: Vec3) -> (Vec3, Vec3) {
+        let scale = self.reach * (1.0 + SURFACE_MARGIN);
+        let point = self.center + n * scale;
+        match self.floor {
+            level if point.y < level => {
+                let drop = level - self.center.y;
+                let ring = (scale * scale - drop * drop).max(0.0).sqrt();
+                let across = Vec3::new(n.x, 0.0, n.z).normalize_or(Vec3::X);
+                let n = (across * ring + Vec3::Y * drop) / scale;
+                (n, self.center + across * ring + Vec3::Y * drop)
+            }
+            _ => (n, point),
         }
     }
 }
@@ -90,11 +141,12 @@ impl Spheres {
         let (x0, y0, z0) = (&p0.x[..n], &p0.y[..n], &p0.z[..n]);
         out.fill(false);
         for sphere in &self.spheres {
-            let c = sphere.center;
+            let (c, floor) = (sphere.center, sphere.floor);
             for i in 0..n {
                 let (dx, dy, dz) = (x1[i] - x0[i], y1[i] - y0[i], z1[i] - z0[i]);
                 let travel = (dx * dx + dy * dy + dz * dz).sqrt();
-                let (rx, ry, rz) = (x1[i] - c.x, y1[i] - c.y, z1[i] - c.z);
+                // As in `contact`: where the floor will leave the particle.
+                let (rx, ry, rz) = (x1[i] - c.x, y1[i].max(floor) - c.y, z1[i] - c.z);
                 let limit = (sphere.reach + travel) * (1.0 + 1e-4) + 1e-6;
                 out[i] |= rx * rx + ry * ry + rz * rz < limit * limit;
             }
@@ -160,6 +212,7 @@ mod tests {
 
     fn unit_sphere() -> Sphere {
         Sphere {
+            floor: f32::NEG_INFINITY,
             center: Vec3::ZERO,
             reach: 1.0,
             friction: 0.0,

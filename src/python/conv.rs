@@ -1,7 +1,8 @@
 //! Conversions between Python objects and core types. Every failure names the parameter.
 
 use numpy::{
-    PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArray, PyUntypedArrayMethods,
+    PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArray,
+    PyUntypedArrayMethods,
 };
 use pyo3::exceptions::PyOverflowError;
 use pyo3::prelude::*;
@@ -115,17 +116,46 @@ pub fn vec3s_from_array(obj: &Bound<'_, PyAny>, name: &str, n: usize) -> PyResul
             out.set(p, glam::DVec3::new(row[0], row[1], row[2]).as_vec3());
         }
     } else {
-        let dtype = untyped
-            .dtype()
-            .str()
-            .map(|s| s.to_string())
-            .unwrap_or_default();
-        return Err(type_error(
-            name,
-            format!("must have dtype float32 or float64, got {dtype}"),
-        ));
+        return Err(dtype_error(untyped, name));
     }
     Ok(out)
+}
+
+/// `TypeError` for an array that is neither float32 nor float64.
+fn dtype_error(array: &Bound<'_, PyUntypedArray>, name: &str) -> PyErr {
+    let dtype = array
+        .dtype()
+        .str()
+        .map(|s| s.to_string())
+        .unwrap_or_default();
+    type_error(
+        name,
+        format!("must have dtype float32 or float64, got {dtype}"),
+    )
+}
+
+/// An `(n,)` float32 or float64 numpy array as f64 values.
+pub fn f64s_from_array(obj: &Bound<'_, PyAny>, name: &str, n: usize) -> PyResult<Vec<f64>> {
+    let Ok(untyped) = obj.cast::<PyUntypedArray>() else {
+        let kind = type_name(obj);
+        return Err(type_error(
+            name,
+            format!("must be a numpy array of shape ({n},), got {kind}"),
+        ));
+    };
+    if untyped.shape() != [n] {
+        return Err(value_error(
+            name,
+            format!("must have shape ({n},), got {:?}", untyped.shape()),
+        ));
+    }
+    if let Ok(array) = obj.extract::<PyReadonlyArray1<'_, f32>>() {
+        Ok(array.as_array().iter().map(|&x| x as f64).collect())
+    } else if let Ok(array) = obj.extract::<PyReadonlyArray1<'_, f64>>() {
+        Ok(array.as_array().to_vec())
+    } else {
+        Err(dtype_error(untyped, name))
+    }
 }
 
 /// SoA vectors as a new `(n, 3)` float32 array: the one copy a read costs.

@@ -13,7 +13,10 @@ use pyo3::types::{PyDict, PyList};
 
 use crate::scene::{Scene, INTEGRATORS};
 use crate::Simulation;
-use conv::{from_toml, index_from_any, to_toml, vec3_from_any, vec3s_from_array, vec3s_to_array};
+use conv::{
+    f64s_from_array, from_toml, index_from_any, to_toml, vec3_from_any, vec3s_from_array,
+    vec3s_to_array,
+};
 use errors::{value_error, IntoPyResult};
 
 fn scene_from_dict(obj: &Bound<'_, PyAny>) -> PyResult<Scene> {
@@ -55,6 +58,23 @@ fn scene_from_toml<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py, PyAn
 #[pyfunction]
 fn scene_to_toml(scene: &Bound<'_, PyAny>) -> PyResult<String> {
     Ok(scene_from_dict(scene)?.to_toml_string())
+}
+
+/// The largest stable `dt` of a scene dict with `integrator`, and its stiffest mode's angular
+/// frequency (rad/s).
+#[pyfunction]
+fn scene_stability(scene: &Bound<'_, PyAny>, integrator: &str) -> PyResult<(Option<f64>, f64)> {
+    let scene = scene_from_dict(scene)?;
+    if !crate::scene::INTEGRATORS.contains(&integrator) {
+        return Err(value_error(
+            "integrator",
+            format!(
+                "unknown integrator {integrator:?}; valid ones are {:?}",
+                crate::scene::INTEGRATORS
+            ),
+        ));
+    }
+    Ok((scene.stable_dt(integrator), scene.max_frequency()))
 }
 
 /// Names of the built-in scenes.
@@ -165,6 +185,12 @@ impl PySimulation {
         let n = self.inner.grid().len();
         let values = vec3s_from_array(positions, "positions", n)?;
         self.inner.set_positions(&values).py()
+    }
+
+    fn set_masses(&mut self, masses: &Bound<'_, PyAny>) -> PyResult<()> {
+        let n = self.inner.grid().len();
+        let values = f64s_from_array(masses, "masses", n)?;
+        self.inner.set_masses(&values).py()
     }
 
     fn set_velocities(&mut self, velocities: &Bound<'_, PyAny>) -> PyResult<()> {
@@ -346,6 +372,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(scene_to_toml, m)?)?;
     m.add_function(wrap_pyfunction!(builtin_scenes, m)?)?;
     m.add_function(wrap_pyfunction!(builtin_scene, m)?)?;
+    m.add_function(wrap_pyfunction!(scene_stability, m)?)?;
     m.add("INTEGRATORS", INTEGRATORS.to_vec())?;
     Ok(())
 }
