@@ -30,6 +30,7 @@ pub mod simd;
 pub mod simulation;
 pub mod soa;
 pub mod state;
+pub mod strain_limit;
 
 #[cfg(feature = "python")]
 mod python;
