@@ -30,6 +30,7 @@ pub mod simd;
 pub mod simulation;
 pub mod soa;
 pub mod state;
+pub mod strain_limit;
 pub mod watchdog;
 
 #[cfg(feature = "python")]
