@@ -396,6 +396,7 @@ impl Scene {
         if self.substeps == 0 {
             return Err(Error::value("substeps", "must be an integer >= 1, got 0"));
         }
+        check_substep("dt", self.dt, self.substeps)?;
         check_vector("gravity", &self.gravity, Bound::Any)?;
         check_scalar("air_drag", self.air_drag, Bound::NonNegative)?;
         check_scalar("cg_tolerance", self.cg_tolerance, Bound::Positive)?;
@@ -531,6 +532,24 @@ impl ClothSpec {
         out
     }
 }
+
+/// The solver steps in float32 by `h = dt / substeps`: below a nanosecond it is a rounding
+/// error next to any time scale of cloth, and at float32's limit it becomes zero.
+pub(crate) fn check_substep(name: &str, dt: f64, substeps: u32) -> Result<()> {
+    let h = dt / substeps as f64;
+    if h < MIN_SUBSTEP {
+        return Err(Error::value(
+            name,
+            format!(
+                "dt / substeps must be at least {MIN_SUBSTEP:e} s, got {dt} / {substeps} = {h:e}"
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The shortest substep `dt / substeps` in s.
+pub const MIN_SUBSTEP: f64 = 1e-9;
 
 /// The largest substep `h` (s) at which `integrator` stays stable on the scene's cloth with
 /// particles of mass `m` (kg), or None when any is (implicit Euler, or no springs).

@@ -7,7 +7,8 @@
 //!    its scheme needs;
 //! 2. the integrator, writing the end-of-step state into a second buffer;
 //! 3. kinematic pins (while the user drags a pinned particle);
-//! 4. colliders (spheres, then the floor).
+//! 4. strain limiting (when the scene asks for it, `src/strain_limit.rs`);
+//! 5. colliders (spheres, then the floor).
 //!
 //! The buffers are swapped only when the integrator reports a finite result, so a step that
 //! diverges leaves the previous state in place.
@@ -25,9 +26,10 @@ use crate::integrators::{self, Integrator, StepContext};
 use crate::interaction::InteractionState;
 use crate::pins::KinematicPins;
 use crate::profile::Profile;
-use crate::scene::{Plane, Scene};
+use crate::scene::{check_substep, Plane, Scene};
 use crate::soa::Vec3s;
 use crate::state::{Kinematics, Particles};
+use crate::strain_limit::StrainLimit;
 use crate::watchdog::{find_overstretched, Failure, Watchdog, WatchdogStats};
 
 /// Fewest particles per parallel work item: below this, scheduling costs more than it saves.
@@ -59,6 +61,8 @@ impl Energy {
 struct Pipeline {
     forces: ForceModel,
     integrator: Box<dyn Integrator>,
+    /// Only when the scene asks for strain limiting.
+    strain_limit: Option<StrainLimit>,
     colliders: Vec<Box<dyn Collider>>,
 }
 
@@ -106,6 +110,10 @@ impl Pipeline {
         Ok(Pipeline {
             forces: ForceModel::new(terms),
             integrator: integrators::by_name(&scene.integrator, scene.solver_settings())?,
+            strain_limit: scene
+                .strain_limit
+                .as_ref()
+                .map(|s| StrainLimit::new(s.max_strain as f32, s.iterations)),
             colliders,
         })
     }
@@ -356,6 +364,20 @@ impl Simulation {
             self.pins.apply(h, &self.state, &mut self.scratch);
             self.profile.add(KinematicPins::NAME, t.elapsed());
         }
+        // After the pins, so that the limit pulls the cloth after a dragged particle rather
+        // than back to where it was; before the colliders, so that contacts have the last word.
+        if let Some(limit) = &mut pipeline.strain_limit {
+            let t = Instant::now();
+            limit.apply(
+                h,
+                self.grid,
+                &self.springs,
+                &self.particles,
+                &mut self.scratch,
+                chunk,
+            );
+            self.profile.add(StrainLimit::NAME, t.elapsed());
+        }
         for collider in &pipeline.colliders {
             let t = Instant::now();
             collider.resolve(&self.state, &mut self.scratch, &self.particles, chunk);
@@ -547,6 +569,9 @@ impl Simulation {
         if !self.pins.is_empty() {
             out.push(KinematicPins::NAME);
         }
+        if self.pipeline.strain_limit.is_some() {
+            out.push(StrainLimit::NAME);
+        }
         out.extend(self.pipeline.colliders.iter().map(|c| c.name()));
         out
     }
@@ -706,6 +731,11 @@ impl Simulation {
             + self.scratch.heap_bytes()
             + self.step_start.as_ref().map_or(0, Kinematics::heap_bytes)
             + self.watchdog.heap_bytes()
+            + self
+                .pipeline
+                .strain_limit
+                .as_ref()
+                .map_or(0, StrainLimit::heap_bytes)
             + self.force.heap_bytes()
             + self.pipeline.forces.heap_bytes()
             + self.particles.heap_bytes()
@@ -870,6 +900,7 @@ impl Simulation {
                 format!("must be an integer >= 1, got {substeps}"),
             ));
         }
+        check_substep("substeps", self.scene.dt, substeps as u32)?;
         self.scene.substeps = substeps as u32;
         self.pipeline.integrator.reset_history();
         if substeps > 1 && self.step_start.is_none() {
@@ -881,6 +912,7 @@ impl Simulation {
     /// Changes the time step (s, > 0); the carried remainder of `advance` is kept in seconds.
     pub fn set_dt(&mut self, dt: f64) -> Result<()> {
         check_scalar("dt", dt, Bound::Positive)?;
+        check_substep("dt", dt, self.scene.substeps)?;
         self.scene.dt = dt;
         self.pipeline.integrator.reset_history();
         Ok(())
