@@ -30,7 +30,7 @@ use crate::scene::{check_substep, Plane, Scene};
 use crate::soa::Vec3s;
 use crate::state::{Kinematics, Particles};
 use crate::strain_limit::StrainLimit;
-use crate::watchdog::{find_overstretched, Failure, Watchdog, WatchdogStats};
+use crate::watchdog::{any_overstretched, find_overstretched, Failure, Watchdog, WatchdogStats};
 
 /// Fewest particles per parallel work item: below this, scheduling costs more than it saves.
 const MIN_CHUNK: usize = 2048;
@@ -388,10 +388,14 @@ impl Simulation {
     }
 
     /// The first spring of `state` beyond the watchdog's stretch limit, as a failure. A full
-    /// pass over the springs: only for the trouble path and the end of a retried step.
+    /// pass over the springs: for the newest state of a call, the end of a retried step and the
+    /// trouble path.
     fn overstretched_in(&self, state: &Kinematics, in_start_state: bool) -> Option<Failure> {
         let limit = self.watchdog.stretch_limit()?;
         let kinds = self.pipeline.forces.spring_kinds();
+        if !any_overstretched(self.grid, &self.springs, &state.pos, &kinds, limit) {
+            return None;
+        }
         let (particle, stretch) =
             find_overstretched(self.grid, &self.springs, &state.pos, &kinds, limit)?;
         Some(Failure {

@@ -22,6 +22,8 @@
 //! for `hold_steps` steps, since what made one step fail usually persists. [`WatchdogStats`]
 //! counts what happened.
 
+use rayon::prelude::*;
+
 use crate::error::Trouble;
 use crate::forces::springs::spring_overstretched;
 use crate::forces::Springs;
@@ -116,9 +118,72 @@ impl Watchdog {
     }
 }
 
+/// Particles per parallel work item of [`any_overstretched`].
+const SCAN_CHUNK: usize = 8192;
+
+/// Whether a live spring of `kinds` is longer than `limit` times its rest length: the check of
+/// the force loop as a read-only pass of its own, for the newest state of a call. Parallel and
+/// vectorised like the force loop (an integer OR of compares), since with one step per call it
+/// runs once per step.
+pub(crate) fn any_overstretched(
+    grid: Grid,
+    springs: &Springs,
+    pos: &Vec3s,
+    kinds: &[SpringKind],
+    limit: f32,
+) -> bool {
+    // One parallel loop over chunks of anchors, every kind inside: a parallel loop per kind
+    // cost more in thread wake-ups than the scan itself at 128 x 128.
+    let n = grid.len();
+    (0..n.div_ceil(SCAN_CHUNK)).into_par_iter().any(|c| {
+        kinds.iter().any(|&kind| {
+            let (k, o) = (kind.index(), grid.offset(kind));
+            let anchors = n.saturating_sub(o);
+            let a = (c * SCAN_CHUNK).min(anchors)..((c + 1) * SCAN_CHUNK).min(anchors);
+            let b = a.start + o..a.end + o;
+            let input = ScanInput {
+                a: [
+                    pos.component(0, &a),
+                    pos.component(1, &a),
+                    pos.component(2, &a),
+                ],
+                b: [
+                    pos.component(0, &b),
+                    pos.component(1, &b),
+                    pos.component(2, &b),
+                ],
+                rest: &springs.rest[k][a.clone()],
+                active: &springs.active[k][a],
+            };
+            crate::simd::dispatch!(scan(&input, limit))
+        })
+    })
+}
+
+struct ScanInput<'a> {
+    a: [&'a [f32]; 3],
+    b: [&'a [f32]; 3],
+    rest: &'a [f32],
+    active: &'a [f32],
+}
+
+#[inline(always)]
+fn scan(input: &ScanInput, limit: f32) -> bool {
+    let n = input.rest.len();
+    let ([xa, ya, za], [xb, yb, zb]) = (input.a.map(|v| &v[..n]), input.b.map(|v| &v[..n]));
+    let (rest, active) = (&input.rest[..n], &input.active[..n]);
+    let mut over = 0u32;
+    for i in 0..n {
+        let (dx, dy, dz) = (xb[i] - xa[i], yb[i] - ya[i], zb[i] - za[i]);
+        let l = (dx * dx + dy * dy + dz * dz).sqrt();
+        over |= spring_overstretched(l, rest[i], active[i], limit) as u32;
+    }
+    over != 0
+}
+
 /// The first live spring of `kinds` longer than `limit` times its rest length, as `(anchor
 /// particle, l / L)`. The same arithmetic as the check in the force loop, so the two agree on
-/// every spring; a full pass, run only on the trouble path.
+/// every spring; a serial pass, run only on the trouble path.
 pub(crate) fn find_overstretched(
     grid: Grid,
     springs: &Springs,
