@@ -393,11 +393,11 @@ impl Simulation {
     fn overstretched_in(&self, state: &Kinematics, in_start_state: bool) -> Option<Failure> {
         let limit = self.watchdog.stretch_limit()?;
         let kinds = self.pipeline.forces.spring_kinds();
-        if !any_overstretched(self.grid, &self.springs, &state.pos, &kinds, limit) {
+        if !any_overstretched(self.grid, &self.springs, &state.pos, kinds, limit) {
             return None;
         }
         let (particle, stretch) =
-            find_overstretched(self.grid, &self.springs, &state.pos, &kinds, limit)?;
+            find_overstretched(self.grid, &self.springs, &state.pos, kinds, limit)?;
         Some(Failure {
             reason: Trouble::Overstretched { stretch, limit },
             particle,

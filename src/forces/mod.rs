@@ -137,6 +137,8 @@ pub struct ForceModel {
     terms: Vec<Box<dyn ForceTerm>>,
     /// `(term, kind)` for every spring kind some term prepares.
     prepared: Vec<(usize, SpringKind)>,
+    /// The kinds of `prepared`.
+    kinds: Vec<SpringKind>,
     /// One table per work item, reused by its blocks; sized on the first evaluation.
     tables: Vec<SpringTable>,
     /// `(particles, chunk)` the tables were sized for.
@@ -159,13 +161,15 @@ pub const BLOCK: usize = 4096;
 impl ForceModel {
     pub fn new(terms: Vec<Box<dyn ForceTerm>>) -> Self {
         let cpu_nanos = terms.iter().map(|_| AtomicU64::new(0)).collect();
-        let prepared = terms
+        let prepared: Vec<(usize, SpringKind)> = terms
             .iter()
             .enumerate()
             .flat_map(|(t, term)| term.prepared_kinds().iter().map(move |&kind| (t, kind)))
             .collect();
+        let kinds = prepared.iter().map(|&(_, kind)| kind).collect();
         ForceModel {
             terms,
+            kinds,
             prepared,
             tables: Vec::new(),
             tables_for: (0, 0),
@@ -202,8 +206,8 @@ impl ForceModel {
     }
 
     /// The spring kinds whose forces the model computes: those the stretch watch checks.
-    pub fn spring_kinds(&self) -> Vec<SpringKind> {
-        self.prepared.iter().map(|&(_, kind)| kind).collect()
+    pub fn spring_kinds(&self) -> &[SpringKind] {
+        &self.kinds
     }
 
     /// Heap memory of the spring tables.
