@@ -113,8 +113,9 @@ class Simulation(_core.Simulation):
     def step(self, n: int = 1) -> None:
         """Advance exactly ``n`` steps of ``dt``.
 
-        Raises :class:`~rustcloth.errors.SimulationDiverged` if a step produces a non-finite
-        state; the state from before that step is kept.
+        Raises :class:`~rustcloth.errors.SimulationDiverged` if a step goes wrong (a non-finite
+        value, or a spring beyond the scene's ``watchdog.max_stretch``) and is not saved by a
+        retry (``watchdog.on_trouble = "substep"``); the state from before that step is kept.
         """
         super().step(n)
 
