@@ -605,6 +605,13 @@ pub fn stable_substep(scene: &Scene, integrator: &str, m: f64) -> Option<f64> {
 /// The particles a pin entry names.
 fn pin_indices(pin: &PinSpec, grid: Grid) -> Result<Vec<usize>> {
     let (nx, ny) = (grid.nx, grid.ny);
+    if grid.is_empty() {
+        // `pinned_indices` may be asked before validation: nothing to pin, and no `nx - 1`.
+        return Err(Error::value(
+            "pins",
+            format!("the {nx} x {ny} grid has no particles"),
+        ));
+    }
     let (last_i, last_j) = (nx - 1, ny - 1);
     let row = |j: usize| (0..nx).map(move |i| grid.index(i, j));
     let column = |i: usize| (0..ny).map(move |j| grid.index(i, j));
