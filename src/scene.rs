@@ -22,6 +22,11 @@ pub const INTEGRATORS: &[&str] = &[
 /// fit a GPU index buffer. 4096 x 4096 is far beyond interactive rates anyway.
 pub const MAX_PARTICLES: usize = 1 << 24;
 
+/// Largest `radius + thickness` of a sphere, in m: the collider squares it in float32 (whose
+/// largest value is 3.4e38), so a reach beyond about 1.8e19 m would make every particle
+/// "inside" and project it to infinity.
+pub const MAX_SPHERE_REACH: f64 = 1e19;
+
 /// A whole scene. Field defaults are those of [`Scene::default`].
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -411,6 +416,16 @@ impl Scene {
             check_scalar("floor.height", floor.height, Bound::Any)?;
             check_scalar("floor.friction", floor.friction, Bound::NonNegative)?;
             check_scalar("floor.thickness", floor.thickness, Bound::NonNegative)?;
+            // The collider keeps particles at `height + thickness`, summed in float32.
+            if !(floor.height as f32 + floor.thickness as f32).is_finite() {
+                return Err(Error::value(
+                    "floor.thickness",
+                    format!(
+                        "height + thickness must be within f32 range (<= 3.4e38), got {} + {}",
+                        floor.height, floor.thickness
+                    ),
+                ));
+            }
         }
         for (s, sphere) in self.spheres.iter().enumerate() {
             check_vector(&format!("spheres[{s}].center"), &sphere.center, Bound::Any)?;
@@ -429,6 +444,15 @@ impl Scene {
                 sphere.thickness,
                 Bound::NonNegative,
             )?;
+            if sphere.radius + sphere.thickness > MAX_SPHERE_REACH {
+                return Err(Error::value(
+                    format!("spheres[{s}].radius"),
+                    format!(
+                        "radius + thickness must be at most {MAX_SPHERE_REACH:e} m, got {} + {}",
+                        sphere.radius, sphere.thickness
+                    ),
+                ));
+            }
         }
         self.watchdog.validate()?;
         if let Some(limit) = &self.strain_limit {
