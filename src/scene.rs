@@ -510,6 +510,24 @@ impl ClothSpec {
         }
         check_vector("cloth.size", &self.size, Bound::Positive)?;
         check_vector("cloth.center", &self.center, Bound::Any)?;
+        // The starting positions, `center +- size / 2` along the plane's axes, are float32.
+        let (ei, ej) = match self.plane {
+            Plane::Xz => (0, 2),
+            Plane::Xy => (0, 1),
+        };
+        for (axis, half) in [(ei, self.size[0] / 2.0), (ej, self.size[1] / 2.0)] {
+            let reach = self.center[axis].abs() + half;
+            if reach > f32::MAX as f64 {
+                return Err(Error::value(
+                    "cloth.size",
+                    format!(
+                        "the cloth reaches {}{reach:e} m along {}, beyond f32 range (3.4e38)",
+                        if self.center[axis] < 0.0 { "-" } else { "" },
+                        ["x", "y", "z"][axis]
+                    ),
+                ));
+            }
+        }
         match (self.particle_mass, self.mass) {
             (Some(_), Some(_)) => {
                 return Err(Error::value(

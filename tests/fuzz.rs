@@ -3,7 +3,7 @@
 
 mod common;
 
-use rustcloth::scene::{ClothSpec, FloorSpec, PinSpec, SphereSpec};
+use rustcloth::scene::{ClothSpec, FloorSpec, PinSpec, Plane, SphereSpec};
 use rustcloth::{Scene, Simulation};
 
 /// The first non-finite row of positions or velocities, described.
@@ -79,4 +79,27 @@ fn issue_sphere_of_radius_f32_max() {
     });
     let err = scene.validate().unwrap_err();
     assert!(err.to_string().starts_with("floor.thickness"), "{err}");
+}
+
+/// A cloth whose edge lies beyond float32's range started at infinity. Validation checked
+/// `size` and `center` one value at a time, each within f32 range, but the starting positions
+/// are `center +- size / 2`: a cloth 1e38 m wide centred at x = -3.4e38 validated, and
+/// `Simulation::new` gave it a corner at x = -inf, a non-finite state before any call. Found
+/// by `operation_sequences_keep_the_state_finite_or_unchanged` (the check after
+/// `Simulation::new`). Validation now rejects a cloth that reaches beyond f32 range.
+#[test]
+fn issue_cloth_edge_beyond_f32_range() {
+    let mut scene = common::bare_scene(2, 2);
+    scene.cloth.size = [1e38, 0.1];
+    scene.cloth.center = [-(f32::MAX as f64), 0.0, 0.0];
+    let err = Simulation::new(scene.clone()).err().unwrap();
+    assert!(err.to_string().starts_with("cloth.size"), "{err}");
+    // In the xy plane the second extent runs along y.
+    scene.cloth.size = [0.1, 1e38];
+    scene.cloth.center = [0.0, f32::MAX as f64, 0.0];
+    scene.cloth.plane = Plane::Xy;
+    assert!(scene.validate().is_err());
+    scene.cloth.plane = Plane::Xz;
+    let sim = Simulation::new(scene).unwrap();
+    assert_eq!(non_finite(&sim), None);
 }
