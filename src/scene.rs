@@ -290,9 +290,13 @@ const BUILTIN: &[(&str, &str)] = &[
 impl Scene {
     /// Parses and validates a TOML document.
     pub fn from_toml_str(text: &str) -> Result<Scene> {
-        let deserializer = toml::de::Deserializer::parse(text)
-            .map_err(|e| Error::value("scene", format!("not valid TOML: {}", e.message())))?;
-        Self::from_deserializer(deserializer)
+        // Through a parsed table, the path a Python dict takes, so that both give the same
+        // errors. (Deserialised straight from the text, a TOML date-time is a private one-key
+        // map, whose key `$__toml_private_datetime` leaked into the messages.)
+        let table: toml::Table = text.parse().map_err(|e: toml::de::Error| {
+            Error::value("scene", format!("not valid TOML: {}", e.message()))
+        })?;
+        Self::from_toml_value(toml::Value::Table(table))
     }
 
     /// Builds and validates a scene from an already parsed TOML value (the binding converts a

@@ -8,7 +8,7 @@ use rustcloth::interaction::PickStrategy;
 use rustcloth::picking::{pick_triangle_brute_force, Ray};
 use rustcloth::scene::{ClothSpec, FloorSpec, PinSpec, Plane, SphereSpec};
 use rustcloth::soa::Vec3s;
-use rustcloth::{Scene, Simulation};
+use rustcloth::{Error, Scene, Simulation};
 
 /// The first non-finite row of positions or velocities, described.
 fn non_finite(sim: &Simulation) -> Option<String> {
@@ -153,5 +153,32 @@ fn issue_pick_triangle_from_far_away() {
                 assert_eq!(got, want, "{strategy:?}, {distance} m, ray {k}");
             }
         }
+    }
+}
+
+/// A TOML date-time where the schema wants something else got a different error from
+/// `Scene::from_toml_str` than from `Scene::from_toml_value` (the path of a Python dict),
+/// though scene.rs promises every caller the same errors. Deserialised straight from the text,
+/// toml hands a date-time to serde as a private one-key map: `cloth = 1979-05-27` failed with
+/// "cloth.$__toml_private_datetime: unknown field `$__toml_private_datetime`" (a bad value,
+/// naming toml's internal key) and `dt = 1979-05-27` with "invalid type: map", while the
+/// parsed-value path said "invalid type: string \"1979-05-27\"" for both. Found by
+/// `toml_documents_parse_or_fail_cleanly`, which compares the two paths. `from_toml_str` now
+/// parses into a table and takes the value path.
+#[test]
+fn issue_toml_datetime_leaked_a_private_key() {
+    for text in [
+        "cloth = 1979-05-27",
+        "dt = 1979-05-27",
+        "[floor]\nheight = 07:32:00",
+    ] {
+        let err = Scene::from_toml_str(text).unwrap_err();
+        assert!(!err.to_string().contains("$__toml"), "{text}: {err}");
+        assert!(matches!(err, Error::InvalidType { .. }), "{text}: {err}");
+        let table = text.parse::<toml::Table>().unwrap();
+        assert_eq!(
+            Scene::from_toml_value(toml::Value::Table(table)).unwrap_err(),
+            err
+        );
     }
 }
