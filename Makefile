@@ -10,7 +10,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 RUST_SOURCES := $(shell find src benches -name '*.rs') Cargo.toml Cargo.lock $(wildcard scenes/*.toml)
 
-.PHONY: all demo test test-long lint fmt bench bench-peers accuracy setup system-deps clean
+.PHONY: all demo test test-long fuzz lint fmt bench bench-peers accuracy setup system-deps clean
 
 all: test
 
@@ -44,6 +44,18 @@ test: setup lint
 
 test-long: setup
 	$(PY) -m pytest -q
+
+# The property-based fuzz suite (tests/fuzz.rs) at length: `make test` runs it briefly with a
+# fixed seed; this runs FUZZ_CASES cases of each property in release mode with a fresh seed
+# (printed; FUZZ_SEED=... repeats a run). A failure prints the shrunk input.
+FUZZ_CASES ?= 20000
+ifndef FUZZ_SEED
+FUZZ_SEED := $(shell od -An -N4 -tu4 /dev/urandom | tr -d ' ')
+endif
+
+fuzz:
+	@echo "fuzz: $(FUZZ_CASES) cases per property, seed $(FUZZ_SEED)"
+	PROPTEST_CASES=$(FUZZ_CASES) PROPTEST_RNG_SEED=$(FUZZ_SEED) cargo test --release --test fuzz
 
 lint: setup
 	cargo fmt --check
