@@ -543,6 +543,21 @@ impl ClothSpec {
             (None, Some(m)) => check_scalar("cloth.mass", m, Bound::Positive)?,
             (None, None) => {}
         }
+        // Each particle's mass is float32 and so is its inverse, as `set_masses` demands.
+        let (name, m) = match (self.particle_mass, self.mass) {
+            (Some(m), _) => ("cloth.particle_mass", m),
+            (None, Some(total)) => ("cloth.mass", total / count as f64),
+            (None, None) => ("cloth.particle_mass", 0.001),
+        };
+        if (m as f32) == 0.0 || !(1.0 / m as f32).is_finite() {
+            return Err(Error::value(
+                name,
+                format!(
+                    "each particle's mass ({m:e} kg) must be representable in float32 with a \
+                     finite inverse"
+                ),
+            ));
+        }
         check_scalar("cloth.k_structural", self.k_structural, Bound::NonNegative)?;
         check_scalar("cloth.k_shear", self.k_shear, Bound::NonNegative)?;
         check_scalar("cloth.k_bend", self.k_bend, Bound::NonNegative)?;

@@ -1632,6 +1632,39 @@ fn issue_toml_datetime_leaked_a_private_key() {
     }
 }
 
+/// A scene could ask for particles lighter than float32 can invert, and with strain limiting
+/// their positions became NaN. `cloth.particle_mass = 1e-45` (or a total `mass` that shares
+/// out that small) validated, being finite and positive in f64, but in float32 it is the
+/// smallest subnormal and its inverse is infinite. Integration survives that (a force times
+/// an infinite inverse mass is caught as a divergence), but the strain-limit pass weights
+/// each correction by `w_a / (w_a + w_b)` = inf / inf = NaN, and the NaN left the step, whose
+/// passes after the integrator are not checked (see `issue_kinematic_pin_velocity_overflows`).
+/// `set_masses` already rejected such masses. Found by
+/// `operation_sequences_keep_the_state_finite_or_unchanged` (a `grab` and a step) once strain
+/// limiting reached main. Validation now applies `set_masses`'s rule to the scene's mass.
+#[test]
+fn issue_particle_mass_without_a_float32_inverse() {
+    let mut scene = common::bare_scene(2, 3);
+    scene.strain_limit = Some(StrainLimitSpec {
+        max_strain: 0.01,
+        iterations: 1,
+    });
+    scene.cloth.particle_mass = Some(1e-45);
+    let err = Simulation::new(scene.clone()).err().unwrap();
+    assert!(err.to_string().starts_with("cloth.particle_mass"), "{err}");
+    scene.cloth.particle_mass = None;
+    scene.cloth.mass = Some(1e-44);
+    let err = scene.validate().unwrap_err();
+    assert!(err.to_string().starts_with("cloth.mass"), "{err}");
+    // Light, but with a float32 inverse: fine.
+    scene.cloth.mass = Some(1e-30);
+    let mut sim = Simulation::new(scene).unwrap();
+    sim.set_positions(&Vec3s::from_fn(6, |p| 2.0 * sim.positions().get(p)))
+        .unwrap();
+    let _ = sim.step(1);
+    assert_eq!(non_finite(&sim), None);
+}
+
 /// Dragging a particle far within one step overflows its velocity, and the infinity escapes.
 /// A kinematic pin (a grab, or `pin` with a target) puts the particle on its target and gives
 /// it the velocity of that move, `(target - x) / h`, in float32 (`KinematicPins::apply`,
