@@ -941,14 +941,14 @@ fn known_escape(sim: &Simulation) -> Option<&'static str> {
     if bad.iter().all(|&p| pinned[p]) {
         return Some("known bug: issue_kinematic_pin_velocity_overflows");
     }
-    // Only velocities, with a sphere wholly under the floor's level.
+    // With a sphere wholly under the floor's level.
     let scene = sim.scene();
     let buried = scene.floor.as_ref().is_some_and(|f| {
         let level = (f.height + f.thickness) as f32;
         let top = |s: &SphereSpec| s.center[1] as f32 + (s.radius + s.thickness) as f32;
         scene.spheres.iter().any(|s| top(s) < level)
     });
-    if buried && bad.iter().all(|&p| pos.get(p).is_finite()) {
+    if buried {
         return Some("known bug: issue_sphere_under_the_floor_blows_up_velocities");
     }
     None
@@ -1748,15 +1748,16 @@ fn issue_sphere_contact_velocity_overflows() {
 /// `(across * ring + Y * drop) / scale`, `drop = level - center.y`. That is a unit vector only
 /// while the floor cuts the sphere (`drop <= scale`); for a sphere buried under the floor,
 /// `ring` clamps to 0 and the normal is `drop / scale` long (2e16 for a 5 cm ball 1e15 m
-/// under), and `contact_velocity` multiplies the velocity by its square. Such a sphere catches
-/// particles through rounding: a cloth lifted to the floor 1e15 m up, where float32 cannot
-/// resolve a 5 cm ball; or a sphere more than 1.8e19 m away, whose `|p - c|^2` overflows, the
-/// swept test's discriminant is `inf - inf = NaN` and `t = NaN` slips through
+/// under), and `contact_velocity` multiplies the velocity by its square; where `drop` itself
+/// overflows (a floor at 3.4e38 over a ball at -3.4e38) the position is infinite too. Such a
+/// sphere catches particles through rounding: a cloth lifted to the floor 1e15 m up, where
+/// float32 cannot resolve a 5 cm ball; or a sphere more than 1.8e19 m away, whose `|p - c|^2`
+/// overflows, the swept test's discriminant is `inf - inf = NaN` and `t = NaN` slips through
 /// `if t > 1.0 { None }` (without a floor that "catch" moved the particle onto the far sphere's
 /// surface: finite, caught as a divergence a step later). Found by
 /// `operation_sequences_keep_the_state_finite_or_unchanged` on its first runs after the
 /// floor-level change reached main, in several forms (the two below; a ball at y = -1e6 under
-/// a floor at -0.8). The fix belongs in src/collisions/sphere.rs: a sphere wholly under the
+/// a floor at -0.8; a floor at 3.4e38). The fix belongs in src/collisions/sphere.rs: a sphere wholly under the
 /// floor can take no contact (or keep the normal a unit vector), and a non-finite `t` is no
 /// hit (`!(t <= 1.0)`); and, for any pass, in `Simulation::substep`, which does not check the
 /// colliders' output.
