@@ -57,9 +57,9 @@ fn config(cases: u32) -> Config {
         // Shrinking a long operation sequence replays it many times; cap it so that a failure
         // in a long run reports within a minute or so.
         max_shrink_iters: 4096,
-        // Rejections are scenes the validation turns down (about 7 % of `scene_small`) and
-        // cases that hit a known bug (about 3 % of the operation sequences): a long run sees
-        // tens of thousands, more than proptest's default limits.
+        // Rejections are scenes the validation turns down (about a tenth of `scene_small`)
+        // and cases that hit a known bug (a few percent of the operation sequences): a long
+        // run sees a hundred thousand, more than proptest's default limits.
         max_local_rejects: u32::MAX,
         max_global_rejects: u32::MAX,
         ..Config::default()
