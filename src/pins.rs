@@ -39,10 +39,16 @@ impl KinematicPins {
         self.targets.clear();
     }
 
-    pub fn apply(&self, h: f32, start: &Kinematics, next: &mut Kinematics) {
+    /// Puts every target's particle on it; returns whether the velocities it wrote are finite
+    /// (a drag across float32's range overflows).
+    pub fn apply(&self, h: f32, start: &Kinematics, next: &mut Kinematics) -> bool {
+        let mut finite = true;
         for &(p, target) in &self.targets {
-            next.vel.set(p, (target - start.pos.get(p)) / h);
+            let v = (target - start.pos.get(p)) / h;
+            next.vel.set(p, v);
             next.pos.set(p, target);
+            finite &= v.is_finite();
         }
+        finite
     }
 }

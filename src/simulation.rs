@@ -41,6 +41,10 @@ const MIN_CHUNK: usize = 2048;
 /// frame-time difference.
 const ADVANCE_TOLERANCE: f64 = 1e-6;
 
+/// Most steps one `advance` call may take: a larger request is a mistake (a frame time in ms
+/// taken for s), and would hold the caller for days.
+pub const MAX_ADVANCE_STEPS: u64 = u32::MAX as u64;
+
 /// Kinetic, gravitational potential and elastic energy in J.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Energy {
@@ -213,7 +217,9 @@ impl Simulation {
 
     /// Adds `seconds` of requested time and runs the whole steps it covers, carrying the
     /// remainder to the next call; returns the steps taken. The result depends only on the total
-    /// time requested, not on how it was split into calls.
+    /// time requested, not on how it was split into calls. After a failed step the time not
+    /// simulated stays owed, so the next call tries those steps again. At most
+    /// [`MAX_ADVANCE_STEPS`] steps per call.
     pub fn advance(&mut self, seconds: f64) -> Result<u64> {
         if !(seconds.is_finite() && seconds >= 0.0) {
             return Err(Error::value(
@@ -223,7 +229,17 @@ impl Simulation {
         }
         let dt = self.scene.dt;
         let pending = self.accumulator + seconds;
-        let n = (pending / dt + ADVANCE_TOLERANCE).floor().max(0.0) as u64;
+        let steps = (pending / dt + ADVANCE_TOLERANCE).floor().max(0.0);
+        if steps > MAX_ADVANCE_STEPS as f64 {
+            return Err(Error::value(
+                "seconds",
+                format!(
+                    "{seconds} s would take {steps:e} steps of dt = {dt} s; one call takes at \
+                     most {MAX_ADVANCE_STEPS} (call it in pieces, or raise dt)"
+                ),
+            ));
+        }
+        let n = steps as u64;
         let before = self.steps;
         let outcome = on_pool(|| {
             (0..n).try_for_each(|_| self.step_once())?;
@@ -359,16 +375,19 @@ impl Simulation {
                 substeps: self.scene.substeps,
             });
         }
+        // The passes after the integrator report whether what they wrote is finite; they write
+        // few values (a drag, contacts, limited springs), so checking costs next to nothing.
+        let mut finite = true;
         if !self.pins.is_empty() {
             let t = Instant::now();
-            self.pins.apply(h, &self.state, &mut self.scratch);
+            finite &= self.pins.apply(h, &self.state, &mut self.scratch);
             self.profile.add(KinematicPins::NAME, t.elapsed());
         }
         // After the pins, so that the limit pulls the cloth after a dragged particle rather
         // than back to where it was; before the colliders, so that contacts have the last word.
         if let Some(limit) = &mut pipeline.strain_limit {
             let t = Instant::now();
-            limit.apply(
+            let stats = limit.apply(
                 h,
                 self.grid,
                 &self.springs,
@@ -376,12 +395,21 @@ impl Simulation {
                 &mut self.scratch,
                 chunk,
             );
+            finite &= stats.finite;
             self.profile.add(StrainLimit::NAME, t.elapsed());
         }
         for collider in &pipeline.colliders {
             let t = Instant::now();
-            collider.resolve(&self.state, &mut self.scratch, &self.particles, chunk);
+            finite &= collider.resolve(&self.state, &mut self.scratch, &self.particles, chunk);
             self.profile.add(collider.name(), t.elapsed());
+        }
+        if !finite {
+            return Err(Failure {
+                reason: Trouble::NonFinite,
+                particle: first_non_finite(&self.scratch).unwrap_or(0),
+                in_start_state: false,
+                substeps: self.scene.substeps,
+            });
         }
         std::mem::swap(&mut self.state, &mut self.scratch);
         Ok(())
@@ -434,6 +462,8 @@ impl Simulation {
             }
         }
         self.state_stepped();
+        // The restored state was judged good; a call that takes no step must not judge again.
+        self.watchdog.unjudged = false;
         let step = self.steps + 1;
         if self.watchdog.retries() {
             self.retry_step(step, failure)
@@ -519,6 +549,9 @@ impl Simulation {
     pub(crate) fn invalidate_state(&mut self) {
         self.state_stepped();
         self.watchdog.previous_valid = false;
+        // A state the user set is judged when a step starts from it, not at the end of a call
+        // that took no step.
+        self.watchdog.unjudged = false;
     }
 
     pub(crate) fn invalidate_topology(&mut self) {

@@ -69,6 +69,7 @@ use rayon::prelude::*;
 use crate::forces::springs::{neighbour_runs, Run};
 use crate::forces::Springs;
 use crate::grid::{Grid, SpringKind};
+use crate::integrators::FiniteCheck;
 use crate::soa::{Vec3SliceMut, Vec3s};
 use crate::state::{Kinematics, Particles};
 
@@ -81,7 +82,7 @@ pub const LIMITED_KINDS: [SpringKind; 4] = [
 ];
 
 /// What one [`StrainLimit::apply`] did, measured by its last check (after the last sweep).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StrainStats {
     /// Correction sweeps that moved something: 0 when nothing was over the limit.
     pub iterations: u32,
@@ -91,6 +92,20 @@ pub struct StrainStats {
     /// Largest relative stretch `l / L - 1` over all live structural and shear springs, or 0
     /// when none is stretched.
     pub worst_strain: f32,
+    /// Whether every value the pass wrote is finite.
+    pub finite: bool,
+}
+
+impl Default for StrainStats {
+    /// A pass that found nothing to do.
+    fn default() -> Self {
+        StrainStats {
+            iterations: 0,
+            over_limit: 0,
+            worst_strain: 0.0,
+            finite: true,
+        }
+    }
 }
 
 /// Provot strain limiting: after integration, structural and shear springs stretched beyond
@@ -232,12 +247,11 @@ impl StrainLimit {
             sweeps += 1;
             check = kernel.check(written, count, chunk);
         }
-        if sweeps > 0 {
-            correct_state(next, written, h, chunk);
-        }
+        let finite = sweeps == 0 || correct_state(next, written, h, chunk);
         StrainStats {
             iterations: sweeps,
             over_limit: check.over,
+            finite,
             worst_strain: check.worst_ratio2.sqrt() - 1.0,
         }
     }
@@ -475,13 +489,16 @@ impl Kernel<'_> {
 
 /// Writes the limited positions `limited` into `next` and adds the move over `h` to the
 /// velocities. A component that did not move keeps its velocity bits.
-fn correct_state(next: &mut Kinematics, limited: &Vec3s, h: f32, chunk: usize) {
+/// Returns whether every velocity is finite afterwards (`dx / h` overflows for a move near
+/// float32's range).
+fn correct_state(next: &mut Kinematics, limited: &Vec3s, h: f32, chunk: usize) -> bool {
     let Kinematics { pos, vel } = next;
     pos.par_chunks_mut(chunk)
         .zip(vel.par_chunks_mut(chunk))
         .enumerate()
-        .for_each(|(c, (mut x, mut v))| {
+        .map(|(c, (mut x, mut v))| {
             let range = c * chunk..c * chunk + x.len();
+            let mut check = FiniteCheck::default();
             for comp in 0..3 {
                 let (x, v) = (x.component_mut(comp), v.component_mut(comp));
                 let new = limited.component(comp, &range);
@@ -491,9 +508,12 @@ fn correct_state(next: &mut Kinematics, limited: &Vec3s, h: f32, chunk: usize) {
                         v[i] += dx / h;
                     }
                     x[i] = new[i];
+                    check.watch(v[i]);
                 }
             }
-        });
+            check.all_finite()
+        })
+        .reduce(|| true, |a, b| a & b)
 }
 
 #[cfg(test)]

@@ -17,9 +17,7 @@
 //! ```
 //!
 //! A failure prints the shrunk input and the seed; rerunning with that `PROPTEST_RNG_SEED`
-//! reproduces it. A case that runs into a known bug whose fix lies elsewhere (the ignored
-//! regression tests at the end) is rejected, not failed, so that the search goes on;
-//! `FUZZ_STRICT=1` fails it instead. Failure persistence is off: proptest's regression files store RNG seeds that
+//! reproduces it. Failure persistence is off: proptest's regression files store RNG seeds that
 //! mean nothing once a strategy changes, so each bug found becomes a named regression test at
 //! the end of this file instead, opening with its story.
 
@@ -57,20 +55,12 @@ fn config(cases: u32) -> Config {
         // Shrinking a long operation sequence replays it many times; cap it so that a failure
         // in a long run reports within a minute or so.
         max_shrink_iters: 4096,
-        // Rejections are scenes the validation turns down (about a tenth of `scene_small`)
-        // and cases that hit a known bug (a few percent of the operation sequences): a long
-        // run sees a hundred thousand, more than proptest's default limits.
+        // Rejections are scenes the validation turns down (about a tenth of `scene_small`): a
+        // long run sees a hundred thousand, more than proptest's default limits.
         max_local_rejects: u32::MAX,
         max_global_rejects: u32::MAX,
         ..Config::default()
     }
-}
-
-/// Known bugs whose fix lies in files this suite does not touch (see the ignored regression
-/// tests at the end). A case that hits one is rejected (proptest draws another) instead of
-/// failing, so that the rest of the search goes on; `FUZZ_STRICT=1` makes them failures.
-fn strict() -> bool {
-    std::env::var("FUZZ_STRICT").is_ok_and(|v| v == "1")
 }
 
 /// Largest grid the scene property builds a simulation for (validation is checked for all).
@@ -919,41 +909,6 @@ fn ensure_finite(sim: &Simulation, what: &str) -> Result<(), TestCaseError> {
     }
 }
 
-/// After a step that succeeded: a non-finite state is a failure, unless it is one of the known
-/// escapes whose fix lies elsewhere (the ignored regression tests at the end), recognised by
-/// what only they produce.
-fn ensure_finite_after_step(sim: &Simulation, what: &str) -> Result<(), TestCaseError> {
-    if let Some(bug) = known_escape(sim).filter(|_| !strict()) {
-        return Err(TestCaseError::reject(bug));
-    }
-    ensure_finite(sim, what)
-}
-
-fn known_escape(sim: &Simulation) -> Option<&'static str> {
-    let (pos, vel, pinned) = (sim.positions(), sim.velocities(), &sim.particles().pinned);
-    let bad: Vec<usize> = (0..sim.grid().len())
-        .filter(|&p| !(pos.get(p).is_finite() && vel.get(p).is_finite()))
-        .collect();
-    if bad.is_empty() {
-        return None;
-    }
-    // Only pinned particles: a static pin never moves, so these are dragged ones.
-    if bad.iter().all(|&p| pinned[p]) {
-        return Some("known bug: issue_kinematic_pin_velocity_overflows");
-    }
-    // With a sphere wholly under the floor's level.
-    let scene = sim.scene();
-    let buried = scene.floor.as_ref().is_some_and(|f| {
-        let level = (f.height + f.thickness) as f32;
-        let top = |s: &SphereSpec| s.center[1] as f32 + (s.radius + s.thickness) as f32;
-        scene.spheres.iter().any(|s| top(s) < level)
-    });
-    if buried {
-        return Some("known bug: issue_sphere_under_the_floor_blows_up_velocities");
-    }
-    None
-}
-
 /// A call's outcome against the promise: Ok leaves a finite state, Err changes nothing.
 fn ensure_kept<T: std::fmt::Debug>(
     sim: &Simulation,
@@ -1001,16 +956,9 @@ fn ensure_stepped(
 ) -> Result<u64, TestCaseError> {
     match outcome {
         Ok(()) => {
-            ensure_finite_after_step(sim, what)?;
+            ensure_finite(sim, what)?;
             prop_assert_eq!(sim.steps(), before.steps + asked, "{}: step count", what);
             Ok(asked)
-        }
-        Err(Error::Diverged { .. }) if asked == 0 && !strict() => {
-            // A call that ran no step: the known stale judgement. It must keep the state.
-            prop_assert!(Snapshot::of(sim) == *before, "{what} changed the state");
-            Err(TestCaseError::reject(
-                "known bug: issue_zero_step_call_reports_a_divergence",
-            ))
         }
         Err(Error::Diverged { step, particle, .. }) => {
             prop_assert!(
@@ -1033,7 +981,7 @@ fn ensure_stepped(
                     "{what}: diverged at its first step but did not restore the state"
                 );
             }
-            ensure_finite_after_step(sim, what)?;
+            ensure_finite(sim, what)?;
             Ok(step - 1 - before.steps)
         }
         Err(e) => Err(TestCaseError::fail(format!(
@@ -1435,7 +1383,7 @@ fn run_ops(scene: Scene, ops: &[Op], tally: &mut Tally) -> Result<(), TestCaseEr
 }
 
 /// The strategies reach what they are meant to: calls that succeed, calls that fail, steps
-/// that diverge; few are skipped as too costly, few cases hit a known bug.
+/// that diverge; few are skipped as too costly.
 #[test]
 fn operation_strategies_reach_every_outcome() {
     use proptest::strategy::ValueTree;
@@ -1446,25 +1394,19 @@ fn operation_strategies_reach_every_outcome() {
         ..config(60)
     });
     let strategy = (scene_small(), prop::collection::vec(op(), 1..40));
-    let (mut tally, mut known_bug) = (Tally::default(), 0);
+    let mut tally = Tally::default();
     for _ in 0..60 {
         let (scene, ops) = strategy.new_tree(&mut runner).unwrap().current();
-        match run_ops(scene, &ops, &mut tally) {
-            Ok(()) => {}
-            Err(TestCaseError::Reject(_)) => known_bug += 1,
-            Err(e) => panic!("{e}"),
+        if let Err(e) = run_ops(scene, &ops, &mut tally) {
+            panic!("{e}");
         }
     }
-    eprintln!("{tally:?}, {known_bug} cases hit a known bug");
+    eprintln!("{tally:?}");
     assert!(
         tally.ok > 500 && tally.err > 100 && tally.diverged > 5,
         "{tally:?}"
     );
     assert!(tally.skipped * 20 < tally.ok + tally.err, "{tally:?}");
-    assert!(
-        known_bug * 10 < 60,
-        "{known_bug} of 60 cases hit a known bug"
-    );
 }
 
 // ----- regression tests, one per bug the fuzzer found -----------------------------------------
@@ -1676,12 +1618,11 @@ fn issue_particle_mass_without_a_float32_inverse() {
 /// `operation_sequences_keep_the_state_finite_or_unchanged` as: a cloth centred at
 /// y = -3.4e38 (valid), `grab(0)`, `drag_to([0, 0, 0])`, `step(1)`; about 3 % of the generated
 /// call sequences run into it. (Before `MIN_SUBSTEP` (1e-9 s) a tiny `dt` did it with a 1 m
-/// drag, and `dt = 1e-300`, whose float32 substep is 0, with a mere `grab`: 0 / 0.) The fix
-/// belongs in `Simulation::substep`: check the rows the pins (and the later passes) wrote and
-/// fail the substep like a non-finite integration, which rolls the step back and reports
-/// `Diverged`.
+/// drag, and `dt = 1e-300`, whose float32 substep is 0, with a mere `grab`: 0 / 0.) Fixed:
+/// the pins, the strain limit and the colliders each report whether what they wrote is
+/// finite, and `Simulation::substep` fails like a non-finite integration: rolled back and
+/// reported as `Diverged`.
 #[test]
-#[ignore = "bug in src/simulation.rs (unchecked kinematic-pin output); see the comment"]
 fn issue_kinematic_pin_velocity_overflows() {
     let mut scene = common::bare_scene(2, 2);
     scene.cloth.center = [0.0, -(f32::MAX as f64), 0.0];
@@ -1711,7 +1652,6 @@ fn issue_kinematic_pin_velocity_overflows() {
 /// through `Simulation::substep` (src/simulation.rs), which does not check the colliders'
 /// output; `contact_velocity` could also avoid the overflow (normalise `v` first).
 #[test]
-#[ignore = "bug in src/collisions (contact velocity overflow) and src/simulation.rs (unchecked)"]
 fn issue_sphere_contact_velocity_overflows() {
     let mut scene = common::bare_scene(2, 2);
     scene.cloth.size = [0.1, 0.1];
@@ -1757,12 +1697,10 @@ fn issue_sphere_contact_velocity_overflows() {
 /// surface: finite, caught as a divergence a step later). Found by
 /// `operation_sequences_keep_the_state_finite_or_unchanged` on its first runs after the
 /// floor-level change reached main, in several forms (the two below; a ball at y = -1e6 under
-/// a floor at -0.8; a floor at 3.4e38). The fix belongs in src/collisions/sphere.rs: a sphere wholly under the
-/// floor can take no contact (or keep the normal a unit vector), and a non-finite `t` is no
-/// hit (`!(t <= 1.0)`); and, for any pass, in `Simulation::substep`, which does not check the
-/// colliders' output.
+/// a floor at -0.8; a floor at 3.4e38). Fixed: a sphere wholly under the floor is left out
+/// (it can take no contact), a non-finite `t` is no hit (`!(t <= 1.0)`), and
+/// `Simulation::substep` checks what the colliders wrote.
 #[test]
-#[ignore = "bug in src/collisions/sphere.rs and src/simulation.rs (unchecked collider output)"]
 fn issue_sphere_under_the_floor_blows_up_velocities() {
     let sphere = |y: f64| SphereSpec {
         center: [0.0, y, 0.0],
@@ -1842,11 +1780,9 @@ fn issue_sphere_under_the_floor_blows_up_velocities() {
 /// `Diverged` for step `steps() + 1`, which no call ran, blaming the user's own positions.
 /// Nothing escapes (the state is left as it was); the report is wrong. Found by
 /// `operation_sequences_keep_the_state_finite_or_unchanged` (`step(2)` failing under
-/// `max_stretch = 1.01`, `set_positions`, `advance(0.0)`). The fix belongs in
-/// src/simulation.rs: clear `unjudged` in `invalidate_state` (a state the user set is not a
-/// step's to judge), or judge only when the call stepped.
+/// `max_stretch = 1.01`, `set_positions`, `advance(0.0)`). Fixed: `invalidate_state` and the
+/// recovery clear `unjudged` (a state the user set is judged when a step starts from it).
 #[test]
-#[ignore = "bug in src/simulation.rs (stale watchdog judgement); see the comment"]
 fn issue_zero_step_call_reports_a_divergence() {
     let mut scene = common::bare_scene(2, 3);
     scene.integrator = "explicit_euler".into();

@@ -26,20 +26,24 @@ impl Collider for Floor {
         next: &mut Kinematics,
         particles: &Particles,
         chunk: usize,
-    ) {
+    ) -> bool {
         let top = self.height + self.thickness;
         let Kinematics { pos, vel } = next;
         pos.par_chunks_mut(chunk)
             .zip(vel.par_chunks_mut(chunk))
             .enumerate()
-            .for_each(|(c, (pos, mut vel))| {
+            .map(|(c, (pos, mut vel))| {
+                let mut finite = true;
                 for i in 0..pos.len() {
                     if pos.y[i] < top && particles.is_dynamic(c * chunk + i) {
                         pos.y[i] = top;
                         let v = contact_velocity(vel.get(i), Vec3::Y, self.friction);
                         vel.set(i, v);
+                        finite &= v.is_finite();
                     }
                 }
-            });
+                finite
+            })
+            .reduce(|| true, |a, b| a & b)
     }
 }

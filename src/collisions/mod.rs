@@ -22,14 +22,15 @@ pub trait Collider: Send + Sync {
     fn name(&self) -> &'static str;
 
     /// Moves every dynamic particle of `next` that ended inside the collider out of it.
-    /// `start` holds the positions at the start of the step.
+    /// `start` holds the positions at the start of the step. Returns whether every value it
+    /// wrote is finite (a contact at speeds near float32's limit can overflow).
     fn resolve(
         &self,
         start: &Kinematics,
         next: &mut Kinematics,
         particles: &Particles,
         chunk: usize,
-    );
+    ) -> bool;
 }
 
 /// Velocity after contact with a surface of outward unit normal `n` and friction `mu`.

@@ -33,10 +33,16 @@ struct Sphere {
 const SURFACE_MARGIN: f32 = 1e-5;
 
 impl Spheres {
-    /// The spheres of a scene; `floor` is the floor's level when the scene has one.
+    /// The spheres of a scene; `floor` is the floor's level when the scene has one. A sphere
+    /// wholly under the floor's level can take no contact (the floor keeps every particle
+    /// above it) and is left out.
     pub fn new(specs: &[SphereSpec], floor: Option<FloorLevel>) -> Self {
         let spheres = specs
             .iter()
+            .filter(|s| {
+                let top = s.center[1] + s.radius + s.thickness;
+                floor.is_none_or(|f| top as f32 > f.0)
+            })
             .map(|s| {
                 let center = DVec3::from(s.center).as_vec3();
                 let reach = (s.radius + s.thickness) as f32;
@@ -90,7 +96,8 @@ impl Sphere {
                 return None;
             }
             let t = (-b - disc.sqrt()) / a;
-            if t > 1.0 && !ends_inside {
+            // A NaN `t` (|p - c|^2 overflowing for a sphere 1e19 m away) is no hit either.
+            if (t > 1.0 || t.is_nan()) && !ends_inside {
                 return None;
             }
             let n = (rel0 + t.clamp(0.0, 1.0) * d).normalize_or(rel0.normalize_or(Vec3::Y));
@@ -165,12 +172,13 @@ impl Collider for Spheres {
         next: &mut Kinematics,
         particles: &Particles,
         chunk: usize,
-    ) {
+    ) -> bool {
         let Kinematics { pos, vel } = next;
         pos.par_chunks_mut(chunk)
             .zip(vel.par_chunks_mut(chunk))
             .enumerate()
-            .for_each(|(c, (mut pos, mut vel))| {
+            .map(|(c, (mut pos, mut vel))| {
+                let mut finite = true;
                 let first = c * chunk;
                 let start_pos = start.pos.slices(first..first + pos.len());
                 let mut candidates = [false; SCREEN];
@@ -196,13 +204,17 @@ impl Collider for Spheres {
                         let p0 = start.pos.get(p);
                         for sphere in &self.spheres {
                             if let Some((n, surface)) = sphere.contact(p0, pos.get(i)) {
+                                let v = contact_velocity(vel.get(i), n, sphere.friction);
                                 pos.set(i, surface);
-                                vel.set(i, contact_velocity(vel.get(i), n, sphere.friction));
+                                vel.set(i, v);
+                                finite &= surface.is_finite() && v.is_finite();
                             }
                         }
                     }
                 }
-            });
+                finite
+            })
+            .reduce(|| true, |a, b| a & b)
     }
 }
 
