@@ -19,7 +19,7 @@ use std::ops::Range;
 
 use super::{ForceInput, ForceTerm, Fused};
 use crate::grid::{Family, Grid, SpringKind};
-use crate::soa::{Vec3SliceMut, Vec3s};
+use crate::soa::{Floats, Vec3SliceMut, Vec3s};
 
 /// Per-spring data, one array per [`SpringKind`], indexed by the spring's anchor particle.
 ///
@@ -29,21 +29,21 @@ use crate::soa::{Vec3SliceMut, Vec3s};
 #[derive(Clone, Debug)]
 pub struct Springs {
     /// Rest length in m: the distance between the two particles when the cloth was built.
-    pub rest: [Vec<f32>; 6],
+    pub rest: [Floats; 6],
     /// 1 for a live spring, 0 for none.
-    pub active: [Vec<f32>; 6],
+    pub active: [Floats; 6],
 }
 
 impl Springs {
     /// Every spring of the stencil, with rest lengths taken from `pos`.
     pub fn new(grid: Grid, pos: &Vec3s) -> Self {
         let n = grid.len();
-        let mut rest: [Vec<f32>; 6] = Default::default();
-        let mut active: [Vec<f32>; 6] = Default::default();
+        let mut rest: [Floats; 6] = Default::default();
+        let mut active: [Floats; 6] = Default::default();
         for kind in SpringKind::ALL {
             let k = kind.index();
-            rest[k] = vec![0.0; n];
-            active[k] = vec![0.0; n];
+            rest[k] = Floats::zeros(n);
+            active[k] = Floats::zeros(n);
             for p in 0..n {
                 if let Some(q) = grid.partner(p, kind) {
                     rest[k][p] = (pos.get(q) - pos.get(p)).length();
@@ -89,7 +89,7 @@ impl Springs {
         self.rest
             .iter()
             .chain(&self.active)
-            .map(|v| v.capacity() * size_of::<f32>())
+            .map(Floats::heap_bytes)
             .sum()
     }
 }
