@@ -387,8 +387,10 @@ def profile_lines(sizes, impls, results, collider_results, source: str) -> list[
         "block's spring-force table, then every term adding into the block's forces); "
         "profile() splits the sweep's wall time among the terms in proportion to the CPU time "
         "each measured, so a spring family's time is computing its springs' forces into the "
-        "table and gathering them, and the force buffer's zero fill is spread over the terms. "
-        "Other is what the step spends outside the passes.",
+        "table and gathering them (terms added in one pass share that pass's time as the "
+        "arrays each reads). Other is what the step spends outside the passes. Threads busy "
+        "is the process's CPU time over the wall time of the timed steps: below the thread "
+        "count, the second thread often found its core taken by other jobs.",
         "",
     ]
     summary = []
@@ -423,6 +425,9 @@ def profile_lines(sizes, impls, results, collider_results, source: str) -> list[
         lines += [
             "| **step (profile total)** | "
             + " | ".join(f"**{fmt(r['profile']['total'])}**" for *_, r in columns)
+            + " |",
+            "| threads busy (CPU s / wall s) | "
+            + " | ".join(f"{r.get('cpu_per_wall', 0):.2f}" for *_, r in columns)
             + " |",
             "",
         ]
