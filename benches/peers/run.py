@@ -463,6 +463,12 @@ def profile_lines(sizes, impls, results, collider_results, source: str) -> list[
                 "integrator's update), and the springs' own time with the colliders differs "
                 f"from that without by {drift}"
             )
+        busy = statistics.median(r.get("cpu_per_wall", 0.0) for r in every)
+        if impl.threads > 1 and busy < impl.threads - 0.5:
+            text += (
+                f" (these runs kept only {busy:.1f} cores busy: other jobs held the rest, so "
+                "their times are no measure of the parallel speed-up)"
+            )
         summary.append(text)
     if summary:
         lines += [
