@@ -41,6 +41,16 @@ impl Floats {
         Self::filled(n, 0.0)
     }
 
+    /// Makes the length `n`, new elements `value` (as `Vec::resize`).
+    pub fn resize(&mut self, n: usize, value: f32) {
+        let old = self.len;
+        self.lines.resize(n.div_ceil(LINE), Line([value; LINE]));
+        self.len = n;
+        if n > old {
+            self[old..].fill(value);
+        }
+    }
+
     /// Bytes of heap memory held.
     pub fn heap_bytes(&self) -> usize {
         self.lines.capacity() * size_of::<Line>()
@@ -264,5 +274,26 @@ impl Vec3s {
             .zip(self.y.par_chunks_mut(chunk))
             .zip(self.z.par_chunks_mut(chunk))
             .map(|((x, y), z)| Vec3SliceMut { x, y, z })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn floats_start_on_a_cache_line_and_resize_like_a_vec() {
+        let mut v = Floats::filled(20, 1.5);
+        assert_eq!(v.as_ptr() as usize % 64, 0);
+        assert_eq!(v.len(), 20);
+        v.resize(5, 0.0);
+        assert_eq!(&v[..], &[1.5; 5]);
+        // Growing again overwrites what the shrink left in the last line.
+        v.resize(40, 2.0);
+        assert_eq!(&v[..5], &[1.5; 5]);
+        assert_eq!(&v[5..], &[2.0; 35]);
+        assert_eq!(v.as_ptr() as usize % 64, 0);
+        assert_eq!(v, v.clone());
+        assert_ne!(v, Floats::filled(40, 2.0));
     }
 }
