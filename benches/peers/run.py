@@ -380,7 +380,7 @@ def profile_lines(sizes, impls, results, collider_results, source: str) -> list[
     lines = [
         PROFILE_HEADING,
         "",
-        f"`Simulation.profile()` of {source}: the benchmark scene above, without and with the "
+        f"`Simulation.profile()` of {source}: the benchmark scene, without and with the "
         "floor and sphere, the timed steps only (warm-up excluded). Each cell is the wall time "
         "of a pass in ms per step and, in brackets, its share of the step, both medians over "
         "the repeats. The force terms run fused in one sweep over blocks of particles (each "
