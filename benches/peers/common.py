@@ -108,13 +108,19 @@ def measure(
     step: Callable[[Any, int], None],
     positions: Callable[[Any], np.ndarray],
     info: dict[str, Any] | None = None,
+    profile: Callable[[Any], dict[str, float]] | None = None,
 ) -> None:
-    """Build, warm up, time ``args.steps`` steps and print the ``RESULT`` line."""
+    """Build, warm up, time ``args.steps`` steps and print the ``RESULT`` line.
+
+    ``profile(sim)``, if given, returns cumulative seconds per pass (and ``"total"``); the
+    result then carries ``"profile"``: ms per step of each pass over the timed steps only.
+    """
     t0 = time.perf_counter()
     sim = build()
     t1 = time.perf_counter()
     step(sim, WARMUP)
     positions(sim)  # also synchronises
+    before = profile(sim) if profile else {}
     u2 = resource.getrusage(resource.RUSAGE_SELF)
     t2 = time.perf_counter()
     step(sim, args.steps)
@@ -139,5 +145,10 @@ def measure(
         "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
         **(info or {}),
     }
+    if profile:
+        after = profile(sim)
+        result["profile"] = {
+            name: 1e3 * (s - before.get(name, 0.0)) / args.steps for name, s in after.items()
+        }
     sys.stdout.flush()
     print("RESULT " + json.dumps(result), flush=True)

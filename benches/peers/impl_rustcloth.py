@@ -15,6 +15,12 @@ import rustcloth  # noqa: E402
 from common import measure, parse_args, scene_dict  # noqa: E402
 
 
+def passes(sim: rustcloth.Simulation) -> dict[str, float]:
+    """Cumulative wall seconds per pass of ``Simulation.profile()``, and the whole step's."""
+    prof = sim.profile()
+    return {**{name: p.seconds for name, p in prof.passes.items()}, "total": prof.total_seconds}
+
+
 def main() -> None:
     args = parse_args()
     env_threads = os.environ.get("RAYON_NUM_THREADS")
@@ -34,6 +40,7 @@ def main() -> None:
                 "%Y-%m-%d %H:%M UTC", time.gmtime(os.path.getmtime(rustcloth._core.__file__))
             ),
         },
+        profile=passes,
     )
 
 

@@ -8,6 +8,12 @@ prints the tables.
     .venv-peers/bin/python benches/peers/run.py                 # 128, 256, 512
     .venv-peers/bin/python benches/peers/run.py --quick         # 128 only, 100 steps, 1 repeat
     .venv-peers/bin/python benches/peers/run.py --sizes 128 256 --repeats 5 --only rustcloth numpy
+    .venv/bin/python benches/peers/run.py --only profile        # per-pass split only (see below)
+
+``--only profile`` runs rustcloth alone (1 and 2 threads, with and without the floor and
+sphere) and rewrites only the "Where the time goes" section of ``docs/benchmarks.md``: the
+per-pass split from ``Simulation.profile()``. A full run writes that section too, from the
+rustcloth runs it times anyway.
 """
 
 from __future__ import annotations
@@ -153,6 +159,24 @@ def median_result(results: list[dict]) -> dict:
         out[key] = statistics.median(r[key] for r in good)
     out["ms_all"] = [r["ms_per_step"] for r in good]
     out["finite"] = all(r["finite"] for r in good)
+    profiles = [r["profile"] for r in good if r.get("profile", {}).get("total")]
+    if profiles:
+        # ms/step per pass and its share of the step, each the median over the repeats.
+        names = [name for name in profiles[0] if name != "total"]
+        out["profile"] = {
+            name: statistics.median(p.get(name, 0.0) for p in profiles)
+            for name in [*names, "total"]
+        }
+        out["profile"]["other"] = statistics.median(
+            p["total"] - sum(p.get(name, 0.0) for name in names) for p in profiles
+        )
+        out["profile_share"] = {
+            name: statistics.median(p.get(name, 0.0) / p["total"] for p in profiles)
+            for name in names
+        }
+        out["profile_share"]["other"] = statistics.median(
+            1 - sum(p.get(name, 0.0) for name in names) / p["total"] for p in profiles
+        )
     return out
 
 
@@ -329,6 +353,193 @@ def measure_peak() -> dict[int, dict]:
         return out
 
 
+PROFILE_HEADING = "## Where the time goes: the per-pass split from profile()"
+
+# Passes in step order, with what each one is; passes a scene does not have are skipped.
+PASS_LABELS = {
+    "gravity": "gravity (force)",
+    "air_drag": "air drag (force)",
+    "structural_springs": "structural springs (force)",
+    "shear_springs": "shear springs (force)",
+    "bend_springs": "bending springs (force)",
+    "symplectic_euler": "symplectic Euler (integrator)",
+    "kinematic_pins": "kinematic pins",
+    "spheres": "spheres (collider)",
+    "floor": "floor (collider)",
+    "other": "other (step bookkeeping)",
+}
+SPRING_PASSES = ("structural_springs", "shear_springs", "bend_springs")
+COLLIDER_PASSES = ("spheres", "floor")
+
+
+def profile_lines(sizes, impls, results, collider_results, source: str) -> list[str]:
+    """The per-pass split of rustcloth's step, from ``Simulation.profile()``.
+
+    ``source`` says which runs the profiles come from, and when they were measured.
+    """
+    lines = [
+        PROFILE_HEADING,
+        "",
+        f"`Simulation.profile()` of {source}: the benchmark scene, without and with the "
+        "floor and sphere, the timed steps only (warm-up excluded). Each cell is the wall time "
+        "of a pass in ms per step and, in brackets, its share of the step, both medians over "
+        "the repeats. The force terms run fused in one sweep over blocks of particles (each "
+        "block's spring-force table, then every term adding into the block's forces); "
+        "profile() splits the sweep's wall time among the terms in proportion to the CPU time "
+        "each measured, so a spring family's time is computing its springs' forces into the "
+        "table and gathering them (terms added in one pass share that pass's time as the "
+        "arrays each reads). Other is what the step spends outside the passes. Threads busy "
+        "is the process's CPU time over the wall time of the timed steps: below the thread "
+        "count, the second thread often found its core taken by other jobs.",
+        "",
+    ]
+    summary = []
+    for impl in impls:
+        if not impl.key.startswith("rustcloth"):
+            continue
+        columns = []
+        for n in sizes:
+            for label, res in (("", results), (" + floor, sphere", collider_results)):
+                r = res.get(n, {}).get(impl.key, {})
+                if "profile" in r:
+                    columns.append((n, bool(label), f"{n} x {n}{label}", r))
+        if not columns:
+            continue
+        seen = {name for *_, r in columns for name in r["profile"]} - {"total"}
+        names = [name for name in PASS_LABELS if name in seen] + sorted(seen - set(PASS_LABELS))
+        threads = f"{impl.threads} thread{'s' if impl.threads > 1 else ''}"
+        lines += [
+            f"rustcloth, {threads} (ms per step, % of the step):",
+            "",
+            "| pass | " + " | ".join(head for _, _, head, _ in columns) + " |",
+            "|---|" + "--:|" * len(columns),
+        ]
+        for name in names:
+            cells = [
+                f"{fmt(r['profile'][name])} ({100 * r['profile_share'][name]:.0f} %)"
+                if name in r["profile"]
+                else ""
+                for *_, r in columns
+            ]
+            lines.append(f"| {PASS_LABELS.get(name, name)} | " + " | ".join(cells) + " |")
+        lines += [
+            "| **step (profile total)** | "
+            + " | ".join(f"**{fmt(r['profile']['total'])}**" for *_, r in columns)
+            + " |",
+            "| threads busy (CPU s / wall s) | "
+            + " | ".join(f"{r.get('cpu_per_wall', 0):.2f}" for *_, r in columns)
+            + " |",
+            "",
+        ]
+
+        def share(r, names):
+            return 100 * sum(r["profile_share"].get(name, 0.0) for name in names)
+
+        def ms(r, names):
+            return sum(r["profile"].get(name, 0.0) for name in names)
+
+        def span(values, form="{:.0f} %"):
+            lo, hi = form.format(min(values)), form.format(max(values))
+            return lo if lo == hi else f"{lo} to {hi}"
+
+        euler = ("symplectic_euler",)
+        every = [r for *_, r in columns]
+        with_c = {n: r for n, c, _, r in columns if c}
+        pairs = [(r, with_c[n]) for n, c, _, r in columns if not c and n in with_c]
+        springs = span([share(r, SPRING_PASSES) for r in every])
+        update = span([share(r, euler) for r in every])
+        gravity = span([share(r, ("gravity",)) for r in every])
+        text = f"at {threads} the three spring families take {springs} of the step, the "
+        text += f"integrator's update {update}, gravity {gravity}"
+        if pairs:
+            colliders = span([share(c, COLLIDER_PASSES) for _, c in pairs])
+            per_update = span([ms(c, COLLIDER_PASSES) / ms(c, euler) for _, c in pairs], "{:.1f}")
+            drift = span(
+                [100 * (ms(c, SPRING_PASSES) / ms(r, SPRING_PASSES) - 1) for r, c in pairs],
+                "{:+.0f} %",
+            )
+            text += (
+                f", the floor and sphere together {colliders} ({per_update} times the "
+                "integrator's update), and the springs' own time with the colliders differs "
+                f"from that without by {drift}"
+            )
+        busy = statistics.median(r.get("cpu_per_wall", 0.0) for r in every)
+        if impl.threads > 1 and busy < impl.threads - 0.5:
+            text += (
+                f" (these runs kept only {busy:.1f} cores busy: other jobs held the rest, so "
+                "their times are no measure of the parallel speed-up)"
+            )
+        summary.append(text)
+    if summary:
+        lines += [
+            "Reading it: " + "; ".join(summary) + ". So the spring forces are the step: "
+            "six spring evaluations per particle (one sqrt and one divide each) written into "
+            "the block's table and twelve table reads gathered back, two springs per particle "
+            "in each family, which is why the three families cost about the same. Each "
+            "collider is one streaming pass over positions and velocities, like the "
+            "integrator's update, so the floor and sphere add about what the update costs and "
+            "leave the springs in first place; the force sweep does no different work when "
+            "they are on (the springs' difference above is run-to-run noise between "
+            "processes). Collisions add to the picture without changing it.",
+            "",
+        ]
+    return lines
+
+
+def splice_section(text: str, section: list[str]) -> str:
+    """``text`` with its profile section replaced by ``section`` (or put before the roofline)."""
+    lines = text.splitlines()
+    if PROFILE_HEADING in lines:
+        start = lines.index(PROFILE_HEADING)
+        end = next(
+            (i for i in range(start + 1, len(lines)) if lines[i].startswith("## ")), len(lines)
+        )
+    else:
+        start = end = next(
+            (i for i, line in enumerate(lines) if line.startswith("## Roofline")), len(lines)
+        )
+    return "\n".join(lines[:start] + section + lines[end:]) + "\n"
+
+
+def profile_only(args, impls, steps_for) -> None:
+    """Times rustcloth alone and rewrites only the per-pass section of the output."""
+    impls = [i for i in impls if i.key.startswith("rustcloth")]
+    results: dict[int, dict[str, dict]] = {}
+    collider_results: dict[int, dict[str, dict]] = {}
+    for n in args.sizes:
+        steps = steps_for.get(n, 100)
+        raw: dict[tuple[str, bool], list[dict]] = {}
+        for rep in range(args.repeats):
+            for impl in impls if rep % 2 == 0 else impls[::-1]:
+                for colliders in (False, True) if rep % 2 == 0 else (True, False):
+                    r = run_one(impl, n, steps, colliders, args.timeout)
+                    raw.setdefault((impl.key, colliders), []).append(r)
+                    print(
+                        f"  n={n} rep={rep} {impl.key}{' +colliders' if colliders else ''}: "
+                        + (r["error"] if "error" in r else f"{r['ms_per_step']:.4g} ms/step"),
+                        flush=True,
+                    )
+        results[n] = {k: median_result(v) for (k, c), v in raw.items() if not c}
+        collider_results[n] = {k: median_result(v) for (k, c), v in raw.items() if c}
+    built = next(
+        (r["built"] for per in results.values() for r in per.values() if "built" in r), "?"
+    )
+    timed = ", ".join(f"{steps_for.get(n, 100)} steps at {n}" for n in args.sizes)
+    source = (
+        "rustcloth runs made for this section by `run.py --only profile` on "
+        f"{dt.datetime.now(dt.UTC).strftime('%Y-%m-%d %H:%M UTC')} (1 and 2 threads, each run "
+        f"in its own process as above, {args.repeats} repeat(s), {timed} timed; extension "
+        f"built {built}, repository at {git_describe()})"
+    )
+    section = profile_lines(args.sizes, impls, results, collider_results, source)
+    print("\n".join(section))
+    if not args.no_write:
+        out = Path(args.output)
+        old = out.read_text() if out.exists() else ""
+        out.write_text(splice_section(old, section))
+        print(f"wrote the per-pass section of {out}")
+
+
 def roofline_lines(sizes, impls, results, bw, machine, peak) -> list[str]:
     est1 = machine["peak_gflops_core"]
     bw_t = {
@@ -434,7 +645,12 @@ def main() -> None:
     p.add_argument("--sizes", type=int, nargs="+", default=[128, 256, 512])
     p.add_argument("--quick", action="store_true", help="128 only, 100 steps, 1 repeat")
     p.add_argument("--repeats", type=int, default=5)
-    p.add_argument("--only", nargs="+", help="implementation keys to run (default: all)")
+    p.add_argument(
+        "--only",
+        nargs="+",
+        help="implementation keys to run (default: all); 'profile': only rustcloth's per-pass "
+        "split, written into its section of the output",
+    )
     p.add_argument("--no-colliders", action="store_true", help="skip the floor + sphere table")
     p.add_argument("--rustcloth-python", help="interpreter that imports rustcloth")
     p.add_argument("--output", default=str(ROOT / "docs/benchmarks.md"))
@@ -447,6 +663,9 @@ def main() -> None:
 
     rust_py = rustcloth_python(args.rustcloth_python)
     impls = implementations(rust_py)
+    if args.only == ["profile"]:
+        profile_only(args, impls, steps_for)
+        return
     if args.only:
         unknown = set(args.only) - {i.key for i in impls}
         if unknown:
@@ -586,6 +805,10 @@ def main() -> None:
                         "the collider-free step time."
                     )
             lines.append("")
+    if not args.no_colliders:
+        lines += profile_lines(
+            args.sizes, impls, results, collider_results, "the rustcloth runs timed above"
+        )
     lines += roofline_lines(args.sizes, impls, results, bw, machine, peak)
     lines += [
         "## Raw per-repeat ms/step",

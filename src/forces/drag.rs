@@ -1,12 +1,18 @@
 use std::ops::Range;
 
-use super::{ForceInput, ForceTerm};
+use super::{ForceInput, ForceTerm, Fused};
 use crate::soa::Vec3SliceMut;
 
 /// Linear air drag, `f = -c v`, the same for every particle. Only in the pipeline when `c > 0`.
 pub struct AirDrag {
     /// Coefficient in N s/m.
     pub c: f32,
+}
+
+impl AirDrag {
+    fn contribution(&self) -> Fused {
+        Fused::MinusVelocityTimes(self.c)
+    }
 }
 
 impl ForceTerm for AirDrag {
@@ -19,15 +25,10 @@ impl ForceTerm for AirDrag {
     }
 
     fn accumulate(&self, input: &ForceInput, range: Range<usize>, out: &mut Vec3SliceMut) {
-        let vel = input.vel.slices(range);
-        for (f, v) in [
-            (&mut *out.x, vel.x),
-            (&mut *out.y, vel.y),
-            (&mut *out.z, vel.z),
-        ] {
-            for (f, v) in f.iter_mut().zip(v) {
-                *f -= self.c * v;
-            }
-        }
+        super::fused::accumulate(input, &[self.contribution()], false, range, out)
+    }
+
+    fn fused(&self) -> Option<Fused> {
+        Some(self.contribution())
     }
 }

@@ -2,7 +2,7 @@ use std::ops::Range;
 
 use glam::Vec3;
 
-use super::{ForceInput, ForceTerm};
+use super::{ForceInput, ForceTerm, Fused};
 use crate::soa::Vec3SliceMut;
 
 /// Uniform gravity, `f = m g`. Only in the pipeline when `g` is not zero.
@@ -11,23 +11,22 @@ pub struct Gravity {
     pub g: Vec3,
 }
 
+impl Gravity {
+    fn contribution(&self) -> Fused {
+        Fused::MassTimes(self.g)
+    }
+}
+
 impl ForceTerm for Gravity {
     fn name(&self) -> &'static str {
         "gravity"
     }
 
     fn accumulate(&self, input: &ForceInput, range: Range<usize>, out: &mut Vec3SliceMut) {
-        let mass = &input.mass[range];
-        for (component, g) in [
-            (&mut *out.x, self.g.x),
-            (&mut *out.y, self.g.y),
-            (&mut *out.z, self.g.z),
-        ] {
-            if g != 0.0 {
-                for (f, m) in component.iter_mut().zip(mass) {
-                    *f += m * g;
-                }
-            }
-        }
+        super::fused::accumulate(input, &[self.contribution()], false, range, out)
+    }
+
+    fn fused(&self) -> Option<Fused> {
+        Some(self.contribution())
     }
 }

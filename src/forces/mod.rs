@@ -7,6 +7,7 @@
 //! the number of threads.
 
 mod drag;
+pub mod fused;
 mod gravity;
 pub mod springs;
 
@@ -18,6 +19,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 pub use drag::AirDrag;
+pub use fused::Fused;
 pub use gravity::Gravity;
 pub use springs::{SpringForce, Springs};
 
@@ -101,6 +103,13 @@ pub trait ForceTerm: Send + Sync {
         false
     }
 
+    /// The force `accumulate` adds, as a contribution the sweep may add in one pass together
+    /// with its neighbours' (see [`fused`]), bitwise as `accumulate` would; None for a term
+    /// that only `accumulate` can add.
+    fn fused(&self) -> Option<Fused> {
+        None
+    }
+
     /// How the force depends on the state, for implicit integrators.
     fn linearization(&self) -> Linearization {
         Linearization::Constant
@@ -131,10 +140,14 @@ pub enum Linearization {
 /// block), then every term adds its force into the block's slice of the output while table
 /// and slice are hot in cache, springs by reading the table (`+F` at the anchor, `-F` at the
 /// far end: bitwise the force the far end would compute, so momentum is conserved exactly up
-/// to summation order). Each particle's force is summed in the same order whatever the
-/// chunking, so the result is bitwise independent of the number of threads.
+/// to summation order). Consecutive terms with a [`Fused`] form are added in one pass per
+/// component ([`fused::accumulate`]), the others one by one. Each particle's force is summed
+/// in the same order whatever the chunking, so the result is bitwise independent of the
+/// number of threads.
 pub struct ForceModel {
     terms: Vec<Box<dyn ForceTerm>>,
+    /// The terms' additions into a block, in term order.
+    stages: Vec<Stage>,
     /// `(term, kind)` for every spring kind some term prepares.
     prepared: Vec<(usize, SpringKind)>,
     /// The kinds of `prepared`.
@@ -153,6 +166,49 @@ pub struct ForceModel {
     overstretched: AtomicBool,
 }
 
+/// One addition into a block's forces.
+enum Stage {
+    /// A term's own [`ForceTerm::accumulate`].
+    Term(usize),
+    /// Consecutive terms and their contributions, added in one pass.
+    Fused {
+        terms: Vec<usize>,
+        contributions: Vec<Fused>,
+    },
+}
+
+impl Stage {
+    /// The stages for `terms`: runs of consecutive fusable terms, each run cut where it would
+    /// read more than [`fused::MAX_STREAMS`] arrays per component.
+    fn plan(terms: &[Box<dyn ForceTerm>]) -> Vec<Stage> {
+        let mut stages = Vec::new();
+        for (t, term) in terms.iter().enumerate() {
+            let Some(contribution) = term.fused().filter(|c| c.streams() <= fused::MAX_STREAMS)
+            else {
+                stages.push(Stage::Term(t));
+                continue;
+            };
+            match stages.last_mut() {
+                Some(Stage::Fused {
+                    terms,
+                    contributions,
+                }) if contributions.iter().map(Fused::streams).sum::<usize>()
+                    + contribution.streams()
+                    <= fused::MAX_STREAMS =>
+                {
+                    terms.push(t);
+                    contributions.push(contribution);
+                }
+                _ => stages.push(Stage::Fused {
+                    terms: vec![t],
+                    contributions: vec![contribution],
+                }),
+            }
+        }
+        stages
+    }
+}
+
 /// Particles per block: its spring table (six kinds, plus up to two grid rows of springs before
 /// the block) stays in a core's L2 cache up to 512 x 512 cloths; the rows before the block are
 /// evaluated twice, about 10 % extra spring work at 512 wide.
@@ -168,6 +224,7 @@ impl ForceModel {
             .collect();
         let kinds = prepared.iter().map(|&(_, kind)| kind).collect();
         ForceModel {
+            stages: Stage::plan(&terms),
             terms,
             kinds,
             prepared,
@@ -237,7 +294,8 @@ impl ForceModel {
     }
 
     /// Writes the total force on every particle into `out` and returns the evaluation's wall
-    /// time, which it also books into `profile` split among the terms.
+    /// time, which it also books into `profile` split among the terms as the CPU time each
+    /// measured (a fused stage's time split among its terms as the arrays each reads).
     pub fn evaluate(
         &mut self,
         state: StateRef,
@@ -261,17 +319,19 @@ impl ForceModel {
         };
         let Self {
             terms,
+            stages,
             prepared,
             tables,
             cpu_nanos,
             overstretched,
             ..
         } = self;
-        let timed = |t: usize, work: &mut dyn FnMut()| {
+        let clocked = |work: &mut dyn FnMut()| {
             let clock = Instant::now();
             work();
-            cpu_nanos[t].fetch_add(clock.elapsed().as_nanos() as u64, Ordering::Relaxed);
+            clock.elapsed().as_nanos() as u64
         };
+        let book = |t: usize, nanos: u64| cpu_nanos[t].fetch_add(nanos, Ordering::Relaxed);
         let blank = SpringTable::default();
         let prepare_input = ForceInput {
             grid,
@@ -282,21 +342,30 @@ impl ForceModel {
             spring_table: &blank,
             stretch_watch,
         };
+        // A fused first stage writes every force of the block; otherwise start from zero.
+        let fresh = matches!(stages.first(), Some(Stage::Fused { .. }));
         let sweep = |(c, (mut f, table)): (usize, (Vec3SliceMut, &mut SpringTable))| {
             let range = c * chunk..c * chunk + f.len();
-            f.fill(Vec3::ZERO);
+            if !fresh {
+                f.fill(Vec3::ZERO);
+            }
             let mut block_start = range.start;
             while block_start < range.end {
                 let block = block_start..(block_start + BLOCK).min(range.end);
-                for &(t, kind) in prepared.iter() {
-                    let lo = block.start.saturating_sub(grid.offset(kind));
-                    table.origin[kind.index()] = lo;
-                    let mut slots = table.kinds[kind.index()].slices_mut(0..block.end - lo);
-                    timed(t, &mut || {
-                        if terms[t].prepare(&prepare_input, kind, lo..block.end, &mut slots) {
-                            overstretched.store(true, Ordering::Relaxed);
+                // Each term's kinds (consecutive in `prepared`), timed together.
+                for run in prepared.chunk_by(|a, b| a.0 == b.0) {
+                    let t = run[0].0;
+                    let nanos = clocked(&mut || {
+                        for &(_, kind) in run {
+                            let lo = block.start.saturating_sub(grid.offset(kind));
+                            table.origin[kind.index()] = lo;
+                            let mut slots = table.kinds[kind.index()].slices_mut(0..block.end - lo);
+                            if terms[t].prepare(&prepare_input, kind, lo..block.end, &mut slots) {
+                                overstretched.store(true, Ordering::Relaxed);
+                            }
                         }
                     });
+                    book(t, nanos);
                 }
                 let input = ForceInput {
                     grid,
@@ -308,10 +377,35 @@ impl ForceModel {
                     stretch_watch: None,
                 };
                 let mut f_block = f.sub_mut(block.start - range.start..block.end - range.start);
-                for (t, term) in terms.iter().enumerate() {
-                    timed(t, &mut || {
-                        term.accumulate(&input, block.clone(), &mut f_block)
-                    });
+                for (i, stage) in stages.iter().enumerate() {
+                    match stage {
+                        Stage::Term(t) => {
+                            let nanos = clocked(&mut || {
+                                terms[*t].accumulate(&input, block.clone(), &mut f_block)
+                            });
+                            book(*t, nanos);
+                        }
+                        Stage::Fused {
+                            terms: group,
+                            contributions,
+                        } => {
+                            let nanos = clocked(&mut || {
+                                let first = fresh && i == 0;
+                                fused::accumulate(
+                                    &input,
+                                    contributions,
+                                    first,
+                                    block.clone(),
+                                    &mut f_block,
+                                )
+                            });
+                            // Split among the group's terms as the arrays each reads.
+                            let streams = contributions.iter().map(Fused::streams).sum::<usize>();
+                            for (&t, c) in group.iter().zip(contributions) {
+                                book(t, nanos * c.streams() as u64 / streams.max(1) as u64);
+                            }
+                        }
+                    }
                 }
                 block_start = block.end;
             }

@@ -17,9 +17,9 @@
 
 use std::ops::Range;
 
-use super::{ForceInput, ForceTerm};
+use super::{ForceInput, ForceTerm, Fused};
 use crate::grid::{Family, Grid, SpringKind};
-use crate::soa::{Vec3SliceMut, Vec3s};
+use crate::soa::{Floats, Vec3SliceMut, Vec3s};
 
 /// Per-spring data, one array per [`SpringKind`], indexed by the spring's anchor particle.
 ///
@@ -29,21 +29,21 @@ use crate::soa::{Vec3SliceMut, Vec3s};
 #[derive(Clone, Debug)]
 pub struct Springs {
     /// Rest length in m: the distance between the two particles when the cloth was built.
-    pub rest: [Vec<f32>; 6],
+    pub rest: [Floats; 6],
     /// 1 for a live spring, 0 for none.
-    pub active: [Vec<f32>; 6],
+    pub active: [Floats; 6],
 }
 
 impl Springs {
     /// Every spring of the stencil, with rest lengths taken from `pos`.
     pub fn new(grid: Grid, pos: &Vec3s) -> Self {
         let n = grid.len();
-        let mut rest: [Vec<f32>; 6] = Default::default();
-        let mut active: [Vec<f32>; 6] = Default::default();
+        let mut rest: [Floats; 6] = Default::default();
+        let mut active: [Floats; 6] = Default::default();
         for kind in SpringKind::ALL {
             let k = kind.index();
-            rest[k] = vec![0.0; n];
-            active[k] = vec![0.0; n];
+            rest[k] = Floats::zeros(n);
+            active[k] = Floats::zeros(n);
             for p in 0..n {
                 if let Some(q) = grid.partner(p, kind) {
                     rest[k][p] = (pos.get(q) - pos.get(p)).length();
@@ -89,7 +89,7 @@ impl Springs {
         self.rest
             .iter()
             .chain(&self.active)
-            .map(|v| v.capacity() * size_of::<f32>())
+            .map(Floats::heap_bytes)
             .sum()
     }
 }
@@ -148,12 +148,23 @@ impl ForceTerm for SpringForce {
         }
     }
 
+    /// Each particle's spring forces from the table: `+F` of the springs it anchors, `-F` of
+    /// the springs it ends.
     fn accumulate(&self, input: &ForceInput, range: Range<usize>, out: &mut Vec3SliceMut) {
-        crate::simd::dispatch!(self.gather(input, range.clone(), out))
+        super::fused::accumulate(input, &[self.contribution()], false, range, out)
+    }
+
+    fn fused(&self) -> Option<Fused> {
+        Some(self.contribution())
     }
 }
 
 impl SpringForce {
+    /// `+F` of the springs each particle anchors, `-F` of those it ends, kind by kind.
+    fn contribution(&self) -> Fused {
+        Fused::Springs(self.family.kinds_slice())
+    }
+
     /// The force on the anchor of every spring of `kind` anchored in `range`; zero for slots
     /// with no spring. One straight loop over equal-length slices: the compiler vectorises it.
     /// With `WATCH`, also returns whether a live spring is longer than `limit` times its rest
@@ -220,32 +231,6 @@ impl SpringForce {
             f[len..].fill(0.0);
         }
         over != 0
-    }
-
-    /// Adds each particle's spring forces from the table: `+F` of the springs it anchors, `-F`
-    /// of the springs it ends.
-    #[inline(always)]
-    fn gather(&self, input: &ForceInput, range: Range<usize>, out: &mut Vec3SliceMut) {
-        let n = input.grid.len();
-        for kind in self.family.kinds() {
-            let table = input.spring_table;
-            let [anchors, ends] = neighbour_runs(n, input.grid.offset(kind), range.clone());
-            for (run, sign) in [(anchors, 1.0f32), (ends, -1.0)] {
-                let Some(run) = run else { continue };
-                let s = run.spring..run.spring + run.len;
-                let o = run.a - range.start..run.a - range.start + run.len;
-                for (comp, f) in [&mut *out.x, &mut *out.y, &mut *out.z]
-                    .into_iter()
-                    .enumerate()
-                {
-                    let (t, f) = (table.component(kind, comp, &s), &mut f[o.clone()]);
-                    for i in 0..f.len() {
-                        // sign * t is exactly the force the far end computes for itself.
-                        f[i] += sign * t[i];
-                    }
-                }
-            }
-        }
     }
 }
 

@@ -1,0 +1,234 @@
+//! Adding several force terms into a block's forces in one pass per component.
+//!
+//! Run one after the other, gravity and the three spring families each read and write the
+//! block's whole force slice again: with two spring kinds per family and a `+F` and a `-F` run
+//! per kind, that is a dozen passes over a slice larger than the L1 cache. Terms that describe
+//! their force as a [`Fused`] contribution are added together instead: for a strip of particles
+//! the running sum stays in registers while each contribution is added to it, in the terms'
+//! order, and it is stored once. The additions are the ones the terms make on their own, in the
+//! same order, so the result is bitwise the same.
+
+use std::ops::Range;
+
+use glam::Vec3;
+
+use super::springs::neighbour_runs;
+use super::ForceInput;
+use crate::grid::SpringKind;
+use crate::soa::Vec3SliceMut;
+
+/// A force term's contribution, in a form that [`accumulate`] adds together with others'.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Fused {
+    /// `f += m a`, particle mass times a constant acceleration (gravity); a zero component of
+    /// `a` adds nothing, not even zero.
+    MassTimes(Vec3),
+    /// `f -= c v`, with `c` in N s/m (air drag).
+    MinusVelocityTimes(f32),
+    /// For each kind in order, `+F` of the spring the particle anchors and `-F` of the spring it
+    /// ends, read from the block's spring table (where those springs exist).
+    Springs(&'static [SpringKind]),
+}
+
+impl Fused {
+    /// Arrays a pass over one component reads for this contribution, at most.
+    pub fn streams(&self) -> usize {
+        match self {
+            Fused::MassTimes(_) | Fused::MinusVelocityTimes(_) => 1,
+            Fused::Springs(kinds) => 2 * kinds.len(),
+        }
+    }
+}
+
+/// Most arrays one pass reads: the contributions of a group of terms must need no more.
+pub const MAX_STREAMS: usize = 16;
+
+/// Particles per strip: the running sums of a strip stay in registers (four AVX-512 vectors).
+const STRIP: usize = 64;
+
+/// Adds `group`'s contributions, in order, to the forces `out` of the particles `range`. With
+/// `fresh`, `out` holds no force yet: its contents are ignored and the sums start from zero, as
+/// from a zero-filled buffer. `group` reads at most [`MAX_STREAMS`] arrays per component.
+pub fn accumulate(
+    input: &ForceInput,
+    group: &[Fused],
+    fresh: bool,
+    range: Range<usize>,
+    out: &mut Vec3SliceMut,
+) {
+    crate::simd::dispatch!(accumulate_in(input, group, fresh, range.clone(), out))
+}
+
+#[inline(always)]
+fn accumulate_in(
+    input: &ForceInput,
+    group: &[Fused],
+    fresh: bool,
+    range: Range<usize>,
+    out: &mut Vec3SliceMut,
+) {
+    debug_assert!(group.iter().map(Fused::streams).sum::<usize>() <= MAX_STREAMS);
+    let n = input.grid.len();
+    // The interior: particles that both anchor and end a spring of every kind in the group.
+    let (mut lo, mut hi) = (range.start, range.end);
+    for kind in group.iter().flat_map(spring_kinds) {
+        let o = input.grid.offset(*kind);
+        lo = lo.max(o);
+        hi = hi.min(n.saturating_sub(o));
+    }
+    let hi = hi.max(lo);
+    // Near the grid's first and last rows some of those springs are missing: there, one
+    // contribution after the other, each a pass over the few particles concerned.
+    for edge in [range.start..lo, hi..range.end] {
+        if edge.is_empty() {
+            continue;
+        }
+        let mut f = out.sub_mut(edge.start - range.start..edge.end - range.start);
+        if fresh {
+            f.fill(Vec3::ZERO);
+        }
+        for contribution in group {
+            add_one(input, contribution, edge.clone(), &mut f);
+        }
+    }
+    if lo == hi {
+        return;
+    }
+    let interior = lo - range.start..hi - range.start;
+    for c in 0..3 {
+        let mut ops = [Op::Add(&[]); MAX_STREAMS];
+        let mut count = 0;
+        let mut push = |op| {
+            ops[count] = op;
+            count += 1;
+        };
+        for contribution in group {
+            match *contribution {
+                Fused::MassTimes(a) if a[c] != 0.0 => {
+                    push(Op::AddTimes(&input.mass[lo..hi], a[c]));
+                }
+                Fused::MassTimes(_) => {}
+                Fused::MinusVelocityTimes(k) => {
+                    push(Op::SubTimes(input.vel.component(c, &(lo..hi)), k));
+                }
+                Fused::Springs(kinds) => {
+                    let table = input.spring_table;
+                    for &kind in kinds {
+                        let o = input.grid.offset(kind);
+                        push(Op::Add(table.component(kind, c, &(lo..hi))));
+                        push(Op::Sub(table.component(kind, c, &(lo - o..hi - o))));
+                    }
+                }
+            }
+        }
+        sum_strips(
+            &ops[..count],
+            fresh,
+            &mut out.component_mut(c)[interior.clone()],
+        );
+    }
+}
+
+/// The spring kinds of a contribution (none for the others).
+fn spring_kinds(contribution: &Fused) -> &'static [SpringKind] {
+    match contribution {
+        Fused::Springs(kinds) => kinds,
+        _ => &[],
+    }
+}
+
+/// One array's part in a component's sum, over the interior.
+#[derive(Clone, Copy)]
+enum Op<'a> {
+    /// `f += t`
+    Add(&'a [f32]),
+    /// `f -= t`: exactly `f += -1 * t`, as IEEE 754 defines subtraction.
+    Sub(&'a [f32]),
+    /// `f += x * s`
+    AddTimes(&'a [f32], f32),
+    /// `f -= s * x`
+    SubTimes(&'a [f32], f32),
+}
+
+/// `f[i]` (or zero, with `fresh`) plus each op's term for `i`, in order, for every `i`.
+#[inline(always)]
+fn sum_strips(ops: &[Op], fresh: bool, f: &mut [f32]) {
+    let full = f.len() / STRIP * STRIP;
+    for at in (0..full).step_by(STRIP) {
+        let f: &mut [f32; STRIP] = (&mut f[at..at + STRIP]).try_into().unwrap();
+        let mut acc = if fresh { [0.0; STRIP] } else { *f };
+        for op in ops {
+            match *op {
+                Op::Add(t) => add(&mut acc, &t[at..at + STRIP], |acc, t| acc + t),
+                Op::Sub(t) => add(&mut acc, &t[at..at + STRIP], |acc, t| acc - t),
+                Op::AddTimes(x, s) => add(&mut acc, &x[at..at + STRIP], |acc, x| acc + x * s),
+                Op::SubTimes(x, s) => add(&mut acc, &x[at..at + STRIP], |acc, x| acc - s * x),
+            }
+        }
+        *f = acc;
+    }
+    for i in full..f.len() {
+        let mut acc = if fresh { 0.0 } else { f[i] };
+        for op in ops {
+            acc = match *op {
+                Op::Add(t) => acc + t[i],
+                Op::Sub(t) => acc - t[i],
+                Op::AddTimes(x, s) => acc + x[i] * s,
+                Op::SubTimes(x, s) => acc - s * x[i],
+            };
+        }
+        f[i] = acc;
+    }
+}
+
+/// `acc[k] = rule(acc[k], t[k])` across a strip: one vector operation per register.
+#[inline(always)]
+fn add(acc: &mut [f32; STRIP], t: &[f32], rule: impl Fn(f32, f32) -> f32) {
+    let t: &[f32; STRIP] = t.try_into().unwrap();
+    for k in 0..STRIP {
+        acc[k] = rule(acc[k], t[k]);
+    }
+}
+
+/// Adds one contribution to the forces `f` of the particles `range`, as a pass of its own.
+#[inline(always)]
+fn add_one(input: &ForceInput, contribution: &Fused, range: Range<usize>, f: &mut Vec3SliceMut) {
+    match *contribution {
+        Fused::MassTimes(a) => {
+            let mass = &input.mass[range];
+            for (component, a) in [(&mut *f.x, a.x), (&mut *f.y, a.y), (&mut *f.z, a.z)] {
+                if a != 0.0 {
+                    for (f, m) in component.iter_mut().zip(mass) {
+                        *f += m * a;
+                    }
+                }
+            }
+        }
+        Fused::MinusVelocityTimes(k) => {
+            let vel = input.vel.slices(range);
+            for (f, v) in [(&mut *f.x, vel.x), (&mut *f.y, vel.y), (&mut *f.z, vel.z)] {
+                for (f, v) in f.iter_mut().zip(v) {
+                    *f -= k * v;
+                }
+            }
+        }
+        Fused::Springs(kinds) => {
+            let (n, table) = (input.grid.len(), input.spring_table);
+            for &kind in kinds {
+                let [anchors, ends] = neighbour_runs(n, input.grid.offset(kind), range.clone());
+                for (run, sign) in [(anchors, 1.0f32), (ends, -1.0)] {
+                    let Some(run) = run else { continue };
+                    let s = run.spring..run.spring + run.len;
+                    let o = run.a - range.start..run.a - range.start + run.len;
+                    for (c, f) in [&mut *f.x, &mut *f.y, &mut *f.z].into_iter().enumerate() {
+                        let (t, f) = (table.component(kind, c, &s), &mut f[o.clone()]);
+                        for i in 0..f.len() {
+                            // sign * t is exactly the force the far end computes for itself.
+                            f[i] += sign * t[i];
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
