@@ -33,7 +33,7 @@ use rustcloth::scene::{
     ClothSpec, FloorSpec, OnTrouble, PinSpec, Plane, SphereSpec, StrainLimitSpec, WatchdogSpec,
     INTEGRATORS, MAX_PARTICLES, PIN_GROUPS,
 };
-use rustcloth::soa::Vec3s;
+use rustcloth::soa::{Floats, Vec3s};
 use rustcloth::{Error, Scene, Simulation};
 
 // ----- configuration -----------------------------------------------------------------------
@@ -720,7 +720,7 @@ impl ArrayIn {
     }
 }
 
-fn column_mut(v: &mut Vec3s, c: u8) -> &mut Vec<f32> {
+fn column_mut(v: &mut Vec3s, c: u8) -> &mut Floats {
     match c % 3 {
         0 => &mut v.x,
         1 => &mut v.y,
