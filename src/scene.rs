@@ -602,7 +602,7 @@ pub(crate) fn check_substep(name: &str, dt: f64, substeps: u32) -> Result<()> {
         return Err(Error::value(
             name,
             format!(
-                "dt / substeps must be at least {MIN_SUBSTEP:e} s, got {dt} / {substeps} = {h:e}"
+                "dt / substeps must be at least {MIN_SUBSTEP:e} s, got {dt:e} / {substeps} = {h:e}"
             ),
         ));
     }

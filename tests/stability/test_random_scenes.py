@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import rustcloth
-from hypothesis import HealthCheck, given, note, settings
+from hypothesis import HealthCheck, assume, given, note, settings
 from hypothesis import strategies as st
 from stability.checks import check_state
 
@@ -60,6 +60,9 @@ def scenes(draw) -> rustcloth.Scene:
         dt = fraction * scene.stability_report(warn=False).limit
     else:
         dt = fraction * limit
+    # A step below a microsecond (explicit Euler with almost no damping) is outside the
+    # ranges: its stable dt is a rounding error.
+    assume(dt >= 1e-6)
     scene = scene.replace(dt=min(dt, 1 / 15))
     if integrator == "explicit_euler":
         # Explicit Euler grows every undamped motion, and a stretched spring's sideways swing
