@@ -275,7 +275,7 @@ impl Simulation {
         if !std::mem::take(&mut self.watchdog.unjudged) {
             return Ok(());
         }
-        match self.overstretched_in(&self.state, true) {
+        match self.overstretched_in(&self.state, true, self.watchdog.last_substeps) {
             Some(failure) => self.recover(failure),
             None => Ok(()),
         }
@@ -302,20 +302,13 @@ impl Simulation {
     /// substep started, and with several substeps the step's start is in `step_start`.
     fn attempt_step(&mut self) -> std::result::Result<(), Failure> {
         let substeps = self.step_substeps();
-        let h = (self.scene.dt / substeps as f64) as f32;
         if substeps > 1 {
             let n = self.grid.len();
             self.step_start
                 .get_or_insert_with(|| Kinematics::zeros(n))
                 .copy_from(&self.state);
         }
-        for j in 0..substeps {
-            self.substep(h).map_err(|failure| Failure {
-                in_start_state: failure.in_start_state && j == 0,
-                substeps,
-                ..failure
-            })?;
-        }
+        self.run_substeps(substeps)?;
         // The step's start state is in `step_start`, or with one substep in `scratch`, which
         // the substep's swap left holding it.
         match self.step_start.as_mut().filter(|_| substeps > 1) {
@@ -328,10 +321,23 @@ impl Simulation {
         Ok(())
     }
 
-    /// One substep of length `h`. On success its result becomes `state`; on failure `state` is
-    /// untouched. Trouble in the state the substep starts from (a spring over the watchdog's
-    /// limit) is reported with `in_start_state`.
-    fn substep(&mut self, h: f32) -> std::result::Result<(), Failure> {
+    /// `substeps` substeps of `dt / substeps` from the current state. Trouble in the state the
+    /// first one starts from is the previous step's (`in_start_state`).
+    fn run_substeps(&mut self, substeps: u32) -> std::result::Result<(), Failure> {
+        let h = (self.scene.dt / substeps as f64) as f32;
+        for j in 0..substeps {
+            self.substep(h, substeps).map_err(|failure| Failure {
+                in_start_state: failure.in_start_state && j == 0,
+                ..failure
+            })?;
+        }
+        Ok(())
+    }
+
+    /// One substep of length `h`, one of `substeps`. On success its result becomes `state`; on
+    /// failure `state` is untouched. Trouble in the state the substep starts from (a spring over
+    /// the watchdog's limit) is reported with `in_start_state`.
+    fn substep(&mut self, h: f32, substeps: u32) -> std::result::Result<(), Failure> {
         let chunk = chunk_len(self.grid.len());
         let pipeline = &mut self.pipeline;
         let started = Instant::now();
@@ -355,7 +361,7 @@ impl Simulation {
         self.profile.add(pipeline.integrator.name(), own_time);
         if pipeline.forces.overstretched() {
             // The force loop and this scan run the same arithmetic, so the scan finds the spring.
-            let found = self.overstretched_in(&self.state, true);
+            let found = self.overstretched_in(&self.state, true, substeps);
             debug_assert!(found.is_some(), "stretch watch and scan disagree");
             return Err(found.unwrap_or(Failure {
                 reason: Trouble::Overstretched {
@@ -364,19 +370,25 @@ impl Simulation {
                 },
                 particle: 0,
                 in_start_state: true,
-                substeps: self.scene.substeps,
+                substeps,
             }));
         }
-        if !finite {
+        if !(finite && self.after_integration(h, chunk)) {
             return Err(Failure {
                 reason: Trouble::NonFinite,
                 particle: first_non_finite(&self.scratch).unwrap_or(0),
                 in_start_state: false,
-                substeps: self.scene.substeps,
+                substeps,
             });
         }
-        // The passes after the integrator report whether what they wrote is finite; they write
-        // few values (a drag, contacts, limited springs), so checking costs next to nothing.
+        std::mem::swap(&mut self.state, &mut self.scratch);
+        Ok(())
+    }
+
+    /// The passes after the integrator, on `scratch`: kinematic pins, strain limiting,
+    /// colliders. Returns whether what they wrote is finite; they write few values (a drag,
+    /// contacts, limited springs), so checking costs next to nothing.
+    fn after_integration(&mut self, h: f32, chunk: usize) -> bool {
         let mut finite = true;
         if !self.pins.is_empty() {
             let t = Instant::now();
@@ -385,40 +397,31 @@ impl Simulation {
         }
         // After the pins, so that the limit pulls the cloth after a dragged particle rather
         // than back to where it was; before the colliders, so that contacts have the last word.
-        if let Some(limit) = &mut pipeline.strain_limit {
+        if let Some(limit) = &mut self.pipeline.strain_limit {
             let t = Instant::now();
-            let stats = limit.apply(
-                h,
-                self.grid,
-                &self.springs,
-                &self.particles,
-                &mut self.scratch,
-                chunk,
-            );
-            finite &= stats.finite;
+            let (grid, springs, particles) = (self.grid, &self.springs, &self.particles);
+            finite &= limit
+                .apply(h, grid, springs, particles, &mut self.scratch, chunk)
+                .finite;
             self.profile.add(StrainLimit::NAME, t.elapsed());
         }
-        for collider in &pipeline.colliders {
+        for collider in &self.pipeline.colliders {
             let t = Instant::now();
             finite &= collider.resolve(&self.state, &mut self.scratch, &self.particles, chunk);
             self.profile.add(collider.name(), t.elapsed());
         }
-        if !finite {
-            return Err(Failure {
-                reason: Trouble::NonFinite,
-                particle: first_non_finite(&self.scratch).unwrap_or(0),
-                in_start_state: false,
-                substeps: self.scene.substeps,
-            });
-        }
-        std::mem::swap(&mut self.state, &mut self.scratch);
-        Ok(())
+        finite
     }
 
-    /// The first spring of `state` beyond the watchdog's stretch limit, as a failure. A full
-    /// pass over the springs: for the newest state of a call, the end of a retried step and the
-    /// trouble path.
-    fn overstretched_in(&self, state: &Kinematics, in_start_state: bool) -> Option<Failure> {
+    /// The first spring of `state` beyond the watchdog's stretch limit, as a failure of a step
+    /// of `substeps` substeps. A full pass over the springs: for the newest state of a call,
+    /// the end of a retried step and the trouble path.
+    fn overstretched_in(
+        &self,
+        state: &Kinematics,
+        in_start_state: bool,
+        substeps: u32,
+    ) -> Option<Failure> {
         let limit = self.watchdog.stretch_limit()?;
         let kinds = self.pipeline.forces.spring_kinds();
         if !any_overstretched(self.grid, &self.springs, &state.pos, kinds, limit) {
@@ -430,22 +433,18 @@ impl Simulation {
             reason: Trouble::Overstretched { stretch, limit },
             particle,
             in_start_state,
-            substeps: self.scene.substeps,
+            substeps,
         })
     }
 
     /// Puts back the good state before the step to blame, then retries that step or reports
     /// it, as the scene asks.
-    fn recover(&mut self, failure: Failure) -> Result<()> {
+    fn recover(&mut self, mut failure: Failure) -> Result<()> {
         self.watchdog.stats.caught += 1;
-        let mut failure = failure;
         if failure.in_start_state {
-            // The step to blame is the last completed one, with the substeps it ran with.
+            // The last completed step produced a state beyond the limit: undo it. It ran with
+            // the substeps it ran with.
             failure.substeps = self.watchdog.last_substeps;
-        }
-        let substeps = failure.substeps;
-        if failure.in_start_state {
-            // The last completed step produced a state beyond the limit: undo it.
             match self.watchdog.previous.as_ref() {
                 Some(previous) if self.watchdog.previous_valid => {
                     self.state.copy_from(previous);
@@ -454,9 +453,9 @@ impl Simulation {
                 }
                 // The state came from the user or the scene, not from a step: nothing to undo
                 // or retry, and the state stays as it is.
-                _ => return Err(diverged(self.steps + 1, failure, substeps)),
+                _ => return Err(diverged(self.steps + 1, failure)),
             }
-        } else if substeps > 1 {
+        } else if failure.substeps > 1 {
             if let Some(start) = &self.step_start {
                 self.state.copy_from(start);
             }
@@ -468,12 +467,14 @@ impl Simulation {
         if self.watchdog.retries() {
             self.retry_step(step, failure)
         } else {
-            Err(diverged(step, failure, substeps))
+            Err(diverged(step, failure))
         }
     }
 
-    /// Reruns step `step` from the current state with 2, 4, ... times the scene's substeps, up
-    /// to the watchdog's `max_substeps`. On failure the state is back where it started.
+    /// Reruns step `step` from the current state with 2, 4, ... times the failed attempt's
+    /// substeps, up to the watchdog's `max_substeps`, judging each attempt's end state too: a
+    /// retried step must not hand on a state the next step would reject. On failure the state
+    /// is back where it started.
     fn retry_step(&mut self, step: u64, failure: Failure) -> Result<()> {
         let n = self.grid.len();
         let mut start = self
@@ -482,15 +483,21 @@ impl Simulation {
             .take()
             .unwrap_or_else(|| Kinematics::zeros(n));
         start.copy_from(&self.state);
-        let (mut last, mut tried) = (failure, failure.substeps);
-        let mut substeps = tried.saturating_mul(2);
-        let mut outcome = Err(());
+        let mut last = failure;
+        let mut substeps = failure.substeps.saturating_mul(2);
+        let mut rescued = false;
         while substeps <= self.watchdog.spec.max_substeps {
-            tried = substeps;
             self.pipeline.integrator.reset_history();
-            match self.run_substeps(substeps) {
+            self.watchdog.stats.retry_substeps += substeps as u64;
+            let attempt = self.run_substeps(substeps).and_then(|()| {
+                match self.overstretched_in(&self.state, false, substeps) {
+                    Some(failure) => Err(failure),
+                    None => Ok(()),
+                }
+            });
+            match attempt {
                 Ok(()) => {
-                    outcome = Ok(());
+                    rescued = true;
                     break;
                 }
                 Err(f) => {
@@ -503,39 +510,21 @@ impl Simulation {
         // The substep length changes again after the retry.
         self.pipeline.integrator.reset_history();
         self.state_stepped();
-        let result = match outcome {
-            Ok(()) => {
-                let stats = &mut self.watchdog.stats;
-                stats.retried += 1;
-                stats.max_substeps_used = stats.max_substeps_used.max(tried);
-                let hold = self.watchdog.spec.hold_steps as u64;
-                self.watchdog.hold = (hold > 0).then_some((tried, step + 1 + hold));
-                self.watchdog.step_completed(&mut start, tried);
-                self.steps = step;
-                self.profile.steps += 1;
-                Ok(())
-            }
-            Err(()) => Err(diverged(step, last, tried)),
+        let result = if rescued {
+            let stats = &mut self.watchdog.stats;
+            stats.retried += 1;
+            stats.max_substeps_used = stats.max_substeps_used.max(substeps);
+            let hold = self.watchdog.spec.hold_steps as u64;
+            self.watchdog.hold = (hold > 0).then_some((substeps, step + 1 + hold));
+            self.watchdog.step_completed(&mut start, substeps);
+            self.steps = step;
+            self.profile.steps += 1;
+            Ok(())
+        } else {
+            Err(diverged(step, last))
         };
         self.watchdog.retry_start = Some(start);
         result
-    }
-
-    /// `substeps` substeps of `dt / substeps`, and a check of the end state: a retried step must
-    /// not hand on a state the next step would reject.
-    fn run_substeps(&mut self, substeps: u32) -> std::result::Result<(), Failure> {
-        let h = (self.scene.dt / substeps as f64) as f32;
-        for _ in 0..substeps {
-            self.watchdog.stats.retry_substeps += 1;
-            self.substep(h).map_err(|failure| Failure {
-                substeps,
-                ..failure
-            })?;
-        }
-        match self.overstretched_in(&self.state, false) {
-            Some(failure) => Err(failure),
-            None => Ok(()),
-        }
     }
 
     /// A step changed the state: caches of derived data are stale.
@@ -966,12 +955,12 @@ impl Simulation {
     }
 }
 
-fn diverged(step: u64, failure: Failure, substeps: u32) -> Error {
+fn diverged(step: u64, failure: Failure) -> Error {
     Error::Diverged {
         step,
         particle: failure.particle,
         reason: failure.reason,
-        substeps,
+        substeps: failure.substeps,
     }
 }
 

@@ -39,7 +39,7 @@ pub struct WatchdogStats {
     pub caught: u64,
     /// Steps saved by rerunning them with more substeps.
     pub retried: u64,
-    /// Substeps spent on retries, failed attempts included: the cost of the safety net.
+    /// Substeps of every retry attempt, failed ones counted in full: the cost of the safety net.
     pub retry_substeps: u64,
     /// Most substeps a saved step needed.
     pub max_substeps_used: u32,
