@@ -29,7 +29,7 @@ use crate::forces::springs::spring_overstretched;
 use crate::forces::Springs;
 use crate::grid::{Grid, SpringKind};
 use crate::scene::{OnTrouble, WatchdogSpec};
-use crate::soa::Vec3s;
+use crate::soa::{Vec3Slice, Vec3s};
 use crate::state::Kinematics;
 
 /// What the watchdog did since the simulation was built.
@@ -141,37 +141,21 @@ pub(crate) fn any_overstretched(
             let anchors = n.saturating_sub(o);
             let a = (c * SCAN_CHUNK).min(anchors)..((c + 1) * SCAN_CHUNK).min(anchors);
             let b = a.start + o..a.end + o;
-            let input = ScanInput {
-                a: [
-                    pos.component(0, &a),
-                    pos.component(1, &a),
-                    pos.component(2, &a),
-                ],
-                b: [
-                    pos.component(0, &b),
-                    pos.component(1, &b),
-                    pos.component(2, &b),
-                ],
-                rest: &springs.rest[k][a.clone()],
-                active: &springs.active[k][a],
-            };
-            crate::simd::dispatch!(scan(&input, limit))
+            let (rest, active) = (&springs.rest[k][a.clone()], &springs.active[k][a.clone()]);
+            let (a, b) = (pos.slices(a), pos.slices(b));
+            crate::simd::dispatch!(scan(a, b, rest, active, limit))
         })
     })
 }
 
-struct ScanInput<'a> {
-    a: [&'a [f32]; 3],
-    b: [&'a [f32]; 3],
-    rest: &'a [f32],
-    active: &'a [f32],
-}
-
+/// Whether a spring with ends `a[i]`, `b[i]` is beyond `limit`: one straight loop over
+/// equal-length slices, which the compiler vectorises.
 #[inline(always)]
-fn scan(input: &ScanInput, limit: f32) -> bool {
-    let n = input.rest.len();
-    let ([xa, ya, za], [xb, yb, zb]) = (input.a.map(|v| &v[..n]), input.b.map(|v| &v[..n]));
-    let (rest, active) = (&input.rest[..n], &input.active[..n]);
+fn scan(a: Vec3Slice, b: Vec3Slice, rest: &[f32], active: &[f32], limit: f32) -> bool {
+    let n = rest.len();
+    let (xa, ya, za) = (&a.x[..n], &a.y[..n], &a.z[..n]);
+    let (xb, yb, zb) = (&b.x[..n], &b.y[..n], &b.z[..n]);
+    let active = &active[..n];
     let mut over = 0u32;
     for i in 0..n {
         let (dx, dy, dz) = (xb[i] - xa[i], yb[i] - ya[i], zb[i] - za[i]);
