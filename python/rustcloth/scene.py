@@ -95,22 +95,20 @@ class Scene:
         """How the scene's step compares with the largest stable step of each integrator.
 
         Estimated from the stiffest mode of the cloth, ``omega = sqrt(4 (k_structural + k_shear
-        + k_bend) / m)`` (within 5 % of the assembled stiffness matrix's largest eigenvalue):
-        symplectic Euler and Verlet need ``omega h < 2`` with ``h = dt / substeps``, RK4
-        ``omega h < 2 sqrt 2``, explicit Euler ``h < 2 gamma / omega^2`` (``gamma`` the spring
-        damping rate), implicit Euler nothing. With ``warn``, a scene whose integrator is past its
-        limit raises a :class:`~rustcloth.errors.StabilityWarning` as well.
+        + k_bend) / m)`` (within 5 % of the assembled stiffness matrix's largest eigenvalue), and
+        that mode's damping rate ``gamma``: undamped, symplectic Euler and Verlet need
+        ``omega h < 2`` with ``h = dt / substeps``, RK4 ``omega h < 2 sqrt 2``, explicit Euler
+        ``h < gamma / omega^2``, implicit Euler nothing; the damped conditions are in
+        docs/stability.md. With ``warn``, a scene whose integrator is past its limit raises a
+        :class:`~rustcloth.errors.StabilityWarning` as well.
         """
-        limits: dict[str, float | None] = {}
-        omega = 0.0
-        for name in _core.INTEGRATORS:
-            limits[name], omega = _core.scene_stability(self._data, name)
+        limits, omega = _core.scene_stability(self._data)
         report = StabilityReport(
             integrator=self._data["integrator"],
             dt=self._data["dt"],
             substeps=self._data["substeps"],
             omega=omega,
-            stable_dt=limits,
+            stable_dt=dict(limits),
         )
         if warn and not report.stable:
             warnings.warn(str(report), StabilityWarning, stacklevel=2)

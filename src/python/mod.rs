@@ -60,21 +60,16 @@ fn scene_to_toml(scene: &Bound<'_, PyAny>) -> PyResult<String> {
     Ok(scene_from_dict(scene)?.to_toml_string())
 }
 
-/// The largest stable `dt` of a scene dict with `integrator`, and its stiffest mode's angular
-/// frequency (rad/s).
+/// Every integrator's largest stable `dt` for a scene dict (None: any `dt`), and the angular
+/// frequency (rad/s) of the cloth's stiffest mode.
 #[pyfunction]
-fn scene_stability(scene: &Bound<'_, PyAny>, integrator: &str) -> PyResult<(Option<f64>, f64)> {
+fn scene_stability(scene: &Bound<'_, PyAny>) -> PyResult<(Vec<(&'static str, Option<f64>)>, f64)> {
     let scene = scene_from_dict(scene)?;
-    if !crate::scene::INTEGRATORS.contains(&integrator) {
-        return Err(value_error(
-            "integrator",
-            format!(
-                "unknown integrator {integrator:?}; valid ones are {:?}",
-                crate::scene::INTEGRATORS
-            ),
-        ));
-    }
-    Ok((scene.stable_dt(integrator), scene.max_frequency()))
+    let limits = crate::scene::INTEGRATORS
+        .iter()
+        .map(|&name| (name, scene.stable_dt(name)))
+        .collect();
+    Ok((limits, scene.max_frequency()))
 }
 
 /// Names of the built-in scenes.
