@@ -20,26 +20,12 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
 
 import rustcloth  # noqa: E402
-from stability.checks import run_checked  # noqa: E402
+from stability.checks import hanging, run_checked, stable  # noqa: E402
 
 warnings.simplefilter("ignore", rustcloth.StabilityWarning)
 warnings.simplefilter("ignore", RuntimeWarning)
 
 INTEGRATORS = list(rustcloth.INTEGRATORS)
-
-
-def hanging(n: int = 12, **changes) -> rustcloth.Scene:
-    scene = rustcloth.Scene(
-        cloth={"nx": n, "ny": n, "plane": "xy", "center": [0, 1.5, 0], "pins": ["top_corners"]},
-    )
-    return scene.replace(**changes)
-
-
-def stable(scene: rustcloth.Scene) -> rustcloth.Scene:
-    if scene.integrator == "implicit_euler":
-        return scene.replace(dt=1 / 60)
-    limit = scene.stability_report(warn=False).limit
-    return scene if limit is None else scene.replace(dt=min(scene.dt, 0.5 * limit))
 
 
 def outcome(sim: rustcloth.Simulation, steps: int, bound: float = 100.0,

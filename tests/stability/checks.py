@@ -57,3 +57,20 @@ def run_checked(sim: rustcloth.Simulation, steps: int, bound: float = 100.0,
         history[sim.steps] = state_digest(sim)
         check_state(sim, bound, dragged, pins)
     return None
+
+
+def hanging(n: int = 12, **changes) -> rustcloth.Scene:
+    """An n x n cloth in the xy plane hanging from its top corners, with ``changes``."""
+    scene = rustcloth.Scene(
+        cloth={"nx": n, "ny": n, "plane": "xy", "center": [0, 1.5, 0], "pins": ["top_corners"]},
+    )
+    return scene.replace(**changes)
+
+
+def stable(scene: rustcloth.Scene, implicit_dt: float = 1 / 60) -> rustcloth.Scene:
+    """The scene at half its integrator's stable dt (at most its own dt); implicit Euler at
+    ``implicit_dt``."""
+    if scene.integrator == "implicit_euler":
+        return scene.replace(dt=implicit_dt)
+    limit = scene.stability_report(warn=False).limit
+    return scene if limit is None else scene.replace(dt=min(scene.dt, 0.5 * limit))

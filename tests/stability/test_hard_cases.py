@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import rustcloth
 from rustcloth import StabilityWarning
-from stability.checks import ALL, EXPLICIT, check_state, run_checked
+from stability.checks import ALL, EXPLICIT, check_state, hanging, run_checked, stable
 
 
 def make(scene: rustcloth.Scene) -> rustcloth.Simulation:
@@ -20,22 +20,6 @@ def make(scene: rustcloth.Scene) -> rustcloth.Simulation:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", StabilityWarning)
         return rustcloth.Simulation(scene)
-
-
-def hanging(n: int = 12, **changes) -> rustcloth.Scene:
-    scene = rustcloth.Scene(
-        cloth={"nx": n, "ny": n, "plane": "xy", "center": [0, 1.5, 0], "pins": ["top_corners"]},
-    )
-    return scene.replace(**changes)
-
-
-def stable(scene: rustcloth.Scene, implicit_dt: float = 1 / 60) -> rustcloth.Scene:
-    """The scene at half its integrator's stable dt (at most 1 ms); implicit Euler at
-    ``implicit_dt``."""
-    if scene.integrator == "implicit_euler":
-        return scene.replace(dt=implicit_dt)
-    limit = scene.stability_report(warn=False).limit
-    return scene if limit is None else scene.replace(dt=min(scene.dt, 0.5 * limit))
 
 
 # ----- very stiff springs: k dt^2 / m = 100 ---------------------------------------------------
