@@ -68,11 +68,11 @@ fn accumulate_in(
     out: &mut Vec3SliceMut,
 ) {
     debug_assert!(group.iter().map(Fused::streams).sum::<usize>() <= MAX_STREAMS);
-    let n = input.grid.len();
+    let n = input.state.grid.len();
     // The interior: particles that both anchor and end a spring of every kind in the group.
     let (mut lo, mut hi) = (range.start, range.end);
     for kind in group.iter().flat_map(spring_kinds) {
-        let o = input.grid.offset(*kind);
+        let o = input.state.grid.offset(*kind);
         lo = lo.max(o);
         hi = hi.min(n.saturating_sub(o));
     }
@@ -105,16 +105,16 @@ fn accumulate_in(
         for contribution in group {
             match *contribution {
                 Fused::MassTimes(a) if a[c] != 0.0 => {
-                    push(Op::AddTimes(&input.mass[lo..hi], a[c]));
+                    push(Op::AddTimes(&input.state.mass[lo..hi], a[c]));
                 }
                 Fused::MassTimes(_) => {}
                 Fused::MinusVelocityTimes(k) => {
-                    push(Op::SubTimes(input.vel.component(c, &(lo..hi)), k));
+                    push(Op::SubTimes(input.state.vel.component(c, &(lo..hi)), k));
                 }
                 Fused::Springs(kinds) => {
                     let table = input.spring_table;
                     for &kind in kinds {
-                        let o = input.grid.offset(kind);
+                        let o = input.state.grid.offset(kind);
                         push(Op::Add(table.component(kind, c, &(lo..hi))));
                         push(Op::Sub(table.component(kind, c, &(lo - o..hi - o))));
                     }
@@ -195,7 +195,7 @@ fn add(acc: &mut [f32; STRIP], t: &[f32], rule: impl Fn(f32, f32) -> f32) {
 fn add_one(input: &ForceInput, contribution: &Fused, range: Range<usize>, f: &mut Vec3SliceMut) {
     match *contribution {
         Fused::MassTimes(a) => {
-            let mass = &input.mass[range];
+            let mass = &input.state.mass[range];
             for (component, a) in [(&mut *f.x, a.x), (&mut *f.y, a.y), (&mut *f.z, a.z)] {
                 if a != 0.0 {
                     for (f, m) in component.iter_mut().zip(mass) {
@@ -205,7 +205,7 @@ fn add_one(input: &ForceInput, contribution: &Fused, range: Range<usize>, f: &mu
             }
         }
         Fused::MinusVelocityTimes(k) => {
-            let vel = input.vel.slices(range);
+            let vel = input.state.vel.slices(range);
             for (f, v) in [(&mut *f.x, vel.x), (&mut *f.y, vel.y), (&mut *f.z, vel.z)] {
                 for (f, v) in f.iter_mut().zip(v) {
                     *f -= k * v;
@@ -213,9 +213,10 @@ fn add_one(input: &ForceInput, contribution: &Fused, range: Range<usize>, f: &mu
             }
         }
         Fused::Springs(kinds) => {
-            let (n, table) = (input.grid.len(), input.spring_table);
+            let (n, table) = (input.state.grid.len(), input.spring_table);
             for &kind in kinds {
-                let [anchors, ends] = neighbour_runs(n, input.grid.offset(kind), range.clone());
+                let [anchors, ends] =
+                    neighbour_runs(n, input.state.grid.offset(kind), range.clone());
                 for (run, sign) in [(anchors, 1.0f32), (ends, -1.0)] {
                     let Some(run) = run else { continue };
                     let s = run.spring..run.spring + run.len;

@@ -40,12 +40,8 @@ pub struct StateRef<'a> {
 
 /// What a force term may read.
 pub struct ForceInput<'a> {
-    pub grid: Grid,
-    pub pos: &'a Vec3s,
-    pub vel: &'a Vec3s,
-    /// Particle masses in kg (the true mass, also for pinned particles).
-    pub mass: &'a [f32],
-    pub springs: &'a Springs,
+    /// The state being evaluated (masses are the true ones, also for pinned particles).
+    pub state: StateRef<'a>,
     /// Force on each spring's anchor, per spring kind, for the springs the particles being
     /// accumulated need; filled by [`ForceTerm::prepare`] before [`ForceTerm::accumulate`].
     pub spring_table: &'a SpringTable,
@@ -305,13 +301,7 @@ impl ForceModel {
     ) -> Duration {
         let start = Instant::now();
         self.size_tables(state.grid, chunk);
-        let StateRef {
-            grid,
-            pos,
-            vel,
-            mass,
-            springs,
-        } = state;
+        let grid = state.grid;
         let stretch_watch = if std::mem::take(&mut self.watch_armed) {
             self.stretch_limit
         } else {
@@ -334,11 +324,7 @@ impl ForceModel {
         let book = |t: usize, nanos: u64| cpu_nanos[t].fetch_add(nanos, Ordering::Relaxed);
         let blank = SpringTable::default();
         let prepare_input = ForceInput {
-            grid,
-            pos,
-            vel,
-            mass,
-            springs,
+            state,
             spring_table: &blank,
             stretch_watch,
         };
@@ -368,11 +354,7 @@ impl ForceModel {
                     book(t, nanos);
                 }
                 let input = ForceInput {
-                    grid,
-                    pos,
-                    vel,
-                    mass,
-                    springs,
+                    state,
                     spring_table: table,
                     stretch_watch: None,
                 };

@@ -178,7 +178,7 @@ impl SpringForce {
         out: &mut Vec3SliceMut,
         limit: f32,
     ) -> bool {
-        let (n, o) = (input.grid.len(), input.grid.offset(kind));
+        let (n, o) = (input.state.grid.len(), input.state.grid.offset(kind));
         let len = range
             .len()
             .min(n.saturating_sub(o).saturating_sub(range.start));
@@ -186,7 +186,7 @@ impl SpringForce {
             range.start..range.start + len,
             range.start + o..range.start + o + len,
         );
-        let (pos, vel) = (input.pos, input.vel);
+        let (pos, vel) = (input.state.pos, input.state.vel);
         let (xa, ya, za) = (
             pos.component(0, &a),
             pos.component(1, &a),
@@ -207,8 +207,8 @@ impl SpringForce {
             vel.component(1, &b),
             vel.component(2, &b),
         );
-        let rest = &input.springs.rest[kind.index()][a.clone()];
-        let active = &input.springs.active[kind.index()][a];
+        let rest = &input.state.springs.rest[kind.index()][a.clone()];
+        let active = &input.state.springs.active[kind.index()][a];
         let (fx, fy, fz) = (&mut out.x[..len], &mut out.y[..len], &mut out.z[..len]);
         let (k, c) = (self.k, self.c);
         // An integer OR, like `FiniteCheck`, so the loop still vectorises.

@@ -60,10 +60,13 @@ fn scene_to_toml(scene: &Bound<'_, PyAny>) -> PyResult<String> {
     Ok(scene_from_dict(scene)?.to_toml_string())
 }
 
+/// `(integrator, largest stable dt)` for every integrator.
+type StableDts = Vec<(&'static str, Option<f64>)>;
+
 /// Every integrator's largest stable `dt` for a scene dict (None: any `dt`), and the angular
 /// frequency (rad/s) of the cloth's stiffest mode.
 #[pyfunction]
-fn scene_stability(scene: &Bound<'_, PyAny>) -> PyResult<(Vec<(&'static str, Option<f64>)>, f64)> {
+fn scene_stability(scene: &Bound<'_, PyAny>) -> PyResult<(StableDts, f64)> {
     let scene = scene_from_dict(scene)?;
     let limits = crate::scene::INTEGRATORS
         .iter()
