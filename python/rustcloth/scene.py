@@ -115,10 +115,19 @@ class Scene:
         return report
 
     def __getattr__(self, name: str) -> Any:
+        # Only scene keys: private and special names are looked up (and missing) as usual.
+        # Answering them from `_data` recursed while `_data` itself was unset, as it is while
+        # pickle and copy rebuild a Scene.
+        if name.startswith("_"):
+            raise AttributeError(name)
         try:
             return copy.deepcopy(self._data[name])
         except KeyError:
             raise AttributeError(f"Scene has no key {name!r}") from None
+
+    def __reduce__(self) -> tuple[Any, tuple[dict[str, Any]]]:
+        # Rebuilt through validation, so a pickle from another version is checked, not trusted.
+        return (Scene.from_dict, (self.to_dict(),))
 
     def __eq__(self, other: object) -> bool:
         return isinstance(other, Scene) and self._data == other._data

@@ -1,0 +1,38 @@
+"""Scenes cross process boundaries: pickle, copy and multiprocessing round-trip them."""
+
+from __future__ import annotations
+
+import copy
+import multiprocessing
+import pickle
+
+import rustcloth
+from rustcloth import Scene
+
+
+def _nx(scene: Scene) -> int:
+    return int(scene.cloth["nx"])
+
+
+def test_issue_11_scene_pickle_recursion_error():
+    # Scene.__getattr__ answered every name from `_data`, also `_data` itself, which is unset
+    # while pickle and copy rebuild the object: RecursionError, and a multiprocessing.Pool
+    # given a scene hung for good because its worker died unpickling it.
+    scene = rustcloth.load_scene("drape").replace(dt=0.0005)
+    for clone in (pickle.loads(pickle.dumps(scene)), copy.copy(scene), copy.deepcopy(scene)):
+        assert clone == scene
+        assert clone.to_dict() == scene.to_dict()
+
+
+def test_scene_goes_through_a_process_pool():
+    scene = rustcloth.load_scene("hanging")
+    ctx = multiprocessing.get_context("spawn")
+    with ctx.Pool(1) as pool:
+        result = pool.apply_async(_nx, (scene,)).get(timeout=60)
+    assert result == scene.cloth["nx"]
+
+
+def test_private_names_are_attribute_errors_not_scene_keys():
+    scene = Scene()
+    assert not hasattr(scene, "_missing")
+    assert not hasattr(scene, "__wrapped__")
