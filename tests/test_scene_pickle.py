@@ -36,3 +36,10 @@ def test_private_names_are_attribute_errors_not_scene_keys():
     scene = Scene()
     assert not hasattr(scene, "_missing")
     assert not hasattr(scene, "__wrapped__")
+
+
+def test_load_scene_takes_a_toml_path(tmp_path):
+    path = tmp_path / "mine.toml"
+    path.write_text(rustcloth.load_scene("curtain").to_toml())
+    assert rustcloth.load_scene(str(path)) == rustcloth.load_scene("curtain")
+    assert rustcloth.load_scene(path) == rustcloth.load_scene("curtain")

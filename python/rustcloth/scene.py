@@ -204,6 +204,9 @@ def scenes() -> list[str]:
     return list(_core.builtin_scenes())
 
 
-def load_scene(name: str) -> Scene:
-    """The built-in scene ``name`` (see :func:`scenes`)."""
+def load_scene(name: str | os.PathLike[str]) -> Scene:
+    """The built-in scene ``name`` (see :func:`scenes`), or the scene in a TOML file: a path
+    that ends in ``.toml`` or names an existing file."""
+    if isinstance(name, os.PathLike) or str(name).endswith(".toml") or os.path.isfile(name):
+        return Scene.from_toml(name)
     return Scene.from_dict(_core.builtin_scene(name))
