@@ -76,6 +76,9 @@ fn accumulate_in(
         lo = lo.max(o);
         hi = hi.min(n.saturating_sub(o));
     }
+    // A block can be shorter than a spring's index offset (a wide grid's bending springs span
+    // two rows): then it has no interior, and `lo` must not run past the block's end.
+    let lo = lo.min(range.end);
     let hi = hi.max(lo);
     // Near the grid's first and last rows some of those springs are missing: there, one
     // contribution after the other, each a pass over the few particles concerned.

@@ -179,13 +179,8 @@ impl SpringForce {
         limit: f32,
     ) -> bool {
         let (n, o) = (input.state.grid.len(), input.state.grid.offset(kind));
-        let len = range
-            .len()
-            .min(n.saturating_sub(o).saturating_sub(range.start));
-        let (a, b) = (
-            range.start..range.start + len,
-            range.start + o..range.start + o + len,
-        );
+        let (a, b) = anchored_run(n, o, range.clone());
+        let len = a.len();
         let (pos, vel) = (input.state.pos, input.state.vel);
         let (xa, ya, za) = (
             pos.component(0, &a),
@@ -239,6 +234,15 @@ impl SpringForce {
 #[inline(always)]
 pub fn spring_overstretched(l: f32, rest: f32, active: f32, limit: f32) -> bool {
     active * l > limit * rest
+}
+
+/// The slots of `range` that can anchor a spring of index offset `o` on a grid of `n`
+/// particles, and their partners: `(a, a + o)` with both inside the grid. Empty (and still in
+/// bounds) where the whole range lies within `o` of the end, as on a grid wider than a block.
+pub fn anchored_run(n: usize, o: usize, range: Range<usize>) -> (Range<usize>, Range<usize>) {
+    let end = range.end.min(n.saturating_sub(o)).max(range.start);
+    let start = range.start.min(end);
+    (start..end, (start + o).min(n)..(end + o).min(n))
 }
 
 /// A run of `len` consecutive particles `a..`, their neighbours `b..` along one spring kind,

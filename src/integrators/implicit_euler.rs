@@ -5,7 +5,7 @@
 use rayon::prelude::*;
 
 use super::{par_update, FiniteCheck, Integrator, StepContext};
-use crate::forces::springs::{neighbour_runs, Run};
+use crate::forces::springs::{anchored_run, neighbour_runs, Run};
 use crate::forces::Linearization;
 use crate::grid::SpringKind;
 use crate::soa::{Vec3SliceMut, Vec3s};
@@ -417,8 +417,8 @@ fn build_blocks(work: &mut Work, kind: SpringKind, h: f32, k: f32, c: f32, ctx: 
         .for_each(|(ci, ((alpha, beta), u))| {
             // Slots whose partner would be off the end hold no spring (active = 0).
             let start = ci * chunk;
-            let len = alpha.len().min(n.saturating_sub(o).saturating_sub(start));
-            let (s, t) = (start..start + len, start + o..start + o + len);
+            let (s, t) = anchored_run(n, o, start..start + alpha.len());
+            let len = s.len();
             let (ax, ay, az) = (
                 pos.component(0, &s),
                 pos.component(1, &s),
