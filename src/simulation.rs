@@ -401,7 +401,7 @@ impl Simulation {
             let t = Instant::now();
             let (grid, springs, particles) = (self.grid, &self.springs, &self.particles);
             finite &= limit
-                .apply(h, grid, springs, particles, &mut self.scratch, chunk)
+                .apply(grid, springs, particles, &mut self.scratch, chunk)
                 .finite;
             self.profile.add(StrainLimit::NAME, t.elapsed());
         }

@@ -4,8 +4,18 @@
 //! Soft springs let a hanging cloth sag into a "super-elastic" sheet; stiff ones force a tiny
 //! step. Provot's fix is a pass after integration: a spring longer than `(1 + max_strain)` times
 //! its rest length `L` is shortened back to that limit by moving its two ends towards each
-//! other, and the velocity of each moved particle is corrected by the move divided by the step,
-//! so that the stretching motion is removed too, not only its result.
+//! other, and the stretching motion is removed too, not only its result: the two ends of each
+//! spring that was over the limit lose the part of their relative velocity that pulls them
+//! apart, as in an inelastic collision along the spring.
+//!
+//! Provot corrected the velocity by the move divided by the step, `dv = dx / h`. That turns
+//! every position correction into motion, also those that fight another pass: where a
+//! collider pushes a particle out of a sphere and the stretched springs around it pull it back
+//! in, `dx / h` gave the cloth tens of metres per second each step (a resting 128 x 128 cloth
+//! on a sphere gained hundreds of joules in two steps, issue #11). The inelastic correction
+//! cannot add kinetic energy: each spring's impulse conserves momentum and takes away only
+//! separating speed, and each particle takes the average of its springs' impulses (see
+//! [`StrainLimit::apply`]), so the pass only ever removes kinetic energy.
 //!
 //! What is limited, and why:
 //! - **Structural and shear springs**, live ones (`springs.active`), whatever the stiffness of
@@ -57,12 +67,15 @@
 //! wide cloth (330 sweeps for a 6 x 6 cloth stretched by half, 1121 for 12 x 12). In a
 //! simulation the sweeps add up across steps, each step starting from the last one's result.
 //!
-//! Cost, 128 x 128 on the shared 2-core machine: a check is about 0.17 of a symplectic Euler
-//! step, a sweep with its check about half a step; memory is 25 bytes per particle.
+//! Cost: a check is a fraction of a symplectic Euler step, a sweep with its check about half a
+//! step, and the velocity correction one more sweep's work, only in steps where a spring was
+//! over the limit; memory is 26 bytes per particle.
 //!
 //! In a step it belongs after the integrator and the kinematic pins (so that it pulls the
 //! cloth after a dragged particle, instead of back to where the particle was) and before the
 //! colliders (so that contacts have the last word).
+
+use std::ops::Range;
 
 use rayon::prelude::*;
 
@@ -125,10 +138,12 @@ pub struct StrainLimit {
     /// over-stretch (near pins, at a grab, at an impact) while a stretch spread over the whole
     /// cloth is undone over several steps. 0 only measures ([`StrainStats`]), changing nothing.
     pub iterations: u32,
-    /// Positions written by the last sweep, and the buffer the next sweep writes.
+    /// Positions written by the last sweep, and the buffer the next sweep writes; after the
+    /// sweeps, the second holds the velocity corrections.
     pos: [Vec3s; 2],
-    /// Springs over the limit at each particle that can move, from the last check.
-    count: Vec<u8>,
+    /// Springs over the limit at each particle that can move: from the first check (the
+    /// springs whose stretching motion the velocity correction removes), and from the last.
+    count: [Vec<u8>; 2],
 }
 
 /// What a check of a whole state found.
@@ -162,11 +177,9 @@ impl StrainLimit {
     pub const NAME: &'static str = "strain_limit";
     /// Provot's 10 %.
     pub const DEFAULT_MAX_STRAIN: f32 = 0.1;
-    /// Four sweeps: with a call after every step, they cut the worst strain of the built-in
-    /// `hanging` scene (32 x 32) from 0.46 to 0.18 and of `drape` from 0.26 to 0.107, for
-    /// about two sweeps per step on average while the cloth hangs at its limit and none when
-    /// it is within it (46 sweeps in 2000 steps of `drape`). Eight reach 0.15 and 0.100 for
-    /// twice the cost; soft or large cloths that hang on the limit want 8-16.
+    /// Four sweeps (of positions, and as many of velocities): enough to undo local
+    /// over-stretch near pins, grabs and impacts in a step; soft or large cloths that hang on
+    /// the limit want 8-16. docs/stability.md measures the worst strain they leave.
     pub const DEFAULT_ITERATIONS: u32 = 4;
 
     /// # Panics
@@ -180,17 +193,30 @@ impl StrainLimit {
             max_strain,
             iterations,
             pos: Default::default(),
-            count: Vec::new(),
+            count: Default::default(),
         }
     }
 
     /// Heap memory held by the reusable buffers.
     pub fn heap_bytes(&self) -> usize {
-        self.pos.iter().map(Vec3s::heap_bytes).sum::<usize>() + self.count.capacity()
+        self.pos.iter().map(Vec3s::heap_bytes).sum::<usize>()
+            + self.count.iter().map(Vec::capacity).sum::<usize>()
     }
 
-    /// Applies the limit to `next` (the state the integrator just wrote), in place; `h` (s) is
-    /// the (sub)step that produced it, used for the velocity correction `dv = dx / h`.
+    /// Applies the limit to `next` (the state the integrator just wrote), in place: positions
+    /// by the sweeps, then velocities by the inelastic correction of every spring that was
+    /// over the limit before the sweeps and whose ends still move apart along it:
+    ///
+    /// ```text
+    /// s = max(0, (v_q - v_p) . d) / (|d|^2 max(c_p, c_q))        d = x_q - x_p (after)
+    /// dv_p = w_p / (w_p + w_q) s d,       dv_q = -w_q / (w_p + w_q) s d
+    /// ```
+    ///
+    /// Each particle's new velocity is then a convex combination of its old velocity and the
+    /// velocities each of its springs' full impulses would give it (weights `1 / max(c_p,
+    /// c_q) <= 1 / c_p`), and each full impulse keeps its pair's momentum and does not raise
+    /// its kinetic energy; by Jensen's inequality the pass cannot raise the total kinetic
+    /// energy.
     /// Particles with `inv_mass == 0` (pinned, kinematic or cut) are never moved and keep
     /// their bits; so does every particle no correction reached. `chunk` is the number of
     /// particles per parallel work item; the result does not depend on it.
@@ -201,10 +227,9 @@ impl StrainLimit {
     /// Allocates only when the number of particles changes (the first call).
     ///
     /// # Panics
-    /// If `chunk` is 0, `h` is not positive, or `next` does not have `grid.len()` particles.
+    /// If `chunk` is 0 or `next` does not have `grid.len()` particles.
     pub fn apply(
         &mut self,
-        h: f32,
         grid: Grid,
         springs: &Springs,
         particles: &Particles,
@@ -213,11 +238,10 @@ impl StrainLimit {
     ) -> StrainStats {
         let n = grid.len();
         assert!(chunk > 0, "chunk must be positive");
-        assert!(h > 0.0, "the step h must be positive, got {h}");
         assert_eq!(next.pos.len(), n, "state and grid disagree");
-        if self.count.len() != n {
+        if self.count[0].len() != n {
             self.pos = [Vec3s::zeros(n), Vec3s::zeros(n)];
-            self.count = vec![0; n];
+            self.count = [vec![0; n], vec![0; n]];
         }
         let kernel = Kernel {
             grid,
@@ -228,16 +252,20 @@ impl StrainLimit {
         let Self {
             iterations,
             pos: [written, spare],
-            count,
+            count: [first, latest],
             ..
         } = self;
 
-        let mut check = kernel.check(&next.pos, count, chunk);
+        let mut check = kernel.check(&next.pos, first, chunk);
         let mut sweeps = 0;
         while sweeps < *iterations && check.movable > 0 {
-            // The first sweep reads the integrator's positions directly; later ones the last
-            // sweep's, in `written`.
-            let source = if sweeps == 0 { &next.pos } else { &*written };
+            // The first sweep reads the integrator's positions and the first check's counts
+            // directly; later ones the last sweep's and the last check's.
+            let (source, count) = if sweeps == 0 {
+                (&next.pos, &*first)
+            } else {
+                (&*written, &*latest)
+            };
             if !kernel.sweep(source, count, spare, chunk) {
                 // Every correction was lost to rounding: the positions are a fixed point of the
                 // sweep, and more sweeps would return exactly this state (and the last check).
@@ -245,9 +273,21 @@ impl StrainLimit {
             }
             std::mem::swap(written, spare);
             sweeps += 1;
-            check = kernel.check(written, count, chunk);
+            check = kernel.check(written, latest, chunk);
         }
-        let finite = sweeps == 0 || correct_state(next, written, h, chunk);
+        let finite = sweeps == 0 || {
+            // As many Jacobi sweeps over the velocities as over the positions: one leaves part
+            // of the separating speed where several springs pull on a particle.
+            // Each sweep carries the correction one spring further; stop when no over-limit
+            // spring moves apart any more.
+            for _ in 0..sweeps {
+                if !kernel.velocity_corrections(next, written, first, spare, chunk) {
+                    break;
+                }
+                add_corrections(&mut next.vel, spare, first, chunk);
+            }
+            correct_state(next, written, chunk)
+        };
         StrainStats {
             iterations: sweeps,
             over_limit: check.over,
@@ -422,6 +462,113 @@ impl Kernel<'_> {
         changed != 0
     }
 
+    /// The velocity corrections of [`StrainLimit::apply`] into `out`: for the springs over
+    /// the limit in `before` (as `count` counted them), along their direction in `after`.
+    /// Returns whether any spring's ends move apart (any correction is not zero).
+    fn velocity_corrections(
+        &self,
+        before: &Kinematics,
+        after: &Vec3s,
+        count: &[u8],
+        out: &mut Vec3s,
+        chunk: usize,
+    ) -> bool {
+        out.par_chunks_mut(chunk)
+            .enumerate()
+            .map(|(c, mut out)| {
+                let start = c * chunk;
+                let range = start..start + out.len();
+                out.fill(glam::Vec3::ZERO);
+                let mut any = false;
+                for kind in LIMITED_KINDS {
+                    let runs =
+                        neighbour_runs(self.grid.len(), self.grid.offset(kind), range.clone());
+                    for run in runs.into_iter().flatten() {
+                        any |= crate::simd::dispatch!(
+                            self.velocity_run(before, after, count, kind, run, start, &mut out)
+                        );
+                    }
+                }
+                any
+            })
+            .reduce(|| false, |a, b| a | b)
+    }
+
+    /// Adds the velocity corrections of one run of springs to `out` (which starts at particle
+    /// `start`). As in [`Kernel::sweep_run`], every factor is symmetric in the two ends but
+    /// `w_a` and the sign of `d`, so the far end computes exactly the opposite impulse.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn velocity_run(
+        &self,
+        before: &Kinematics,
+        after: &Vec3s,
+        count: &[u8],
+        kind: SpringKind,
+        run: Run,
+        start: usize,
+        out: &mut Vec3SliceMut,
+    ) -> bool {
+        let len = run.len;
+        let (a, b, s) = (
+            run.a..run.a + len,
+            run.b..run.b + len,
+            run.spring..run.spring + len,
+        );
+        let (x0a, x0b) = run_ends(&before.pos, &a, &b);
+        let (xa, xb) = run_ends(after, &a, &b);
+        let (va, vb) = run_ends(&before.vel, &a, &b);
+        let rest = &self.springs.rest[kind.index()][s.clone()][..len];
+        let active = &self.springs.active[kind.index()][s][..len];
+        let (wa, wb) = (
+            &self.inv_mass[a.clone()][..len],
+            &self.inv_mass[b.clone()][..len],
+        );
+        let (ca, cb) = (&count[a.clone()][..len], &count[b][..len]);
+        let o = a.start - start..a.end - start;
+        let (ox, oy, oz) = (
+            &mut out.x[o.clone()][..len],
+            &mut out.y[o.clone()][..len],
+            &mut out.z[o][..len],
+        );
+        let factor = self.factor;
+        let mut any = 0u32;
+        for i in 0..len {
+            let d0 = [
+                x0b[0][i] - x0a[0][i],
+                x0b[1][i] - x0a[1][i],
+                x0b[2][i] - x0a[2][i],
+            ];
+            let was_over = over_limit(
+                d0[0] * d0[0] + d0[1] * d0[1] + d0[2] * d0[2],
+                rest[i],
+                active[i],
+                factor,
+            );
+            let (dx, dy, dz) = (
+                xb[0][i] - xa[0][i],
+                xb[1][i] - xa[1][i],
+                xb[2][i] - xa[2][i],
+            );
+            let l2 = dx * dx + dy * dy + dz * dz;
+            let apart = (vb[0][i] - va[0][i]) * dx
+                + (vb[1][i] - va[1][i]) * dy
+                + (vb[2][i] - va[2][i]) * dz;
+            let shared = (ca[i].max(cb[i])) as f32;
+            let s = wa[i] / (wa[i] + wb[i]) * (apart / (l2 * shared));
+            // Masked, not multiplied by a flag (s may be NaN where the spring is not corrected).
+            let keep = (was_over & (wa[i] > 0.0) & (apart > 0.0) & (l2 > 0.0)) as u32;
+            any |= keep;
+            let mask = keep.wrapping_neg();
+            let masked = |v: f32| f32::from_bits(v.to_bits() & mask);
+            let s = masked(s);
+            ox[i] += s * masked(dx);
+            oy[i] += s * masked(dy);
+            oz[i] += s * masked(dz);
+        }
+        any != 0
+    }
+
     /// Adds the corrections of one run of springs to `out` (which starts at particle `start`).
     #[inline(always)]
     fn sweep_run(
@@ -487,11 +634,41 @@ impl Kernel<'_> {
     }
 }
 
-/// Writes the limited positions `limited` into `next` and adds the move over `h` to the
-/// velocities. A component that did not move keeps its velocity bits.
-/// Returns whether every velocity is finite afterwards (`dx / h` overflows for a move near
-/// float32's range).
-fn correct_state(next: &mut Kinematics, limited: &Vec3s, h: f32, chunk: usize) -> bool {
+/// The three components of `v` over the spring ends `a` and `b`, each cut to the run's length.
+type Ends<'a> = ([&'a [f32]; 3], [&'a [f32]; 3]);
+
+#[inline(always)]
+fn run_ends<'a>(v: &'a Vec3s, a: &Range<usize>, b: &Range<usize>) -> Ends<'a> {
+    let len = a.len();
+    let (a, b) = (v.slices(a.clone()), v.slices(b.clone()));
+    (
+        [&a.x[..len], &a.y[..len], &a.z[..len]],
+        [&b.x[..len], &b.y[..len], &b.z[..len]],
+    )
+}
+
+/// Adds the velocity corrections `dv` to the particles the first check counted springs at
+/// (`count`); every other velocity keeps its bits.
+fn add_corrections(vel: &mut Vec3s, dv: &Vec3s, count: &[u8], chunk: usize) {
+    vel.par_chunks_mut(chunk)
+        .enumerate()
+        .for_each(|(c, mut v)| {
+            let range = c * chunk..c * chunk + v.len();
+            let count = &count[range.clone()];
+            for comp in 0..3 {
+                let (v, dv) = (v.component_mut(comp), dv.component(comp, &range));
+                for i in 0..v.len() {
+                    if count[i] != 0 {
+                        v[i] += dv[i];
+                    }
+                }
+            }
+        });
+}
+
+/// Writes the limited positions `limited` into `next`; returns whether every velocity is
+/// finite.
+fn correct_state(next: &mut Kinematics, limited: &Vec3s, chunk: usize) -> bool {
     let Kinematics { pos, vel } = next;
     pos.par_chunks_mut(chunk)
         .zip(vel.par_chunks_mut(chunk))
@@ -500,15 +677,10 @@ fn correct_state(next: &mut Kinematics, limited: &Vec3s, h: f32, chunk: usize) -
             let range = c * chunk..c * chunk + x.len();
             let mut check = FiniteCheck::default();
             for comp in 0..3 {
-                let (x, v) = (x.component_mut(comp), v.component_mut(comp));
-                let new = limited.component(comp, &range);
-                for i in 0..x.len() {
-                    let dx = new[i] - x[i];
-                    if dx != 0.0 {
-                        v[i] += dx / h;
-                    }
-                    x[i] = new[i];
-                    check.watch(v[i]);
+                x.component_mut(comp)
+                    .copy_from_slice(limited.component(comp, &range));
+                for &v in v.component_mut(comp).iter() {
+                    check.watch(v);
                 }
             }
             check.all_finite()
