@@ -27,6 +27,12 @@ pub enum Error {
         /// Most substeps the step was tried with.
         substeps: u32,
     },
+    /// A bug in rustcloth: the core panicked. The simulation was put back at the start of the
+    /// step (or call) that panicked and stays usable. Maps to `rustcloth.InternalError`.
+    Internal { message: String },
+    /// A long `step` or `advance` was interrupted (Ctrl-C) at a step boundary, after `steps`
+    /// steps. The binding raises the interrupt itself (`KeyboardInterrupt`).
+    Interrupted { steps: u64 },
 }
 
 /// How a step went wrong.
@@ -37,6 +43,8 @@ pub enum Trouble {
     /// A spring grew longer than the watchdog's `max_stretch` times its rest length; `stretch`
     /// is the ratio `l / L` of the first such spring found.
     Overstretched { stretch: f32, limit: f32 },
+    /// The step panicked (a bug): never retried, reported as [`Error::Internal`].
+    Panicked,
 }
 
 impl Trouble {
@@ -45,6 +53,7 @@ impl Trouble {
         match self {
             Trouble::NonFinite => "non_finite",
             Trouble::Overstretched { .. } => "overstretched",
+            Trouble::Panicked => "panicked",
         }
     }
 }
@@ -92,6 +101,7 @@ impl fmt::Display for Error {
                         "a spring at particle {particle} stretched to {stretch:.3} times its rest \
                          length, beyond the watchdog's max_stretch = {limit}"
                     )?,
+                    Trouble::Panicked => write!(f, "the solver panicked")?,
                 }
                 write!(
                     f,
@@ -100,6 +110,12 @@ impl fmt::Display for Error {
                      limiting, or the implicit_euler integrator)"
                 )
             }
+            Error::Internal { message } => write!(
+                f,
+                "internal error (a bug in rustcloth, please report it): {message}; the \
+                 simulation was put back where the call started"
+            ),
+            Error::Interrupted { steps } => write!(f, "interrupted after {steps} step(s)"),
         }
     }
 }
@@ -130,11 +146,17 @@ where
         return Err(Error::value(name, format!("must be {want}, got {value}")));
     }
     // Scene values are f64 but the solver runs in f32: beyond f32's range is as unusable as
-    // infinity.
+    // infinity, and a positive value that rounds to zero is zero.
     if x.abs() > f32::MAX as f64 {
         return Err(Error::value(
             name,
             format!("must be within f32 range (|x| <= 3.4e38), got {value}"),
+        ));
+    }
+    if matches!(bound, Bound::Positive) && (x as f32) == 0.0 {
+        return Err(Error::value(
+            name,
+            format!("must be at least the smallest float32 (1.4e-45), got {value}"),
         ));
     }
     Ok(())

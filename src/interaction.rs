@@ -123,6 +123,18 @@ pub struct InteractionState {
     stats: BvhStats,
 }
 
+impl InteractionState {
+    /// Drops the picking trees and scan stamps (after a panic, when they may be half-built);
+    /// the next query builds them again. Settings, the grab and the statistics stay.
+    pub(crate) fn drop_caches(&mut self) {
+        self.particles = None;
+        self.triangles = None;
+        self.triangle_rank = None;
+        self.particle_scanned_at = None;
+        self.triangle_scanned_at = None;
+    }
+}
+
 impl Simulation {
     // ----- picking --------------------------------------------------------------------------
 

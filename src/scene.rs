@@ -475,10 +475,11 @@ impl Scene {
 impl WatchdogSpec {
     fn validate(&self) -> Result<()> {
         if let Some(r) = self.max_stretch {
-            if !(r.is_finite() && r > 1.0) {
+            // Compared in float32: a ratio that is not above 1 there trips on a cloth at rest.
+            if !(r.is_finite() && (r as f32).is_finite() && (r as f32) > 1.0) {
                 return Err(Error::value(
                     "watchdog.max_stretch",
-                    format!("must be a finite ratio > 1, got {r}"),
+                    format!("must be a ratio > 1 within float32 range (3.4e38), got {r}"),
                 ));
             }
         }

@@ -13,7 +13,8 @@
 //! The buffers are swapped only when the integrator reports a finite result, so a step that
 //! diverges leaves the previous state in place.
 
-use std::time::Instant;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::time::{Duration, Instant};
 
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
@@ -22,7 +23,7 @@ use crate::collisions::{Collider, Floor, FloorLevel, Spheres};
 use crate::error::{check_scalar, Bound, Error, Result, Trouble};
 use crate::forces::{AirDrag, ForceModel, ForceTerm, Gravity, SpringForce, Springs, StateRef};
 use crate::grid::{Family, Grid};
-use crate::integrators::{self, Integrator, StepContext};
+use crate::integrators::{self, History, Integrator, StepContext};
 use crate::interaction::InteractionState;
 use crate::pins::KinematicPins;
 use crate::profile::Profile;
@@ -44,6 +45,10 @@ const ADVANCE_TOLERANCE: f64 = 1e-6;
 /// Most steps one `advance` call may take: a larger request is a mistake (a frame time in ms
 /// taken for s), and would hold the caller for days.
 pub const MAX_ADVANCE_STEPS: u64 = u32::MAX as u64;
+
+/// How long a run of steps goes between two asks whether to stop (`step_with`, `advance_with`):
+/// short enough that Ctrl-C answers at once, long enough that asking costs nothing.
+const INTERRUPT_SLICE: Duration = Duration::from_millis(20);
 
 /// Kinetic, gravitational potential and elastic energy in J.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -148,8 +153,17 @@ pub struct Simulation {
     pipeline: Pipeline,
     pub(crate) pins: KinematicPins,
     steps: u64,
+    /// Simulated time at step `steps_base`: `time = time_base + (steps - steps_base) dt`, so
+    /// that a change of `dt` changes the future, not the past, while a fixed `dt` gives times
+    /// exact in the step count.
+    time_base: f64,
+    steps_base: u64,
     /// Requested but not yet simulated time, in s.
     accumulator: f64,
+    /// What the last panic caught in a step said (see [`Error::Internal`]).
+    panic_message: Option<String>,
+    /// The integrator's history when the current step started, for a failed step to restore.
+    step_start_history: History,
     profile: Profile,
     derived: Derived,
     topology_version: u64,
@@ -193,7 +207,11 @@ impl Simulation {
             pipeline,
             pins: KinematicPins::default(),
             steps: 0,
+            time_base: 0.0,
+            steps_base: 0,
             accumulator: 0.0,
+            panic_message: None,
+            step_start_history: History::default(),
             profile: Profile::default(),
             derived: Derived::default(),
             topology_version: 0,
@@ -209,9 +227,38 @@ impl Simulation {
     /// Advances exactly `n` steps of `dt`. If a step produces a non-finite state, the state
     /// from before that step is kept and [`Error::Diverged`] names the step and the particle.
     pub fn step(&mut self, n: u64) -> Result<()> {
+        self.step_with(n, &mut || false)
+    }
+
+    /// [`Simulation::step`], asking `interrupted` every few milliseconds (between whole steps)
+    /// whether to stop; when it says so, returns [`Error::Interrupted`] with the state at that
+    /// step boundary. The answer to `interrupted` never changes the steps taken before it.
+    pub fn step_with(&mut self, n: u64, interrupted: &mut dyn FnMut() -> bool) -> Result<()> {
+        let mut done = 0;
+        while done < n {
+            done += self.run_slice(n - done)?;
+            if done < n && interrupted() {
+                self.judge_newest_state()?;
+                return Err(Error::Interrupted { steps: done });
+            }
+        }
+        self.judge_newest_state()
+    }
+
+    /// Up to `n` steps, stopping after the first step that ends past [`INTERRUPT_SLICE`] of
+    /// wall time; returns the steps taken.
+    fn run_slice(&mut self, n: u64) -> Result<u64> {
+        let until = Instant::now() + INTERRUPT_SLICE;
         on_pool(|| {
-            (0..n).try_for_each(|_| self.step_once())?;
-            self.judge_newest_state()
+            let mut taken = 0;
+            while taken < n {
+                self.step_once()?;
+                taken += 1;
+                if Instant::now() >= until {
+                    break;
+                }
+            }
+            Ok(taken)
         })
     }
 
@@ -221,6 +268,17 @@ impl Simulation {
     /// simulated stays owed, so the next call tries those steps again. At most
     /// [`MAX_ADVANCE_STEPS`] steps per call.
     pub fn advance(&mut self, seconds: f64) -> Result<u64> {
+        self.advance_with(seconds, &mut || false)
+    }
+
+    /// [`Simulation::advance`], asking `interrupted` between steps as [`Simulation::step_with`]
+    /// does. An interrupted call abandons the rest of its request: the steps it did not take
+    /// are not owed to the next call.
+    pub fn advance_with(
+        &mut self,
+        seconds: f64,
+        interrupted: &mut dyn FnMut() -> bool,
+    ) -> Result<u64> {
         if !(seconds.is_finite() && seconds >= 0.0) {
             return Err(Error::value(
                 "seconds",
@@ -241,13 +299,14 @@ impl Simulation {
         }
         let n = steps as u64;
         let before = self.steps;
-        let outcome = on_pool(|| {
-            (0..n).try_for_each(|_| self.step_once())?;
-            self.judge_newest_state()
-        });
+        let outcome = self.step_with(n, interrupted);
         // Counted from `steps`, not from the calls: a failed step can also roll back the step
         // before it (see src/watchdog.rs).
-        self.accumulator = pending - (self.steps as f64 - before as f64) * dt;
+        let taken = match outcome {
+            Err(Error::Interrupted { .. }) => n as f64,
+            _ => self.steps as f64 - before as f64,
+        };
+        self.accumulator = pending - taken * dt;
         outcome.map(|()| n)
     }
 
@@ -302,6 +361,7 @@ impl Simulation {
     /// substep started, and with several substeps the step's start is in `step_start`.
     fn attempt_step(&mut self) -> std::result::Result<(), Failure> {
         let substeps = self.step_substeps();
+        self.step_start_history = self.pipeline.integrator.history();
         if substeps > 1 {
             let n = self.grid.len();
             self.step_start
@@ -311,9 +371,12 @@ impl Simulation {
         self.run_substeps(substeps)?;
         // The step's start state is in `step_start`, or with one substep in `scratch`, which
         // the substep's swap left holding it.
+        let history = self.step_start_history;
         match self.step_start.as_mut().filter(|_| substeps > 1) {
-            Some(start) => self.watchdog.step_completed(start, substeps),
-            None => self.watchdog.step_completed(&mut self.scratch, substeps),
+            Some(start) => self.watchdog.step_completed(start, history, substeps),
+            None => self
+                .watchdog
+                .step_completed(&mut self.scratch, history, substeps),
         }
         self.steps += 1;
         self.profile.steps += 1;
@@ -323,10 +386,24 @@ impl Simulation {
 
     /// `substeps` substeps of `dt / substeps` from the current state. Trouble in the state the
     /// first one starts from is the previous step's (`in_start_state`).
+    ///
+    /// A panic in a pass (a bug) is caught here and becomes a [`Trouble::Panicked`] failure,
+    /// with the state where the failed substep started, as for any failure: a substep changes
+    /// `state` only by its last act, the swap with a finished result.
     fn run_substeps(&mut self, substeps: u32) -> std::result::Result<(), Failure> {
         let h = (self.scene.dt / substeps as f64) as f32;
         for j in 0..substeps {
-            self.substep(h, substeps).map_err(|failure| Failure {
+            let outcome = catch_unwind(AssertUnwindSafe(|| self.substep(h, substeps)))
+                .unwrap_or_else(|payload| {
+                    self.panic_message = Some(panic_text(payload.as_ref()));
+                    Err(Failure {
+                        reason: Trouble::Panicked,
+                        particle: 0,
+                        in_start_state: false,
+                        substeps,
+                    })
+                });
+            outcome.map_err(|failure| Failure {
                 in_start_state: failure.in_start_state && j == 0,
                 ..failure
             })?;
@@ -382,6 +459,7 @@ impl Simulation {
             });
         }
         std::mem::swap(&mut self.state, &mut self.scratch);
+        self.pipeline.integrator.accept();
         Ok(())
     }
 
@@ -440,14 +518,20 @@ impl Simulation {
     /// Puts back the good state before the step to blame, then retries that step or reports
     /// it, as the scene asks.
     fn recover(&mut self, mut failure: Failure) -> Result<()> {
+        if failure.reason == Trouble::Panicked {
+            return Err(self.recover_from_panic(failure.substeps));
+        }
         self.watchdog.stats.caught += 1;
         if failure.in_start_state {
-            // The last completed step produced a state beyond the limit: undo it. It ran with
-            // the substeps it ran with.
+            // The last completed step produced a state beyond the limit: undo it, and the
+            // integrator's history with it. It ran with the substeps it ran with.
             failure.substeps = self.watchdog.last_substeps;
             match self.watchdog.previous.as_ref() {
                 Some(previous) if self.watchdog.previous_valid => {
                     self.state.copy_from(previous);
+                    self.pipeline
+                        .integrator
+                        .set_history(self.watchdog.previous_history);
                     self.watchdog.previous_valid = false;
                     self.steps -= 1;
                 }
@@ -455,10 +539,8 @@ impl Simulation {
                 // or retry, and the state stays as it is.
                 _ => return Err(diverged(self.steps + 1, failure)),
             }
-        } else if failure.substeps > 1 {
-            if let Some(start) = &self.step_start {
-                self.state.copy_from(start);
-            }
+        } else {
+            self.back_to_step_start(failure.substeps);
         }
         self.state_stepped();
         // The restored state was judged good; a call that takes no step must not judge again.
@@ -486,8 +568,10 @@ impl Simulation {
         let mut last = failure;
         let mut substeps = failure.substeps.saturating_mul(2);
         let mut rescued = false;
+        let mut history = History::default();
         while substeps <= self.watchdog.spec.max_substeps {
             self.pipeline.integrator.reset_history();
+            history = self.pipeline.integrator.history();
             self.watchdog.stats.retry_substeps += substeps as u64;
             let attempt = self.run_substeps(substeps).and_then(|()| {
                 match self.overstretched_in(&self.state, false, substeps) {
@@ -499,6 +583,13 @@ impl Simulation {
                 Ok(()) => {
                     rescued = true;
                     break;
+                }
+                Err(f) if f.reason == Trouble::Panicked => {
+                    self.state.copy_from(&start);
+                    self.watchdog.retry_start = Some(start);
+                    self.step_start_history = History::default();
+                    self.pipeline.integrator.reset_history();
+                    return Err(self.recover_from_panic(1));
                 }
                 Err(f) => {
                     last = f;
@@ -516,7 +607,7 @@ impl Simulation {
             stats.max_substeps_used = stats.max_substeps_used.max(substeps);
             let hold = self.watchdog.spec.hold_steps as u64;
             self.watchdog.hold = (hold > 0).then_some((substeps, step + 1 + hold));
-            self.watchdog.step_completed(&mut start, substeps);
+            self.watchdog.step_completed(&mut start, history, substeps);
             self.steps = step;
             self.profile.steps += 1;
             Ok(())
@@ -525,6 +616,53 @@ impl Simulation {
         };
         self.watchdog.retry_start = Some(start);
         result
+    }
+
+    /// After a failed attempt at the current step with `substeps` substeps: the state and the
+    /// integrator's history as they were when the step started. With one substep the state is
+    /// already there (the failed substep never swapped its result in).
+    fn back_to_step_start(&mut self, substeps: u32) {
+        if substeps > 1 {
+            if let Some(start) = &self.step_start {
+                self.state.copy_from(start);
+            }
+        }
+        self.pipeline
+            .integrator
+            .set_history(self.step_start_history);
+    }
+
+    /// A step of `substeps` substeps panicked: back to its start, every cache that the step
+    /// may have left half-written dropped, and the panic reported as [`Error::Internal`].
+    fn recover_from_panic(&mut self, substeps: u32) -> Error {
+        self.back_to_step_start(substeps);
+        self.after_panic();
+        Error::Internal {
+            message: self
+                .panic_message
+                .take()
+                .unwrap_or_else(|| "a pass panicked".into()),
+        }
+    }
+
+    /// Makes the next force evaluation panic on a worker thread: a stand-in for a bug, to test
+    /// that a panic is caught, rolled back and reported as [`Error::Internal`].
+    #[doc(hidden)]
+    pub fn inject_panic(&mut self) {
+        self.pipeline.forces.inject_panic();
+    }
+
+    /// Makes the simulation usable again after a panic caught anywhere in it (the Python
+    /// binding's last resort): derived data and picking trees are dropped and rebuilt on
+    /// request, the watchdog forgets the last step, and the force model starts its next
+    /// evaluation afresh. The state itself is whatever the interrupted call left, which every
+    /// call keeps consistent by checking its input before changing anything.
+    pub fn after_panic(&mut self) {
+        self.pipeline.forces.reset_after_panic();
+        self.interaction.drop_caches();
+        self.invalidate_state();
+        self.invalidate_topology();
+        self.derived = Derived::default();
     }
 
     /// A step changed the state: caches of derived data are stale.
@@ -579,9 +717,10 @@ impl Simulation {
         self.steps
     }
 
-    /// Simulated time in s: `steps * dt`, exact in the step count rather than accumulated.
+    /// Simulated time in s: the time of every step taken, each with the `dt` it was taken
+    /// with; exactly `steps * dt` while `dt` has not changed.
     pub fn time(&self) -> f64 {
-        self.steps as f64 * self.scene.dt
+        self.time_base + (self.steps as f64 - self.steps_base as f64) * self.scene.dt
     }
 
     pub fn dt(&self) -> f64 {
@@ -939,6 +1078,10 @@ impl Simulation {
     pub fn set_dt(&mut self, dt: f64) -> Result<()> {
         check_scalar("dt", dt, Bound::Positive)?;
         check_substep("dt", dt, self.scene.substeps)?;
+        // The steps so far keep the time they took; a step taken with the old dt cannot be
+        // undone and retried with the new one, so the watchdog stops blaming it.
+        (self.time_base, self.steps_base) = (self.time(), self.steps);
+        self.watchdog.previous_valid = false;
         self.scene.dt = dt;
         self.pipeline.integrator.reset_history();
         Ok(())
@@ -953,6 +1096,15 @@ impl Simulation {
         self.state_version = state;
         Ok(())
     }
+}
+
+/// The message of a caught panic.
+fn panic_text(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "a pass panicked".into())
 }
 
 fn diverged(step: u64, failure: Failure) -> Error {

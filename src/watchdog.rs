@@ -28,6 +28,7 @@ use crate::error::Trouble;
 use crate::forces::springs::spring_overstretched;
 use crate::forces::Springs;
 use crate::grid::{Grid, SpringKind};
+use crate::integrators::History;
 use crate::scene::{OnTrouble, WatchdogSpec};
 use crate::soa::{Vec3Slice, Vec3s};
 use crate::state::Kinematics;
@@ -62,6 +63,8 @@ pub(crate) struct Watchdog {
     pub spec: WatchdogSpec,
     /// The start of the last completed step, while `previous_valid`; only with `max_stretch`.
     pub previous: Option<Kinematics>,
+    /// The integrator's history at the start of that step.
+    pub previous_history: History,
     /// False after anything but a step changed the state: then the current state is the
     /// user's, and trouble found in it is not a step's fault.
     pub previous_valid: bool,
@@ -80,6 +83,7 @@ impl Watchdog {
     pub fn new(spec: &WatchdogSpec, particles: usize) -> Self {
         Watchdog {
             previous: spec.max_stretch.map(|_| Kinematics::zeros(particles)),
+            previous_history: History::default(),
             spec: spec.clone(),
             previous_valid: false,
             unjudged: false,
@@ -99,14 +103,15 @@ impl Watchdog {
         self.spec.on_trouble == OnTrouble::Substep
     }
 
-    /// Records that a step starting from the state in `start` completed with `substeps`
-    /// substeps: that buffer becomes
+    /// Records that a step starting from the state in `start` and the integrator `history`
+    /// completed with `substeps` substeps: that buffer becomes
     /// `previous` (by a swap; `start` receives the old `previous`, which its owner overwrites
     /// before reading it again).
-    pub fn step_completed(&mut self, start: &mut Kinematics, substeps: u32) {
+    pub fn step_completed(&mut self, start: &mut Kinematics, history: History, substeps: u32) {
         self.last_substeps = substeps;
         if let Some(previous) = &mut self.previous {
             std::mem::swap(previous, start);
+            self.previous_history = history;
             self.previous_valid = true;
             self.unjudged = true;
         }

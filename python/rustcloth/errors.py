@@ -64,6 +64,18 @@ class SimulationDiverged(RustclothError, FloatingPointError):
         self.substeps = substeps
 
 
+class InternalError(RustclothError, RuntimeError):
+    """A bug in rustcloth: the Rust core panicked. The simulation was put back where the call
+    started (a step that panicked is rolled back like a diverged one) and stays usable; please
+    report the message."""
+
+
+class SimulationBusy(RustclothError, RuntimeError):
+    """A call on a :class:`~rustcloth.Simulation` came from the thread that is already inside
+    another call on it (a signal handler or a warning filter running during a long ``step``):
+    it cannot wait for itself. Calls from other threads wait their turn instead."""
+
+
 class StabilityWarning(RuntimeWarning):
     """The scene's ``dt`` exceeds the largest step its integrator is estimated to be stable
     at (``Simulation.stable_dt()``); expect ``SimulationDiverged``."""

@@ -160,6 +160,9 @@ pub struct ForceModel {
     watch_armed: bool,
     /// Whether the last armed evaluation found a spring beyond the limit.
     overstretched: AtomicBool,
+    /// Makes the next evaluation panic on a worker thread, to test that a panic anywhere in a
+    /// step is caught and rolled back (see [`ForceModel::inject_panic`]).
+    panic_next: bool,
 }
 
 /// One addition into a block's forces.
@@ -230,6 +233,7 @@ impl ForceModel {
             stretch_limit: None,
             watch_armed: false,
             overstretched: AtomicBool::new(false),
+            panic_next: false,
         }
     }
 
@@ -242,6 +246,24 @@ impl ForceModel {
     /// the same loop that computes its force: one compare per spring, no extra pass.
     pub fn arm_stretch_watch(&mut self) {
         self.watch_armed = self.stretch_limit.is_some();
+        self.overstretched.store(false, Ordering::Relaxed);
+    }
+
+    /// Makes the next evaluation panic inside its parallel sweep: a stand-in for a bug, so
+    /// that tests can check the guards that keep a panic from escaping or corrupting a step.
+    #[doc(hidden)]
+    pub fn inject_panic(&mut self) {
+        self.panic_next = true;
+    }
+
+    /// Forgets what an evaluation interrupted by a panic left behind: per-term clocks, the
+    /// stretch watch.
+    pub fn reset_after_panic(&mut self) {
+        for nanos in &self.cpu_nanos {
+            nanos.store(0, Ordering::Relaxed);
+        }
+        self.watch_armed = false;
+        self.panic_next = false;
         self.overstretched.store(false, Ordering::Relaxed);
     }
 
@@ -302,6 +324,7 @@ impl ForceModel {
         let start = Instant::now();
         self.size_tables(state.grid, chunk);
         let grid = state.grid;
+        let panic_now = std::mem::take(&mut self.panic_next);
         let stretch_watch = if std::mem::take(&mut self.watch_armed) {
             self.stretch_limit
         } else {
@@ -332,6 +355,9 @@ impl ForceModel {
         let fresh = matches!(stages.first(), Some(Stage::Fused { .. }));
         let sweep = |(c, (mut f, table)): (usize, (Vec3SliceMut, &mut SpringTable))| {
             let range = c * chunk..c * chunk + f.len();
+            if panic_now && c == 0 {
+                panic!("injected panic (a test of the panic guard)");
+            }
             if !fresh {
                 f.fill(Vec3::ZERO);
             }

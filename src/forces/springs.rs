@@ -217,10 +217,15 @@ impl SpringForce {
             let inv_l = if l > 0.0 { 1.0 / l } else { 0.0 };
             let (ux, uy, uz) = (dx * inv_l, dy * inv_l, dz * inv_l);
             let closing = (vxb[i] - vxa[i]) * ux + (vyb[i] - vya[i]) * uy + (vzb[i] - vza[i]) * uz;
-            let s = active[i] * (k * (l - rest[i]) + c * closing);
-            fx[i] = s * ux;
-            fy[i] = s * uy;
-            fz[i] = s * uz;
+            let s = k * (l - rest[i]) + c * closing;
+            // A dead slot's force is zero, not `0 * force`: its end may be a cut particle
+            // anywhere, whose arithmetic need not be finite (0 * inf is NaN), and even the sign
+            // of `0 * force` would let it reach the live cloth.
+            let live = active[i] != 0.0;
+            let dead = |f: f32| if live { f } else { 0.0 };
+            fx[i] = dead(s * ux);
+            fy[i] = dead(s * uy);
+            fz[i] = dead(s * uz);
         }
         for f in [&mut *out.x, &mut *out.y, &mut *out.z] {
             f[len..].fill(0.0);

@@ -438,9 +438,13 @@ fn build_blocks(work: &mut Work, kind: SpringKind, h: f32, k: f32, c: f32, ctx: 
                     let g = (1.0 - rest[i] * inv_l).max(0.0) * (l > 0.0) as u32 as f32;
                     alpha[i] = active[i] * (h * c + h * h * k * (1.0 - g));
                     beta[i] = active[i] * (h * h * k * g);
-                    u.x[i] = dx * inv_l;
-                    u.y[i] = dy * inv_l;
-                    u.z[i] = dz * inv_l;
+                    // A dead slot's direction is zero: its far end may be a cut particle
+                    // anywhere, whose direction is not finite (and 0 * NaN is NaN).
+                    let live = active[i] != 0.0;
+                    let dead = |u: f32| if live { u } else { 0.0 };
+                    u.x[i] = dead(dx * inv_l);
+                    u.y[i] = dead(dy * inv_l);
+                    u.z[i] = dead(dz * inv_l);
                 }
             });
             alpha[len..].fill(0.0);

@@ -70,10 +70,31 @@ pub trait Integrator: Send + Sync {
     /// step size): an integrator that keeps history must start afresh.
     fn reset_history(&mut self) {}
 
+    /// Called after a (sub)step's result became the state. History that a step builds (as
+    /// Verlet's start-up) is committed here, never in [`Integrator::step`]: a step that is
+    /// refused must leave the integrator as it was.
+    fn accept(&mut self) {}
+
+    /// What the integrator carries from one step to the next, for a rollback to restore with
+    /// the state it belongs to.
+    fn history(&self) -> History {
+        History::default()
+    }
+
+    /// Restores what [`Integrator::history`] returned.
+    fn set_history(&mut self, _history: History) {}
+
     /// Linear-solver statistics, for integrators that solve a system each step.
     fn solver_stats(&self) -> Option<implicit_euler::SolverStats> {
         None
     }
+}
+
+/// The state an integrator carries between steps, beyond positions and velocities.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct History {
+    /// Verlet: the velocities are backward differences (its start-up step is done).
+    pub primed: bool,
 }
 
 /// The integrator called `name` in a scene.

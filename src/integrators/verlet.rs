@@ -1,4 +1,4 @@
-use super::{one_stage_update, Integrator, StepContext};
+use super::{one_stage_update, History, Integrator, StepContext};
 
 /// Position (Stoermer) Verlet:
 ///
@@ -37,7 +37,6 @@ impl Integrator for Verlet {
 
     fn step(&mut self, h: f32, ctx: &mut StepContext) -> bool {
         let kick = if self.primed { 1.0 } else { 0.5 };
-        self.primed = true;
         one_stage_update(ctx, h, |x, v, dv| {
             let v_new = v + kick * dv;
             (x + h * v_new, v_new)
@@ -46,5 +45,19 @@ impl Integrator for Verlet {
 
     fn reset_history(&mut self) {
         self.primed = false;
+    }
+
+    fn accept(&mut self) {
+        self.primed = true;
+    }
+
+    fn history(&self) -> History {
+        History {
+            primed: self.primed,
+        }
+    }
+
+    fn set_history(&mut self, history: History) {
+        self.primed = history.primed;
     }
 }

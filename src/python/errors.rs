@@ -10,6 +10,7 @@ import_exception!(rustcloth.errors, ParameterError);
 import_exception!(rustcloth.errors, ParameterTypeError);
 import_exception!(rustcloth.errors, ParticleIndexError);
 import_exception!(rustcloth.errors, SimulationDiverged);
+import_exception!(rustcloth.errors, InternalError);
 
 pub fn to_py(err: Error) -> PyErr {
     let message = err.to_string();
@@ -25,6 +26,9 @@ pub fn to_py(err: Error) -> PyErr {
             reason,
             substeps,
         } => SimulationDiverged::new_err((message, step, particle, reason.name(), substeps)),
+        Error::Internal { .. } => InternalError::new_err(message),
+        // The binding raises the interrupt it caught itself; this is the fallback.
+        Error::Interrupted { .. } => pyo3::exceptions::PyKeyboardInterrupt::new_err(message),
     }
 }
 
