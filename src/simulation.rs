@@ -785,18 +785,17 @@ impl Simulation {
     pub fn energy(&self) -> Energy {
         let g = DVec3::from(self.scene.gravity);
         let (pos, vel, particles) = (&self.state.pos, &self.state.vel, &self.particles);
-        let (kinetic, gravitational) = (0..self.grid.len())
-            .into_par_iter()
-            .with_min_len(MIN_CHUNK)
-            .filter(|&p| particles.alive[p])
-            .map(|p| {
-                let m = particles.mass[p] as f64;
-                (
-                    0.5 * m * vel.get(p).length_squared() as f64,
-                    -m * g.dot(pos.get(p).as_dvec3()),
-                )
-            })
-            .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+        let [kinetic, gravitational] = fixed_sum(self.grid.len(), |p| {
+            if !particles.alive[p] {
+                return [0.0, 0.0];
+            }
+            // In f64 before squaring: a finite float32 speed can square past float32's range.
+            let m = particles.mass[p] as f64;
+            [
+                0.5 * m * vel.get(p).as_dvec3().length_squared(),
+                -m * g.dot(pos.get(p).as_dvec3()),
+            ]
+        });
         let mut elastic = 0.0;
         for family in Family::ALL {
             let k = self.family_stiffness(family);
@@ -805,7 +804,8 @@ impl Simulation {
             }
             for kind in family.kinds() {
                 self.springs.for_each(self.grid, kind, |a, b, rest| {
-                    let stretch = (pos.get(b) - pos.get(a)).length() as f64 - rest as f64;
+                    let l = (pos.get(b).as_dvec3() - pos.get(a).as_dvec3()).length();
+                    let stretch = l - rest as f64;
                     elastic += 0.5 * k * stretch * stretch;
                 });
             }
@@ -1114,6 +1114,34 @@ fn diverged(step: u64, failure: Failure) -> Error {
         reason: failure.reason,
         substeps: failure.substeps,
     }
+}
+
+/// Particles per partial sum of [`fixed_sum`].
+const SUM_CHUNK: usize = 4096;
+
+/// `sum over p < n of term(p)`, per component, in f64 and bitwise the same for any number of
+/// threads and any call: the partial sums are over fixed chunks and added in chunk order (an
+/// adaptive parallel reduction splits where the scheduler happens to, and float addition is
+/// not associative).
+fn fixed_sum<const K: usize>(n: usize, term: impl Fn(usize) -> [f64; K] + Sync) -> [f64; K] {
+    let partials: Vec<[f64; K]> = (0..n.div_ceil(SUM_CHUNK))
+        .into_par_iter()
+        .map(|c| {
+            let mut sum = [0.0; K];
+            for p in c * SUM_CHUNK..((c + 1) * SUM_CHUNK).min(n) {
+                for (s, t) in sum.iter_mut().zip(term(p)) {
+                    *s += t;
+                }
+            }
+            sum
+        })
+        .collect();
+    partials.into_iter().fold([0.0; K], |mut total, part| {
+        for (s, t) in total.iter_mut().zip(part) {
+            *s += t;
+        }
+        total
+    })
 }
 
 /// Runs `f` on a thread of rayon's pool, so that the parallel loops of every pass inside it
