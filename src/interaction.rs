@@ -68,7 +68,7 @@ impl PickStrategy {
             "bvh" => Ok(PickStrategy::Bvh),
             "scan" => Ok(PickStrategy::Scan),
             _ => Err(Error::value(
-                "strategy",
+                "pick_strategy",
                 format!("must be one of {:?}, got {name:?}", Self::NAMES),
             )),
         }
@@ -123,7 +123,39 @@ pub struct InteractionState {
     stats: BvhStats,
 }
 
+/// What a grab remembers, for a saved state: the particle, whether it was pinned before, and
+/// the kinematic target it had.
+pub type GrabRecord = (usize, bool, Option<Vec3>);
+
 impl InteractionState {
+    pub(crate) fn grab_record(&self) -> Option<GrabRecord> {
+        self.grab
+            .map(|g| (g.index, g.was_pinned, g.previous_target))
+    }
+
+    pub(crate) fn set_grab_record(&mut self, record: Option<GrabRecord>) {
+        self.grab = record.map(|(index, was_pinned, previous_target)| Grab {
+            index,
+            was_pinned,
+            previous_target,
+        });
+    }
+
+    /// The pick radius if one was set (None: the default, half the grid spacing).
+    pub(crate) fn pick_radius_setting(&self) -> Option<f32> {
+        self.pick_radius
+    }
+
+    /// Heap memory of the picking trees and the triangle ranks, in bytes.
+    pub(crate) fn heap_bytes(&self) -> usize {
+        self.particles.as_ref().map_or(0, |c| c.tree.heap_bytes())
+            + self.triangles.as_ref().map_or(0, |c| c.tree.heap_bytes())
+            + self
+                .triangle_rank
+                .as_ref()
+                .map_or(0, |(_, rank)| rank.capacity() * size_of::<u32>())
+    }
+
     /// Drops the picking trees and scan stamps (after a panic, when they may be half-built);
     /// the next query builds them again. Settings, the grab and the statistics stay.
     pub(crate) fn drop_caches(&mut self) {
@@ -159,8 +191,8 @@ impl Simulation {
         let r = radius as f32;
         if !(radius.is_finite() && r.is_finite() && r > 0.0) {
             return Err(Error::value(
-                "radius",
-                format!("must be a finite number > 0, got {radius}"),
+                "pick_radius",
+                format!("must be a finite number > 0 within float32 range, got {radius}"),
             ));
         }
         self.interaction.pick_radius = Some(r);

@@ -28,6 +28,7 @@ pub mod profile;
 pub mod scene;
 pub mod simd;
 pub mod simulation;
+pub mod snapshot;
 pub mod soa;
 pub mod state;
 pub mod strain_limit;

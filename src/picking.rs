@@ -548,6 +548,11 @@ impl ParticleBvh {
         }
     }
 
+    /// Heap memory of the tree and its leaf flags, in bytes.
+    pub fn heap_bytes(&self) -> usize {
+        self.bvh.heap_memory_size() + self.in_tree.capacity()
+    }
+
     /// Removes particle `p`'s leaf (`O(tree height)`); false if it had none.
     pub fn remove(&mut self, p: usize) -> bool {
         if !std::mem::take(&mut self.in_tree[p]) {
@@ -619,6 +624,11 @@ impl TriangleBvh {
 
     pub fn is_empty(&self) -> bool {
         self.leaves == 0
+    }
+
+    /// Heap memory of the tree and its leaf flags, in bytes.
+    pub fn heap_bytes(&self) -> usize {
+        self.bvh.heap_memory_size() + self.in_tree.capacity()
     }
 
     /// Whether triangle `id` is a leaf.

@@ -31,6 +31,11 @@ impl KinematicPins {
         self.targets.iter().find(|(q, _)| *q == p).map(|&(_, t)| t)
     }
 
+    /// Every `(particle, target)`, in the order they were set.
+    pub fn targets(&self) -> &[(usize, Vec3)] {
+        &self.targets
+    }
+
     pub fn remove(&mut self, p: usize) {
         self.targets.retain(|(q, _)| *q != p);
     }

@@ -302,6 +302,7 @@ impl Scene {
     /// Builds and validates a scene from an already parsed TOML value (the binding converts a
     /// Python dict into one).
     pub fn from_toml_value(value: toml::Value) -> Result<Scene> {
+        require_tables(&value)?;
         Self::from_deserializer(value)
     }
 
@@ -593,6 +594,39 @@ impl ClothSpec {
         out.dedup();
         out
     }
+}
+
+/// The scene's tables (`cloth`, `floor`, ..., each sphere) must be tables: serde would also
+/// fill a struct from a list of its fields in order, so `cloth = [8, 8]` meant nx = ny = 8 and
+/// `floor = [0.5, 0.1, 0.01]` a floor, silently.
+fn require_tables(scene: &toml::Value) -> Result<()> {
+    let Some(scene) = scene.as_table() else {
+        return Err(Error::InvalidType {
+            name: "scene".into(),
+            message: format!("must be a table of keys, got {}", scene.type_str()),
+        });
+    };
+    let not_a_table = |name: String, value: &toml::Value| Error::InvalidType {
+        name,
+        message: format!(
+            "must be a table of keys (a dict), got {} {value}",
+            value.type_str()
+        ),
+    };
+    for key in ["cloth", "floor", "watchdog", "strain_limit"] {
+        match scene.get(key) {
+            Some(value) if !value.is_table() => return Err(not_a_table(key.into(), value)),
+            _ => {}
+        }
+    }
+    if let Some(toml::Value::Array(spheres)) = scene.get("spheres") {
+        for (s, sphere) in spheres.iter().enumerate() {
+            if !sphere.is_table() {
+                return Err(not_a_table(format!("spheres[{s}]"), sphere));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// The solver steps in float32 by `h = dt / substeps`: below a nanosecond it is a rounding

@@ -22,12 +22,13 @@ use rayon::prelude::*;
 use crate::collisions::{Collider, Floor, FloorLevel, Spheres};
 use crate::error::{check_scalar, Bound, Error, Result, Trouble};
 use crate::forces::{AirDrag, ForceModel, ForceTerm, Gravity, SpringForce, Springs, StateRef};
-use crate::grid::{Family, Grid};
+use crate::grid::{Family, Grid, SpringKind};
 use crate::integrators::{self, History, Integrator, StepContext};
 use crate::interaction::InteractionState;
 use crate::pins::KinematicPins;
 use crate::profile::Profile;
 use crate::scene::{check_substep, Plane, Scene};
+use crate::snapshot::{Snapshot, WatchdogSnapshot};
 use crate::soa::Vec3s;
 use crate::state::{Kinematics, Particles};
 use crate::strain_limit::StrainLimit;
@@ -890,7 +891,8 @@ impl Simulation {
         &self.derived.normals
     }
 
-    /// Heap memory held by the simulation, in bytes.
+    /// Heap memory held by the simulation, in bytes: state, scratch, springs, force tables,
+    /// derived data and the picking trees once built.
     pub fn memory_bytes(&self) -> usize {
         self.state.heap_bytes()
             + self.scratch.heap_bytes()
@@ -907,6 +909,7 @@ impl Simulation {
             + self.springs.heap_bytes()
             + self.derived.normals.heap_bytes()
             + self.derived.triangles.capacity() * size_of::<[u32; 3]>()
+            + self.interaction.heap_bytes()
     }
 
     // ----- changing the state ---------------------------------------------------------------
@@ -1048,6 +1051,168 @@ impl Simulation {
         self.invalidate_topology();
         self.invalidate_state();
         Ok(())
+    }
+
+    // ----- saving and restoring ---------------------------------------------------------------
+
+    /// The whole state, to save or send elsewhere; [`Simulation::restore`] continues it bit for
+    /// bit.
+    pub fn snapshot(&self) -> Snapshot {
+        let watchdog = &self.watchdog;
+        let previous = watchdog
+            .previous
+            .as_ref()
+            .filter(|_| watchdog.previous_valid)
+            .map(|k| (k.pos.clone(), k.vel.clone(), watchdog.previous_history));
+        Snapshot {
+            scene: self.scene.clone(),
+            positions: self.state.pos.clone(),
+            velocities: self.state.vel.clone(),
+            masses: self.particles.mass.clone(),
+            pinned: self.particles.pinned.clone(),
+            alive: self.particles.alive.clone(),
+            springs: SpringKind::ALL.map(|kind| {
+                self.springs.active[kind.index()]
+                    .iter()
+                    .map(|&a| a != 0.0)
+                    .collect()
+            }),
+            targets: self.pins.targets().to_vec(),
+            grab: self.interaction.grab_record(),
+            pick_radius: self.interaction.pick_radius_setting(),
+            pick_strategy: self.pick_strategy(),
+            steps: self.steps,
+            time_base: self.time_base,
+            steps_base: self.steps_base,
+            accumulator: self.accumulator,
+            history: self.pipeline.integrator.history(),
+            watchdog: WatchdogSnapshot {
+                previous,
+                unjudged: watchdog.unjudged,
+                last_substeps: watchdog.last_substeps,
+                hold: watchdog.hold,
+                stats: watchdog.stats,
+            },
+            state_version: self.state_version,
+            topology_version: self.topology_version,
+        }
+    }
+
+    /// A simulation continuing `snapshot` exactly. Every part is checked against the scene
+    /// (lengths, finite values, masses, indices, springs the grid has); a bad one is named.
+    pub fn restore(snapshot: Snapshot) -> Result<Simulation> {
+        let mut sim = Simulation::new(snapshot.scene)?;
+        let n = sim.grid.len();
+        sim.check_state_array("positions", &snapshot.positions)?;
+        sim.check_state_array("velocities", &snapshot.velocities)?;
+        let masses: Vec<f64> = snapshot.masses.iter().map(|&m| m as f64).collect();
+        sim.set_masses(&masses)?;
+        for (name, flags) in [("pinned", &snapshot.pinned), ("alive", &snapshot.alive)] {
+            if flags.len() != n {
+                return Err(Error::value(
+                    name,
+                    format!("must hold {n} flags, got {}", flags.len()),
+                ));
+            }
+        }
+        for kind in SpringKind::ALL {
+            let flags = &snapshot.springs[kind.index()];
+            let name = format!("springs[{}]", kind.index());
+            if flags.len() != n {
+                return Err(Error::value(
+                    name,
+                    format!("must hold {n} flags, got {}", flags.len()),
+                ));
+            }
+            if let Some(p) = (0..n).find(|&p| flags[p] && sim.grid.partner(p, kind).is_none()) {
+                return Err(Error::value(
+                    name,
+                    format!("particle {p} has no partner for a live spring of {kind:?}"),
+                ));
+            }
+        }
+        for &(p, target) in &snapshot.targets {
+            if p >= n || !snapshot.pinned[p] || !target.is_finite() {
+                return Err(Error::value(
+                    "targets",
+                    format!("({p}, {target}) must be a pinned particle and a finite target"),
+                ));
+            }
+        }
+        if let Some((p, _, previous)) = snapshot.grab {
+            if p >= n || !snapshot.alive[p] || previous.is_some_and(|t| !t.is_finite()) {
+                return Err(Error::value(
+                    "grab",
+                    format!("particle {p} must be a live particle"),
+                ));
+            }
+        }
+        if let Some(r) = snapshot.pick_radius {
+            sim.set_pick_radius(r as f64)?;
+        }
+        for (name, x) in [
+            ("time_base", snapshot.time_base),
+            ("accumulator", snapshot.accumulator),
+        ] {
+            check_scalar(name, x, Bound::NonNegative)?;
+        }
+        let previous = snapshot.watchdog.previous;
+        if previous.is_some() && sim.watchdog.previous.is_none() {
+            return Err(Error::value(
+                "watchdog",
+                "a saved previous state needs a scene with watchdog.max_stretch",
+            ));
+        }
+        if snapshot.watchdog.last_substeps == 0 {
+            return Err(Error::value(
+                "watchdog",
+                "last_substeps must be an integer >= 1, got 0",
+            ));
+        }
+
+        sim.state.pos.copy_from(&snapshot.positions);
+        sim.state.vel.copy_from(&snapshot.velocities);
+        sim.particles.pinned = snapshot.pinned;
+        sim.particles.alive = snapshot.alive;
+        for p in 0..n {
+            sim.particles.refresh(p);
+        }
+        for kind in SpringKind::ALL {
+            let active = &mut sim.springs.active[kind.index()];
+            for (slot, &live) in snapshot.springs[kind.index()].iter().enumerate() {
+                active[slot] = if live { 1.0 } else { 0.0 };
+            }
+        }
+        for (p, target) in snapshot.targets {
+            sim.pins.set(p, target);
+        }
+        sim.interaction.set_grab_record(snapshot.grab);
+        sim.set_pick_strategy(snapshot.pick_strategy);
+        sim.steps = snapshot.steps;
+        sim.time_base = snapshot.time_base;
+        sim.steps_base = snapshot.steps_base;
+        sim.accumulator = snapshot.accumulator;
+        sim.pipeline.integrator.set_history(snapshot.history);
+        let watchdog = &mut sim.watchdog;
+        if let (Some((pos, vel, history)), Some(buffer)) = (previous, watchdog.previous.as_mut()) {
+            let saved = Kinematics { pos, vel };
+            if saved.pos.len() != n || saved.vel.len() != n || first_non_finite(&saved).is_some() {
+                return Err(Error::value(
+                    "watchdog",
+                    format!("the previous state must hold {n} finite positions and velocities"),
+                ));
+            }
+            buffer.copy_from(&saved);
+            watchdog.previous_history = history;
+            watchdog.previous_valid = true;
+        }
+        watchdog.unjudged = snapshot.watchdog.unjudged;
+        watchdog.last_substeps = snapshot.watchdog.last_substeps;
+        watchdog.hold = snapshot.watchdog.hold;
+        watchdog.stats = snapshot.watchdog.stats;
+        sim.state_version = snapshot.state_version;
+        sim.topology_version = snapshot.topology_version;
+        Ok(sim)
     }
 
     /// Switches the integrator at run time; the state carries over.

@@ -12,7 +12,11 @@ use rustcloth::soa::Vec3s;
 use rustcloth::{Energy, Simulation};
 
 fn bits(e: Energy) -> [u64; 3] {
-    [e.kinetic.to_bits(), e.gravitational.to_bits(), e.elastic.to_bits()]
+    [
+        e.kinetic.to_bits(),
+        e.gravitational.to_bits(),
+        e.elastic.to_bits(),
+    ]
 }
 
 /// A cloth of `nx` x `ny` with positions and velocities scaled by `scale` (up to float32's
@@ -24,7 +28,9 @@ fn sim_with(nx: u32, ny: u32, seed: u64, scale: f32) -> Simulation {
     let n = (nx * ny) as usize;
     let mut state = seed;
     let mut next = move || {
-        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         ((state >> 40) as f32 / (1u64 << 24) as f32) - 0.5
     };
     let pos = Vec3s::from_fn(n, |_| Vec3::new(next(), next(), next()) * scale);
