@@ -81,10 +81,13 @@ fn a_restored_snapshot_continues_bit_for_bit() {
     assert!(retried > 0);
 }
 
+/// A change that makes a snapshot invalid.
+type Spoil = Box<dyn Fn(&mut rustcloth::snapshot::Snapshot)>;
+
 #[test]
 fn a_bad_snapshot_is_refused_naming_the_part() {
     let sim = Simulation::new(busy_scene("verlet")).unwrap();
-    let cases: Vec<(&str, Box<dyn Fn(&mut rustcloth::snapshot::Snapshot)>)> = vec![
+    let cases: Vec<(&str, Spoil)> = vec![
         ("positions", Box::new(|s| s.positions.x[3] = f32::NAN)),
         (
             "velocities",
