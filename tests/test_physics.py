@@ -64,7 +64,7 @@ def test_two_particle_spring_period():
     sim = Simulation(scene)
     sim.cut(2)
     sim.cut(3)
-    pos = sim.positions
+    pos = sim.positions.copy()
     rest = pos[1, 0]
     pos[1, 0] += 0.02
     sim.set_positions(pos)
@@ -87,7 +87,7 @@ def test_floor_and_sphere_are_never_penetrated():
     floor = scene.floor["height"] + scene.floor["thickness"]
     sphere = scene.spheres[0]
     c, r = np.array(sphere["center"]), sphere["radius"] + sphere["thickness"]
-    vel = sim.velocities
+    vel = sim.velocities.copy()
     vel[:, 1] = -30.0  # a hard throw
     sim.set_velocities(vel)
     for _ in range(300):

@@ -31,10 +31,19 @@ def test_particle_index_is_j_times_nx_plus_i(sim):
     assert sim.pinned[(sim.ny - 1) * nx] and sim.pinned[sim.ny * nx - 1]
 
 
-def test_reading_positions_returns_a_copy(sim):
-    a = sim.positions
+def test_issue_16_writes_to_positions_were_silently_lost(sim):
+    # sim.positions was a writable copy: writing to it looked like moving the cloth and did
+    # nothing. Reads are read-only copies now, so the write raises; a copy of the copy may be
+    # changed and given back through set_positions.
+    for array in (sim.positions, sim.velocities, sim.normals, sim.masses, sim.pinned,
+                  sim.alive, sim.triangles, sim.spring_strain()):
+        with pytest.raises(ValueError, match="read-only"):
+            array[...] = 0
+    a = sim.positions.copy()
     a[:] = 42.0
     assert not np.any(sim.positions == 42.0)
+    sim.set_positions(a)
+    assert np.all(sim.positions == 42.0)
 
 
 def test_step_advance_time_and_steps(sim):

@@ -1,15 +1,36 @@
-"""The public :class:`Simulation`: the Rust solver with Python conveniences on top."""
+"""The public :class:`Simulation`: a documented, typed wrapper around the Rust solver.
+
+It wraps ``rustcloth._core.Simulation`` (it does not subclass it), so its surface is chosen
+here: every member has its units, shapes, dtypes and errors below, and the compiled class stays
+an implementation detail.
+"""
 
 from __future__ import annotations
 
 import warnings
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple
+from typing import Any, Literal, NamedTuple, TypeAlias, cast
+
+import numpy as np
+import numpy.typing as npt
 
 from . import _core
 from .errors import StabilityWarning
 from .scene import Scene, load_scene
+
+IntegratorName: TypeAlias = Literal[
+    "explicit_euler", "symplectic_euler", "verlet", "rk4", "implicit_euler"
+]
+"""The names of the time integrators (``rustcloth.INTEGRATORS``)."""
+
+PickStrategyName: TypeAlias = Literal["auto", "bvh", "scan"]
+"""How ray queries find what they hit; all three give the same answers."""
+
+Vector: TypeAlias = Sequence[float] | npt.NDArray[np.floating[Any]]
+"""Three numbers: a list, a tuple or a numpy array (m, or a direction)."""
+
+FloatArray: TypeAlias = npt.NDArray[np.float32]
 
 
 class Energy(NamedTuple):
@@ -24,15 +45,19 @@ class Energy(NamedTuple):
 
     @property
     def total(self) -> float:
+        """Kinetic + gravitational + elastic, in J."""
         return self.kinetic + self.gravitational + self.elastic
 
 
 @dataclass(frozen=True)
 class PassTime:
+    """Time spent in one pass of the step."""
+
     name: str
     seconds: float
     """Wall time spent in the pass so far."""
     calls: int
+    """How many times it ran (force terms once per force evaluation)."""
 
 
 @dataclass(frozen=True)
@@ -44,8 +69,8 @@ class Profile:
     total_seconds: float = 0.0
     solver: dict[str, float] | None = None
     """For ``implicit_euler``: conjugate-gradient ``solves``, ``iterations`` (total),
-    ``last_iterations``, ``last_residual`` (relative) and ``not_converged`` (solves that hit
-    ``cg_max_iterations``). None for the explicit integrators."""
+    ``last_iterations``, ``last_residual`` (relative), ``not_converged`` (solves that hit
+    ``cg_max_iterations``) and ``worst_residual``. None for the explicit integrators."""
 
     def per_step_ms(self) -> dict[str, float]:
         """Milliseconds per step spent in each pass."""
@@ -82,12 +107,27 @@ def _as_scene(scene: Scene | Mapping[str, Any] | str | None) -> Scene:
     )
 
 
-class Simulation(_core.Simulation):
+class Simulation:
     """A running cloth simulation.
 
-    ``Simulation(scene)`` takes a :class:`Scene`, a scene dict, or the name of a built-in
-    scene. The state is exposed as ``(N, 3)`` float32 numpy arrays, particle ``(i, j)`` at row
-    ``j * nx + i``. Stepping releases the GIL and runs in parallel in Rust.
+    ``Simulation(scene)`` takes a :class:`Scene`, a scene dict, or the name of a built-in scene
+    (or a TOML path). The state is exposed as ``(N, 3)`` float32 numpy arrays, particle
+    ``(i, j)`` at row ``j * nx + i``; reads are read-only copies, writes go through the
+    ``set_*`` methods. Stepping runs in parallel in Rust without the GIL and stops at a step
+    boundary on Ctrl-C.
+
+    Every bad argument raises a :class:`~rustcloth.errors.RustclothError` subclass that names
+    the parameter and leaves the simulation exactly as it was.
+
+    **Threads.** A simulation may be shared by threads. Calls take turns: a call made while
+    another thread's call runs waits for it (without holding the GIL) and then sees the state
+    at that call's end; the lock is fair, so a thread stepping in a loop cannot starve a reader.
+    A long call holds others back for its length: step in pieces (``advance`` per frame) when
+    another thread must stay responsive. A call from the thread that is already inside a call
+    (a signal handler during ``step``) raises :class:`~rustcloth.errors.SimulationBusy`.
+
+    **Copies.** ``pickle``, ``copy.copy`` and ``copy.deepcopy`` give an independent simulation
+    that continues bit for bit (:meth:`get_state`).
 
     >>> sim = Simulation("hanging")
     >>> sim.step(10)
@@ -95,11 +135,12 @@ class Simulation(_core.Simulation):
     (1024, 3)
     """
 
-    def __new__(cls, scene: Scene | Mapping[str, Any] | str | None = None) -> Simulation:
-        return super().__new__(cls, _as_scene(scene).to_dict())
+    __slots__ = ("_core", "_scene")
 
     def __init__(self, scene: Scene | Mapping[str, Any] | str | None = None) -> None:
-        # The Rust object was built in __new__; here only the stability check.
+        resolved = _as_scene(scene)
+        self._core = _core.Simulation(resolved.to_dict())
+        self._scene: Scene | None = resolved
         limit = self.stable_dt()
         if limit is not None and self.dt > limit:
             warnings.warn(
@@ -110,33 +151,332 @@ class Simulation(_core.Simulation):
                 stacklevel=2,
             )
 
+    @classmethod
+    def from_state(cls, state: Mapping[str, Any]) -> Simulation:
+        """A simulation continuing ``state`` (from :meth:`get_state`) bit for bit."""
+        sim = cls.__new__(cls)
+        sim._core = _core.simulation_from_state(dict(state))
+        sim._scene = None
+        return sim
+
+    # ----- stepping ------------------------------------------------------------------------
+
     def step(self, n: int = 1) -> None:
-        """Advance exactly ``n`` steps of ``dt``.
+        """Advance exactly ``n`` steps of ``dt`` (``n`` an integer ``>= 0``).
 
         Raises :class:`~rustcloth.errors.SimulationDiverged` if a step goes wrong (a non-finite
         value, or a spring beyond the scene's ``watchdog.max_stretch``) and is not saved by a
         retry (``watchdog.on_trouble = "substep"``); the state from before that step is kept.
+        Ctrl-C raises ``KeyboardInterrupt`` with the state at the last step boundary.
         """
-        super().step(n)
+        self._core.step(n)
+
+    def advance(self, seconds: float) -> int:
+        """Add ``seconds`` (s, finite, ``>= 0``) of requested time and run the whole steps of
+        ``dt`` it covers, carrying the remainder to the next call; returns the steps taken.
+
+        The result depends only on the total time requested, not on how it is split into calls:
+        one second in sixty calls or in one gives the bitwise same state. After a failed step the
+        time not simulated stays owed; after Ctrl-C the rest of the call's request is dropped.
+        At most 2**32 - 1 steps per call.
+        """
+        return self._core.advance(seconds)
+
+    # ----- state ---------------------------------------------------------------------------
+
+    @property
+    def positions(self) -> FloatArray:
+        """Positions in m, ``(N, 3)`` float32, row ``j * nx + i``: a read-only copy."""
+        return self._core.positions
+
+    @property
+    def velocities(self) -> FloatArray:
+        """Velocities in m/s, ``(N, 3)`` float32: a read-only copy."""
+        return self._core.velocities
+
+    def set_positions(self, positions: npt.NDArray[np.floating[Any]]) -> None:
+        """Replace every position (m): an ``(N, 3)`` float32 or float64 array of finite values.
+        Integrators with history (Verlet) start afresh."""
+        self._core.set_positions(positions)
+
+    def set_velocities(self, velocities: npt.NDArray[np.floating[Any]]) -> None:
+        """Replace every velocity (m/s), ``(N, 3)`` float32 or float64, finite. Pinned and cut
+        particles keep zero velocity."""
+        self._core.set_velocities(velocities)
+
+    def set_masses(self, masses: npt.NDArray[np.floating[Any]]) -> None:
+        """Replace every particle's mass: ``(N,)`` float32 or float64, each in kg, finite,
+        ``> 0`` and with a finite float32 inverse."""
+        self._core.set_masses(masses)
+
+    @property
+    def masses(self) -> FloatArray:
+        """Particle masses in kg, ``(N,)`` float32 (kept for pinned and cut particles)."""
+        return self._core.masses
+
+    @property
+    def pinned(self) -> npt.NDArray[np.bool_]:
+        """``(N,)`` bool: which particles are pinned (kinematic pins included)."""
+        return self._core.pinned
+
+    @property
+    def alive(self) -> npt.NDArray[np.bool_]:
+        """``(N,)`` bool: False for particles that were cut."""
+        return self._core.alive
+
+    @property
+    def triangles(self) -> npt.NDArray[np.uint32]:
+        """``(T, 3)`` uint32 vertex indices of the live triangles, two per grid cell, wound so
+        that a flat cloth's normal is ``e_i x e_j``. Recomputed only after a cut."""
+        return self._core.triangles
+
+    @property
+    def normals(self) -> FloatArray:
+        """``(N, 3)`` float32 unit vertex normals (area-weighted over live triangles)."""
+        return self._core.normals
+
+    @property
+    def topology_version(self) -> int:
+        """Increments whenever the triangle list changes (a cut): caches compare it."""
+        return self._core.topology_version
+
+    @property
+    def state_version(self) -> int:
+        """Increments whenever positions change (a step, ``set_positions``, a reset)."""
+        return self._core.state_version
+
+    def pin(self, index: int, target: Vector | None = None) -> None:
+        """Pin particle ``index``: it stops and integration no longer moves it. With a
+        ``target`` (m) it is a kinematic pin: each step puts it on the target with the velocity
+        of that move. Raises :class:`~rustcloth.errors.ParticleIndexError` out of range and
+        :class:`~rustcloth.errors.ParameterError` for a cut particle or a non-finite target."""
+        self._core.pin(index, target)
+
+    def unpin(self, index: int) -> None:
+        """Release particle ``index``; it keeps its velocity. Does nothing if not pinned."""
+        self._core.unpin(index)
+
+    def cut(self, index: int) -> None:
+        """Remove particle ``index``, every spring touching it, the bending springs over it and
+        its triangles (the seed's cutting operation: the mesh loses a whole particle). A cut
+        particle is absent from every computation. Cutting twice does nothing."""
+        self._core.cut(index)
+
+    def get_state(self) -> dict[str, Any]:
+        """The whole state as a dict of numpy arrays and plain values: scene, positions,
+        velocities, masses, pins and targets, cuts, step count and clock, the ``advance``
+        remainder, the integrator's history, the watchdog's memory and the picking settings.
+        :meth:`set_state` or :meth:`from_state` continue it bit for bit; it pickles."""
+        return self._core.get_state()
+
+    def set_state(self, state: Mapping[str, Any]) -> None:
+        """Replace the whole simulation (its scene included) by ``state`` from
+        :meth:`get_state`. Every part is checked; a bad one raises naming it
+        (``state.positions``, ...), changing nothing."""
+        self._core.set_state(dict(state))
+        self._scene = None
+
+    def reset(self) -> None:
+        """Back to the scene's starting state, keeping the run-time integrator, dt and
+        substeps."""
+        self._core.reset()
+
+    def __getstate__(self) -> dict[str, Any]:
+        return self.get_state()
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self._core = _core.simulation_from_state(state)
+        self._scene = None
+
+    def __copy__(self) -> Simulation:
+        return Simulation.from_state(self.get_state())
+
+    def __deepcopy__(self, memo: dict[int, Any]) -> Simulation:
+        return Simulation.from_state(self.get_state())
+
+    # ----- picking, dragging, cutting ------------------------------------------------------
+
+    def pick(self, origin: Vector, direction: Vector) -> tuple[int, float] | None:
+        """The live particle the ray ``origin + t direction`` (``t >= 0``) hits first, each
+        particle a box of half-size :attr:`pick_radius`: ``(index, distance in m)`` or None.
+        Raises :class:`~rustcloth.errors.ParameterError` for a non-finite origin or a zero or
+        non-finite direction. Answers bitwise as a brute-force scan would."""
+        return self._core.pick(origin, direction)
+
+    def pick_triangle(
+        self, origin: Vector, direction: Vector
+    ) -> tuple[int, float, tuple[float, float, float]] | None:
+        """The live triangle (a row of :attr:`triangles`) the ray hits first:
+        ``(row, distance in m, barycentric weights of its three vertices)`` or None."""
+        return self._core.pick_triangle(origin, direction)
+
+    @property
+    def pick_radius(self) -> float:
+        """Half-size in m of each particle's pick box (default: half the smaller grid
+        spacing, so neighbouring boxes touch). Set it to a finite number ``> 0``."""
+        return self._core.pick_radius
+
+    @pick_radius.setter
+    def pick_radius(self, radius: float) -> None:
+        self._core.pick_radius = radius
+
+    @property
+    def pick_strategy(self) -> PickStrategyName:
+        """``"auto"`` (default: a scan for the first query on a new state, the refitted BVH
+        from the second and for long strokes), ``"bvh"`` or ``"scan"``."""
+        return cast(PickStrategyName, self._core.pick_strategy)
+
+    @pick_strategy.setter
+    def pick_strategy(self, strategy: PickStrategyName) -> None:
+        self._core.pick_strategy = strategy
+
+    def grab(self, index: int) -> None:
+        """Grab particle ``index``: a kinematic pin at its position that :meth:`drag_to` moves.
+        Grabbing another releases the first."""
+        self._core.grab(index)
+
+    def drag_to(self, target: Vector) -> None:
+        """Move the grabbed particle's target (m); it gets there over the next step. Does
+        nothing without a grab."""
+        self._core.drag_to(target)
+
+    def release(self) -> None:
+        """Let go of the grabbed particle, restoring the pin state it had before the grab."""
+        self._core.release()
+
+    def grabbed(self) -> int | None:
+        """The grabbed particle's index, or None."""
+        return self._core.grabbed()
+
+    def cut_ray(self, origin: Vector, direction: Vector) -> int | None:
+        """Cut the particle :meth:`pick` finds; returns its index, or None on a miss."""
+        return self._core.cut_ray(origin, direction)
+
+    def cut_stroke(self, rays: Sequence[tuple[Vector, Vector]] | npt.ArrayLike) -> list[int]:
+        """Cut what a mouse stroke passes over: ``rays`` is a sequence of ``(origin,
+        direction)`` pairs (or an ``(M, 2, 3)`` array), each cutting the particle it picks
+        after the rays before it. Returns the indices cut. Bad input raises and cuts nothing."""
+        return self._core.cut_stroke(rays)
+
+    def bvh_stats(self) -> dict[str, int]:
+        """Work done on the picking trees: scans, builds, refits and removals."""
+        return self._core.bvh_stats()
+
+    # ----- settings ------------------------------------------------------------------------
+
+    @property
+    def time(self) -> float:
+        """Simulated time in s: each step counted with the ``dt`` it was taken with."""
+        return self._core.time
+
+    @property
+    def steps(self) -> int:
+        """Steps taken since the start or the last reset."""
+        return self._core.steps
+
+    @property
+    def dt(self) -> float:
+        """The fixed time step in s; set it at run time (finite, ``> 0``) to change the
+        future: the time already simulated stays as it was."""
+        return self._core.dt
+
+    @dt.setter
+    def dt(self, dt: float) -> None:
+        self._core.dt = dt
+        self._scene = None
+
+    @property
+    def substeps(self) -> int:
+        """Substeps per step (an integer ``>= 1``); settable at run time."""
+        return self._core.substeps
+
+    @substeps.setter
+    def substeps(self, substeps: int) -> None:
+        self._core.substeps = substeps
+        self._scene = None
+
+    @property
+    def integrator(self) -> IntegratorName:
+        """The time integrator, one of ``rustcloth.INTEGRATORS``; settable at run time (the
+        state carries over)."""
+        return cast(IntegratorName, self._core.integrator)
+
+    @integrator.setter
+    def integrator(self, name: IntegratorName) -> None:
+        self._core.integrator = name
+        self._scene = None
 
     @property
     def scene(self) -> Scene:
-        """The scene, with the run-time settings (integrator, substeps, dt) as they are now."""
-        return Scene.from_dict(self.scene_dict())
+        """The scene, with the run-time settings (integrator, substeps, dt) as they are now.
+        Built once and kept until a setting changes."""
+        if self._scene is None:
+            self._scene = Scene.from_dict(self._core.scene_dict())
+        return self._scene
 
-    def energy(self) -> Energy:  # type: ignore[override]
-        """Kinetic, gravitational potential and elastic energy, in J."""
-        return Energy(*super().energy())
+    @property
+    def nx(self) -> int:
+        """Particles along ``i``."""
+        return self._core.nx
 
-    def profile(self) -> Profile:  # type: ignore[override]
+    @property
+    def ny(self) -> int:
+        """Particles along ``j``."""
+        return self._core.ny
+
+    @property
+    def num_particles(self) -> int:
+        """``nx * ny``: rows of every per-particle array."""
+        return self._core.num_particles
+
+    # ----- diagnostics ---------------------------------------------------------------------
+
+    def energy(self) -> Energy:
+        """Kinetic, gravitational potential and elastic energy in J, summed in float64 over
+        fixed chunks: bitwise the same for any thread count."""
+        return Energy(*self._core.energy())
+
+    def spring_strain(self) -> FloatArray:
+        """``(N,)`` float32: per particle, the largest ``l / L - 1`` of its live springs."""
+        return self._core.spring_strain()
+
+    def max_stretch(self) -> float:
+        """The largest ``l / L - 1`` over all live springs of the active families."""
+        return self._core.max_stretch()
+
+    @property
+    def effects(self) -> list[str]:
+        """The passes a step runs, in order: only those the scene asked for."""
+        return self._core.effects
+
+    def profile(self) -> Profile:
         """Wall time spent in each pass since the start or the last reset."""
-        passes, steps, total = super().profile()
+        passes, steps, total = self._core.profile()
         return Profile(
             passes={name: PassTime(name, seconds, calls) for name, seconds, calls in passes},
             steps=steps,
             total_seconds=total,
             solver=self.solver_stats(),
         )
+
+    def solver_stats(self) -> dict[str, float] | None:
+        """The implicit solver's statistics (see :attr:`Profile.solver`), or None."""
+        return self._core.solver_stats()
+
+    def stable_dt(self) -> float | None:
+        """The largest ``dt`` (s) the current integrator is estimated to be stable at with the
+        current substeps and the lightest moving particle, or None when any is."""
+        return self._core.stable_dt()
+
+    def watchdog_stats(self) -> dict[str, int]:
+        """What the watchdog caught (``caught``), saved by retrying (``retried``), the
+        substeps those retries cost (``retry_substeps``), the most a saved step needed
+        (``max_substeps_used``) and the steps run with held substeps (``held_steps``)."""
+        return self._core.watchdog_stats()
+
+    def memory_bytes(self) -> int:
+        """Heap memory held by the simulation in bytes, picking trees included."""
+        return self._core.memory_bytes()
 
     def __repr__(self) -> str:
         return (

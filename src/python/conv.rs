@@ -6,11 +6,38 @@ use numpy::{
 };
 use pyo3::exceptions::PyOverflowError;
 use pyo3::prelude::*;
-use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
+use pyo3::types::{
+    PyBool, PyByteArray, PyBytes, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple,
+};
 
-use super::errors::{to_py, type_error, value_error};
+use super::errors::{to_py, type_error, value_error, IntoPyResult};
+use crate::scene::Scene;
 use crate::soa::Vec3s;
 use crate::Error;
+
+/// A scene dict, validated by the core (one parse, one validation).
+pub fn scene_from_dict(obj: &Bound<'_, PyAny>) -> PyResult<Scene> {
+    Scene::from_toml_value(to_toml(obj, "")?).py()
+}
+
+/// A scene as a dict with every key spelled out, absent optional tables as `None`.
+pub fn scene_to_dict<'py>(py: Python<'py>, scene: &Scene) -> PyResult<Bound<'py, PyAny>> {
+    let value = toml::Value::try_from(scene).expect("a scene always serialises");
+    let dict = from_toml(py, &value)?;
+    // TOML has no null: spell out absent optional keys as None, as users write them.
+    let dict = dict.cast_into::<PyDict>()?;
+    for key in ["floor", "strain_limit"] {
+        if !dict.contains(key)? {
+            dict.set_item(key, py.None())?;
+        }
+    }
+    let watchdog = dict.get_item("watchdog")?.expect("always serialised");
+    let watchdog = watchdog.cast_into::<PyDict>()?;
+    if !watchdog.contains("max_stretch")? {
+        watchdog.set_item("max_stretch", py.None())?;
+    }
+    Ok(dict.into_any())
+}
 
 /// A Python scene dict (plain dicts, lists, numbers, strings) as a TOML value, so that the core
 /// parses dicts and TOML files with the same deserializer and the same errors. `None` values in
@@ -106,6 +133,8 @@ pub fn vec3s_from_array(obj: &Bound<'_, PyAny>, name: &str, n: usize) -> PyResul
             format!("must have shape ({n}, 3), got {:?}", untyped.shape()),
         ));
     }
+    let native = native_order(obj)?;
+    let obj = &native;
     let mut out = Vec3s::zeros(n);
     if let Ok(array) = obj.extract::<PyReadonlyArray2<'_, f32>>() {
         for (p, row) in array.as_array().outer_iter().enumerate() {
@@ -119,6 +148,20 @@ pub fn vec3s_from_array(obj: &Bound<'_, PyAny>, name: &str, n: usize) -> PyResul
         return Err(dtype_error(untyped, name));
     }
     Ok(out)
+}
+
+/// A float array in the machine's byte order: a big-endian float32 or float64 array is as valid
+/// as any, and numpy's typed views accept only the native order.
+fn native_order<'py>(obj: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
+    let dtype = obj.getattr("dtype")?;
+    let kind: String = dtype.getattr("kind")?.extract()?;
+    let native: bool = dtype.getattr("isnative")?.extract()?;
+    if kind == "f" && !native {
+        let order = dtype.call_method1("newbyteorder", ("=",))?;
+        obj.call_method1("astype", (order,))
+    } else {
+        Ok(obj.clone())
+    }
 }
 
 /// `TypeError` for an array that is neither float32 nor float64.
@@ -149,6 +192,8 @@ pub fn f64s_from_array(obj: &Bound<'_, PyAny>, name: &str, n: usize) -> PyResult
             format!("must have shape ({n},), got {:?}", untyped.shape()),
         ));
     }
+    let native = native_order(obj)?;
+    let obj = &native;
     if let Ok(array) = obj.extract::<PyReadonlyArray1<'_, f32>>() {
         Ok(array.as_array().iter().map(|&x| x as f64).collect())
     } else if let Ok(array) = obj.extract::<PyReadonlyArray1<'_, f64>>() {
@@ -158,25 +203,148 @@ pub fn f64s_from_array(obj: &Bound<'_, PyAny>, name: &str, n: usize) -> PyResult
     }
 }
 
-/// SoA vectors as a new `(n, 3)` float32 array: the one copy a read costs.
-pub fn vec3s_to_array<'py>(py: Python<'py>, v: &Vec3s) -> PyResult<Bound<'py, PyArray2<f32>>> {
+/// SoA vectors as interleaved `x, y, z` floats: the one copy a read costs, made under the lock.
+pub fn interleaved(v: &Vec3s) -> Vec<f32> {
     let mut flat = vec![0.0f32; v.len() * 3];
     v.write_interleaved(&mut flat);
-    PyArray1::from_vec(py, flat).reshape([v.len(), 3])
+    flat
 }
 
-/// A 3-vector from any length-3 sequence of numbers.
+/// Interleaved floats as a new read-only `(n, 3)` float32 array. Read-only because it is a
+/// copy: a write to it would change nothing in the simulation, so numpy refuses it instead of
+/// losing it silently (`set_positions` writes).
+pub fn vec3s_to_array(py: Python<'_>, flat: Vec<f32>) -> PyResult<Bound<'_, PyArray2<f32>>> {
+    let n = flat.len() / 3;
+    let array = PyArray1::from_vec(py, flat).reshape([n, 3])?;
+    read_only(array.as_any())?;
+    Ok(array)
+}
+
+/// Marks a numpy array read-only.
+pub fn read_only(array: &Bound<'_, PyAny>) -> PyResult<()> {
+    let kwargs = PyDict::new(array.py());
+    kwargs.set_item("write", false)?;
+    array.call_method("setflags", (), Some(&kwargs))?;
+    Ok(())
+}
+
+/// A 3-vector from a sequence (or array) of 3 real numbers. Strings, bytes and booleans are
+/// not numbers here (`b"abc"` would otherwise be the vector (97, 98, 99)); components must be
+/// finite in float32 after conversion, which the core checks.
 pub fn vec3_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<glam::Vec3> {
-    let values: Vec<f64> = obj
-        .extract()
-        .or_else(|_| obj.call_method0("tolist").and_then(|l| l.extract()))
-        .map_err(|_| type_error(name, format!("must be a sequence of 3 numbers, got {obj}")))?;
-    match values.as_slice() {
-        [x, y, z] => Ok(glam::DVec3::new(*x, *y, *z).as_vec3()),
-        _ => Err(value_error(
+    let kind = type_name(obj);
+    if obj.is_instance_of::<PyString>()
+        || obj.is_instance_of::<PyBytes>()
+        || obj.is_instance_of::<PyByteArray>()
+    {
+        return Err(type_error(
             name,
-            format!("must have 3 components, got {}", values.len()),
+            format!("must be a sequence of 3 numbers, got {kind} {}", repr(obj)),
+        ));
+    }
+    let items: Vec<Bound<'_, PyAny>> = match obj.try_iter() {
+        Ok(iter) => iter.collect::<PyResult<_>>()?,
+        Err(_) => {
+            return Err(type_error(
+                name,
+                format!("must be a sequence of 3 numbers, got {kind} {}", repr(obj)),
+            ))
+        }
+    };
+    if items.len() != 3 {
+        return Err(value_error(
+            name,
+            format!("must have 3 components, got {}", items.len()),
+        ));
+    }
+    let mut v = [0.0f64; 3];
+    for (c, item) in items.iter().enumerate() {
+        v[c] = float_from_any(item, &format!("{name}[{c}]"))?;
+    }
+    Ok(glam::DVec3::from(v).as_vec3())
+}
+
+/// A real number: a Python `int` or `float`, or a numpy scalar, never a `bool` or a string.
+/// An integer too large for a float is a value error naming `name`.
+pub fn float_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<f64> {
+    if obj.is_instance_of::<PyBool>() || is_numpy_bool(obj) {
+        return Err(type_error(
+            name,
+            format!("must be a number, got bool {}", repr(obj)),
+        ));
+    }
+    if obj.is_instance_of::<PyString>()
+        || obj.is_instance_of::<PyBytes>()
+        || obj.is_instance_of::<PyByteArray>()
+    {
+        return Err(type_error(
+            name,
+            format!("must be a number, got {} {}", type_name(obj), repr(obj)),
+        ));
+    }
+    match obj.extract::<f64>() {
+        Ok(x) => Ok(x),
+        Err(e) if e.is_instance_of::<PyOverflowError>(obj.py()) => Err(value_error(
+            name,
+            format!("{} is too large for a float", repr(obj)),
         )),
+        Err(_) => Err(type_error(
+            name,
+            format!("must be a number, got {} {}", type_name(obj), repr(obj)),
+        )),
+    }
+}
+
+/// A whole number: a Python `int` or a numpy integer, never a `bool` or a float (not even
+/// `2.0`: a count given as a float is usually a mistake). Values outside `i64` are value
+/// errors naming `name`, so the core's range checks report them like any other bad value.
+pub fn int_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<i64> {
+    if obj.is_instance_of::<PyBool>() || is_numpy_bool(obj) {
+        return Err(type_error(
+            name,
+            format!("must be an integer, got bool {}", repr(obj)),
+        ));
+    }
+    match obj.extract::<i64>() {
+        Ok(i) => Ok(i),
+        Err(e) if e.is_instance_of::<PyOverflowError>(obj.py()) => {
+            Err(value_error(name, format!("{} is out of range", repr(obj))))
+        }
+        Err(_) => Err(type_error(
+            name,
+            format!("must be an integer, got {} {}", type_name(obj), repr(obj)),
+        )),
+    }
+}
+
+/// A count of steps: an integer `>= 0`.
+pub fn count_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<u64> {
+    let n = int_from_any(obj, name)?;
+    u64::try_from(n).map_err(|_| value_error(name, format!("must be an integer >= 0, got {n}")))
+}
+
+/// A string: a Python `str` only.
+pub fn str_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<String> {
+    obj.cast::<PyString>().map(|s| s.to_string()).map_err(|_| {
+        type_error(
+            name,
+            format!("must be a string, got {} {}", type_name(obj), repr(obj)),
+        )
+    })
+}
+
+/// Whether `obj` is a numpy boolean scalar (not a Python `bool` subclass).
+fn is_numpy_bool(obj: &Bound<'_, PyAny>) -> bool {
+    type_name(obj) == "bool" && !obj.is_instance_of::<PyBool>() || type_name(obj) == "bool_"
+}
+
+/// `repr(obj)`, shortened for messages.
+fn repr(obj: &Bound<'_, PyAny>) -> String {
+    let text = obj.repr().map(|r| r.to_string()).unwrap_or_default();
+    if text.chars().count() > 60 {
+        format!("{}...", text.chars().take(57).collect::<String>())
+    } else {
+        text
     }
 }
 

@@ -1,11 +1,11 @@
-//! Picking, dragging and cutting (src/interaction.rs) for Python. Queries release the GIL: the
-//! first one after the cloth moved refits a tree over every particle.
+//! Picking, dragging and cutting (src/interaction.rs) for Python. Queries run detached from the
+//! interpreter: the first one after the cloth moved refits a tree over every particle.
 
 use pyo3::prelude::*;
 
-use super::conv::{index_from_any, vec3_from_any};
+use super::conv::{float_from_any, index_from_any, str_from_any, vec3_from_any};
 use super::errors::{type_error, value_error, IntoPyResult};
-use super::PySimulation;
+use super::simulation::PySimulation;
 use crate::interaction::PickStrategy;
 
 /// `(origin, direction)` of ray `k` of a stroke: any pair of length-3 sequences, or a
@@ -34,115 +34,118 @@ type TriangleHit = (usize, f32, (f32, f32, f32));
 
 #[pymethods]
 impl PySimulation {
-    /// Picks the live particle the ray ``origin + t * direction`` (``t >= 0``) hits first.
-    ///
-    /// Each particle is a box of half-size ``pick_radius``; ties along the ray go to the
-    /// particle nearer the ray. Returns ``(index, distance)`` with the distance along the ray
-    /// in m, or ``None``. Raises ``ValueError`` for a non-finite origin or a zero or non-finite
-    /// direction. The BVH is built by the first query and refitted (not rebuilt) after the
-    /// cloth moves; stepping never touches it.
+    /// Picks the live particle the ray ``origin + t * direction`` (``t >= 0``) hits first:
+    /// ``(index, distance)`` or ``None``.
     fn pick(
-        &mut self,
+        &self,
         py: Python<'_>,
         origin: &Bound<'_, PyAny>,
         direction: &Bound<'_, PyAny>,
     ) -> PyResult<Option<(usize, f32)>> {
         let origin = vec3_from_any(origin, "origin")?;
         let direction = vec3_from_any(direction, "direction")?;
-        let sim = &mut self.inner;
-        py.detach(|| sim.pick(origin, direction)).py()
+        self.with(py, |h| py.detach(|| h.sim.pick(origin, direction)).py())
     }
 
-    /// Picks the live triangle (a row of ``triangles``) the ray hits first.
-    ///
-    /// Returns ``(triangle_index, distance, (w0, w1, w2))`` with the barycentric weights of the
-    /// triangle's three vertices (in the order of its row; they sum to 1), or ``None``.
+    /// Picks the live triangle (a row of ``triangles``) the ray hits first:
+    /// ``(triangle_index, distance, (w0, w1, w2))`` or ``None``.
     fn pick_triangle(
-        &mut self,
+        &self,
         py: Python<'_>,
         origin: &Bound<'_, PyAny>,
         direction: &Bound<'_, PyAny>,
     ) -> PyResult<Option<TriangleHit>> {
         let origin = vec3_from_any(origin, "origin")?;
         let direction = vec3_from_any(direction, "direction")?;
-        let sim = &mut self.inner;
-        let hit = py.detach(|| sim.pick_triangle(origin, direction)).py()?;
+        let hit = self.with(py, |h| {
+            py.detach(|| h.sim.pick_triangle(origin, direction)).py()
+        })?;
         Ok(hit.map(|(t, d, [a, b, c])| (t, d, (a, b, c))))
     }
 
     /// Half-size in m of each particle's pick box; defaults to half the smaller grid spacing.
     #[getter]
-    fn pick_radius(&self) -> f32 {
-        self.inner.pick_radius()
+    fn pick_radius(&self, py: Python<'_>) -> PyResult<f32> {
+        self.with(py, |h| Ok(h.sim.pick_radius()))
     }
 
     #[setter]
-    fn set_pick_radius(&mut self, radius: f64) -> PyResult<()> {
-        self.inner.set_pick_radius(radius).py()
+    fn set_pick_radius(&self, py: Python<'_>, radius: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
+        let radius =
+            radius.ok_or_else(|| value_error("pick_radius", "cannot be deleted".into()))?;
+        let radius = float_from_any(radius, "pick_radius")?;
+        self.with(py, |h| h.sim.set_pick_radius(radius).py())
     }
 
-    /// How queries find what a ray hits: ``"auto"`` (default: a scan of every particle for the
-    /// first query after the cloth moved, the BVH, refitted, from the second query on the same
-    /// state and for cut strokes), ``"bvh"`` (always the tree) or ``"scan"`` (never a tree).
-    /// All three give the same answers.
+    /// ``"auto"``, ``"bvh"`` or ``"scan"``: how queries find what a ray hits.
     #[getter]
-    fn pick_strategy(&self) -> &'static str {
-        self.inner.pick_strategy().name()
+    fn pick_strategy(&self, py: Python<'_>) -> PyResult<&'static str> {
+        self.with(py, |h| Ok(h.sim.pick_strategy().name()))
     }
 
     #[setter]
-    fn set_pick_strategy(&mut self, strategy: &str) -> PyResult<()> {
-        let strategy = PickStrategy::by_name(strategy).py()?;
-        self.inner.set_pick_strategy(strategy);
-        Ok(())
+    fn set_pick_strategy(
+        &self,
+        py: Python<'_>,
+        strategy: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<()> {
+        let strategy =
+            strategy.ok_or_else(|| value_error("pick_strategy", "cannot be deleted".into()))?;
+        let strategy = PickStrategy::by_name(&str_from_any(strategy, "pick_strategy")?).py()?;
+        self.with(py, |h| {
+            h.sim.set_pick_strategy(strategy);
+            Ok(())
+        })
     }
 
     /// Grabs particle ``index``: a kinematic pin at its current position that ``drag_to``
-    /// moves. Grabbing another particle releases the first. Raises ``IndexError`` out of range
-    /// and ``ValueError`` for a cut particle.
-    fn grab(&mut self, index: &Bound<'_, PyAny>) -> PyResult<()> {
-        let index = index_from_any(index, "index", self.inner.grid().len())?;
-        self.inner.grab(index).py()
+    /// moves.
+    fn grab(&self, py: Python<'_>, index: &Bound<'_, PyAny>) -> PyResult<()> {
+        let index = index_from_any(index, "index", self.num_particles_now(py)?)?;
+        self.with(py, |h| h.sim.grab(index).py())
     }
 
-    /// Moves the grabbed particle's target to ``target`` (3 numbers, m); the particle gets
-    /// there over the next step and the cloth follows by its springs. Does nothing without a
-    /// grab. Raises ``ValueError`` for a non-finite target.
-    fn drag_to(&mut self, target: &Bound<'_, PyAny>) -> PyResult<()> {
+    /// Moves the grabbed particle's target to ``target`` (3 numbers, m).
+    fn drag_to(&self, py: Python<'_>, target: &Bound<'_, PyAny>) -> PyResult<()> {
         let target = vec3_from_any(target, "target")?;
-        self.inner.drag_to(target).py()
+        self.with(py, |h| h.sim.drag_to(target).py())
     }
 
-    /// Lets go of the grabbed particle and restores the pin state it had before the grab; a
-    /// free particle keeps its velocity. Does nothing without a grab.
-    fn release(&mut self) {
-        self.inner.release();
+    /// Lets go of the grabbed particle, restoring the pin state it had before the grab.
+    fn release(&self, py: Python<'_>) -> PyResult<()> {
+        self.with(py, |h| {
+            h.sim.release();
+            Ok(())
+        })
     }
 
     /// The index of the grabbed particle, or ``None``.
-    fn grabbed(&self) -> Option<usize> {
-        self.inner.grabbed()
+    fn grabbed(&self, py: Python<'_>) -> PyResult<Option<usize>> {
+        self.with(py, |h| Ok(h.sim.grabbed()))
     }
 
-    /// Cuts the particle ``pick(origin, direction)`` finds; returns its index, or ``None``
-    /// when the ray hits nothing.
+    /// Cuts the particle ``pick(origin, direction)`` finds; returns its index or ``None``.
     fn cut_ray(
-        &mut self,
+        &self,
         py: Python<'_>,
         origin: &Bound<'_, PyAny>,
         direction: &Bound<'_, PyAny>,
     ) -> PyResult<Option<usize>> {
         let origin = vec3_from_any(origin, "origin")?;
         let direction = vec3_from_any(direction, "direction")?;
-        let sim = &mut self.inner;
-        py.detach(|| sim.cut_ray(origin, direction)).py()
+        self.with(py, |h| py.detach(|| h.sim.cut_ray(origin, direction)).py())
     }
 
-    /// Cuts what a mouse stroke passes over: ``rays`` is a sequence of ``(origin, direction)``
-    /// pairs (or an ``(M, 2, 3)`` array), each cutting the particle it picks after the cuts of
-    /// the rays before it. Returns the indices cut, in order. Every ray is checked first: bad
-    /// input raises and cuts nothing.
-    fn cut_stroke(&mut self, py: Python<'_>, rays: &Bound<'_, PyAny>) -> PyResult<Vec<usize>> {
+    /// Cuts what a stroke of ``(origin, direction)`` rays passes over; returns the indices.
+    fn cut_stroke(&self, py: Python<'_>, rays: &Bound<'_, PyAny>) -> PyResult<Vec<usize>> {
+        if rays.is_instance_of::<pyo3::types::PyString>()
+            || rays.is_instance_of::<pyo3::types::PyBytes>()
+        {
+            return Err(type_error(
+                "rays",
+                format!("must be a sequence of (origin, direction) pairs, got {rays}"),
+            ));
+        }
         let items = rays.try_iter().map_err(|_| {
             type_error(
                 "rays",
@@ -153,15 +156,13 @@ impl PySimulation {
             .enumerate()
             .map(|(k, item)| ray_from_any(&item?, k))
             .collect::<PyResult<Vec<_>>>()?;
-        let sim = &mut self.inner;
-        py.detach(|| sim.cut_stroke(&rays)).py()
+        self.with(py, |h| py.detach(|| h.sim.cut_stroke(&rays)).py())
     }
 
-    /// Work done on the picking trees so far: queries answered by a scan, builds, refits and
-    /// leaves removed by cuts, for the particle and the triangle tree.
-    fn bvh_stats(&self) -> std::collections::HashMap<&'static str, u64> {
-        let s = self.inner.bvh_stats();
-        [
+    /// Work done on the picking trees so far.
+    fn bvh_stats(&self, py: Python<'_>) -> PyResult<std::collections::HashMap<&'static str, u64>> {
+        let s = self.with(py, |h| Ok(h.sim.bvh_stats()))?;
+        Ok([
             ("particle_scans", s.particle_scans),
             ("particle_builds", s.particle_builds),
             ("particle_refits", s.particle_refits),
@@ -172,6 +173,12 @@ impl PySimulation {
             ("triangle_removals", s.triangle_removals),
         ]
         .into_iter()
-        .collect()
+        .collect())
+    }
+}
+
+impl PySimulation {
+    fn num_particles_now(&self, py: Python<'_>) -> PyResult<usize> {
+        self.with(py, |h| Ok(h.sim.grid().len()))
     }
 }

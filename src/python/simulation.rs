@@ -1,0 +1,446 @@
+//! `rustcloth._core.Simulation`: the solver's methods for Python. Every method converts its
+//! arguments first (naming the parameter on bad input), then runs on the locked simulation
+//! (shared.rs); stepping runs detached from the interpreter and checks for Ctrl-C between
+//! steps. The documented public API is `rustcloth.Simulation`, which wraps this class.
+
+use numpy::{PyArray1, PyArray2, PyArrayMethods};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList, PyTuple};
+
+use super::conv::{
+    count_from_any, f64s_from_array, float_from_any, index_from_any, int_from_any, interleaved,
+    read_only, scene_from_dict, scene_to_dict, str_from_any, vec3_from_any, vec3s_from_array,
+    vec3s_to_array,
+};
+use super::errors::{value_error, IntoPyResult};
+use super::shared::{Held, Shared};
+use super::state;
+use crate::{Error, Simulation};
+
+/// The solver. See `rustcloth.Simulation` for the documented API.
+#[pyclass(name = "Simulation", module = "rustcloth._core", frozen)]
+pub(crate) struct PySimulation {
+    pub(crate) shared: Shared,
+}
+
+/// The warning to give once per simulation when the implicit solver stopped at its cap.
+fn not_converged_warning(held: &mut Held) -> Option<String> {
+    let stats = held.sim.solver_stats()?;
+    if stats.not_converged == 0 || held.warned_not_converged {
+        return None;
+    }
+    held.warned_not_converged = true;
+    let scene = held.sim.scene();
+    Some(format!(
+        "implicit_euler: the conjugate gradient stopped at cg_max_iterations = {} with \
+         relative residual up to {:.2e} > cg_tolerance = {:.0e} ({} of {} solves so far); \
+         the step was taken with the partial solution. Raise cg_max_iterations, loosen \
+         cg_tolerance or reduce dt. profile() counts these.",
+        scene.cg_max_iterations,
+        stats.worst_residual,
+        scene.cg_tolerance,
+        stats.not_converged,
+        stats.solves,
+    ))
+}
+
+/// Gives `message` as a `RuntimeWarning`, outside the lock (a warning filter may call back).
+fn warn(py: Python<'_>, message: Option<String>) -> PyResult<()> {
+    let Some(message) = message else {
+        return Ok(());
+    };
+    let message = std::ffi::CString::new(message).expect("no NUL in the message");
+    let category = py.get_type::<pyo3::exceptions::PyRuntimeWarning>();
+    PyErr::warn(py, category.as_any(), &message, 1)
+}
+
+/// Runs a stepping call detached from the interpreter, asking Python between steps whether a
+/// signal (Ctrl-C) arrived; an interrupt comes back as the `KeyboardInterrupt` Python raised.
+fn stepping<R: Send>(
+    py: Python<'_>,
+    held: &mut Held,
+    call: impl FnOnce(&mut Simulation, &mut dyn FnMut() -> bool) -> crate::Result<R> + Send,
+) -> (PyResult<R>, Option<String>) {
+    let mut signal: Option<PyErr> = None;
+    let outcome = py.detach(|| {
+        let mut interrupted = || match Python::attach(|py| py.check_signals()) {
+            Ok(()) => false,
+            Err(err) => {
+                signal = Some(err);
+                true
+            }
+        };
+        call(&mut held.sim, &mut interrupted)
+    });
+    let warning = not_converged_warning(held);
+    let outcome = match outcome {
+        Err(Error::Interrupted { .. }) if signal.is_some() => Err(signal.take().unwrap()),
+        other => other.py(),
+    };
+    (outcome, warning)
+}
+
+fn build(scene: &Bound<'_, PyAny>) -> PyResult<PySimulation> {
+    let scene = scene_from_dict(scene)?;
+    Ok(PySimulation {
+        shared: Shared::new(Simulation::new(scene).py()?),
+    })
+}
+
+/// A simulation continuing a state from `Simulation.get_state()` (what unpickling calls).
+#[pyfunction]
+pub(crate) fn simulation_from_state(state: &Bound<'_, PyAny>) -> PyResult<PySimulation> {
+    let snapshot = state::from_dict(state)?;
+    Ok(PySimulation {
+        shared: Shared::new(Simulation::restore(snapshot).py()?),
+    })
+}
+
+impl PySimulation {
+    /// Runs `f` on the simulation under its lock.
+    pub(crate) fn with<R>(
+        &self,
+        py: Python<'_>,
+        f: impl FnOnce(&mut Held) -> PyResult<R>,
+    ) -> PyResult<R> {
+        self.shared.with(py, f)
+    }
+}
+
+#[pymethods]
+impl PySimulation {
+    #[new]
+    fn new(scene: &Bound<'_, PyAny>) -> PyResult<Self> {
+        build(scene)
+    }
+
+    // ----- stepping -----------------------------------------------------------------------
+
+    /// Advances exactly `n` steps of `dt`.
+    #[pyo3(signature = (n = None))]
+    fn step(&self, py: Python<'_>, n: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
+        let n = match n {
+            Some(n) => count_from_any(n, "n")?,
+            None => 1,
+        };
+        let (outcome, warning) = self.with(py, |h| {
+            Ok(stepping(py, h, |sim, stop| sim.step_with(n, stop)))
+        })?;
+        warn(py, warning)?;
+        outcome
+    }
+
+    /// Adds `seconds` of requested time and runs the whole steps it covers; returns them.
+    fn advance(&self, py: Python<'_>, seconds: &Bound<'_, PyAny>) -> PyResult<u64> {
+        let seconds = float_from_any(seconds, "seconds")?;
+        let (outcome, warning) = self.with(py, |h| {
+            Ok(stepping(py, h, |sim, stop| sim.advance_with(seconds, stop)))
+        })?;
+        warn(py, warning)?;
+        outcome
+    }
+
+    // ----- state ----------------------------------------------------------------------------
+
+    #[getter]
+    fn positions<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        let flat = self.with(py, |h| Ok(interleaved(h.sim.positions())))?;
+        vec3s_to_array(py, flat)
+    }
+
+    #[getter]
+    fn velocities<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        let flat = self.with(py, |h| Ok(interleaved(h.sim.velocities())))?;
+        vec3s_to_array(py, flat)
+    }
+
+    fn set_positions(&self, py: Python<'_>, positions: &Bound<'_, PyAny>) -> PyResult<()> {
+        let n = self.with(py, |h| Ok(h.sim.grid().len()))?;
+        let values = vec3s_from_array(positions, "positions", n)?;
+        self.with(py, |h| h.sim.set_positions(&values).py())
+    }
+
+    fn set_velocities(&self, py: Python<'_>, velocities: &Bound<'_, PyAny>) -> PyResult<()> {
+        let n = self.with(py, |h| Ok(h.sim.grid().len()))?;
+        let values = vec3s_from_array(velocities, "velocities", n)?;
+        self.with(py, |h| h.sim.set_velocities(&values).py())
+    }
+
+    fn set_masses(&self, py: Python<'_>, masses: &Bound<'_, PyAny>) -> PyResult<()> {
+        let n = self.with(py, |h| Ok(h.sim.grid().len()))?;
+        let values = f64s_from_array(masses, "masses", n)?;
+        self.with(py, |h| h.sim.set_masses(&values).py())
+    }
+
+    #[getter]
+    fn masses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f32>>> {
+        let masses = self.with(py, |h| Ok(h.sim.particles().mass.clone()))?;
+        read_only_1d(PyArray1::from_vec(py, masses))
+    }
+
+    #[getter]
+    fn pinned<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<bool>>> {
+        let flags = self.with(py, |h| Ok(h.sim.particles().pinned.clone()))?;
+        read_only_1d(PyArray1::from_vec(py, flags))
+    }
+
+    #[getter]
+    fn alive<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<bool>>> {
+        let flags = self.with(py, |h| Ok(h.sim.particles().alive.clone()))?;
+        read_only_1d(PyArray1::from_vec(py, flags))
+    }
+
+    #[getter]
+    fn triangles<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<u32>>> {
+        let flat: Vec<u32> = self.with(py, |h| {
+            Ok(h.sim.triangles().iter().flatten().copied().collect())
+        })?;
+        let rows = flat.len() / 3;
+        let array = PyArray1::from_vec(py, flat).reshape([rows, 3])?;
+        read_only(array.as_any())?;
+        Ok(array)
+    }
+
+    #[getter]
+    fn normals<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        let flat = self.with(py, |h| Ok(interleaved(h.sim.normals())))?;
+        vec3s_to_array(py, flat)
+    }
+
+    #[pyo3(signature = (index, target = None))]
+    fn pin(
+        &self,
+        py: Python<'_>,
+        index: &Bound<'_, PyAny>,
+        target: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<()> {
+        let n = self.with(py, |h| Ok(h.sim.grid().len()))?;
+        let index = index_from_any(index, "index", n)?;
+        let target = match target {
+            Some(t) if !t.is_none() => Some(vec3_from_any(t, "target")?),
+            _ => None,
+        };
+        self.with(py, |h| h.sim.pin(index, target).py())
+    }
+
+    fn unpin(&self, py: Python<'_>, index: &Bound<'_, PyAny>) -> PyResult<()> {
+        let index = index_from_any(index, "index", self.with(py, |h| Ok(h.sim.grid().len()))?)?;
+        self.with(py, |h| h.sim.unpin(index).py())
+    }
+
+    fn cut(&self, py: Python<'_>, index: &Bound<'_, PyAny>) -> PyResult<()> {
+        let index = index_from_any(index, "index", self.with(py, |h| Ok(h.sim.grid().len()))?)?;
+        self.with(py, |h| h.sim.cut(index).py())
+    }
+
+    fn reset(&self, py: Python<'_>) -> PyResult<()> {
+        self.with(py, |h| {
+            h.warned_not_converged = false;
+            h.sim.reset().py()
+        })
+    }
+
+    /// The whole state as a dict of numpy arrays and plain values (see `set_state`).
+    fn get_state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let snapshot = self.with(py, |h| Ok(h.sim.snapshot()))?;
+        state::to_dict(py, &snapshot)
+    }
+
+    /// Replaces the whole simulation (scene included) by a state from `get_state`.
+    fn set_state(&self, py: Python<'_>, state: &Bound<'_, PyAny>) -> PyResult<()> {
+        let restored = Simulation::restore(state::from_dict(state)?).py()?;
+        self.with(py, |h| {
+            h.sim = restored;
+            h.warned_not_converged = false;
+            Ok(())
+        })
+    }
+
+    fn __reduce__<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyTuple>)> {
+        let snapshot = self.with(py, |h| Ok(h.sim.snapshot()))?;
+        let constructor = py
+            .import("rustcloth._core")?
+            .getattr("simulation_from_state")?;
+        Ok((constructor, state::reduce_args(py, &snapshot)?))
+    }
+
+    /// Makes the next force evaluation panic inside its parallel sweep: a stand-in for a bug,
+    /// for the tests of the panic guards.
+    fn _inject_panic(&self, py: Python<'_>) -> PyResult<()> {
+        self.with(py, |h| {
+            h.sim.inject_panic();
+            Ok(())
+        })
+    }
+
+    /// Panics right here, under the lock: the binding's last-resort guard, for the tests.
+    fn _panic_now(&self, py: Python<'_>) -> PyResult<()> {
+        self.with(py, |_| -> PyResult<()> {
+            panic!("injected panic outside a step")
+        })
+    }
+
+    // ----- settings -------------------------------------------------------------------------
+
+    #[getter]
+    fn time(&self, py: Python<'_>) -> PyResult<f64> {
+        self.with(py, |h| Ok(h.sim.time()))
+    }
+
+    #[getter]
+    fn steps(&self, py: Python<'_>) -> PyResult<u64> {
+        self.with(py, |h| Ok(h.sim.steps()))
+    }
+
+    #[getter]
+    fn dt(&self, py: Python<'_>) -> PyResult<f64> {
+        self.with(py, |h| Ok(h.sim.dt()))
+    }
+
+    #[setter]
+    fn set_dt(&self, py: Python<'_>, dt: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
+        let dt = float_from_any(required(dt, "dt")?, "dt")?;
+        self.with(py, |h| h.sim.set_dt(dt).py())
+    }
+
+    #[getter]
+    fn substeps(&self, py: Python<'_>) -> PyResult<u32> {
+        self.with(py, |h| Ok(h.sim.scene().substeps))
+    }
+
+    #[setter]
+    fn set_substeps(&self, py: Python<'_>, substeps: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
+        let substeps = int_from_any(required(substeps, "substeps")?, "substeps")?;
+        self.with(py, |h| h.sim.set_substeps(substeps).py())
+    }
+
+    #[getter]
+    fn integrator(&self, py: Python<'_>) -> PyResult<String> {
+        self.with(py, |h| Ok(h.sim.scene().integrator.clone()))
+    }
+
+    #[setter]
+    fn set_integrator(&self, py: Python<'_>, name: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
+        let name = str_from_any(required(name, "integrator")?, "integrator")?;
+        self.with(py, |h| h.sim.set_integrator(&name).py())
+    }
+
+    /// The scene with the run-time settings as they are now.
+    fn scene_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let scene = self.with(py, |h| Ok(h.sim.scene().clone()))?;
+        scene_to_dict(py, &scene)
+    }
+
+    // ----- diagnostics ----------------------------------------------------------------------
+
+    /// `(kinetic, gravitational, elastic)` in J.
+    fn energy(&self, py: Python<'_>) -> PyResult<(f64, f64, f64)> {
+        self.with(py, |h| {
+            let e = h.sim.energy();
+            Ok((e.kinetic, e.gravitational, e.elastic))
+        })
+    }
+
+    fn spring_strain<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f32>>> {
+        let strain = self.with(py, |h| Ok(h.sim.spring_strain()))?;
+        read_only_1d(PyArray1::from_vec(py, strain))
+    }
+
+    fn max_stretch(&self, py: Python<'_>) -> PyResult<f32> {
+        self.with(py, |h| Ok(h.sim.max_stretch()))
+    }
+
+    #[getter]
+    fn effects(&self, py: Python<'_>) -> PyResult<Vec<&'static str>> {
+        self.with(py, |h| Ok(h.sim.effects()))
+    }
+
+    /// `(passes, steps, total_seconds)` with `passes` a list of `(name, seconds, calls)`.
+    fn profile<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyList>, u64, f64)> {
+        let profile = self.with(py, |h| Ok(h.sim.profile().clone()))?;
+        let passes = PyList::empty(py);
+        for p in profile.passes() {
+            passes.append((p.name, p.time.as_secs_f64(), p.calls))?;
+        }
+        Ok((passes, profile.steps, profile.total.as_secs_f64()))
+    }
+
+    /// Statistics of the implicit solver, or None for integrators that solve nothing.
+    fn solver_stats<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let Some(stats) = self.with(py, |h| Ok(h.sim.solver_stats()))? else {
+            return Ok(None);
+        };
+        let dict = PyDict::new(py);
+        dict.set_item("solves", stats.solves)?;
+        dict.set_item("iterations", stats.iterations)?;
+        dict.set_item("last_iterations", stats.last_iterations)?;
+        dict.set_item("last_residual", stats.last_residual)?;
+        dict.set_item("not_converged", stats.not_converged)?;
+        dict.set_item("worst_residual", stats.worst_residual)?;
+        Ok(Some(dict))
+    }
+
+    /// The largest stable `dt` (s) now, or None when any `dt` is.
+    fn stable_dt(&self, py: Python<'_>) -> PyResult<Option<f64>> {
+        self.with(py, |h| Ok(h.sim.stable_dt()))
+    }
+
+    /// What the watchdog caught and retried since the start.
+    fn watchdog_stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let stats = self.with(py, |h| Ok(h.sim.watchdog_stats()))?;
+        let out = PyDict::new(py);
+        out.set_item("caught", stats.caught)?;
+        out.set_item("retried", stats.retried)?;
+        out.set_item("retry_substeps", stats.retry_substeps)?;
+        out.set_item("max_substeps_used", stats.max_substeps_used)?;
+        out.set_item("held_steps", stats.held_steps)?;
+        Ok(out)
+    }
+
+    fn memory_bytes(&self, py: Python<'_>) -> PyResult<usize> {
+        self.with(py, |h| Ok(h.sim.memory_bytes()))
+    }
+
+    #[getter]
+    fn topology_version(&self, py: Python<'_>) -> PyResult<u64> {
+        self.with(py, |h| Ok(h.sim.topology_version()))
+    }
+
+    #[getter]
+    fn state_version(&self, py: Python<'_>) -> PyResult<u64> {
+        self.with(py, |h| Ok(h.sim.state_version()))
+    }
+
+    #[getter]
+    fn nx(&self, py: Python<'_>) -> PyResult<usize> {
+        self.with(py, |h| Ok(h.sim.grid().nx))
+    }
+
+    #[getter]
+    fn ny(&self, py: Python<'_>) -> PyResult<usize> {
+        self.with(py, |h| Ok(h.sim.grid().ny))
+    }
+
+    #[getter]
+    fn num_particles(&self, py: Python<'_>) -> PyResult<usize> {
+        self.with(py, |h| Ok(h.sim.grid().len()))
+    }
+}
+
+/// A setter's value; `del sim.dt` passes none.
+fn required<'a, 'py>(
+    value: Option<&'a Bound<'py, PyAny>>,
+    name: &str,
+) -> PyResult<&'a Bound<'py, PyAny>> {
+    value.ok_or_else(|| value_error(name, "cannot be deleted".into()))
+}
+
+fn read_only_1d<T: numpy::Element>(
+    array: Bound<'_, PyArray1<T>>,
+) -> PyResult<Bound<'_, PyArray1<T>>> {
+    read_only(array.as_any())?;
+    Ok(array)
+}
