@@ -6,6 +6,8 @@
 500
 """
 
+from importlib import metadata as _metadata
+
 from . import _core
 from .errors import (
     ParameterError,
@@ -21,7 +23,8 @@ from .simulation import Energy, PassTime, Profile, Simulation
 INTEGRATORS: tuple[str, ...] = tuple(_core.INTEGRATORS)
 """Names of the available time integrators."""
 
-__version__ = "0.1.0"
+# One source for the version: Cargo.toml's, which maturin writes into the installed metadata.
+__version__: str = _metadata.version("rustcloth")
 
 __all__ = [
     "INTEGRATORS",
