@@ -17,7 +17,7 @@ import time
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import NoReturn
 
 from . import INTEGRATORS, __version__, export, load_scene, scenes
 from ._extras import MissingExtra, as_missing_extra, require
@@ -196,7 +196,7 @@ def run_headless(scene_name: str, seconds: float, integrator: str | None = None,
     start = time.perf_counter()
     e0 = sim.energy()
     done, frames, second, status = 0, 0, 1, 0
-    bar: Any = tqdm(total=total, unit="step", unit_scale=True, disable=None, leave=False,
+    bar = tqdm(total=total, unit="step", unit_scale=True, disable=None, leave=False,
                     file=sys.stderr, dynamic_ncols=True)
     try:
         # Step to the nearest of: the end, the next progress update, the next whole simulated

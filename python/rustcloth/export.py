@@ -161,7 +161,7 @@ class UsdRecorder(Recorder):
         if not (math.isfinite(fps) and fps > 0):
             raise ValueError(f"fps must be a positive number, not {fps!r}")
         try:
-            from pxr import Sdf, Usd, UsdGeom, Vt
+            from pxr import Sdf, Usd, UsdGeom, Vt  # type: ignore[import-untyped]  # no stubs
         except ModuleNotFoundError as err:
             raise MissingExtra("pxr", "USD export") from err
         self._Sdf, self._UsdGeom, self._Vt = Sdf, UsdGeom, Vt
