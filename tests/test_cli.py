@@ -128,8 +128,8 @@ def test_run_export_obj_sequence_and_last_frame(capsys, tmp_path):
     assert sorted(p.name for p in (tmp_path / "seq").iterdir()) == ["c_00.obj", "c_01.obj",
                                                                     "c_02.obj"]
     code, out, err = run_cli(capsys, "run", "hanging", "--seconds", "0.1",
-                             "--export", str(tmp_path / "last.glb"))
-    assert code == 0 and (tmp_path / "last.glb").stat().st_size > 0
+                             "--export", str(tmp_path / "new" / "last.glb"))
+    assert code == 0 and (tmp_path / "new" / "last.glb").stat().st_size > 0
 
 
 def test_run_export_refuses_a_bad_path_before_running(capsys, tmp_path):

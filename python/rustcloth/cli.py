@@ -143,14 +143,17 @@ def _plan_export(path: Path | None) -> str | None:
     suffix = path.suffix.lower()
     if suffix in export.USD_FORMATS:
         require("--export to USD", "pxr")
-        return "run"
-    if suffix not in export.MESH_FORMATS:
+        mode = "run"
+    elif suffix not in export.MESH_FORMATS:
         raise UsageError(f"--export {path}: the suffix must be one of "
                          f"{', '.join(export.USD_FORMATS + export.MESH_FORMATS)}")
-    if export.is_sequence(path) and suffix != ".obj":
+    elif export.is_sequence(path) and suffix != ".obj":
         raise UsageError(f"--export {path}: a sequence (####) is written as .obj only")
-    require(f"--export to {suffix}", "trimesh")
-    return "run" if export.is_sequence(path) else "frame"
+    else:
+        require(f"--export to {suffix}", "trimesh")
+        mode = "run" if export.is_sequence(path) else "frame"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return mode
 
 
 def _step_at(seconds: float, dt: float) -> int:
