@@ -10,7 +10,13 @@ VENV := .venv
 PY := $(VENV)/bin/python
 RUST_SOURCES := $(shell find src benches -name '*.rs') Cargo.toml Cargo.lock $(wildcard scenes/*.toml)
 
-.PHONY: all demo test test-long fuzz lint fmt bench bench-peers accuracy setup system-deps clean
+# The files a wheel is made of: a change to any of them rebuilds it.
+PY_SOURCES := $(shell find python -type f -not -name '*.so' -not -path '*/__pycache__/*')
+WHEEL_INPUTS := $(RUST_SOURCES) $(PY_SOURCES) pyproject.toml README.md LICENSE
+# The oldest glibc the wheel runs on: zig links against this version's symbols.
+MANYLINUX := manylinux_2_17
+
+.PHONY: all demo test test-long test-wheel wheel fuzz lint fmt bench bench-peers accuracy setup system-deps clean
 
 all: test
 
@@ -22,7 +28,7 @@ system-deps:
 $(VENV)/.ready: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q 'maturin>=1.9,<2'
+	$(PY) -m pip install -q 'maturin>=1.9,<2' 'ziglang>=0.13' 'auditwheel>=6'
 	touch $@
 
 # The extension module, built in release mode into the package (an editable install), with the
@@ -41,6 +47,24 @@ demo: setup
 test: setup lint
 	cargo test -q
 	$(PY) -m pytest -q -m "not long"
+	$(MAKE) --no-print-directory test-wheel
+
+# The distributions: one stripped abi3 wheel that runs on glibc 2.17 and later (linked by zig,
+# from the ziglang package, which maturin finds through the venv's python), and an sdist.
+wheel: dist/.built
+
+dist/.built: $(VENV)/.ready $(WHEEL_INPUTS)
+	rm -rf dist
+	PATH="$(CURDIR)/$(VENV)/bin:$$PATH" $(VENV)/bin/maturin build -q --release --strip --zig \
+		--compatibility $(MANYLINUX) -o dist
+	$(VENV)/bin/maturin sdist -o dist
+	$(VENV)/bin/auditwheel show dist/*.whl
+	touch $@
+
+# The wheel as a user gets it: installed into fresh venvs outside the repository, the test suite
+# run from a copy there (scripts/test-wheel.sh).
+test-wheel: wheel
+	scripts/test-wheel.sh dist/*.whl
 
 test-long: setup
 	$(PY) -m pytest -q
@@ -79,4 +103,4 @@ bench-peers: setup
 	.venv-peers/bin/python benches/peers/run.py
 
 clean:
-	rm -rf target $(VENV) python/rustcloth/*.so
+	rm -rf target dist $(VENV) python/rustcloth/*.so

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
-from PIL import Image
+import pytest
 from rustcloth import INTEGRATORS, accuracy
+
+pytest.importorskip("matplotlib")  # the study extra; skipped against a core-only install
+Image = pytest.importorskip("PIL.Image")
 
 
 def test_quick_study_writes_tables_and_a_plot(tmp_path):

@@ -6,6 +6,8 @@
 500
 """
 
+from importlib import metadata as _metadata
+
 from . import _core
 from .errors import (
     ParameterError,
@@ -21,7 +23,12 @@ from .simulation import Energy, PassTime, Profile, Simulation
 INTEGRATORS: tuple[str, ...] = tuple(_core.INTEGRATORS)
 """Names of the available time integrators."""
 
-__version__ = "0.1.0"
+# One source for the version: Cargo.toml's, which maturin writes into the installed metadata
+# (absent only when the package is imported from a source tree that was never installed).
+try:
+    __version__: str = _metadata.version("rustcloth")
+except _metadata.PackageNotFoundError:
+    __version__ = "0+unknown"
 
 __all__ = [
     "INTEGRATORS",

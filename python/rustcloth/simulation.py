@@ -483,3 +483,23 @@ class Simulation:
             f"<Simulation {self.nx}x{self.ny} {self.integrator} dt={self.dt:g} "
             f"t={self.time:.4f}s effects={self.effects}>"
         )
+
+    def to_mesh(self) -> Any:
+        """The current frame as a :class:`rustcloth.export.Mesh`: ``vertices`` ``(N, 3)``
+        float32 in m (vertex ``p`` is particle ``p``; cut particles stay, used by no triangle),
+        ``triangles`` ``(T, 3)`` uint32 (the live ones), ``normals`` ``(N, 3)`` float32 unit
+        vectors and ``uvs`` ``(N, 2)`` float32, particle ``(i, j)`` at
+        ``(i / (nx - 1), j / (ny - 1))``."""
+        from .export import to_mesh
+
+        return to_mesh(self)
+
+    def export(self, path: Any) -> Any:
+        """Write the current frame to ``path`` (a ``str`` or ``os.PathLike``) as ``.obj``,
+        ``.ply`` or ``.glb`` (glTF binary), with normals and UVs, through trimesh
+        (``pip install 'rustcloth[export]'``; ``ImportError`` naming the extra otherwise).
+        ``ValueError`` for another suffix. Returns the ``pathlib.Path`` written. A whole run:
+        :func:`rustcloth.export.recorder`."""
+        from .export import export
+
+        return export(self, path)

@@ -1,0 +1,281 @@
+"""The cloth as a triangle mesh, and files other tools read: OBJ, PLY and glTF binary frames
+(through trimesh, ``pip install 'rustcloth[export]'``), a whole run as one USD file (through
+usd-core, ``pip install 'rustcloth[usd]'``), or a run as a numbered OBJ sequence.
+
+Vertex ``p`` of every mesh is particle ``p`` (row ``j * nx + i``), cut particles included: they
+stay as vertices that no triangle uses, so indices never shift when the cloth is cut and a USD
+file keeps one point count for the whole run.
+
+>>> import rustcloth
+>>> sim = rustcloth.Simulation("hanging")
+>>> mesh = to_mesh(sim)
+>>> mesh.vertices.shape, mesh.triangles.shape, mesh.uvs[sim.nx - 1].tolist()
+((1024, 3), (1922, 3), [1.0, 0.0])
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from types import TracebackType
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ._extras import MissingExtra
+
+if TYPE_CHECKING:
+    from .simulation import Simulation
+
+#: Single-frame formats :func:`export` writes, by file suffix.
+MESH_FORMATS = (".obj", ".ply", ".glb")
+#: Suffixes :class:`UsdRecorder` writes (``.usd`` is binary crate, ``.usda`` text).
+USD_FORMATS = (".usd", ".usda", ".usdc")
+
+
+@dataclass(frozen=True)
+class Mesh:
+    """One frame of the cloth as numpy arrays. ``N`` particles, ``T`` live triangles."""
+
+    vertices: npt.NDArray[np.float32]
+    """``(N, 3)`` float32 positions in m."""
+    triangles: npt.NDArray[np.uint32]
+    """``(T, 3)`` uint32 vertex indices of the live triangles, counter-clockwise seen from the
+    side the normals point to."""
+    normals: npt.NDArray[np.float32]
+    """``(N, 3)`` float32 unit vertex normals."""
+    uvs: npt.NDArray[np.float32]
+    """``(N, 2)`` float32 texture coordinates: particle ``(i, j)`` at ``(i / (nx - 1),
+    j / (ny - 1))``."""
+
+
+def grid_uvs(nx: int, ny: int) -> npt.NDArray[np.float32]:
+    """``(nx * ny, 2)`` float32 texture coordinates of an ``nx`` x ``ny`` grid: row
+    ``j * nx + i`` holds ``(i / (nx - 1), j / (ny - 1))``."""
+    u, v = np.meshgrid(np.arange(nx) / (nx - 1), np.arange(ny) / (ny - 1))
+    return np.column_stack([u.ravel(), v.ravel()]).astype(np.float32)
+
+
+def to_mesh(sim: Simulation) -> Mesh:
+    """The simulation's current frame: positions, live triangles (``sim.triangles``), vertex
+    normals and grid texture coordinates."""
+    return Mesh(
+        vertices=np.ascontiguousarray(sim.positions, dtype=np.float32),
+        triangles=np.ascontiguousarray(sim.triangles, dtype=np.uint32),
+        normals=np.ascontiguousarray(sim.normals, dtype=np.float32),
+        uvs=grid_uvs(sim.nx, sim.ny),
+    )
+
+
+def _trimesh() -> Any:
+    try:
+        import trimesh
+    except ModuleNotFoundError as err:
+        raise MissingExtra("trimesh", "mesh export") from err
+    return trimesh
+
+
+def _as_trimesh(mesh: Mesh) -> Any:
+    trimesh = _trimesh()
+    return trimesh.Trimesh(
+        vertices=mesh.vertices,
+        faces=mesh.triangles,
+        vertex_normals=mesh.normals,
+        visual=trimesh.visual.TextureVisuals(uv=mesh.uvs),
+        # Keep every vertex where it is: no merging, no reordering, no dropping of the unused
+        # vertices of cut particles.
+        process=False,
+        validate=False,
+    )
+
+
+def export(sim: Simulation | Mesh, path: str | os.PathLike[str]) -> Path:
+    """Write the current frame to ``path`` as Wavefront OBJ (``.obj``, with normals and UVs),
+    binary PLY (``.ply``, with normals and UVs) or glTF binary (``.glb``), by suffix.
+
+    Needs trimesh (``pip install 'rustcloth[export]'``; :class:`MissingExtra` otherwise).
+    Raises ``ValueError`` for any other suffix. Returns the path written."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in MESH_FORMATS:
+        raise ValueError(
+            f"cannot export {str(path)!r}: the suffix must be one of {', '.join(MESH_FORMATS)}"
+        )
+    mesh = sim if isinstance(sim, Mesh) else to_mesh(sim)
+    tm = _as_trimesh(mesh)
+    if suffix == ".obj":
+        # One file: no .mtl or texture beside it (the cloth has UVs but no material).
+        data = tm.export(file_type="obj", include_normals=True, include_texture=True,
+                         write_texture=False, mtl_name=None, header=None)
+        text = "\n".join(line for line in data.splitlines()
+                         if not line.startswith(("mtllib", "usemtl")))
+        path.write_text(text + "\n", encoding="ascii")
+    elif suffix == ".ply":
+        path.write_bytes(tm.export(file_type="ply", encoding="binary", vertex_normal=True))
+    else:
+        path.write_bytes(tm.export(file_type="glb"))
+    return path
+
+
+class Recorder:
+    """Writes a run frame by frame (:class:`UsdRecorder`, :class:`ObjSequenceRecorder`):
+    ``add(sim)`` once per frame, then ``close()``, or use it as a context manager."""
+
+    def add(self, sim: Simulation) -> None:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        """Finish the output; adding after this is an error."""
+
+    def __enter__(self) -> Recorder:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.close()
+
+
+class UsdRecorder(Recorder):
+    """Writes a whole run as one USD file: a ``UsdGeom.Mesh`` at ``prim_path`` (the stage's
+    default prim) with time-sampled ``points``, ``normals``, ``velocities`` and ``extent``, and
+    its topology (``faceVertexCounts``, ``faceVertexIndices``) sampled again whenever the cloth
+    is cut. Texture coordinates are the constant primvar ``st``.
+
+    A frame added at simulated time ``t`` seconds is sampled at time code
+    ``t * time_codes_per_second``; the stage's ``timeCodesPerSecond`` and ``framesPerSecond``
+    are ``fps``, so frames added every ``1 / fps`` s fall on whole time codes. The stage is
+    y-up, in metres. Needs usd-core (``pip install 'rustcloth[usd]'``).
+
+    >>> with UsdRecorder("run.usd", fps=30) as rec:          # doctest: +SKIP
+    ...     for _ in range(90):
+    ...         rec.add(sim)
+    ...         sim.advance(1 / 30)
+    """
+
+    def __init__(self, path: str | os.PathLike[str], fps: float = 30.0,
+                 prim_path: str = "/Cloth") -> None:
+        if not (math.isfinite(fps) and fps > 0):
+            raise ValueError(f"fps must be a positive number, not {fps!r}")
+        try:
+            from pxr import Sdf, Usd, UsdGeom, Vt  # type: ignore[import-untyped]  # no stubs
+        except ModuleNotFoundError as err:
+            raise MissingExtra("pxr", "USD export") from err
+        self._Sdf, self._UsdGeom, self._Vt = Sdf, UsdGeom, Vt
+        self.path = Path(path)
+        self.fps = float(fps)
+        self.frames = 0
+        self._stage = Usd.Stage.CreateNew(str(self.path))
+        self._stage.SetTimeCodesPerSecond(self.fps)
+        self._stage.SetFramesPerSecond(self.fps)
+        UsdGeom.SetStageUpAxis(self._stage, UsdGeom.Tokens.y)
+        UsdGeom.SetStageMetersPerUnit(self._stage, UsdGeom.LinearUnits.meters)
+        self._mesh = UsdGeom.Mesh.Define(self._stage, prim_path)
+        self._stage.SetDefaultPrim(self._mesh.GetPrim())
+        self._mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+        self._mesh.CreateOrientationAttr(UsdGeom.Tokens.rightHanded)
+        self._mesh.CreateDoubleSidedAttr(True)
+        self._points = self._mesh.CreatePointsAttr()
+        self._normals = self._mesh.CreateNormalsAttr()
+        self._mesh.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
+        self._velocities = self._mesh.CreateVelocitiesAttr()
+        self._extent = self._mesh.CreateExtentAttr()
+        self._counts = self._mesh.CreateFaceVertexCountsAttr()
+        self._indices = self._mesh.CreateFaceVertexIndicesAttr()
+        self._topology: int | None = None
+        self._codes: list[float] = []
+        self._closed = False
+
+    def add(self, sim: Simulation) -> None:
+        """Sample the simulation's current state at time code ``sim.time * fps`` (rounded to
+        1e-9)."""
+        if self._closed:
+            raise ValueError(f"the recorder of {str(self.path)!r} is closed")
+        Vt, UsdGeom = self._Vt, self._UsdGeom
+        # Rounded so that frames taken every 1 / fps s land on whole codes despite round-off.
+        code = round(sim.time * self.fps, 9)
+        mesh = to_mesh(sim)
+        if not self._codes:
+            st = UsdGeom.PrimvarsAPI(self._mesh).CreatePrimvar(
+                "st", self._Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.vertex)
+            st.Set(Vt.Vec2fArray.FromNumpy(mesh.uvs))
+        if sim.topology_version != self._topology:
+            self._topology = sim.topology_version
+            self._counts.Set(Vt.IntArray.FromNumpy(
+                np.full(len(mesh.triangles), 3, dtype=np.int32)), code)
+            self._indices.Set(Vt.IntArray.FromNumpy(
+                mesh.triangles.astype(np.int32).ravel()), code)
+        points = Vt.Vec3fArray.FromNumpy(mesh.vertices)
+        self._points.Set(points, code)
+        self._normals.Set(Vt.Vec3fArray.FromNumpy(mesh.normals), code)
+        self._velocities.Set(Vt.Vec3fArray.FromNumpy(
+            np.ascontiguousarray(sim.velocities, dtype=np.float32)), code)
+        self._extent.Set(UsdGeom.PointBased.ComputeExtent(points), code)
+        self._codes.append(code)
+        self.frames += 1
+
+    def close(self) -> None:
+        """Set the stage's start and end time codes and save the file."""
+        if self._closed:
+            return
+        self._closed = True
+        if self._codes:
+            self._stage.SetStartTimeCode(min(self._codes))
+            self._stage.SetEndTimeCode(max(self._codes))
+        self._stage.GetRootLayer().Save()
+
+
+class ObjSequenceRecorder(Recorder):
+    """Writes each added frame as its own OBJ file (normals and UVs included), numbered from 0:
+    the run of ``#`` in ``pattern`` is replaced by the frame number, zero-padded to its length
+    (``out/cloth_####.obj`` gives ``out/cloth_0000.obj``, ``out/cloth_0001.obj``, ...), as
+    Blender's and Houdini's sequence loaders expect. Needs trimesh
+    (``pip install 'rustcloth[export]'``)."""
+
+    def __init__(self, pattern: str | os.PathLike[str]) -> None:
+        pattern = str(pattern)
+        runs = re.findall(r"#+", Path(pattern).name)
+        if len(runs) != 1 or Path(pattern).suffix.lower() != ".obj":
+            raise ValueError(
+                f"an OBJ sequence pattern ends in .obj and has one run of '#' in its file name "
+                f"for the frame number (e.g. out/cloth_####.obj), not {pattern!r}"
+            )
+        _trimesh()
+        self.pattern = pattern
+        self.paths: list[Path] = []
+
+    def path_of(self, frame: int) -> Path:
+        """The file frame number ``frame`` is written to."""
+        p = Path(self.pattern)
+        run = re.search(r"#+", p.name)
+        assert run is not None
+        name = p.name[:run.start()] + f"{frame:0{len(run.group())}d}" + p.name[run.end():]
+        return p.with_name(name)
+
+    def add(self, sim: Simulation) -> None:
+        """Write the current frame as the next file of the sequence."""
+        path = self.path_of(len(self.paths))
+        path.parent.mkdir(parents=True, exist_ok=True)
+        self.paths.append(export(sim, path))
+
+
+def is_sequence(path: str | os.PathLike[str]) -> bool:
+    """Whether ``path`` names an OBJ sequence (a ``#`` in its file name)."""
+    return "#" in Path(path).name
+
+
+def recorder(path: str | os.PathLike[str], fps: float = 30.0) -> Recorder:
+    """The recorder for ``path``: :class:`UsdRecorder` for ``.usd``, ``.usda``, ``.usdc``;
+    :class:`ObjSequenceRecorder` for a ``.obj`` name with ``#`` in it. ``ValueError`` for any
+    other path (single frames go through :func:`export`)."""
+    if Path(path).suffix.lower() in USD_FORMATS:
+        return UsdRecorder(path, fps)
+    if is_sequence(path):
+        return ObjSequenceRecorder(path)
+    raise ValueError(
+        f"cannot record a run to {str(path)!r}: use a USD file ({', '.join(USD_FORMATS)}) or an "
+        f"OBJ sequence pattern such as out/cloth_####.obj"
+    )

@@ -1,0 +1,82 @@
+#!/usr/bin/env bash
+# The wheel as a user gets it: installs WHEEL into fresh venvs in a folder outside the repository
+# and runs a copy of the Python test suite there, so that `import rustcloth` can only find the
+# installed package (a file missing from the wheel fails a test instead of being picked up from
+# the source tree).
+#
+#   1. Python 3.11 (PYTHON), the core install only: tests needing an extra skip themselves.
+#   2. The newest other CPython 3.12+ on the machine (NEWER_PYTHON, or found on PATH and under
+#      pyenv), the core install only: the abi3 wheel on an interpreter it was not built with.
+#   3. Python 3.11 again with the extras the tests use (viewer, study, usd, export): the render,
+#      export and accuracy tests against the installed wheel.
+#
+# Usage: scripts/test-wheel.sh WHEEL
+set -euo pipefail
+
+wheel=$(realpath "$1")
+repo=$(pwd)
+python=${PYTHON:-$(command -v python3.11 || command -v python3)}
+work=$(mktemp -d "${TMPDIR:-/tmp}/rustcloth-wheel.XXXXXX")
+trap 'rm -rf "$work"' EXIT
+
+# The suite, and the pytest settings from pyproject.toml (markers, warnings as errors).
+cp -r tests "$work/tests"
+find "$work/tests" \( -name '*.rs' -o -name common -o -name __pycache__ \) -prune -exec rm -rf {} +
+"$python" - "$repo/pyproject.toml" "$work/pytest.ini" <<'EOF'
+import sys, tomllib
+opts = tomllib.load(open(sys.argv[1], "rb"))["tool"]["pytest"]["ini_options"]
+with open(sys.argv[2], "w") as f:
+    f.write("[pytest]\n")
+    for key, value in opts.items():
+        if key != "testpaths":
+            f.write(f"{key} =\n" + "".join(f"    {v}\n" for v in value))
+EOF
+
+newer_python() {
+    local v c
+    for v in 3.14 3.13 3.12; do
+        for c in "python$v" "${PYENV_ROOT:-$HOME/.pyenv}"/versions/"$v"*/bin/"python$v"; do
+            if "$c" -c 'import venv' >/dev/null 2>&1; then
+                command -v "$c"
+                return
+            fi
+        done
+    done
+}
+
+# run LABEL PYTHON EXTRAS: a fresh venv, the wheel (with EXTRAS) and the test runner, the suite.
+run() {
+    local label=$1 py=$2 extras=$3 venv="$work/venv-$1" start
+    "$py" -m venv "$venv"
+    "$venv/bin/python" -m pip install -q --upgrade pip
+    start=$EPOCHREALTIME
+    "$venv/bin/python" -m pip install -q "$wheel$extras"
+    echo "wheel: $label: installed rustcloth$extras into a fresh venv in" \
+         "$("$venv/bin/python" -c "print(f'{$EPOCHREALTIME - $start:.1f}')") s"
+    "$venv/bin/python" -m pip install -q pytest hypothesis
+    (
+        cd "$work"
+        "$venv/bin/python" - "$venv" <<'EOF'
+import sys, rustcloth
+where = rustcloth.__file__
+assert where.startswith(sys.argv[1]), f"rustcloth imported from {where}, not the venv"
+print(f"wheel: rustcloth {rustcloth.__version__} from {where} on Python {sys.version.split()[0]}")
+EOF
+        if ! "$venv/bin/python" -m pytest -q -m "not long" -p no:cacheprovider tests \
+                > "$work/$label.log" 2>&1; then
+            cat "$work/$label.log"
+            echo "wheel: $label: the tests failed against the installed wheel" >&2
+            exit 1
+        fi
+        tail -n 1 "$work/$label.log" | sed "s/^/wheel: $label: /"
+    )
+}
+
+run py311-core "$python" ""
+newer=${NEWER_PYTHON:-$(newer_python)}
+if [ -n "$newer" ]; then
+    run "py$("$newer" -c 'import sys; print(*sys.version_info[:2], sep="")')-core" "$newer" ""
+else
+    echo "wheel: no CPython 3.12 or newer on this machine; tested on $("$python" -V) only"
+fi
+run py311-extras "$python" "[viewer,study,usd,export]"

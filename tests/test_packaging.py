@@ -1,0 +1,77 @@
+"""What the installed package declares and ships. The tests that read the repository's own files
+(Cargo.toml, README.md) skip when the suite runs against an installed wheel from elsewhere."""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from importlib import metadata, resources
+from pathlib import Path
+
+import pytest
+import rustcloth
+
+REPO = Path(__file__).resolve().parents[1]
+IN_REPO = (REPO / "Cargo.toml").is_file() and (REPO / "pyproject.toml").is_file()
+in_repo = pytest.mark.skipif(not IN_REPO, reason="needs the repository's files")
+
+
+def test_version_comes_from_the_installed_metadata():
+    assert rustcloth.__version__ == metadata.version("rustcloth")
+    assert re.fullmatch(r"\d+\.\d+\.\d+([.-]?\w+)*", rustcloth.__version__)
+
+
+@in_repo
+def test_version_has_one_source_cargo_toml():
+    cargo = tomllib.loads((REPO / "Cargo.toml").read_text())
+    pyproject = tomllib.loads((REPO / "pyproject.toml").read_text())
+    assert "version" not in pyproject["project"]
+    assert pyproject["project"]["dynamic"] == ["version"]
+    assert rustcloth.__version__ == cargo["package"]["version"]
+
+
+def test_core_needs_only_numpy_and_tqdm():
+    requires = metadata.requires("rustcloth") or []
+    core = {re.split(r"[<>=!~ ;\[]", r, maxsplit=1)[0].lower() for r in requires
+            if "extra ==" not in r}
+    assert core == {"numpy", "tqdm"}
+
+
+def test_extras_are_declared():
+    extras = set(metadata.metadata("rustcloth").get_all("Provides-Extra") or [])
+    assert {"viewer", "video", "study", "usd", "export", "ray", "all", "test"} <= extras
+
+
+def test_license_and_classifiers():
+    meta = metadata.metadata("rustcloth")
+    assert meta["License-Expression"] == "MIT"
+    assert "Programming Language :: Rust" in meta.get_all("Classifier")
+    assert any(url.startswith("Repository, https://") for url in meta.get_all("Project-URL"))
+
+
+def test_package_data_is_installed():
+    # The renderer's shaders, the type stub and the py.typed marker ship with the package.
+    root = resources.files("rustcloth")
+    assert (root / "py.typed").is_file()
+    assert (root / "_core.pyi").is_file()
+    shaders = [p.name for p in (root / "shaders").iterdir()]
+    assert "geometry.vert" in shaders and "lighting.frag" in shaders
+
+
+@in_repo
+def test_readme_links_work_on_a_package_index_page():
+    # A package index shows README.md without the repository around it: every link to a file
+    # of the repository must be absolute, under pyproject's Repository URL.
+    repository = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["urls"][
+        "Repository"]
+    readme = (REPO / "README.md").read_text()
+    targets = re.findall(r"\]\(([^)\s]+)\)", readme)
+    assert targets, "README.md has links"
+    for target in targets:
+        if target.startswith("#"):
+            continue
+        assert target.startswith("https://"), f"relative link {target!r} in README.md"
+        if "github.com" in target:
+            assert target.startswith(repository + "/"), target
+            path = target.removeprefix(repository + "/blob/main/").split("?")[0].split("#")[0]
+            assert (REPO / path).exists(), f"README.md links to a missing file: {target}"
