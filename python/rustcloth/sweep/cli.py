@@ -75,10 +75,11 @@ class PlainProgress:
     """``[ 37/200] 35 ok, 2 failed, 3.1 runs/s, ETA 0:00:52`` on one line (rewritten in place
     on a terminal; elsewhere printed every few seconds)."""
 
-    def __init__(self, total: int, done: int, stream: TextIO = sys.stderr) -> None:
-        self.total, self.start_done, self.stream = total, done, stream
+    def __init__(self, total: int, done: int, stream: TextIO | None = None) -> None:
+        self.total, self.start_done = total, done
+        self.stream = stream or sys.stderr
         self.start = time.monotonic()
-        self.tty = stream.isatty()
+        self.tty = self.stream.isatty()
         self.last = 0.0
 
     def __call__(self, record: dict[str, Any], done: int, total: int, failed: int) -> None:
@@ -125,8 +126,9 @@ def make_progress(kind: str, total: int, done: int) -> Any:
     return PlainProgress(total, done)
 
 
-def summary(result: SweepResult, stream: TextIO = sys.stdout, failures: int = 10) -> None:
+def summary(result: SweepResult, stream: TextIO | None = None, failures: int = 10) -> None:
     """Counts by status, timing, and the failed runs with their reasons."""
+    stream = stream or sys.stdout
     records = result.records
     walls = [r["wall_s"] for r in records if isinstance(r.get("wall_s"), int | float)]
     print(f"\n{len(records)} runs in {result.out} ({result.backend}): {result.ran} ran now, "
@@ -159,6 +161,13 @@ def main(argv: list[str] | None = None) -> int:
     except SystemExit as stop:
         return int(stop.code or 0)
     prog = args_parser.prog
+    if args.address is not None and args.backend != "ray":
+        print(f"{prog}: error: --address is for the ray backend", file=sys.stderr)
+        return 2
+    if args.workers is not None and args.backend == "ray":
+        print(f"{prog}: error: --workers is for the local backend (ray runs as many tasks as "
+              "the cluster has CPUs for; --threads sets CPUs per task)", file=sys.stderr)
+        return 2
     try:
         sweep = Sweep.from_toml(args.sweep)
         if args.time_limit is not None:

@@ -82,6 +82,8 @@ def run_sweep(sweep: Sweep | Sequence[Run], out: str | os.PathLike[str],
     runs = sweep.expand() if isinstance(sweep, Sweep) else list(sweep)
     if not runs:
         raise SweepError("the sweep has no runs")
+    if getattr(backend, "name", backend) == "local":
+        check_picklable(runs)
     store = Store(out)
     store.clean()
     if isinstance(sweep, Sweep):
@@ -92,8 +94,6 @@ def run_sweep(sweep: Sweep | Sequence[Run], out: str | os.PathLike[str],
     store.write_index(runs, records)
     engine = make_backend(backend, workers, threads, address) if isinstance(backend, str) \
         else backend
-    if todo and engine.name == "local":
-        check_picklable(todo)
     failed = sum(1 for r in records.values() if r["status"] not in ("ok", "filtered"))
     done = skipped
     try:
