@@ -111,6 +111,8 @@ class LocalBackend:
         self.workers, self.threads, self.grace = workers, threads, grace
         self.slots = workers
         self.observed_threads: list[int | None] = []
+        #: Seconds from the start of run() until every worker was ready (the last sweep's).
+        self.startup_s: float | None = None
 
     def describe(self) -> str:
         return f"local: {self.workers} worker(s) x {self.threads} thread(s)"
@@ -118,22 +120,31 @@ class LocalBackend:
     def run(self, runs: Sequence[Run]) -> Iterator[tuple[Run, RunResult]]:
         """Run everything, yielding each run with its result as it finishes."""
         ctx = mp.get_context("spawn")
+        self.startup_s = None
         pending = deque(runs)
         pool = [_Worker(ctx, self.threads) for _ in range(min(self.workers, len(runs)))]
+        start = time.monotonic()
+
+        def feed() -> None:  # every idle worker gets the next run
+            for worker in pool:
+                if worker.ready and worker.run is None and pending:
+                    worker.run, worker.sent = pending.popleft(), time.monotonic()
+                    worker.conn.send(worker.run)
+            if self.startup_s is None and all(w.ready for w in pool):
+                self.startup_s = time.monotonic() - start
+
         try:
             while pending or any(w.run is not None for w in pool):
-                for worker in pool:
-                    if worker.ready and worker.run is None and pending:
-                        worker.run, worker.sent = pending.popleft(), time.monotonic()
-                        worker.conn.send(worker.run)
+                feed()
                 timeout = self._next_deadline(pool)
                 ready = wait([w.conn for w in pool] + [w.process.sentinel for w in pool],
                              timeout)
+                finished = []
                 for i, worker in enumerate(pool):
                     result = self._poll(worker, worker.conn in ready
                                         or worker.process.sentinel in ready)
                     if result is not None:
-                        yield result
+                        finished.append(result)
                     if worker.run is None and not worker.process.is_alive():
                         if not worker.ready:  # the environment, not a run: do not loop
                             raise RuntimeError(
@@ -142,6 +153,8 @@ class LocalBackend:
                                 "under `if __name__ == '__main__':`, as workers import it")
                         worker.kill()
                         pool[i] = _Worker(ctx, self.threads)
+                feed()  # before the results are stored, so no worker waits for the disk
+                yield from finished
         finally:
             for worker in pool:
                 if worker.run is None and worker.process.is_alive():

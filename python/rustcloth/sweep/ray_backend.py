@@ -66,18 +66,22 @@ class RayBackend:
         inflight: dict[Any, tuple[Run, float]] = {}
         try:
             while pending or inflight:
-                while pending and len(inflight) < self.slots:
-                    run = pending.popleft()
-                    inflight[self._task.remote(run, self.threads)] = (run, time.monotonic())
-                ready, _ = ray.wait(list(inflight), num_returns=1,
-                                    timeout=self._next_deadline(inflight))
+                self._submit(pending, inflight)
+                ready, rest = ray.wait(list(inflight), num_returns=1,
+                                       timeout=self._next_deadline(inflight))
+                if ready and rest:  # and whatever else is done by now
+                    ready += ray.wait(rest, num_returns=len(rest), timeout=0)[0]
+                finished = []
                 for ref in ready:
                     run, sent = inflight.pop(ref)
                     try:
-                        yield run, ray.get(ref)
+                        finished.append((run, ray.get(ref)))
                     except ray.exceptions.RayError as err:
-                        yield run, RunResult(run.run_id, "crashed", _one_line(err),
-                                             info={"wall_s": time.monotonic() - sent})
+                        finished.append((run, RunResult(
+                            run.run_id, "crashed", _one_line(err),
+                            info={"wall_s": time.monotonic() - sent})))
+                self._submit(pending, inflight)  # before the results are stored
+                yield from finished
                 now = time.monotonic()
                 for ref, (run, sent) in list(inflight.items()):
                     if run.time_limit is not None and now - sent > run.time_limit + self.grace:
@@ -90,6 +94,11 @@ class RayBackend:
         finally:
             for ref in inflight:
                 ray.cancel(ref, force=True)
+
+    def _submit(self, pending: deque[Run], inflight: dict[Any, tuple[Run, float]]) -> None:
+        while pending and len(inflight) < self.slots:
+            run = pending.popleft()
+            inflight[self._task.remote(run, self.threads)] = (run, time.monotonic())
 
     def _next_deadline(self, inflight: dict[Any, tuple[Run, float]]) -> float:
         now, soonest = time.monotonic(), 1.0

@@ -54,22 +54,22 @@ def _threads_now() -> int | None:
         return None
 
 
-_RAYON_THREADS: int | None = None
+_RAYON_THREADS: list[int | None] = []  # measured once per process
 
 
 def rayon_threads() -> int | None:
     """The size of this process's rayon pool, found by counting the process's threads around
-    its first step (rayon builds its global pool, reading ``RAYON_NUM_THREADS``, on first use).
-    Measured once per process, and only truthfully if the pool had not been built yet; None
-    where threads cannot be counted (not Linux)."""
-    global _RAYON_THREADS
-    if _RAYON_THREADS is None:
+    a first, tiny step (rayon builds its global pool, reading ``RAYON_NUM_THREADS``, on first
+    use, and starts that many threads). None if it cannot be told: the pool existed before the
+    first call in this process (nothing was started), or threads cannot be counted (not
+    Linux). A sweep worker calls it before its first run."""
+    if not _RAYON_THREADS:
         before = _threads_now()
         Simulation({"cloth": {"nx": 2, "ny": 2}}).step(1)
         after = _threads_now()
-        if before is not None and after is not None:
-            _RAYON_THREADS = max(after - before, 1)
-    return _RAYON_THREADS
+        started = None if before is None or after is None else after - before
+        _RAYON_THREADS.append(started if started else None)
+    return _RAYON_THREADS[0]
 
 
 def _frames(steps: int, every: int) -> list[int]:

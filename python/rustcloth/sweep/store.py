@@ -31,15 +31,19 @@ INDEX = "index.csv"
 COLUMNS = ("status", "reason", "wall_s", "steps", "peak_stretch", "energy", "threads", "file")
 
 
-def _atomic_write(path: str, write: Any, binary: bool) -> None:
+def _atomic_write(path: str, write: Any, binary: bool, sync: bool = False) -> None:
+    """Write through a temporary file and rename it into place. ``sync``: fsync it first, so
+    that after a power cut the name never points at a file whose data was not written (a
+    process that dies cannot do that harm: only the machine going down can)."""
     folder = os.path.dirname(path)
     fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=os.path.basename(path), dir=folder)
     try:
         with os.fdopen(fd, "wb" if binary else "w", **({} if binary else {"encoding": "utf-8",
                                                                            "newline": ""})) as f:
             write(f)
-            f.flush()
-            os.fsync(f.fileno())
+            if sync:
+                f.flush()
+                os.fsync(f.fileno())
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(OSError):
@@ -108,7 +112,7 @@ class Store:
             arrays = dict(result.arrays)
             arrays["meta"] = np.asarray(json.dumps(meta, sort_keys=True))
             _atomic_write(self.npz_path(run.run_id), lambda f: np.savez(f, **arrays),
-                          binary=True)
+                          binary=True, sync=True)
             file = os.path.join(RUNS, run.run_id + ".npz")
         record = {
             "run": run.index,
@@ -119,6 +123,8 @@ class Store:
             "file": file,
             **{k: v for k, v in result.info.items() if k not in ("reason", "status")},
         }
+        # Not synced: a record lost or torn by a power cut reads as missing, and the run is
+        # simply run again.
         _atomic_write(self.record_path(run.run_id),
                       lambda f: json.dump(record, f, indent=1, sort_keys=True), binary=False)
         return record
