@@ -122,8 +122,8 @@ class LocalBackend:
         ctx = mp.get_context("spawn")
         self.startup_s = None
         pending = deque(runs)
-        pool = [_Worker(ctx, self.threads) for _ in range(min(self.workers, len(runs)))]
         start = time.monotonic()
+        pool = [_Worker(ctx, self.threads) for _ in range(min(self.workers, len(runs)))]
 
         def feed() -> None:  # every idle worker gets the next run
             for worker in pool:
@@ -140,7 +140,7 @@ class LocalBackend:
                 ready = wait([w.conn for w in pool] + [w.process.sentinel for w in pool],
                              timeout)
                 finished = []
-                for i, worker in enumerate(pool):
+                for worker in list(pool):
                     result = self._poll(worker, worker.conn in ready
                                         or worker.process.sentinel in ready)
                     if result is not None:
@@ -151,8 +151,10 @@ class LocalBackend:
                                 f"a sweep worker failed to start ({worker.exit_reason()}; its "
                                 "error is above). A script that runs a sweep must start it "
                                 "under `if __name__ == '__main__':`, as workers import it")
-                        worker.kill()
-                        pool[i] = _Worker(ctx, self.threads)
+                        worker.kill()  # killed over time, or crashed: replace it if needed
+                        pool.remove(worker)
+                        if len(pending) > len(pool) - sum(w.run is not None for w in pool):
+                            pool.append(_Worker(ctx, self.threads))
                 feed()  # before the results are stored, so no worker waits for the disk
                 yield from finished
         finally:
