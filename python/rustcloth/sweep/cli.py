@@ -18,6 +18,15 @@ from .spec import Sweep, SweepError
 from .store import Store
 
 
+class _Formatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Shows a default where there is one to show (not None, not a flag's False)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        if action.default in (None, False):
+            return action.help or ""
+        return super()._get_help_string(action) or ""
+
+
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:  # one line, exit 2
         self.exit(2, f"{self.prog}: error: {message}\n")
@@ -44,8 +53,11 @@ def _positive_float(text: str) -> float:
 
 
 def parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="rustcloth sweep", description=__doc__,
-                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p = _Parser(prog="rustcloth sweep", formatter_class=_Formatter,
+                description="Run the simulations a sweep file describes, skipping those whose "
+                            "results are already in the output folder; a progress bar while "
+                            "they run, a summary table at the end. Format, backends, "
+                            "statuses: docs/sweeps.md.")
     p.add_argument("sweep", help="the sweep description, a TOML file (format: docs/sweeps.md)")
     p.add_argument("--out", default=None,
                    help="output folder (runs/*.npz, index.csv); default: the sweep file's name "
@@ -61,7 +73,8 @@ def parser() -> argparse.ArgumentParser:
                    help="ray: cluster address ('auto', 'ray://host:10001'); default: start a "
                         "local Ray")
     p.add_argument("--time-limit", type=_positive_float, default=None,
-                   help="wall seconds per run, overriding the file's time_limit")
+                   help="wall seconds per run (default: the file's time_limit; none there: no "
+                        "limit)")
     p.add_argument("--retry-failed", action="store_true",
                    help="run diverged and error runs again (timeout and crashed always are)")
     p.add_argument("--progress", choices=("auto", "tqdm", "plain", "none"), default="auto",
