@@ -31,3 +31,10 @@ def crash_when_soft(sim) -> float:
     if sim.steps > 0 and sim.scene.cloth["k_bend"] < 5.0:
         os.kill(os.getpid(), 9)
     return 0.0
+
+
+def reject_high(arrays) -> str | None:
+    """A quality filter: drops runs whose cloth's lowest point ends above y = 0.7494 m (two of
+    the six runs of the small sweep, both with damping 0.01)."""
+    low = float(arrays["lowest"][-1])
+    return f"lowest point {low:.5f} m is above 0.7494 m" if low > 0.7494 else None

@@ -131,6 +131,16 @@ def test_a_quality_filter_drops_overstretched_runs(tmp_path):
     assert 0 < sum(p > 0.024 for p in peaks) < len(peaks), peaks  # the bound splits the runs
 
 
+def test_a_reject_function_drops_the_runs_it_names(tmp_path):
+    sweep = small_sweep(filters=Filters(reject=fn.reject_high))
+    result = run_sweep(sweep, tmp_path, workers=2, threads=1)
+    statuses = [(r["params"]["cloth.k_bend"], r["status"]) for r in result.records]
+    assert statuses == [(2.0, "ok"), (2.0, "ok"), (15.0, "filtered"), (15.0, "ok"),
+                        (60.0, "filtered"), (60.0, "ok")]
+    assert result.records[2]["reason"] == "lowest point 0.74945 m is above 0.7494 m"
+    assert_matches_serial(result, sweep.expand())
+
+
 SWEEP_TOML = """
 base = "hanging"
 steps = 6000
