@@ -14,8 +14,9 @@ import numpy as np
 import pytest
 import sweep_functions as fn
 from conftest import small_scene
-from rustcloth.sweep import Filters, Record, Sweep, read_index, run_sweep
+from rustcloth.sweep import Filters, Record, Sweep, SweepError, read_index, run_sweep
 from rustcloth.sweep.local import LocalBackend
+from rustcloth.sweep.store import Store
 from sweep_helpers import assert_matches_serial, failing_sweep, small_sweep
 
 
@@ -69,6 +70,13 @@ def test_rerunning_a_finished_sweep_runs_nothing(tmp_path):
                                "cloth.damping": [0.01, 0.05]})
     grown = run_sweep(bigger, tmp_path, workers=2, threads=1)
     assert (grown.ran, grown.skipped) == (2, 6)
+
+
+def test_two_sweeps_cannot_write_one_folder_at_once(tmp_path):
+    with Store(tmp_path).lock():  # as a sweep running in another process holds it
+        with pytest.raises(SweepError, match="another sweep is writing to"):
+            run_sweep(small_sweep(), tmp_path, workers=1)
+    assert run_sweep(small_sweep(), tmp_path, workers=1).counts == {"ok": 6}
 
 
 def test_a_diverging_and_a_raising_run_are_recorded_and_the_sweep_goes_on(tmp_path):

@@ -61,9 +61,16 @@ def test_ray_cancels_a_stuck_task_at_its_time_limit(local_ray, tmp_path):
 
     sweep = small_sweep(functions={"stuck": by_path("stuck_when_soft")}, time_limit=0.5)
     start = time.monotonic()
-    result = run_sweep(sweep, tmp_path, RayBackend(grace=4.0))
+    result = run_sweep(sweep, tmp_path, RayBackend(grace=0.5))
     assert time.monotonic() - start < 120  # not the 600 s the stuck function sleeps
     assert [r["status"] for r in result.records] == ["timeout"] * 2 + ["ok"] * 4, \
         [r["reason"] for r in result.records]
     assert "cancelled after" in result.records[0]["reason"]
     assert not os.path.exists(tmp_path / "runs" / f"{result.records[0]['run_id']}.npz")
+
+
+def test_ray_records_a_task_whose_worker_dies_and_goes_on(local_ray, tmp_path):
+    sweep = small_sweep(functions={"crash": by_path("crash_when_soft")})
+    result = run_sweep(sweep, tmp_path, "ray")
+    assert [r["status"] for r in result.records] == ["crashed"] * 2 + ["ok"] * 4
+    assert result.records[0]["reason"].startswith(("WorkerCrashedError", "RayTaskError"))

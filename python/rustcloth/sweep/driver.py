@@ -85,32 +85,33 @@ def run_sweep(sweep: Sweep | Sequence[Run], out: str | os.PathLike[str],
     if getattr(backend, "name", backend) == "local":
         check_picklable(runs)
     store = Store(out)
-    store.clean()
-    if isinstance(sweep, Sweep):
-        store.write_description(sweep.to_dict())
-    records = store.completed(runs, retry_failed=retry_failed)
-    todo = [run for run in runs if run.run_id not in records]
-    skipped = len(runs) - len(todo)
-    store.write_index(runs, records)
-    engine = make_backend(backend, workers, threads, address) if isinstance(backend, str) \
-        else backend
-    failed = sum(1 for r in records.values() if r["status"] not in ("ok", "filtered"))
-    done = skipped
-    try:
-        for run, result in engine.run(todo) if todo else ():
-            record = store.write(run, result)
-            records[run.run_id] = record
-            done += 1
-            failed += record["status"] not in ("ok", "filtered")
-            _check_threads(record, engine)
-            store.write_index(runs, records, every=index_every)
-            if progress is not None:
-                progress(record, done, len(runs), failed)
-    finally:
+    with store.lock():
+        store.clean()
+        if isinstance(sweep, Sweep):
+            store.write_description(sweep.to_dict())
+        records = store.completed(runs, retry_failed=retry_failed)
+        todo = [run for run in runs if run.run_id not in records]
+        skipped = len(runs) - len(todo)
         store.write_index(runs, records)
-        close = getattr(engine, "close", None)
-        if close is not None and isinstance(backend, str):
-            close()
+        engine = (make_backend(backend, workers, threads, address) if isinstance(backend, str)
+                  else backend)
+        failed = sum(1 for r in records.values() if r["status"] not in ("ok", "filtered"))
+        done = skipped
+        try:
+            for run, result in engine.run(todo) if todo else ():
+                record = store.write(run, result)
+                records[run.run_id] = record
+                done += 1
+                failed += record["status"] not in ("ok", "filtered")
+                _check_threads(record, engine)
+                store.write_index(runs, records, every=index_every)
+                if progress is not None:
+                    progress(record, done, len(runs), failed)
+        finally:
+            store.write_index(runs, records)
+            close = getattr(engine, "close", None)
+            if close is not None and isinstance(backend, str):
+                close()
     ordered = [records[r.run_id] for r in runs if r.run_id in records]
     return SweepResult(os.fspath(out), ordered, ran=len(todo), skipped=skipped,
                        wall_s=time.perf_counter() - start, backend=engine.describe(),
