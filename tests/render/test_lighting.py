@@ -116,8 +116,9 @@ def test_ssao_at_half_size_darkens_covered_pixels_only(standin_cls: Any, ctx: An
     plain = _frame(ctx, r, cam).astype(np.float32)
     r.ssao = True
     shaded = _frame(ctx, r, cam).astype(np.float32)
-    assert r.ao.size == (SIZE[0] // 2, SIZE[1] // 2)
-    ao = np.frombuffer(r.ao.read(), dtype=np.uint8).reshape(SIZE[1] // 2, SIZE[0] // 2) / 255.0
+    assert r.fill.size == (SIZE[0] // 2, SIZE[1] // 2)
+    fill = np.frombuffer(r.fill.read(), dtype=np.float16).reshape(SIZE[1] // 2, SIZE[0] // 2, 4)
+    ao = fill[..., 3].astype(np.float32)
     covered = r.read_gbuffer()["material"] > 0
     blocks = covered.reshape(SIZE[1] // 2, 2, SIZE[0] // 2, 2).any(axis=(1, 3))
     assert (ao[~blocks] == 1.0).all() and ao[blocks].mean() < 1.0
@@ -132,7 +133,7 @@ def test_unchanged_frame_reuses_the_lit_image_and_shadow_map(standin_cls: Any, c
     r.pass_timer = passes.append
     cam = _camera()
     first = _frame(ctx, r, cam)
-    assert passes[:3] == ["shadow", "geometry", "lighting"]
+    assert passes[:4] == ["shadow", "geometry", "fill", "lighting"]
     passes.clear()
     again = _frame(ctx, r, cam)  # nothing moved: only the last pass runs
     assert passes == ["fxaa"] and np.array_equal(first, again)
@@ -160,3 +161,17 @@ def test_golden_image(standin_cls: Any, ctx: Any) -> None:
     diff = np.abs(img.astype(np.int16) - golden)
     assert diff.mean() < 1.5, f"mean difference {diff.mean():.2f} / 255"
     assert (diff.max(axis=2) > 40).mean() < 0.01
+
+
+def test_a_lower_render_scale_draws_fewer_pixels_and_fills_the_output(
+        standin_cls: Any, ctx: Any) -> None:
+    r = Renderer(ctx, standin_cls(amp=0.05), SIZE, shadow_size=512)
+    full = _frame(ctx, r, _camera()).astype(np.float32)
+    r.resize(SIZE, 0.5)
+    assert r.size == SIZE and r.inner == (SIZE[0] // 2, SIZE[1] // 2)
+    assert r.g_albedo.size == r.inner and r.fill.size == (SIZE[0] // 4, SIZE[1] // 4)
+    half = _frame(ctx, r, _camera()).astype(np.float32)
+    # The same picture, softer: close on average, and not a quarter-sized image in a corner.
+    assert np.abs(half - full).mean() < 12.0
+    quarter = (slice(SIZE[1] // 2, None), slice(SIZE[0] // 2, None))
+    assert np.abs(half[quarter] - full[quarter]).mean() < 12.0

@@ -148,6 +148,7 @@ def glsl_header() -> str:
         + ", ".join(_vec3(srgb_to_linear(c)) for c, _ in TARTAN) + ")",
         f"#define TARTAN_STARTS float[{n}](" + ", ".join(f"{s:.6f}" for s in starts) + ")",
         f"#define TARTAN_WIDTHS float[{n}](" + ", ".join(f"{w:.6f}" for _, w in TARTAN) + ")",
+        f"#define TARTAN_MEAN {_vec3(srgb_to_linear(tartan_mean()))}",
         f"#define TARTAN_REPEAT_M {TARTAN_REPEAT_M:.6f}",
         f"#define THREAD_PITCH_M {THREAD_PITCH_M:.6f}",
         f"#define COLORMAP_STOPS {len(COLORMAP)}",

@@ -95,11 +95,11 @@ class SceneLayout:
         whole reach box fit the view with a margin."""
         up = np.array([0.0, 1.0, 0.0], dtype=np.float32)
         if abs(float(self.front[1])) > 0.7:
-            # A sheet seen from above: look down at 40 degrees from the +z, +x quarter.
+            # A sheet seen from above: look down at 32 degrees from the +z, +x quarter.
             direction = np.array([0.45, 0.0, 1.0], dtype=np.float32)
             direction /= np.linalg.norm(direction)
-            direction = direction * math.cos(math.radians(40.0)) + up * math.sin(
-                math.radians(40.0))
+            direction = direction * math.cos(math.radians(32.0)) + up * math.sin(
+                math.radians(32.0))
         else:
             # A hanging sheet: from its front, 25 degrees to the side and 28 above (so a sheet
             # that starts flat and swings down shows its front side all along).

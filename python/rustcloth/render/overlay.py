@@ -108,7 +108,7 @@ def legend(view: str, scale: int = 13) -> npt.NDArray[np.uint8] | None:
     text = {
         "position": "world position: fract(x, y, z in m) -> red, green, blue",
         "normal": "unit normal, facing the viewer: x, y, z -> red, green, blue (0.5 + n / 2)",
-        "albedo": "albedo (sRGB), before lighting",
+        "albedo": "albedo before lighting (stored as the square root of linear, near sRGB)",
         "depth": "distance from the eye: white at 0, black at twice the distance to the target",
         "shadow map": "the key light's depth map (square): dark near the light, light far",
     }.get(view)

@@ -1,7 +1,7 @@
-"""The deferred renderer: one method per pass (shadow map, G-buffer, SSAO, lighting or a debug
-view, FXAA, highlights, overlay), fed from persistent vertex buffers, skipping the work a
-frame does not need (the shadow map when nothing moved, everything but the last pass when
-nothing changed)."""
+"""The deferred renderer: one method per pass (shadow map, G-buffer, fill light and SSAO at half
+size, lighting or a debug view, FXAA, highlights, overlay), fed from persistent vertex
+buffers, skipping the work a frame does not need (the shadow map when nothing moved,
+everything but the last pass when nothing changed)."""
 
 from __future__ import annotations
 
@@ -89,13 +89,13 @@ class Renderer:
         self.lighting = load_program(ctx, "fullscreen.vert", "lighting.frag")
         self.debug = load_program(ctx, "fullscreen.vert", "debug.frag")
         self.fxaa_prog = load_program(ctx, "fullscreen.vert", "fxaa.frag")
-        self.ssao_prog = load_program(ctx, "fullscreen.vert", "ssao.frag")
+        self.fill_prog = load_program(ctx, "fullscreen.vert", "fill.frag")
         self.lines = load_program(ctx, "lines.vert", "lines.frag")
         self.overlay_prog = load_program(ctx, "overlay.vert", "overlay.frag")
         # Full-screen passes draw one triangle from gl_VertexID: no vertex buffers.
         self.fullscreen = {
             p: ctx.vertex_array(p, [])
-            for p in (self.lighting, self.debug, self.fxaa_prog, self.ssao_prog)
+            for p in (self.lighting, self.debug, self.fxaa_prog, self.fill_prog)
         }
 
         self.shadow_depth = ctx.depth_texture((shadow_size, shadow_size))
@@ -106,11 +106,16 @@ class Renderer:
         self.shadow_fbo = ctx.framebuffer(depth_attachment=self.shadow_depth)
         self.shadow_size = shadow_size
 
-        sphere_v, sphere_i = meshes.uv_sphere()
+        sphere_v, sphere_i = meshes.uv_sphere(32, 64)
         self.sphere_vbo = ctx.buffer(sphere_v)
         self.sphere_ibo = ctx.buffer(sphere_i)
         self.sphere_vao = self._mesh_vao(self.geometry, self.sphere_vbo, self.sphere_ibo)
         self.sphere_shadow_vao = self._mesh_vao(self.shadow_prog, self.sphere_vbo, self.sphere_ibo)
+        # Markers are a few pixels across: a coarse sphere (vertex work is not free here).
+        marker_v, marker_i = meshes.uv_sphere(8, 16)
+        self.marker_vbo = ctx.buffer(marker_v)
+        self.marker_ibo = ctx.buffer(marker_i)
+        self.marker_vao = self._mesh_vao(self.geometry, self.marker_vbo, self.marker_ibo)
 
         self.stroke_vbo = ctx.buffer(reserve=4096 * 12)
         self.stroke_vao = ctx.vertex_array(self.lines, [(self.stroke_vbo, "3f", "in_position")])
@@ -120,7 +125,8 @@ class Renderer:
         self.panels: dict[str, _Panel] = {}
         self.overlay_vao = ctx.vertex_array(self.overlay_prog, [])
 
-        self.size = (0, 0)
+        self.size = self.inner = (0, 0)
+        self.scale = 1.0
         self._lit_key: tuple[Any, ...] | None = None
         self._inv_view_proj = np.identity(4, dtype=np.float32)
         self.resize(size)
@@ -135,18 +141,23 @@ class Renderer:
             else [(vbo, "3f 12x 8x", "in_position")])
         return self.ctx.vertex_array(prog, fmt, index_buffer=ibo, index_element_size=4)
 
-    def resize(self, size: tuple[int, int]) -> None:
-        """(Re)create the G-buffer, the lit image and the half-size AO image."""
+    def resize(self, size: tuple[int, int], scale: float | None = None) -> None:
+        """The output is ``size`` pixels; the 3D passes draw ``scale`` (0.25..1, default:
+        as before) of it each way, and the last pass scales their image up. (Re)creates the
+        G-buffer, the lit image and the half-size fill image when that changes."""
         size = (max(1, int(size[0])), max(1, int(size[1])))
-        if size == self.size:
+        scale = self.scale if scale is None else min(1.0, max(0.25, float(scale)))
+        inner = (max(1, round(size[0] * scale)), max(1, round(size[1] * scale)))
+        if size == self.size and inner == self.inner:
             return
         for name in ("gbuffer", "g_normal", "g_albedo", "g_depth", "lit_fbo", "lit",
-                     "ao_fbo", "ao"):
+                     "fill_fbo", "fill"):
             old = getattr(self, name, None)
             if old is not None:
                 old.release()
         ctx = self.ctx
-        self.size = size
+        self.size, self.scale, self.inner = size, scale, inner
+        size = inner
         self.g_normal = ctx.texture(size, 4, dtype="f2")
         self.g_albedo = ctx.texture(size, 4, dtype="f1")
         self.g_depth = ctx.depth_texture(size)
@@ -160,10 +171,11 @@ class Renderer:
         self.lit.filter = (moderngl.LINEAR, moderngl.LINEAR)
         self.lit.repeat_x = self.lit.repeat_y = False
         self.lit_fbo = ctx.framebuffer(color_attachments=[self.lit])
-        self.ao = ctx.texture((max(1, size[0] // 2), max(1, size[1] // 2)), 1, dtype="f1")
-        self.ao.filter = (moderngl.LINEAR, moderngl.LINEAR)
-        self.ao.repeat_x = self.ao.repeat_y = False
-        self.ao_fbo = ctx.framebuffer(color_attachments=[self.ao])
+        # rgb: the point lights' irradiance (can exceed 1); a: ambient occlusion.
+        self.fill = ctx.texture((max(1, size[0] // 2), max(1, size[1] // 2)), 4, dtype="f2")
+        self.fill.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        self.fill.repeat_x = self.fill.repeat_y = False
+        self.fill_fbo = ctx.framebuffer(color_attachments=[self.fill])
         self._lit_key = None
 
     def set_simulation(self, sim: ClothSource, layout: SceneLayout | None = None) -> None:
@@ -314,15 +326,17 @@ class Renderer:
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
         lit_view = self.view not in K.GBUFFER_VIEWS
-        retained = self.fxaa and lit_view
+        # The lit image is kept (and anti-aliased or scaled up by the last pass) unless it
+        # can go straight to the target: a debug view at full scale.
+        retained = (self.fxaa and lit_view) or self.inner != self.size
         key = (self._state_serial, camera.view_projection.tobytes(), self.view, self.ssao,
-               self.shadows, self.point_lights, self.lights.name, self.size, self.highlight)
+               self.shadows, self.point_lights, self.lights.name, self.inner, self.highlight)
         if not (retained and key == self._lit_key):
             self._shadow_pass()
             self._geometry_pass(camera)
             ctx.disable(moderngl.DEPTH_TEST)
-            if self.ssao and self.view == "lit":
-                self._ssao_pass(camera)
+            if lit_view:
+                self._fill_pass(camera)
             out = self.lit_fbo if retained else target
             if lit_view:
                 self._lighting_pass(camera, out)
@@ -386,27 +400,36 @@ class Renderer:
                             K.srgb_to_linear(K.SPHERE.color))
         if self.highlight is not None and 0 <= self.highlight < len(self.positions):
             model = meshes.translate_scale(self.positions[self.highlight], 0.9 * lay.spacing)
-            self._draw_mesh(self.sphere_vao, model, K.MARKER.id,
+            self._draw_mesh(self.marker_vao, model, K.MARKER.id,
                             K.srgb_to_linear(K.MARKER.color))
         if self.view == "lit" and self.point_lights:
             size = 0.015 * lay.span + 0.02
             for pos, color in zip(self.points.positions, self.points.marker_colors, strict=True):
-                self._draw_mesh(self.sphere_vao, meshes.translate_scale(pos, size), K.LIGHT.id,
+                self._draw_mesh(self.marker_vao, meshes.translate_scale(pos, size), K.LIGHT.id,
                                 (float(color[0]), float(color[1]), float(color[2])))
         self._draw_mesh(self.floor_vao, np.identity(4, dtype=np.float32), K.FLOOR.id,
                         K.srgb_to_linear(K.FLOOR.color))
         self._done("geometry")
 
-    def _ssao_pass(self, camera: Camera) -> None:
-        # SSAO: occlusion of the ambient and fill light from the depth buffer, at half size.
-        self.ao_fbo.use()
-        a = self.ssao_prog
+    def _point_uniforms(self) -> dict[str, Any]:
+        points = self.points
+        pad = K.MAX_POINT_LIGHTS - len(points)
+        return {"num_points": len(points) if self.view == "lit" and self.point_lights else 0,
+                "point_pos": np.pad(points.positions, ((0, pad), (0, 0))),
+                "point_color": np.pad(points.colors, ((0, pad), (0, 0))),
+                "point_reach": np.pad(points.reaches, (0, pad))}
+
+    def _fill_pass(self, camera: Camera) -> None:
+        # Fill: the point lights' diffuse light and (when on) SSAO, at half size.
+        self.fill_fbo.use()
+        a = self.fill_prog
         _bind(a, {"g_normal": self.g_normal, "g_albedo": self.g_albedo,
                   "g_depth": self.g_depth})
         _uniforms(a, view_proj=camera.view_projection, inv_view_proj=self._inv_view_proj,
-                  eye=tuple(camera.eye), radius=0.1 * self.layout.span)
+                  eye=tuple(camera.eye), radius=0.1 * self.layout.span,
+                  ao_enabled=self.ssao and self.view == "lit", **self._point_uniforms())
         self.fullscreen[a].render(moderngl.TRIANGLES, vertices=3)
-        self._done("ssao")
+        self._done("fill")
 
     def _lighting_pass(self, camera: Camera, out: moderngl.Framebuffer) -> None:
         # Lighting: key light with shadows, point lights, ambient, fog; tone-mapped sRGB out.
@@ -414,25 +437,20 @@ class Renderer:
         lp = self.lighting
         lights = self.lights
         _bind(lp, {"g_normal": self.g_normal, "g_albedo": self.g_albedo,
-                   "g_depth": self.g_depth, "shadow_map": self.shadow_depth, "ao_map": self.ao})
-        points = self.points
-        pad = K.MAX_POINT_LIGHTS - len(points)
+                   "g_depth": self.g_depth, "shadow_map": self.shadow_depth,
+                   "fill_map": self.fill})
         distance = float(np.linalg.norm(camera.eye - camera.target))
         _uniforms(
-            lp, ao_enabled=self.ssao and self.view == "lit",
-            inv_view_proj=self._inv_view_proj, light_view_proj=self.light_view_proj,
+            lp, inv_view_proj=self._inv_view_proj, light_view_proj=self.light_view_proj,
             eye=tuple(camera.eye), key_dir=tuple(self.light_dir),
             key_color=_scaled(lights.key_color, lights.key_intensity),
             shadows_enabled=self.shadows, shadow_texel=1.0 / self.shadow_size,
             sky_zenith=K.srgb_to_linear(lights.sky_zenith),
             sky_horizon=K.srgb_to_linear(lights.sky_horizon),
             ground_color=K.srgb_to_linear(lights.ground), ambient=lights.ambient,
-            num_points=len(points) if self.view == "lit" and self.point_lights else 0,
-            point_pos=np.pad(points.positions, ((0, pad), (0, 0))),
-            point_color=np.pad(points.colors, ((0, pad), (0, 0))),
-            point_reach=np.pad(points.reaches, (0, pad)),
             fog_range=(distance + 1.0 * self.layout.span, distance + 14.0),
-            exposure=lights.exposure, scalar_view=self.view in K.SCALAR_VIEWS)
+            exposure=lights.exposure, scalar_view=self.view in K.SCALAR_VIEWS,
+            **self._point_uniforms())
         self.fullscreen[lp].render(moderngl.TRIANGLES, vertices=3)
         self._done("lighting")
 
@@ -446,19 +464,20 @@ class Renderer:
         distance = float(np.linalg.norm(camera.eye - camera.target))
         _uniforms(d, view=K.VIEW_IDS[self.view], inv_view_proj=self._inv_view_proj,
                   eye=tuple(camera.eye), depth_range=2.0 * distance,
-                  viewport=(float(self.size[0]), float(self.size[1])))
+                  viewport=(float(self.inner[0]), float(self.inner[1])))
         self.fullscreen[d].render(moderngl.TRIANGLES, vertices=3)
         self.shadow_depth.compare_func = "<="
         self._done("debug")
 
     def _fxaa_pass(self, target: moderngl.Framebuffer) -> None:
-        # FXAA: anti-alias the tone-mapped image into the caller's framebuffer.
+        # FXAA: anti-alias the tone-mapped image (and scale it up) into the caller's target.
         target.use()
-        w, h = self.size
-        self.ctx.viewport = (0, 0, w, h)
+        self.ctx.viewport = (0, 0, *self.size)
         f = self.fxaa_prog
         _bind(f, {"image": self.lit})
-        _uniforms(f, texel=(1.0 / w, 1.0 / h))
+        w, h = self.inner
+        _uniforms(f, texel=(1.0 / w, 1.0 / h), enabled=self.fxaa and self.view not in
+                  K.GBUFFER_VIEWS)
         self.fullscreen[f].render(moderngl.TRIANGLES, vertices=3)
         self._done("fxaa")
 
@@ -498,18 +517,19 @@ class Renderer:
 
     # -- read-back (tests, headless) -------------------------------------------------------
     def read_gbuffer(self) -> dict[str, npt.NDArray[np.float32]]:
-        """The G-buffer as float arrays (rows bottom to top, as OpenGL stores them), with
-        world positions rebuilt from the depth buffer as the shaders rebuild them."""
-        w, h = self.size
+        """The G-buffer as float arrays (rows bottom to top, as OpenGL stores them): normal,
+        linear albedo, material id, depth, and world positions rebuilt from the depth buffer
+        as the shaders rebuild them."""
+        w, h = self.inner
         depth = np.frombuffer(self.g_depth.read(), dtype=np.float32).reshape(h, w)
-        albedo = (np.frombuffer(self.g_albedo.read(), dtype=np.uint8)
+        stored = (np.frombuffer(self.g_albedo.read(), dtype=np.uint8)
                   .reshape(h, w, 4).astype(np.float32) / 255.0)
         out = {
             "normal": np.frombuffer(self.g_normal.read(), dtype=np.float16)
             .reshape(h, w, 4).astype(np.float32),
-            "albedo": albedo,
+            "albedo": stored[..., :3] ** 2,  # linear; stored as its square root
             "depth": depth,
-            "material": np.rint(albedo[..., 3] * 255.0),
+            "material": np.rint(stored[..., 3] * 255.0),
         }
         u = (np.arange(w, dtype=np.float64) + 0.5) / w * 2.0 - 1.0
         v = (np.arange(h, dtype=np.float64) + 0.5) / h * 2.0 - 1.0

@@ -27,7 +27,7 @@ void main() {
     } else if (view == VIEW_NORMAL) {
         if (covered) c = texture(g_normal, v_uv).xyz * 0.5 + 0.5;
     } else if (view == VIEW_ALBEDO) {
-        if (covered) c = a.rgb;
+        if (covered) c = a.rgb;  // the square root of linear albedo: close to sRGB
     } else if (view == VIEW_MATERIAL) {
         const vec3 colors[MAT_COUNT] = MAT_DEBUG_COLORS;
         c = colors[clamp(m, 0, MAT_COUNT - 1)];

@@ -1,7 +1,9 @@
 #version 330 core
-// FXAA pass: cheap edge anti-aliasing of the tone-mapped image (the G-buffer has no MSAA).
+// FXAA pass: cheap edge anti-aliasing of the tone-mapped image (the G-buffer has no MSAA),
+// which it also scales up to the output when the 3D passes drew fewer pixels.
 uniform sampler2D image;
-uniform vec2 texel;
+uniform vec2 texel;       // of the image
+uniform bool enabled;     // off: a plain (bilinear) copy
 in vec2 v_uv;
 out vec4 f_color;
 
@@ -9,6 +11,7 @@ float luma(vec3 c) { return dot(c, vec3(0.299, 0.587, 0.114)); }
 
 void main() {
     vec3 m = texture(image, v_uv).rgb;
+    if (!enabled) { f_color = vec4(m, 1.0); return; }
     vec3 nw = texture(image, v_uv + vec2(-1.0, -1.0) * texel).rgb;
     vec3 ne = texture(image, v_uv + vec2(1.0, -1.0) * texel).rgb;
     vec3 sw = texture(image, v_uv + vec2(-1.0, 1.0) * texel).rgb;

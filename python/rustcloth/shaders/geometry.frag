@@ -1,6 +1,7 @@
 #version 330 core
 // Geometry pass: writes each surface's unit normal (facing the viewer) and its albedo
-// (sRGB-encoded) with the material id in alpha; the depth buffer gives the position. The
+// (stored as its square root, gamma 2, for precision in the darks at the cost of one sqrt)
+// with the material id in alpha; the depth buffer gives the position. The
 // cloth's fabric is procedural, in metres of cloth, so its scale has nothing to do with the
 // particle grid. MAT_*, VIEW_* and the colours come from the generated header.
 
@@ -19,12 +20,16 @@ in float v_scalar;
 layout(location = 0) out vec4 g_normal;
 layout(location = 1) out vec4 g_albedo;
 
-vec3 srgb_encode(vec3 c) {
-    c = clamp(c, 0.0, 1.0);
-    return mix(12.92 * c, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, step(0.0031308, c));
+vec3 srgb_decode(vec3 c) {
+    return mix(c / 12.92, pow((c + 0.055) / 1.055, vec3(2.4)), step(0.04045, c));
 }
 
-float hash(vec2 p) { return fract(sin(dot(p, vec2(127.1, 311.7))) * 43758.5453); }
+// A hash without sin (Hoskins): llvmpipe evaluates sin as a long polynomial.
+float hash(vec2 p) {
+    vec3 p3 = fract(vec3(p.xyx) * 0.1031);
+    p3 += dot(p3, p3.yzx + 33.33);
+    return fract((p3.x + p3.y) * p3.z);
+}
 
 // Smooth value noise in [0, 1], faded to its mean once a cell is smaller than a pixel.
 float fibre_noise(vec2 p) {
@@ -43,12 +48,11 @@ vec3 tartan_integral(float x) {
     const float starts[TARTAN_STRIPES] = TARTAN_STARTS;
     const float widths[TARTAN_STRIPES] = TARTAN_WIDTHS;
     float whole = floor(x), t = x - whole;
-    vec3 repeat = vec3(0.0), part = vec3(0.0);
+    vec3 part = vec3(0.0);
     for (int k = 0; k < TARTAN_STRIPES; ++k) {
-        repeat += colors[k] * widths[k];
         part += colors[k] * clamp(t - starts[k], 0.0, widths[k]);
     }
-    return whole * repeat + part;
+    return whole * TARTAN_MEAN + part;  // TARTAN_MEAN: the integral over one repeat
 }
 
 vec3 tartan(float x) {
@@ -125,15 +129,13 @@ void main() {
     vec3 n = normalize(v_normal);
     int mat = material;
     vec3 albedo = base_color;  // linear
-    bool encoded = false;      // albedo is already sRGB
     if (mat == MAT_CLOTH_FRONT) {
         // Two-sided cloth: the side facing the viewer shades with the normal facing it.
         if (!gl_FrontFacing) n = -n;
         bool front = gl_FrontFacing == front_is_winding;
         mat = front ? MAT_CLOTH_FRONT : MAT_CLOTH_BACK;
         if (view == VIEW_STRAIN || view == VIEW_SPEED || view == VIEW_PINNED) {
-            albedo = scalar_color(v_uv, v_scalar);
-            encoded = true;
+            albedo = srgb_decode(scalar_color(v_uv, v_scalar));
         } else {
             albedo = fabric(v_uv, front);
         }
@@ -141,5 +143,5 @@ void main() {
         albedo = floor_color(v_world.xz);
     }
     g_normal = vec4(n, 0.0);
-    g_albedo = vec4(encoded ? albedo : srgb_encode(albedo), float(mat) / 255.0);
+    g_albedo = vec4(sqrt(clamp(albedo, 0.0, 1.0)), float(mat) / 255.0);
 }

@@ -51,6 +51,18 @@ def _positive_float(text: str) -> float:
     return value
 
 
+def _scale(text: str) -> float | None:
+    if text == "auto":
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be 'auto' or a number, got {text!r}") from None
+    if not 0.25 <= value <= 1.0:
+        raise argparse.ArgumentTypeError(f"must be between 0.25 and 1, got {text!r}")
+    return value
+
+
 def _scene(parser: argparse.ArgumentParser, name: str) -> Scene:
     """The scene ``name`` (built-in or a TOML path), or a one-line error (exit status 2)."""
     try:
@@ -90,11 +102,14 @@ def main_demo(argv: list[str]) -> int:
                         help=f"a built-in scene ({', '.join(scenes())}) or a scene TOML file")
     parser.add_argument("--size", type=_size, default=(1280, 720), help="window size, WxH")
     parser.add_argument("--frames", type=_positive_int, default=None,
-                        help="quit after this many frames (default: when the window closes)")
+                        help="quit after this many frames (None: when the window closes)")
     parser.add_argument("--script", type=Path, default=None,
                         help="JSON list of scripted events to replay (docs/rendering.md)")
     parser.add_argument("--out", type=Path, default=Path("out/demo"),
                         help="where the headless fallback writes its frames without a display")
+    parser.add_argument("--render-scale", type=_scale, default="auto", metavar="auto|0.25..1",
+                        help="share of the window's resolution the 3D passes draw, each way "
+                             "(auto: lowered while a frame takes over 40 ms to render)")
     _add_look(parser)
     args = parser.parse_args(argv)
     _scene(parser, args.scene)
@@ -103,7 +118,7 @@ def main_demo(argv: list[str]) -> int:
 
     try:
         demo = Demo(args.scene, args.size, script=script, lights=args.lights, ssao=args.ssao,
-                    on_notice=_notice)
+                    on_notice=_notice, render_scale=args.render_scale)
     except DisplayUnavailable as err:
         no_display = str(err)
     except GLUnavailable as err:

@@ -20,6 +20,10 @@ from .keys import KEYS, command_for
 from .physics import MIN_BUDGET_S, FramePhysics, Stepper
 from .script import ScriptInput, ScriptPlayer
 
+RENDER_TARGET_S = 0.040
+"""Live, the 3D passes draw at a lower resolution (scaled up by the last pass) while a frame
+takes longer than this to render, and go back up when there is room."""
+SCALE_STEP, MIN_SCALE, SCALE_PERIOD = 0.85, 0.5, 1.0
 NOTICE_SECONDS = 8.0
 """How long a notice stays on the overlay (viewer clock)."""
 OVERLAY_PERIOD = 0.25
@@ -43,6 +47,8 @@ class Viewer:
 
     ``realtime``: physics keeps up with the frames' wall time within a budget (the demo);
     otherwise every frame advances exactly the simulated time it is given (headless, tests).
+    ``render_scale``: the 3D passes' share of the output resolution, each way; None: 1 when
+    offline, adapted to :data:`RENDER_TARGET_S` when live.
     ``make_sim`` builds the simulation for a scene name (keys 1..9); ``on_notice`` hears
     every notice the overlay shows (the demo prints them).
     """
@@ -52,7 +58,8 @@ class Viewer:
                  script: list[dict[str, Any]] | None = None, view: str = "lit",
                  ssao: bool = False, lights: str = "studio", overlay: bool = True,
                  make_sim: Callable[[str], Any] = make_simulation,
-                 on_notice: Callable[[str], None] | None = None) -> None:
+                 on_notice: Callable[[str], None] | None = None,
+                 render_scale: float | None = None) -> None:
         self.ctx = ctx
         self.size = size
         self.pointer_size = size
@@ -63,6 +70,10 @@ class Viewer:
         self.renderer = Renderer(ctx, sim, size, lights=lights)
         self.renderer.view = view
         self.renderer.ssao = ssao
+        self.auto_scale = realtime and render_scale is None
+        if render_scale is not None:
+            self.renderer.resize(size, render_scale)
+        self._scaled_at = time.perf_counter()
         self.script = ScriptPlayer(script) if script else None
         self.input: ScriptInput = ViewerInput(self)
         self.clock = 0.0
@@ -114,6 +125,23 @@ class Viewer:
         self.render_s = elapsed if self.frames == 0 else 0.8 * self.render_s + 0.2 * elapsed
         self.frames += 1
         self._count_fps()
+        if self.auto_scale:
+            self._adapt_scale()
+
+    def _adapt_scale(self) -> None:
+        """Trade resolution for frame rate, at most once per :data:`SCALE_PERIOD`."""
+        now = time.perf_counter()
+        if now - self._scaled_at < SCALE_PERIOD:
+            return
+        r = self.renderer
+        scale = r.scale
+        if self.render_s > RENDER_TARGET_S and scale > MIN_SCALE:
+            scale = max(MIN_SCALE, scale * SCALE_STEP)
+        elif self.render_s < 0.5 * RENDER_TARGET_S and scale < 1.0:
+            scale = min(1.0, scale / SCALE_STEP)
+        if scale != r.scale:
+            r.resize(self.size, scale)
+            self._scaled_at = now
 
     def _physics(self, report: FramePhysics) -> None:
         self.last_physics = report
@@ -138,7 +166,7 @@ class Viewer:
         self.pointer_size = pointer_size or size
         self.pointer.size = self.pointer_size
         self.camera.aspect = size[0] / max(size[1], 1)
-        self.renderer.resize(size)
+        self.renderer.resize(size)  # at the scale it had
         self._overlay_at = -1.0
 
     # -- notices and the overlay -----------------------------------------------------------
@@ -160,12 +188,13 @@ class Viewer:
         else:
             state = "real time" if self.realtime else ""
         per_step = 1e3 * physics.seconds / physics.steps if physics.steps else 0.0
+        scale = f" at {100 * r.scale:.0f} % scale" if r.scale < 1.0 else ""
         substeps = f"substeps {sim.substeps}"
         if self.stepper.recovery.raised:
             substeps += f" (raised from {self.stepper.recovery.chosen_substeps})"
         lines: list[Line] = [
             f"{self.name}  t = {sim.time:.2f} s  {self.fps:.1f} fps  render "
-            f"{1e3 * self.render_s:.1f} ms  physics {1e3 * physics.seconds:.1f} ms/frame "
+            f"{1e3 * self.render_s:.1f} ms{scale}  physics {1e3 * physics.seconds:.1f} ms/frame "
             f"({physics.steps} steps, {per_step:.2f} ms/step)  {state}".rstrip(),
             f"{sim.num_particles} particles  {sim.integrator}  dt {sim.dt:g} s  {substeps}  "
             f"view {r.view}  lights {r.lights.name}  SSAO {'on' if r.ssao else 'off'}",
