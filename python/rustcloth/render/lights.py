@@ -38,7 +38,9 @@ class LightPreset:
     key_elevation: float
     """Degrees above the horizon the key light comes from."""
     key_azimuth: float
-    """Degrees about +y the key light comes from (0: from +z, 90: from +x)."""
+    """Degrees about +y the key light comes from, from the side the scene's camera looks
+    from (0: from behind the camera, 90: from its left, 180: from behind the scene), so
+    every scene is lit the same way as it is framed."""
     key_color: RGB
     """sRGB colour of the key light."""
     key_intensity: float
@@ -57,24 +59,24 @@ class LightPreset:
 
 PRESETS = (
     LightPreset(
-        "studio", 48.0, -38.0, (1.0, 0.93, 0.84), 2.4,
+        "studio", 48.0, 50.0, (1.0, 0.93, 0.84), 2.4,
         (0.36, 0.50, 0.70), (0.80, 0.83, 0.86), (0.42, 0.38, 0.33), 0.55, 1.0,
         PointRing(((1.0, 0.62, 0.28), (0.30, 0.62, 1.0)) * 3, 0.9, 0.75, 0.30, 2.6),
     ),
     LightPreset(
-        "neon", 60.0, 20.0, (0.75, 0.80, 1.0), 0.55,
+        "neon", 60.0, -30.0, (0.75, 0.80, 1.0), 0.55,
         (0.06, 0.07, 0.16), (0.20, 0.17, 0.30), (0.10, 0.08, 0.12), 0.35, 1.1,
         PointRing(((1.0, 0.15, 0.55), (0.10, 0.85, 1.0), (0.55, 1.0, 0.15), (1.0, 0.50, 0.05),
                    (0.55, 0.25, 1.0), (0.05, 1.0, 0.60), (1.0, 0.90, 0.15), (0.20, 0.35, 1.0)),
                   1.8, 0.65, 0.25, 2.4),
     ),
     LightPreset(
-        "sunset", 14.0, 65.0, (1.0, 0.58, 0.30), 2.6,
+        "sunset", 16.0, -75.0, (1.0, 0.58, 0.30), 2.6,
         (0.24, 0.30, 0.52), (0.95, 0.62, 0.45), (0.30, 0.22, 0.22), 0.50, 1.0,
         PointRing(((0.45, 0.55, 1.0), (0.70, 0.45, 1.0)) * 2, 0.7, 0.8, 0.6, 2.8, phase=2.4),
     ),
     LightPreset(
-        "night", 55.0, -120.0, (0.55, 0.65, 1.0), 0.35,
+        "night", 55.0, 150.0, (0.55, 0.65, 1.0), 0.35,
         (0.015, 0.02, 0.05), (0.06, 0.07, 0.12), (0.04, 0.035, 0.03), 0.30, 1.25,
         PointRing(((1.0, 0.70, 0.38),) * 4, 2.2, 0.55, 0.45, 2.6, phase=0.8),
     ),
@@ -89,9 +91,10 @@ def preset(name: str) -> LightPreset:
     raise ValueError(f"unknown light preset {name!r}; presets: {', '.join(PRESET_NAMES)}")
 
 
-def key_direction(p: LightPreset) -> F32:
-    """Unit direction the key light travels (from the sky towards the ground)."""
-    el, az = math.radians(p.key_elevation), math.radians(p.key_azimuth)
+def key_direction(p: LightPreset, view_azimuth: float = 0.0) -> F32:
+    """Unit direction the key light travels (from the sky towards the ground), for a camera
+    on the side ``view_azimuth`` (degrees about +y, 0: +z, 90: +x) of the scene."""
+    el, az = math.radians(p.key_elevation), math.radians(p.key_azimuth + view_azimuth)
     towards_light = np.array([math.cos(el) * math.sin(az), math.sin(el),
                               math.cos(el) * math.cos(az)], dtype=np.float32)
     return -towards_light

@@ -23,10 +23,26 @@ def _font(size: int) -> ImageFont.ImageFont | ImageFont.FreeTypeFont:
     return _FONTS[size]
 
 
-def text_panel(lines: list[Line], scale: int = 13) -> npt.NDArray[np.uint8]:
-    """RGBA8 image (rows top to bottom) of the lines on a dim panel."""
+def _wrap(text: str, font: ImageFont.ImageFont | ImageFont.FreeTypeFont,
+          width: float) -> list[str]:
+    """``text`` broken at spaces into lines no wider than ``width`` pixels."""
+    out: list[str] = []
+    for word in text.split(" "):
+        if out and font.getlength(f"{out[-1]} {word}") <= width:
+            out[-1] = f"{out[-1]} {word}"
+        else:
+            out.append(word if not out else f"    {word}")
+    return out or [""]
+
+
+def text_panel(lines: list[Line], scale: int = 13,
+               max_width: int | None = None) -> npt.NDArray[np.uint8]:
+    """RGBA8 image (rows top to bottom) of the lines on a dim panel; lines wider than
+    ``max_width`` pixels are wrapped."""
     font = _font(scale)
     items = [(s, (255, 255, 255)) if isinstance(s, str) else s for s in lines]
+    if max_width is not None:
+        items = [(part, color) for s, color in items for part in _wrap(s, font, max_width - 12)]
     line_h = scale + 4
     width = 12 + max((int(font.getlength(s)) for s, _ in items), default=0)
     img = Image.new("RGBA", (max(width, 1), 8 + line_h * len(items)), (0, 0, 0, 150))
@@ -93,7 +109,7 @@ def legend(view: str, scale: int = 13) -> npt.NDArray[np.uint8] | None:
         return _bar("spring strain, l / L - 1 (largest at each particle); lines: the "
                     "particle grid", ticks, scale)
     if view == "speed":
-        labels = [(0.001, "1 mm/s"), (0.01, "1 cm/s"), (0.1, "10 cm/s"), (1.0, "1 m/s"),
+        labels = [(0.001, "1 mm/s"), (0.01, "1 cm/s"), (0.1, "10 cm/s"),
                   (K.SPEED_RANGE[1], f"{K.SPEED_RANGE[1]:g} m/s")]
         return _bar("speed (log scale); lines: the particle grid",
                     [(K.speed_to_unit(v), s) for v, s in labels], scale)
@@ -106,7 +122,7 @@ def legend(view: str, scale: int = 13) -> npt.NDArray[np.uint8] | None:
             (f"{m.name.lower().replace('_', ' ')} ({m.id})", m.debug) for m in K.MATERIALS],
             scale)
     text = {
-        "position": "world position: fract(x, y, z in m) -> red, green, blue",
+        "position": "world position: 0.5 + sin(2 pi (x, y, z) / 1 m) / 2 -> red, green, blue",
         "normal": "unit normal, facing the viewer: x, y, z -> red, green, blue (0.5 + n / 2)",
         "albedo": "albedo before lighting (stored as the square root of linear, near sRGB)",
         "depth": "distance from the eye: white at 0, black at twice the distance to the target",

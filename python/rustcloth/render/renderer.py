@@ -231,7 +231,7 @@ class Renderer:
         """Switch to a light preset: key direction, its shadow box, sky and point lights."""
         lay = self.layout
         self.lights = preset(name)
-        self.light_dir = key_direction(self.lights)
+        self.light_dir = key_direction(self.lights, lay.view_azimuth)
         # The shadow map covers the cloth's reach and the spheres, and no more.
         self.light_view_proj = light_view_projection(
             self.light_dir, box_corners(lay.reach_min, lay.reach_max))

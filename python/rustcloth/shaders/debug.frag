@@ -23,7 +23,8 @@ void main() {
     vec3 p = w.xyz / w.w;
     vec3 c = vec3(0.08);
     if (view == VIEW_POSITION) {
-        if (covered) c = fract(p);
+        // Continuous (a sine per metre), so depth-buffer noise cannot flip a pixel 0 <-> 1.
+        if (covered) c = 0.5 + 0.5 * sin(6.2831853 * p);
     } else if (view == VIEW_NORMAL) {
         if (covered) c = texture(g_normal, v_uv).xyz * 0.5 + 0.5;
     } else if (view == VIEW_ALBEDO) {

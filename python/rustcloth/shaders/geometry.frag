@@ -107,8 +107,11 @@ vec3 scalar_color(vec2 uv, float value) {
         c = value > 1.5 ? PIN_GRABBED_COLOR : value > 0.5 ? PIN_PINNED_COLOR : PIN_FREE_COLOR;
     }
     vec2 g = uv * grid_cells;
-    vec2 d = abs(fract(g + 0.5) - 0.5) / max(fwidth(g), vec2(1e-4));
-    float line = 1.0 - clamp(min(d.x, d.y) - 0.5, 0.0, 1.0);
+    vec2 w = max(fwidth(g), vec2(1e-4));
+    vec2 d = abs(fract(g + 0.5) - 0.5) / w;
+    // Lines fade out where cells get narrower than 5 pixels, or they would be all you see.
+    float line = (1.0 - clamp(min(d.x, d.y) - 0.5, 0.0, 1.0))
+               * clamp(1.0 / (5.0 * max(w.x, w.y)) * 2.0 - 1.0, 0.0, 1.0);
     // Lines lighter than a dark colour, darker than a light one: visible on either.
     vec3 ink = dot(c, vec3(0.299, 0.587, 0.114)) < 0.4 ? mix(c, vec3(1.0), 0.5) : c * 0.5;
     return mix(c, ink, line * 0.7);

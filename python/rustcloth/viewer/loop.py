@@ -217,7 +217,8 @@ class Viewer:
         if self.realtime and 0.0 <= now - self._overlay_at < OVERLAY_PERIOD:
             return
         self._overlay_at = now
-        self.renderer.set_panel("status", text_panel(self.status_lines()))
+        self.renderer.set_panel("status", text_panel(self.status_lines(),
+                                                     max_width=self.size[0]))
         self.renderer.set_panel("legend", legend(self.renderer.view), "bottom-left")
 
     # -- commands (keys) -------------------------------------------------------------------
