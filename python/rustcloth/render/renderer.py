@@ -232,10 +232,15 @@ class Renderer:
         lay = self.layout
         self.lights = preset(name)
         self.light_dir = key_direction(self.lights, lay.view_azimuth)
-        # The shadow map covers the cloth's reach and the spheres, and no more.
-        self.light_view_proj = light_view_projection(
-            self.light_dir, box_corners(lay.reach_min, lay.reach_max))
-        texel = float(np.max(lay.reach_max - lay.reach_min)) * 1.8 / self.shadow_size
+        # The shadow map covers the cloth's reach, the spheres and where their shadows fall
+        # on the ground, and no more.
+        lo = lay.reach_min.copy()
+        lo[1] = min(float(lo[1]), lay.ground)
+        corners = box_corners(lo, lay.reach_max)
+        d = self.light_dir
+        on_ground = corners + ((lay.ground - corners[:, 1]) / min(float(d[1]), -0.05))[:, None] * d
+        self.light_view_proj = light_view_projection(d, np.vstack([corners, on_ground]))
+        texel = float(np.max(lay.reach_max - lay.reach_min)) * 2.5 / self.shadow_size
         self._shadow_tolerance = 0.25 * texel
         focus = np.array([lay.center[0], lay.ground, lay.center[2]], dtype=np.float32)
         self.points = place_points(self.lights, focus, lay.span, lay.ground)
