@@ -175,3 +175,20 @@ def test_a_lower_render_scale_draws_fewer_pixels_and_fills_the_output(
     assert np.abs(half - full).mean() < 12.0
     quarter = (slice(SIZE[1] // 2, None), slice(SIZE[0] // 2, None))
     assert np.abs(half[quarter] - full[quarter]).mean() < 12.0
+
+
+def test_a_scene_without_a_floor_still_shadows_its_ground(ctx: Any) -> None:
+    """Regression: hanging's visual ground lay below the shadow map's box, so the cloth's
+    shadow on it was cut off (220 darkened pixels here, against 604 with the whole shadow)."""
+    import rustcloth
+
+    sim = rustcloth.Simulation(rustcloth.load_scene("hanging"))
+    sim.advance(1.5)
+    r = Renderer(ctx, sim, SIZE, shadow_size=512)
+    r.point_lights = False
+    cam = r.layout.camera(SIZE[0] / SIZE[1])
+    on = _frame(ctx, r, cam).astype(np.float32).mean(axis=2)
+    floor = r.read_gbuffer()["material"] == K.FLOOR.id
+    r.shadows = False
+    off = _frame(ctx, r, cam).astype(np.float32).mean(axis=2)
+    assert ((off - on)[floor] > 20.0).sum() > 400
