@@ -100,10 +100,6 @@ class Viewer:
         self.pointer = Pointer(self.interaction, self.camera, self.pointer_size)
         self._overlay_at = -1.0
 
-    @property
-    def layout(self) -> Any:
-        return self.renderer.layout
-
     # -- the frame -------------------------------------------------------------------------
     def frame(self, target: moderngl.Framebuffer, seconds: float) -> None:
         """One frame of ``seconds`` (wall time when live, simulated time offline): the
@@ -121,6 +117,10 @@ class Viewer:
         r.update()
         self._refresh_overlay()
         r.render(target, self.camera)
+        if self.realtime:
+            # llvmpipe draws at the flush: wait for it, or the swap would take the time and
+            # the physics budget (and the render scale) would go by the queuing alone.
+            self.ctx.finish()
         elapsed = time.perf_counter() - t0
         self.render_s = elapsed if self.frames == 0 else 0.8 * self.render_s + 0.2 * elapsed
         self.frames += 1
