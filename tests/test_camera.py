@@ -81,3 +81,61 @@ def test_zoom_scales_distance_and_rejects_bad_factors() -> None:
     assert abs(np.linalg.norm(cam.eye - cam.target) - 2.5) < 1e-5
     with pytest.raises(ValueError, match="zoom factor"):
         cam.zoom(0.0)
+
+
+def test_fit_distance_puts_the_farthest_point_on_the_margin() -> None:
+    from rustcloth.camera import fit_distance
+
+    direction = np.array([0.0, 0.0, 1.0])  # eye on +z looking down -z
+    points = np.array([[1.0, 0.0, 0.0], [-1.0, 0.5, 0.0]])
+    d = fit_distance(points, (0.0, 0.0, 0.0), direction, 60.0, 2.0, margin=0.9)
+    cam = Camera(eye=(0.0, 0.0, d), target=(0.0, 0.0, 0.0), fov=60.0, aspect=2.0)
+    xs = [cam.project(p, 200, 100)[0] for p in points]
+    # |x| = 1 at that distance lands at 90 % of the half-width: pixel 100 +- 90.
+    assert max(abs(x - 100.0) for x in xs) == pytest.approx(90.0, abs=1e-3)
+
+
+def test_light_view_projection_holds_every_point() -> None:
+    from rustcloth.camera import light_view_projection
+
+    rng = np.random.default_rng(3)
+    pts = rng.uniform(-1.0, 1.0, size=(50, 3)) * [2.0, 1.0, 0.5] + [0.3, 1.0, -0.2]
+    m = light_view_projection([-0.3, -1.0, 0.2], pts)
+    clip = np.c_[pts, np.ones(len(pts))] @ m.T
+    ndc = clip[:, :3] / clip[:, 3:]
+    assert (np.abs(ndc) <= 1.0 + 1e-5).all()
+    assert (np.abs(ndc).max(axis=0) > 0.95).all()  # tight, not a loose box
+
+
+@pytest.mark.parametrize("name", ["drape", "hanging", "freefall", "curtain"])
+def test_each_scene_opens_framed_with_its_front_towards_the_camera(name: str) -> None:
+    """Regression (issue 18): hanging and curtain opened on the cloth's back, the curtain's
+    top edge was out of frame and freefall ran off the bottom of the window."""
+    import rustcloth
+    from rustcloth.render.layout import box_corners
+    from rustcloth.render.renderer import layout_of
+
+    sim = rustcloth.Simulation(rustcloth.load_scene(name))
+    layout = layout_of(sim)
+    w, h = 1280, 720
+    cam = layout.camera(w / h)
+    p = sim.positions
+    boxes = {"cloth": box_corners(p.min(axis=0), p.max(axis=0)),
+             "reach": box_corners(layout.reach_min, layout.reach_max)}
+    for s in layout.spheres:
+        boxes["sphere"] = box_corners(s.center - s.radius, s.center + s.radius)
+    for what, corners in boxes.items():
+        for c in corners:
+            x, y, depth = cam.project(c, w, h)
+            assert 0.0 <= x <= w and 0.0 <= y <= h and -1.0 < depth < 1.0, (what, c, x, y)
+    # The front side (the one the renderer gives the front material) faces the eye.
+    front = sim.normals if layout.front_is_winding else -sim.normals
+    facing = np.einsum("ij,ij->i", front, cam.eye - p) > 0.0
+    assert facing.mean() > 0.95
+    if abs(float(layout.front[1])) > 0.7:
+        return  # lying or draped: its far slopes face away, as they should
+    # A hanging cloth once it has moved (hanging swings down about its pins): still the front.
+    sim.advance(1.5)
+    front = sim.normals if layout.front_is_winding else -sim.normals
+    facing = np.einsum("ij,ij->i", front, cam.eye - sim.positions) > 0.0
+    assert facing[sim.alive].mean() > 0.7

@@ -54,13 +54,56 @@ def perspective(fov_y_deg: float, aspect: float, near: float, far: float) -> Mat
     return m
 
 
-def orthographic(half_w: float, half_h: float, near: float, far: float) -> Mat4:
+def fit_distance(points: npt.ArrayLike, target: npt.ArrayLike, direction: npt.ArrayLike,
+                 fov_y_deg: float, aspect: float, margin: float = 0.9) -> float:
+    """How far from ``target`` along ``direction`` (unit, from the target towards the eye) a
+    camera looking at ``target`` must stand for every point to project inside ``margin`` of
+    the half-width and half-height of its view (0 < margin <= 1)."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    forward = -np.asarray(direction, dtype=np.float64).reshape(3)
+    right = np.cross(forward, (0.0, 1.0, 0.0))
+    if float(np.linalg.norm(right)) < 1e-6:
+        right = np.cross(forward, (0.0, 0.0, -1.0))
+    right /= np.linalg.norm(right)
+    up = np.cross(right, forward)
+    rel = pts - np.asarray(target, dtype=np.float64).reshape(3)
+    x, y, z = np.abs(rel @ right), np.abs(rel @ up), rel @ forward
+    ty = math.tan(math.radians(fov_y_deg) / 2.0) * margin
+    tx = ty * aspect
+    # |x| / (d + z) <= tx and |y| / (d + z) <= ty for every point, all in front of the eye.
+    need = np.maximum(x / tx, y / ty) - z
+    return float(max(need.max(), 0.2 - z.min(), 0.1))
+
+
+def orthographic(left: float, right: float, bottom: float, top: float, near: float,
+                 far: float) -> Mat4:
+    """The box ``[left, right] x [bottom, top]`` between ``near`` and ``far`` (distances in
+    front of the eye, which looks along -z) mapped onto OpenGL's clip cube."""
     m = np.identity(4, dtype=np.float32)
-    m[0, 0] = 1.0 / half_w
-    m[1, 1] = 1.0 / half_h
+    m[0, 0] = 2.0 / (right - left)
+    m[1, 1] = 2.0 / (top - bottom)
     m[2, 2] = -2.0 / (far - near)
+    m[0, 3] = -(right + left) / (right - left)
+    m[1, 3] = -(top + bottom) / (top - bottom)
     m[2, 3] = -(far + near) / (far - near)
     return m
+
+
+def light_view_projection(direction: npt.ArrayLike, points: npt.ArrayLike) -> Mat4:
+    """An orthographic view along ``direction`` (the way the light travels) whose box just
+    holds ``points``: the key light's shadow-map matrix, as tight as the scene allows."""
+    d = _unit(_vec(direction))
+    pts = np.asarray(points, dtype=np.float32).reshape(-1, 3)
+    center = pts.mean(axis=0)
+    radius = float(np.linalg.norm(pts - center, axis=1).max()) + 1e-3
+    up = (0.0, 0.0, 1.0) if abs(float(d[1])) > 0.99 else (0.0, 1.0, 0.0)
+    view = look_at(center - d * (2.0 * radius), center, up)
+    local = pts @ view[:3, :3].T + view[:3, 3]
+    lo, hi = local.min(axis=0), local.max(axis=0)
+    # The eye looks along -z: distances in front of it are -z.
+    proj = orthographic(float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]),
+                        float(-hi[2]) - 0.05, float(-lo[2]) + 0.05)
+    return (proj @ view).astype(np.float32)
 
 
 @dataclass

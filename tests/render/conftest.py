@@ -1,5 +1,6 @@
 """Scaffolding for the render tests: one EGL context per session, a GL-error check around every
-test, and a numpy stand-in for the simulation used when the compiled core is unavailable."""
+test, an X display for the glfw demo, and a numpy stand-in sheet whose geometry is known
+exactly (for the G-buffer and lighting tests)."""
 
 from __future__ import annotations
 
@@ -147,23 +148,6 @@ def ctx(gl_ctx: Any) -> Iterator[Any]:
         assert gl_ctx.error == "GL_NO_ERROR"
         yield gl_ctx
         assert gl_ctx.error == "GL_NO_ERROR"
-
-
-def real_simulation(scene: str | dict[str, Any]) -> Any:
-    """The compiled simulation, or None when the core in the venv cannot build one yet."""
-    try:
-        import rustcloth
-
-        return rustcloth.Simulation(rustcloth.load_scene(scene) if isinstance(scene, str)
-                                    else scene)
-    except Exception:  # an unbuilt or mid-rebuild core: the stand-in covers the renderer
-        return None
-
-
-@pytest.fixture
-def make_real() -> Any:
-    """:func:`real_simulation`, by fixture for the same reason as ``standin_cls``."""
-    return real_simulation
 
 
 @pytest.fixture

@@ -1,8 +1,9 @@
-"""Deferred-shading renderer for rustcloth (moderngl): G-buffer, shadow map, lighting, debug
-views, plus the interaction and headless-rendering helpers the demo shares."""
+"""Deferred-shading renderer for rustcloth (moderngl): shadow map, G-buffer, lighting, debug
+views and overlay panels; the viewer (``rustcloth.viewer``) drives it."""
 
+from .constants import VIEWS
 from .context import GLUnavailable, create_standalone_context
-from .renderer import VIEWS, Renderer, default_camera
+from .renderer import Renderer
 from .shaders import ShaderError, load_program
 
 __all__ = [
@@ -11,6 +12,5 @@ __all__ = [
     "Renderer",
     "ShaderError",
     "create_standalone_context",
-    "default_camera",
     "load_program",
 ]

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import moderngl
 
 APT_PACKAGES = "libegl1 libegl-mesa0 libgl1-mesa-dri"
@@ -14,7 +16,8 @@ class GLUnavailable(RuntimeError):
 def create_standalone_context() -> moderngl.Context:
     """An offscreen OpenGL >= 3.3 context through EGL (Mesa llvmpipe when there is no GPU)."""
     try:
-        ctx = moderngl.create_context(standalone=True, backend="egl", require=330)
+        settings: dict[str, Any] = {"backend": "egl"}  # (the stub types **settings oddly)
+        ctx = moderngl.create_context(standalone=True, require=330, **settings)
     except Exception as err:  # moderngl/glcontext raise plain Exceptions with varied text
         raise GLUnavailable(
             f"no OpenGL 3.3 context through EGL ({str(err).strip().splitlines()[0]}); "

@@ -9,8 +9,9 @@ F32 = npt.NDArray[np.float32]
 U32 = npt.NDArray[np.uint32]
 
 
-def uv_sphere(rings: int = 24, segments: int = 48) -> tuple[F32, U32]:
-    """Unit sphere: interleaved (position, normal, uv) vertices and triangle indices."""
+def uv_sphere(rings: int = 48, segments: int = 96) -> tuple[F32, U32]:
+    """Unit sphere: interleaved (position, normal, uv) vertices and triangle indices (fine
+    enough that its outline stays round at full-window size)."""
     theta = np.linspace(0.0, np.pi, rings + 1, dtype=np.float32)[:, None]
     phi = np.linspace(0.0, 2.0 * np.pi, segments + 1, dtype=np.float32)[None, :]
     st, ct = np.sin(theta), np.cos(theta)
@@ -44,6 +45,7 @@ def cloth_uv(nx: int, ny: int) -> F32:
 
 
 def translate_scale(center: npt.ArrayLike, scale: float) -> F32:
+    """A model matrix: uniform ``scale``, then a move to ``center``."""
     m = np.identity(4, dtype=np.float32)
     m[:3, :3] *= scale
     m[:3, 3] = np.asarray(center, dtype=np.float32)

@@ -1,78 +1,66 @@
-"""The deferred renderer: shadow map, G-buffer, lighting (or a debug view), FXAA, highlights."""
+"""The deferred renderer: one method per pass (shadow map, G-buffer, fill light and SSAO at half
+size, lighting or a debug view, FXAA, highlights, overlay), fed from persistent vertex
+buffers, skipping the work a frame does not need (the shadow map when nothing moved,
+everything but the last pass when nothing changed)."""
 
 from __future__ import annotations
 
-import math
-from typing import Any, Protocol
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, Protocol, cast
 
 import moderngl
 import numpy as np
 import numpy.typing as npt
 
-from ..camera import Camera, gl_bytes, look_at, orthographic
+from ..camera import Camera, gl_bytes, light_view_projection
+from . import constants as K
 from . import meshes
+from .layout import SceneLayout, box_corners
+from .lights import PRESET_NAMES, LightPreset, key_direction, place_points, preset
 from .shaders import load_program
 
-# Material ids stored in the G-buffer's albedo alpha (must match geometry.frag).
-MAT_CLOTH, MAT_CLOTH_BACK, MAT_FLOOR, MAT_SPHERE, MAT_MARKER = 1, 2, 3, 4, 5
-
-VIEWS = (
-    "lit", "position", "normal", "albedo", "material", "depth", "shadow map",
-    "strain", "speed", "pinned",
-)
-_CHANNELS = {"position": 1, "normal": 2, "albedo": 3, "material": 4, "depth": 5, "shadow map": 6}
-# Colour-map range for the cloth debug views: strain 10% and speed 3 m/s map to red.
-_SCALAR_SCALE = {"strain": 10.0, "speed": 1.0 / 3.0, "pinned": 1.0}
-
-# The core winds its triangles so the front faces down on a flat-laid cloth: the red weave
-# therefore goes on the back, which is what a draped cloth shows on top.
-CLOTH_FRONT = (0.86, 0.80, 0.66)
-CLOTH_BACK = (0.62, 0.16, 0.14)
-FLOOR_COLOR = (0.36, 0.37, 0.39)
-SPHERE_COLOR = (0.35, 0.45, 0.62)
-MARKER_COLOR = (1.0, 0.85, 0.1)
+F32 = npt.NDArray[np.float32]
+VIEWS = K.VIEWS
+_FLOOR_HALF_SIZE = 30.0  # m: far enough that fog hides its edge
 
 
 class ClothSource(Protocol):
     """What the renderer reads from a :class:`rustcloth.Simulation` (or a stand-in)."""
 
-    nx: int
-    ny: int
-    num_particles: int
-    topology_version: int
-
     @property
-    def positions(self) -> npt.NDArray[np.float32]: ...
+    def nx(self) -> int: ...
     @property
-    def normals(self) -> npt.NDArray[np.float32]: ...
+    def ny(self) -> int: ...
+    @property
+    def num_particles(self) -> int: ...
+    @property
+    def topology_version(self) -> int: ...
+    @property
+    def positions(self) -> F32: ...
+    @property
+    def normals(self) -> F32: ...
+    @property
+    def velocities(self) -> F32: ...
     @property
     def triangles(self) -> npt.NDArray[np.uint32]: ...
+    @property
+    def pinned(self) -> npt.NDArray[np.bool_]: ...
+    @property
+    def scene(self) -> Any: ...
+    def spring_strain(self) -> F32: ...
 
 
-def scene_of(sim: Any) -> dict[str, Any]:
-    return sim.scene.to_dict()
+def layout_of(sim: ClothSource) -> SceneLayout:
+    """The scene's layout from its dict and the cloth's current (rest) state: the one place
+    the renderer and the viewer read ``sim.scene``, once per load or reset."""
+    return SceneLayout.from_scene(sim.scene.to_dict(), sim.positions, sim.normals, sim.pinned)
 
 
-def scene_extent(scene: dict[str, Any]) -> tuple[npt.NDArray[np.float32], float, float]:
-    """(cloth centre, cloth size, ground height) where the ground is the floor, or for scenes
-    without one a visual ground below the reach of the hanging cloth (not a collider)."""
-    cloth = scene["cloth"]
-    center = np.asarray(cloth["center"], dtype=np.float32)
-    size = float(max(cloth["size"]))
-    floor = scene.get("floor")
-    ground = float(floor["height"]) if floor else float(center[1] - 1.25 * size - 0.1)
-    return center, size, ground
-
-
-def default_camera(scene: dict[str, Any], aspect: float) -> Camera:
-    """A three-quarter view framing the cloth and what it falls onto."""
-    center, size, ground = scene_extent(scene)
-    target = np.array([center[0], 0.5 * (center[1] + ground), center[2]], dtype=np.float32)
-    direction = np.array([0.55, 0.42, 1.0], dtype=np.float32)
-    direction /= np.linalg.norm(direction)
-    span = max(size, center[1] - ground)
-    eye = target + direction * (1.45 * span + 0.2)
-    return Camera(eye=eye, target=target, fov=45.0, aspect=aspect, near=0.05, far=60.0)
+@dataclass
+class _Panel:
+    texture: Any
+    corner: str
 
 
 class Renderer:
@@ -80,36 +68,34 @@ class Renderer:
 
     Per frame, :meth:`update` uploads positions and normals into persistent vertex buffers
     with ``buffer.write``; the index buffer is rewritten only when ``topology_version``
-    changes. :meth:`render` then runs the passes.
+    changes. :meth:`render` then runs the passes. ``pass_timer``, when set, is called with
+    each pass's name as it finishes (benches use it to time passes).
     """
 
-    def __init__(
-        self, ctx: moderngl.Context, sim: ClothSource, size: tuple[int, int],
-        shadow_size: int = 2048,
-    ) -> None:
+    def __init__(self, ctx: moderngl.Context, sim: ClothSource, size: tuple[int, int],
+                 shadow_size: int = 1024, lights: str = "studio") -> None:
         self.ctx = ctx
         self.view = "lit"
         self.shadows = True
         self.fxaa = True
         self.ssao = False
+        self.point_lights = True
         self.highlight: int | None = None
-        self.light_dir = np.array([-0.45, -1.0, -0.35], dtype=np.float32)
-        self.light_dir /= np.linalg.norm(self.light_dir)
-        self.light_color = np.array([1.35, 1.28, 1.15], dtype=np.float32)
-        self.ambient = np.array([0.16, 0.17, 0.2], dtype=np.float32)
+        self.pass_timer: Callable[[str], None] | None = None
+        self.lights: LightPreset = preset(lights)
 
         self.geometry = load_program(ctx, "geometry.vert", "geometry.frag")
         self.shadow_prog = load_program(ctx, "shadow.vert", "shadow.frag")
         self.lighting = load_program(ctx, "fullscreen.vert", "lighting.frag")
         self.debug = load_program(ctx, "fullscreen.vert", "debug.frag")
         self.fxaa_prog = load_program(ctx, "fullscreen.vert", "fxaa.frag")
-        self.ssao_prog = load_program(ctx, "fullscreen.vert", "ssao.frag")
+        self.fill_prog = load_program(ctx, "fullscreen.vert", "fill.frag")
         self.lines = load_program(ctx, "lines.vert", "lines.frag")
         self.overlay_prog = load_program(ctx, "overlay.vert", "overlay.frag")
         # Full-screen passes draw one triangle from gl_VertexID: no vertex buffers.
         self.fullscreen = {
             p: ctx.vertex_array(p, [])
-            for p in (self.lighting, self.debug, self.fxaa_prog, self.ssao_prog)
+            for p in (self.lighting, self.debug, self.fxaa_prog, self.fill_prog)
         }
 
         self.shadow_depth = ctx.depth_texture((shadow_size, shadow_size))
@@ -120,21 +106,29 @@ class Renderer:
         self.shadow_fbo = ctx.framebuffer(depth_attachment=self.shadow_depth)
         self.shadow_size = shadow_size
 
-        sphere_v, sphere_i = meshes.uv_sphere()
+        sphere_v, sphere_i = meshes.uv_sphere(32, 64)
         self.sphere_vbo = ctx.buffer(sphere_v)
         self.sphere_ibo = ctx.buffer(sphere_i)
         self.sphere_vao = self._mesh_vao(self.geometry, self.sphere_vbo, self.sphere_ibo)
         self.sphere_shadow_vao = self._mesh_vao(self.shadow_prog, self.sphere_vbo, self.sphere_ibo)
+        # Markers are a few pixels across: a coarse sphere (vertex work is not free here).
+        marker_v, marker_i = meshes.uv_sphere(8, 16)
+        self.marker_vbo = ctx.buffer(marker_v)
+        self.marker_ibo = ctx.buffer(marker_i)
+        self.marker_vao = self._mesh_vao(self.geometry, self.marker_vbo, self.marker_ibo)
 
         self.stroke_vbo = ctx.buffer(reserve=4096 * 12)
         self.stroke_vao = ctx.vertex_array(self.lines, [(self.stroke_vbo, "3f", "in_position")])
         self.stroke_count = 0
         self._stroke_version = -1
 
-        self.overlay_tex: moderngl.Texture | None = None
+        self.panels: dict[str, _Panel] = {}
         self.overlay_vao = ctx.vertex_array(self.overlay_prog, [])
 
-        self.size = (0, 0)
+        self.size = self.inner = (0, 0)
+        self.scale = 1.0
+        self._lit_key: tuple[Any, ...] | None = None
+        self._inv_view_proj = np.identity(4, dtype=np.float32)
         self.resize(size)
         self.set_simulation(sim)
 
@@ -142,52 +136,60 @@ class Renderer:
     def _mesh_vao(
         self, prog: moderngl.Program, vbo: moderngl.Buffer, ibo: moderngl.Buffer
     ) -> moderngl.VertexArray:
-        if "in_normal" in prog:
-            fmt = [(vbo, "3f 3f 2f", "in_position", "in_normal", "in_uv")]
-        else:
-            fmt = [(vbo, "3f 12x 8x", "in_position")]
+        fmt: list[tuple[Any, ...]] = (
+            [(vbo, "3f 3f 2f", "in_position", "in_normal", "in_uv")] if "in_normal" in prog
+            else [(vbo, "3f 12x 8x", "in_position")])
         return self.ctx.vertex_array(prog, fmt, index_buffer=ibo, index_element_size=4)
 
-    def resize(self, size: tuple[int, int]) -> None:
-        """(Re)create the G-buffer and the lit image at the output size."""
+    def resize(self, size: tuple[int, int], scale: float | None = None) -> None:
+        """The output is ``size`` pixels; the 3D passes draw ``scale`` (0.25..1, default:
+        as before) of it each way, and the last pass scales their image up. (Re)creates the
+        G-buffer, the lit image and the half-size fill image when that changes."""
         size = (max(1, int(size[0])), max(1, int(size[1])))
-        if size == self.size:
+        scale = self.scale if scale is None else min(1.0, max(0.25, float(scale)))
+        inner = (max(1, round(size[0] * scale)), max(1, round(size[1] * scale)))
+        if size == self.size and inner == self.inner:
             return
-        for name in ("gbuffer", "g_position", "g_normal", "g_albedo", "g_depth", "lit_fbo", "lit",
-                     "ao_fbo", "ao"):
+        for name in ("gbuffer", "g_normal", "g_albedo", "g_depth", "lit_fbo", "lit",
+                     "fill_fbo", "fill"):
             old = getattr(self, name, None)
             if old is not None:
                 old.release()
         ctx = self.ctx
-        self.size = size
-        self.g_position = ctx.texture(size, 4, dtype="f4")
+        self.size, self.scale, self.inner = size, scale, inner
+        size = inner
         self.g_normal = ctx.texture(size, 4, dtype="f2")
         self.g_albedo = ctx.texture(size, 4, dtype="f1")
         self.g_depth = ctx.depth_texture(size)
-        for tex in (self.g_position, self.g_normal, self.g_albedo, self.g_depth):
+        for tex in (self.g_normal, self.g_albedo, self.g_depth):
             tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        self.g_depth.compare_func = ""  # read as plain depth by the debug view
-        self.gbuffer = ctx.framebuffer(
-            color_attachments=[self.g_position, self.g_normal, self.g_albedo],
-            depth_attachment=self.g_depth,
-        )
+            tex.repeat_x = tex.repeat_y = False
+        self.g_depth.compare_func = ""  # read as plain depth
+        self.gbuffer = ctx.framebuffer(color_attachments=[self.g_normal, self.g_albedo],
+                                       depth_attachment=self.g_depth)
         self.lit = ctx.texture(size, 4, dtype="f1")
         self.lit.filter = (moderngl.LINEAR, moderngl.LINEAR)
         self.lit.repeat_x = self.lit.repeat_y = False
         self.lit_fbo = ctx.framebuffer(color_attachments=[self.lit])
-        self.ao = ctx.texture(size, 1, dtype="f1")
-        self.ao.filter = (moderngl.LINEAR, moderngl.LINEAR)
-        self.ao.repeat_x = self.ao.repeat_y = False
-        self.ao_fbo = ctx.framebuffer(color_attachments=[self.ao])
+        # rgb: the point lights' irradiance (can exceed 1); a: ambient occlusion.
+        self.fill = ctx.texture((max(1, size[0] // 2), max(1, size[1] // 2)), 4, dtype="f2")
+        self.fill.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        self.fill.repeat_x = self.fill.repeat_y = False
+        self.fill_fbo = ctx.framebuffer(color_attachments=[self.fill])
+        self._lit_key = None
 
-    def set_simulation(self, sim: ClothSource) -> None:
-        """Bind a (new) simulation: cloth buffers sized for it and the scene's static meshes."""
+    def set_simulation(self, sim: ClothSource, layout: SceneLayout | None = None) -> None:
+        """Bind a (new or reset) simulation: cloth buffers sized for it, and the scene's
+        layout, static meshes, shadow box and lights (``layout``: already read by the caller,
+        else read here)."""
         ctx = self.ctx
-        for name in ("cloth_pos", "cloth_nrm", "cloth_uv", "cloth_scalar", "cloth_ibo"):
+        for name in ("cloth_pos", "cloth_nrm", "cloth_uv", "cloth_scalar", "cloth_ibo",
+                     "floor_vbo", "floor_ibo"):
             old = getattr(self, name, None)
             if old is not None:
                 old.release()
         self.sim = sim
+        self.layout = layout_of(sim) if layout is None else layout
         n = sim.num_particles
         self.cloth_pos = ctx.buffer(reserve=n * 12, dynamic=True)
         self.cloth_nrm = ctx.buffer(reserve=n * 12, dynamic=True)
@@ -211,58 +213,56 @@ class Renderer:
         self._topology = -1
         self.index_count = 0
         self.positions = np.zeros((n, 3), dtype=np.float32)
+        self._shadow_positions: F32 | None = None
+        self._state_serial = 0
 
-        scene = scene_of(sim)
-        center, size, ground = scene_extent(scene)
-        self.grid_size = (float(sim.nx - 1), float(sim.ny - 1))
-        self.spacing = size / max(sim.nx - 1, 1)
-        old = getattr(self, "floor_vbo", None)
-        if old is not None:
-            old.release()
-        floor_v, floor_i = meshes.floor_quad((float(center[0]), float(center[2])), ground, 6.0)
+        lay = self.layout
+        center = lay.center
+        floor_v, floor_i = meshes.floor_quad((float(center[0]), float(center[2])), lay.ground,
+                                             _FLOOR_HALF_SIZE)
         self.floor_vbo = ctx.buffer(floor_v)
         self.floor_ibo = ctx.buffer(floor_i)
         self.floor_vao = self._mesh_vao(self.geometry, self.floor_vbo, self.floor_ibo)
-        self.sphere_models = [meshes.translate_scale(s["center"], float(s["radius"]))
-                              for s in scene.get("spheres", [])]
-        # The light's orthographic box covers the cloth's reach and the obstacles under it.
-        reach = 1.0 * size + 0.6
-        focus = np.array([center[0], 0.5 * (center[1] + ground), center[2]], dtype=np.float32)
-        light_eye = focus - self.light_dir * (4.0 * reach)
-        up = (0.0, 0.0, 1.0) if abs(self.light_dir[1]) > 0.99 else (0.0, 1.0, 0.0)
-        self.light_view_proj = (
-            orthographic(reach, reach, 0.1, 8.0 * reach) @ look_at(light_eye, focus, up)
-        ).astype(np.float32)
-        self.focus = focus
-        self.scene_size = size
-        self.point_pos, self.point_color = self._point_lights(focus, size)
+        self.sphere_models = [meshes.translate_scale(s.center, s.radius) for s in lay.spheres]
+        self.set_lights(self.lights.name)
         self.update()
 
-    @staticmethod
-    def _point_lights(
-        focus: npt.NDArray[np.float32], size: float
-    ) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
-        """Eight fill lights on a ring, alternating warm and cool, for soft coloured rims."""
-        k = np.arange(8, dtype=np.float32)
-        ang = k * (2.0 * math.pi / 8.0) + 0.3
-        radius = 1.6 * size + 0.5
-        pos = np.column_stack([
-            focus[0] + radius * np.cos(ang),
-            focus[1] + 0.4 * size + 0.5 + 0.25 * (k % 2),
-            focus[2] + radius * np.sin(ang),
-        ]).astype(np.float32)
-        warm = np.array([0.30, 0.22, 0.15], dtype=np.float32)
-        cool = np.array([0.13, 0.19, 0.30], dtype=np.float32)
-        color = np.where((k % 2 == 0)[:, None], warm, cool).astype(np.float32)
-        return pos, color
+    def set_lights(self, name: str) -> None:
+        """Switch to a light preset: key direction, its shadow box, sky and point lights."""
+        lay = self.layout
+        self.lights = preset(name)
+        self.light_dir = key_direction(self.lights, lay.view_azimuth)
+        # The shadow map covers the cloth's reach, the spheres and where their shadows fall
+        # on the ground, and no more.
+        lo = lay.reach_min.copy()
+        lo[1] = min(float(lo[1]), lay.ground)
+        corners = box_corners(lo, lay.reach_max)
+        d = self.light_dir
+        on_ground = corners + ((lay.ground - corners[:, 1]) / min(float(d[1]), -0.05))[:, None] * d
+        self.light_view_proj = light_view_projection(d, np.vstack([corners, on_ground]))
+        texel = float(np.max(lay.reach_max - lay.reach_min)) * 2.5 / self.shadow_size
+        self._shadow_tolerance = 0.25 * texel
+        focus = np.array([lay.center[0], lay.ground, lay.center[2]], dtype=np.float32)
+        self.points = place_points(self.lights, focus, lay.span, lay.ground)
+        self._shadow_positions = None
+        self._lit_key = None
+
+    def cycle_lights(self) -> str:
+        """The next light preset; returns its name."""
+        k = PRESET_NAMES.index(self.lights.name)
+        self.set_lights(PRESET_NAMES[(k + 1) % len(PRESET_NAMES)])
+        return self.lights.name
 
     # -- per frame -------------------------------------------------------------------------
     def update(self) -> None:
         """Upload the simulation's current state (the one per-frame position upload)."""
         sim = self.sim
-        self.positions = sim.positions
-        self.cloth_pos.write(self.positions)
-        self.cloth_nrm.write(sim.normals)
+        positions = sim.positions
+        if not np.array_equal(positions, self.positions):
+            self.positions = positions
+            self.cloth_pos.write(positions)
+            self.cloth_nrm.write(sim.normals)
+            self._state_serial += 1
         if sim.topology_version != self._topology:
             tris = sim.triangles
             if tris.nbytes > self.cloth_ibo.size:
@@ -270,189 +270,303 @@ class Renderer:
             self.cloth_ibo.write(tris)
             self.index_count = tris.size
             self._topology = sim.topology_version
-        if self.view in _SCALAR_SCALE:
+            self._shadow_positions = None
+            self._state_serial += 1
+        if self.view in K.SCALAR_VIEWS:
             self.cloth_scalar.write(self._scalar(self.view))
+            self._state_serial += 1
 
     def invalidate_topology(self) -> None:
-        """Force an index upload next frame: ``reset()`` sets ``topology_version`` back to 0,
-        so a reset followed by a cut within one frame could repeat the cached version."""
+        """Force an index upload next frame (after ``reset()``, whatever its versions do)."""
         self._topology = -1
 
-    def _scalar(self, view: str) -> npt.NDArray[np.float32]:
-        sim: Any = self.sim
+    def _scalar(self, view: str) -> F32:
+        sim = self.sim
         if view == "strain":
             return np.ascontiguousarray(sim.spring_strain(), dtype=np.float32)
         if view == "speed":
-            return np.linalg.norm(sim.velocities, axis=1).astype(np.float32)
-        return np.asarray(sim.pinned, dtype=np.float32)
+            speed: F32 = np.linalg.norm(sim.velocities, axis=1).astype(np.float32)
+            return speed
+        value = np.asarray(sim.pinned, dtype=np.float32)
+        if self.highlight is not None and 0 <= self.highlight < len(value):
+            value[self.highlight] = 2.0
+        return value
 
-    def sync_stroke(self, source: Any) -> None:
-        """Upload the cut stroke of ``source`` (an :class:`Interaction`: ``stroke_version`` and
-        ``stroke()`` giving world-space segments (M*2, 3)) only when it changed, so a frame
-        without cutting allocates nothing here."""
-        if source.stroke_version == self._stroke_version:
+    def sync_stroke(self, segments: F32, version: int) -> None:
+        """Upload the cut stroke (world-space segment end points, (M*2, 3)) only when its
+        ``version`` changed, so a frame without cutting allocates nothing here."""
+        if version == self._stroke_version:
             return
-        self._stroke_version = source.stroke_version
-        data = np.ascontiguousarray(source.stroke(), dtype=np.float32).reshape(-1, 3)
+        self._stroke_version = version
+        data = np.ascontiguousarray(segments, dtype=np.float32).reshape(-1, 3)
         if data.nbytes > self.stroke_vbo.size:
             self.stroke_vbo.orphan(2 * data.nbytes)
         if data.size:
             self.stroke_vbo.write(data)
         self.stroke_count = len(data) - len(data) % 2
 
-    def set_overlay(self, image: npt.NDArray[np.uint8] | None) -> None:
-        """An RGBA8 text panel (rows top to bottom) drawn at the top-left, or None."""
+    def set_panel(self, name: str, image: npt.NDArray[np.uint8] | None,
+                  corner: str = "top-left") -> None:
+        """An RGBA8 image (rows top to bottom) drawn at a ``corner`` of the output
+        ("top-left", "bottom-left", "top-right"), or None to remove panel ``name``."""
+        old = self.panels.get(name)
         if image is None:
-            self.overlay_tex = None
+            if old is not None:
+                old.texture.release()
+                del self.panels[name]
             return
         h, w = image.shape[:2]
-        if self.overlay_tex is None or self.overlay_tex.size != (w, h):
-            if self.overlay_tex is not None:
-                self.overlay_tex.release()
-            self.overlay_tex = self.ctx.texture((w, h), 4, dtype="f1")
-        self.overlay_tex.write(np.ascontiguousarray(image))
+        if old is None or old.texture.size != (w, h):
+            if old is not None:
+                old.texture.release()
+            old = _Panel(self.ctx.texture((w, h), 4, dtype="f1"), corner)
+            self.panels[name] = old
+        old.corner = corner
+        # GL textures start at the bottom row.
+        old.texture.write(np.ascontiguousarray(image[::-1]))
 
     def render(self, target: moderngl.Framebuffer, camera: Camera) -> None:
+        """Run the passes into ``target``."""
         ctx = self.ctx
-        w, h = self.size
-        view_proj = gl_bytes(camera.view_projection)
-        identity = gl_bytes(np.identity(4, dtype=np.float32))
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
+        lit_view = self.view not in K.GBUFFER_VIEWS
+        # The lit image is kept (and anti-aliased or scaled up by the last pass) unless it
+        # can go straight to the target: a debug view at full scale.
+        retained = (self.fxaa and lit_view) or self.inner != self.size
+        key = (self._state_serial, camera.view_projection.tobytes(), self.view, self.ssao,
+               self.shadows, self.point_lights, self.lights.name, self.inner, self.highlight)
+        if not (retained and key == self._lit_key):
+            self._shadow_pass()
+            self._geometry_pass(camera)
+            ctx.disable(moderngl.DEPTH_TEST)
+            if lit_view:
+                self._fill_pass(camera)
+            out = self.lit_fbo if retained else target
+            if lit_view:
+                self._lighting_pass(camera, out)
+            else:
+                self._debug_pass(camera, out)
+            self._lit_key = key if retained else None
+        ctx.disable(moderngl.DEPTH_TEST)
+        if retained:
+            self._fxaa_pass(target)
+        self._stroke_pass(target, camera)
+        self._overlay_pass(target)
 
-        # Shadow pass: depth from the key light; cloth is drawn double-sided so it shadows
-        # itself, and slope-scaled polygon offset keeps the receivers free of acne.
+    # -- the passes ------------------------------------------------------------------------
+    def _done(self, name: str) -> None:
+        if self.pass_timer is not None:
+            self.pass_timer(name)
+
+    def _shadow_pass(self) -> None:
+        # Shadow: depth from the key light, redrawn only when the cloth moved by more than a
+        # quarter texel (or the topology, lights or scene changed). Double-sided cloth shadows
+        # itself; slope-scaled polygon offset keeps the receivers free of acne.
+        if not self.shadows:
+            return
+        last = self._shadow_positions
+        if last is not None and len(last) == len(self.positions) and (
+                float(np.abs(self.positions - last).max(initial=0.0)) < self._shadow_tolerance):
+            return
+        self._shadow_positions = self.positions.copy()
+        ctx = self.ctx
         self.shadow_fbo.use()
         self.shadow_fbo.clear(depth=1.0)
-        if self.shadows:
-            ctx.polygon_offset = (1.5, 2.0)
-            self.shadow_prog["light_view_proj"].write(gl_bytes(self.light_view_proj))
-            self.shadow_prog["model"].write(identity)
-            if self.index_count:
-                self.cloth_shadow_vao.render(vertices=self.index_count)
-            for model in self.sphere_models:
-                self.shadow_prog["model"].write(gl_bytes(model))
-                self.sphere_shadow_vao.render()
-            ctx.polygon_offset = (0.0, 0.0)
+        ctx.polygon_offset = (1.5, 2.0)
+        _uniforms(self.shadow_prog, light_view_proj=self.light_view_proj,
+                  model=np.identity(4, dtype=np.float32))
+        if self.index_count:
+            self.cloth_shadow_vao.render(vertices=self.index_count)
+        for model in self.sphere_models:
+            _uniforms(self.shadow_prog, model=model)
+            self.sphere_shadow_vao.render()
+        ctx.polygon_offset = (0.0, 0.0)
+        self._done("shadow")
 
-        # Geometry pass: every surface into the G-buffer (position, normal, albedo + id, depth).
+    def _geometry_pass(self, camera: Camera) -> None:
+        # Geometry: every surface into the G-buffer (normal, albedo + material id, depth),
+        # nearest first so the floor's hidden pixels fail the depth test early.
         self.gbuffer.use()
         self.gbuffer.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         g = self.geometry
-        g["view_proj"].write(view_proj)
-        g["cloth_mode"].value = 1 if self.view in _SCALAR_SCALE else 0
-        g["scalar_scale"].value = _SCALAR_SCALE.get(self.view, 1.0)
-        g["grid_size"].value = self.grid_size
-        g["back_color"].value = CLOTH_BACK
-        self._draw_geometry(g, self.floor_vao, identity, MAT_FLOOR, FLOOR_COLOR)
-        for model in self.sphere_models:
-            self._draw_geometry(g, self.sphere_vao, gl_bytes(model), MAT_SPHERE, SPHERE_COLOR)
+        view_proj = camera.view_projection
+        self._inv_view_proj = np.linalg.inv(view_proj.astype(np.float64)).astype(np.float32)
+        lay = self.layout
+        _uniforms(g, view_proj=view_proj, view=K.VIEW_IDS[self.view],
+                  front_is_winding=lay.front_is_winding, cloth_size=lay.cloth_size,
+                  grid_cells=(float(lay.grid[0] - 1), float(lay.grid[1] - 1)))
         if self.index_count:
-            g["model"].write(identity)
-            g["material"].value = MAT_CLOTH
-            g["base_color"].value = CLOTH_FRONT
+            _uniforms(g, model=np.identity(4, dtype=np.float32), material=K.CLOTH_FRONT.id,
+                      base_color=K.srgb_to_linear(K.CLOTH_FRONT.color))
             self.cloth_vao.render(vertices=self.index_count)
+        for model in self.sphere_models:
+            self._draw_mesh(self.sphere_vao, model, K.SPHERE.id,
+                            K.srgb_to_linear(K.SPHERE.color))
         if self.highlight is not None and 0 <= self.highlight < len(self.positions):
-            model = meshes.translate_scale(self.positions[self.highlight], 0.9 * self.spacing)
-            self._draw_geometry(g, self.sphere_vao, gl_bytes(model), MAT_MARKER, MARKER_COLOR)
+            model = meshes.translate_scale(self.positions[self.highlight], 0.9 * lay.spacing)
+            self._draw_mesh(self.marker_vao, model, K.MARKER.id,
+                            K.srgb_to_linear(K.MARKER.color))
+        if self.view == "lit" and self.point_lights:
+            size = 0.015 * lay.span + 0.02
+            for pos, color in zip(self.points.positions, self.points.marker_colors, strict=True):
+                self._draw_mesh(self.marker_vao, meshes.translate_scale(pos, size), K.LIGHT.id,
+                                (float(color[0]), float(color[1]), float(color[2])))
+        self._draw_mesh(self.floor_vao, np.identity(4, dtype=np.float32), K.FLOOR.id,
+                        K.srgb_to_linear(K.FLOOR.color))
+        self._done("geometry")
 
-        ctx.disable(moderngl.DEPTH_TEST)
-        if self.ssao and self.view == "lit":
-            # SSAO pass: occlusion of the ambient and fill light from the G-buffer.
-            self.ao_fbo.use()
-            a = self.ssao_prog
-            self._bind(a, {"g_position": self.g_position, "g_normal": self.g_normal,
-                           "g_albedo": self.g_albedo})
-            a["view_proj"].write(view_proj)
-            a["eye"].value = tuple(camera.eye)
-            a["radius"].value = 0.15 * self.scene_size
-            self.fullscreen[a].render(moderngl.TRIANGLES, vertices=3)
-        self.lit_fbo.use()
-        if self.view in _CHANNELS:
-            # Debug pass: one raw G-buffer channel instead of lighting.
-            d = self.debug
-            self._bind(d, {"g_position": self.g_position, "g_normal": self.g_normal,
-                           "g_albedo": self.g_albedo, "g_depth": self.g_depth,
-                           "shadow_depth": self.shadow_depth})
-            self.shadow_depth.compare_func = ""
-            d["channel"].value = _CHANNELS[self.view]
-            d["near"].value, d["far"].value = camera.near, camera.far
-            self.fullscreen[d].render(moderngl.TRIANGLES, vertices=3)
-            self.shadow_depth.compare_func = "<="
-        else:
-            # Lighting pass: key light with PCF shadows, eight point lights, ambient.
-            lp = self.lighting
-            self._bind(lp, {"g_position": self.g_position, "g_normal": self.g_normal,
-                            "g_albedo": self.g_albedo, "shadow_map": self.shadow_depth,
-                            "ao_map": self.ao})
-            lp["ao_enabled"].value = self.ssao
-            lp["light_view_proj"].write(gl_bytes(self.light_view_proj))
-            lp["light_dir"].value = tuple(self.light_dir)
-            lp["light_color"].value = tuple(self.light_color)
-            lp["shadows_enabled"].value = self.shadows
-            lp["shadow_texel"].value = 1.0 / self.shadow_size
-            lp["eye"].value = tuple(camera.eye)
-            lp["ambient"].value = tuple(self.ambient)
-            lp["point_pos"].write(self.point_pos.tobytes())
-            lp["point_color"].write(self.point_color.tobytes())
-            lp["point_radius"].value = 4.0 * self.scene_size + 2.0
-            lp["sky_top"].value = (0.32, 0.42, 0.56)
-            lp["sky_bottom"].value = (0.78, 0.80, 0.82)
-            self.fullscreen[lp].render(moderngl.TRIANGLES, vertices=3)
+    def _point_uniforms(self) -> dict[str, Any]:
+        points = self.points
+        pad = K.MAX_POINT_LIGHTS - len(points)
+        return {"num_points": len(points) if self.view == "lit" and self.point_lights else 0,
+                "point_pos": np.pad(points.positions, ((0, pad), (0, 0))),
+                "point_color": np.pad(points.colors, ((0, pad), (0, 0))),
+                "point_reach": np.pad(points.reaches, (0, pad))}
 
-        # FXAA pass: anti-alias the tonemapped image into the caller's framebuffer.
+    def _fill_pass(self, camera: Camera) -> None:
+        # Fill: the point lights' diffuse light and (when on) SSAO, at half size.
+        self.fill_fbo.use()
+        a = self.fill_prog
+        _bind(a, {"g_normal": self.g_normal, "g_albedo": self.g_albedo,
+                  "g_depth": self.g_depth})
+        _uniforms(a, view_proj=camera.view_projection, inv_view_proj=self._inv_view_proj,
+                  eye=tuple(camera.eye), radius=0.1 * self.layout.span,
+                  ao_enabled=self.ssao and self.view == "lit", **self._point_uniforms())
+        self.fullscreen[a].render(moderngl.TRIANGLES, vertices=3)
+        self._done("fill")
+
+    def _lighting_pass(self, camera: Camera, out: moderngl.Framebuffer) -> None:
+        # Lighting: key light with shadows, point lights, ambient, fog; tone-mapped sRGB out.
+        out.use()
+        lp = self.lighting
+        lights = self.lights
+        _bind(lp, {"g_normal": self.g_normal, "g_albedo": self.g_albedo,
+                   "g_depth": self.g_depth, "shadow_map": self.shadow_depth,
+                   "fill_map": self.fill})
+        distance = float(np.linalg.norm(camera.eye - camera.target))
+        _uniforms(
+            lp, inv_view_proj=self._inv_view_proj, light_view_proj=self.light_view_proj,
+            eye=tuple(camera.eye), key_dir=tuple(self.light_dir),
+            key_color=_scaled(lights.key_color, lights.key_intensity),
+            shadows_enabled=self.shadows, shadow_texel=1.0 / self.shadow_size,
+            sky_zenith=K.srgb_to_linear(lights.sky_zenith),
+            sky_horizon=K.srgb_to_linear(lights.sky_horizon),
+            ground_color=K.srgb_to_linear(lights.ground), ambient=lights.ambient,
+            fog_range=(distance + 1.0 * self.layout.span, distance + 14.0),
+            exposure=lights.exposure, scalar_view=self.view in K.SCALAR_VIEWS,
+            **self._point_uniforms())
+        self.fullscreen[lp].render(moderngl.TRIANGLES, vertices=3)
+        self._done("lighting")
+
+    def _debug_pass(self, camera: Camera, out: moderngl.Framebuffer) -> None:
+        # Debug: one raw G-buffer channel (or the shadow map) instead of lighting.
+        out.use()
+        d = self.debug
+        _bind(d, {"g_normal": self.g_normal, "g_albedo": self.g_albedo,
+                  "g_depth": self.g_depth, "shadow_depth": self.shadow_depth})
+        self.shadow_depth.compare_func = ""
+        distance = float(np.linalg.norm(camera.eye - camera.target))
+        _uniforms(d, view=K.VIEW_IDS[self.view], inv_view_proj=self._inv_view_proj,
+                  eye=tuple(camera.eye), depth_range=2.0 * distance,
+                  viewport=(float(self.inner[0]), float(self.inner[1])))
+        self.fullscreen[d].render(moderngl.TRIANGLES, vertices=3)
+        self.shadow_depth.compare_func = "<="
+        self._done("debug")
+
+    def _fxaa_pass(self, target: moderngl.Framebuffer) -> None:
+        # FXAA: anti-alias the tone-mapped image (and scale it up) into the caller's target.
         target.use()
-        ctx.viewport = (0, 0, w, h)
+        self.ctx.viewport = (0, 0, *self.size)
         f = self.fxaa_prog
-        self._bind(f, {"image": self.lit})
-        f["texel"].value = (1.0 / w, 1.0 / h)
-        f["enabled"].value = self.fxaa and self.view == "lit"
+        _bind(f, {"image": self.lit})
+        w, h = self.inner
+        _uniforms(f, texel=(1.0 / w, 1.0 / h), enabled=self.fxaa and self.view not in
+                  K.GBUFFER_VIEWS)
         self.fullscreen[f].render(moderngl.TRIANGLES, vertices=3)
+        self._done("fxaa")
 
-        # Highlight pass: the cut stroke on top of everything, so it stays visible behind folds.
-        if self.stroke_count:
-            self.lines["view_proj"].write(view_proj)
-            self.lines["color"].value = (1.0, 0.9, 0.15, 1.0)
-            self.stroke_vao.render(moderngl.LINES, vertices=self.stroke_count)
-        if self.overlay_tex is not None:
-            # Overlay pass: the text panel, alpha-blended at the top-left.
-            ow, oh = self.overlay_tex.size
-            ctx.enable(moderngl.BLEND)
-            ctx.blend_func = moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA
-            self.overlay_tex.use(0)
-            self.overlay_prog["text"].value = 0
-            x1, y0 = -1.0 + 2.0 * ow / w, 1.0 - 2.0 * oh / h
-            self.overlay_prog["rect"].value = (-1.0, y0, x1, 1.0)
+    def _stroke_pass(self, target: moderngl.Framebuffer, camera: Camera) -> None:
+        # Highlights: the cut stroke on top of everything, so it stays visible behind folds.
+        if not self.stroke_count:
+            return
+        target.use()
+        _uniforms(self.lines, view_proj=camera.view_projection, color=(1.0, 0.9, 0.15, 1.0))
+        self.stroke_vao.render(moderngl.LINES, vertices=self.stroke_count)
+        self._done("stroke")
+
+    def _overlay_pass(self, target: moderngl.Framebuffer) -> None:
+        # Overlay: the text and legend panels, alpha-blended at their corners.
+        if not self.panels:
+            return
+        ctx = self.ctx
+        target.use()
+        w, h = self.size
+        ctx.enable(moderngl.BLEND)
+        ctx.blend_func = moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA
+        _uniforms(self.overlay_prog, text=0)
+        for panel in self.panels.values():
+            pw, ph = panel.texture.size
+            panel.texture.use(0)
+            x0 = 1.0 - 2.0 * pw / w if panel.corner.endswith("right") else -1.0
+            y0 = -1.0 if panel.corner.startswith("bottom") else 1.0 - 2.0 * ph / h
+            _uniforms(self.overlay_prog, rect=(x0, y0, x0 + 2.0 * pw / w, y0 + 2.0 * ph / h))
             self.overlay_vao.render(moderngl.TRIANGLE_STRIP, vertices=4)
-            ctx.disable(moderngl.BLEND)
+        ctx.disable(moderngl.BLEND)
+        self._done("overlay")
 
-    def _draw_geometry(
-        self, g: moderngl.Program, vao: moderngl.VertexArray, model: bytes, material: int,
-        color: tuple[float, float, float],
-    ) -> None:
-        g["model"].write(model)
-        g["material"].value = material
-        g["base_color"].value = color
+    def _draw_mesh(self, vao: moderngl.VertexArray, model: F32, material: int,
+                   color: tuple[float, float, float]) -> None:
+        _uniforms(self.geometry, model=model, material=material, base_color=color)
         vao.render()
-
-    @staticmethod
-    def _bind(prog: moderngl.Program, textures: dict[str, moderngl.Texture]) -> None:
-        for unit, (name, tex) in enumerate(textures.items()):
-            if name in prog:
-                tex.use(unit)
-                prog[name].value = unit
 
     # -- read-back (tests, headless) -------------------------------------------------------
     def read_gbuffer(self) -> dict[str, npt.NDArray[np.float32]]:
-        """The G-buffer as float arrays (rows bottom to top, as OpenGL stores them)."""
-        w, h = self.size
+        """The G-buffer as float arrays (rows bottom to top, as OpenGL stores them): normal,
+        linear albedo, material id, depth, and world positions rebuilt from the depth buffer
+        as the shaders rebuild them."""
+        w, h = self.inner
+        depth = np.frombuffer(self.g_depth.read(), dtype=np.float32).reshape(h, w)
+        stored = (np.frombuffer(self.g_albedo.read(), dtype=np.uint8)
+                  .reshape(h, w, 4).astype(np.float32) / 255.0)
         out = {
-            "position": np.frombuffer(self.g_position.read(), dtype=np.float32).reshape(h, w, 4),
             "normal": np.frombuffer(self.g_normal.read(), dtype=np.float16)
             .reshape(h, w, 4).astype(np.float32),
-            "albedo": np.frombuffer(self.g_albedo.read(), dtype=np.uint8)
-            .reshape(h, w, 4).astype(np.float32) / 255.0,
-            "depth": np.frombuffer(self.g_depth.read(), dtype=np.float32).reshape(h, w),
+            "albedo": stored[..., :3] ** 2,  # linear; stored as its square root
+            "depth": depth,
+            "material": np.rint(stored[..., 3] * 255.0),
         }
-        out["material"] = np.rint(out["albedo"][..., 3] * 255.0)
+        u = (np.arange(w, dtype=np.float64) + 0.5) / w * 2.0 - 1.0
+        v = (np.arange(h, dtype=np.float64) + 0.5) / h * 2.0 - 1.0
+        ndc = np.stack(np.broadcast_arrays(u[None, :], v[:, None], depth * 2.0 - 1.0,
+                                           np.ones((h, w))), axis=-1)
+        world = ndc @ self._inv_view_proj.astype(np.float64).T
+        out["position"] = (world[..., :3] / world[..., 3:]).astype(np.float32)
         return out
+
+
+def _scaled(color: K.RGB, intensity: float) -> tuple[float, float, float]:
+    lin = K.srgb_to_linear(color)
+    return (lin[0] * intensity, lin[1] * intensity, lin[2] * intensity)
+
+
+def _uniforms(prog: moderngl.Program, **values: Any) -> None:
+    """Set uniforms by name; matrices and arrays are numpy (matrices row-major, as the camera
+    makes them). A uniform the compiler optimised away for this program is skipped."""
+    for name, value in values.items():
+        if name not in prog:
+            continue
+        uniform = cast(moderngl.Uniform, prog[name])
+        if isinstance(value, np.ndarray):
+            data = gl_bytes(value) if value.shape == (4, 4) else np.ascontiguousarray(
+                value, dtype=np.float32).tobytes()
+            uniform.write(data)
+        else:
+            uniform.value = value
+
+
+def _bind(prog: moderngl.Program, textures: dict[str, moderngl.Texture]) -> None:
+    for unit, (name, tex) in enumerate(textures.items()):
+        if name in prog:
+            tex.use(unit)
+            cast(moderngl.Uniform, prog[name]).value = unit

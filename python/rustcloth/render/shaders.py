@@ -1,4 +1,5 @@
-"""Load GLSL programs from ``rustcloth/shaders`` and report compile errors by file and line."""
+"""Load GLSL programs from ``rustcloth/shaders`` with the shared constants prepended, and report
+compile errors by file and line."""
 
 from __future__ import annotations
 
@@ -7,6 +8,8 @@ from importlib import resources
 from pathlib import Path
 
 import moderngl
+
+from .constants import glsl_header
 
 SHADER_DIR = Path(str(resources.files("rustcloth") / "shaders"))
 
@@ -19,8 +22,13 @@ class ShaderError(RuntimeError):
     """A shader failed to compile or link; the message starts with ``file:line``."""
 
 
-def _source(name: str, directory: Path) -> str:
-    return (directory / name).read_text(encoding="utf-8")
+def with_constants(source: str) -> str:
+    """``source`` with :func:`~.constants.glsl_header` after its ``#version`` line, and a
+    ``#line`` directive so the driver's line numbers still match the file."""
+    first, newline, rest = source.partition("\n")
+    if not first.startswith("#version"):
+        return f"{glsl_header()}#line 1\n{source}"
+    return f"{first}{newline}{glsl_header()}#line 2\n{rest}"
 
 
 def _locate(message: str, files: dict[str, str]) -> str:
@@ -46,9 +54,9 @@ def load_program(
     """Compile ``vertex`` and ``fragment`` (file names in the shader directory)."""
     directory = SHADER_DIR if directory is None else directory
     files = {"vertex_shader": str(directory / vertex), "fragment_shader": str(directory / fragment)}
+    vs, fs = (with_constants(Path(files[stage]).read_text(encoding="utf-8"))
+              for stage in ("vertex_shader", "fragment_shader"))
     try:
-        return ctx.program(
-            vertex_shader=_source(vertex, directory), fragment_shader=_source(fragment, directory)
-        )
+        return ctx.program(vertex_shader=vs, fragment_shader=fs)
     except moderngl.Error as err:
         raise ShaderError(_locate(str(err), files)) from None

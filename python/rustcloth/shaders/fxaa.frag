@@ -1,8 +1,9 @@
 #version 330 core
-// FXAA pass: cheap edge anti-aliasing of the tonemapped image (the G-buffer has no MSAA).
+// FXAA pass: cheap edge anti-aliasing of the tone-mapped image (the G-buffer has no MSAA),
+// which it also scales up to the output when the 3D passes drew fewer pixels.
 uniform sampler2D image;
-uniform vec2 texel;
-uniform bool enabled;
+uniform vec2 texel;       // of the image
+uniform bool enabled;     // off: a plain (bilinear) copy
 in vec2 v_uv;
 out vec4 f_color;
 
@@ -18,6 +19,8 @@ void main() {
     float lnw = luma(nw), lne = luma(ne), lsw = luma(sw), lse = luma(se), lm = luma(m);
     float lmin = min(lm, min(min(lnw, lne), min(lsw, lse)));
     float lmax = max(lm, max(max(lnw, lne), max(lsw, lse)));
+    // Flat areas (most of the frame) keep their pixel: no more taps.
+    if (lmax - lmin < max(0.0312, 0.125 * lmax)) { f_color = vec4(m, 1.0); return; }
     vec2 dir = vec2(-((lnw + lne) - (lsw + lse)), (lnw + lsw) - (lne + lse));
     float reduce = max((lnw + lne + lsw + lse) * 0.03125, 1.0 / 128.0);
     float rcp = 1.0 / (min(abs(dir.x), abs(dir.y)) + reduce);

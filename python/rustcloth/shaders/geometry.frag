@@ -1,68 +1,150 @@
 #version 330 core
-// Geometry pass: writes world position, unit normal and albedo + material id so lighting
-// and the debug views work per pixel without touching the meshes again.
-const int MAT_CLOTH_FRONT = 1;
-const int MAT_CLOTH_BACK = 2;
-const int MAT_FLOOR = 3;
-const int MAT_SPHERE = 4;
-const int MAT_MARKER = 5;
+// Geometry pass: writes each surface's unit normal (facing the viewer) and its albedo
+// (stored as its square root, gamma 2, for precision in the darks at the cost of one sqrt)
+// with the material id in alpha; the depth buffer gives the position. The
+// cloth's fabric is procedural, in metres of cloth, so its scale has nothing to do with the
+// particle grid. MAT_*, VIEW_* and the colours come from the generated header.
 
 uniform int material;
-uniform vec3 base_color;
-uniform vec3 back_color;
-// 0: woven texture; 1: cloth coloured by in_scalar (strain, speed or pinned views).
-uniform int cloth_mode;
-uniform float scalar_scale;
-uniform vec2 grid_size;
+uniform vec3 base_color;   // linear; static meshes and markers
+uniform bool front_is_winding;  // the cloth's front side is the triangles' front face
+uniform vec2 cloth_size;   // m along i and j: uv * cloth_size is a point of the cloth in m
+uniform vec2 grid_cells;   // nx - 1, ny - 1: the particle grid, drawn in the scalar views
+uniform int view;          // VIEW_*: the strain, speed and pinned views colour the cloth
 
 in vec3 v_world;
 in vec3 v_normal;
 in vec2 v_uv;
 in float v_scalar;
 
-layout(location = 0) out vec4 g_position;
-layout(location = 1) out vec4 g_normal;
-layout(location = 2) out vec4 g_albedo;
+layout(location = 0) out vec4 g_normal;
+layout(location = 1) out vec4 g_albedo;
 
-vec3 heat(float t) {
-    t = clamp(t, 0.0, 1.0);
-    return clamp(vec3(1.5 * t, 1.5 - abs(2.0 * t - 1.0) * 1.5, 1.5 * (1.0 - t)), 0.0, 1.0);
+vec3 srgb_decode(vec3 c) {
+    return mix(c / 12.92, pow((c + 0.055) / 1.055, vec3(2.4)), step(0.04045, c));
 }
 
-// A plain weave: warp and weft threads alternate over/under, with a coarse coloured check.
-vec3 woven(vec2 uv, vec3 a, vec3 b) {
-    vec2 cell = uv * grid_size;
-    vec2 f = fract(cell * 2.0);
-    ivec2 c = ivec2(floor(cell * 2.0));
-    bool warp_on_top = ((c.x + c.y) & 1) == 0;
-    float thread = warp_on_top ? 1.0 - 0.6 * pow(abs(f.x - 0.5) * 2.0, 3.0)
-                               : 1.0 - 0.6 * pow(abs(f.y - 0.5) * 2.0, 3.0);
-    ivec2 check = ivec2(floor(uv * 8.0));
-    bool stripe = ((check.x + check.y) & 1) == 0;
-    return (stripe ? a : b) * (0.75 + 0.25 * thread);
+// A hash without sin (Hoskins): llvmpipe evaluates sin as a long polynomial.
+float hash(vec2 p) {
+    vec3 p3 = fract(vec3(p.xyx) * 0.1031);
+    p3 += dot(p3, p3.yzx + 33.33);
+    return fract((p3.x + p3.y) * p3.z);
+}
+
+// Smooth value noise in [0, 1], faded to its mean once a cell is smaller than a pixel.
+float fibre_noise(vec2 p) {
+    vec2 i = floor(p), f = fract(p);
+    vec2 u = f * f * (3.0 - 2.0 * f);
+    float n = mix(mix(hash(i), hash(i + vec2(1, 0)), u.x),
+                  mix(hash(i + vec2(0, 1)), hash(i + vec2(1, 1)), u.x), u.y);
+    float fade = clamp(1.5 - 1.5 * max(fwidth(p.x), fwidth(p.y)), 0.0, 1.0);
+    return mix(0.5, n, fade);
+}
+
+// The tartan's colour integrated from 0 to x (in repeats): its mean over an interval is a
+// difference of two of these, so stripes are box-filtered over the pixel and never alias.
+vec3 tartan_integral(float x) {
+    const vec3 colors[TARTAN_STRIPES] = TARTAN_COLORS;
+    const float starts[TARTAN_STRIPES] = TARTAN_STARTS;
+    const float widths[TARTAN_STRIPES] = TARTAN_WIDTHS;
+    float whole = floor(x), t = x - whole;
+    vec3 part = vec3(0.0);
+    for (int k = 0; k < TARTAN_STRIPES; ++k) {
+        part += colors[k] * clamp(t - starts[k], 0.0, widths[k]);
+    }
+    return whole * TARTAN_MEAN + part;  // TARTAN_MEAN: the integral over one repeat
+}
+
+vec3 tartan(float x) {
+    float w = max(fwidth(x), 1e-4);
+    return (tartan_integral(x + 0.5 * w) - tartan_integral(x - 0.5 * w)) / w;
+}
+
+// A 2/2 twill: at each crossing the warp or the weft thread is on top, in diagonal steps.
+// Returns (weight of the warp colour, thread shading); both fade to (0.5, 1) once a thread
+// is narrower than a pixel, where only the mixed colour is visible.
+vec2 twill(vec2 m) {
+    vec2 t = m / THREAD_PITCH_M;
+    float fade = clamp(1.0 - 1.2 * max(fwidth(t.x), fwidth(t.y)), 0.0, 1.0);
+    ivec2 c = ivec2(floor(t));
+    bool warp = ((c.x + c.y) & 3) < 2;
+    vec2 f = fract(t) * 2.0 - 1.0;
+    float across = warp ? f.x : f.y;
+    float shade = 1.0 - 0.35 * across * across;
+    return vec2(mix(0.5, warp ? 1.0 : 0.0, fade), mix(1.0, shade, fade));
+}
+
+vec3 fabric(vec2 uv, bool front) {
+    vec2 m = uv * cloth_size;
+    vec2 weave = twill(m);
+    float heather = 0.92 + 0.16 * fibre_noise(m * 70.0);
+    vec3 c;
+    if (front) {
+        vec2 r = m / TARTAN_REPEAT_M;
+        c = mix(tartan(r.y), tartan(r.x), weave.x);
+    } else {
+        c = MAT_CLOTH_BACK_COLOR;
+    }
+    return c * weave.y * heather;
+}
+
+vec3 colormap(float t) {
+    const vec3 stops[COLORMAP_STOPS] = COLORMAP;
+    float s = clamp(t, 0.0, 1.0) * float(COLORMAP_STOPS - 1);
+    int k = min(int(s), COLORMAP_STOPS - 2);
+    return mix(stops[k], stops[k + 1], s - float(k));
+}
+
+// The scalar views' cloth colour (sRGB), with the particle grid's rows and columns drawn
+// faintly so the sheet's structure shows even where the value is the same everywhere.
+vec3 scalar_color(vec2 uv, float value) {
+    vec3 c;
+    if (view == VIEW_STRAIN) {
+        c = colormap(value / STRAIN_MAX);
+    } else if (view == VIEW_SPEED) {
+        c = colormap(log(max(value, SPEED_MIN) / SPEED_MIN) / log(SPEED_MAX / SPEED_MIN));
+    } else {
+        c = value > 1.5 ? PIN_GRABBED_COLOR : value > 0.5 ? PIN_PINNED_COLOR : PIN_FREE_COLOR;
+    }
+    vec2 g = uv * grid_cells;
+    vec2 w = max(fwidth(g), vec2(1e-4));
+    vec2 d = abs(fract(g + 0.5) - 0.5) / w;
+    // Lines fade out where cells get narrower than 5 pixels, or they would be all you see.
+    float line = (1.0 - clamp(min(d.x, d.y) - 0.5, 0.0, 1.0))
+               * clamp(1.0 / (5.0 * max(w.x, w.y)) * 2.0 - 1.0, 0.0, 1.0);
+    // Lines lighter than a dark colour, darker than a light one: visible on either.
+    vec3 ink = dot(c, vec3(0.299, 0.587, 0.114)) < 0.4 ? mix(c, vec3(1.0), 0.5) : c * 0.5;
+    return mix(c, ink, line * 0.7);
+}
+
+// Floor tiles of 0.5 m with thin grout lines, box-filtered by the pixel's footprint.
+vec3 floor_color(vec2 xz) {
+    vec2 t = xz * 2.0;
+    vec2 w = max(fwidth(t), vec2(1e-4));
+    vec2 d = abs(fract(t + 0.5) - 0.5);
+    vec2 line = clamp((0.012 - d) / w + 0.5, 0.0, 1.0);
+    float grout = max(line.x, line.y) * clamp(1.0 - 8.0 * max(w.x, w.y), 0.0, 1.0);
+    float tone = 0.94 + 0.12 * hash(floor(t)) * clamp(1.0 - 2.0 * max(w.x, w.y), 0.0, 1.0);
+    return base_color * tone * (1.0 - 0.45 * grout);
 }
 
 void main() {
     vec3 n = normalize(v_normal);
     int mat = material;
-    vec3 albedo = base_color;
+    vec3 albedo = base_color;  // linear
     if (mat == MAT_CLOTH_FRONT) {
-        // Two-sided cloth: the back face shades with the flipped normal and its own colour.
-        if (!gl_FrontFacing) {
-            n = -n;
-            mat = MAT_CLOTH_BACK;
-            albedo = woven(v_uv, back_color, back_color * vec3(0.55, 0.65, 1.1));
+        // Two-sided cloth: the side facing the viewer shades with the normal facing it.
+        if (!gl_FrontFacing) n = -n;
+        bool front = gl_FrontFacing == front_is_winding;
+        mat = front ? MAT_CLOTH_FRONT : MAT_CLOTH_BACK;
+        if (view == VIEW_STRAIN || view == VIEW_SPEED || view == VIEW_PINNED) {
+            albedo = srgb_decode(scalar_color(v_uv, v_scalar));
         } else {
-            albedo = woven(v_uv, base_color, base_color * 0.85);
-        }
-        if (cloth_mode == 1) {
-            albedo = heat(v_scalar * scalar_scale);
+            albedo = fabric(v_uv, front);
         }
     } else if (mat == MAT_FLOOR) {
-        ivec2 c = ivec2(floor(v_world.xz * 2.0));
-        albedo = base_color * (((c.x + c.y) & 1) == 0 ? 1.0 : 0.8);
+        albedo = floor_color(v_world.xz);
     }
-    g_position = vec4(v_world, 1.0);
     g_normal = vec4(n, 0.0);
-    g_albedo = vec4(albedo, float(mat) / 255.0);
+    g_albedo = vec4(sqrt(clamp(albedo, 0.0, 1.0)), float(mat) / 255.0);
 }

@@ -1,95 +1,261 @@
 #version 330 core
-// Lighting pass: shades every covered pixel once from the G-buffer: a directional key light
-// with a PCF-filtered shadow map, NUM_POINT point lights (Blinn-Phong) and ambient.
-#define NUM_POINT 8
-const int MAT_MARKER = 5;
+// Lighting pass: shades every pixel once from the G-buffer, in linear light. The key light
+// is shadow-mapped; the point lights' diffuse light and SSAO come from the half-size fill
+// pass; a sky and ground ambient is darkened by the AO. Under the key light cloth is a
+// Lambert base beneath the Charlie sheen lobe (KHR_materials_sheen), floor and sphere are
+// GGX, and the sphere also mirrors the point lights; distant surfaces fog into the sky. Then:
+// exposure, Khronos PBR Neutral tone mapping, the sRGB curve and a dither against banding.
+// The scalar debug views keep their colour map: lit by the key alone, not tone-mapped.
 
-uniform sampler2D g_position;
 uniform sampler2D g_normal;
 uniform sampler2D g_albedo;
+uniform sampler2D g_depth;
 uniform sampler2DShadow shadow_map;
-uniform sampler2D ao_map;
-uniform bool ao_enabled;
+uniform sampler2D fill_map;  // rgb: point lights' irradiance; a: ambient occlusion
 
+uniform mat4 inv_view_proj;
 uniform mat4 light_view_proj;
-uniform vec3 light_dir;      // direction the light travels, unit
-uniform vec3 light_color;
+uniform vec3 eye;
+uniform vec3 key_dir;       // direction the key light travels, unit
+uniform vec3 key_color;     // linear, times its intensity
 uniform bool shadows_enabled;
 uniform float shadow_texel;
-uniform vec3 eye;
-uniform vec3 ambient;
-uniform vec3 point_pos[NUM_POINT];
-uniform vec3 point_color[NUM_POINT];
-uniform float point_radius;
-uniform vec3 sky_top;
-uniform vec3 sky_bottom;
+uniform vec3 sky_zenith;    // linear
+uniform vec3 sky_horizon;
+uniform vec3 ground_color;
+uniform float ambient;
+uniform int num_points;     // for the sphere's highlights of them
+uniform vec3 point_pos[MAX_POINT_LIGHTS];
+uniform vec3 point_color[MAX_POINT_LIGHTS];  // linear, times the intensity
+uniform float point_reach[MAX_POINT_LIGHTS];
+uniform vec2 fog_range;     // m from the eye where fog starts and where it is complete
+uniform float exposure;
+uniform bool scalar_view;
 
 in vec2 v_uv;
 out vec4 f_color;
 
-float shadow_factor(vec3 p, vec3 n) {
-    if (!shadows_enabled) return 1.0;
-    // Normal offset keeps lit surfaces from shadowing themselves (acne) on the grazing cloth.
-    vec4 lp = light_view_proj * vec4(p + n * 0.01, 1.0);
-    vec3 s = lp.xyz / lp.w * 0.5 + 0.5;
-    if (any(lessThan(s, vec3(0.0))) || any(greaterThan(s, vec3(1.0)))) return 1.0;
-    float bias = 0.0015;
-    float lit = 0.0;
-    // 3x3 percentage-closer filter over hardware-filtered 2x2 compares: soft, stable edges
-    // at a third of the cost of a 5x5 kernel (llvmpipe is fill-rate bound).
-    for (int y = -1; y <= 1; ++y)
-        for (int x = -1; x <= 1; ++x)
-            lit += texture(shadow_map, vec3(s.xy + vec2(x, y) * 1.5 * shadow_texel, s.z - bias));
-    return lit / 9.0;
+const float PI = 3.14159265;
+
+// The sRGB transfer curve by three square roots (Ian Taylor's fit, within a quarter of an
+// 8-bit step of the exact curve): a third of the cost of pow on llvmpipe.
+vec3 srgb_encode(vec3 c) {
+    vec3 s1 = sqrt(clamp(c, 0.0, 1.0));
+    vec3 s2 = sqrt(s1);
+    vec3 s3 = sqrt(s2);
+    return clamp(0.585122381 * s1 + 0.783140355 * s2 - 0.368262736 * s3, 0.0, 1.0);
 }
 
+// Khronos PBR Neutral: identity below 0.76, a soft shoulder above, hue kept.
 vec3 tonemap(vec3 c) {
-    // ACES fit (Narkowicz): keeps highlights from clipping to flat white.
-    c *= 0.8;
-    return clamp((c * (2.51 * c + 0.03)) / (c * (2.43 * c + 0.59) + 0.14), 0.0, 1.0);
+    const float start = 0.8 - 0.04;
+    const float desaturation = 0.15;
+    float x = min(c.r, min(c.g, c.b));
+    float offset = x < 0.08 ? x - 6.25 * x * x : 0.04;
+    c -= offset;
+    float peak = max(c.r, max(c.g, c.b));
+    if (peak < start) return c;
+    const float d = 1.0 - start;
+    float new_peak = 1.0 - d * d / (peak + d - start);
+    c *= new_peak / peak;
+    float g = 1.0 - 1.0 / (desaturation * (peak - new_peak) + 1.0);
+    return mix(c, vec3(new_peak), g);
+}
+
+vec3 sky(vec3 dir) {
+    float up = clamp(dir.y, 0.0, 1.0);
+    return mix(sky_horizon, sky_zenith, sqrt(up));
+}
+
+// -- BRDFs ----------------------------------------------------------------------------------
+// Charlie sheen distribution (Estevez and Kulla 2017), alpha = roughness^2.
+float d_charlie(float alpha, float n_h) {
+    float inv = 1.0 / alpha;
+    float sin2 = max(1.0 - n_h * n_h, 1e-4);
+    return (2.0 + inv) * pow(sin2, 0.5 * inv) / (2.0 * PI);
+}
+
+float charlie_l(float x, float alpha) {
+    float t = (1.0 - alpha) * (1.0 - alpha);
+    float a = mix(21.5473, 25.3245, t), b = mix(3.82987, 3.32435, t);
+    float c = mix(0.19823, 0.16801, t), d = mix(-1.97760, -1.27393, t);
+    float e = mix(-4.32054, -4.85967, t);
+    return a / (1.0 + b * pow(x, c)) + d * x + e;
+}
+
+float charlie_lambda(float cos_theta, float alpha) {
+    return cos_theta < 0.5 ? exp(charlie_l(cos_theta, alpha))
+                           : exp(2.0 * charlie_l(0.5, alpha) - charlie_l(1.0 - cos_theta, alpha));
+}
+
+// The sheen visibility of Estevez and Kulla, as KHR_materials_sheen describes it.
+float v_sheen(float alpha, float n_l, float n_v) {
+    float lambda = charlie_lambda(n_v, alpha) + charlie_lambda(n_l, alpha);
+    return clamp(1.0 / ((1.0 + lambda) * 4.0 * n_v * n_l), 0.0, 1.0);
+}
+
+// Directional albedo of the sheen lobe (Estevez and Kulla's fit): what the base loses to it.
+float sheen_albedo(float n_v, float alpha) {
+    float c = 1.0 - n_v;
+    return 0.65584461 * c * c * c + 1.0 / (4.16526551 + exp(-7.97291361 * sqrt(alpha) + 6.33516894));
+}
+
+float d_ggx(float alpha, float n_h) {
+    float a2 = alpha * alpha;
+    float f = n_h * n_h * (a2 - 1.0) + 1.0;
+    return a2 / (PI * f * f);
+}
+
+float v_ggx(float alpha, float n_l, float n_v) {
+    float a2 = alpha * alpha;
+    float gv = n_l * sqrt(n_v * n_v * (1.0 - a2) + a2);
+    float gl = n_v * sqrt(n_l * n_l * (1.0 - a2) + a2);
+    return 0.5 / max(gv + gl, 1e-5);
+}
+
+float fresnel(float f0, float v_h) {
+    float x = 1.0 - v_h, x2 = x * x;
+    return f0 + (1.0 - f0) * x2 * x2 * x;
+}
+
+struct Surface {
+    int mat;
+    vec3 albedo;
+    vec3 sheen;
+    float alpha;    // roughness^2
+    float base;     // weight of the diffuse base under the sheen
+};
+
+// Outgoing radiance towards v from the key light arriving along l with irradiance e (at
+// normal incidence). Thin cloth also lets a little light through from its far side.
+vec3 shade(Surface s, vec3 n, vec3 v, vec3 l, vec3 e) {
+    float n_l = dot(n, l);
+    if (s.mat == MAT_CLOTH_FRONT || s.mat == MAT_CLOTH_BACK) {
+        if (n_l <= 0.0) return s.albedo * e * (0.12 * -n_l);
+        float n_v = max(dot(n, v), 1e-3);
+        float n_h = max(dot(n, normalize(l + v)), 0.0);
+        vec3 sheen = s.sheen * d_charlie(s.alpha, n_h) * v_sheen(s.alpha, n_l, n_v);
+        return (s.albedo * s.base + PI * sheen) * e * n_l;
+    }
+    if (n_l <= 0.0) return vec3(0.0);
+    vec3 h = normalize(l + v);
+    float n_v = max(dot(n, v), 1e-3);
+    float f = fresnel(0.04, max(dot(v, h), 0.0));
+    float spec = d_ggx(s.alpha, max(dot(n, h), 0.0)) * v_ggx(s.alpha, n_l, n_v) * f;
+    return (s.albedo * (1.0 - f) + PI * spec) * e * n_l;
+}
+
+// A point light's highlight on a glossy surface (normalised Blinn-Phong: cheap enough to
+// pay per light, and paid only where the sphere is).
+vec3 highlight(Surface s, vec3 n, vec3 v, vec3 l, vec3 e) {
+    float n_l = dot(n, l);
+    if (n_l <= 0.0) return vec3(0.0);
+    float power = 2.0 / (s.alpha * s.alpha) - 2.0;
+    float n_h = max(dot(n, normalize(l + v)), 0.0);
+    return vec3(0.04 * (power + 8.0) / 8.0 * pow(n_h, power)) * e * n_l;
+}
+
+float shadow_factor(vec3 p, vec3 n, vec3 l) {
+    if (!shadows_enabled) return 1.0;
+    // Look up from just off the surface on the light's side, so a surface does not shadow
+    // itself (acne) and thin cloth lit from behind is not shadowed by its own front.
+    vec3 offset = n * (dot(n, l) >= 0.0 ? 0.01 : -0.01);
+    vec4 lp = light_view_proj * vec4(p + offset, 1.0);
+    vec3 s = lp.xyz / lp.w * 0.5 + 0.5;
+    if (any(lessThan(s, vec3(0.0))) || any(greaterThan(s, vec3(1.0)))) return 1.0;
+    // Two hardware-filtered (2x2) compares half a texel apart diagonally: a soft edge for
+    // the price of two taps (each costs every lit pixel on llvmpipe).
+    vec2 o = vec2(0.75, -0.75) * shadow_texel;
+    return 0.5 * (texture(shadow_map, vec3(s.xy + o, s.z - 0.0015))
+                  + texture(shadow_map, vec3(s.xy - o, s.z - 0.0015)));
+}
+
+// Karis's fit of the split-sum environment BRDF: how much of the sky a GGX surface mirrors.
+vec3 sky_reflection(vec3 n, vec3 v, float roughness) {
+    const vec4 c0 = vec4(-1.0, -0.0275, -0.572, 0.022);
+    const vec4 c1 = vec4(1.0, 0.0425, 1.04, -0.04);
+    vec4 r = roughness * c0 + c1;
+    float n_v = max(dot(n, v), 1e-3);
+    float a004 = min(r.x * r.x, exp2(-9.28 * n_v)) * r.x + r.y;
+    vec2 ab = vec2(-1.04, 1.04) * a004 + r.zw;
+    vec3 dir = reflect(-v, n);
+    dir.y = abs(dir.y);  // what a rough reflection below the horizon picks up: more sky
+    return sky(normalize(mix(dir, n, roughness * roughness))) * (0.04 * ab.x + ab.y);
 }
 
 void main() {
+    float depth = texture(g_depth, v_uv).r;
+    vec4 world = inv_view_proj * vec4(v_uv * 2.0 - 1.0, depth * 2.0 - 1.0, 1.0);
+    vec3 p = world.xyz / world.w;
+    vec3 view_dir = normalize(p - eye);
     vec4 albedo_mat = texture(g_albedo, v_uv);
     int mat = int(albedo_mat.a * 255.0 + 0.5);
+    vec3 color;
+    // Interleaved gradient noise (Jimenez), +-0.5 of an 8-bit step: no banding, no sin.
+    float dither = (fract(52.9829189 * fract(dot(gl_FragCoord.xy, vec2(0.06711056, 0.00583715))))
+                    - 0.5) / 255.0;
     if (mat == 0) {
-        f_color = vec4(mix(sky_bottom, sky_top, v_uv.y), 1.0);
+        f_color = vec4(srgb_encode(tonemap(sky(view_dir) * exposure)) + dither, 1.0);
         return;
     }
-    vec3 albedo = albedo_mat.rgb;
-    if (mat == MAT_MARKER) {
-        f_color = vec4(albedo, 1.0);
+    float distance = length(p - eye);
+    if (distance >= fog_range.y && !scalar_view) {  // all fog: nothing else to compute
+        f_color = vec4(srgb_encode(tonemap(sky(view_dir) * exposure)) + dither, 1.0);
         return;
     }
-    vec3 p = texture(g_position, v_uv).xyz;
     vec3 n = normalize(texture(g_normal, v_uv).xyz);
-    vec3 v = normalize(eye - p);
-    float shininess = mat <= 2 ? 16.0 : 48.0;
-    float spec_strength = mat <= 2 ? 0.08 : 0.25;
-
-    vec3 l = -light_dir;
-    vec3 h = normalize(l + v);
-    float ndl = max(dot(n, l), 0.0);
-    float ao = 1.0;
-    if (ao_enabled) {
-        // 2x2 box filter of the noisy SSAO term, free with one bilinear tap between texels.
-        ao = texture(ao_map, v_uv + 0.5 / vec2(textureSize(ao_map, 0))).r;
+    vec3 l = -key_dir;
+    float shadow = shadow_factor(p, n, l);
+    vec3 albedo = albedo_mat.rgb * albedo_mat.rgb;  // stored as its square root
+    if (scalar_view && (mat == MAT_CLOTH_FRONT || mat == MAT_CLOTH_BACK)) {
+        float lit = 0.45 + 0.55 * max(dot(n, l), 0.0) * shadow;
+        f_color = vec4(srgb_encode(albedo) * lit, 1.0);
+        return;
     }
-    vec3 color = ambient * albedo * ao;
-    color += shadow_factor(p, n) * light_color
-             * (albedo * ndl + spec_strength * pow(max(dot(n, h), 0.0), shininess) * float(ndl > 0.0));
-
-    for (int i = 0; i < NUM_POINT; ++i) {
-        vec3 d = point_pos[i] - p;
-        float dist = length(d);
-        vec3 pl = d / dist;
-        float att = clamp(1.0 - dist / point_radius, 0.0, 1.0);
-        att *= att;
-        float pndl = max(dot(n, pl), 0.0);
-        vec3 ph = normalize(pl + v);
-        // Fill lights get a softer lobe than the key so they read as rims, not hot spots.
-        color += point_color[i] * att * mix(1.0, ao, 0.6) * (albedo * pndl
-                 + 0.5 * spec_strength * pow(max(dot(n, ph), 0.0), 0.5 * shininess) * float(pndl > 0.0));
+    if (mat == MAT_MARKER || mat == MAT_LIGHT) {
+        float strength = mat == MAT_MARKER ? MAT_MARKER_EMISSIVE : MAT_LIGHT_EMISSIVE;
+        f_color = vec4(srgb_encode(tonemap(albedo * strength)) + dither, 1.0);
+        return;
     }
-    f_color = vec4(pow(tonemap(color), vec3(1.0 / 2.2)), 1.0);
+    vec3 v = -view_dir;
+    Surface s;
+    s.mat = mat;
+    s.albedo = albedo;
+    s.sheen = vec3(0.0);
+    s.base = 1.0;
+    float roughness = mat == MAT_FLOOR ? MAT_FLOOR_ROUGHNESS : MAT_SPHERE_ROUGHNESS;
+    if (mat == MAT_CLOTH_FRONT || mat == MAT_CLOTH_BACK) {
+        bool front = mat == MAT_CLOTH_FRONT;
+        roughness = front ? MAT_CLOTH_FRONT_ROUGHNESS : MAT_CLOTH_BACK_ROUGHNESS;
+        s.sheen = front ? MAT_CLOTH_FRONT_SHEEN : MAT_CLOTH_BACK_SHEEN;
+    }
+    s.alpha = max(roughness * roughness, 0.01);
+    if (mat == MAT_CLOTH_FRONT || mat == MAT_CLOTH_BACK) {
+        float peak = max(s.sheen.r, max(s.sheen.g, s.sheen.b));
+        s.base = 1.0 - peak * sheen_albedo(max(dot(n, v), 1e-3), s.alpha);
+    }
+
+    vec4 fill = texture(fill_map, v_uv);
+    float ao = fill.a;
+    vec3 hemi = mix(ground_color, 0.5 * (sky_zenith + sky_horizon), 0.5 + 0.5 * n.y);
+    color = ambient * hemi * albedo * s.base * ao;
+    color += albedo * s.base * fill.rgb * mix(1.0, ao, 0.5);
+    if (mat == MAT_FLOOR || mat == MAT_SPHERE) {
+        color += ambient * sky_reflection(n, v, roughness) * ao;
+    }
+    color += shadow * shade(s, n, v, l, key_color);
+    if (mat == MAT_SPHERE) {
+        for (int i = 0; i < num_points; ++i) {
+            vec3 d = point_pos[i] - p;
+            float dist2 = dot(d, d);
+            float r2 = point_reach[i] * point_reach[i];
+            float window = max(1.0 - (dist2 / r2) * (dist2 / r2), 0.0);
+            vec3 e = point_color[i] * (window * window / (dist2 + 0.01));
+            color += highlight(s, n, v, d * inversesqrt(dist2), e);
+        }
+    }
+
+    float fog = smoothstep(fog_range.x, fog_range.y, distance);
+    color = mix(color, sky(view_dir), fog);
+    f_color = vec4(srgb_encode(tonemap(color * exposure)) + dither, 1.0);
 }

@@ -1,5 +1,5 @@
 #version 330 core
-// Overlay pass: text rasterised by Pillow, alpha-blended over the frame.
+// Overlay pass: a text or legend panel rasterised by Pillow, alpha-blended over the frame.
 uniform sampler2D text;
 in vec2 v_uv;
 out vec4 f_color;

@@ -1,21 +1,25 @@
-"""Offscreen rendering through EGL: numbered PNGs, optional GIF/MP4, scripted interaction."""
+"""Offscreen rendering through EGL: the viewer's frames as numbered PNGs, optionally a GIF or
+an MP4, with scripted interaction; every frame advances exactly 1 / fps of simulated time, so
+the same script gives the same frames."""
 
 from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 import moderngl
 import numpy as np
 import numpy.typing as npt
 from PIL import Image
 
-from .context import create_standalone_context
-from .interaction import Interaction, Pointer, ScriptPlayer
-from .renderer import Renderer, default_camera
+from ..render.context import create_standalone_context
+from .loop import Viewer
+
+Frame = npt.NDArray[np.uint8]
 
 
 @dataclass
@@ -32,24 +36,26 @@ class RenderStats:
                 "(incl. read-back)")
 
 
-def _progress(done: int, total: int, stream: Any = None) -> None:
+def _progress(done: int, total: int, stream: TextIO | None = None) -> None:
     """A bar redrawn in place on a terminal; a line per tenth of the way in a log or pipe."""
-    stream = sys.stdout if stream is None else stream
+    out = sys.stdout if stream is None else stream
     width = 30
     filled = width * done // max(total, 1)
     bar = f"[{'#' * filled}{'.' * (width - filled)}] {done}/{total} frames"
-    if stream.isatty():
-        stream.write(f"\r{bar}" + ("\n" if done == total else ""))
+    if out.isatty():
+        out.write(f"\r{bar}" + ("\n" if done == total else ""))
     elif done == total or (10 * done) // total != (10 * (done - 1)) // total:
-        stream.write(bar + "\n")
-    stream.flush()
+        out.write(bar + "\n")
+    out.flush()
 
 
 def render_frames(
-    sim: Any, size: tuple[int, int], frames: int, fps: float, script: list[dict[str, Any]] | None,
-    view: str = "lit", progress: bool = True, sink: Any = None,
-    ctx: moderngl.Context | None = None, ssao: bool = False,
-) -> tuple[list[npt.NDArray[np.uint8]], RenderStats]:
+    sim: Any, size: tuple[int, int], frames: int, fps: float,
+    script: list[dict[str, Any]] | None, *, name: str = "scene", view: str = "lit",
+    ssao: bool = False, lights: str = "studio", overlay: bool = False, progress: bool = True,
+    sink: Callable[[int, Frame], None] | None = None, ctx: moderngl.Context | None = None,
+    on_notice: Callable[[str], None] | None = None,
+) -> tuple[list[Frame], RenderStats]:
     """Simulate and render ``frames`` frames at ``fps`` offscreen; returns RGB frames (rows top
     to bottom) unless ``sink`` (called with each frame index and image) takes them. Uses
     ``ctx`` if given, else a standalone EGL context of its own."""
@@ -57,35 +63,23 @@ def render_frames(
     if ctx is None:
         ctx = create_standalone_context()
     try:
+        viewer = Viewer(ctx, sim, size, name=name, realtime=False, script=script, view=view,
+                        ssao=ssao, lights=lights, overlay=overlay, on_notice=on_notice)
         w, h = size
-        renderer = Renderer(ctx, sim, size)
-        renderer.view = view
-        renderer.ssao = ssao
-        camera = default_camera(sim.scene.to_dict(), w / h)
         color = ctx.renderbuffer(size, 4)
         fbo = ctx.framebuffer(color_attachments=[color])
-        interaction = Interaction(sim, renderer.spacing)
-        pointer = Pointer(interaction, camera, size)
-        player = ScriptPlayer(script) if script else None
-        out: list[npt.NDArray[np.uint8]] = []
+        out: list[Frame] = []
         physics = render = 0.0
         steps = 0
         image = np.empty((h, w, 3), dtype=np.uint8)
         for k in range(frames):
-            t = k / fps
-            if player is not None:
-                player.update(t, pointer, renderer.positions)
-            renderer.highlight = interaction.grabbed
-            renderer.sync_stroke(interaction)
-            if k > 0:
-                t0 = time.perf_counter()
-                steps += sim.advance(1.0 / fps)
-                physics += time.perf_counter() - t0
             t0 = time.perf_counter()
-            renderer.update()
-            renderer.render(fbo, camera)
+            viewer.frame(fbo, 0.0 if k == 0 else 1.0 / fps)
             fbo.read_into(image, components=3)
-            render += time.perf_counter() - t0
+            elapsed = time.perf_counter() - t0
+            physics += viewer.last_physics.seconds
+            render += elapsed - viewer.last_physics.seconds
+            steps += viewer.last_physics.steps if k else 0
             frame = image[::-1].copy()
             if sink is not None:
                 sink(k, frame)
@@ -104,22 +98,22 @@ def render_frames(
 
 def write_outputs(
     sim: Any, out_dir: Path, size: tuple[int, int], frames: int, fps: float,
-    script: list[dict[str, Any]] | None, gif: bool, mp4: bool, view: str = "lit",
-    ssao: bool = False,
+    script: list[dict[str, Any]] | None, *, gif: bool, mp4: bool, **options: Any,
 ) -> tuple[list[Path], RenderStats]:
-    """Render to ``out_dir/frame_0000.png`` ... plus ``animation.gif``/``.mp4`` when asked."""
+    """Render to ``out_dir/frame_0000.png`` ... plus ``animation.gif``/``.mp4`` when asked;
+    ``options`` go to :func:`render_frames`."""
     out_dir.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
-    keep: list[npt.NDArray[np.uint8]] = []
+    keep: list[Frame] = []
 
-    def sink(k: int, frame: npt.NDArray[np.uint8]) -> None:
+    def sink(k: int, frame: Frame) -> None:
         path = out_dir / f"frame_{k:04d}.png"
         Image.fromarray(frame).save(path)
         written.append(path)
         if gif or mp4:
             keep.append(frame)
 
-    _, stats = render_frames(sim, size, frames, fps, script, view=view, sink=sink, ssao=ssao)
+    _, stats = render_frames(sim, size, frames, fps, script, sink=sink, **options)
     if gif:
         import imageio.v3 as iio
 

@@ -1,0 +1,205 @@
+"""The command lines of the desktop demo and of headless rendering: :func:`main_demo` and
+:func:`main_render`, each with its own argparse parser (the ``rustcloth`` dispatcher calls
+them with the arguments after the command's name)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from .. import Scene, load_scene, scenes
+from ..errors import RustclothError
+from ..render.constants import VIEWS
+from ..render.context import GLUnavailable
+from ..render.lights import PRESET_NAMES
+from .script import ScriptPlayer, default_script
+
+Formatter = argparse.ArgumentDefaultsHelpFormatter
+
+
+def _size(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must look like 640x480, got {text!r}") from None
+    if not (16 <= w <= 8192 and 16 <= h <= 8192):
+        raise argparse.ArgumentTypeError(f"must be 16..8192 pixels each way, got {text!r}")
+    return w, h
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a whole number, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number, got {text!r}") from None
+    if not 0.0 < value < 1e4:
+        raise argparse.ArgumentTypeError(f"must be above 0 (and sensible), got {text!r}")
+    return value
+
+
+def _scale(text: str) -> float | None:
+    if text == "auto":
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be 'auto' or a number, got {text!r}") from None
+    if not 0.25 <= value <= 1.0:
+        raise argparse.ArgumentTypeError(f"must be between 0.25 and 1, got {text!r}")
+    return value
+
+
+def _scene(parser: argparse.ArgumentParser, name: str) -> Scene:
+    """The scene ``name`` (built-in or a TOML path), or a one-line error (exit status 2)."""
+    try:
+        return load_scene(name)
+    except (RustclothError, OSError, ValueError) as err:
+        parser.error(f"scene {name!r}: {str(err).strip().splitlines()[0]}")
+
+
+def _script(parser: argparse.ArgumentParser, path: Path | None) -> list[dict[str, Any]] | None:
+    if path is None:
+        return None
+    try:
+        events: list[dict[str, Any]] = json.loads(path.read_text(encoding="utf-8"))
+        ScriptPlayer(events)
+    except (OSError, ValueError) as err:
+        parser.error(f"--script {path}: {str(err).strip().splitlines()[0]}")
+    return events
+
+
+def _add_look(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--lights", choices=PRESET_NAMES, default=PRESET_NAMES[0],
+                        help="light preset (L cycles them in the demo)")
+    parser.add_argument("--ssao", action="store_true",
+                        help="screen-space ambient occlusion (O toggles it in the demo)")
+
+
+def _notice(text: str) -> None:
+    print(f"notice: {text}", flush=True)
+
+
+# -- the desktop demo ------------------------------------------------------------------------
+def main_demo(argv: list[str]) -> int:
+    """``rustcloth demo``: the glfw window, or headless frames when there is no display."""
+    parser = argparse.ArgumentParser(prog="rustcloth demo", formatter_class=Formatter,
+                                     description="the interactive demo in a window")
+    parser.add_argument("scene", nargs="?", default="drape",
+                        help=f"a built-in scene ({', '.join(scenes())}) or a scene TOML file")
+    parser.add_argument("--size", type=_size, default=(1280, 720), help="window size, WxH")
+    parser.add_argument("--frames", type=_positive_int, default=None,
+                        help="quit after this many frames (None: when the window closes)")
+    parser.add_argument("--script", type=Path, default=None,
+                        help="JSON list of scripted events to replay (docs/rendering.md)")
+    parser.add_argument("--out", type=Path, default=Path("out/demo"),
+                        help="where the headless fallback writes its frames without a display")
+    parser.add_argument("--render-scale", type=_scale, default="auto", metavar="auto|0.25..1",
+                        help="share of the window's resolution the 3D passes draw, each way "
+                             "(auto: lowered while a frame takes over 40 ms to render)")
+    _add_look(parser)
+    args = parser.parse_args(argv)
+    _scene(parser, args.scene)
+    script = _script(parser, args.script)
+    from .window import Demo, DisplayUnavailable
+
+    try:
+        demo = Demo(args.scene, args.size, script=script, lights=args.lights, ssao=args.ssao,
+                    on_notice=_notice, render_scale=args.render_scale)
+    except DisplayUnavailable as err:
+        no_display = str(err)
+    except GLUnavailable as err:
+        print(err, file=sys.stderr)
+        return 1
+    else:
+        try:
+            start = time.perf_counter()
+            rc = demo.run(args.frames)
+            v = demo.viewer
+            wall = time.perf_counter() - start
+            print(f"demo: {v.frames} frames in {wall:.1f} s ({v.frames / max(wall, 1e-9):.1f} "
+                  f"fps), t = {v.sim.time:.2f} s simulated, {v.interaction.cut_count} "
+                  f"particles cut, {v.sim.integrator} with {v.sim.substeps} substeps")
+            return rc
+        finally:
+            demo.close()
+    # Outside the handler, so an error in the fallback is not chained to the display error.
+    print(f"{no_display}: rendering headless to {args.out} instead")
+    return main_render([args.scene, "--out", str(args.out), "--gif",
+                        "--frames", str(args.frames or 150), "--size", "640x480",
+                        "--lights", args.lights, "--overlay"]
+                       + (["--ssao"] if args.ssao else [])
+                       + (["--script", str(args.script)] if args.script else ["--demo-script"]))
+
+
+# -- headless --------------------------------------------------------------------------------
+def main_render(argv: list[str]) -> int:
+    """``rustcloth render``: frames offscreen through EGL, as PNGs and optionally a GIF."""
+    from .. import Simulation
+    from .headless import write_outputs
+
+    parser = argparse.ArgumentParser(prog="rustcloth render", formatter_class=Formatter,
+                                     description="render a scene offscreen through EGL")
+    parser.add_argument("scene", help=f"a built-in scene ({', '.join(scenes())}) or a scene "
+                                      "TOML file")
+    parser.add_argument("--frames", type=_positive_int, default=120,
+                        help="frames to render (the first at t = 0)")
+    parser.add_argument("--fps", type=_positive_float, default=30.0,
+                        help="frames per simulated second")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="output directory (default: out/SCENE)")
+    parser.add_argument("--size", type=_size, default=(640, 480), help="image size, WxH")
+    parser.add_argument("--gif", action="store_true", help="also write animation.gif")
+    parser.add_argument("--mp4", action="store_true",
+                        help="also write animation.mp4 (needs the imageio-ffmpeg package)")
+    parser.add_argument("--script", type=Path, default=None,
+                        help="JSON list of scripted events to replay (docs/rendering.md)")
+    parser.add_argument("--demo-script", action="store_true",
+                        help="the built-in cut, grab and drag, spread over the run")
+    parser.add_argument("--view", choices=VIEWS, default="lit", help="what to show")
+    parser.add_argument("--overlay", action="store_true",
+                        help="draw the status text and the debug view's legend")
+    _add_look(parser)
+    args = parser.parse_args(argv)
+    if args.script is not None and args.demo_script:
+        parser.error("--script and --demo-script: choose one")
+    scene = _scene(parser, args.scene)
+    script = _script(parser, args.script)
+    sim = Simulation(scene)
+    covered = (args.frames - 1) / args.fps
+    if args.demo_script:
+        span = float(max(scene.cloth["size"]))
+        script = default_script(sim.nx, sim.ny, sim.positions, span, covered)
+    elif script is not None and ScriptPlayer(script).end > covered + 1e-9:
+        print(f"warning: the script runs to t = {ScriptPlayer(script).end:g} s but "
+              f"{args.frames} frames at {args.fps:g} fps end at t = {covered:.3g} s; "
+              "what comes later never happens", file=sys.stderr)
+    out = args.out or Path("out") / Path(args.scene).stem
+    try:
+        written, stats = write_outputs(
+            sim, out, args.size, args.frames, args.fps, script, gif=args.gif, mp4=args.mp4,
+            name=Path(args.scene).stem, view=args.view, ssao=args.ssao, lights=args.lights,
+            overlay=args.overlay, on_notice=_notice)
+    except GLUnavailable as err:
+        print(err, file=sys.stderr)
+        return 1
+    pngs = [p for p in written if p.suffix == ".png"]
+    print(f"wrote {len(pngs)} PNG frames to {out}/frame_*.png")
+    for p in written:
+        if p.suffix != ".png":
+            print(f"wrote {p}")
+    print(stats.summary())
+    return 0

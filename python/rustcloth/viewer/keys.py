@@ -1,0 +1,32 @@
+"""The demo's keys: one table from key name to viewer command and help text, read by the
+glfw window, by scripted ``key`` events and by the help overlay."""
+
+from __future__ import annotations
+
+KEYS: dict[str, tuple[str, str]] = {
+    "SPACE": ("toggle_pause", "pause / run"),
+    "N": ("single_step", "one step (pauses)"),
+    "R": ("reset", "reset the scene"),
+    "I": ("next_integrator", "next integrator"),
+    "EQUAL": ("more_substeps", "more substeps (+)"),
+    "MINUS": ("fewer_substeps", "fewer substeps (-)"),
+    "V": ("next_view", "next debug view"),
+    "O": ("toggle_ssao", "ambient occlusion on / off"),
+    "L": ("next_lights", "next light preset"),
+    "H": ("toggle_help", "this help"),
+    "ESCAPE": ("quit", "quit"),
+}
+"""Key name (as glfw spells it after ``KEY_``) -> (viewer command, help)."""
+for _k in range(1, 10):
+    KEYS[str(_k)] = (f"scene_{_k}", "")  # help for these says which scenes exist
+
+ALIASES = {"KP_ADD": "EQUAL", "KP_SUBTRACT": "MINUS", "PLUS": "EQUAL", "+": "EQUAL",
+           "-": "MINUS", "ESC": "ESCAPE"}
+
+
+def command_for(key: str) -> str | None:
+    """The viewer command a key name runs, or None for a key that does nothing."""
+    name = key.upper()
+    name = ALIASES.get(name, name)
+    entry = KEYS.get(name)
+    return entry[0] if entry else None

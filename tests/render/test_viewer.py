@@ -1,0 +1,184 @@
+"""The viewer loop without a window: divergence recovery, physics pacing, the overlay's text,
+keys, gestures and scripts, on the real simulation and an offscreen EGL context."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import pytest
+import rustcloth
+from rustcloth.viewer.headless import render_frames
+from rustcloth.viewer.loop import Viewer
+from rustcloth.viewer.physics import Stepper
+from rustcloth.viewer.script import ScriptPlayer, default_script
+
+pytestmark = pytest.mark.render
+SIZE = (96, 72)
+
+
+def _viewer(ctx: Any, scene: str = "hanging", **kw: Any) -> tuple[Viewer, Any]:
+    sim = rustcloth.Simulation(rustcloth.load_scene(scene))
+    fbo = ctx.simple_framebuffer(SIZE)
+    return Viewer(ctx, sim, SIZE, name=scene, realtime=False, **kw), fbo
+
+
+def _text(viewer: Viewer) -> str:
+    return "\n".join(s if isinstance(s, str) else s[0] for s in viewer.status_lines())
+
+
+def _to_integrator(viewer: Viewer, name: str) -> None:
+    for _ in rustcloth.INTEGRATORS:
+        if viewer.sim.integrator == name:
+            return
+        viewer.key("I")
+    raise AssertionError(f"I never reached {name}")
+
+
+def test_explicit_euler_diverges_rolls_back_and_keeps_running(ctx: Any) -> None:
+    """Regression (issue 18): pressing I four times reached explicit_euler, which diverged
+    within a second and closed the demo with exit status 2."""
+    viewer, fbo = _viewer(ctx)
+    for _ in range(5):
+        viewer.frame(fbo, 1 / 30)
+    _to_integrator(viewer, "explicit_euler")
+    for _ in range(60):  # two seconds: explicit Euler at 2 substeps gives out in one
+        viewer.frame(fbo, 1 / 30)
+        if any("diverged" in n for n, _, _ in viewer.notices):
+            break
+    notice = next(n for n, _, _ in viewer.notices if "diverged" in n)
+    assert notice.startswith("explicit_euler diverged at t = ")
+    assert "put back the cloth of t = " in notice or "rolled back" in notice
+    assert "raised substeps 2 -> 68" in notice  # the stability estimate for hanging
+    assert notice in _text(viewer)  # on the overlay
+    # It keeps running, and the cloth stays sane.
+    for _ in range(20):
+        viewer.frame(fbo, 1 / 30)
+    assert viewer.sim.integrator == "explicit_euler" and viewer.sim.substeps == 68
+    assert "raised from 2" in _text(viewer)
+    p = viewer.sim.positions
+    assert np.isfinite(p).all() and (np.abs(p) < 10.0).all()
+    assert viewer.sim.max_stretch() < 2.0
+    # The person's next integrator gets the person's substeps back.
+    viewer.key("I")
+    assert viewer.sim.substeps == 2
+
+
+def test_a_violent_drag_that_diverges_is_recovered(ctx: Any) -> None:
+    viewer, fbo = _viewer(ctx, "freefall")
+    sim = viewer.sim
+    _to_integrator(viewer, "explicit_euler")
+    sim.substeps = 18  # what the estimate says it needs here: stable until the drag
+    viewer.notices.clear()
+    viewer.frame(fbo, 1 / 30)
+    sim.grab(sim.num_particles // 2)
+    for k in range(30):
+        sim.drag_to([0.0, 1.2, 2.0 * (-1) ** k])  # 2 m back and forth every frame
+        viewer.frame(fbo, 1 / 30)
+        if viewer.notices:
+            break
+    notices = [n for n, _, _ in viewer.notices]
+    assert any("while dragging" in n for n in notices), notices
+    for _ in range(10):
+        viewer.frame(fbo, 1 / 30)
+    assert np.isfinite(sim.positions).all() and sim.max_stretch() < 1000.0
+
+
+def test_recovery_ladder_ends_in_a_stable_integrator(ctx: Any) -> None:
+    viewer, _ = _viewer(ctx)
+    rec = viewer.stepper.recovery
+    err = rustcloth.SimulationDiverged("test", step=1, particle=3, reason="non_finite",
+                                       substeps=2)
+    viewer.sim.integrator = "rk4"
+    rec.chose_integrator("symplectic_euler")
+    said = [rec.handle(err) for _ in range(5)]
+    assert "raised substeps 2 -> 4" in said[0]
+    assert any("switched to symplectic_euler" in s for s in said)
+    assert viewer.sim.integrator in ("symplectic_euler", "implicit_euler")
+
+
+def test_budgeted_stepping_falls_behind_rather_than_spiralling(ctx: Any) -> None:
+    sim = rustcloth.Simulation(rustcloth.load_scene("freefall"))
+    stepper = Stepper(sim)
+    exact = stepper.run(0.1, None)
+    assert exact.steps == 100 and stepper.owed < sim.dt
+    starved = stepper.run(0.5, 0.0)  # no time at all: nothing runs, the debt is dropped
+    assert starved.steps == 0 and stepper.owed <= sim.dt
+    assert stepper.real_time_ratio() < 0.5
+
+
+def test_overlay_says_paused_alone_ssao_state_and_scene_keys(ctx: Any) -> None:
+    viewer, fbo = _viewer(ctx)
+    viewer.frame(fbo, 1 / 30)
+    assert "SSAO off" in _text(viewer)
+    viewer.key("O")
+    assert "SSAO on" in _text(viewer)
+    viewer.key("SPACE")
+    first = _text(viewer).splitlines()[0]
+    assert first.endswith("PAUSED") and "SLOW" not in first and "CAPPED" not in first
+    steps = viewer.sim.steps
+    viewer.frame(fbo, 1 / 30)
+    assert viewer.sim.steps == steps  # paused
+    viewer.key("N")
+    assert viewer.sim.steps == steps + 1
+    viewer.key("H")
+    assert f"1..{len(rustcloth.scenes())}: " + ", ".join(rustcloth.scenes()) in _text(viewer)
+    viewer.key("2")
+    assert viewer.name == rustcloth.scenes()[1]
+    viewer.key("9")
+    assert "no scene 9" in viewer.notices[-1][0]
+    viewer.key("L")
+    assert viewer.renderer.lights.name == "neon"
+
+
+def test_cut_line_goes_away_on_release(ctx: Any) -> None:
+    viewer, fbo = _viewer(ctx, "curtain")
+    viewer.frame(fbo, 1 / 30)
+    w, h = SIZE
+    viewer.pointer.press("cut", 0.2 * w, 0.35 * h)
+    viewer.pointer.move(0.8 * w, 0.35 * h)
+    viewer.frame(fbo, 1 / 30)
+    assert viewer.interaction.cut_count > 0 and len(viewer.interaction.stroke()) > 0
+    assert viewer.renderer.stroke_count > 0
+    viewer.pointer.release()
+    viewer.frame(fbo, 1 / 30)
+    assert len(viewer.interaction.stroke()) == 0 and viewer.renderer.stroke_count == 0
+
+
+def test_grab_uses_the_core_and_release_restores_pins(ctx: Any) -> None:
+    viewer, fbo = _viewer(ctx)
+    viewer.frame(fbo, 1 / 30)
+    sim = viewer.sim
+    corner = int(np.flatnonzero(sim.pinned)[0])
+    x, y, _ = viewer.camera.project(sim.positions[corner], *SIZE)
+    viewer.pointer.press("grab", x, y)
+    assert sim.grabbed() == viewer.interaction.grabbed is not None
+    viewer.pointer.move(x + 10, y - 10)
+    viewer.frame(fbo, 1 / 30)
+    viewer.pointer.release()
+    assert sim.grabbed() is None
+    assert sim.pinned[corner]  # a particle the scene pinned stays pinned
+
+
+def test_default_script_fits_the_run() -> None:
+    """Regression (issue 18): the built-in script grabbed at 2.0 s, so `render --frames 60`
+    (1.97 s at 30 fps) never showed the drag."""
+    sim = rustcloth.Simulation(rustcloth.load_scene("drape"))
+    for duration in (59 / 30, 4.0, 10.0):
+        script = default_script(sim.nx, sim.ny, sim.positions, 1.6, duration)
+        assert ScriptPlayer(script).end <= duration
+        actions = [e["action"] for e in script]
+        assert actions == ["cut", "grab", "drag", "release"]
+
+
+def test_scripted_headless_render_is_replayable_and_moves(ctx: Any) -> None:
+    frames = []
+    for _ in range(2):
+        sim = rustcloth.Simulation(rustcloth.load_scene("hanging"))
+        script = default_script(sim.nx, sim.ny, sim.positions, 1.0, 39 / 15)
+        images, stats = render_frames(sim, SIZE, 40, 15.0, script, progress=False, ctx=ctx)
+        frames.append(np.stack(images))
+    assert stats.frames == 40 and stats.steps == math.floor(39 / 15 / 0.001 + 1e-6)
+    assert np.array_equal(frames[0], frames[1])
+    assert not np.array_equal(frames[0][0], frames[0][-1])  # the cloth did move
