@@ -37,7 +37,10 @@ fn advancing_one_second_in_sixty_frames_or_in_one_call_gives_the_same_state() {
 
 #[test]
 fn the_state_is_bitwise_identical_for_any_number_of_threads() {
-    for n in [40u32, 130] {
+    // Grids of several parallel chunks (at least 2,048 particles each) whose chunk length
+    // also changes with the thread count: a 40 x 40 cloth is one chunk on any number of
+    // threads, and comparing thread counts on it compares nothing.
+    for n in [100u32, 130] {
         let run = |threads| {
             with_threads(threads, || {
                 let mut sim = Simulation::new(busy_scene(n)).unwrap();
