@@ -196,7 +196,15 @@ impl Simulation {
         let mut pipeline = Pipeline::compile(&scene)?;
         let watchdog = Watchdog::new(&scene.watchdog, n);
         pipeline.forces.set_stretch_limit(watchdog.stretch_limit());
-        let step_start = (scene.substeps > 1).then(|| Kinematics::zeros(n));
+        // A step with several substeps keeps its start; so may any step the watchdog retries
+        // or holds at more substeps, and a retry keeps its own start too. Made here, so that a
+        // step never allocates, retried or not.
+        let retries = watchdog.retries();
+        let step_start = (scene.substeps > 1 || retries).then(|| Kinematics::zeros(n));
+        let mut watchdog = watchdog;
+        if retries {
+            watchdog.retry_start = Some(Kinematics::zeros(n));
+        }
         Ok(Simulation {
             grid,
             particles,

@@ -1,7 +1,15 @@
 //! Stepping never allocates: every buffer a step needs is made when the simulation (or its
-//! integrator, or the strain-limiting pass) is built or on its first step. A counting global allocator checks it, counting
-//! only on the threads of the test's rayon pool: the test harness's own thread allocates at
-//! times of its choosing (about one run in thirty, its table of running tests).
+//! integrator, or the strain-limiting pass) is built or on its first step. A counting global
+//! allocator checks it, counting only on the threads of the test's rayon pool: the test
+//! harness's own thread allocates at times of its choosing (about one run in thirty, its table
+//! of running tests).
+//!
+//! rayon's work stealing allocates too, rarely and not in our code: crossbeam-epoch, which its
+//! deques use, moves a full bag of deferred frees to a global queue once in a long while, more
+//! often when a loaded machine makes threads steal. So each check builds, warms up and measures
+//! a fresh simulation three times and takes the fewest allocations: an allocation in a step
+//! (even a one-time one, such as a first retry's buffer) happens in every run, the epoch's
+//! rarely in all three.
 
 mod common;
 
@@ -82,27 +90,85 @@ fn no_integrator_allocates_while_stepping() {
     });
 }
 
-/// Steps `scene` a while, then asserts that further steps allocate nothing.
-fn check_stepping(integrator: &str, scene: Scene) {
-    let mut sim = Simulation::new(scene).unwrap();
-    sim.pin(0, Some(glam::Vec3::new(0.0, 2.0, 0.0))).unwrap();
-    sim.step(3).unwrap(); // first steps may size scratch buffers
+/// Allocations on the watched threads while `f` runs.
+fn counted<R>(f: impl FnOnce() -> R) -> (usize, R) {
     ALLOCATIONS.store(0, Ordering::Relaxed);
     COUNTING.store(true, Ordering::Relaxed);
-    sim.step(20).unwrap();
-    sim.advance(0.003).unwrap();
+    let out = f();
     COUNTING.store(false, Ordering::Relaxed);
-    assert_eq!(
-        ALLOCATIONS.load(Ordering::Relaxed),
-        0,
-        "{integrator} allocated ({:?})",
-        sim.effects()
-    );
+    (ALLOCATIONS.load(Ordering::Relaxed), out)
+}
+
+/// The fewest allocations `run` reports in three tries (see the module documentation).
+fn fewest(mut run: impl FnMut() -> usize) -> usize {
+    (0..3).map(|_| run()).min().unwrap()
+}
+
+/// Steps `scene` a while, then asserts that further steps allocate nothing.
+fn check_stepping(integrator: &str, scene: Scene) {
+    let effects = Simulation::new(scene.clone()).unwrap().effects().join(", ");
+    let allocations = fewest(|| {
+        let mut sim = Simulation::new(scene.clone()).unwrap();
+        sim.pin(0, Some(glam::Vec3::new(0.0, 2.0, 0.0))).unwrap();
+        sim.step(3).unwrap(); // first steps may size scratch buffers
+        let (allocations, ()) = counted(|| {
+            sim.step(20).unwrap();
+            sim.advance(0.003).unwrap();
+        });
+        allocations
+    });
+    assert_eq!(allocations, 0, "{integrator} allocated ({effects})");
     // The counter itself works: a call that does allocate is seen.
-    COUNTING.store(true, Ordering::Relaxed);
-    let strain = sim.spring_strain();
-    COUNTING.store(false, Ordering::Relaxed);
-    assert!(ALLOCATIONS.load(Ordering::Relaxed) > 0 && !strain.is_empty());
+    let sim = Simulation::new(scene).unwrap();
+    let (allocations, strain) = counted(|| sim.spring_strain());
+    assert!(allocations > 0 && !strain.is_empty());
+}
+
+#[test]
+fn issue_11_the_watchdog_retry_path_allocated() {
+    // The allocation test armed the watchdog with a limit that never tripped, so the retry
+    // path was never measured; read, it allocated the retry's start state on the first retry
+    // and the step's start on the first held multi-substep step. A scene that trips the limit
+    // now retries and holds inside the counted window, and allocates nothing.
+    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    with_threads(2, || {
+        rayon::broadcast(|_| WATCHED.with(|w| w.set(true)));
+        for &integrator in INTEGRATORS {
+            let mut scene = rustcloth::Scene::builtin("hanging").unwrap();
+            scene.integrator = integrator.to_string();
+            scene.cloth.nx = 48;
+            scene.cloth.ny = 48;
+            scene.cloth.k_structural = 20000.0;
+            scene.substeps = 1;
+            scene.dt = 0.002;
+            scene.watchdog = WatchdogSpec {
+                max_stretch: Some(1.2),
+                on_trouble: OnTrouble::Substep,
+                max_substeps: 256,
+                hold_steps: 3,
+            };
+            if integrator == "explicit_euler" {
+                scene.cloth.damping = 0.2;
+            }
+            let allocations = fewest(|| {
+                let mut sim = Simulation::new(scene.clone()).unwrap();
+                sim.step(1).ok(); // sizes the force tables
+                let before = sim.watchdog_stats();
+                let (allocations, outcome) = counted(|| sim.step(30));
+                let after = sim.watchdog_stats();
+                if ["symplectic_euler", "verlet", "rk4"].contains(&integrator) {
+                    // These need the retries here and are saved by them (implicit Euler needs
+                    // none, explicit Euler is beyond saving): both paths ran in the window.
+                    assert!(
+                        after.retried > before.retried && after.held_steps > before.held_steps,
+                        "{integrator}: {before:?} -> {after:?} ({outcome:?})"
+                    );
+                }
+                allocations
+            });
+            assert_eq!(allocations, 0, "{integrator} allocated while retrying");
+        }
+    });
 }
 
 #[test]
@@ -138,22 +204,22 @@ fn strain_limiting_allocates_only_on_its_first_call() {
             limit.apply(grid, &springs, &particles, &mut state, 1000);
         }
 
-        ALLOCATIONS.store(0, Ordering::Relaxed);
-        COUNTING.store(true, Ordering::Relaxed);
-        for _ in 0..10 {
-            for start in [&within, &stretched] {
-                state.copy_from(start);
-                limit.apply(grid, &springs, &particles, &mut state, 1000);
-            }
-        }
-        COUNTING.store(false, Ordering::Relaxed);
-        assert_eq!(ALLOCATIONS.load(Ordering::Relaxed), 0);
+        let allocations = fewest(|| {
+            counted(|| {
+                for _ in 0..10 {
+                    for start in [&within, &stretched] {
+                        state.copy_from(start);
+                        limit.apply(grid, &springs, &particles, &mut state, 1000);
+                    }
+                }
+            })
+            .0
+        });
+        assert_eq!(allocations, 0);
         // The stretched calls did run their sweeps.
         assert_ne!(state, within);
         // The counter itself works: a call that does allocate is seen.
-        COUNTING.store(true, Ordering::Relaxed);
-        let copy = state.clone();
-        COUNTING.store(false, Ordering::Relaxed);
-        assert!(ALLOCATIONS.load(Ordering::Relaxed) > 0 && copy == state);
+        let (allocations, copy) = counted(|| state.clone());
+        assert!(allocations > 0 && copy == state);
     });
 }
