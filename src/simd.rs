@@ -34,6 +34,22 @@ pub fn isa() -> Isa {
     })
 }
 
+impl Isa {
+    /// Its name, as `RUSTCLOTH_SIMD` spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Isa::Baseline => "baseline",
+            Isa::Avx2 => "avx2",
+            Isa::Avx512 => "avx512",
+        }
+    }
+}
+
+/// The widest instruction set this CPU offers.
+pub fn best() -> Isa {
+    detect()
+}
+
 fn detect() -> Isa {
     #[cfg(target_arch = "x86_64")]
     {

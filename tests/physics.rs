@@ -272,3 +272,115 @@ fn only_requested_effects_run() {
         ]
     );
 }
+
+/// One free particle (a 2 x 2 grid with three particles cut) at `start` with velocity `v0`,
+/// under gravity, on the floor (`floor`) or a sphere (`sphere`), each with `friction`.
+fn slider(start: Vec3, v0: Vec3, floor: Option<f64>, sphere: Option<(Vec3, f64)>) -> Simulation {
+    let mut scene = bare_scene(2, 2);
+    scene.gravity = [0.0, -9.81, 0.0];
+    if let Some(friction) = floor {
+        scene.floor = Some(FloorSpec {
+            height: 0.0,
+            friction,
+            thickness: 0.0,
+        });
+    }
+    if let Some((center, friction)) = sphere {
+        scene.spheres = vec![SphereSpec {
+            center: center.as_dvec3().to_array(),
+            radius: center.length() as f64,
+            friction,
+            thickness: 0.0,
+        }];
+    }
+    let mut sim = Simulation::new(scene).unwrap();
+    for p in 1..4 {
+        sim.cut(p).unwrap();
+    }
+    let mut pos = sim.positions().clone();
+    pos.set(0, start);
+    sim.set_positions(&pos).unwrap();
+    let mut vel = Vec3s::zeros(4);
+    vel.set(0, v0);
+    sim.set_velocities(&vel).unwrap();
+    sim
+}
+
+/// Steps until particle 0 stops (or 5 s pass); returns the time (s) and distance (m) it slid.
+fn slide(sim: &mut Simulation) -> (f64, f64) {
+    let start = position(sim, 0);
+    for _ in 0..5000 {
+        sim.step(1).unwrap();
+        let v = sim.velocities().get(0);
+        if v.x == 0.0 && v.z == 0.0 {
+            break;
+        }
+    }
+    let d = position(sim, 0) - start;
+    (sim.time(), (d.x as f64).hypot(d.z as f64))
+}
+
+#[test]
+fn issue_11_a_sliding_particle_decelerates_at_mu_g_on_the_floor() {
+    // Nothing tested the floor's friction coefficient: halving it broke no test. A particle
+    // sliding at v0 on a level floor loses mu g of speed per second (Coulomb friction with the
+    // normal force m g), so it stops after v0 / (mu g) and v0^2 / (2 mu g). One step of dt of
+    // discretisation error on each.
+    let (v0, g, dt) = (1.5f64, 9.81f64, 0.001f64);
+    for mu in [0.15, 0.3, 0.6] {
+        let mut sim = slider(Vec3::ZERO, Vec3::new(v0 as f32, 0.0, 0.0), Some(mu), None);
+        let (t, d) = slide(&mut sim);
+        let (t_stop, d_stop) = (v0 / (mu * g), v0 * v0 / (2.0 * mu * g));
+        assert!(
+            (t - t_stop).abs() <= 2.0 * dt,
+            "mu {mu}: stopped at {t} s, expected {t_stop}"
+        );
+        assert!(
+            (d - d_stop).abs() <= 2.0 * v0 * dt,
+            "mu {mu}: slid {d} m, expected {d_stop}"
+        );
+        assert!(position(&sim, 0).y.abs() < 1e-6, "it stays on the floor");
+    }
+}
+
+#[test]
+fn a_sliding_particle_slows_by_coulomb_friction_on_a_sphere() {
+    // A particle started at the top of a 10 m sphere, sliding: on the curved surface the
+    // normal force is m (g cos theta - v^2 / R) and gravity pulls it downhill by g sin theta,
+    // so along the arc s (theta = s / R) dv/dt = g sin theta - mu (g cos theta - v^2 / R).
+    // The stopping time and distance of that ODE, integrated in f64, are the reference; the
+    // sphere's friction coefficient must show in them.
+    let (g, r) = (9.81f64, 10.0f64);
+    let reference = |v0: f64, mu: f64| {
+        let (mut s, mut v, mut t, h) = (0.0f64, v0, 0.0f64, 1e-6);
+        while v > 0.0 {
+            let theta = s / r;
+            v += h * (g * theta.sin() - mu * (g * theta.cos() - v * v / r));
+            s += h * v;
+            t += h;
+        }
+        (t, s)
+    };
+    for (v0, mu) in [(1.0, 0.2), (1.0, 0.4), (2.0, 0.4)] {
+        let center = Vec3::new(0.0, -r as f32, 0.0);
+        let mut sim = slider(
+            Vec3::ZERO,
+            Vec3::new(0.0, 0.0, v0 as f32),
+            None,
+            Some((center, mu)),
+        );
+        let (t, d) = slide(&mut sim);
+        let (t_stop, d_stop) = reference(v0, mu);
+        // A few steps of the contact's first-order lag (a particle meets the surface a step
+        // after it sinks into it): far below what a different friction changes.
+        let dt = 0.001;
+        assert!(
+            (t - t_stop).abs() <= 5.0 * dt,
+            "mu {mu}: stopped at {t} s, expected {t_stop}"
+        );
+        assert!(
+            (d - d_stop).abs() <= 5.0 * v0 * dt,
+            "mu {mu}: slid {d} m, expected {d_stop}"
+        );
+    }
+}

@@ -466,6 +466,7 @@ fn the_result_is_bitwise_independent_of_threads_and_chunking() {
 #[ignore = "run by the_result_is_bitwise_the_same_for_every_instruction_set"]
 fn print_busy_digest() {
     println!("digest={}", busy_digest(1000));
+    println!("isa={}", rustcloth::simd::isa().name());
 }
 
 #[test]
@@ -480,9 +481,22 @@ fn the_result_is_bitwise_the_same_for_every_instruction_set() {
                 .output()
                 .unwrap();
             let text = String::from_utf8_lossy(&out.stdout).into_owned();
-            let line = text.lines().find(|l| l.starts_with("digest="));
-            line.unwrap_or_else(|| panic!("{isa}: no digest in {text}"))
-                .to_string()
+            let line = |key: &str| {
+                let line = text.lines().find(|l| l.starts_with(key));
+                line.unwrap_or_else(|| panic!("{isa}: no {key} in {text}"))
+                    .to_string()
+            };
+            // The request took effect: the set asked for, or the CPU's widest if it lacks it.
+            let used = line("isa=");
+            let best = rustcloth::simd::best().name();
+            let order = ["baseline", "avx2", "avx512"];
+            let want = order[order
+                .iter()
+                .position(|o| o == isa)
+                .unwrap()
+                .min(order.iter().position(|o| *o == best).unwrap())];
+            assert_eq!(used, format!("isa={want}"), "asked for {isa}");
+            line("digest=")
         })
         .collect();
     assert!(digests.iter().all(|d| *d == digests[0]), "{digests:?}");

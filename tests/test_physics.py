@@ -122,27 +122,37 @@ DIGEST_SCRIPT = textwrap.dedent(
     scene = scene.replace(integrator=sys.argv[1], cloth={"nx": 96, "ny": 96, "pins": ["corners"]})
     sim = rustcloth.Simulation(scene)
     sim.step(40)
-    print(hashlib.sha256(sim.positions.tobytes() + sim.velocities.tobytes()).hexdigest())
+    digest = hashlib.sha256(sim.positions.tobytes() + sim.velocities.tobytes()).hexdigest()
+    print(digest, rustcloth._core.instruction_set(), rustcloth._core.thread_count())
     """
 )
 
+ISAS = ("baseline", "avx2", "avx512")
 
-def digest_with(env: dict[str, str], integrator: str = "symplectic_euler") -> str:
+
+def digest_with(env: dict[str, str], integrator: str = "symplectic_euler") -> tuple[str, str, int]:
+    """``(state digest, instruction set used, threads used)`` of a run in a fresh process."""
+    clean = {k: v for k, v in os.environ.items() if k not in ("RUSTCLOTH_SIMD", "RAYON_NUM_THREADS")}
     out = subprocess.run([sys.executable, "-c", DIGEST_SCRIPT, integrator],
-                         env=dict(os.environ, **env), check=True, capture_output=True, text=True)
-    return out.stdout.strip()
+                         env=dict(clean, **env), check=True, capture_output=True, text=True)
+    digest, isa, threads = out.stdout.split()
+    return digest, isa, int(threads)
 
 
 @pytest.mark.parametrize("integrator", rustcloth.INTEGRATORS)
 def test_state_is_bitwise_identical_across_vector_instruction_sets(integrator):
     # The hot loops are compiled for SSE2, AVX2 and AVX-512 and chosen at run time; none
-    # reorders arithmetic, so all give the same bits (where the CPU has them; otherwise the
-    # request falls back and the comparison is trivially true).
-    digests = {digest_with({"RUSTCLOTH_SIMD": isa}, integrator)
-               for isa in ("baseline", "avx2", "avx512")}
-    assert len(digests) == 1, digests
+    # reorders arithmetic, so all give the same bits. Each run reports the instruction set it
+    # used: the one asked for, or the CPU's widest where it lacks that one (issue 11: the test
+    # never checked that the request took effect, so it could have compared one set thrice).
+    best = digest_with({})[1]
+    runs = {isa: digest_with({"RUSTCLOTH_SIMD": isa}, integrator) for isa in ISAS}
+    for isa, (_, used, _) in runs.items():
+        assert used == ISAS[min(ISAS.index(isa), ISAS.index(best))], (isa, used, best)
+    assert len({digest for digest, _, _ in runs.values()}) == 1, runs
 
 
 def test_state_is_bitwise_identical_across_thread_counts():
-    digests = {digest_with({"RAYON_NUM_THREADS": threads}) for threads in ("1", "2", "3")}
-    assert len(digests) == 1, digests
+    runs = {threads: digest_with({"RAYON_NUM_THREADS": str(threads)}) for threads in (1, 2, 3)}
+    assert all(used == threads for threads, (_, _, used) in runs.items()), runs
+    assert len({digest for digest, _, _ in runs.values()}) == 1, runs

@@ -66,6 +66,19 @@ fn builtin_scene<'py>(py: Python<'py>, name: &Bound<'py, PyAny>) -> PyResult<Bou
     scene_to_dict(py, &Scene::builtin(&name).py()?)
 }
 
+/// The vector instruction set the solver's loops run with in this process (`baseline`,
+/// `avx2`, `avx512`): the widest the CPU has, or what `RUSTCLOTH_SIMD` asked for.
+#[pyfunction]
+fn instruction_set() -> &'static str {
+    crate::simd::isa().name()
+}
+
+/// The threads of the pool the solver runs on (`RAYON_NUM_THREADS`, or one per core).
+#[pyfunction]
+fn thread_count() -> usize {
+    rayon::current_num_threads()
+}
+
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<simulation::PySimulation>()?;
@@ -76,6 +89,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(builtin_scene, m)?)?;
     m.add_function(wrap_pyfunction!(scene_stability, m)?)?;
     m.add_function(wrap_pyfunction!(simulation::simulation_from_state, m)?)?;
+    m.add_function(wrap_pyfunction!(instruction_set, m)?)?;
+    m.add_function(wrap_pyfunction!(thread_count, m)?)?;
     m.add("INTEGRATORS", INTEGRATORS.to_vec())?;
     Ok(())
 }
