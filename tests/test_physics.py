@@ -132,7 +132,8 @@ ISAS = ("baseline", "avx2", "avx512")
 
 def digest_with(env: dict[str, str], integrator: str = "symplectic_euler") -> tuple[str, str, int]:
     """``(state digest, instruction set used, threads used)`` of a run in a fresh process."""
-    clean = {k: v for k, v in os.environ.items() if k not in ("RUSTCLOTH_SIMD", "RAYON_NUM_THREADS")}
+    chosen = ("RUSTCLOTH_SIMD", "RAYON_NUM_THREADS")
+    clean = {k: v for k, v in os.environ.items() if k not in chosen}
     out = subprocess.run([sys.executable, "-c", DIGEST_SCRIPT, integrator],
                          env=dict(clean, **env), check=True, capture_output=True, text=True)
     digest, isa, threads = out.stdout.split()
