@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion};
 use glam::Vec3;
-use rustcloth::interaction::PickStrategy;
+use rustcloth::picking::PickStrategy;
 use rustcloth::picking::{
     pick_particle_brute_force, pick_particle_scan, pick_triangle_brute_force, pick_triangle_scan,
     ParticleBvh, Ray, TriangleBvh,

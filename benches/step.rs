@@ -96,9 +96,9 @@ fn bench_effects(c: &mut Criterion) {
 /// implicit Euler's cost is dominated by its CG iterations (printed after the group).
 fn bench_integrators(c: &mut Criterion) {
     let mut group = c.benchmark_group("integrators_128");
-    for integrator in rustcloth::scene::INTEGRATORS {
+    for integrator in rustcloth::IntegratorKind::ALL {
         let mut scene = scene(128);
-        scene.integrator = integrator.to_string();
+        scene.integrator = integrator;
         // A step costs the same at any dt (but implicit Euler's CG iterations); keep each
         // integrator inside its stability limit so the state stays meaningful.
         if let Some(limit) = Simulation::new(scene.clone()).unwrap().stable_dt() {
@@ -107,7 +107,7 @@ fn bench_integrators(c: &mut Criterion) {
         let mut sim = Simulation::new(scene).unwrap();
         // Explicit Euler grows the undamped sideways swing of stretched springs even below its
         // stable dt, and criterion runs 1e5 steps and more: start over when it gives out.
-        group.bench_function(*integrator, |b| {
+        group.bench_function(integrator.name(), |b| {
             b.iter(|| {
                 if sim.step(1).is_err() {
                     sim.reset().unwrap();

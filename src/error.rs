@@ -162,6 +162,23 @@ where
     Ok(())
 }
 
+/// Checks that `values` holds `n` finite vectors (positions, velocities).
+pub(crate) fn check_vec3s(name: &str, values: &crate::soa::Vec3s, n: usize) -> Result<()> {
+    if values.len() != n || values.y.len() != n || values.z.len() != n {
+        return Err(Error::value(
+            name,
+            format!("must hold {n} vectors, got {}", values.len()),
+        ));
+    }
+    if let Some(p) = (0..n).find(|&p| !values.get(p).is_finite()) {
+        return Err(Error::value(
+            name,
+            format!("row {p} is not finite: {:?}", values.get(p).to_array()),
+        ));
+    }
+    Ok(())
+}
+
 /// Checks each component of a vector with [`check_scalar`].
 pub(crate) fn check_vector(name: &str, value: &[f64], bound: Bound) -> Result<()> {
     for (axis, &c) in value.iter().enumerate() {

@@ -17,11 +17,15 @@
 //! This crate is pure Rust; the Python binding lives behind the `python` feature.
 
 pub mod collisions;
+pub mod diagnostics;
 pub mod error;
 pub mod forces;
 pub mod grid;
 pub mod integrators;
 pub mod interaction;
+pub mod model;
+pub mod parallel;
+pub mod particles;
 pub mod picking;
 pub mod pins;
 pub mod profile;
@@ -30,13 +34,16 @@ pub mod simd;
 pub mod simulation;
 pub mod snapshot;
 pub mod soa;
+pub mod springs;
 pub mod state;
+pub mod stepper;
 pub mod strain_limit;
-pub mod watchdog;
 
 #[cfg(feature = "python")]
 mod python;
 
+pub use diagnostics::Energy;
 pub use error::{Error, Result, Trouble};
+pub use integrators::IntegratorKind;
 pub use scene::Scene;
-pub use simulation::{Energy, Simulation};
+pub use simulation::Simulation;

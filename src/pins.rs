@@ -2,7 +2,7 @@
 
 use glam::Vec3;
 
-use crate::state::Kinematics;
+use crate::soa::Vec3s;
 
 /// Pinned particles with a target. Each step puts the particle exactly on its target and gives
 /// it the velocity of that move, `(target - x) / h`, so spring damping sees the motion. In the
@@ -46,12 +46,13 @@ impl KinematicPins {
 
     /// Puts every target's particle on it; returns whether the velocities it wrote are finite
     /// (a drag across float32's range overflows).
-    pub fn apply(&self, h: f32, start: &Kinematics, next: &mut Kinematics) -> bool {
+    /// `start` holds the positions at the start of the step, `pos` and `vel` the step's result.
+    pub fn apply(&self, h: f32, start: &Vec3s, pos: &mut Vec3s, vel: &mut Vec3s) -> bool {
         let mut finite = true;
         for &(p, target) in &self.targets {
-            let v = (target - start.pos.get(p)) / h;
-            next.vel.set(p, v);
-            next.pos.set(p, target);
+            let v = (target - start.get(p)) / h;
+            vel.set(p, v);
+            pos.set(p, target);
             finite &= v.is_finite();
         }
         finite

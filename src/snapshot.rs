@@ -10,11 +10,20 @@
 
 use glam::Vec3;
 
+use crate::error::{check_scalar, check_vec3s, Bound, Error, Result};
+use crate::grid::SpringKind;
 use crate::integrators::History;
-use crate::interaction::{GrabRecord, PickStrategy};
+use crate::interaction::Grab;
+use crate::model::Model;
+use crate::picking::{PickStrategy, Picker};
 use crate::scene::Scene;
 use crate::soa::Vec3s;
-use crate::watchdog::WatchdogStats;
+use crate::state::{Clock, State};
+use crate::stepper::{Stepper, WatchdogStats};
+
+/// What a grab remembers: the particle, whether it was pinned before, and the kinematic target
+/// it had.
+pub type GrabRecord = (usize, bool, Option<Vec3>);
 
 /// Everything `Simulation::restore` needs to continue a run bit for bit.
 #[derive(Clone, Debug, PartialEq)]
@@ -60,4 +69,159 @@ pub struct WatchdogSnapshot {
     /// After a rescue: `(substeps, until)`.
     pub hold: Option<(u32, u64)>,
     pub stats: WatchdogStats,
+}
+
+impl Snapshot {
+    /// The snapshot of a simulation's parts.
+    pub(crate) fn capture(
+        model: &Model,
+        state: &State,
+        stepper: &Stepper,
+        picker: &Picker,
+        grab: Option<Grab>,
+    ) -> Snapshot {
+        Snapshot {
+            scene: model.scene.clone(),
+            positions: state.kin.pos.clone(),
+            velocities: state.kin.vel.clone(),
+            masses: model.particles.mass.clone(),
+            pinned: model.particles.pinned.clone(),
+            alive: model.particles.alive.clone(),
+            springs: SpringKind::ALL.map(|kind| {
+                model.springs.active[kind.index()]
+                    .iter()
+                    .map(|&a| a != 0.0)
+                    .collect()
+            }),
+            targets: state.targets.targets().to_vec(),
+            grab: grab.map(|g| (g.index, g.was_pinned, g.previous_target)),
+            pick_radius: picker.radius_setting(),
+            pick_strategy: picker.strategy(),
+            steps: state.clock.steps,
+            time_base: state.clock.time_base,
+            steps_base: state.clock.steps_base,
+            accumulator: state.clock.accumulator,
+            history: stepper.history(),
+            watchdog: stepper.watchdog_snapshot(),
+            state_version: state.version,
+            topology_version: model.topology_version,
+        }
+    }
+
+    /// Puts the snapshot into the parts of a simulation freshly built from its scene, checking
+    /// every part against the scene first; returns the grab. On error the parts may be half
+    /// set: the caller drops them.
+    pub(crate) fn apply(
+        self,
+        model: &mut Model,
+        state: &mut State,
+        stepper: &mut Stepper,
+        picker: &mut Picker,
+    ) -> Result<Option<Grab>> {
+        let n = model.grid.len();
+        for (name, values) in [
+            ("positions", &self.positions),
+            ("velocities", &self.velocities),
+        ] {
+            check_vec3s(name, values, n)?;
+        }
+        if self.masses.len() != n {
+            return Err(Error::value(
+                "masses",
+                format!("must hold {n} values, got {}", self.masses.len()),
+            ));
+        }
+        for (p, &m) in self.masses.iter().enumerate() {
+            if !(m.is_finite() && m > 0.0 && (1.0 / m).is_finite()) {
+                return Err(Error::value(
+                    format!("masses[{p}]"),
+                    format!("must be finite and > 0 with a finite inverse, got {m}"),
+                ));
+            }
+        }
+        for (name, flags) in [("pinned", &self.pinned), ("alive", &self.alive)] {
+            if flags.len() != n {
+                return Err(Error::value(
+                    name,
+                    format!("must hold {n} flags, got {}", flags.len()),
+                ));
+            }
+        }
+        for kind in SpringKind::ALL {
+            let flags = &self.springs[kind.index()];
+            let name = format!("springs[{}]", kind.index());
+            if flags.len() != n {
+                return Err(Error::value(
+                    name,
+                    format!("must hold {n} flags, got {}", flags.len()),
+                ));
+            }
+            if let Some(p) = (0..n).find(|&p| flags[p] && model.grid.partner(p, kind).is_none()) {
+                return Err(Error::value(
+                    name,
+                    format!("particle {p} has no partner for a live spring of {kind:?}"),
+                ));
+            }
+        }
+        for &(p, target) in &self.targets {
+            if p >= n || !self.pinned[p] || !target.is_finite() {
+                return Err(Error::value(
+                    "targets",
+                    format!("({p}, {target}) must be a pinned particle and a finite target"),
+                ));
+            }
+        }
+        if let Some((p, _, previous)) = self.grab {
+            if p >= n || !self.alive[p] || previous.is_some_and(|t| !t.is_finite()) {
+                return Err(Error::value(
+                    "grab",
+                    format!("particle {p} must be a live particle"),
+                ));
+            }
+        }
+        if let Some(r) = self.pick_radius {
+            picker.set_radius(r as f64)?;
+        }
+        for (name, x) in [
+            ("time_base", self.time_base),
+            ("accumulator", self.accumulator),
+        ] {
+            check_scalar(name, x, Bound::NonNegative)?;
+        }
+        stepper.restore_watchdog(self.watchdog, n)?;
+
+        state.kin.pos.copy_from(&self.positions);
+        state.kin.vel.copy_from(&self.velocities);
+        let particles = &mut model.particles;
+        particles.mass = self.masses;
+        particles.pinned = self.pinned;
+        particles.alive = self.alive;
+        for p in 0..n {
+            particles.refresh(p);
+        }
+        for kind in SpringKind::ALL {
+            let active = &mut model.springs.active[kind.index()];
+            for (slot, &live) in self.springs[kind.index()].iter().enumerate() {
+                active[slot] = if live { 1.0 } else { 0.0 };
+            }
+        }
+        for (p, target) in self.targets {
+            state.targets.set(p, target);
+        }
+        picker.set_strategy(self.pick_strategy);
+        state.clock = Clock {
+            steps: self.steps,
+            time_base: self.time_base,
+            steps_base: self.steps_base,
+            accumulator: self.accumulator,
+        };
+        stepper.set_history(self.history);
+        state.version = self.state_version;
+        model.topology_version = self.topology_version;
+        Ok(self.grab.map(|(index, was_pinned, previous_target)| Grab {
+            index,
+            was_pinned,
+            previous_target,
+        }))
+    }
 }

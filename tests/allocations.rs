@@ -20,12 +20,14 @@ use std::sync::Mutex;
 
 use common::with_threads;
 use glam::Vec3;
-use rustcloth::forces::Springs;
 use rustcloth::grid::Grid;
-use rustcloth::scene::{FloorSpec, OnTrouble, StrainLimitSpec, WatchdogSpec, INTEGRATORS};
+use rustcloth::model::Particles;
+use rustcloth::scene::{FloorSpec, OnTrouble, StrainLimitSpec, WatchdogSpec};
 use rustcloth::soa::Vec3s;
-use rustcloth::state::{Kinematics, Particles};
+use rustcloth::springs::Springs;
+use rustcloth::state::Kinematics;
 use rustcloth::strain_limit::StrainLimit;
+use rustcloth::IntegratorKind;
 use rustcloth::{Scene, Simulation};
 
 struct Counting;
@@ -64,7 +66,7 @@ fn no_integrator_allocates_while_stepping() {
         // Every thread of the pool (the test runs on one of them); this also returns only
         // once every worker has started, which allocates.
         rayon::broadcast(|_| WATCHED.with(|w| w.set(true)));
-        for integrator in INTEGRATORS {
+        for integrator in IntegratorKind::ALL {
             for (watchdog, strain_limit) in [
                 (WatchdogSpec::default(), None),
                 (
@@ -77,7 +79,7 @@ fn no_integrator_allocates_while_stepping() {
                 ),
             ] {
                 let mut scene = Scene::builtin("drape").unwrap();
-                scene.integrator = integrator.to_string();
+                scene.integrator = integrator;
                 scene.cloth.nx = 64;
                 scene.cloth.ny = 64;
                 scene.dt = 0.0002;
@@ -105,7 +107,7 @@ fn fewest(mut run: impl FnMut() -> usize) -> usize {
 }
 
 /// Steps `scene` a while, then asserts that further steps allocate nothing.
-fn check_stepping(integrator: &str, scene: Scene) {
+fn check_stepping(integrator: IntegratorKind, scene: Scene) {
     let effects = Simulation::new(scene.clone()).unwrap().effects().join(", ");
     let allocations = fewest(|| {
         let mut sim = Simulation::new(scene.clone()).unwrap();
@@ -133,9 +135,9 @@ fn issue_11_the_watchdog_retry_path_allocated() {
     let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     with_threads(2, || {
         rayon::broadcast(|_| WATCHED.with(|w| w.set(true)));
-        for &integrator in INTEGRATORS {
+        for integrator in IntegratorKind::ALL {
             let mut scene = rustcloth::Scene::builtin("hanging").unwrap();
-            scene.integrator = integrator.to_string();
+            scene.integrator = integrator;
             scene.cloth.nx = 48;
             scene.cloth.ny = 48;
             scene.cloth.k_structural = 20000.0;
@@ -147,7 +149,7 @@ fn issue_11_the_watchdog_retry_path_allocated() {
                 max_substeps: 256,
                 hold_steps: 3,
             };
-            if integrator == "explicit_euler" {
+            if integrator == IntegratorKind::ExplicitEuler {
                 scene.cloth.damping = 0.2;
             }
             let allocations = fewest(|| {
@@ -156,7 +158,13 @@ fn issue_11_the_watchdog_retry_path_allocated() {
                 let before = sim.watchdog_stats();
                 let (allocations, outcome) = counted(|| sim.step(30));
                 let after = sim.watchdog_stats();
-                if ["symplectic_euler", "verlet", "rk4"].contains(&integrator) {
+                if [
+                    IntegratorKind::SymplecticEuler,
+                    IntegratorKind::Verlet,
+                    IntegratorKind::Rk4,
+                ]
+                .contains(&integrator)
+                {
                     // These need the retries here and are saved by them (implicit Euler needs
                     // none, explicit Euler is beyond saving): both paths ran in the window.
                     assert!(

@@ -9,14 +9,15 @@ use glam::Vec3;
 use proptest::prelude::*;
 use proptest::sample::select;
 use proptest::test_runner::{Config, FileFailurePersistence, RngAlgorithm, RngSeed};
-use rustcloth::scene::{FloorSpec, PinSpec, Plane, SphereSpec, StrainLimitSpec, INTEGRATORS};
+use rustcloth::scene::{FloorSpec, PinSpec, Plane, SphereSpec, StrainLimitSpec};
+use rustcloth::IntegratorKind;
 use rustcloth::{Scene, Simulation};
 
 /// A vertical cloth draping over a sphere onto a floor, with drag, strain limiting and the
 /// watchdog's stretch check.
-fn scene(nx: u32, ny: u32, integrator: &str) -> Scene {
+fn scene(nx: u32, ny: u32, integrator: IntegratorKind) -> Scene {
     let mut scene = Scene {
-        integrator: integrator.into(),
+        integrator,
         air_drag: 0.001,
         floor: Some(FloorSpec {
             height: 0.55,
@@ -35,7 +36,7 @@ fn scene(nx: u32, ny: u32, integrator: &str) -> Scene {
     scene.cloth.plane = Plane::Xy;
     scene.cloth.pins = vec![PinSpec::Named("top_edge".into())];
     scene.watchdog.max_stretch = Some(50.0);
-    if integrator == "explicit_euler" {
+    if integrator == IntegratorKind::ExplicitEuler {
         scene.cloth.damping = 0.05;
     }
     scene
@@ -64,7 +65,7 @@ fn live_bits(sim: &Simulation) -> Vec<u32> {
 /// Steps a cloth with `cut` particles cut twice: once leaving them where they were, once
 /// after moving them to `far` values; the live particles must agree bit for bit, and so must
 /// what is derived from them.
-fn check(nx: u32, ny: u32, integrator: &str, cut: &[usize], far: &[f32]) {
+fn check(nx: u32, ny: u32, integrator: IntegratorKind, cut: &[usize], far: &[f32]) {
     let build = || {
         let mut sim = Simulation::new(scene(nx, ny, integrator)).unwrap();
         for &p in cut {
@@ -121,7 +122,7 @@ fn issue_11_a_cut_particle_moved_far_away_changed_the_live_cloth() {
     // spring length overflowed, 0 * inf made the live neighbour's force NaN and the watchdog
     // blamed a live particle; with implicit Euler its infinite spring direction entered the
     // solve. Every integrator, one chunk and many.
-    for integrator in INTEGRATORS {
+    for integrator in IntegratorKind::ALL {
         check(12, 10, integrator, &[37, 38, 50], &FAR);
         with_threads(3, || {
             check(90, 60, integrator, &[2000, 2001, 4100, 5399], &FAR)
@@ -145,7 +146,7 @@ proptest! {
     #![proptest_config(config(24))]
     #[test]
     fn cut_particles_anywhere_leave_the_live_cloth_alone(
-        integrator in select(INTEGRATORS),
+        integrator in select(IntegratorKind::ALL.to_vec()),
         (nx, ny) in (3u32..30, 3u32..30),
         cut_seeds in prop::collection::vec(0usize..10_000, 1..12),
         far in prop::collection::vec(select(&FAR[..]), 1..5),

@@ -14,15 +14,8 @@ use std::fmt::Write as _;
 use common::{bare_scene, with_threads};
 use glam::Vec3;
 use rustcloth::scene::{FloorSpec, OnTrouble, PinSpec, Plane, SphereSpec, StrainLimitSpec};
+use rustcloth::IntegratorKind;
 use rustcloth::{Scene, Simulation};
-
-const INTEGRATORS: [&str; 5] = [
-    "explicit_euler",
-    "symplectic_euler",
-    "verlet",
-    "rk4",
-    "implicit_euler",
-];
 
 const GOLDEN: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
@@ -68,14 +61,14 @@ fn digest(sim: &Simulation, outcome: &rustcloth::Result<()>) -> String {
 }
 
 /// A 24 x 20 horizontal cloth hung by two corners, with drag.
-fn hanging(integrator: &str) -> Scene {
+fn hanging(integrator: IntegratorKind) -> Scene {
     let mut scene = Scene::builtin("hanging").unwrap();
-    scene.integrator = integrator.into();
+    scene.integrator = integrator;
     scene.cloth.nx = 24;
     scene.cloth.ny = 20;
     scene.air_drag = 0.0005;
     // Explicit Euler survives only with enough damping and a short step.
-    if integrator == "explicit_euler" {
+    if integrator == IntegratorKind::ExplicitEuler {
         scene.cloth.damping = 0.05;
         scene.substeps = 4;
     }
@@ -83,12 +76,12 @@ fn hanging(integrator: &str) -> Scene {
 }
 
 /// A cloth dropped onto a sphere that stands on the floor.
-fn drape(integrator: &str) -> Scene {
+fn drape(integrator: IntegratorKind) -> Scene {
     let mut scene = Scene::builtin("drape").unwrap();
-    scene.integrator = integrator.into();
+    scene.integrator = integrator;
     scene.cloth.nx = 24;
     scene.cloth.ny = 24;
-    if integrator == "explicit_euler" {
+    if integrator == IntegratorKind::ExplicitEuler {
         scene.cloth.damping = 0.05;
         scene.substeps = 4;
     }
@@ -104,7 +97,7 @@ type Case = (String, Box<dyn Fn() -> String>);
 
 fn cases() -> Vec<Case> {
     let mut out: Vec<Case> = Vec::new();
-    for integrator in INTEGRATORS {
+    for integrator in IntegratorKind::ALL {
         let name = |what: &str| format!("{what}/{integrator}");
         out.push((
             name("hanging"),
@@ -138,7 +131,7 @@ fn cases() -> Vec<Case> {
             Box::new(move || {
                 // Too stiff for the step: the watchdog retries with more substeps.
                 let mut scene = bare_scene(12, 12);
-                scene.integrator = integrator.into();
+                scene.integrator = integrator;
                 scene.gravity = [0.0, -9.81, 0.0];
                 scene.cloth.k_structural = 4000.0;
                 scene.cloth.damping = 0.05;

@@ -4,20 +4,15 @@ mod common;
 
 use common::*;
 use rustcloth::scene::PinSpec;
+use rustcloth::IntegratorKind;
 use rustcloth::{Scene, Simulation};
 
-const ALL: [&str; 5] = [
-    "explicit_euler",
-    "symplectic_euler",
-    "verlet",
-    "rk4",
-    "implicit_euler",
-];
+const ALL: [IntegratorKind; 5] = IntegratorKind::ALL;
 
 /// Position error at t = 1 s of a mass on a spring (k = 100 N/m, m = 1 kg, so omega = 10
 /// rad/s) released 0.5 m from rest: `x(t) = L + 0.5 cos(10 t)`. Stiff enough that truncation
 /// error dominates float32 round-off over each dt ladder below.
-fn oscillator_error(integrator: &str, steps: u64) -> f64 {
+fn oscillator_error(integrator: IntegratorKind, steps: u64) -> f64 {
     let dt = 1.0 / steps as f64;
     let mut sim = two_particle_spring(100.0, 1.0, integrator, dt);
     sim.pin(0, None).unwrap();
@@ -33,11 +28,11 @@ fn oscillator_error(integrator: &str, steps: u64) -> f64 {
 fn halving_dt_divides_the_error_by_the_order_of_each_method() {
     // (integrator, expected error ratio per halving, steps per second)
     let cases = [
-        ("explicit_euler", 2.0, [4000, 8000, 16000]),
-        ("symplectic_euler", 2.0, [1000, 2000, 4000]),
-        ("implicit_euler", 2.0, [4000, 8000, 16000]),
-        ("verlet", 4.0, [250, 500, 1000]),
-        ("rk4", 16.0, [40, 80, 160]),
+        (IntegratorKind::ExplicitEuler, 2.0, [4000, 8000, 16000]),
+        (IntegratorKind::SymplecticEuler, 2.0, [1000, 2000, 4000]),
+        (IntegratorKind::ImplicitEuler, 2.0, [4000, 8000, 16000]),
+        (IntegratorKind::Verlet, 4.0, [250, 500, 1000]),
+        (IntegratorKind::Rk4, 16.0, [40, 80, 160]),
     ];
     for (integrator, order_ratio, ladder) in cases {
         let errors: Vec<f64> = ladder
@@ -55,9 +50,9 @@ fn halving_dt_divides_the_error_by_the_order_of_each_method() {
 }
 
 /// A cloth pinned at two corners, swinging, with every dissipation switched off.
-fn undamped_swing(integrator: &str) -> Simulation {
+fn undamped_swing(integrator: IntegratorKind) -> Simulation {
     let mut scene = Scene::builtin("hanging").unwrap();
-    scene.integrator = integrator.into();
+    scene.integrator = integrator;
     scene.air_drag = 0.0;
     scene.cloth.damping = 0.0;
     scene.cloth.nx = 12;
@@ -74,7 +69,7 @@ fn undamped_swing(integrator: &str) -> Simulation {
 /// Energy drift over 10,000 steps: (largest |E - E0|, last E - E0) relative to the energy
 /// exchanged by the swing (the initial potential energy above the final hanging state is of
 /// the order of m g times the drop).
-fn energy_drift(integrator: &str) -> (f64, f64) {
+fn energy_drift(integrator: IntegratorKind) -> (f64, f64) {
     let mut sim = undamped_swing(integrator);
     let e0 = sim.energy().total();
     let scale = sim.energy().gravitational.abs().max(1e-9) * 0.1;
@@ -90,11 +85,11 @@ fn energy_drift(integrator: &str) -> (f64, f64) {
 
 #[test]
 fn symplectic_methods_keep_energy_bounded_explicit_gains_implicit_loses() {
-    let (symplectic, _) = energy_drift("symplectic_euler");
-    let (verlet, _) = energy_drift("verlet");
-    let (rk4, _) = energy_drift("rk4");
-    let (explicit, explicit_last) = energy_drift("explicit_euler");
-    let (implicit, implicit_last) = energy_drift("implicit_euler");
+    let (symplectic, _) = energy_drift(IntegratorKind::SymplecticEuler);
+    let (verlet, _) = energy_drift(IntegratorKind::Verlet);
+    let (rk4, _) = energy_drift(IntegratorKind::Rk4);
+    let (explicit, explicit_last) = energy_drift(IntegratorKind::ExplicitEuler);
+    let (implicit, implicit_last) = energy_drift(IntegratorKind::ImplicitEuler);
     assert!(symplectic < 0.05, "symplectic Euler drift {symplectic}");
     assert!(verlet < 0.05, "Verlet drift {verlet}");
     assert!(
@@ -125,16 +120,19 @@ fn implicit_euler_is_stable_far_beyond_the_explicit_limit() {
     scene.cloth.k_structural = 100.0 * k_limit;
     scene.cloth.k_shear = 20.0 * k_limit;
     scene.cloth.k_bend = 5.0 * k_limit;
-    for integrator in ["symplectic_euler", "explicit_euler"] {
+    for integrator in [
+        IntegratorKind::SymplecticEuler,
+        IntegratorKind::ExplicitEuler,
+    ] {
         let mut sim = Simulation::new(Scene {
-            integrator: integrator.into(),
+            integrator,
             ..scene.clone()
         })
         .unwrap();
         assert!(sim.step(60).is_err(), "{integrator} should diverge here");
     }
     let mut sim = Simulation::new(Scene {
-        integrator: "implicit_euler".into(),
+        integrator: IntegratorKind::ImplicitEuler,
         ..scene
     })
     .unwrap();
@@ -159,7 +157,7 @@ fn implicit_euler_is_stable_far_beyond_the_explicit_limit() {
 fn every_integrator_keeps_pins_bitwise_and_is_thread_count_deterministic() {
     for integrator in ALL {
         let mut scene = Scene::builtin("drape").unwrap();
-        scene.integrator = integrator.into();
+        scene.integrator = integrator;
         scene.dt = 0.0005;
         // 128 x 96 particles: 6 parallel chunks of 2,048 on 3 and 7 threads, 4 of 3,072 on
         // one, so both the chunking and the scheduling differ between the runs compared.
@@ -191,7 +189,7 @@ fn every_integrator_keeps_pins_bitwise_and_is_thread_count_deterministic() {
 fn every_integrator_falls_freely_at_g() {
     for integrator in ALL {
         let mut scene = bare_scene(6, 6);
-        scene.integrator = integrator.into();
+        scene.integrator = integrator;
         scene.gravity = [0.0, -9.81, 0.0];
         let mut sim = Simulation::new(scene).unwrap();
         let y0 = position(&sim, 0).y as f64;
@@ -205,9 +203,13 @@ fn every_integrator_falls_freely_at_g() {
 #[test]
 fn the_stability_estimate_separates_stable_from_unstable_steps() {
     // The stiffest mode of an undamped cloth; the estimate must hold within about 10 %.
-    for integrator in ["symplectic_euler", "verlet", "rk4"] {
+    for integrator in [
+        IntegratorKind::SymplecticEuler,
+        IntegratorKind::Verlet,
+        IntegratorKind::Rk4,
+    ] {
         let mut scene = bare_scene(16, 16);
-        scene.integrator = integrator.into();
+        scene.integrator = integrator;
         scene.cloth.damping = 0.0;
         scene.gravity = [0.0, -9.81, 0.0];
         scene.cloth.pins = vec![PinSpec::Named("top_corners".into())];
@@ -230,7 +232,7 @@ fn the_stability_estimate_separates_stable_from_unstable_steps() {
         );
     }
     let implicit = Scene {
-        integrator: "implicit_euler".into(),
+        integrator: IntegratorKind::ImplicitEuler,
         ..bare_scene(4, 4)
     };
     assert_eq!(Simulation::new(implicit).unwrap().stable_dt(), None);
@@ -242,9 +244,14 @@ fn the_stability_estimate_separates_stable_from_unstable_steps() {
 /// now includes the damping of the stiffest mode; the cloth must hold at 0.9 times it.
 #[test]
 fn issue_6_light_particles_are_stable_below_the_damped_estimate() {
-    for integrator in ["explicit_euler", "symplectic_euler", "verlet", "rk4"] {
+    for integrator in [
+        IntegratorKind::ExplicitEuler,
+        IntegratorKind::SymplecticEuler,
+        IntegratorKind::Verlet,
+        IntegratorKind::Rk4,
+    ] {
         let mut scene = bare_scene(16, 16);
-        scene.integrator = integrator.into();
+        scene.integrator = integrator;
         scene.gravity = [0.0, -9.81, 0.0];
         scene.cloth.particle_mass = Some(1e-6);
         scene.cloth.pins = vec![PinSpec::Named("top_corners".into())];

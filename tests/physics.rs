@@ -7,15 +7,19 @@ use glam::{Quat, Vec3};
 use rustcloth::scene::{FloorSpec, SphereSpec};
 use rustcloth::simulation::total_force;
 use rustcloth::soa::Vec3s;
+use rustcloth::IntegratorKind;
 use rustcloth::{Scene, Simulation};
 
 #[test]
 fn free_fall_matches_the_discrete_closed_form_of_each_integrator() {
     // x_n = x_0 + h^2 g n (n + 1) / 2 for symplectic Euler (the new velocity moves the
     // particle), n (n - 1) / 2 for explicit Euler (the old one does).
-    for (integrator, lag) in [("symplectic_euler", 1.0), ("explicit_euler", -1.0)] {
+    for (integrator, lag) in [
+        (IntegratorKind::SymplecticEuler, 1.0),
+        (IntegratorKind::ExplicitEuler, -1.0),
+    ] {
         let mut scene = bare_scene(8, 8);
-        scene.integrator = integrator.into();
+        scene.integrator = integrator;
         scene.gravity = [0.0, -9.81, 0.0];
         let mut sim = Simulation::new(scene).unwrap();
         let y0 = position(&sim, 0).y as f64;
@@ -43,7 +47,10 @@ fn free_fall_matches_the_discrete_closed_form_of_each_integrator() {
 fn a_two_particle_spring_oscillates_with_period_two_pi_sqrt_m_over_k() {
     let (k, m) = (50.0f64, 0.02f64);
     let expected = 2.0 * std::f64::consts::PI * (m / k).sqrt();
-    for integrator in ["symplectic_euler", "explicit_euler"] {
+    for integrator in [
+        IntegratorKind::SymplecticEuler,
+        IntegratorKind::ExplicitEuler,
+    ] {
         let mut sim = two_particle_spring(k, m, integrator, 1e-5);
         sim.pin(0, None).unwrap();
         // Stretch by 1 cm and let go.
@@ -131,7 +138,7 @@ fn spring_forces_conserve_momentum() {
 
 #[test]
 fn elastic_energy_of_a_stretched_spring_is_half_k_x_squared() {
-    let mut sim = two_particle_spring(80.0, 0.01, "symplectic_euler", 1e-3);
+    let mut sim = two_particle_spring(80.0, 0.01, IntegratorKind::SymplecticEuler, 1e-3);
     let mut pos = sim.positions().clone();
     pos.x[1] = 1.25;
     sim.set_positions(&pos).unwrap();

@@ -5,11 +5,11 @@ mod common;
 use common::{bare_scene, position, state_hash};
 use glam::Vec3;
 use rustcloth::grid::SpringKind;
-use rustcloth::interaction::{PickStrategy, STROKE_TREE_MIN_RAYS};
 use rustcloth::picking::{
     cell_triangle, pick_particle_brute_force, pick_particle_scan, pick_triangle_brute_force,
     pick_triangle_scan, Ray,
 };
+use rustcloth::picking::{PickStrategy, STROKE_TREE_MIN_RAYS};
 use rustcloth::scene::{PinSpec, Plane};
 use rustcloth::soa::Vec3s;
 use rustcloth::{Error, Scene, Simulation};

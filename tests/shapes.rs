@@ -15,7 +15,8 @@ use common::{state_hash, with_threads};
 use glam::Vec3;
 use proptest::prelude::*;
 use proptest::test_runner::{Config, FileFailurePersistence, RngAlgorithm, RngSeed};
-use rustcloth::scene::{FloorSpec, PinSpec, Plane, SphereSpec, StrainLimitSpec, INTEGRATORS};
+use rustcloth::scene::{FloorSpec, PinSpec, Plane, SphereSpec, StrainLimitSpec};
+use rustcloth::IntegratorKind;
 use rustcloth::{Scene, Simulation};
 
 /// Thread counts to compare: 16 makes every chunk the shortest (2,048 particles) on grids of
@@ -24,9 +25,9 @@ const THREADS: [usize; 4] = [1, 2, 7, 16];
 
 /// A vertical cloth of `nx` x `ny` with every optional pass the scene can ask for: drag, a
 /// floor and a sphere it touches, strain limiting, the watchdog's stretch check.
-fn scene(nx: u32, ny: u32, integrator: &str) -> Scene {
+fn scene(nx: u32, ny: u32, integrator: IntegratorKind) -> Scene {
     let mut scene = Scene {
-        integrator: integrator.into(),
+        integrator,
         air_drag: 0.001,
         floor: Some(FloorSpec {
             height: 0.6,
@@ -46,14 +47,14 @@ fn scene(nx: u32, ny: u32, integrator: &str) -> Scene {
     scene.cloth.size = [2.0, 0.8];
     scene.cloth.pins = vec![PinSpec::Named("top_corners".into())];
     scene.watchdog.max_stretch = Some(10.0);
-    if integrator == "explicit_euler" {
+    if integrator == IntegratorKind::ExplicitEuler {
         scene.cloth.damping = 0.05;
     }
     scene
 }
 
 /// Two steps with a kinematic pin dragged and a particle cut: every pass runs.
-fn run(nx: u32, ny: u32, integrator: &str) -> Result<u64, String> {
+fn run(nx: u32, ny: u32, integrator: IntegratorKind) -> Result<u64, String> {
     let mut sim = Simulation::new(scene(nx, ny, integrator)).map_err(|e| e.to_string())?;
     sim.pin(0, Some(Vec3::new(-1.1, 0.5, 0.05))).unwrap();
     sim.cut((nx * ny / 2) as i64).unwrap();
@@ -63,7 +64,7 @@ fn run(nx: u32, ny: u32, integrator: &str) -> Result<u64, String> {
 
 /// Runs every integrator on every thread count; the hashes must agree with one thread's.
 fn check_shape(nx: u32, ny: u32) -> Result<(), TestCaseError> {
-    for integrator in INTEGRATORS {
+    for integrator in IntegratorKind::ALL {
         let mut first = None;
         for threads in THREADS {
             let outcome =

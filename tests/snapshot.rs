@@ -7,12 +7,13 @@ mod common;
 
 use common::state_hash;
 use glam::Vec3;
-use rustcloth::scene::{FloorSpec, OnTrouble, SphereSpec, StrainLimitSpec, INTEGRATORS};
+use rustcloth::scene::{FloorSpec, OnTrouble, SphereSpec, StrainLimitSpec};
+use rustcloth::IntegratorKind;
 use rustcloth::{Error, Scene, Simulation};
 
-fn busy_scene(integrator: &str) -> Scene {
+fn busy_scene(integrator: IntegratorKind) -> Scene {
     let mut scene = Scene::builtin("hanging").unwrap();
-    scene.integrator = integrator.into();
+    scene.integrator = integrator;
     scene.cloth.nx = 20;
     scene.cloth.ny = 16;
     scene.cloth.k_structural = 20000.0;
@@ -30,7 +31,7 @@ fn busy_scene(integrator: &str) -> Scene {
     scene.watchdog.max_stretch = Some(1.3);
     scene.watchdog.on_trouble = OnTrouble::Substep;
     scene.watchdog.hold_steps = 7;
-    if integrator == "explicit_euler" {
+    if integrator == IntegratorKind::ExplicitEuler {
         scene.cloth.damping = 0.1;
     }
     scene
@@ -56,7 +57,7 @@ fn drive(sim: &mut Simulation, phase: u32) -> String {
 #[test]
 fn a_restored_snapshot_continues_bit_for_bit() {
     let mut retried = 0;
-    for integrator in INTEGRATORS {
+    for integrator in IntegratorKind::ALL {
         let mut a = Simulation::new(busy_scene(integrator)).unwrap();
         a.grab(5).unwrap();
         let at = a.positions().get(300);
@@ -86,7 +87,7 @@ type Spoil = Box<dyn Fn(&mut rustcloth::snapshot::Snapshot)>;
 
 #[test]
 fn a_bad_snapshot_is_refused_naming_the_part() {
-    let sim = Simulation::new(busy_scene("verlet")).unwrap();
+    let sim = Simulation::new(busy_scene(IntegratorKind::Verlet)).unwrap();
     let cases: Vec<(&str, Spoil)> = vec![
         ("positions", Box::new(|s| s.positions.x[3] = f32::NAN)),
         (

@@ -7,8 +7,9 @@ mod common;
 
 use common::*;
 use glam::Vec3;
-use rustcloth::scene::{FloorSpec, PinSpec, SphereSpec, INTEGRATORS};
+use rustcloth::scene::{FloorSpec, PinSpec, SphereSpec};
 use rustcloth::soa::Vec3s;
+use rustcloth::IntegratorKind;
 use rustcloth::{Error, Scene, Simulation};
 
 /// Checks the invariants after a step; `pins` holds the pinned particles' starting bits.
@@ -87,13 +88,13 @@ fn run_dragging(
     Ok(())
 }
 
-fn drape(integrator: &str, n: u32) -> Scene {
+fn drape(integrator: IntegratorKind, n: u32) -> Scene {
     let mut scene = Scene::builtin("drape").unwrap();
-    scene.integrator = integrator.into();
+    scene.integrator = integrator;
     scene.cloth.nx = n;
     scene.cloth.ny = n;
     scene.cloth.pins = vec![PinSpec::Named("top_corners".into())];
-    if integrator == "explicit_euler" {
+    if integrator == IntegratorKind::ExplicitEuler {
         scene.substeps = 32;
     }
     scene
@@ -101,7 +102,7 @@ fn drape(integrator: &str, n: u32) -> Scene {
 
 #[test]
 fn high_speed_impacts_into_the_floor_and_a_sphere_do_not_tunnel() {
-    for integrator in INTEGRATORS {
+    for integrator in IntegratorKind::ALL {
         for speed in [10.0f32, 100.0] {
             let mut scene = drape(integrator, 20);
             scene.cloth.pins = vec![];
@@ -113,7 +114,7 @@ fn high_speed_impacts_into_the_floor_and_a_sphere_do_not_tunnel() {
             let outcome = run(&mut sim, 150, 50.0, &case);
             // Explicit Euler may blow up on the impact (reported and rolled back, checked in
             // `run`); every other integrator must hold.
-            if *integrator != "explicit_euler" {
+            if integrator != IntegratorKind::ExplicitEuler {
                 outcome.unwrap_or_else(|e| panic!("{case}: {e}"));
             }
         }
@@ -122,7 +123,7 @@ fn high_speed_impacts_into_the_floor_and_a_sphere_do_not_tunnel() {
 
 #[test]
 fn coincident_and_scrambled_starts_never_produce_nan() {
-    for integrator in INTEGRATORS {
+    for integrator in IntegratorKind::ALL {
         // Every particle in one point: every spring has zero length and exerts no force.
         let mut sim = Simulation::new(drape(integrator, 12)).unwrap();
         let n = sim.grid().len();
@@ -148,7 +149,12 @@ fn coincident_and_scrambled_starts_never_produce_nan() {
 
 #[test]
 fn a_kinematic_pin_dragged_ten_metres_in_one_step_then_released() {
-    for integrator in ["symplectic_euler", "verlet", "rk4", "implicit_euler"] {
+    for integrator in [
+        IntegratorKind::SymplecticEuler,
+        IntegratorKind::Verlet,
+        IntegratorKind::Rk4,
+        IntegratorKind::ImplicitEuler,
+    ] {
         let mut sim = Simulation::new(drape(integrator, 16)).unwrap();
         let corner = sim.grid().len() - 1;
         sim.step(20).unwrap();
@@ -164,7 +170,7 @@ fn a_kinematic_pin_dragged_ten_metres_in_one_step_then_released() {
 
 #[test]
 fn cutting_every_other_particle_and_then_all_of_them() {
-    for integrator in INTEGRATORS {
+    for integrator in IntegratorKind::ALL {
         let mut sim = Simulation::new(drape(integrator, 16)).unwrap();
         sim.step(50).unwrap();
         for p in (0..sim.grid().len()).step_by(2) {
@@ -181,7 +187,11 @@ fn cutting_every_other_particle_and_then_all_of_them() {
 
 #[test]
 fn a_cloth_ten_kilometres_from_the_origin_stays_finite_and_hangs() {
-    for integrator in ["symplectic_euler", "verlet", "implicit_euler"] {
+    for integrator in [
+        IntegratorKind::SymplecticEuler,
+        IntegratorKind::Verlet,
+        IntegratorKind::ImplicitEuler,
+    ] {
         let mut scene = drape(integrator, 16);
         scene.cloth.center = [1e4, 1e4, -1e4];
         scene.floor = None;
@@ -199,7 +209,7 @@ fn a_cloth_ten_kilometres_from_the_origin_stays_finite_and_hangs() {
 
 #[test]
 fn very_light_particles_with_implicit_euler_at_a_frame_step() {
-    let mut scene = drape("implicit_euler", 16);
+    let mut scene = drape(IntegratorKind::ImplicitEuler, 16);
     scene.cloth.particle_mass = Some(1e-6);
     scene.dt = 1.0 / 60.0;
     scene.substeps = 1;
@@ -220,7 +230,7 @@ fn very_light_particles_with_implicit_euler_at_a_frame_step() {
 /// ball, where it stayed. The sphere now pushes such points up its surface to the floor level.
 #[test]
 fn issue_6_cloth_in_the_crease_between_a_ball_and_the_floor_stays_outside_both() {
-    for integrator in INTEGRATORS {
+    for integrator in IntegratorKind::ALL {
         let mut scene = drape(integrator, 24);
         scene.cloth.pins = vec![];
         scene.cloth.center = [0.0, 0.1, 0.0];
@@ -233,7 +243,7 @@ fn issue_6_cloth_in_the_crease_between_a_ball_and_the_floor_stays_outside_both()
         // The cloth starts inside the ball, below its equator.
         let case = format!("{integrator}: crease");
         let outcome = run(&mut sim, 100, 50.0, &case);
-        if *integrator != "explicit_euler" {
+        if integrator != IntegratorKind::ExplicitEuler {
             outcome.unwrap_or_else(|e| panic!("{case}: {e}"));
         }
     }
@@ -246,7 +256,7 @@ fn issue_6_cloth_in_the_crease_between_a_ball_and_the_floor_stays_outside_both()
 /// throughout). Such a particle now goes to the surface point nearest its end point.
 #[test]
 fn issue_6_a_cloth_resting_on_a_sphere_gains_no_energy() {
-    for integrator in ["symplectic_euler", "verlet"] {
+    for integrator in [IntegratorKind::SymplecticEuler, IntegratorKind::Verlet] {
         let mut scene = drape(integrator, 16);
         scene.cloth.pins = vec![];
         scene.cloth.damping = 0.0;

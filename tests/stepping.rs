@@ -4,6 +4,7 @@ mod common;
 
 use common::*;
 use rustcloth::scene::{FloorSpec, SphereSpec};
+use rustcloth::IntegratorKind;
 use rustcloth::{Error, Scene, Simulation};
 
 fn busy_scene(n: u32) -> Scene {
@@ -110,7 +111,7 @@ fn switching_integrator_and_substeps_at_run_time() {
     assert!(sim.set_substeps(0).is_err());
     sim.reset().unwrap();
     assert_eq!(sim.steps(), 0);
-    assert_eq!(sim.scene().integrator, "explicit_euler");
+    assert_eq!(sim.scene().integrator, IntegratorKind::ExplicitEuler);
 }
 
 #[test]

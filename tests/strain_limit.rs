@@ -8,10 +8,11 @@ use std::hash::{Hash, Hasher};
 
 use common::with_threads;
 use glam::Vec3;
-use rustcloth::forces::Springs;
 use rustcloth::grid::Grid;
+use rustcloth::model::Particles;
 use rustcloth::soa::Vec3s;
-use rustcloth::state::{Kinematics, Particles};
+use rustcloth::springs::Springs;
+use rustcloth::state::Kinematics;
 use rustcloth::strain_limit::{StrainLimit, StrainStats, LIMITED_KINDS};
 
 const MAX_STRAIN: f32 = 0.1;

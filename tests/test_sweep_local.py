@@ -96,18 +96,18 @@ def test_a_diverging_and_a_raising_run_are_recorded_and_the_sweep_goes_on(tmp_pa
 
 def test_a_run_over_its_time_limit_is_stopped_and_recorded(tmp_path):
     long_runs = Sweep(base=small_scene(cloth={"nx": 32, "ny": 32}),
-                      grid={"cloth.k_bend": [10.0, 20.0]}, steps=10_000_000, time_limit=0.3,
+                      grid={"cloth.k_bend": [10.0, 20.0]}, steps=10_000_000, time_limit=3.0,
                       record=Record())
     short = small_sweep()
     runs = long_runs.expand() + short.expand()
     result = run_sweep(runs, tmp_path, workers=2, threads=1)
     assert [r["status"] for r in result.records[:2]] == ["timeout", "timeout"]
-    assert "over the 0.3 s time limit at step" in result.records[0]["reason"]
+    assert "over the 3 s time limit at step" in result.records[0]["reason"]
     assert [r["status"] for r in result.records[2:]] == ["ok"] * 6
 
 
 def test_a_stuck_run_is_killed_with_its_worker_and_the_sweep_goes_on(tmp_path):
-    sweep = small_sweep(functions={"stuck": fn.stuck_when_soft}, time_limit=0.5)
+    sweep = small_sweep(functions={"stuck": fn.stuck_when_soft}, time_limit=5.0)
     backend = LocalBackend(workers=2, threads=1, grace=0.3)
     start = time.monotonic()
     result = run_sweep(sweep, tmp_path, backend)

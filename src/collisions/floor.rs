@@ -1,8 +1,9 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::{contact_velocity, Collider};
-use crate::state::{Kinematics, Particles};
+use super::contact_velocity;
+use crate::particles::Particles;
+use crate::state::Kinematics;
 
 /// The half-space `y < height + thickness`. A half-space cannot be tunnelled through: a particle
 /// below the plane at the end of a step is caught however fast it came.
@@ -15,12 +16,10 @@ pub struct Floor {
     pub thickness: f32,
 }
 
-impl Collider for Floor {
-    fn name(&self) -> &'static str {
-        "floor"
-    }
-
-    fn resolve(
+impl Floor {
+    /// Moves every dynamic particle of `next` below the floor onto it; see
+    /// [`super::Collider::resolve`].
+    pub fn resolve(
         &self,
         _start: &Kinematics,
         next: &mut Kinematics,

@@ -14,23 +14,39 @@ use glam::Vec3;
 pub use floor::Floor;
 pub use sphere::{FloorLevel, Spheres};
 
-use crate::state::{Kinematics, Particles};
+use crate::particles::Particles;
+use crate::state::Kinematics;
 
-/// A static collider.
-pub trait Collider: Send + Sync {
+/// A static collider: the closed set of shapes a scene can hold.
+pub enum Collider {
+    Spheres(Spheres),
+    Floor(Floor),
+}
+
+impl Collider {
     /// Name in `effects` and `profile()`.
-    fn name(&self) -> &'static str;
+    pub fn name(&self) -> &'static str {
+        match self {
+            Collider::Spheres(_) => "spheres",
+            Collider::Floor(_) => "floor",
+        }
+    }
 
     /// Moves every dynamic particle of `next` that ended inside the collider out of it.
     /// `start` holds the positions at the start of the step. Returns whether every value it
     /// wrote is finite (a contact at speeds near float32's limit can overflow).
-    fn resolve(
+    pub fn resolve(
         &self,
         start: &Kinematics,
         next: &mut Kinematics,
         particles: &Particles,
         chunk: usize,
-    ) -> bool;
+    ) -> bool {
+        match self {
+            Collider::Spheres(s) => s.resolve(start, next, particles, chunk),
+            Collider::Floor(f) => f.resolve(start, next, particles, chunk),
+        }
+    }
 }
 
 /// Velocity after contact with a surface of outward unit normal `n` and friction `mu`.

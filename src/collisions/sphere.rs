@@ -1,10 +1,11 @@
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
-use super::{contact_velocity, Collider};
+use super::contact_velocity;
+use crate::particles::Particles;
 use crate::scene::SphereSpec;
 use crate::soa::Vec3Slice;
-use crate::state::{Kinematics, Particles};
+use crate::state::Kinematics;
 
 /// Static spheres, tested with a swept (continuous) test so that a particle fast enough to
 /// cross a whole sphere within one step is still stopped at its surface.
@@ -161,12 +162,10 @@ impl Spheres {
     }
 }
 
-impl Collider for Spheres {
-    fn name(&self) -> &'static str {
-        "spheres"
-    }
-
-    fn resolve(
+impl Spheres {
+    /// Moves every dynamic particle of `next` that ended inside a sphere (or whose path from
+    /// `start` crossed one) onto its surface; see [`super::Collider::resolve`].
+    pub fn resolve(
         &self,
         start: &Kinematics,
         next: &mut Kinematics,

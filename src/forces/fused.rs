@@ -1,78 +1,67 @@
-//! Adding several force terms into a block's forces in one pass per component.
+//! Adding several forces into a block's forces in one pass per component.
 //!
-//! Run one after the other, gravity and the three spring families each read and write the
+//! Run one after the other, gravity and the three spring families would each read and write the
 //! block's whole force slice again: with two spring kinds per family and a `+F` and a `-F` run
-//! per kind, that is a dozen passes over a slice larger than the L1 cache. Terms that describe
-//! their force as a [`Fused`] contribution are added together instead: for a strip of particles
-//! the running sum stays in registers while each contribution is added to it, in the terms'
-//! order, and it is stored once. The additions are the ones the terms make on their own, in the
-//! same order, so the result is bitwise the same.
+//! per kind, that is a dozen passes over a slice larger than the L1 cache. Instead, for a strip
+//! of particles the running sum stays in registers while each force's contribution is added to
+//! it, in the forces' order, and it is stored once. The additions are the ones the forces would
+//! make one by one, in the same order, so the result is bitwise the same:
+//!
+//! - [`Force::Gravity`]: `f += m g`, component by component; a zero component of `g` adds
+//!   nothing, not even zero;
+//! - [`Force::Drag`]: `f -= c v`;
+//! - [`Force::Springs`]: for each kind of the family in order, `+F` of the spring the particle
+//!   anchors and `-F` of the spring it ends, read from the block's spring table (where those
+//!   springs exist).
 
 use std::ops::Range;
 
 use glam::Vec3;
 
-use super::springs::neighbour_runs;
-use super::ForceInput;
-use crate::grid::SpringKind;
+use super::{Force, SpringTable, StateRef, MAX_STREAMS};
 use crate::soa::Vec3SliceMut;
-
-/// A force term's contribution, in a form that [`accumulate`] adds together with others'.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Fused {
-    /// `f += m a`, particle mass times a constant acceleration (gravity); a zero component of
-    /// `a` adds nothing, not even zero.
-    MassTimes(Vec3),
-    /// `f -= c v`, with `c` in N s/m (air drag).
-    MinusVelocityTimes(f32),
-    /// For each kind in order, `+F` of the spring the particle anchors and `-F` of the spring it
-    /// ends, read from the block's spring table (where those springs exist).
-    Springs(&'static [SpringKind]),
-}
-
-impl Fused {
-    /// Arrays a pass over one component reads for this contribution, at most.
-    pub fn streams(&self) -> usize {
-        match self {
-            Fused::MassTimes(_) | Fused::MinusVelocityTimes(_) => 1,
-            Fused::Springs(kinds) => 2 * kinds.len(),
-        }
-    }
-}
-
-/// Most arrays one pass reads: the contributions of a group of terms must need no more.
-pub const MAX_STREAMS: usize = 16;
+use crate::springs::neighbour_runs;
 
 /// Particles per strip: the running sums of a strip stay in registers (four AVX-512 vectors).
 const STRIP: usize = 64;
 
-/// Adds `group`'s contributions, in order, to the forces `out` of the particles `range`. With
-/// `fresh`, `out` holds no force yet: its contents are ignored and the sums start from zero, as
-/// from a zero-filled buffer. `group` reads at most [`MAX_STREAMS`] arrays per component.
-pub fn accumulate(
-    input: &ForceInput,
-    group: &[Fused],
+/// Adds `group`'s forces, in order, to the forces `out` of the particles `range`, springs from
+/// `table`. With `fresh`, `out` holds no force yet: its contents are ignored and the sums start
+/// from zero, as from a zero-filled buffer. `group` reads at most [`MAX_STREAMS`] arrays per
+/// component.
+pub(super) fn accumulate(
+    state: StateRef,
+    table: &SpringTable,
+    group: &[Force],
     fresh: bool,
     range: Range<usize>,
     out: &mut Vec3SliceMut,
 ) {
-    crate::simd::dispatch!(accumulate_in(input, group, fresh, range.clone(), out))
+    crate::simd::dispatch!(accumulate_in(
+        state,
+        table,
+        group,
+        fresh,
+        range.clone(),
+        out
+    ))
 }
 
 #[inline(always)]
 fn accumulate_in(
-    input: &ForceInput,
-    group: &[Fused],
+    state: StateRef,
+    table: &SpringTable,
+    group: &[Force],
     fresh: bool,
     range: Range<usize>,
     out: &mut Vec3SliceMut,
 ) {
-    debug_assert!(group.iter().map(Fused::streams).sum::<usize>() <= MAX_STREAMS);
-    let n = input.state.grid.len();
+    debug_assert!(group.iter().map(Force::streams).sum::<usize>() <= MAX_STREAMS);
+    let n = state.grid.len();
     // The interior: particles that both anchor and end a spring of every kind in the group.
     let (mut lo, mut hi) = (range.start, range.end);
-    for kind in group.iter().flat_map(spring_kinds) {
-        let o = input.state.grid.offset(*kind);
+    for kind in group.iter().flat_map(Force::spring_kinds) {
+        let o = state.grid.offset(*kind);
         lo = lo.max(o);
         hi = hi.min(n.saturating_sub(o));
     }
@@ -90,8 +79,8 @@ fn accumulate_in(
         if fresh {
             f.fill(Vec3::ZERO);
         }
-        for contribution in group {
-            add_one(input, contribution, edge.clone(), &mut f);
+        for force in group {
+            add_one(state, table, force, edge.clone(), &mut f);
         }
     }
     if lo == hi {
@@ -105,19 +94,18 @@ fn accumulate_in(
             ops[count] = op;
             count += 1;
         };
-        for contribution in group {
-            match *contribution {
-                Fused::MassTimes(a) if a[c] != 0.0 => {
-                    push(Op::AddTimes(&input.state.mass[lo..hi], a[c]));
+        for force in group {
+            match *force {
+                Force::Gravity { g } if g[c] != 0.0 => {
+                    push(Op::AddTimes(&state.mass[lo..hi], g[c]));
                 }
-                Fused::MassTimes(_) => {}
-                Fused::MinusVelocityTimes(k) => {
-                    push(Op::SubTimes(input.state.vel.component(c, &(lo..hi)), k));
+                Force::Gravity { .. } => {}
+                Force::Drag { c: k } => {
+                    push(Op::SubTimes(state.vel.component(c, &(lo..hi)), k));
                 }
-                Fused::Springs(kinds) => {
-                    let table = input.spring_table;
-                    for &kind in kinds {
-                        let o = input.state.grid.offset(kind);
+                Force::Springs { family, .. } => {
+                    for &kind in family.kinds_slice() {
+                        let o = state.grid.offset(kind);
                         push(Op::Add(table.component(kind, c, &(lo..hi))));
                         push(Op::Sub(table.component(kind, c, &(lo - o..hi - o))));
                     }
@@ -129,14 +117,6 @@ fn accumulate_in(
             fresh,
             &mut out.component_mut(c)[interior.clone()],
         );
-    }
-}
-
-/// The spring kinds of a contribution (none for the others).
-fn spring_kinds(contribution: &Fused) -> &'static [SpringKind] {
-    match contribution {
-        Fused::Springs(kinds) => kinds,
-        _ => &[],
     }
 }
 
@@ -193,13 +173,19 @@ fn add(acc: &mut [f32; STRIP], t: &[f32], rule: impl Fn(f32, f32) -> f32) {
     }
 }
 
-/// Adds one contribution to the forces `f` of the particles `range`, as a pass of its own.
+/// Adds one force to the forces `f` of the particles `range`, as a pass of its own.
 #[inline(always)]
-fn add_one(input: &ForceInput, contribution: &Fused, range: Range<usize>, f: &mut Vec3SliceMut) {
-    match *contribution {
-        Fused::MassTimes(a) => {
-            let mass = &input.state.mass[range];
-            for (component, a) in [(&mut *f.x, a.x), (&mut *f.y, a.y), (&mut *f.z, a.z)] {
+fn add_one(
+    state: StateRef,
+    table: &SpringTable,
+    force: &Force,
+    range: Range<usize>,
+    f: &mut Vec3SliceMut,
+) {
+    match *force {
+        Force::Gravity { g } => {
+            let mass = &state.mass[range];
+            for (component, a) in [(&mut *f.x, g.x), (&mut *f.y, g.y), (&mut *f.z, g.z)] {
                 if a != 0.0 {
                     for (f, m) in component.iter_mut().zip(mass) {
                         *f += m * a;
@@ -207,22 +193,21 @@ fn add_one(input: &ForceInput, contribution: &Fused, range: Range<usize>, f: &mu
                 }
             }
         }
-        Fused::MinusVelocityTimes(k) => {
-            let vel = input.state.vel.slices(range);
+        Force::Drag { c: k } => {
+            let vel = state.vel.slices(range);
             for (f, v) in [(&mut *f.x, vel.x), (&mut *f.y, vel.y), (&mut *f.z, vel.z)] {
                 for (f, v) in f.iter_mut().zip(v) {
                     *f -= k * v;
                 }
             }
         }
-        Fused::Springs(kinds) => {
-            let (n, table) = (input.state.grid.len(), input.spring_table);
-            for &kind in kinds {
-                let [anchors, ends] =
-                    neighbour_runs(n, input.state.grid.offset(kind), range.clone());
+        Force::Springs { family, .. } => {
+            let n = state.grid.len();
+            for &kind in family.kinds_slice() {
+                let [anchors, ends] = neighbour_runs(n, state.grid.offset(kind), range.clone());
                 for (run, sign) in [(anchors, 1.0f32), (ends, -1.0)] {
                     let Some(run) = run else { continue };
-                    let s = run.spring..run.spring + run.len;
+                    let s = run.slots();
                     let o = run.a - range.start..run.a - range.start + run.len;
                     for (c, f) in [&mut *f.x, &mut *f.y, &mut *f.z].into_iter().enumerate() {
                         let (t, f) = (table.component(kind, c, &s), &mut f[o.clone()]);

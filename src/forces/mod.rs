@@ -1,15 +1,19 @@
-//! Forces: each effect that pushes on particles is a [`ForceTerm`]; the [`ForceModel`] holds
-//! the terms a scene asked for and evaluates them all in one parallel sweep.
+//! Forces: the closed set of effects that push on particles ([`Force`]), and the
+//! [`ForceModel`] that holds those a scene asked for and evaluates them all in one parallel
+//! sweep.
 //!
-//! The sweep cuts the particle range into chunks; inside a chunk every term adds its force into
-//! the chunk's slice of the force buffer while that slice is hot in cache. Each particle's force
-//! is summed in the same order whatever the chunking, so the result is bitwise independent of
-//! the number of threads.
+//! An evaluation is one parallel sweep over chunks of particles; each chunk is worked in blocks
+//! of at most [`BLOCK`] particles. For a block, the spring forces are first computed once per
+//! spring into a small table (the springs anchored in the block and the few rows before it,
+//! whose far ends lie in the block; `springs.rs`), then every force is added into the block's
+//! slice of the output while table and slice are hot in cache, springs by reading the table
+//! (`+F` at the anchor, `-F` at the far end: bitwise the force the far end would compute, so
+//! momentum is conserved exactly up to summation order), all in one pass per component
+//! (`fused.rs`). Each particle's force is summed in the same order whatever the chunking, so the
+//! result is bitwise independent of the number of threads.
 
-mod drag;
-pub mod fused;
-mod gravity;
-pub mod springs;
+mod fused;
+mod springs;
 
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -18,14 +22,51 @@ use std::time::{Duration, Instant};
 use glam::Vec3;
 use rayon::prelude::*;
 
-pub use drag::AirDrag;
-pub use fused::Fused;
-pub use gravity::Gravity;
-pub use springs::{SpringForce, Springs};
-
-use crate::grid::{Grid, SpringKind};
+use crate::grid::{Family, Grid, SpringKind};
 use crate::profile::Profile;
 use crate::soa::{Vec3SliceMut, Vec3s};
+use crate::springs::Springs;
+
+/// One additive force, with its parameters. The force law of each is in the module that
+/// evaluates it: `m g` and `-c v` in `fused.rs`, the springs in `springs.rs`; implicit
+/// integrators read the parameters to linearise them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Force {
+    /// Uniform gravity, `f = m g`, `g` in m/s^2. In a scene only when `g` is not zero.
+    Gravity { g: Vec3 },
+    /// Linear air drag, `f = -c v`, `c` in N s/m. Only when `c > 0`.
+    Drag { c: f32 },
+    /// The springs of one family: Hooke's law with stiffness `k` (N/m) and damping `c` (N s/m)
+    /// along the spring. Only when `k > 0`.
+    Springs { family: Family, k: f32, c: f32 },
+}
+
+impl Force {
+    /// Name in `effects` and `profile()`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Force::Gravity { .. } => "gravity",
+            Force::Drag { .. } => "air_drag",
+            Force::Springs { family, .. } => family.pass_name(),
+        }
+    }
+
+    /// The spring kinds whose per-spring forces this force computes into the block's table.
+    pub fn spring_kinds(&self) -> &'static [SpringKind] {
+        match self {
+            Force::Springs { family, .. } => family.kinds_slice(),
+            _ => &[],
+        }
+    }
+
+    /// Arrays a pass over one component reads to add this force, at most.
+    fn streams(&self) -> usize {
+        match self {
+            Force::Gravity { .. } | Force::Drag { .. } => 1,
+            Force::Springs { family, .. } => 2 * family.kinds_slice().len(),
+        }
+    }
+}
 
 /// The state a force evaluation reads.
 #[derive(Clone, Copy)]
@@ -36,18 +77,6 @@ pub struct StateRef<'a> {
     /// Particle masses in kg.
     pub mass: &'a [f32],
     pub springs: &'a Springs,
-}
-
-/// What a force term may read.
-pub struct ForceInput<'a> {
-    /// The state being evaluated (masses are the true ones, also for pinned particles).
-    pub state: StateRef<'a>,
-    /// Force on each spring's anchor, per spring kind, for the springs the particles being
-    /// accumulated need; filled by [`ForceTerm::prepare`] before [`ForceTerm::accumulate`].
-    pub spring_table: &'a SpringTable,
-    /// When set, [`ForceTerm::prepare`] also reports whether a live spring is longer than this
-    /// many times its rest length (the watchdog's stretch check).
-    pub stretch_watch: Option<f32>,
 }
 
 /// Per-spring anchor forces for one block of particles: for each kind, the springs anchored
@@ -71,88 +100,29 @@ impl SpringTable {
     }
 }
 
-/// One additive force effect.
-pub trait ForceTerm: Send + Sync {
-    /// Name in `effects` and `profile()`.
-    fn name(&self) -> &'static str;
+/// Most arrays one fused pass reads: a group of forces added together must need no more.
+const MAX_STREAMS: usize = 16;
 
-    /// Adds this term's force on the particles `range` into `out`, whose slices cover exactly
-    /// `range`. Must only read `input` and write `out`.
-    fn accumulate(&self, input: &ForceInput, range: Range<usize>, out: &mut Vec3SliceMut);
+/// Particles per block: its spring table (six kinds, plus up to two grid rows of springs before
+/// the block) stays in a core's L2 cache up to 512 x 512 cloths; the rows before the block are
+/// evaluated twice, a little extra spring work on wide cloths.
+pub const BLOCK: usize = 4096;
 
-    /// Spring kinds whose per-spring force this term computes in [`ForceTerm::prepare`].
-    fn prepared_kinds(&self) -> &[SpringKind] {
-        &[]
-    }
-
-    /// Writes the force on the anchor of each spring of `kind` anchored in `range` into `out`
-    /// (slices covering exactly `range`). Runs for every range before any `accumulate`, so a
-    /// spring's force is computed once and both its ends read it. Returns whether one of these
-    /// springs is stretched beyond `input.stretch_watch` (always false when that is `None`).
-    fn prepare(
-        &self,
-        _input: &ForceInput,
-        _kind: SpringKind,
-        _range: Range<usize>,
-        _out: &mut Vec3SliceMut,
-    ) -> bool {
-        false
-    }
-
-    /// The force `accumulate` adds, as a contribution the sweep may add in one pass together
-    /// with its neighbours' (see [`fused`]), bitwise as `accumulate` would; None for a term
-    /// that only `accumulate` can add.
-    fn fused(&self) -> Option<Fused> {
-        None
-    }
-
-    /// How the force depends on the state, for implicit integrators.
-    fn linearization(&self) -> Linearization {
-        Linearization::Constant
-    }
-}
-
-/// The shape of a force term's Jacobians `df/dx`, `df/dv`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Linearization {
-    /// Independent of the state (gravity).
-    Constant,
-    /// `f = -c v`: `df/dv = -c I`.
-    Drag { c: f32 },
-    /// The springs of a family with stiffness `k` and damping `c` (see `forces/springs.rs`).
-    Springs {
-        family: crate::grid::Family,
-        k: f32,
-        c: f32,
-    },
-}
-
-/// The force terms of a scene, in the order they are summed.
-///
-/// An evaluation is one parallel sweep over chunks of particles; each chunk is worked in
-/// blocks of at most [`BLOCK`] particles. For a block, the terms first compute, once per
-/// spring, the force on each spring's anchor into a small table ([`ForceTerm::prepare`]: the
-/// springs anchored in the block and the few rows before it, whose far ends lie in the
-/// block), then every term adds its force into the block's slice of the output while table
-/// and slice are hot in cache, springs by reading the table (`+F` at the anchor, `-F` at the
-/// far end: bitwise the force the far end would compute, so momentum is conserved exactly up
-/// to summation order). Consecutive terms with a [`Fused`] form are added in one pass per
-/// component ([`fused::accumulate`]), the others one by one. Each particle's force is summed
-/// in the same order whatever the chunking, so the result is bitwise independent of the
-/// number of threads.
+/// The forces of a scene, in the order they are summed, and the workspace to evaluate them.
 pub struct ForceModel {
-    terms: Vec<Box<dyn ForceTerm>>,
-    /// The terms' additions into a block, in term order.
-    stages: Vec<Stage>,
-    /// `(term, kind)` for every spring kind some term prepares.
-    prepared: Vec<(usize, SpringKind)>,
-    /// The kinds of `prepared`.
+    forces: Vec<Force>,
+    /// Consecutive forces added in one pass each, as ranges of `forces`: cut where a pass would
+    /// read more than [`MAX_STREAMS`] arrays per component.
+    groups: Vec<Range<usize>>,
+    /// `(force, kind)` for every spring kind a force tabulates.
+    tabulated: Vec<(usize, SpringKind)>,
+    /// The kinds of `tabulated`.
     kinds: Vec<SpringKind>,
     /// One table per work item, reused by its blocks; sized on the first evaluation.
     tables: Vec<SpringTable>,
     /// `(particles, chunk)` the tables were sized for.
     tables_for: (usize, usize),
-    /// CPU nanoseconds per term during the current evaluation, summed over threads.
+    /// CPU nanoseconds per force during the current evaluation, summed over threads.
     cpu_nanos: Vec<AtomicU64>,
     /// The watchdog's stretch limit (`l / L`), checked by an evaluation only when armed.
     stretch_limit: Option<f32>,
@@ -165,76 +135,50 @@ pub struct ForceModel {
     panic_next: bool,
 }
 
-/// One addition into a block's forces.
-enum Stage {
-    /// A term's own [`ForceTerm::accumulate`].
-    Term(usize),
-    /// Consecutive terms and their contributions, added in one pass.
-    Fused {
-        terms: Vec<usize>,
-        contributions: Vec<Fused>,
-    },
-}
-
-impl Stage {
-    /// The stages for `terms`: runs of consecutive fusable terms, each run cut where it would
-    /// read more than [`fused::MAX_STREAMS`] arrays per component.
-    fn plan(terms: &[Box<dyn ForceTerm>]) -> Vec<Stage> {
-        let mut stages = Vec::new();
-        for (t, term) in terms.iter().enumerate() {
-            let Some(contribution) = term.fused().filter(|c| c.streams() <= fused::MAX_STREAMS)
-            else {
-                stages.push(Stage::Term(t));
-                continue;
-            };
-            match stages.last_mut() {
-                Some(Stage::Fused {
-                    terms,
-                    contributions,
-                }) if contributions.iter().map(Fused::streams).sum::<usize>()
-                    + contribution.streams()
-                    <= fused::MAX_STREAMS =>
-                {
-                    terms.push(t);
-                    contributions.push(contribution);
+impl ForceModel {
+    pub fn new(forces: Vec<Force>) -> Self {
+        let mut groups: Vec<Range<usize>> = Vec::new();
+        let mut streams = 0;
+        for (f, force) in forces.iter().enumerate() {
+            match groups.last_mut() {
+                Some(group) if streams + force.streams() <= MAX_STREAMS => {
+                    group.end = f + 1;
+                    streams += force.streams();
                 }
-                _ => stages.push(Stage::Fused {
-                    terms: vec![t],
-                    contributions: vec![contribution],
-                }),
+                _ => {
+                    groups.push(f..f + 1);
+                    streams = force.streams();
+                }
             }
         }
-        stages
-    }
-}
-
-/// Particles per block: its spring table (six kinds, plus up to two grid rows of springs before
-/// the block) stays in a core's L2 cache up to 512 x 512 cloths; the rows before the block are
-/// evaluated twice, about 10 % extra spring work at 512 wide.
-pub const BLOCK: usize = 4096;
-
-impl ForceModel {
-    pub fn new(terms: Vec<Box<dyn ForceTerm>>) -> Self {
-        let cpu_nanos = terms.iter().map(|_| AtomicU64::new(0)).collect();
-        let prepared: Vec<(usize, SpringKind)> = terms
+        let tabulated: Vec<(usize, SpringKind)> = forces
             .iter()
             .enumerate()
-            .flat_map(|(t, term)| term.prepared_kinds().iter().map(move |&kind| (t, kind)))
+            .flat_map(|(f, force)| force.spring_kinds().iter().map(move |&kind| (f, kind)))
             .collect();
-        let kinds = prepared.iter().map(|&(_, kind)| kind).collect();
         ForceModel {
-            stages: Stage::plan(&terms),
-            terms,
-            kinds,
-            prepared,
+            cpu_nanos: forces.iter().map(|_| AtomicU64::new(0)).collect(),
+            kinds: tabulated.iter().map(|&(_, kind)| kind).collect(),
+            tabulated,
+            groups,
+            forces,
             tables: Vec::new(),
             tables_for: (0, 0),
-            cpu_nanos,
             stretch_limit: None,
             watch_armed: false,
             overstretched: AtomicBool::new(false),
             panic_next: false,
         }
+    }
+
+    /// The forces, in the order they are summed.
+    pub fn forces(&self) -> &[Force] {
+        &self.forces
+    }
+
+    /// The spring kinds whose forces the model computes: those the stretch watch checks.
+    pub fn spring_kinds(&self) -> &[SpringKind] {
+        &self.kinds
     }
 
     /// Sets the watchdog's stretch limit, a ratio `l / L` (None: no stretch check).
@@ -249,6 +193,11 @@ impl ForceModel {
         self.overstretched.store(false, Ordering::Relaxed);
     }
 
+    /// Whether the last armed evaluation found a spring beyond the stretch limit.
+    pub fn overstretched(&self) -> bool {
+        self.overstretched.load(Ordering::Relaxed)
+    }
+
     /// Makes the next evaluation panic inside its parallel sweep: a stand-in for a bug, so
     /// that tests can check the guards that keep a panic from escaping or corrupting a step.
     #[doc(hidden)]
@@ -256,7 +205,7 @@ impl ForceModel {
         self.panic_next = true;
     }
 
-    /// Forgets what an evaluation interrupted by a panic left behind: per-term clocks, the
+    /// Forgets what an evaluation interrupted by a panic left behind: per-force clocks, the
     /// stretch watch.
     pub fn reset_after_panic(&mut self) {
         for nanos in &self.cpu_nanos {
@@ -267,24 +216,6 @@ impl ForceModel {
         self.overstretched.store(false, Ordering::Relaxed);
     }
 
-    /// Whether the last armed evaluation found a spring beyond the stretch limit.
-    pub fn overstretched(&self) -> bool {
-        self.overstretched.load(Ordering::Relaxed)
-    }
-
-    pub fn names(&self) -> impl Iterator<Item = &'static str> + '_ {
-        self.terms.iter().map(|t| t.name())
-    }
-
-    pub fn linearizations(&self) -> impl Iterator<Item = Linearization> + '_ {
-        self.terms.iter().map(|t| t.linearization())
-    }
-
-    /// The spring kinds whose forces the model computes: those the stretch watch checks.
-    pub fn spring_kinds(&self) -> &[SpringKind] {
-        &self.kinds
-    }
-
     /// Heap memory of the spring tables.
     pub fn heap_bytes(&self) -> usize {
         self.tables.iter().map(SpringTable::heap_bytes).sum()
@@ -293,18 +224,18 @@ impl ForceModel {
     /// One table per work item, each long enough for a block and the springs before it.
     fn size_tables(&mut self, grid: Grid, chunk: usize) {
         let n = grid.len();
-        if self.prepared.is_empty() || self.tables_for == (n, chunk) {
+        if self.tabulated.is_empty() || self.tables_for == (n, chunk) {
             return;
         }
         let longest = chunk.min(BLOCK)
             + self
-                .prepared
+                .kinds
                 .iter()
-                .map(|&(_, k)| grid.offset(k))
+                .map(|&k| grid.offset(k))
                 .max()
                 .unwrap_or(0);
         let mut table = SpringTable::default();
-        for &(_, kind) in &self.prepared {
+        for &kind in &self.kinds {
             table.kinds[kind.index()] = Vec3s::zeros(longest);
         }
         self.tables = vec![table; n.div_ceil(chunk)];
@@ -312,8 +243,8 @@ impl ForceModel {
     }
 
     /// Writes the total force on every particle into `out` and returns the evaluation's wall
-    /// time, which it also books into `profile` split among the terms as the CPU time each
-    /// measured (a fused stage's time split among its terms as the arrays each reads).
+    /// time, which it also books into `profile` split among the forces as the CPU time each
+    /// measured (a fused pass's time split among its forces as the arrays each reads).
     pub fn evaluate(
         &mut self,
         state: StateRef,
@@ -325,15 +256,15 @@ impl ForceModel {
         self.size_tables(state.grid, chunk);
         let grid = state.grid;
         let panic_now = std::mem::take(&mut self.panic_next);
-        let stretch_watch = if std::mem::take(&mut self.watch_armed) {
+        let watch = if std::mem::take(&mut self.watch_armed) {
             self.stretch_limit
         } else {
             None
         };
         let Self {
-            terms,
-            stages,
-            prepared,
+            forces,
+            groups,
+            tabulated,
             tables,
             cpu_nanos,
             overstretched,
@@ -344,81 +275,59 @@ impl ForceModel {
             work();
             clock.elapsed().as_nanos() as u64
         };
-        let book = |t: usize, nanos: u64| cpu_nanos[t].fetch_add(nanos, Ordering::Relaxed);
-        let blank = SpringTable::default();
-        let prepare_input = ForceInput {
-            state,
-            spring_table: &blank,
-            stretch_watch,
-        };
-        // A fused first stage writes every force of the block; otherwise start from zero.
-        let fresh = matches!(stages.first(), Some(Stage::Fused { .. }));
+        let book = |f: usize, nanos: u64| cpu_nanos[f].fetch_add(nanos, Ordering::Relaxed);
         let sweep = |(c, (mut f, table)): (usize, (Vec3SliceMut, &mut SpringTable))| {
             let range = c * chunk..c * chunk + f.len();
             if panic_now && c == 0 {
                 panic!("injected panic (a test of the panic guard)");
             }
-            if !fresh {
-                f.fill(Vec3::ZERO);
-            }
             let mut block_start = range.start;
             while block_start < range.end {
                 let block = block_start..(block_start + BLOCK).min(range.end);
-                // Each term's kinds (consecutive in `prepared`), timed together.
-                for run in prepared.chunk_by(|a, b| a.0 == b.0) {
-                    let t = run[0].0;
+                // Each force's kinds (consecutive in `tabulated`), timed together.
+                for run in tabulated.chunk_by(|a, b| a.0 == b.0) {
+                    let f = run[0].0;
+                    let Force::Springs { k, c: damping, .. } = forces[f] else {
+                        unreachable!("only springs tabulate")
+                    };
                     let nanos = clocked(&mut || {
                         for &(_, kind) in run {
                             let lo = block.start.saturating_sub(grid.offset(kind));
                             table.origin[kind.index()] = lo;
                             let mut slots = table.kinds[kind.index()].slices_mut(0..block.end - lo);
-                            if terms[t].prepare(&prepare_input, kind, lo..block.end, &mut slots) {
+                            let spring = springs::SpringLaw { k, c: damping };
+                            if spring.tabulate(state, kind, lo..block.end, &mut slots, watch) {
                                 overstretched.store(true, Ordering::Relaxed);
                             }
                         }
                     });
-                    book(t, nanos);
+                    book(f, nanos);
                 }
-                let input = ForceInput {
-                    state,
-                    spring_table: table,
-                    stretch_watch: None,
-                };
                 let mut f_block = f.sub_mut(block.start - range.start..block.end - range.start);
-                for (i, stage) in stages.iter().enumerate() {
-                    match stage {
-                        Stage::Term(t) => {
-                            let nanos = clocked(&mut || {
-                                terms[*t].accumulate(&input, block.clone(), &mut f_block)
-                            });
-                            book(*t, nanos);
-                        }
-                        Stage::Fused {
-                            terms: group,
-                            contributions,
-                        } => {
-                            let nanos = clocked(&mut || {
-                                let first = fresh && i == 0;
-                                fused::accumulate(
-                                    &input,
-                                    contributions,
-                                    first,
-                                    block.clone(),
-                                    &mut f_block,
-                                )
-                            });
-                            // Split among the group's terms as the arrays each reads.
-                            let streams = contributions.iter().map(Fused::streams).sum::<usize>();
-                            for (&t, c) in group.iter().zip(contributions) {
-                                book(t, nanos * c.streams() as u64 / streams.max(1) as u64);
-                            }
-                        }
+                for (g, group) in groups.iter().enumerate() {
+                    let members = &forces[group.clone()];
+                    let nanos = clocked(&mut || {
+                        fused::accumulate(
+                            state,
+                            table,
+                            members,
+                            g == 0,
+                            block.clone(),
+                            &mut f_block,
+                        )
+                    });
+                    // Split among the group's forces as the arrays each reads.
+                    let streams = members.iter().map(Force::streams).sum::<usize>();
+                    for (f, force) in group.clone().zip(members) {
+                        book(f, nanos * force.streams() as u64 / streams.max(1) as u64);
                     }
                 }
                 block_start = block.end;
             }
         };
-        if prepared.is_empty() {
+        if groups.is_empty() {
+            out.fill(Vec3::ZERO);
+        } else if tabulated.is_empty() {
             // No springs: an empty table (no heap memory) per item.
             out.par_chunks_mut(chunk).enumerate().for_each(|(c, f)| {
                 sweep((c, (f, &mut SpringTable::default())));
@@ -436,9 +345,9 @@ impl ForceModel {
             .iter()
             .map(|n| n.load(Ordering::Relaxed))
             .sum::<u64>();
-        for (term, nanos) in terms.iter().zip(cpu_nanos.iter()) {
+        for (force, nanos) in forces.iter().zip(cpu_nanos.iter()) {
             let share = nanos.swap(0, Ordering::Relaxed) as f64 / cpu_total.max(1) as f64;
-            profile.add(term.name(), wall.mul_f64(share));
+            profile.add(force.name(), wall.mul_f64(share));
         }
         wall
     }

@@ -1,4 +1,4 @@
-use super::{one_stage_update, Integrator, StepContext};
+use super::{one_stage_update, StepContext};
 
 /// Forward (explicit) Euler, the textbook scheme: both updates use the state at the start of
 /// the step,
@@ -10,14 +10,6 @@ use super::{one_stage_update, Integrator, StepContext};
 ///
 /// First order and not symplectic: an undamped oscillator gains energy every step, so it needs
 /// damping or small steps. Kept as the baseline the accuracy study compares against.
-pub struct ExplicitEuler;
-
-impl Integrator for ExplicitEuler {
-    fn name(&self) -> &'static str {
-        "explicit_euler"
-    }
-
-    fn step(&mut self, h: f32, ctx: &mut StepContext) -> bool {
-        one_stage_update(ctx, h, |x, v, dv| (x + h * v, v + dv))
-    }
+pub(super) fn step(h: f32, ctx: &mut StepContext) -> bool {
+    one_stage_update(ctx, h, |x, v, dv| (x + h * v, v + dv))
 }

@@ -4,11 +4,11 @@
 
 use rayon::prelude::*;
 
-use super::{par_update, FiniteCheck, Integrator, StepContext};
-use crate::forces::springs::{anchored_run, neighbour_runs, Run};
-use crate::forces::Linearization;
+use super::{par_update, FiniteCheck, StepContext};
+use crate::forces::Force;
 use crate::grid::SpringKind;
 use crate::soa::{Vec3SliceMut, Vec3s};
+use crate::springs::{anchored_run, neighbour_runs, SpringRun as Run};
 
 /// Settings of the linear solve.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -121,16 +121,12 @@ impl ImplicitEuler {
     }
 }
 
-impl Integrator for ImplicitEuler {
-    fn name(&self) -> &'static str {
-        "implicit_euler"
+impl ImplicitEuler {
+    pub fn solver_stats(&self) -> SolverStats {
+        self.stats
     }
 
-    fn solver_stats(&self) -> Option<SolverStats> {
-        Some(self.stats)
-    }
-
-    fn step(&mut self, h: f32, ctx: &mut StepContext) -> bool {
+    pub fn step(&mut self, h: f32, ctx: &mut StepContext) -> bool {
         let n = ctx.current.pos.len();
         let work = self.work.get_or_insert_with(|| Work::new(n));
         ctx.eval_forces_at(ctx.current);
@@ -138,11 +134,11 @@ impl Integrator for ImplicitEuler {
         // Which terms depend on the state, and how.
         let mut drag = 0.0f32;
         work.kinds.clear();
-        for lin in ctx.forces.linearizations() {
-            match lin {
-                Linearization::Constant => {}
-                Linearization::Drag { c } => drag += c,
-                Linearization::Springs { family, k, c } => {
+        for &force in ctx.forces.forces() {
+            match force {
+                Force::Gravity { .. } => {}
+                Force::Drag { c } => drag += c,
+                Force::Springs { family, k, c } => {
                     for kind in family.kinds() {
                         work.kinds.push((kind, h * c));
                         build_blocks(work, kind, h, k, c, ctx);
@@ -417,8 +413,8 @@ fn build_blocks(work: &mut Work, kind: SpringKind, h: f32, k: f32, c: f32, ctx: 
         .for_each(|(ci, ((alpha, beta), u))| {
             // Slots whose partner would be off the end hold no spring (active = 0).
             let start = ci * chunk;
-            let (s, t) = anchored_run(n, o, start..start + alpha.len());
-            let len = s.len();
+            let run = anchored_run(n, o, start..start + alpha.len());
+            let (s, t, len) = (run.a_range(), run.b_range(), run.len);
             let (ax, ay, az) = (
                 pos.component(0, &s),
                 pos.component(1, &s),

@@ -1,8 +1,9 @@
-//! Time integrators. Each advances the state by one (sub)step `h` through the same force model;
-//! adding one means adding a file here and a line in [`by_name`].
+//! Time integrators: the closed set a scene chooses from ([`IntegratorKind`], with each one's
+//! name and stability limit) and the running scheme with whatever it keeps between steps
+//! ([`Integrator`]); each scheme's update is in its own file.
 //!
-//! An integrator reads the state at the start of the step (`current`) and writes the state at its
-//! end into a second buffer (`next`). The simulation swaps the two only when the step came out
+//! An integrator reads the state at the start of the step (`current`) and writes the state at
+//! its end into a second buffer (`next`). The stepper swaps the two only when the step came out
 //! finite, so rolling back a diverged step costs nothing.
 
 mod explicit_euler;
@@ -12,20 +13,126 @@ mod symplectic_euler;
 mod verlet;
 
 use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
 
-pub use explicit_euler::ExplicitEuler;
 pub use implicit_euler::{ImplicitEuler, SolverSettings, SolverStats};
 pub use rk4::Rk4;
-pub use symplectic_euler::SymplecticEuler;
 pub use verlet::Verlet;
 
 use crate::error::{Error, Result};
-use crate::forces::{ForceModel, Springs, StateRef};
+use crate::forces::{ForceModel, StateRef};
 use crate::grid::Grid;
+use crate::particles::Particles;
 use crate::profile::Profile;
-use crate::scene::INTEGRATORS;
 use crate::soa::{Vec3SliceMut, Vec3s};
-use crate::state::{Kinematics, Particles};
+use crate::springs::Springs;
+use crate::state::Kinematics;
+
+/// The time integrators a scene can name.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum IntegratorKind {
+    ExplicitEuler,
+    SymplecticEuler,
+    Verlet,
+    Rk4,
+    ImplicitEuler,
+}
+
+impl IntegratorKind {
+    pub const ALL: [IntegratorKind; 5] = [
+        IntegratorKind::ExplicitEuler,
+        IntegratorKind::SymplecticEuler,
+        IntegratorKind::Verlet,
+        IntegratorKind::Rk4,
+        IntegratorKind::ImplicitEuler,
+    ];
+
+    /// Its name in scenes, `effects` and `profile()`.
+    pub fn name(self) -> &'static str {
+        match self {
+            IntegratorKind::ExplicitEuler => "explicit_euler",
+            IntegratorKind::SymplecticEuler => "symplectic_euler",
+            IntegratorKind::Verlet => "verlet",
+            IntegratorKind::Rk4 => "rk4",
+            IntegratorKind::ImplicitEuler => "implicit_euler",
+        }
+    }
+
+    /// Every name, in [`IntegratorKind::ALL`] order.
+    pub fn names() -> Vec<&'static str> {
+        Self::ALL.iter().map(|k| k.name()).collect()
+    }
+
+    /// The integrator called `name`; the error names `parameter`.
+    pub fn by_name(name: &str, parameter: &str) -> Result<IntegratorKind> {
+        Self::ALL
+            .into_iter()
+            .find(|k| k.name() == name)
+            .ok_or_else(|| {
+                Error::value(
+                    parameter,
+                    format!(
+                        "unknown integrator {name:?}; valid ones are {:?}",
+                        Self::names()
+                    ),
+                )
+            })
+    }
+
+    /// A fresh integrator of this kind.
+    pub fn build(self, solver: SolverSettings) -> Integrator {
+        match self {
+            IntegratorKind::ExplicitEuler => Integrator::ExplicitEuler,
+            IntegratorKind::SymplecticEuler => Integrator::SymplecticEuler,
+            IntegratorKind::Verlet => Integrator::Verlet(Verlet::default()),
+            IntegratorKind::Rk4 => Integrator::Rk4(Box::default()),
+            IntegratorKind::ImplicitEuler => {
+                Integrator::ImplicitEuler(Box::new(ImplicitEuler::new(solver)))
+            }
+        }
+    }
+
+    /// The largest substep `h` (s) at which this integrator stays stable on a mode of angular
+    /// frequency `omega` (rad/s, `omega2 = omega^2`) damped at a rate between `gamma_lo` and
+    /// `gamma_hi` (1/s), or None when any is (implicit Euler). For the damped oscillator
+    /// `x'' = -omega^2 x - gamma x'`:
+    ///
+    /// - symplectic Euler and Verlet need `h^2 omega^2 + 2 h gamma < 4` (Jury's test on the step
+    ///   matrix; `h omega < 2` undamped);
+    /// - RK4 needs `h |lambda| < 2 sqrt 2` where the mode oscillates (`lambda` the mode's
+    ///   eigenvalue, `|lambda| = omega`) and `< 2.785` on the real axis where it is overdamped;
+    /// - explicit Euler grows every undamped mode: it needs `h < gamma / omega^2` (with the
+    ///   smaller `gamma`, the safe side) and, overdamped, `h |lambda| < 2`.
+    pub fn stable_substep(self, omega2: f64, gamma_hi: f64, gamma_lo: f64) -> Option<f64> {
+        let omega = omega2.sqrt();
+        // The magnitude of the mode's fastest eigenvalue when overdamped (real), else None.
+        let overdamped = |gamma: f64| {
+            let d = gamma * gamma / 4.0 - omega2;
+            (d > 0.0).then(|| gamma / 2.0 + d.sqrt())
+        };
+        match self {
+            IntegratorKind::ImplicitEuler => None,
+            IntegratorKind::Rk4 => Some(match overdamped(gamma_hi) {
+                Some(lambda) => 2.785 / lambda,
+                None => 2.0 * std::f64::consts::SQRT_2 / omega,
+            }),
+            IntegratorKind::ExplicitEuler => {
+                let growth = gamma_lo / omega2;
+                Some(overdamped(gamma_hi).map_or(growth, |lambda| growth.min(2.0 / lambda)))
+            }
+            IntegratorKind::SymplecticEuler | IntegratorKind::Verlet => {
+                Some((-gamma_hi + (gamma_hi * gamma_hi + 4.0 * omega2).sqrt()) / omega2)
+            }
+        }
+    }
+}
+
+impl std::fmt::Display for IntegratorKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
 
 /// Everything a step reads and writes.
 pub struct StepContext<'a> {
@@ -57,39 +164,6 @@ impl StepContext<'_> {
     }
 }
 
-/// A time integrator.
-pub trait Integrator: Send + Sync {
-    /// Name in the scene, `effects` and `profile()`.
-    fn name(&self) -> &'static str;
-
-    /// Writes into `ctx.next` the state one step `h` (s) after `ctx.current`. Particles with
-    /// `inv_mass == 0` are copied unchanged. Returns whether every written value is finite.
-    fn step(&mut self, h: f32, ctx: &mut StepContext) -> bool;
-
-    /// Called when the state was changed from outside (new positions or velocities, a new
-    /// step size): an integrator that keeps history must start afresh.
-    fn reset_history(&mut self) {}
-
-    /// Called after a (sub)step's result became the state. History that a step builds (as
-    /// Verlet's start-up) is committed here, never in [`Integrator::step`]: a step that is
-    /// refused must leave the integrator as it was.
-    fn accept(&mut self) {}
-
-    /// What the integrator carries from one step to the next, for a rollback to restore with
-    /// the state it belongs to.
-    fn history(&self) -> History {
-        History::default()
-    }
-
-    /// Restores what [`Integrator::history`] returned.
-    fn set_history(&mut self, _history: History) {}
-
-    /// Linear-solver statistics, for integrators that solve a system each step.
-    fn solver_stats(&self) -> Option<implicit_euler::SolverStats> {
-        None
-    }
-}
-
 /// The state an integrator carries between steps, beyond positions and velocities.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct History {
@@ -97,18 +171,82 @@ pub struct History {
     pub primed: bool,
 }
 
-/// The integrator called `name` in a scene.
-pub fn by_name(name: &str, solver: SolverSettings) -> Result<Box<dyn Integrator>> {
-    match name {
-        "explicit_euler" => Ok(Box::new(ExplicitEuler)),
-        "symplectic_euler" => Ok(Box::new(SymplecticEuler)),
-        "verlet" => Ok(Box::new(Verlet::default())),
-        "rk4" => Ok(Box::new(Rk4::default())),
-        "implicit_euler" => Ok(Box::new(ImplicitEuler::new(solver))),
-        _ => Err(Error::value(
-            "integrator",
-            format!("unknown integrator {name:?}; valid ones are {INTEGRATORS:?}"),
-        )),
+/// A running integrator: its scheme and what it keeps from step to step.
+pub enum Integrator {
+    ExplicitEuler,
+    SymplecticEuler,
+    Verlet(Verlet),
+    Rk4(Box<Rk4>),
+    ImplicitEuler(Box<ImplicitEuler>),
+}
+
+impl Integrator {
+    pub fn kind(&self) -> IntegratorKind {
+        match self {
+            Integrator::ExplicitEuler => IntegratorKind::ExplicitEuler,
+            Integrator::SymplecticEuler => IntegratorKind::SymplecticEuler,
+            Integrator::Verlet(_) => IntegratorKind::Verlet,
+            Integrator::Rk4(_) => IntegratorKind::Rk4,
+            Integrator::ImplicitEuler(_) => IntegratorKind::ImplicitEuler,
+        }
+    }
+
+    /// Name in scenes, `effects` and `profile()`.
+    pub fn name(&self) -> &'static str {
+        self.kind().name()
+    }
+
+    /// Writes into `ctx.next` the state one step `h` (s) after `ctx.current`. Particles with
+    /// `inv_mass == 0` are copied unchanged. Returns whether every written value is finite.
+    pub fn step(&mut self, h: f32, ctx: &mut StepContext) -> bool {
+        match self {
+            Integrator::ExplicitEuler => explicit_euler::step(h, ctx),
+            Integrator::SymplecticEuler => symplectic_euler::step(h, ctx),
+            Integrator::Verlet(v) => v.step(h, ctx),
+            Integrator::Rk4(r) => r.step(h, ctx),
+            Integrator::ImplicitEuler(i) => i.step(h, ctx),
+        }
+    }
+
+    /// Called when the state was changed from outside (new positions or velocities, a new
+    /// step size): an integrator that keeps history must start afresh.
+    pub fn reset_history(&mut self) {
+        if let Integrator::Verlet(v) = self {
+            v.reset_history();
+        }
+    }
+
+    /// Called after a (sub)step's result became the state. History that a step builds (as
+    /// Verlet's start-up) is committed here, never in [`Integrator::step`]: a step that is
+    /// refused must leave the integrator as it was.
+    pub fn accept(&mut self) {
+        if let Integrator::Verlet(v) = self {
+            v.accept();
+        }
+    }
+
+    /// What the integrator carries from one step to the next, for a rollback to restore with
+    /// the state it belongs to.
+    pub fn history(&self) -> History {
+        match self {
+            Integrator::Verlet(v) => v.history(),
+            _ => History::default(),
+        }
+    }
+
+    /// Restores what [`Integrator::history`] returned.
+    pub fn set_history(&mut self, history: History) {
+        if let Integrator::Verlet(v) = self {
+            v.set_history(history);
+        }
+    }
+
+    /// Linear-solver statistics, for integrators that solve a system each step.
+    pub fn solver_stats(&self) -> Option<SolverStats> {
+        match self {
+            Integrator::ImplicitEuler(i) => Some(i.solver_stats()),
+            _ => None,
+        }
     }
 }
 

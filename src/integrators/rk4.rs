@@ -1,6 +1,4 @@
-use super::{
-    hold_mask, par_update, par_update2, select_bits, FiniteCheck, Integrator, StepContext,
-};
+use super::{hold_mask, par_update, par_update2, select_bits, FiniteCheck, StepContext};
 use crate::state::Kinematics;
 
 /// Classic fourth-order Runge-Kutta on the first-order system `x' = v, v' = f(x, v) / m`:
@@ -23,12 +21,8 @@ pub struct Rk4 {
     sum: Option<Kinematics>,
 }
 
-impl Integrator for Rk4 {
-    fn name(&self) -> &'static str {
-        "rk4"
-    }
-
-    fn step(&mut self, h: f32, ctx: &mut StepContext) -> bool {
+impl Rk4 {
+    pub fn step(&mut self, h: f32, ctx: &mut StepContext) -> bool {
         let n = ctx.current.pos.len();
         let stage = self.stage.get_or_insert_with(|| Kinematics::zeros(n));
         let sum = self.sum.get_or_insert_with(|| Kinematics::zeros(n));

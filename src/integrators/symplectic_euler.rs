@@ -1,4 +1,4 @@
-use super::{one_stage_update, Integrator, StepContext};
+use super::{one_stage_update, StepContext};
 
 /// Semi-implicit (symplectic) Euler: the velocity first, then the position with the new
 /// velocity:
@@ -10,17 +10,9 @@ use super::{one_stage_update, Integrator, StepContext};
 ///
 /// First order, one force evaluation per step, and symplectic: with no damping its energy
 /// oscillates around the true value instead of drifting. Stable for `h sqrt(k/m) < 2`.
-pub struct SymplecticEuler;
-
-impl Integrator for SymplecticEuler {
-    fn name(&self) -> &'static str {
-        "symplectic_euler"
-    }
-
-    fn step(&mut self, h: f32, ctx: &mut StepContext) -> bool {
-        one_stage_update(ctx, h, |x, v, dv| {
-            let v_new = v + dv;
-            (x + h * v_new, v_new)
-        })
-    }
+pub(super) fn step(h: f32, ctx: &mut StepContext) -> bool {
+    one_stage_update(ctx, h, |x, v, dv| {
+        let v_new = v + dv;
+        (x + h * v_new, v_new)
+    })
 }

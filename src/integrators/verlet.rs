@@ -1,4 +1,4 @@
-use super::{one_stage_update, History, Integrator, StepContext};
+use super::{one_stage_update, History, StepContext};
 
 /// Position (Stoermer) Verlet:
 ///
@@ -30,12 +30,8 @@ pub struct Verlet {
     primed: bool,
 }
 
-impl Integrator for Verlet {
-    fn name(&self) -> &'static str {
-        "verlet"
-    }
-
-    fn step(&mut self, h: f32, ctx: &mut StepContext) -> bool {
+impl Verlet {
+    pub fn step(&mut self, h: f32, ctx: &mut StepContext) -> bool {
         let kick = if self.primed { 1.0 } else { 0.5 };
         one_stage_update(ctx, h, |x, v, dv| {
             let v_new = v + kick * dv;
@@ -43,21 +39,21 @@ impl Integrator for Verlet {
         })
     }
 
-    fn reset_history(&mut self) {
+    pub fn reset_history(&mut self) {
         self.primed = false;
     }
 
-    fn accept(&mut self) {
+    pub fn accept(&mut self) {
         self.primed = true;
     }
 
-    fn history(&self) -> History {
+    pub fn history(&self) -> History {
         History {
             primed: self.primed,
         }
     }
 
-    fn set_history(&mut self, history: History) {
+    pub fn set_history(&mut self, history: History) {
         self.primed = history.primed;
     }
 }

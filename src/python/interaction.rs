@@ -6,7 +6,7 @@ use pyo3::prelude::*;
 use super::conv::{float_from_any, index_from_any, str_from_any, vec3_from_any};
 use super::errors::{type_error, value_error, IntoPyResult};
 use super::simulation::PySimulation;
-use crate::interaction::PickStrategy;
+use crate::picking::PickStrategy;
 
 /// `(origin, direction)` of ray `k` of a stroke: any pair of length-3 sequences, or a
 /// `(2, 3)` array.

@@ -14,7 +14,8 @@ mod state;
 
 use pyo3::prelude::*;
 
-use crate::scene::{Scene, INTEGRATORS};
+use crate::integrators::IntegratorKind;
+use crate::scene::Scene;
 use conv::{scene_from_dict, scene_to_dict, str_from_any};
 use errors::IntoPyResult;
 
@@ -46,9 +47,9 @@ type StableDts = Vec<(&'static str, Option<f64>)>;
 #[pyfunction]
 fn scene_stability(scene: &Bound<'_, PyAny>) -> PyResult<(StableDts, f64)> {
     let scene = scene_from_dict(scene)?;
-    let limits = INTEGRATORS
+    let limits = IntegratorKind::ALL
         .iter()
-        .map(|&name| (name, scene.stable_dt(name)))
+        .map(|&kind| (kind.name(), scene.stable_dt(kind)))
         .collect();
     Ok((limits, scene.max_frequency()))
 }
@@ -91,6 +92,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(simulation::simulation_from_state, m)?)?;
     m.add_function(wrap_pyfunction!(instruction_set, m)?)?;
     m.add_function(wrap_pyfunction!(thread_count, m)?)?;
-    m.add("INTEGRATORS", INTEGRATORS.to_vec())?;
+    m.add("INTEGRATORS", IntegratorKind::names())?;
     Ok(())
 }

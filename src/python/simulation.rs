@@ -318,8 +318,8 @@ impl PySimulation {
     }
 
     #[getter]
-    fn integrator(&self, py: Python<'_>) -> PyResult<String> {
-        self.with(py, |h| Ok(h.sim.scene().integrator.clone()))
+    fn integrator(&self, py: Python<'_>) -> PyResult<&'static str> {
+        self.with(py, |h| Ok(h.sim.scene().integrator.name()))
     }
 
     #[setter]

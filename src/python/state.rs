@@ -13,10 +13,10 @@ use super::conv::{
 };
 use super::errors::{type_error, value_error};
 use crate::integrators::History;
-use crate::interaction::PickStrategy;
+use crate::picking::PickStrategy;
 use crate::snapshot::{Snapshot, WatchdogSnapshot};
 use crate::soa::Vec3s;
-use crate::watchdog::WatchdogStats;
+use crate::stepper::WatchdogStats;
 
 /// The layout of the dict; a state of another layout is refused rather than guessed at.
 const VERSION: u64 = 1;

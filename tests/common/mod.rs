@@ -5,6 +5,7 @@ use std::hash::{Hash, Hasher};
 
 use glam::Vec3;
 use rustcloth::scene::{ClothSpec, Plane};
+use rustcloth::IntegratorKind;
 use rustcloth::{Scene, Simulation};
 
 /// A cloth with no pins, no gravity and no colliders: add what a test needs.
@@ -23,9 +24,9 @@ pub fn bare_scene(nx: u32, ny: u32) -> Scene {
 
 /// Two particles joined by one structural spring of rest length 1 m: a 2 x 2 grid in the
 /// xy plane with its top row cut away. Particle 0 is at the origin, particle 1 at x = 1.
-pub fn two_particle_spring(k: f64, mass: f64, integrator: &str, dt: f64) -> Simulation {
+pub fn two_particle_spring(k: f64, mass: f64, integrator: IntegratorKind, dt: f64) -> Simulation {
     let scene = Scene {
-        integrator: integrator.into(),
+        integrator,
         dt,
         cloth: ClothSpec {
             nx: 2,

@@ -25,12 +25,11 @@
 use rayon::prelude::*;
 
 use crate::error::Trouble;
-use crate::forces::springs::spring_overstretched;
-use crate::forces::Springs;
 use crate::grid::{Grid, SpringKind};
 use crate::integrators::History;
 use crate::scene::{OnTrouble, WatchdogSpec};
-use crate::soa::{Vec3Slice, Vec3s};
+use crate::soa::Vec3s;
+use crate::springs::{neighbour_runs, overstretched, Springs};
 use crate::state::Kinematics;
 
 /// What the watchdog did since the simulation was built.
@@ -50,33 +49,33 @@ pub struct WatchdogStats {
 
 /// A step that went wrong, before recovery.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct Failure {
-    pub reason: Trouble,
-    pub particle: usize,
+pub(super) struct Failure {
+    pub(super) reason: Trouble,
+    pub(super) particle: usize,
     /// The trouble was in the state the step started from: the previous step is to blame.
-    pub in_start_state: bool,
+    pub(super) in_start_state: bool,
     /// Substeps of the failed attempt.
-    pub substeps: u32,
+    pub(super) substeps: u32,
 }
 
-pub(crate) struct Watchdog {
-    pub spec: WatchdogSpec,
+pub(super) struct Watchdog {
+    pub(super) spec: WatchdogSpec,
     /// The start of the last completed step, while `previous_valid`; only with `max_stretch`.
-    pub previous: Option<Kinematics>,
+    pub(super) previous: Option<Kinematics>,
     /// The integrator's history at the start of that step.
-    pub previous_history: History,
+    pub(super) previous_history: History,
     /// False after anything but a step changed the state: then the current state is the
     /// user's, and trouble found in it is not a step's fault.
-    pub previous_valid: bool,
+    pub(super) previous_valid: bool,
     /// The newest state came from a step and has not been checked yet.
-    pub unjudged: bool,
+    pub(super) unjudged: bool,
     /// Substeps the last completed step ran with.
-    pub last_substeps: u32,
+    pub(super) last_substeps: u32,
     /// After a rescue: `(substeps, until)`, the substeps steps before number `until` use.
-    pub hold: Option<(u32, u64)>,
+    pub(super) hold: Option<(u32, u64)>,
     /// The start of a step being retried.
-    pub retry_start: Option<Kinematics>,
-    pub stats: WatchdogStats,
+    pub(super) retry_start: Option<Kinematics>,
+    pub(super) stats: WatchdogStats,
 }
 
 impl Watchdog {
@@ -130,7 +129,7 @@ const SCAN_CHUNK: usize = 8192;
 /// the force loop as a read-only pass of its own, for the newest state of a call. Parallel and
 /// vectorised like the force loop (an integer OR of compares), since with one step per call it
 /// runs once per step.
-pub(crate) fn any_overstretched(
+pub(super) fn any_overstretched(
     grid: Grid,
     springs: &Springs,
     pos: &Vec3s,
@@ -141,31 +140,26 @@ pub(crate) fn any_overstretched(
     // cost more in thread wake-ups than the scan itself at 128 x 128.
     let n = grid.len();
     (0..n.div_ceil(SCAN_CHUNK)).into_par_iter().any(|c| {
+        let chunk = c * SCAN_CHUNK..((c + 1) * SCAN_CHUNK).min(n);
         kinds.iter().any(|&kind| {
-            let (k, o) = (kind.index(), grid.offset(kind));
-            let anchors = n.saturating_sub(o);
-            let a = (c * SCAN_CHUNK).min(anchors)..((c + 1) * SCAN_CHUNK).min(anchors);
-            let b = a.start + o..a.end + o;
-            let (rest, active) = (&springs.rest[k][a.clone()], &springs.active[k][a.clone()]);
-            let (a, b) = (pos.slices(a), pos.slices(b));
-            crate::simd::dispatch!(scan(a, b, rest, active, limit))
+            let [anchors, _] = neighbour_runs(n, grid.offset(kind), chunk.clone());
+            anchors.is_some_and(|run| {
+                let view = springs.view(kind, pos, run);
+                crate::simd::dispatch!(scan(&view, limit))
+            })
         })
     })
 }
 
-/// Whether a spring with ends `a[i]`, `b[i]` is beyond `limit`: one straight loop over
-/// equal-length slices, which the compiler vectorises.
+/// Whether a spring of the run is beyond `limit`: one straight loop over equal-length slices,
+/// which the compiler vectorises.
 #[inline(always)]
-fn scan(a: Vec3Slice, b: Vec3Slice, rest: &[f32], active: &[f32], limit: f32) -> bool {
-    let n = rest.len();
-    let (xa, ya, za) = (&a.x[..n], &a.y[..n], &a.z[..n]);
-    let (xb, yb, zb) = (&b.x[..n], &b.y[..n], &b.z[..n]);
-    let active = &active[..n];
+fn scan(view: &crate::springs::RunView, limit: f32) -> bool {
     let mut over = 0u32;
-    for i in 0..n {
-        let (dx, dy, dz) = (xb[i] - xa[i], yb[i] - ya[i], zb[i] - za[i]);
+    for i in 0..view.len {
+        let [dx, dy, dz] = view.delta(i);
         let l = (dx * dx + dy * dy + dz * dz).sqrt();
-        over |= spring_overstretched(l, rest[i], active[i], limit) as u32;
+        over |= overstretched(l, view.rest[i], view.active[i], limit) as u32;
     }
     over != 0
 }
@@ -173,7 +167,7 @@ fn scan(a: Vec3Slice, b: Vec3Slice, rest: &[f32], active: &[f32], limit: f32) ->
 /// The first live spring of `kinds` longer than `limit` times its rest length, as `(anchor
 /// particle, l / L)`. The same arithmetic as the check in the force loop, so the two agree on
 /// every spring; a serial pass, run only on the trouble path.
-pub(crate) fn find_overstretched(
+pub(super) fn find_overstretched(
     grid: Grid,
     springs: &Springs,
     pos: &Vec3s,
@@ -191,7 +185,7 @@ pub(crate) fn find_overstretched(
             );
             let l = (dx * dx + dy * dy + dz * dz).sqrt();
             let (rest, active) = (springs.rest[k][a], springs.active[k][a]);
-            spring_overstretched(l, rest, active, limit).then(|| (a, l / rest))
+            overstretched(l, rest, active, limit).then(|| (a, l / rest))
         })
     })
 }

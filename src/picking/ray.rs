@@ -24,8 +24,7 @@
 use std::cmp::Ordering;
 
 use glam::Vec3;
-use parry3d::bounding_volume::Aabb;
-use parry3d::partitioning::{Bvh, BvhBuildStrategy, TraversalAction};
+use parry3d::partitioning::{Bvh, TraversalAction};
 
 use crate::error::{Error, Result};
 use crate::grid::Grid;
@@ -137,7 +136,7 @@ impl ParticleHit {
     }
 }
 
-fn particle_box(p: Vec3, radius: f32) -> (Vec3, Vec3) {
+pub(super) fn particle_box(p: Vec3, radius: f32) -> (Vec3, Vec3) {
     (p - Vec3::splat(radius), p + Vec3::splat(radius))
 }
 
@@ -254,7 +253,7 @@ fn moller_trumbore(ray: &Ray, a: Vec3, b: Vec3, c: Vec3) -> Option<(f32, [f32; 3
 
 /// What the BVH search needs of a hit: how far along the ray a box may start and still hold a
 /// hit that beats it (monotone in the distance), and a total order.
-trait Hit: Copy {
+pub(super) trait Hit: Copy {
     fn reach(&self) -> f32;
     fn cmp_key(&self, other: &Self) -> Ordering;
 }
@@ -283,7 +282,7 @@ impl Hit for TriangleHit {
 
 /// The winning hit among the leaves `leaf_hit` reports, visiting only nodes whose box, widened
 /// by `widen` on every side, the ray enters no farther than the best hit's reach.
-fn nearest_hit<H: Hit>(
+pub(super) fn nearest_hit<H: Hit>(
     bvh: &Bvh,
     ray: &Ray,
     widen: f32,
@@ -446,7 +445,7 @@ fn min_max(xs: &[f32]) -> (f32, f32) {
 /// How far a triangle's box (or a box around several) is widened: far above the rounding of
 /// [`ray_triangle`] at these coordinates. Grows with the box, so a box that contains another
 /// is widened at least as much.
-fn box_margin(lo: Vec3, hi: Vec3) -> f32 {
+pub(super) fn box_margin(lo: Vec3, hi: Vec3) -> f32 {
     1e-5 * (1.0 + lo.abs().max(hi.abs()).max_element())
 }
 
@@ -454,7 +453,7 @@ fn box_margin(lo: Vec3, hi: Vec3) -> f32 {
 /// with `origin - a`, so its rounding grows with the ray origin's distance from the origin of
 /// coordinates too. 5e-5 m for a camera 5 m out; from 1e6 m it is 10 m, and the searches
 /// degrade towards testing every triangle (still with the same answer).
-fn triangle_query_margin(ray: &Ray) -> f32 {
+pub(super) fn triangle_query_margin(ray: &Ray) -> f32 {
     TRIANGLE_ROUNDING * ray.origin.abs().max_element()
 }
 
@@ -478,223 +477,10 @@ pub fn cell_triangle(grid: Grid, id: usize) -> [usize; 3] {
     }
 }
 
-/// A binned-SAH BVH over `(leaf id, box)` pairs.
-///
-/// parry3d 0.31.1's `Bvh::from_iter` special-cases one or two leaves by writing the slots of
-/// leaf ids 0 and 1, and panics ("key not present") when the ids are others, as they are once
-/// particles have been cut. So few leaves are inserted one by one instead.
-fn build_bvh(leaves: impl Iterator<Item = (usize, Aabb)>) -> Bvh {
-    let leaves: Vec<(usize, Aabb)> = leaves.collect();
-    if leaves.len() > 2 {
-        return Bvh::from_iter(BvhBuildStrategy::Binned, leaves);
-    }
-    let mut bvh = Bvh::new();
-    for (id, aabb) in leaves {
-        bvh.insert(aabb, id as u32);
-    }
-    bvh
-}
-
-/// The BVH over the boxes of the live particles, leaf id = particle index.
-pub struct ParticleBvh {
-    bvh: Bvh,
-    in_tree: Vec<bool>,
-    leaves: usize,
-    radius: f32,
-}
-
-impl ParticleBvh {
-    /// Builds the tree over the live particles (binned SAH build, `O(n log n)`).
-    pub fn build(pos: &Vec3s, alive: &[bool], radius: f32) -> Self {
-        let leaves = (0..pos.len()).filter(|&p| alive[p]).map(|p| {
-            let (lo, hi) = particle_box(pos.get(p), radius);
-            (p, Aabb::new(lo, hi))
-        });
-        let bvh = build_bvh(leaves);
-        ParticleBvh {
-            bvh,
-            in_tree: alive.to_vec(),
-            leaves: alive.iter().filter(|&&a| a).count(),
-            radius,
-        }
-    }
-
-    pub fn radius(&self) -> f32 {
-        self.radius
-    }
-
-    /// Number of leaves (live particles when last synchronised).
-    pub fn len(&self) -> usize {
-        self.leaves
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.leaves == 0
-    }
-
-    /// Moves every leaf box to the particle's new position (and size `radius`) and refits the
-    /// tree bottom-up: `O(n)`, the topology of the tree is kept. (`refit_without_opt`: parry's
-    /// `refit` also copies the nodes into depth-first order, which the build already gave
-    /// them; measured 1.4-2.3x slower.)
-    pub fn refit(&mut self, pos: &Vec3s, radius: f32) {
-        self.radius = radius;
-        for p in (0..pos.len()).filter(|&p| self.in_tree[p]) {
-            let (lo, hi) = particle_box(pos.get(p), radius);
-            self.bvh
-                .update_partially_if_present(Aabb::new(lo, hi), p as u32, 0.0);
-        }
-        if !self.is_empty() {
-            self.bvh.refit_without_opt();
-        }
-    }
-
-    /// Heap memory of the tree and its leaf flags, in bytes.
-    pub fn heap_bytes(&self) -> usize {
-        self.bvh.heap_memory_size() + self.in_tree.capacity()
-    }
-
-    /// Removes particle `p`'s leaf (`O(tree height)`); false if it had none.
-    pub fn remove(&mut self, p: usize) -> bool {
-        if !std::mem::take(&mut self.in_tree[p]) {
-            return false;
-        }
-        self.bvh.remove(p as u32);
-        self.leaves -= 1;
-        true
-    }
-
-    /// Removes the leaves of every particle no longer alive; returns how many.
-    pub fn remove_dead(&mut self, alive: &[bool]) -> usize {
-        let dead: Vec<usize> = (0..alive.len())
-            .filter(|&p| self.in_tree[p] && !alive[p])
-            .collect();
-        dead.into_iter().filter(|&p| self.remove(p)).count()
-    }
-
-    /// The nearest particle along `ray`; `pos` must be the positions the tree was fitted to.
-    pub fn cast(&self, ray: &Ray, pos: &Vec3s) -> Option<ParticleHit> {
-        nearest_hit(&self.bvh, ray, 0.0, |p| {
-            hit_particle(ray, p as usize, pos.get(p as usize), self.radius)
-        })
-    }
-}
-
-/// The BVH over the live triangles, leaf id = stable triangle id ([`cell_triangle`]).
-pub struct TriangleBvh {
-    grid: Grid,
-    bvh: Bvh,
-    in_tree: Vec<bool>,
-    leaves: usize,
-}
-
 /// The bounds of triangle `(a, b, c)` widened by [`box_margin`]: its leaf box in the tree.
 #[inline]
-fn triangle_bounds(a: Vec3, b: Vec3, c: Vec3) -> (Vec3, Vec3) {
+pub(super) fn triangle_bounds(a: Vec3, b: Vec3, c: Vec3) -> (Vec3, Vec3) {
     let (lo, hi) = (a.min(b).min(c), a.max(b).max(c));
     let margin = Vec3::splat(box_margin(lo, hi));
     (lo - margin, hi + margin)
-}
-
-fn triangle_box(pos: &Vec3s, tri: [usize; 3]) -> Aabb {
-    let [a, b, c] = tri.map(|q| pos.get(q));
-    let (lo, hi) = triangle_bounds(a, b, c);
-    Aabb::new(lo, hi)
-}
-
-impl TriangleBvh {
-    pub fn build(grid: Grid, pos: &Vec3s, alive: &[bool]) -> Self {
-        let in_tree: Vec<bool> = (0..triangle_slots(grid))
-            .map(|id| cell_triangle(grid, id).iter().all(|&q| alive[q]))
-            .collect();
-        let leaves = (0..in_tree.len())
-            .filter(|&id| in_tree[id])
-            .map(|id| (id, triangle_box(pos, cell_triangle(grid, id))));
-        let bvh = build_bvh(leaves);
-        TriangleBvh {
-            grid,
-            bvh,
-            leaves: in_tree.iter().filter(|&&t| t).count(),
-            in_tree,
-        }
-    }
-
-    pub fn len(&self) -> usize {
-        self.leaves
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.leaves == 0
-    }
-
-    /// Heap memory of the tree and its leaf flags, in bytes.
-    pub fn heap_bytes(&self) -> usize {
-        self.bvh.heap_memory_size() + self.in_tree.capacity()
-    }
-
-    /// Whether triangle `id` is a leaf.
-    pub fn contains(&self, id: usize) -> bool {
-        self.in_tree[id]
-    }
-
-    pub fn refit(&mut self, pos: &Vec3s) {
-        for id in (0..self.in_tree.len()).filter(|&id| self.in_tree[id]) {
-            let aabb = triangle_box(pos, cell_triangle(self.grid, id));
-            self.bvh.update_partially_if_present(aabb, id as u32, 0.0);
-        }
-        if !self.is_empty() {
-            self.bvh.refit_without_opt();
-        }
-    }
-
-    /// Removes the leaves of triangles with a dead vertex; returns how many.
-    pub fn remove_dead(&mut self, alive: &[bool]) -> usize {
-        let dead: Vec<usize> = (0..self.in_tree.len())
-            .filter(|&id| self.in_tree[id])
-            .filter(|&id| !cell_triangle(self.grid, id).iter().all(|&q| alive[q]))
-            .collect();
-        dead.into_iter().filter(|&id| self.remove(id)).count()
-    }
-
-    /// Removes the (at most six) triangles around particle `p`; returns how many.
-    pub fn remove_around(&mut self, p: usize) -> usize {
-        let (i, j) = self.grid.coords(p);
-        let mut removed = 0;
-        // The four cells with p as a corner, by their lower-left corner.
-        for (di, dj) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-            let (Some(ci), Some(cj)) = (i.checked_sub(di), j.checked_sub(dj)) else {
-                continue;
-            };
-            if ci + 1 >= self.grid.nx || cj + 1 >= self.grid.ny {
-                continue;
-            }
-            let cell = cj * (self.grid.nx - 1) + ci;
-            for id in [2 * cell, 2 * cell + 1] {
-                if cell_triangle(self.grid, id).contains(&p) && self.remove(id) {
-                    removed += 1;
-                }
-            }
-        }
-        removed
-    }
-
-    fn remove(&mut self, id: usize) -> bool {
-        if !std::mem::take(&mut self.in_tree[id]) {
-            return false;
-        }
-        self.bvh.remove(id as u32);
-        self.leaves -= 1;
-        true
-    }
-
-    /// The nearest triangle along `ray` (`index` is the stable id).
-    pub fn cast(&self, ray: &Ray, pos: &Vec3s) -> Option<TriangleHit> {
-        nearest_hit(&self.bvh, ray, triangle_query_margin(ray), |id| {
-            let [a, b, c] = cell_triangle(self.grid, id as usize).map(|q| pos.get(q));
-            ray_triangle(ray, a, b, c).map(|(distance, barycentric)| TriangleHit {
-                index: id as usize,
-                distance,
-                barycentric,
-            })
-        })
-    }
 }

@@ -1,0 +1,115 @@
+//! The model: what a scene compiles to and what the calls between steps change, never a step
+//! itself. The validated scene with its run-time settings, the grid, each particle's mass and
+//! flags, and the springs with their rest lengths; `topology_version` counts the cuts.
+
+use glam::{DVec3, Vec3};
+
+use crate::error::{check_scalar, Bound, Error, Result};
+use crate::grid::Grid;
+use crate::scene::{Plane, Scene};
+use crate::soa::Vec3s;
+use crate::springs::Springs;
+
+pub use crate::particles::Particles;
+
+/// A scene compiled into the cloth it describes.
+pub struct Model {
+    /// The scene, with the run-time settings (integrator, dt, substeps) as they are now.
+    pub scene: Scene,
+    pub grid: Grid,
+    pub particles: Particles,
+    pub springs: Springs,
+    /// Increments whenever the triangle list changes (a cut).
+    pub topology_version: u64,
+}
+
+impl Model {
+    /// The cloth `scene` describes (validated here), and its particles' starting positions.
+    pub fn new(scene: Scene) -> Result<(Model, Vec3s)> {
+        scene.validate()?;
+        let grid = scene.grid();
+        let pos = initial_positions(&scene);
+        let springs = Springs::new(grid, &pos);
+        let mut particles = Particles::new(grid.len(), scene.particle_mass() as f32);
+        for p in scene.cloth.pinned_indices() {
+            particles.set_pinned(p, true);
+        }
+        let model = Model {
+            scene,
+            grid,
+            particles,
+            springs,
+            topology_version: 0,
+        };
+        Ok((model, pos))
+    }
+
+    /// Replaces every particle's mass (kg, each finite and > 0, with a finite float32 inverse).
+    /// Rejects a bad value, changing nothing.
+    pub fn set_masses(&mut self, masses: &[f64]) -> Result<()> {
+        let n = self.grid.len();
+        if masses.len() != n {
+            return Err(Error::value(
+                "masses",
+                format!("must hold {n} values, got {}", masses.len()),
+            ));
+        }
+        for (p, &m) in masses.iter().enumerate() {
+            check_scalar(&format!("masses[{p}]"), m, Bound::Positive)?;
+            if (m as f32) == 0.0 || !(1.0 / m as f32).is_finite() {
+                return Err(Error::value(
+                    format!("masses[{p}]"),
+                    format!("must be representable in float32 with a finite inverse, got {m}"),
+                ));
+            }
+        }
+        for (p, &m) in masses.iter().enumerate() {
+            self.particles.set_mass(p, m as f32);
+        }
+        Ok(())
+    }
+
+    /// Removes particle `p` and its springs; its triangles leave the mesh.
+    pub fn cut(&mut self, p: usize) {
+        self.particles.cut(p);
+        self.springs.remove_particle(self.grid, p);
+        self.topology_version += 1;
+    }
+
+    /// The stiffness (N/m) of a spring family in the scene.
+    pub fn stiffness(&self, family: crate::grid::Family) -> f64 {
+        let cloth = &self.scene.cloth;
+        match family {
+            crate::grid::Family::Structural => cloth.k_structural,
+            crate::grid::Family::Shear => cloth.k_shear,
+            crate::grid::Family::Bend => cloth.k_bend,
+        }
+    }
+
+    pub fn heap_bytes(&self) -> usize {
+        self.particles.heap_bytes() + self.springs.heap_bytes()
+    }
+}
+
+/// The unit vectors `(e_i, e_j)` the cloth's grid starts along.
+pub fn plane_axes(plane: Plane) -> (Vec3, Vec3) {
+    match plane {
+        Plane::Xz => (Vec3::X, Vec3::Z),
+        Plane::Xy => (Vec3::X, Vec3::Y),
+    }
+}
+
+/// `center + (i/(nx-1) - 1/2) size[0] e1 + (j/(ny-1) - 1/2) size[1] e2`.
+fn initial_positions(scene: &Scene) -> Vec3s {
+    let grid = scene.grid();
+    let cloth = &scene.cloth;
+    let (e1, e2) = plane_axes(cloth.plane);
+    let (e1, e2) = (e1.as_dvec3(), e2.as_dvec3());
+    let center = DVec3::from(cloth.center);
+    Vec3s::from_fn(grid.len(), |p| {
+        let (i, j) = grid.coords(p);
+        let u = i as f64 / (grid.nx - 1) as f64 - 0.5;
+        let v = j as f64 / (grid.ny - 1) as f64 - 0.5;
+        (center + u * cloth.size[0] * e1 + v * cloth.size[1] * e2).as_vec3()
+    })
+}

@@ -1,0 +1,225 @@
+//! The two picking trees, parry3d [`Bvh`]s over particle boxes and over triangle boxes, keyed by
+//! stable ids so that a cut removes leaves and a moved cloth refits them.
+
+use parry3d::bounding_volume::Aabb;
+use parry3d::partitioning::{Bvh, BvhBuildStrategy};
+
+use super::ray::{
+    cell_triangle, hit_particle, nearest_hit, particle_box, ray_triangle, triangle_bounds,
+    triangle_query_margin, triangle_slots, ParticleHit, Ray, TriangleHit,
+};
+use crate::grid::Grid;
+use crate::soa::Vec3s;
+
+/// A binned-SAH BVH over `(leaf id, box)` pairs.
+///
+/// parry3d 0.31.1's `Bvh::from_iter` special-cases one or two leaves by writing the slots of
+/// leaf ids 0 and 1, and panics ("key not present") when the ids are others, as they are once
+/// particles have been cut. So few leaves are inserted one by one instead.
+fn build_bvh(leaves: impl Iterator<Item = (usize, Aabb)>) -> Bvh {
+    let leaves: Vec<(usize, Aabb)> = leaves.collect();
+    if leaves.len() > 2 {
+        return Bvh::from_iter(BvhBuildStrategy::Binned, leaves);
+    }
+    let mut bvh = Bvh::new();
+    for (id, aabb) in leaves {
+        bvh.insert(aabb, id as u32);
+    }
+    bvh
+}
+
+/// The BVH over the boxes of the live particles, leaf id = particle index.
+pub struct ParticleBvh {
+    bvh: Bvh,
+    in_tree: Vec<bool>,
+    leaves: usize,
+    radius: f32,
+}
+
+impl ParticleBvh {
+    /// Builds the tree over the live particles (binned SAH build, `O(n log n)`).
+    pub fn build(pos: &Vec3s, alive: &[bool], radius: f32) -> Self {
+        let leaves = (0..pos.len()).filter(|&p| alive[p]).map(|p| {
+            let (lo, hi) = particle_box(pos.get(p), radius);
+            (p, Aabb::new(lo, hi))
+        });
+        let bvh = build_bvh(leaves);
+        ParticleBvh {
+            bvh,
+            in_tree: alive.to_vec(),
+            leaves: alive.iter().filter(|&&a| a).count(),
+            radius,
+        }
+    }
+
+    pub fn radius(&self) -> f32 {
+        self.radius
+    }
+
+    /// Number of leaves (live particles when last synchronised).
+    pub fn len(&self) -> usize {
+        self.leaves
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.leaves == 0
+    }
+
+    /// Moves every leaf box to the particle's new position (and size `radius`) and refits the
+    /// tree bottom-up: `O(n)`, the topology of the tree is kept. (`refit_without_opt`: parry's
+    /// `refit` also copies the nodes into depth-first order, which the build already gave
+    /// them; measured 1.4-2.3x slower.)
+    pub fn refit(&mut self, pos: &Vec3s, radius: f32) {
+        self.radius = radius;
+        for p in (0..pos.len()).filter(|&p| self.in_tree[p]) {
+            let (lo, hi) = particle_box(pos.get(p), radius);
+            self.bvh
+                .update_partially_if_present(Aabb::new(lo, hi), p as u32, 0.0);
+        }
+        if !self.is_empty() {
+            self.bvh.refit_without_opt();
+        }
+    }
+
+    /// Heap memory of the tree and its leaf flags, in bytes.
+    pub fn heap_bytes(&self) -> usize {
+        self.bvh.heap_memory_size() + self.in_tree.capacity()
+    }
+
+    /// Removes particle `p`'s leaf (`O(tree height)`); false if it had none.
+    pub fn remove(&mut self, p: usize) -> bool {
+        if !std::mem::take(&mut self.in_tree[p]) {
+            return false;
+        }
+        self.bvh.remove(p as u32);
+        self.leaves -= 1;
+        true
+    }
+
+    /// Removes the leaves of every particle no longer alive; returns how many.
+    pub fn remove_dead(&mut self, alive: &[bool]) -> usize {
+        let dead: Vec<usize> = (0..alive.len())
+            .filter(|&p| self.in_tree[p] && !alive[p])
+            .collect();
+        dead.into_iter().filter(|&p| self.remove(p)).count()
+    }
+
+    /// The nearest particle along `ray`; `pos` must be the positions the tree was fitted to.
+    pub fn cast(&self, ray: &Ray, pos: &Vec3s) -> Option<ParticleHit> {
+        nearest_hit(&self.bvh, ray, 0.0, |p| {
+            hit_particle(ray, p as usize, pos.get(p as usize), self.radius)
+        })
+    }
+}
+
+/// The BVH over the live triangles, leaf id = stable triangle id ([`cell_triangle`]).
+pub struct TriangleBvh {
+    grid: Grid,
+    bvh: Bvh,
+    in_tree: Vec<bool>,
+    leaves: usize,
+}
+
+fn triangle_box(pos: &Vec3s, tri: [usize; 3]) -> Aabb {
+    let [a, b, c] = tri.map(|q| pos.get(q));
+    let (lo, hi) = triangle_bounds(a, b, c);
+    Aabb::new(lo, hi)
+}
+
+impl TriangleBvh {
+    pub fn build(grid: Grid, pos: &Vec3s, alive: &[bool]) -> Self {
+        let in_tree: Vec<bool> = (0..triangle_slots(grid))
+            .map(|id| cell_triangle(grid, id).iter().all(|&q| alive[q]))
+            .collect();
+        let leaves = (0..in_tree.len())
+            .filter(|&id| in_tree[id])
+            .map(|id| (id, triangle_box(pos, cell_triangle(grid, id))));
+        let bvh = build_bvh(leaves);
+        TriangleBvh {
+            grid,
+            bvh,
+            leaves: in_tree.iter().filter(|&&t| t).count(),
+            in_tree,
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.leaves
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.leaves == 0
+    }
+
+    /// Heap memory of the tree and its leaf flags, in bytes.
+    pub fn heap_bytes(&self) -> usize {
+        self.bvh.heap_memory_size() + self.in_tree.capacity()
+    }
+
+    /// Whether triangle `id` is a leaf.
+    pub fn contains(&self, id: usize) -> bool {
+        self.in_tree[id]
+    }
+
+    pub fn refit(&mut self, pos: &Vec3s) {
+        for id in (0..self.in_tree.len()).filter(|&id| self.in_tree[id]) {
+            let aabb = triangle_box(pos, cell_triangle(self.grid, id));
+            self.bvh.update_partially_if_present(aabb, id as u32, 0.0);
+        }
+        if !self.is_empty() {
+            self.bvh.refit_without_opt();
+        }
+    }
+
+    /// Removes the leaves of triangles with a dead vertex; returns how many.
+    pub fn remove_dead(&mut self, alive: &[bool]) -> usize {
+        let dead: Vec<usize> = (0..self.in_tree.len())
+            .filter(|&id| self.in_tree[id])
+            .filter(|&id| !cell_triangle(self.grid, id).iter().all(|&q| alive[q]))
+            .collect();
+        dead.into_iter().filter(|&id| self.remove(id)).count()
+    }
+
+    /// Removes the (at most six) triangles around particle `p`; returns how many.
+    pub fn remove_around(&mut self, p: usize) -> usize {
+        let (i, j) = self.grid.coords(p);
+        let mut removed = 0;
+        // The four cells with p as a corner, by their lower-left corner.
+        for (di, dj) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+            let (Some(ci), Some(cj)) = (i.checked_sub(di), j.checked_sub(dj)) else {
+                continue;
+            };
+            if ci + 1 >= self.grid.nx || cj + 1 >= self.grid.ny {
+                continue;
+            }
+            let cell = cj * (self.grid.nx - 1) + ci;
+            for id in [2 * cell, 2 * cell + 1] {
+                if cell_triangle(self.grid, id).contains(&p) && self.remove(id) {
+                    removed += 1;
+                }
+            }
+        }
+        removed
+    }
+
+    fn remove(&mut self, id: usize) -> bool {
+        if !std::mem::take(&mut self.in_tree[id]) {
+            return false;
+        }
+        self.bvh.remove(id as u32);
+        self.leaves -= 1;
+        true
+    }
+
+    /// The nearest triangle along `ray` (`index` is the stable id).
+    pub fn cast(&self, ray: &Ray, pos: &Vec3s) -> Option<TriangleHit> {
+        nearest_hit(&self.bvh, ray, triangle_query_margin(ray), |id| {
+            let [a, b, c] = cell_triangle(self.grid, id as usize).map(|q| pos.get(q));
+            ray_triangle(ray, a, b, c).map(|(distance, barycentric)| TriangleHit {
+                index: id as usize,
+                distance,
+                barycentric,
+            })
+        })
+    }
+}

@@ -1,0 +1,187 @@
+//! The tables of a scene: the cloth, the floor, the spheres, the watchdog and strain
+//! limiting, each with its keys' units, defaults and trade-offs.
+
+use serde::{Deserialize, Serialize};
+
+/// What a step does on trouble: a non-finite value, or (with `max_stretch`) a spring stretched
+/// beyond the limit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum OnTrouble {
+    /// Restore the last good state and raise `SimulationDiverged`.
+    Raise,
+    /// Retry the failed step with twice the substeps, then four times, ... up to
+    /// `max_substeps`; raise only if that fails too. Retries are counted in `watchdog_stats`.
+    Substep,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct WatchdogSpec {
+    /// Largest allowed stretch of any live spring, as the ratio `l / L` of its length to its
+    /// rest length (> 1). Absent by default: only non-finite values count as trouble. Checked
+    /// for free while the forces are evaluated (one compare per spring), one substep late, so a
+    /// state is judged when the next substep starts from it. Set it well above what the scene
+    /// legitimately reaches: dragging a particle with the mouse stretches its springs too.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_stretch: Option<f64>,
+    /// `"raise"` (default) or `"substep"`; see [`OnTrouble`].
+    pub on_trouble: OnTrouble,
+    /// Most substeps a retried step may use, with `on_trouble = "substep"`. Default 64: a step
+    /// that needs more than that is better served by a smaller `dt` or `implicit_euler`.
+    pub max_substeps: u32,
+    /// With `on_trouble = "substep"`: steps after a rescued step that keep its substeps before
+    /// the scene's own are tried again. Default 100. A stiff scene whose every step needs more
+    /// substeps then fails once per `hold_steps` rather than every other step; 0 retries each
+    /// step on its own.
+    pub hold_steps: u32,
+}
+
+impl Default for WatchdogSpec {
+    fn default() -> Self {
+        WatchdogSpec {
+            max_stretch: None,
+            on_trouble: OnTrouble::Raise,
+            max_substeps: 64,
+            hold_steps: 100,
+        }
+    }
+}
+
+/// Provot (1995) strain limiting: after each substep, structural and shear springs longer than
+/// `(1 + max_strain)` times their rest length are shortened back, and the velocities corrected.
+/// Lets a soft cloth (cheap, large `dt`) keep a stiff cloth's shape under load.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct StrainLimitSpec {
+    /// Largest allowed strain `(l - L) / L` (> 0). Default 0.1, Provot's 10 %.
+    pub max_strain: f64,
+    /// Jacobi iterations per substep (>= 1). Default 4. More iterations get closer to the limit
+    /// where many springs are over it at once, at one pass over the springs each.
+    pub iterations: u32,
+}
+
+impl Default for StrainLimitSpec {
+    fn default() -> Self {
+        StrainLimitSpec {
+            max_strain: 0.1,
+            iterations: 4,
+        }
+    }
+}
+
+/// The plane the cloth starts in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Plane {
+    /// Grid `i` along +x, `j` along +z: a horizontal sheet.
+    Xz,
+    /// Grid `i` along +x, `j` along +y: a vertical sheet.
+    Xy,
+}
+
+/// A pin: a named group of particles or one `[i, j]` grid position.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum PinSpec {
+    Named(String),
+    Cell([i64; 2]),
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ClothSpec {
+    /// Particles along `i` (>= 2). Default 32.
+    pub nx: u32,
+    /// Particles along `j` (>= 2). Default 32.
+    pub ny: u32,
+    /// Extent along `i` and `j` in m. Default `[1, 1]`.
+    pub size: [f64; 2],
+    /// Centre of the cloth in m. Default `[0, 1, 0]`.
+    pub center: [f64; 3],
+    /// Starting plane. Default `"xz"`.
+    pub plane: Plane,
+    /// Mass of each particle in kg. Default 0.001 when `mass` is not given either.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub particle_mass: Option<f64>,
+    /// Total mass in kg, shared equally; give this or `particle_mass`, not both.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mass: Option<f64>,
+    /// Stiffness of the structural springs in N/m. Default 200. Zero removes the family.
+    /// Explicit integrators need `dt * sqrt(4 (k_structural + k_shear + k_bend) / m)` below
+    /// about 2; stiffer springs need a smaller `dt`, more substeps or `implicit_euler`.
+    pub k_structural: f64,
+    /// Stiffness of the shear springs in N/m. Default 50. Zero removes the family.
+    pub k_shear: f64,
+    /// Stiffness of the bending springs in N/m. Default 10. Zero removes the family.
+    pub k_bend: f64,
+    /// Damping along each spring in N s/m, `c ((v_b - v_a) . u) u`. Default 0.01. Damps
+    /// stretching oscillations without slowing rigid motion.
+    pub damping: f64,
+    /// Pinned particles. Default `["top_corners"]`.
+    pub pins: Vec<PinSpec>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FloorSpec {
+    /// Height of the floor plane (y) in m. Default 0.
+    pub height: f64,
+    /// Coulomb friction coefficient (dimensionless). Default 0.3.
+    pub friction: f64,
+    /// Particles are kept this far above the plane, in m. Default 0.002.
+    pub thickness: f64,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SphereSpec {
+    /// Centre in m. Default `[0, 0.5, 0]`.
+    pub center: [f64; 3],
+    /// Radius in m. Default 0.3.
+    pub radius: f64,
+    /// Coulomb friction coefficient. Default 0.2.
+    pub friction: f64,
+    /// Particles are kept this far outside the surface, in m. Default 0.002.
+    pub thickness: f64,
+}
+
+impl Default for ClothSpec {
+    fn default() -> Self {
+        ClothSpec {
+            nx: 32,
+            ny: 32,
+            size: [1.0, 1.0],
+            center: [0.0, 1.0, 0.0],
+            plane: Plane::Xz,
+            particle_mass: None,
+            mass: None,
+            k_structural: 200.0,
+            k_shear: 50.0,
+            k_bend: 10.0,
+            damping: 0.01,
+            pins: vec![PinSpec::Named("top_corners".into())],
+        }
+    }
+}
+
+impl Default for FloorSpec {
+    fn default() -> Self {
+        FloorSpec {
+            height: 0.0,
+            friction: 0.3,
+            thickness: 0.002,
+        }
+    }
+}
+
+impl Default for SphereSpec {
+    fn default() -> Self {
+        SphereSpec {
+            center: [0.0, 0.5, 0.0],
+            radius: 0.3,
+            friction: 0.2,
+            thickness: 0.002,
+        }
+    }
+}

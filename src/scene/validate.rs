@@ -1,0 +1,249 @@
+//! Validation of a scene, in one place: every value is checked once, and the error names the
+//! first offending parameter and its value.
+
+use super::pins::pin_indices;
+use super::specs::{ClothSpec, Plane, WatchdogSpec};
+use super::Scene;
+use crate::error::{check_scalar, check_vector, Bound, Error, Result};
+use crate::grid::Grid;
+
+/// Upper bound on particles per scene: indices are exposed as `u32` and the triangle list must
+/// fit a GPU index buffer. 4096 x 4096 is far beyond interactive rates anyway.
+pub const MAX_PARTICLES: usize = 1 << 24;
+
+/// Largest `radius + thickness` of a sphere, in m: the collider squares it in float32 (whose
+/// largest value is 3.4e38), so a reach beyond about 1.8e19 m would make every particle
+/// "inside" and project it to infinity.
+pub const MAX_SPHERE_REACH: f64 = 1e19;
+
+impl Scene {
+    /// Checks every value; the error names the first offending parameter and its value.
+    pub fn validate(&self) -> Result<()> {
+        check_scalar("dt", self.dt, Bound::Positive)?;
+        if self.substeps == 0 {
+            return Err(Error::value("substeps", "must be an integer >= 1, got 0"));
+        }
+        check_substep("dt", self.dt, self.substeps)?;
+        check_vector("gravity", &self.gravity, Bound::Any)?;
+        check_scalar("air_drag", self.air_drag, Bound::NonNegative)?;
+        check_scalar("cg_tolerance", self.cg_tolerance, Bound::Positive)?;
+        if self.cg_max_iterations == 0 {
+            return Err(Error::value(
+                "cg_max_iterations",
+                "must be an integer >= 1, got 0",
+            ));
+        }
+        self.cloth.validate()?;
+        if let Some(floor) = &self.floor {
+            check_scalar("floor.height", floor.height, Bound::Any)?;
+            check_scalar("floor.friction", floor.friction, Bound::NonNegative)?;
+            check_scalar("floor.thickness", floor.thickness, Bound::NonNegative)?;
+            // The collider keeps particles at `height + thickness`, summed in float32.
+            if !(floor.height as f32 + floor.thickness as f32).is_finite() {
+                return Err(Error::value(
+                    "floor.thickness",
+                    format!(
+                        "height + thickness must be within f32 range (<= 3.4e38), got {} + {}",
+                        floor.height, floor.thickness
+                    ),
+                ));
+            }
+        }
+        for (s, sphere) in self.spheres.iter().enumerate() {
+            check_vector(&format!("spheres[{s}].center"), &sphere.center, Bound::Any)?;
+            check_scalar(
+                &format!("spheres[{s}].radius"),
+                sphere.radius,
+                Bound::Positive,
+            )?;
+            check_scalar(
+                &format!("spheres[{s}].friction"),
+                sphere.friction,
+                Bound::NonNegative,
+            )?;
+            check_scalar(
+                &format!("spheres[{s}].thickness"),
+                sphere.thickness,
+                Bound::NonNegative,
+            )?;
+            if sphere.radius + sphere.thickness > MAX_SPHERE_REACH {
+                return Err(Error::value(
+                    format!("spheres[{s}].radius"),
+                    format!(
+                        "radius + thickness must be at most {MAX_SPHERE_REACH:e} m, got {} + {}",
+                        sphere.radius, sphere.thickness
+                    ),
+                ));
+            }
+        }
+        self.watchdog.validate()?;
+        if let Some(limit) = &self.strain_limit {
+            check_scalar("strain_limit.max_strain", limit.max_strain, Bound::Positive)?;
+            if limit.iterations == 0 {
+                return Err(Error::value(
+                    "strain_limit.iterations",
+                    "must be an integer >= 1, got 0",
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl WatchdogSpec {
+    fn validate(&self) -> Result<()> {
+        if let Some(r) = self.max_stretch {
+            // Compared in float32: a ratio that is not above 1 there trips on a cloth at rest.
+            if !(r.is_finite() && (r as f32).is_finite() && (r as f32) > 1.0) {
+                return Err(Error::value(
+                    "watchdog.max_stretch",
+                    format!("must be a ratio > 1 within float32 range (3.4e38), got {r}"),
+                ));
+            }
+        }
+        if self.max_substeps == 0 {
+            return Err(Error::value(
+                "watchdog.max_substeps",
+                "must be an integer >= 1, got 0",
+            ));
+        }
+        Ok(())
+    }
+}
+
+impl ClothSpec {
+    fn validate(&self) -> Result<()> {
+        for (name, n) in [("cloth.nx", self.nx), ("cloth.ny", self.ny)] {
+            if n < 2 {
+                return Err(Error::value(
+                    name,
+                    format!("must be an integer >= 2, got {n}"),
+                ));
+            }
+        }
+        let count = self.nx as usize * self.ny as usize;
+        if count > MAX_PARTICLES {
+            return Err(Error::value(
+                "cloth.nx",
+                format!(
+                    "nx * ny = {} * {} = {count} particles exceeds the limit of {MAX_PARTICLES}",
+                    self.nx, self.ny
+                ),
+            ));
+        }
+        check_vector("cloth.size", &self.size, Bound::Positive)?;
+        check_vector("cloth.center", &self.center, Bound::Any)?;
+        // The starting positions, `center +- size / 2` along the plane's axes, are float32.
+        let (ei, ej) = match self.plane {
+            Plane::Xz => (0, 2),
+            Plane::Xy => (0, 1),
+        };
+        for (axis, half) in [(ei, self.size[0] / 2.0), (ej, self.size[1] / 2.0)] {
+            let reach = self.center[axis].abs() + half;
+            if reach > f32::MAX as f64 {
+                return Err(Error::value(
+                    "cloth.size",
+                    format!(
+                        "the cloth reaches {}{reach:e} m along {}, beyond f32 range (3.4e38)",
+                        if self.center[axis] < 0.0 { "-" } else { "" },
+                        ["x", "y", "z"][axis]
+                    ),
+                ));
+            }
+        }
+        match (self.particle_mass, self.mass) {
+            (Some(_), Some(_)) => {
+                return Err(Error::value(
+                    "cloth.mass",
+                    "give either cloth.particle_mass or cloth.mass (the total), not both",
+                ))
+            }
+            (Some(m), None) => check_scalar("cloth.particle_mass", m, Bound::Positive)?,
+            (None, Some(m)) => check_scalar("cloth.mass", m, Bound::Positive)?,
+            (None, None) => {}
+        }
+        // Each particle's mass is float32 and so is its inverse, as `set_masses` demands.
+        let (name, m) = match (self.particle_mass, self.mass) {
+            (Some(m), _) => ("cloth.particle_mass", m),
+            (None, Some(total)) => ("cloth.mass", total / count as f64),
+            (None, None) => ("cloth.particle_mass", 0.001),
+        };
+        if (m as f32) == 0.0 || !(1.0 / m as f32).is_finite() {
+            return Err(Error::value(
+                name,
+                format!(
+                    "each particle's mass ({m:e} kg) must be representable in float32 with a \
+                     finite inverse"
+                ),
+            ));
+        }
+        check_scalar("cloth.k_structural", self.k_structural, Bound::NonNegative)?;
+        check_scalar("cloth.k_shear", self.k_shear, Bound::NonNegative)?;
+        check_scalar("cloth.k_bend", self.k_bend, Bound::NonNegative)?;
+        check_scalar("cloth.damping", self.damping, Bound::NonNegative)?;
+        let grid = Grid {
+            nx: self.nx as usize,
+            ny: self.ny as usize,
+        };
+        for (n, pin) in self.pins.iter().enumerate() {
+            pin_indices(pin, grid).map_err(|e| match e {
+                Error::InvalidValue { message, .. } => {
+                    Error::value(format!("cloth.pins[{n}]"), message)
+                }
+                other => other,
+            })?;
+        }
+        Ok(())
+    }
+}
+
+/// The scene's tables (`cloth`, `floor`, ..., each sphere) must be tables: serde would also
+/// fill a struct from a list of its fields in order, so `cloth = [8, 8]` meant nx = ny = 8 and
+/// `floor = [0.5, 0.1, 0.01]` a floor, silently.
+pub(super) fn require_tables(scene: &toml::Value) -> Result<()> {
+    let Some(scene) = scene.as_table() else {
+        return Err(Error::InvalidType {
+            name: "scene".into(),
+            message: format!("must be a table of keys, got {}", scene.type_str()),
+        });
+    };
+    let not_a_table = |name: String, value: &toml::Value| Error::InvalidType {
+        name,
+        message: format!(
+            "must be a table of keys (a dict), got {} {value}",
+            value.type_str()
+        ),
+    };
+    for key in ["cloth", "floor", "watchdog", "strain_limit"] {
+        match scene.get(key) {
+            Some(value) if !value.is_table() => return Err(not_a_table(key.into(), value)),
+            _ => {}
+        }
+    }
+    if let Some(toml::Value::Array(spheres)) = scene.get("spheres") {
+        for (s, sphere) in spheres.iter().enumerate() {
+            if !sphere.is_table() {
+                return Err(not_a_table(format!("spheres[{s}]"), sphere));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The solver steps in float32 by `h = dt / substeps`: below a nanosecond it is a rounding
+/// error next to any time scale of cloth, and at float32's limit it becomes zero.
+pub(crate) fn check_substep(name: &str, dt: f64, substeps: u32) -> Result<()> {
+    let h = dt / substeps as f64;
+    if h < MIN_SUBSTEP {
+        return Err(Error::value(
+            name,
+            format!(
+                "dt / substeps must be at least {MIN_SUBSTEP:e} s, got {dt:e} / {substeps} = {h:e}"
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The shortest substep `dt / substeps` in s.
+pub const MIN_SUBSTEP: f64 = 1e-9;

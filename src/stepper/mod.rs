@@ -1,0 +1,450 @@
+//! The stepper: the compiled passes, the scratch buffers and the watchdog, and the loop that
+//! advances a [`State`] of a [`Model`] by whole steps.
+//!
+//! One step of `dt` is `substeps` substeps of `h = dt / substeps`, each running the passes of
+//! `pipeline.rs`. The integrator writes into a scratch buffer, swapped with the state only when
+//! the result is finite and within the watchdog's limits, so a step that goes wrong leaves the
+//! previous state in place; what then happens (a retry, a rollback, an error) is in
+//! `recovery.rs`, the watchdog's memory in `watchdog.rs`. A step allocates nothing.
+
+mod pipeline;
+mod recovery;
+mod watchdog;
+
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::time::{Duration, Instant};
+
+pub use watchdog::WatchdogStats;
+
+use crate::error::{Error, Result, Trouble};
+use crate::forces::StateRef;
+use crate::integrators::{History, Integrator, IntegratorKind, SolverStats, StepContext};
+use crate::model::Model;
+use crate::parallel::{chunk_len, on_pool};
+use crate::profile::Profile;
+use crate::soa::Vec3s;
+use crate::state::{Kinematics, State};
+use pipeline::Pipeline;
+use watchdog::{Failure, Watchdog};
+
+/// Requested time within this fraction of a step of the next step boundary counts as reaching
+/// it, so that `advance` sums of frame times (1/60 s sixty times) land on the same whole number
+/// of steps as one call with their exact total. Far above f64 rounding, far below any real
+/// frame-time difference.
+const ADVANCE_TOLERANCE: f64 = 1e-6;
+
+/// Most steps one `advance` call may take: a larger request is a mistake (a frame time in ms
+/// taken for s), and would hold the caller for days.
+pub const MAX_ADVANCE_STEPS: u64 = u32::MAX as u64;
+
+/// How long a run of steps goes between two asks whether to stop (`step_with`, `advance_with`):
+/// short enough that Ctrl-C answers at once, long enough that asking costs nothing.
+const INTERRUPT_SLICE: Duration = Duration::from_millis(20);
+
+/// The compiled passes of a scene and the workspace to run them.
+pub struct Stepper {
+    pipeline: Pipeline,
+    /// Where each substep writes its result; swapped with the state when it is good.
+    scratch: Kinematics,
+    /// Copy of the state at the start of a step, kept with several substeps (or retries).
+    step_start: Option<Kinematics>,
+    /// The integrator's history when the current step started, for a failed step to restore.
+    step_start_history: History,
+    force: Vec3s,
+    watchdog: Watchdog,
+    profile: Profile,
+    /// What the last panic caught in a step said (see [`Error::Internal`]).
+    panic_message: Option<String>,
+}
+
+impl Stepper {
+    pub fn new(model: &Model) -> Stepper {
+        let scene = &model.scene;
+        let n = model.grid.len();
+        let mut pipeline = Pipeline::compile(scene);
+        let mut watchdog = Watchdog::new(&scene.watchdog, n);
+        pipeline.forces.set_stretch_limit(watchdog.stretch_limit());
+        // A step with several substeps keeps its start; so may any step the watchdog retries
+        // or holds at more substeps, and a retry keeps its own start too. Made here, so that a
+        // step never allocates, retried or not.
+        let retries = watchdog.retries();
+        if retries {
+            watchdog.retry_start = Some(Kinematics::zeros(n));
+        }
+        Stepper {
+            pipeline,
+            scratch: Kinematics::zeros(n),
+            step_start: (scene.substeps > 1 || retries).then(|| Kinematics::zeros(n)),
+            step_start_history: History::default(),
+            force: Vec3s::zeros(n),
+            watchdog,
+            profile: Profile::default(),
+            panic_message: None,
+        }
+    }
+
+    // ----- stepping -------------------------------------------------------------------------
+
+    /// Advances `state` exactly `n` steps, asking `interrupted` every few milliseconds (between
+    /// whole steps) whether to stop; when it says so, returns [`Error::Interrupted`] with the
+    /// state at that step boundary. The answer never changes the steps taken before it.
+    pub fn step_with(
+        &mut self,
+        model: &Model,
+        state: &mut State,
+        n: u64,
+        interrupted: &mut dyn FnMut() -> bool,
+    ) -> Result<()> {
+        let mut done = 0;
+        while done < n {
+            done += self.run_slice(model, state, n - done)?;
+            if done < n && interrupted() {
+                self.judge_newest_state(model, state)?;
+                return Err(Error::Interrupted { steps: done });
+            }
+        }
+        self.judge_newest_state(model, state)
+    }
+
+    /// Adds `seconds` of requested time and runs the whole steps it covers, carrying the
+    /// remainder to the next call; returns the steps taken. The result depends only on the total
+    /// time requested, not on how it was split into calls. After a failed step the time not
+    /// simulated stays owed, so the next call tries those steps again; an interrupted call
+    /// abandons the rest of its request. At most [`MAX_ADVANCE_STEPS`] steps per call.
+    pub fn advance_with(
+        &mut self,
+        model: &Model,
+        state: &mut State,
+        seconds: f64,
+        interrupted: &mut dyn FnMut() -> bool,
+    ) -> Result<u64> {
+        if !(seconds.is_finite() && seconds >= 0.0) {
+            return Err(Error::value(
+                "seconds",
+                format!("must be a finite number >= 0, got {seconds}"),
+            ));
+        }
+        let dt = model.scene.dt;
+        let pending = state.clock.accumulator + seconds;
+        let steps = (pending / dt + ADVANCE_TOLERANCE).floor().max(0.0);
+        if steps > MAX_ADVANCE_STEPS as f64 {
+            return Err(Error::value(
+                "seconds",
+                format!(
+                    "{seconds} s would take {steps:e} steps of dt = {dt} s; one call takes at \
+                     most {MAX_ADVANCE_STEPS} (call it in pieces, or raise dt)"
+                ),
+            ));
+        }
+        let n = steps as u64;
+        let before = state.clock.steps;
+        let outcome = self.step_with(model, state, n, interrupted);
+        // Counted from `steps`, not from the calls: a failed step can also roll back the step
+        // before it (see watchdog.rs).
+        let taken = match outcome {
+            Err(Error::Interrupted { .. }) => n as f64,
+            _ => state.clock.steps as f64 - before as f64,
+        };
+        state.clock.accumulator = pending - taken * dt;
+        outcome.map(|()| n)
+    }
+
+    /// Up to `n` steps, stopping after the first step that ends past [`INTERRUPT_SLICE`] of
+    /// wall time; returns the steps taken.
+    fn run_slice(&mut self, model: &Model, state: &mut State, n: u64) -> Result<u64> {
+        let until = Instant::now() + INTERRUPT_SLICE;
+        on_pool(|| {
+            let mut taken = 0;
+            while taken < n {
+                self.step_once(model, state)?;
+                taken += 1;
+                if Instant::now() >= until {
+                    break;
+                }
+            }
+            Ok(taken)
+        })
+    }
+
+    /// One step of `dt`, with the watchdog's recovery when it goes wrong.
+    fn step_once(&mut self, model: &Model, state: &mut State) -> Result<()> {
+        let started = Instant::now();
+        let target = state.clock.steps + 1;
+        // Recovering from trouble found one step late reruns the previous step, moving `steps`
+        // back by one; the loop then runs this step again.
+        while state.clock.steps < target {
+            if let Err(failure) = self.attempt_step(model, state) {
+                self.recover(model, state, failure)?;
+            }
+        }
+        self.profile.total += started.elapsed();
+        Ok(())
+    }
+
+    /// Substeps for the next step: the scene's, or more while the watchdog holds a rescued
+    /// step's count.
+    fn step_substeps(&mut self, model: &Model, state: &State) -> u32 {
+        match self.watchdog.hold {
+            Some((substeps, until)) if state.clock.steps + 1 < until => {
+                self.watchdog.stats.held_steps += 1;
+                substeps
+            }
+            Some(_) => {
+                self.watchdog.hold = None;
+                self.pipeline.integrator.reset_history(); // the substep length changes
+                model.scene.substeps
+            }
+            None => model.scene.substeps,
+        }
+    }
+
+    /// One step. On failure nothing of the failed substep is kept: the state is where that
+    /// substep started, and with several substeps the step's start is in `step_start`.
+    fn attempt_step(
+        &mut self,
+        model: &Model,
+        state: &mut State,
+    ) -> std::result::Result<(), Failure> {
+        let substeps = self.step_substeps(model, state);
+        self.step_start_history = self.pipeline.integrator.history();
+        if substeps > 1 {
+            let n = model.grid.len();
+            self.step_start
+                .get_or_insert_with(|| Kinematics::zeros(n))
+                .copy_from(&state.kin);
+        }
+        self.run_substeps(model, state, substeps)?;
+        // The step's start state is in `step_start`, or with one substep in `scratch`, which
+        // the substep's swap left holding it.
+        let history = self.step_start_history;
+        match self.step_start.as_mut().filter(|_| substeps > 1) {
+            Some(start) => self.watchdog.step_completed(start, history, substeps),
+            None => self
+                .watchdog
+                .step_completed(&mut self.scratch, history, substeps),
+        }
+        state.clock.steps += 1;
+        self.profile.steps += 1;
+        state.version += 1;
+        Ok(())
+    }
+
+    /// `substeps` substeps of `dt / substeps` from the current state. Trouble in the state the
+    /// first one starts from is the previous step's (`in_start_state`).
+    ///
+    /// A panic in a pass (a bug) is caught here and becomes a [`Trouble::Panicked`] failure,
+    /// with the state where the failed substep started, as for any failure: a substep changes
+    /// the state only by its last act, the swap with a finished result.
+    fn run_substeps(
+        &mut self,
+        model: &Model,
+        state: &mut State,
+        substeps: u32,
+    ) -> std::result::Result<(), Failure> {
+        let h = (model.scene.dt / substeps as f64) as f32;
+        for j in 0..substeps {
+            let outcome =
+                catch_unwind(AssertUnwindSafe(|| self.substep(model, state, h, substeps)))
+                    .unwrap_or_else(|payload| {
+                        self.panic_message = Some(panic_text(payload.as_ref()));
+                        Err(Failure {
+                            reason: Trouble::Panicked,
+                            particle: 0,
+                            in_start_state: false,
+                            substeps,
+                        })
+                    });
+            outcome.map_err(|failure| Failure {
+                in_start_state: failure.in_start_state && j == 0,
+                ..failure
+            })?;
+        }
+        Ok(())
+    }
+
+    /// One substep of length `h`, one of `substeps`. On success its result becomes the state;
+    /// on failure the state is untouched. Trouble in the state the substep starts from (a
+    /// spring over the watchdog's limit) is reported with `in_start_state`.
+    fn substep(
+        &mut self,
+        model: &Model,
+        state: &mut State,
+        h: f32,
+        substeps: u32,
+    ) -> std::result::Result<(), Failure> {
+        let chunk = chunk_len(model.grid.len());
+        let pipeline = &mut self.pipeline;
+        let started = Instant::now();
+        let forces_before = self.profile.force_time;
+        pipeline.forces.arm_stretch_watch();
+        let mut ctx = StepContext {
+            grid: model.grid,
+            current: &state.kin,
+            next: &mut self.scratch,
+            particles: &model.particles,
+            springs: &model.springs,
+            forces: &mut pipeline.forces,
+            force: &mut self.force,
+            chunk,
+            profile: &mut self.profile,
+        };
+        let finite = pipeline.integrator.step(h, &mut ctx);
+        let own_time = started
+            .elapsed()
+            .saturating_sub(self.profile.force_time - forces_before);
+        self.profile.add(pipeline.integrator.name(), own_time);
+        if pipeline.forces.overstretched() {
+            // The force loop and this scan run the same arithmetic, so the scan finds the spring.
+            let found = self.overstretched_in(model, &state.kin, true, substeps);
+            debug_assert!(found.is_some(), "stretch watch and scan disagree");
+            return Err(found.unwrap_or(Failure {
+                reason: Trouble::Overstretched {
+                    stretch: f32::NAN,
+                    limit: self.watchdog.stretch_limit().unwrap_or(f32::NAN),
+                },
+                particle: 0,
+                in_start_state: true,
+                substeps,
+            }));
+        }
+        let after = pipeline.after_integration(
+            model,
+            state,
+            &mut self.scratch,
+            h,
+            chunk,
+            &mut self.profile,
+        );
+        if !(finite && after) {
+            return Err(Failure {
+                reason: Trouble::NonFinite,
+                particle: self.scratch.first_non_finite().unwrap_or(0),
+                in_start_state: false,
+                substeps,
+            });
+        }
+        std::mem::swap(&mut state.kin, &mut self.scratch);
+        self.pipeline.integrator.accept();
+        Ok(())
+    }
+
+    // ----- settings, reports ----------------------------------------------------------------
+
+    pub fn integrator(&self) -> IntegratorKind {
+        self.pipeline.integrator.kind()
+    }
+
+    /// Switches the integrator; the state carries over (a fresh integrator has no history).
+    pub fn set_integrator(&mut self, model: &Model) {
+        self.pipeline.integrator = model.scene.integrator.build(model.scene.solver_settings());
+    }
+
+    /// After a change of the substeps: history restarts, and a step keeps its start.
+    pub fn substeps_changed(&mut self, model: &Model) {
+        self.pipeline.integrator.reset_history();
+        if model.scene.substeps > 1 && self.step_start.is_none() {
+            self.step_start = Some(Kinematics::zeros(model.grid.len()));
+        }
+    }
+
+    /// After a change of `dt`: history restarts, and the watchdog stops blaming the last step
+    /// (taken with the old `dt`, it cannot be undone and retried with the new one).
+    pub fn dt_changed(&mut self) {
+        self.watchdog.previous_valid = false;
+        self.pipeline.integrator.reset_history();
+    }
+
+    /// After the masses changed: history restarts.
+    pub fn masses_changed(&mut self) {
+        self.pipeline.integrator.reset_history();
+    }
+
+    /// Something other than a step changed the state (`history`: positions or velocities, which
+    /// an integrator with history must forget): the watchdog must not blame (and undo) the last
+    /// step for trouble in this state, nor judge it at the end of a call that takes no step.
+    pub fn state_set(&mut self, history: bool) {
+        self.watchdog.previous_valid = false;
+        self.watchdog.unjudged = false;
+        if history {
+            self.pipeline.integrator.reset_history();
+        }
+    }
+
+    /// The passes a step runs, in order.
+    pub fn effects(&self, state: &State) -> Vec<&'static str> {
+        self.pipeline.effects(state)
+    }
+
+    pub fn profile(&self) -> &Profile {
+        &self.profile
+    }
+
+    pub fn watchdog_stats(&self) -> WatchdogStats {
+        self.watchdog.stats
+    }
+
+    pub fn solver_stats(&self) -> Option<SolverStats> {
+        self.pipeline.integrator.solver_stats()
+    }
+
+    /// The total force on each particle of `state`, for tests and diagnostics.
+    pub fn total_force(&mut self, model: &Model, state: &State) -> Vec3s {
+        let mut out = Vec3s::zeros(model.grid.len());
+        let at = StateRef {
+            grid: model.grid,
+            pos: &state.kin.pos,
+            vel: &state.kin.vel,
+            mass: &model.particles.mass,
+            springs: &model.springs,
+        };
+        let chunk = chunk_len(model.grid.len());
+        self.pipeline
+            .forces
+            .evaluate(at, &mut out, chunk, &mut Profile::default());
+        out
+    }
+
+    /// Makes the next force evaluation panic on a worker thread: a stand-in for a bug.
+    #[doc(hidden)]
+    pub fn inject_panic(&mut self) {
+        self.pipeline.forces.inject_panic();
+    }
+
+    /// Forgets what a call interrupted by a panic may have left half-done.
+    pub fn after_panic(&mut self) {
+        self.pipeline.forces.reset_after_panic();
+        self.state_set(false);
+    }
+
+    pub fn heap_bytes(&self) -> usize {
+        self.scratch.heap_bytes()
+            + self.step_start.as_ref().map_or(0, Kinematics::heap_bytes)
+            + self.watchdog.heap_bytes()
+            + self.force.heap_bytes()
+            + self.pipeline.heap_bytes()
+    }
+
+    // ----- saving and restoring -------------------------------------------------------------
+
+    pub fn history(&self) -> History {
+        self.pipeline.integrator.history()
+    }
+
+    pub fn set_history(&mut self, history: History) {
+        self.pipeline.integrator.set_history(history);
+    }
+
+    /// The integrator itself, for its kind-specific statistics.
+    pub fn integrator_scheme(&self) -> &Integrator {
+        &self.pipeline.integrator
+    }
+}
+
+/// The message of a caught panic.
+fn panic_text(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "a pass panicked".into())
+}

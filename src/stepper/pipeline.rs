@@ -1,0 +1,155 @@
+//! The passes a scene compiles into, and the ones that run after the integrator.
+//!
+//! A substep runs, in order, only the passes the scene needs:
+//!
+//! 1. forces (gravity, air drag, each spring family), evaluated by the integrator as often as
+//!    its scheme needs;
+//! 2. the integrator, writing the end-of-step state into a second buffer;
+//! 3. kinematic pins (while the user drags a pinned particle);
+//! 4. strain limiting (when the scene asks for it, `src/strain_limit/`);
+//! 5. colliders (spheres, then the floor).
+
+use std::time::Instant;
+
+use glam::{DVec3, Vec3};
+
+use crate::collisions::{Collider, Floor, FloorLevel, Spheres};
+use crate::forces::{Force, ForceModel};
+use crate::grid::Family;
+use crate::integrators::Integrator;
+use crate::model::Model;
+use crate::pins::KinematicPins;
+use crate::profile::Profile;
+use crate::scene::Scene;
+use crate::state::{Kinematics, State};
+use crate::strain_limit::StrainLimit;
+
+/// The passes of a step.
+pub(super) struct Pipeline {
+    pub forces: ForceModel,
+    pub integrator: Integrator,
+    /// Only when the scene asks for strain limiting.
+    pub strain_limit: Option<StrainLimit>,
+    pub colliders: Vec<Collider>,
+}
+
+impl Pipeline {
+    pub fn compile(scene: &Scene) -> Pipeline {
+        Pipeline {
+            forces: ForceModel::new(forces_of(scene)),
+            integrator: scene.integrator.build(scene.solver_settings()),
+            strain_limit: scene
+                .strain_limit
+                .as_ref()
+                .map(|s| StrainLimit::new(s.max_strain as f32, s.iterations)),
+            colliders: colliders_of(scene),
+        }
+    }
+
+    /// The passes a step runs, in order (kinematic pins only while a target is set).
+    pub fn effects(&self, state: &State) -> Vec<&'static str> {
+        let mut out: Vec<&'static str> = self.forces.forces().iter().map(Force::name).collect();
+        out.push(self.integrator.name());
+        if !state.targets.is_empty() {
+            out.push(KinematicPins::NAME);
+        }
+        if self.strain_limit.is_some() {
+            out.push(StrainLimit::NAME);
+        }
+        out.extend(self.colliders.iter().map(Collider::name));
+        out
+    }
+
+    /// The passes after the integrator, on `next`: kinematic pins, strain limiting,
+    /// colliders. Returns whether what they wrote is finite; they write few values (a drag,
+    /// contacts, limited springs), so checking costs next to nothing.
+    pub fn after_integration(
+        &mut self,
+        model: &Model,
+        state: &State,
+        next: &mut Kinematics,
+        h: f32,
+        chunk: usize,
+        profile: &mut Profile,
+    ) -> bool {
+        let mut finite = true;
+        if !state.targets.is_empty() {
+            let t = Instant::now();
+            finite &= state
+                .targets
+                .apply(h, &state.kin.pos, &mut next.pos, &mut next.vel);
+            profile.add(KinematicPins::NAME, t.elapsed());
+        }
+        // After the pins, so that the limit pulls the cloth after a dragged particle rather
+        // than back to where it was; before the colliders, so that contacts have the last word.
+        if let Some(limit) = &mut self.strain_limit {
+            let t = Instant::now();
+            let (grid, springs, particles) = (model.grid, &model.springs, &model.particles);
+            finite &= limit.apply(grid, springs, particles, next, chunk).finite;
+            profile.add(StrainLimit::NAME, t.elapsed());
+        }
+        for collider in &self.colliders {
+            let t = Instant::now();
+            finite &= collider.resolve(&state.kin, next, &model.particles, chunk);
+            profile.add(collider.name(), t.elapsed());
+        }
+        finite
+    }
+
+    pub fn heap_bytes(&self) -> usize {
+        self.forces.heap_bytes()
+            + self
+                .strain_limit
+                .as_ref()
+                .map_or(0, StrainLimit::heap_bytes)
+    }
+}
+
+/// The forces of a scene, in the order they are summed; a force that adds nothing is absent.
+fn forces_of(scene: &Scene) -> Vec<Force> {
+    let mut forces = Vec::new();
+    let g = DVec3::from(scene.gravity).as_vec3();
+    if g != Vec3::ZERO {
+        forces.push(Force::Gravity { g });
+    }
+    if scene.air_drag > 0.0 {
+        forces.push(Force::Drag {
+            c: scene.air_drag as f32,
+        });
+    }
+    let cloth = &scene.cloth;
+    for (family, k) in [
+        (Family::Structural, cloth.k_structural),
+        (Family::Shear, cloth.k_shear),
+        (Family::Bend, cloth.k_bend),
+    ] {
+        if k > 0.0 {
+            forces.push(Force::Springs {
+                family,
+                k: k as f32,
+                c: cloth.damping as f32,
+            });
+        }
+    }
+    forces
+}
+
+/// The colliders of a scene: spheres (knowing the floor's level), then the floor.
+fn colliders_of(scene: &Scene) -> Vec<Collider> {
+    let mut colliders = Vec::new();
+    if !scene.spheres.is_empty() {
+        let floor = scene
+            .floor
+            .as_ref()
+            .map(|f| FloorLevel((f.height + f.thickness) as f32));
+        colliders.push(Collider::Spheres(Spheres::new(&scene.spheres, floor)));
+    }
+    if let Some(floor) = &scene.floor {
+        colliders.push(Collider::Floor(Floor {
+            height: floor.height as f32,
+            friction: floor.friction as f32,
+            thickness: floor.thickness as f32,
+        }));
+    }
+    colliders
+}
