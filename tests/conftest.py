@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import collections
 import functools
 import hashlib
 import json
@@ -145,3 +146,17 @@ def worker_run(threads: int) -> dict[str, Any]:
     result = json.loads(done.stdout)
     assert result["threads"] == str(threads)
     return result
+
+
+INPUT_COUNTS: collections.Counter[str] = collections.Counter()
+"""What the input-type property tests (test_reliability_inputs.py) tried: inputs ``tried``,
+``rejected`` cleanly, ``accepted``, and ``known_defect`` pairs skipped."""
+
+
+def pytest_terminal_summary(terminalreporter: Any) -> None:
+    if INPUT_COUNTS["tried"]:
+        c = INPUT_COUNTS
+        terminalreporter.write_line(
+            f"input-type property tests: {c['tried']} inputs tried, {c['rejected']} rejected "
+            f"cleanly, {c['accepted']} accepted, {c['known_defect']} known-defect pairs skipped"
+        )
