@@ -322,8 +322,8 @@ def _finite_f32(a: np.ndarray) -> bool:
 
 
 def _masses_ok(a: np.ndarray) -> bool:
-    f = a.astype(np.float32)
-    with np.errstate(divide="ignore", over="ignore"):
+    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+        f = a.astype(np.float32)
         return bool(
             np.isfinite(a).all() and (a > 0).all() and (f > 0).all()
             and np.isfinite(np.float32(1) / f).all() and _finite_f32(a)
