@@ -89,26 +89,53 @@ def test_issue_11_item_8_a_dead_particle_far_away_changes_nothing(integrator, fa
     assert moved.pick(*ray) == twin.pick(*ray)
 
 
-def _refusing(integrator: str) -> Scene:
-    # Any spring past 1.5 times its rest length is refused and the step raised.
-    return every_pass(integrator, max_stretch=1.5, on_trouble="raise")
+def _refusing(integrator: str, on_trouble: str = "raise") -> Scene:
+    # Any spring past 1.5 times its rest length is refused and the step raised; with
+    # "substep", after retries with 2 and 4 times the substeps, which cannot help here.
+    return every_pass(integrator, max_stretch=1.5, on_trouble=on_trouble, max_substeps=4)
 
 
 GRABBED = 24 * 12 + 12  # the middle of the cloth
 
-# What a refused step may leave behind: the count of caught trouble (that is what it is for)
-# and the cache versions (they only count up).
-RECORDS = {"state.watchdog.stats.caught", "state.state_version", "state.topology_version"}
+# What a refused step may leave behind: the watchdog's statistics (a record of what it caught
+# and the retries it tried: that is what they are for) and the cache versions (they only count
+# up).
+RECORDS = ("state.watchdog.stats.", "state.state_version", "state.topology_version")
 
 
 def _hidden_differences(sim: Simulation, twin: Simulation) -> list[str]:
-    return [d for d in state_differences(twin.get_state(), sim.get_state()) if d not in RECORDS]
+    diffs = state_differences(twin.get_state(), sim.get_state())
+    return [d for d in diffs if not d.startswith(RECORDS)]
+
+
+RETRIES_FORGET_HISTORY = pytest.mark.xfail(
+    strict=True,
+    reason="with on_trouble = 'substep', Simulation::retry_step resets the integrator's history "
+    "for each retry and once more after the loop, and when no retry saves the step it returns "
+    "the error without restoring the history the step started with: a refused Verlet step "
+    "leaves history.primed False where the twin has True, and the two then step apart",
+)
+
 
 
 @pytest.mark.parametrize("n", [1, 3])
 @pytest.mark.parametrize("integrator", rustcloth.INTEGRATORS)
 def test_issue_11_item_9_a_refused_step_leaves_no_trace(integrator, n):
-    sim, twin = _quiet(_refusing(integrator)), _quiet(_refusing(integrator))
+    _refused_step_leaves_no_trace(integrator, n, "raise")
+
+
+@pytest.mark.parametrize(
+    "integrator",
+    [pytest.param(name, marks=[RETRIES_FORGET_HISTORY] if name == "verlet" else [])
+     for name in rustcloth.INTEGRATORS],
+)
+def test_issue_11_item_9_a_step_refused_after_its_retries_leaves_no_trace(integrator):
+    _refused_step_leaves_no_trace(integrator, 1, "substep")
+
+
+def _refused_step_leaves_no_trace(integrator: str, n: int, on_trouble: str) -> None:
+    scene = _refusing(integrator, on_trouble)
+    sim, twin = _quiet(scene), _quiet(scene)
     for s in (sim, twin):
         s.step(40)  # Verlet is primed, the watchdog remembers a previous state
         s.grab(GRABBED)
