@@ -602,7 +602,7 @@ fn bad_input_is_refused_naming_the_parameter_and_changes_nothing() {
     assert!(name(sim.grab(7).unwrap_err()) == "index");
     assert_eq!(name(sim.drag_to(Vec3::NAN).unwrap_err()), "target");
     for r in [0.0, -1.0, f64::NAN, f64::INFINITY, 1e300] {
-        assert_eq!(name(sim.set_pick_radius(r).unwrap_err()), "radius");
+        assert_eq!(name(sim.set_pick_radius(r).unwrap_err()), "pick_radius");
     }
     sim.drag_to(Vec3::ONE).unwrap(); // nothing grabbed: a no-op
     sim.release(); // likewise
