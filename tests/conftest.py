@@ -2,9 +2,15 @@
 
 from __future__ import annotations
 
+import collections
+import functools
 import hashlib
+import json
 import os
+import struct
+import subprocess
 import sys
+from typing import Any
 
 import numpy as np
 import pytest
@@ -44,6 +50,76 @@ def state_digest(sim: rustcloth.Simulation) -> str:
     return h.hexdigest()
 
 
+def _feed(h: Any, value: Any) -> None:
+    """Feeds one value of a state dict into the hash, tagged by type, so that 0 and 0.0, -0.0
+    and 0.0, a list and a tuple, an array's dtype, shape and byte order all count."""
+    if isinstance(value, dict):
+        h.update(b"{")
+        for key in sorted(value):
+            h.update(repr(key).encode())
+            _feed(h, value[key])
+        h.update(b"}")
+    elif isinstance(value, list | tuple):
+        h.update(b"[" if isinstance(value, list) else b"(")
+        for item in value:
+            _feed(h, item)
+        h.update(b"]")
+    elif isinstance(value, np.ndarray):
+        h.update(f"a{value.dtype.str}{value.shape}".encode())
+        h.update(np.ascontiguousarray(value).tobytes())
+    elif isinstance(value, bool | np.bool_):
+        h.update(b"T" if value else b"F")
+    elif isinstance(value, float | np.floating):
+        h.update(b"f" + struct.pack("<d", float(value)))
+    elif isinstance(value, int | np.integer):
+        h.update(f"i{int(value)}".encode())
+    elif isinstance(value, str):
+        h.update(b"s" + value.encode() + b"\0")
+    elif value is None:
+        h.update(b"N")
+    else:
+        raise TypeError(f"unexpected {type(value).__name__} in a state")
+
+
+def full_digest(
+    sim: rustcloth.Simulation, *, versions: bool = True, exclude: tuple[str, ...] = ()
+) -> str:
+    """A hash of the whole ``get_state()``: scene (dt, substeps, integrator...), positions,
+    velocities, masses, pins, targets, cuts, springs, steps and clock, the ``advance``
+    remainder, the integrator's history, the watchdog's memory and the pick settings; every
+    array's bytes and every scalar's bits. ``versions=False`` leaves out the two cache-version
+    counters (``state_version``, ``topology_version``), which only ever count up and which a
+    twin that took another path to the same state legitimately has at other values;
+    ``exclude`` leaves out further top-level keys."""
+    state = sim.get_state()
+    drop = set(exclude) | (set() if versions else {"state_version", "topology_version"})
+    h = hashlib.sha256()
+    _feed(h, {k: v for k, v in state.items() if k not in drop})
+    return h.hexdigest()
+
+
+def state_differences(a: Any, b: Any, path: str = "state") -> list[str]:
+    """Where two ``get_state()`` values differ (paths such as ``state.watchdog.previous``),
+    bit for bit, for assertion messages."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        out = []
+        for key in sorted(set(a) | set(b)):
+            if key not in a or key not in b:
+                out.append(f"{path}.{key}")
+            else:
+                out += state_differences(a[key], b[key], f"{path}.{key}")
+        return out
+    if isinstance(a, list | tuple) and isinstance(b, list | tuple):
+        if len(a) != len(b) or type(a) is not type(b):
+            return [path]
+        pairs = enumerate(zip(a, b, strict=True))
+        return [d for k, (x, y) in pairs for d in state_differences(x, y, f"{path}[{k}]")]
+    ha, hb = hashlib.sha256(), hashlib.sha256()
+    _feed(ha, a)
+    _feed(hb, b)
+    return [] if ha.digest() == hb.digest() else [path]
+
+
 @pytest.fixture
 def scene() -> rustcloth.Scene:
     return small_scene()
@@ -52,3 +128,35 @@ def scene() -> rustcloth.Scene:
 @pytest.fixture
 def sim(scene: rustcloth.Scene) -> rustcloth.Simulation:
     return rustcloth.Simulation(scene)
+
+
+@functools.cache
+def worker_run(threads: int) -> dict[str, Any]:
+    """``tests/reliability_worker.py`` run once per test session in a subprocess with
+    ``RAYON_NUM_THREADS = threads`` (the pool is global, fixed at the first step): digests of
+    many grid shapes and of every integrator with every optional pass, and energies, bit for
+    bit."""
+    env = dict(os.environ, RAYON_NUM_THREADS=str(threads))
+    script = os.path.join(os.path.dirname(__file__), "reliability_worker.py")
+    done = subprocess.run(
+        [sys.executable, script],
+        env=env, capture_output=True, text=True, timeout=300, check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    result = json.loads(done.stdout)
+    assert result["threads"] == str(threads)
+    return result
+
+
+INPUT_COUNTS: collections.Counter[str] = collections.Counter()
+"""What the input-type property tests (test_reliability_inputs.py) tried: inputs ``tried``,
+``rejected`` cleanly, ``accepted``, and ``known_defect`` pairs skipped."""
+
+
+def pytest_terminal_summary(terminalreporter: Any) -> None:
+    if INPUT_COUNTS["tried"]:
+        c = INPUT_COUNTS
+        terminalreporter.write_line(
+            f"input-type property tests: {c['tried']} inputs tried, {c['rejected']} rejected "
+            f"cleanly, {c['accepted']} accepted, {c['known_defect']} known-defect pairs skipped"
+        )

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 import rustcloth
-from conftest import small_scene, state_digest
+from conftest import full_digest, small_scene, state_differences
 from rustcloth import Scene, Simulation
 
 BAD_SCENES = [
@@ -67,18 +67,28 @@ def test_bad_toml_is_a_value_error():
 
 @pytest.fixture
 def stepped():
-    sim = Simulation(small_scene())
+    # With state in every part a bad call could touch: a remainder in advance, a kinematic
+    # pin, a grab, a non-default pick radius, the watchdog's memory.
+    sim = Simulation(small_scene(watchdog={"max_stretch": 3.0}))
     sim.step(20)
+    sim.advance(0.0004)
+    sim.pin(10, target=[0.0, 1.0, -0.2])
+    sim.grab(20)
+    sim.pick_radius = 0.04
     return sim
 
 
 def unchanged_after(sim, action, exception, text):
-    before = (state_digest(sim), sim.steps, sim.effects, sim.topology_version, sim.pinned.tobytes())
+    # The whole get_state() (dt, substeps, integrator, masses, pins, targets, the advance
+    # remainder, the clock, the watchdog's memory, the cache versions...), not only positions
+    # and velocities: issue 11 found the old check blind to dt, substeps, masses and the
+    # accumulator.
+    state, before = sim.get_state(), (full_digest(sim), sim.effects)
     with pytest.raises(exception) as info:
         action(sim)
+    assert isinstance(info.value, rustcloth.RustclothError), repr(info.value)
     assert text in str(info.value), str(info.value)
-    after = (state_digest(sim), sim.steps, sim.effects, sim.topology_version, sim.pinned.tobytes())
-    assert before == after
+    assert (full_digest(sim), sim.effects) == before, state_differences(state, sim.get_state())
 
 
 BAD_CALLS = [
@@ -106,6 +116,28 @@ BAD_CALLS = [
     (lambda s: setattr(s, "substeps", 0), ValueError, "substeps"),
     (lambda s: setattr(s, "dt", -1.0), ValueError, "dt"),
     (lambda s: setattr(s, "dt", math.inf), ValueError, "dt"),
+    # Calls that would change what the old check did not look at: dt, substeps, the
+    # integrator, masses, the advance remainder, pins, the grab, the pick settings.
+    (lambda s: setattr(s, "dt", 1e-12), ValueError, "dt"),
+    (lambda s: setattr(s, "dt", 5e-324), ValueError, "dt"),
+    (lambda s: setattr(s, "substeps", 2**40), ValueError, "substeps"),
+    (lambda s: setattr(s, "substeps", 10**7), ValueError, "substeps"),
+    (lambda s: setattr(s, "integrator", 5), TypeError, "integrator"),
+    (lambda s: s.set_masses(np.zeros(48)), ValueError, "masses"),
+    (lambda s: s.set_masses(np.full(48, 1e-50)), ValueError, "masses"),
+    (lambda s: s.set_masses(np.full(47, 0.002)), ValueError, "masses"),
+    (lambda s: s.advance(1e300), ValueError, "seconds"),
+    (lambda s: s.advance("0.1"), TypeError, "seconds"),
+    (lambda s: s.step(2**63), ValueError, "n"),
+    (lambda s: s.pin(3, target=b"abc"), TypeError, "target"),
+    (lambda s: s.drag_to([math.nan, 0.0, 0.0]), ValueError, "target"),
+    (lambda s: s.grab(48), IndexError, "index"),
+    (lambda s: s.cut_stroke([([0.1, 1.0, 2.0], [0, 0, -1]), ([0, 0, 0], [0, 0, 0])]),
+     ValueError, "rays[1].direction"),
+    (lambda s: setattr(s, "pick_radius", math.nan), ValueError, "pick_radius"),
+    (lambda s: setattr(s, "pick_strategy", "fast"), ValueError, "pick_strategy"),
+    (lambda s: s.set_state({}), ValueError, "state"),
+    (lambda s: s.set_state({**s.get_state(), "accumulator": -1.0}), ValueError, "accumulator"),
 ]
 
 

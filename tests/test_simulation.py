@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import sys
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -135,23 +137,48 @@ def test_simulation_accepts_a_scene_a_dict_or_a_name():
     assert Simulation().nx == 32
 
 
-def test_stepping_releases_the_gil():
-    # A Python thread keeps running while another thread steps a large cloth.
-    sim = Simulation(small_scene(cloth={"nx": 128, "ny": 128}))
-    ticks = 0
-    done = threading.Event()
+def _increments_inside(call) -> tuple[int, float]:
+    """Runs `call` while another thread timestamps a counter as fast as it can; returns how
+    many increments fell in the middle 60 % of the call's interval, and the call's length.
+    The margins keep out what the counter may do while this thread is between taking a
+    timestamp and entering or leaving the call (a thread switch, at most a switch interval)."""
+    stamps: list[float] = []
+    done, started = threading.Event(), threading.Event()
 
-    def count():
-        nonlocal ticks
+    def count() -> None:
+        started.set()
         while not done.is_set():
-            ticks += 1
+            stamps.append(time.perf_counter())
 
     t = threading.Thread(target=count)
     t.start()
-    sim.step(200)
+    started.wait()
+    t0 = time.perf_counter()
+    call()
+    t1 = time.perf_counter()
     done.set()
     t.join()
-    assert ticks > 1000
+    span = t1 - t0
+    lo, hi = t0 + 0.2 * span, t1 - 0.2 * span
+    return sum(lo < s < hi for s in stamps), span
+
+
+def test_stepping_releases_the_gil():
+    # Issue 11's test hole: the old version counted increments from before the step started,
+    # so a step that held the GIL for 0.8 s still passed. Here the increments must fall
+    # *during* the step, in its middle: a Python thread runs while another thread steps.
+    sim = Simulation(small_scene(cloth={"nx": 128, "ny": 128}))
+    inside, span = _increments_inside(lambda: sim.step(400))
+    assert span > 20 * sys.getswitchinterval()  # long enough for the margins to mean anything
+    assert inside >= 1000, (inside, span)
+
+
+def test_the_gil_test_fails_for_a_call_that_holds_the_gil():
+    # The measurement itself can fail: a long C call that never releases the GIL (the sum of a
+    # range, in the interpreter's C loop) lets no increment into its middle.
+    inside, span = _increments_inside(lambda: sum(range(20_000_000)))
+    assert span > 20 * sys.getswitchinterval()
+    assert inside == 0, (inside, span)
 
 
 def test_memory_per_particle_at_256_squared():
