@@ -188,6 +188,15 @@ impl Snapshot {
         ] {
             check_scalar(name, x, Bound::NonNegative)?;
         }
+        if self.steps_base > self.steps {
+            return Err(Error::value(
+                "steps_base",
+                format!(
+                    "must be at most steps ({}), got {}: the clock would run backwards",
+                    self.steps, self.steps_base
+                ),
+            ));
+        }
         stepper.restore_watchdog(self.watchdog, n)?;
 
         state.kin.pos.copy_from(&self.positions);

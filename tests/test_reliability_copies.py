@@ -151,14 +151,6 @@ def test_issue_11_item_2_a_spawn_pool_takes_simulations_and_scenes():
     assert remote == _continue_in_worker(copy.deepcopy(sim), scene)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="advance() counts requested time within ADVANCE_TOLERANCE of a step boundary as "
-    "reaching it, so the carried remainder `accumulator = pending - steps * dt` can be "
-    "slightly negative (-3.5e-18 s after three advance(1/60) at dt = 0.002); "
-    "Simulation::restore then rejects it (check_scalar('accumulator', NonNegative)) and "
-    "pickle, copy, deepcopy and from_state of that simulation raise ParameterError",
-)
 def test_a_simulation_that_advanced_frame_times_can_be_copied():
     # Found writing these tests: 60 Hz frames at a 2 ms step, the ordinary game loop.
     sim = Simulation(small_scene(dt=0.002))

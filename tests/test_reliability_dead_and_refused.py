@@ -110,13 +110,6 @@ def _hidden_differences(sim: Simulation, twin: Simulation) -> list[str]:
     return [d for d in diffs if not d.startswith(RECORDS)]
 
 
-RETRIES_FORGET_HISTORY = pytest.mark.xfail(
-    strict=True,
-    reason="with on_trouble = 'substep', Simulation::retry_step resets the integrator's history "
-    "for each retry and once more after the loop, and when no retry saves the step it returns "
-    "the error without restoring the history the step started with: a refused Verlet step "
-    "leaves history.primed False where the twin has True, and the two then step apart",
-)
 
 
 
@@ -128,7 +121,7 @@ def test_issue_11_item_9_a_refused_step_leaves_no_trace(integrator, n):
 
 @pytest.mark.parametrize(
     "integrator",
-    [pytest.param(name, marks=[RETRIES_FORGET_HISTORY] if name == "verlet" else [])
+    [pytest.param(name, marks=[])
      for name in rustcloth.INTEGRATORS],
 )
 def test_issue_11_item_9_a_step_refused_after_its_retries_leaves_no_trace(integrator):

@@ -61,20 +61,6 @@ def test_in_process_pool_agrees_with_the_subprocesses():
 
 STIFF = {"k_structural": 2e4}  # 100 times too stiff for symplectic Euler at 1 ms
 
-FORGETS_PREVIOUS = pytest.mark.xfail(
-    strict=True,
-    reason="after a caught panic Simulation::after_panic calls invalidate_state, which clears "
-    "watchdog.previous_valid: get_state()['watchdog']['previous'] is None after the "
-    "InternalError, so the state is not exactly as it was when the call started",
-)
-COUNTS_PANICKED_HELD_STEP = pytest.mark.xfail(
-    strict=True,
-    reason="step_substeps() adds 1 to watchdog_stats()['held_steps'] before the step is tried "
-    "and the rollback of the panicked step does not take it back: the simulation counts one "
-    "held step more than a twin that never panicked",
-)
-
-
 def _scenes(marks_for: dict[str, pytest.MarkDecorator]) -> list[object]:
     cases = [
         ("one_substep", small_scene(), 7),
@@ -124,12 +110,7 @@ def _panicking_step(sim: Simulation) -> None:
 @pytest.mark.parametrize(
     ("scene", "before"),
     _scenes(
-        {
-            "every_pass_verlet": FORGETS_PREVIOUS,
-            "every_pass_rk4": FORGETS_PREVIOUS,
-            "watchdog_retries": FORGETS_PREVIOUS,
-            "watchdog_hold": FORGETS_PREVIOUS,
-        }
+        {}
     ),
 )
 def test_issue_11_item_1_a_panic_in_a_step_leaves_the_state_exactly_as_it_was(scene, before):
@@ -148,7 +129,7 @@ def test_issue_11_item_1_a_panic_in_a_step_leaves_the_state_exactly_as_it_was(sc
 
 
 @pytest.mark.parametrize(
-    ("scene", "before"), _scenes({"watchdog_hold": COUNTS_PANICKED_HELD_STEP})
+    ("scene", "before"), _scenes({})
 )
 def test_issue_11_item_1_after_a_panic_it_steps_like_a_twin_that_never_panicked(scene, before):
     # With one substep, several, every optional pass and the watchdog's substep retries: after

@@ -156,12 +156,6 @@ def test_issue_11_item_5_bad_step_counts_are_refused_naming_n(n, builtin, except
     assert full_digest(sim) == before
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="the binding's step takes `n: Option<&PyAny>` with signature (n = None), so an "
-    "explicit step(None) is the default: it takes one step instead of raising "
-    "ParameterTypeError naming n (item 10 lists step(None))",
-)
 def test_issue_11_item_10_step_none_is_refused():
     sim = Simulation(small_scene())
     before = full_digest(sim)

@@ -10,10 +10,12 @@ from importlib import metadata as _metadata
 
 from . import _core
 from .errors import (
+    InternalError,
     ParameterError,
     ParameterTypeError,
     ParticleIndexError,
     RustclothError,
+    SimulationBusy,
     SimulationDiverged,
     StabilityWarning,
 )
@@ -33,6 +35,7 @@ except _metadata.PackageNotFoundError:
 __all__ = [
     "INTEGRATORS",
     "Energy",
+    "InternalError",
     "ParameterError",
     "ParameterTypeError",
     "ParticleIndexError",
@@ -41,6 +44,7 @@ __all__ = [
     "RustclothError",
     "Scene",
     "Simulation",
+    "SimulationBusy",
     "SimulationDiverged",
     "StabilityReport",
     "StabilityWarning",

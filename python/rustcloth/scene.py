@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from . import _core
-from .errors import StabilityWarning
+from .errors import ParameterTypeError, StabilityWarning
 
 
 def _plain(value: Any) -> Any:
@@ -55,12 +55,19 @@ class Scene:
     def from_dict(cls, data: Mapping[str, Any]) -> Scene:
         """A scene from a dict with the keys of the TOML schema."""
         if not isinstance(data, Mapping):
-            raise TypeError(f"data must be a mapping, got {type(data).__name__}")
-        return cls(**dict(data))
+            raise ParameterTypeError(
+                f"data: must be a mapping of scene keys, got {type(data).__name__}", "data"
+            )
+        scene = cls.__new__(cls)
+        # Straight to the core, which names a non-string key (`cls(**data)` would raise
+        # Python's own TypeError for it).
+        scene._data = _core.normalize_scene(_plain(dict(data)))
+        return scene
 
     @classmethod
     def from_toml(cls, path: str | os.PathLike[str]) -> Scene:
         """A scene from a TOML file."""
+        _check_path(path, "path")
         with open(path, encoding="utf-8") as f:
             return cls.from_toml_str(f.read())
 
@@ -204,9 +211,19 @@ def scenes() -> list[str]:
     return list(_core.builtin_scenes())
 
 
+def _check_path(path: object, parameter: str) -> None:
+    """A path is a ``str`` or ``os.PathLike``: an int would be opened as a file descriptor."""
+    if not isinstance(path, str | os.PathLike):
+        raise ParameterTypeError(
+            f"{parameter}: must be a str or os.PathLike, got {type(path).__name__} {path!r}",
+            parameter,
+        )
+
+
 def load_scene(name: str | os.PathLike[str]) -> Scene:
     """The built-in scene ``name`` (see :func:`scenes`), or the scene in a TOML file: a path
     that ends in ``.toml`` or names an existing file."""
+    _check_path(name, "name")
     if isinstance(name, os.PathLike) or str(name).endswith(".toml") or os.path.isfile(name):
         return Scene.from_toml(name)
     return Scene.from_dict(_core.builtin_scene(name))

@@ -7,6 +7,7 @@ an implementation detail.
 
 from __future__ import annotations
 
+import os
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -16,7 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _core
-from .errors import StabilityWarning
+from .errors import ParameterTypeError, StabilityWarning
 from .scene import Scene, load_scene
 
 IntegratorName: TypeAlias = Literal[
@@ -98,13 +99,24 @@ def _as_scene(scene: Scene | Mapping[str, Any] | str | None) -> Scene:
         return Scene()
     if isinstance(scene, Scene):
         return scene
-    if isinstance(scene, str):
+    if isinstance(scene, str | os.PathLike):
         return load_scene(scene)
     if isinstance(scene, Mapping):
         return Scene.from_dict(scene)
-    raise TypeError(
-        f"scene must be a Scene, a dict or a built-in scene name, got {type(scene).__name__}"
+    raise ParameterTypeError(
+        f"scene: must be a Scene, a dict, a built-in scene name or a TOML path, got "
+        f"{type(scene).__name__}",
+        "scene",
     )
+
+
+def _as_state(state: Mapping[str, Any]) -> dict[str, Any]:
+    if not isinstance(state, Mapping):
+        raise ParameterTypeError(
+            f"state: must be a dict from Simulation.get_state(), got {type(state).__name__}",
+            "state",
+        )
+    return dict(state)
 
 
 class Simulation:
@@ -155,7 +167,7 @@ class Simulation:
     def from_state(cls, state: Mapping[str, Any]) -> Simulation:
         """A simulation continuing ``state`` (from :meth:`get_state`) bit for bit."""
         sim = cls.__new__(cls)
-        sim._core = _core.simulation_from_state(dict(state))
+        sim._core = _core.simulation_from_state(_as_state(state))
         sim._scene = None
         return sim
 
@@ -273,7 +285,7 @@ class Simulation:
         """Replace the whole simulation (its scene included) by ``state`` from
         :meth:`get_state`. Every part is checked; a bad one raises naming it
         (``state.positions``, ...), changing nothing."""
-        self._core.set_state(dict(state))
+        self._core.set_state(_as_state(state))
         self._scene = None
 
     def reset(self) -> None:

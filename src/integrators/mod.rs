@@ -30,7 +30,7 @@ use crate::state::Kinematics;
 
 /// The time integrators a scene can name.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
+#[serde(rename_all = "snake_case", try_from = "String")]
 pub enum IntegratorKind {
     ExplicitEuler,
     SymplecticEuler,
@@ -125,6 +125,18 @@ impl IntegratorKind {
                 Some((-gamma_hi + (gamma_hi * gamma_hi + 4.0 * omega2).sqrt()) / omega2)
             }
         }
+    }
+}
+
+/// Read from a name only: serde would also take a one-key table for an enum.
+impl TryFrom<String> for IntegratorKind {
+    type Error = String;
+
+    fn try_from(name: String) -> std::result::Result<Self, String> {
+        IntegratorKind::by_name(&name, "integrator").map_err(|e| match e {
+            Error::InvalidValue { message, .. } => message,
+            other => other.to_string(),
+        })
     }
 }
 

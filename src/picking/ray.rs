@@ -55,10 +55,14 @@ impl Ray {
                 format!("must be finite, got {:?}", origin.to_array()),
             ));
         }
+        // Normalised in f64: in float32 the squared length of a direction shorter than about
+        // 1e-19 or longer than 1.8e19 underflows or overflows, and picks along it went wrong
+        // (a 3e-23 m direction measured distances 25 % long) or were refused.
         let dir = direction
             .is_finite()
-            .then(|| direction.try_normalize())
+            .then(|| direction.as_dvec3().try_normalize())
             .flatten()
+            .map(|d| d.as_vec3())
             .ok_or_else(|| {
                 Error::value(
                     dir_name,

@@ -7,7 +7,8 @@ use numpy::{
 use pyo3::exceptions::PyOverflowError;
 use pyo3::prelude::*;
 use pyo3::types::{
-    PyBool, PyByteArray, PyBytes, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple,
+    PyBool, PyByteArray, PyBytes, PyComplex, PyDict, PyFloat, PyInt, PyList, PySequence, PyString,
+    PyTuple,
 };
 
 use super::errors::{to_py, type_error, value_error, IntoPyResult};
@@ -242,9 +243,20 @@ pub fn vec3_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<glam::Vec3>
             format!("must be a sequence of 3 numbers, got {kind} {}", repr(obj)),
         ));
     }
-    let items: Vec<Bound<'_, PyAny>> = match obj.try_iter() {
-        Ok(iter) => iter.collect::<PyResult<_>>()?,
+    // A sequence (list, tuple, numpy array, any `collections.abc.Sequence`): a dict would be
+    // read as its keys, a set in any order.
+    let sequence = match obj.cast::<PyUntypedArray>() {
+        // A 0-d array is a number, not a sequence.
+        Ok(array) => array.ndim() == 1,
         Err(_) => {
+            obj.is_instance_of::<PyList>()
+                || obj.is_instance_of::<PyTuple>()
+                || obj.cast::<PySequence>().is_ok()
+        }
+    };
+    let items: Vec<Bound<'_, PyAny>> = match sequence {
+        true => obj.try_iter()?.collect::<PyResult<_>>()?,
+        false => {
             return Err(type_error(
                 name,
                 format!("must be a sequence of 3 numbers, got {kind} {}", repr(obj)),
@@ -273,13 +285,26 @@ pub fn float_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<f64> {
             format!("must be a number, got bool {}", repr(obj)),
         ));
     }
+    // Complex numbers convert to float by dropping their imaginary part (numpy's do, with only
+    // a warning): not a real number.
+    let complex = obj.is_instance_of::<PyComplex>()
+        || obj
+            .getattr("dtype")
+            .and_then(|d| d.getattr("kind"))
+            .and_then(|k| k.extract::<String>())
+            .is_ok_and(|k| k == "c");
     if obj.is_instance_of::<PyString>()
         || obj.is_instance_of::<PyBytes>()
         || obj.is_instance_of::<PyByteArray>()
+        || complex
     {
         return Err(type_error(
             name,
-            format!("must be a number, got {} {}", type_name(obj), repr(obj)),
+            format!(
+                "must be a real number, got {} {}",
+                type_name(obj),
+                repr(obj)
+            ),
         ));
     }
     match obj.extract::<f64>() {

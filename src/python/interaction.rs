@@ -70,9 +70,7 @@ impl PySimulation {
     }
 
     #[setter]
-    fn set_pick_radius(&self, py: Python<'_>, radius: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
-        let radius =
-            radius.ok_or_else(|| value_error("pick_radius", "cannot be deleted".into()))?;
+    fn set_pick_radius(&self, py: Python<'_>, radius: &Bound<'_, PyAny>) -> PyResult<()> {
         let radius = float_from_any(radius, "pick_radius")?;
         self.with(py, |h| h.sim.set_pick_radius(radius).py())
     }
@@ -84,13 +82,7 @@ impl PySimulation {
     }
 
     #[setter]
-    fn set_pick_strategy(
-        &self,
-        py: Python<'_>,
-        strategy: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<()> {
-        let strategy =
-            strategy.ok_or_else(|| value_error("pick_strategy", "cannot be deleted".into()))?;
+    fn set_pick_strategy(&self, py: Python<'_>, strategy: &Bound<'_, PyAny>) -> PyResult<()> {
         let strategy = PickStrategy::by_name(&str_from_any(strategy, "pick_strategy")?).py()?;
         self.with(py, |h| {
             h.sim.set_pick_strategy(strategy);

@@ -12,7 +12,7 @@ use super::conv::{
     read_only, scene_from_dict, scene_to_dict, str_from_any, vec3_from_any, vec3s_from_array,
     vec3s_to_array,
 };
-use super::errors::{value_error, IntoPyResult};
+use super::errors::IntoPyResult;
 use super::shared::{Held, Shared};
 use super::state;
 use crate::{Error, Simulation};
@@ -117,12 +117,8 @@ impl PySimulation {
     // ----- stepping -----------------------------------------------------------------------
 
     /// Advances exactly `n` steps of `dt`.
-    #[pyo3(signature = (n = None))]
-    fn step(&self, py: Python<'_>, n: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
-        let n = match n {
-            Some(n) => count_from_any(n, "n")?,
-            None => 1,
-        };
+    fn step(&self, py: Python<'_>, n: &Bound<'_, PyAny>) -> PyResult<()> {
+        let n = count_from_any(n, "n")?;
         let (outcome, warning) = self.with(py, |h| {
             Ok(stepping(py, h, |sim, stop| sim.step_with(n, stop)))
         })?;
@@ -301,8 +297,8 @@ impl PySimulation {
     }
 
     #[setter]
-    fn set_dt(&self, py: Python<'_>, dt: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
-        let dt = float_from_any(required(dt, "dt")?, "dt")?;
+    fn set_dt(&self, py: Python<'_>, dt: &Bound<'_, PyAny>) -> PyResult<()> {
+        let dt = float_from_any(dt, "dt")?;
         self.with(py, |h| h.sim.set_dt(dt).py())
     }
 
@@ -312,8 +308,8 @@ impl PySimulation {
     }
 
     #[setter]
-    fn set_substeps(&self, py: Python<'_>, substeps: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
-        let substeps = int_from_any(required(substeps, "substeps")?, "substeps")?;
+    fn set_substeps(&self, py: Python<'_>, substeps: &Bound<'_, PyAny>) -> PyResult<()> {
+        let substeps = int_from_any(substeps, "substeps")?;
         self.with(py, |h| h.sim.set_substeps(substeps).py())
     }
 
@@ -323,8 +319,8 @@ impl PySimulation {
     }
 
     #[setter]
-    fn set_integrator(&self, py: Python<'_>, name: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
-        let name = str_from_any(required(name, "integrator")?, "integrator")?;
+    fn set_integrator(&self, py: Python<'_>, name: &Bound<'_, PyAny>) -> PyResult<()> {
+        let name = str_from_any(name, "integrator")?;
         self.with(py, |h| h.sim.set_integrator(&name).py())
     }
 
@@ -428,14 +424,6 @@ impl PySimulation {
     fn num_particles(&self, py: Python<'_>) -> PyResult<usize> {
         self.with(py, |h| Ok(h.sim.grid().len()))
     }
-}
-
-/// A setter's value; `del sim.dt` passes none.
-fn required<'a, 'py>(
-    value: Option<&'a Bound<'py, PyAny>>,
-    name: &str,
-) -> PyResult<&'a Bound<'py, PyAny>> {
-    value.ok_or_else(|| value_error(name, "cannot be deleted".into()))
 }
 
 fn read_only_1d<T: numpy::Element>(

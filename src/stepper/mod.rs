@@ -50,6 +50,8 @@ pub struct Stepper {
     step_start: Option<Kinematics>,
     /// The integrator's history when the current step started, for a failed step to restore.
     step_start_history: History,
+    /// The watchdog's hold and held-step count then, likewise.
+    step_start_hold: (Option<(u32, u64)>, u64),
     force: Vec3s,
     watchdog: Watchdog,
     profile: Profile,
@@ -76,6 +78,7 @@ impl Stepper {
             scratch: Kinematics::zeros(n),
             step_start: (scene.substeps > 1 || retries).then(|| Kinematics::zeros(n)),
             step_start_history: History::default(),
+            step_start_hold: (None, 0),
             force: Vec3s::zeros(n),
             watchdog,
             profile: Profile::default(),
@@ -145,7 +148,9 @@ impl Stepper {
             Err(Error::Interrupted { .. }) => n as f64,
             _ => state.clock.steps as f64 - before as f64,
         };
-        state.clock.accumulator = pending - taken * dt;
+        // Never below zero: a request that rounded up to a whole step within the tolerance
+        // leaves a remainder of minus a few ulps, which is no time owed.
+        state.clock.accumulator = (pending - taken * dt).max(0.0);
         outcome.map(|()| n)
     }
 
@@ -205,8 +210,11 @@ impl Stepper {
         model: &Model,
         state: &mut State,
     ) -> std::result::Result<(), Failure> {
-        let substeps = self.step_substeps(model, state);
+        // What a failed attempt restores: the integrator's history and the watchdog's hold as
+        // they were before the attempt looked at them.
         self.step_start_history = self.pipeline.integrator.history();
+        self.step_start_hold = (self.watchdog.hold, self.watchdog.stats.held_steps);
+        let substeps = self.step_substeps(model, state);
         if substeps > 1 {
             let n = model.grid.len();
             self.step_start
@@ -410,7 +418,9 @@ impl Stepper {
         self.pipeline.forces.inject_panic();
     }
 
-    /// Forgets what a call interrupted by a panic may have left half-done.
+    /// Forgets what a call interrupted by a panic may have left half-done, outside a step (a
+    /// panic in a step is rolled back by `recovery.rs`): the force model's leftovers, and the
+    /// watchdog's claim on the last step, since the state may no longer be the one it judged.
     pub fn after_panic(&mut self) {
         self.pipeline.forces.reset_after_panic();
         self.state_set(false);

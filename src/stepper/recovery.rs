@@ -116,6 +116,8 @@ impl Stepper {
         let mut last = failure;
         let mut substeps = failure.substeps.saturating_mul(2);
         let mut rescued = false;
+        // The history the step starts from, for a failed retry to hand back.
+        let start_history = self.pipeline.integrator.history();
         let mut history = History::default();
         while substeps <= self.watchdog.spec.max_substeps {
             self.pipeline.integrator.reset_history();
@@ -146,8 +148,13 @@ impl Stepper {
             }
             substeps = substeps.saturating_mul(2);
         }
-        // The substep length changes again after the retry.
-        self.pipeline.integrator.reset_history();
+        // The substep length changes again after a rescue; a step that could not be saved
+        // leaves the integrator as it found it.
+        if rescued {
+            self.pipeline.integrator.reset_history();
+        } else {
+            self.pipeline.integrator.set_history(start_history);
+        }
         state.version += 1;
         let result = if rescued {
             let stats = &mut self.watchdog.stats;
@@ -178,13 +185,16 @@ impl Stepper {
         self.pipeline
             .integrator
             .set_history(self.step_start_history);
+        (self.watchdog.hold, self.watchdog.stats.held_steps) = self.step_start_hold;
     }
 
     /// A step of `substeps` substeps panicked: back to its start, the force model's leftovers
     /// dropped, and the panic reported as [`Error::Internal`].
     fn recover_from_panic(&mut self, state: &mut State, substeps: u32) -> Error {
+        // Back where the step started, which the watchdog still judges as it did: its memory
+        // of the last step stays.
         self.back_to_step_start(state, substeps);
-        self.after_panic();
+        self.pipeline.forces.reset_after_panic();
         state.version += 1;
         Error::Internal {
             message: self
