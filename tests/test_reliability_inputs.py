@@ -22,7 +22,7 @@ A defect found and not yet fixed goes in :data:`KNOWN`: the property then skips 
 (target, value) pairs, and a strict xfail regression test shows it. It found nine (dicts and
 sets read as vectors, complex numbers read as reals, None taken for a deleted setting, the
 wrappers' plain built-in errors, an int path opened as a file descriptor, a clock allowed to
-run backwards, float32 ray normalisation); all are fixed and their tests pass.""" 
+run backwards, float32 ray normalisation); all are fixed and their tests pass."""
 
 from __future__ import annotations
 
