@@ -9,6 +9,20 @@ from typing import Any, final
 import numpy as np
 import numpy.typing as npt
 
+__all__ = [
+    "Simulation",
+    "normalize_scene",
+    "scene_from_toml",
+    "scene_to_toml",
+    "builtin_scenes",
+    "builtin_scene",
+    "scene_stability",
+    "simulation_from_state",
+    "instruction_set",
+    "thread_count",
+    "INTEGRATORS",
+]
+
 INTEGRATORS: list[str]
 
 def normalize_scene(scene: Any) -> dict[str, Any]: ...

@@ -29,8 +29,10 @@ import math
 import platform
 import time
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -62,7 +64,7 @@ class Case:
         factor = STIFFNESS[self.stiffness]
         size = cloth["size"]
         mass = cloth["particle_mass"] * cloth["nx"] * cloth["ny"]  # keep the total mass
-        changes = {
+        changes: dict[str, Any] = {
             "cloth": {
                 "nx": self.n,
                 "ny": self.n,
@@ -127,11 +129,11 @@ def rms(a: np.ndarray, b: np.ndarray) -> float:
 
 def energy_scale(sim: Simulation, scene: Scene) -> float:
     mass = float(sim.masses.sum())
-    return mass * 9.81 * max(scene.cloth["size"])
+    return mass * 9.81 * float(max(scene.cloth["size"]))
 
 
 def study(cases: list[Case], integrators: list[str], ladder: list[float],
-          log=print) -> tuple[list[Run], dict[str, float]]:
+          log: Callable[[str], None] = print) -> tuple[list[Run], dict[str, float]]:
     """Every integrator at every dt on every case; also returns each case's chaos floor."""
     runs: list[Run] = []
     floors: dict[str, float] = {}
@@ -140,7 +142,7 @@ def study(cases: list[Case], integrators: list[str], ladder: list[float],
         t0 = time.perf_counter()
         reference, _, ref_early = simulate(case.build("rk4", ref_dt), case.seconds, case.early)
         coarse, _, _ = simulate(case.build("rk4", 2 * ref_dt), case.seconds)
-        if reference is None or coarse is None:
+        if reference is None or coarse is None or ref_early is None:
             raise RuntimeError(f"the reference diverged for {case.label}")
         ref_end = reference.positions.astype(float)
         floors[case.label] = rms(coarse.positions.astype(float), ref_end)

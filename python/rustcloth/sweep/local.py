@@ -195,14 +195,14 @@ class LocalBackend:
                 run, worker.run = worker.run, None
                 return run, RunResult(run.run_id, "crashed", worker.exit_reason(),
                                       info={"wall_s": time.monotonic() - worker.sent})
-        run = worker.run
-        if run is not None and run.time_limit is not None:
+        current = worker.run
+        if current is not None and current.time_limit is not None:
             elapsed = time.monotonic() - worker.sent
-            if elapsed > run.time_limit + self.grace:
+            if elapsed > current.time_limit + self.grace:
                 worker.run = None
                 worker.process.kill()
                 worker.process.join(5)
-                return run, RunResult(run.run_id, "timeout",
-                                      f"over the {run.time_limit:g} s time limit; killed after "
-                                      f"{elapsed:.1f} s", info={"wall_s": elapsed})
+                return current, RunResult(current.run_id, "timeout",
+                                          f"over the {current.time_limit:g} s time limit; killed "
+                                          f"after {elapsed:.1f} s", info={"wall_s": elapsed})
         return None

@@ -39,7 +39,8 @@ class _Task:
     __slots__ = ("run", "sent", "started")
 
     def __init__(self, run: Run) -> None:
-        self.run, self.sent, self.started = run, time.monotonic(), None
+        self.run, self.sent = run, time.monotonic()
+        self.started: float | None = None
 
     def deadline(self, grace: float) -> float | None:
         if self.run.time_limit is None or self.started is None:
@@ -72,7 +73,7 @@ class RayBackend:
             options = {"include_dashboard": False, "log_to_driver": False,
                        **(init_options or {})}
             ray.init(address=address, **options)
-        cpus = int(ray.cluster_resources().get("CPU", 1))
+        cpus = int(ray.cluster_resources().get("CPU", 1))  # type: ignore[no-untyped-call]
         self.slots = max(1, cpus // self.threads)
         self.workers = self.slots
         self._task = ray.remote(execute_streaming).options(

@@ -409,7 +409,7 @@ class Sweep:
                 except (ValueError, TypeError) as err:
                     raise type(err)(f"run {index} ({_show(params)}): {err}") from None
             steps = self.steps if self.steps is not None else max(
-                1, round(self.seconds / data["dt"]))  # type: ignore[operator]
+                1, round(self.seconds / data["dt"]))
             run_id = _run_id(params, data, steps, record, filters)
             if run_id in seen:
                 raise SweepError(f"runs {seen[run_id]} and {index} are the same run "

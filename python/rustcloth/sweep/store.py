@@ -18,7 +18,7 @@ import os
 import tempfile
 import time
 from collections.abc import Iterable, Sequence
-from typing import Any
+from typing import IO, Any
 
 import numpy as np
 
@@ -38,8 +38,9 @@ def _atomic_write(path: str, write: Any, binary: bool, sync: bool = False) -> No
     folder = os.path.dirname(path)
     fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=os.path.basename(path), dir=folder)
     try:
-        with os.fdopen(fd, "wb" if binary else "w", **({} if binary else {"encoding": "utf-8",
-                                                                           "newline": ""})) as f:
+        handle: IO[Any] = (os.fdopen(fd, "wb") if binary
+                           else os.fdopen(fd, "w", encoding="utf-8", newline=""))
+        with handle as f:
             write(f)
             if sync:
                 f.flush()
@@ -108,7 +109,8 @@ class Store:
             return None
         return record
 
-    def completed(self, runs: Sequence[Run], retry_failed: bool = False) -> dict[str, dict]:
+    def completed(self, runs: Sequence[Run],
+                  retry_failed: bool = False) -> dict[str, dict[str, Any]]:
         """Records of the runs that need not run again: those that ended ``ok`` or
         ``filtered``, and (unless ``retry_failed``) ``diverged`` or ``error``."""
         keep = ("ok", "filtered") if retry_failed else COMPLETE
@@ -128,7 +130,7 @@ class Store:
                     "steps": run.steps}
             arrays = dict(result.arrays)
             arrays["meta"] = np.asarray(json.dumps(meta, sort_keys=True))
-            _atomic_write(self.npz_path(run.run_id), lambda f: np.savez(f, **arrays),
+            _atomic_write(self.npz_path(run.run_id), lambda f: np.savez(f, **arrays),  # type: ignore[arg-type]
                           binary=True, sync=True)
             file = os.path.join(RUNS, run.run_id + ".npz")
         record = {
@@ -201,7 +203,7 @@ def load_run(out: str | os.PathLike[str], run_id: str) -> dict[str, np.ndarray]:
     """The arrays of an ``ok`` run (``meta`` decoded into a dict)."""
     with np.load(Store(out).npz_path(run_id)) as data:
         arrays = {k: data[k] for k in data.files}
-    arrays["meta"] = json.loads(str(arrays["meta"]))  # type: ignore[assignment]
+    arrays["meta"] = json.loads(str(arrays["meta"]))
     return arrays
 
 
