@@ -16,7 +16,7 @@ pub const LINE: usize = 16;
 /// A fixed-length array of `f32` whose first element starts a 64-byte cache line. It derefs to
 /// `[f32]`. A vector load of 64 bytes at a particle index that is a multiple of [`LINE`] then
 /// reads one cache line, not two: with `malloc`'s 16-byte alignment every such load straddled
-/// two lines, which cost the hot loops about 15 % (1-thread 128 x 128 step).
+/// two lines, a measurable cost in the hot loops (docs/benchmarks.md).
 #[derive(Clone, Default)]
 pub struct Floats {
     lines: Vec<Line>,

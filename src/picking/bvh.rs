@@ -68,7 +68,7 @@ impl ParticleBvh {
     /// Moves every leaf box to the particle's new position (and size `radius`) and refits the
     /// tree bottom-up: `O(n)`, the topology of the tree is kept. (`refit_without_opt`: parry's
     /// `refit` also copies the nodes into depth-first order, which the build already gave
-    /// them; measured 1.4-2.3x slower.)
+    /// them, and costs more for nothing; docs/picking.md has the measurement.)
     pub fn refit(&mut self, pos: &Vec3s, radius: f32) {
         self.radius = radius;
         for p in (0..pos.len()).filter(|&p| self.in_tree[p]) {
