@@ -4,11 +4,10 @@
 
 mod common;
 
-use common::with_threads;
+use common::{proptest_config, with_threads};
 use glam::Vec3;
 use proptest::prelude::*;
 use proptest::sample::select;
-use proptest::test_runner::{Config, FileFailurePersistence, RngAlgorithm, RngSeed};
 use rustcloth::scene::{FloorSpec, PinSpec, Plane, SphereSpec, StrainLimitSpec};
 use rustcloth::IntegratorKind;
 use rustcloth::{Scene, Simulation};
@@ -130,20 +129,8 @@ fn issue_11_a_cut_particle_moved_far_away_changed_the_live_cloth() {
     }
 }
 
-fn config(cases: u32) -> Config {
-    Config {
-        cases: std::env::var("PROPTEST_CASES").map_or(cases, |v| v.parse().unwrap()),
-        rng_algorithm: RngAlgorithm::ChaCha,
-        rng_seed: RngSeed::Fixed(
-            std::env::var("PROPTEST_RNG_SEED").map_or(0xdead, |v| v.parse().unwrap()),
-        ),
-        failure_persistence: Some(Box::new(FileFailurePersistence::Off)),
-        ..Config::default()
-    }
-}
-
 proptest! {
-    #![proptest_config(config(24))]
+    #![proptest_config(proptest_config(24, 0xdead))]
     #[test]
     fn cut_particles_anywhere_leave_the_live_cloth_alone(
         integrator in select(IntegratorKind::ALL.to_vec()),

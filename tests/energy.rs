@@ -4,10 +4,9 @@
 
 mod common;
 
-use common::{bare_scene, with_threads};
+use common::{bare_scene, proptest_config, with_threads};
 use glam::Vec3;
 use proptest::prelude::*;
-use proptest::test_runner::{Config, FileFailurePersistence, RngAlgorithm, RngSeed};
 use rustcloth::soa::Vec3s;
 use rustcloth::{Energy, Simulation};
 
@@ -58,20 +57,8 @@ fn issue_11_energy_depended_on_the_thread_count_and_overflowed() {
     assert!(e.total().is_finite());
 }
 
-fn config(cases: u32) -> Config {
-    Config {
-        cases: std::env::var("PROPTEST_CASES").map_or(cases, |v| v.parse().unwrap()),
-        rng_algorithm: RngAlgorithm::ChaCha,
-        rng_seed: RngSeed::Fixed(
-            std::env::var("PROPTEST_RNG_SEED").map_or(0xe4e7, |v| v.parse().unwrap()),
-        ),
-        failure_persistence: Some(Box::new(FileFailurePersistence::Off)),
-        ..Config::default()
-    }
-}
-
 proptest! {
-    #![proptest_config(config(24))]
+    #![proptest_config(proptest_config(24, 0xe4e7))]
     #[test]
     fn energy_is_reproducible_and_finite(
         (nx, ny) in (2u32..200, 2u32..120),

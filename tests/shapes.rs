@@ -11,10 +11,9 @@
 
 mod common;
 
-use common::{state_hash, with_threads};
+use common::{proptest_config, state_hash, with_threads};
 use glam::Vec3;
 use proptest::prelude::*;
-use proptest::test_runner::{Config, FileFailurePersistence, RngAlgorithm, RngSeed};
 use rustcloth::scene::{FloorSpec, PinSpec, Plane, SphereSpec, StrainLimitSpec};
 use rustcloth::IntegratorKind;
 use rustcloth::{Scene, Simulation};
@@ -123,18 +122,6 @@ fn shapes_around_the_chunk_and_block_lengths() {
     }
 }
 
-fn config(cases: u32) -> Config {
-    Config {
-        cases: std::env::var("PROPTEST_CASES").map_or(cases, |v| v.parse().unwrap()),
-        rng_algorithm: RngAlgorithm::ChaCha,
-        rng_seed: RngSeed::Fixed(
-            std::env::var("PROPTEST_RNG_SEED").map_or(0x5a9e5, |v| v.parse().unwrap()),
-        ),
-        failure_persistence: Some(Box::new(FileFailurePersistence::Off)),
-        ..Config::default()
-    }
-}
-
 /// Wide (up to 6,000 across) and tall (up to 6,000 down) grids of at most 40k particles.
 fn shape() -> impl Strategy<Value = (u32, u32)> {
     prop_oneof![
@@ -145,7 +132,7 @@ fn shape() -> impl Strategy<Value = (u32, u32)> {
 }
 
 proptest! {
-    #![proptest_config(config(12))]
+    #![proptest_config(proptest_config(12, 0x5a9e5))]
     #[test]
     fn any_shape_on_any_thread_count((nx, ny) in shape()) {
         check_shape(nx, ny)?;

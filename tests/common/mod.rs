@@ -75,3 +75,20 @@ pub fn with_threads<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> R 
         .unwrap()
         .install(f)
 }
+
+/// A proptest config: `cases` cases unless `PROPTEST_CASES` says otherwise, the fixed `seed`
+/// unless `PROPTEST_RNG_SEED` does, no failure persistence (a failure prints its seed and its
+/// shrunk input; each bug found becomes a named regression test instead).
+pub fn proptest_config(cases: u32, seed: u64) -> proptest::test_runner::Config {
+    use proptest::test_runner::{Config, FileFailurePersistence, RngAlgorithm, RngSeed};
+    let env = |name: &str| std::env::var(name).ok();
+    Config {
+        cases: env("PROPTEST_CASES").map_or(cases, |v| v.parse().expect("PROPTEST_CASES")),
+        rng_algorithm: RngAlgorithm::ChaCha,
+        rng_seed: RngSeed::Fixed(
+            env("PROPTEST_RNG_SEED").map_or(seed, |v| v.parse().expect("PROPTEST_RNG_SEED")),
+        ),
+        failure_persistence: Some(Box::new(FileFailurePersistence::Off)),
+        ..Config::default()
+    }
+}
