@@ -209,11 +209,10 @@ impl Kernel<'_> {
         let x = self.springs.view(kind, after, run);
         let v = self.springs.view(kind, &before.vel, run);
         let (len, rest, active) = (x.len, x.rest, x.active);
-        let (wa, wb) = (
-            &self.inv_mass[run.a_range()][..len],
-            &self.inv_mass[run.b_range()][..len],
-        );
-        let (ca, cb) = (&count[run.a_range()][..len], &count[run.b_range()][..len]);
+        let PairWeights {
+            w: [wa, wb],
+            c: [ca, cb],
+        } = self.pair_weights(count, run);
         let (ox, oy, oz) = out_run(out, run, start);
         let factor = self.factor;
         let mut any = 0u32;
@@ -244,6 +243,20 @@ impl Kernel<'_> {
         any != 0
     }
 
+    /// The inverse masses and the over-limit counts of both ends of a run's springs, each cut
+    /// to the run's length: what sharing a correction between the ends reads.
+    #[inline(always)]
+    fn pair_weights<'a>(&'a self, count: &'a [u8], run: SpringRun) -> PairWeights<'a> {
+        let len = run.len;
+        PairWeights {
+            w: [
+                &self.inv_mass[run.a_range()][..len],
+                &self.inv_mass[run.b_range()][..len],
+            ],
+            c: [&count[run.a_range()][..len], &count[run.b_range()][..len]],
+        }
+    }
+
     /// Adds the corrections of one run of springs to `out` (which starts at particle `start`).
     #[inline(always)]
     fn sweep_run(
@@ -257,11 +270,10 @@ impl Kernel<'_> {
     ) {
         let x = self.springs.view(kind, pos, run);
         let (len, rest, active) = (x.len, x.rest, x.active);
-        let (wa, wb) = (
-            &self.inv_mass[run.a_range()][..len],
-            &self.inv_mass[run.b_range()][..len],
-        );
-        let (ca, cb) = (&count[run.a_range()][..len], &count[run.b_range()][..len]);
+        let PairWeights {
+            w: [wa, wb],
+            c: [ca, cb],
+        } = self.pair_weights(count, run);
         let (ox, oy, oz) = out_run(out, run, start);
         let factor = self.factor;
         for i in 0..len {
@@ -285,6 +297,12 @@ impl Kernel<'_> {
             oz[i] += s * masked(dz);
         }
     }
+}
+
+/// Both ends' inverse masses `w` and over-limit counts `c` over a run.
+struct PairWeights<'a> {
+    w: [&'a [f32]; 2],
+    c: [&'a [u8]; 2],
 }
 
 /// The three components of `out` (which starts at particle `start`) over the run's particles.
