@@ -7,8 +7,8 @@
 #   1. Python 3.11 (PYTHON), the core install only: tests needing an extra skip themselves.
 #   2. The newest other CPython 3.12+ on the machine (NEWER_PYTHON, or found on PATH and under
 #      pyenv), the core install only: the abi3 wheel on an interpreter it was not built with.
-#   3. Python 3.11 again with the extras the tests use (viewer, study, usd, export): the render,
-#      export and accuracy tests against the installed wheel.
+#   3. Python 3.11 again with the extras the tests use (viewer, study, usd, export): the tests
+#      that need an extra (render, camera, export, accuracy, the CLI), the rest ran in 1.
 #
 # Usage: scripts/test-wheel.sh WHEEL
 set -euo pipefail
@@ -44,9 +44,12 @@ newer_python() {
     done
 }
 
-# run LABEL PYTHON EXTRAS: a fresh venv, the wheel (with EXTRAS) and the test runner, the suite.
+# run LABEL PYTHON EXTRAS [TESTS...]: a fresh venv, the wheel (with EXTRAS) and the test runner,
+# the suite (or the TESTS given, paths relative to the copy).
 run() {
     local label=$1 py=$2 extras=$3 venv="$work/venv-$1" start
+    shift 3
+    local tests=("${@:-tests}")
     "$py" -m venv "$venv"
     "$venv/bin/python" -m pip install -q --upgrade pip
     start=$EPOCHREALTIME
@@ -62,7 +65,7 @@ where = rustcloth.__file__
 assert where.startswith(sys.argv[1]), f"rustcloth imported from {where}, not the venv"
 print(f"wheel: rustcloth {rustcloth.__version__} from {where} on Python {sys.version.split()[0]}")
 EOF
-        if ! "$venv/bin/python" -m pytest -q -m "not long" -p no:cacheprovider tests \
+        if ! "$venv/bin/python" -m pytest -q -m "not long" -p no:cacheprovider "${tests[@]}" \
                 > "$work/$label.log" 2>&1; then
             cat "$work/$label.log"
             echo "wheel: $label: the tests failed against the installed wheel" >&2
@@ -79,4 +82,5 @@ if [ -n "$newer" ]; then
 else
     echo "wheel: no CPython 3.12 or newer on this machine; tested on $("$python" -V) only"
 fi
-run py311-extras "$python" "[viewer,study,usd,export]"
+run py311-extras "$python" "[viewer,study,usd,export]" tests/render tests/test_camera.py \
+    tests/test_export.py tests/test_accuracy.py tests/test_cli.py
