@@ -22,6 +22,7 @@ pub mod forces;
 pub mod grid;
 pub mod integrators;
 pub mod interaction;
+pub mod linear;
 pub mod picking;
 pub mod pins;
 pub mod profile;
