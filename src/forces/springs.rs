@@ -24,8 +24,8 @@ use crate::soa::{Floats, Vec3SliceMut, Vec3s};
 /// Per-spring data, one array per [`SpringKind`], indexed by the spring's anchor particle.
 ///
 /// Slots whose spring does not exist (off the grid) or was cut have `active = 0`, which makes
-/// their force exactly zero; keeping the slots lets the kernel run over whole index ranges
-/// without row-boundary branches.
+/// their force exactly zero (selected, whatever the positions of their ends); keeping the slots
+/// lets the kernel run over whole index ranges without row-boundary branches.
 #[derive(Clone, Debug)]
 pub struct Springs {
     /// Rest length in m: the distance between the two particles when the cloth was built.
@@ -222,10 +222,13 @@ impl SpringForce {
             let inv_l = if l > 0.0 { 1.0 / l } else { 0.0 };
             let (ux, uy, uz) = (dx * inv_l, dy * inv_l, dz * inv_l);
             let closing = (vxb[i] - vxa[i]) * ux + (vyb[i] - vya[i]) * uy + (vzb[i] - vza[i]) * uz;
-            let s = active[i] * (k * (l - rest[i]) + c * closing);
-            fx[i] = s * ux;
-            fy[i] = s * uy;
-            fz[i] = s * uz;
+            let s = k * (l - rest[i]) + c * closing;
+            // A select, not `active * force`: a dead spring to a cut particle far away has an
+            // infinite length, and `0 * inf` would put NaN into its live end (issue 14).
+            let live = active[i] != 0.0;
+            fx[i] = if live { s * ux } else { 0.0 };
+            fy[i] = if live { s * uy } else { 0.0 };
+            fz[i] = if live { s * uz } else { 0.0 };
         }
         for f in [&mut *out.x, &mut *out.y, &mut *out.z] {
             f[len..].fill(0.0);
