@@ -29,4 +29,8 @@ impl ForceTerm for Gravity {
     fn fused(&self) -> Option<Fused> {
         Some(self.contribution())
     }
+
+    fn linearization(&self) -> super::Linearization {
+        super::Linearization::Acceleration(self.g)
+    }
 }

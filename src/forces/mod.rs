@@ -107,16 +107,16 @@ pub trait ForceTerm: Send + Sync {
     }
 
     /// How the force depends on the state, for implicit integrators.
-    fn linearization(&self) -> Linearization {
-        Linearization::Constant
-    }
+    fn linearization(&self) -> Linearization;
 }
 
 /// The shape of a force term's Jacobians `df/dx`, `df/dv`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Linearization {
-    /// Independent of the state (gravity).
-    Constant,
+    /// Independent of the state, `f = m a` with `a` in m/s^2 (gravity). Implicit Euler reads it
+    /// from the evaluated force; projective dynamics puts it in the inertial target
+    /// `x + h v + h^2 a`.
+    Acceleration(Vec3),
     /// `f = -c v`: `df/dv = -c I`.
     Drag { c: f32 },
     /// The springs of a family with stiffness `k` and damping `c` (see `forces/springs.rs`).

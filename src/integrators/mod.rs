@@ -7,15 +7,19 @@
 
 mod explicit_euler;
 mod implicit_euler;
+mod projective_dynamics;
 mod rk4;
+pub mod solver;
 mod symplectic_euler;
 mod verlet;
 
 use rayon::prelude::*;
 
 pub use explicit_euler::ExplicitEuler;
-pub use implicit_euler::{ImplicitEuler, SolverSettings, SolverStats};
+pub use implicit_euler::ImplicitEuler;
+pub use projective_dynamics::ProjectiveDynamics;
 pub use rk4::Rk4;
+pub use solver::{Preconditioner, SolverSettings, SolverStats};
 pub use symplectic_euler::SymplecticEuler;
 pub use verlet::Verlet;
 
@@ -71,7 +75,7 @@ pub trait Integrator: Send + Sync {
     fn reset_history(&mut self) {}
 
     /// Linear-solver statistics, for integrators that solve a system each step.
-    fn solver_stats(&self) -> Option<implicit_euler::SolverStats> {
+    fn solver_stats(&self) -> Option<SolverStats> {
         None
     }
 }
@@ -84,6 +88,7 @@ pub fn by_name(name: &str, solver: SolverSettings) -> Result<Box<dyn Integrator>
         "verlet" => Ok(Box::new(Verlet::default())),
         "rk4" => Ok(Box::new(Rk4::default())),
         "implicit_euler" => Ok(Box::new(ImplicitEuler::new(solver))),
+        "projective_dynamics" => Ok(Box::new(ProjectiveDynamics::new(solver))),
         _ => Err(Error::value(
             "integrator",
             format!("unknown integrator {name:?}; valid ones are {INTEGRATORS:?}"),

@@ -103,14 +103,30 @@ impl PySimulation {
         };
         if stats.not_converged > 0 && !self.warned_not_converged {
             self.warned_not_converged = true;
+            let scene = self.inner.scene();
+            let (what, cap, tolerance, remedy) = if scene.integrator == "projective_dynamics" {
+                (
+                    "the local-global iterations stopped at pd_iterations",
+                    scene.pd_iterations,
+                    ("relative gradient", "pd_tolerance", scene.pd_tolerance),
+                    "the last iterate. Raise pd_iterations, loosen pd_tolerance",
+                )
+            } else {
+                (
+                    "the conjugate gradient stopped at cg_max_iterations",
+                    scene.cg_max_iterations,
+                    ("relative residual", "cg_tolerance", scene.cg_tolerance),
+                    "the partial solution. Raise cg_max_iterations, loosen cg_tolerance",
+                )
+            };
             let message = format!(
-                "implicit_euler: the conjugate gradient stopped at cg_max_iterations = {} with \
-                 relative residual up to {:.2e} > cg_tolerance = {:.0e} ({} of {} solves so far); \
-                 the step was taken with the partial solution. Raise cg_max_iterations, loosen \
-                 cg_tolerance or reduce dt. profile() counts these.",
-                self.inner.scene().cg_max_iterations,
+                "{}: {what} = {cap} with {} up to {:.2e} > {} = {:.0e} ({} of {} solves so far); \
+                 the step was taken with {remedy} or reduce dt. profile() counts these.",
+                scene.integrator,
+                tolerance.0,
                 stats.worst_residual,
-                self.inner.scene().cg_tolerance,
+                tolerance.1,
+                tolerance.2,
                 stats.not_converged,
                 stats.solves,
             );
@@ -154,7 +170,9 @@ impl PySimulation {
     }
 
     /// Statistics of the implicit solver as a dict (`solves`, `iterations`, `last_iterations`,
-    /// `last_residual`, `not_converged`), or None for integrators that solve nothing.
+    /// `last_residual`, `not_converged`, `worst_residual`, `most_iterations`,
+    /// `factorizations`, `setup_seconds`, `solve_seconds`), or None for integrators that solve
+    /// nothing.
     fn solver_stats<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
         let Some(stats) = self.inner.solver_stats() else {
             return Ok(None);
@@ -166,6 +184,10 @@ impl PySimulation {
         dict.set_item("last_residual", stats.last_residual)?;
         dict.set_item("not_converged", stats.not_converged)?;
         dict.set_item("worst_residual", stats.worst_residual)?;
+        dict.set_item("most_iterations", stats.most_iterations)?;
+        dict.set_item("factorizations", stats.factorizations)?;
+        dict.set_item("setup_seconds", stats.setup_seconds)?;
+        dict.set_item("solve_seconds", stats.solve_seconds)?;
         Ok(Some(dict))
     }
 
