@@ -528,19 +528,7 @@ fn residual(a: &BlockStencil, x: &Vec3s, b: &Vec3s, r: &mut Vec3s, chunk: usize)
         .enumerate()
         .for_each(|(c, mut out)| {
             let range = c * chunk..c * chunk + out.len();
-            crate::simd::dispatch!({
-                a.apply_range(x, range.clone(), &mut out);
-                let bs = b.slices(range.clone());
-                for (o, b) in [
-                    (&mut *out.x, bs.x),
-                    (&mut *out.y, bs.y),
-                    (&mut *out.z, bs.z),
-                ] {
-                    for (o, b) in o.iter_mut().zip(b) {
-                        *o = b - *o;
-                    }
-                }
-            })
+            crate::simd::dispatch!(a.residual_range(x, b, range.clone(), &mut out))
         });
 }
 

@@ -246,35 +246,80 @@ impl BlockStencil {
     /// `out = A x` over the rows `range` (`out` covers exactly `range`).
     #[inline(always)]
     pub fn apply_range(&self, x: &Vec3s, range: std::ops::Range<usize>, out: &mut Vec3SliceMut) {
+        self.strips::<false>(x, None, range, out)
+    }
+
+    /// `out = b - A x` over the rows `range`.
+    #[inline(always)]
+    pub fn residual_range(
+        &self,
+        x: &Vec3s,
+        b: &Vec3s,
+        range: std::ops::Range<usize>,
+        out: &mut Vec3SliceMut,
+    ) {
+        self.strips::<true>(x, Some(b), range, out)
+    }
+
+    /// The product strip by strip: every block's contribution to a strip of [`STRIP`] rows is
+    /// summed in registers and stored once (thirteen read-modify-write passes over the output
+    /// cost a fifth of the product's time), in the same order as a pass per slot would.
+    #[inline(always)]
+    fn strips<const RESIDUAL: bool>(
+        &self,
+        x: &Vec3s,
+        b: Option<&Vec3s>,
+        range: std::ops::Range<usize>,
+        out: &mut Vec3SliceMut,
+    ) {
         let n = self.len();
-        let d = &self.blocks[0];
-        let r = range.clone();
-        {
-            let xs = x.slices(r.clone());
-            let b: [&[f32]; 6] = std::array::from_fn(|c| &d[c][r.clone()]);
-            set_product(b, xs, out);
-        }
+        let mut slots = [(0usize, 0usize); SLOTS];
+        let mut count = 0;
         for s in 1..SLOTS {
-            let Some(o) = self.linear_offset(s) else {
-                continue;
-            };
-            let blocks = &self.blocks[s];
-            // Rows that anchor the block (partner p + o), then rows at its far end (p - o).
-            let anchors = range.start..range.end.min(n.saturating_sub(o));
-            if !anchors.is_empty() {
-                let b: [&[f32]; 6] = std::array::from_fn(|c| &blocks[c][anchors.clone()]);
-                let xs = x.slices(anchors.start + o..anchors.end + o);
-                let mut dst = out.sub_mut(anchors.start - range.start..anchors.end - range.start);
-                add_product(b, xs, &mut dst);
+            if let Some(o) = self.linear_offset(s) {
+                slots[count] = (s, o);
+                count += 1;
             }
-            let ends = range.start.max(o)..range.end;
-            if !ends.is_empty() {
-                let b: [&[f32]; 6] =
-                    std::array::from_fn(|c| &blocks[c][ends.start - o..ends.end - o]);
-                let xs = x.slices(ends.start - o..ends.end - o);
-                let mut dst = out.sub_mut(ends.start - range.start..ends.end - range.start);
-                add_product(b, xs, &mut dst);
+        }
+        let slots = &slots[..count];
+        let d = &self.blocks[0];
+        let mut start = range.start;
+        while start < range.end {
+            let end = (start + STRIP).min(range.end);
+            let mut acc = [[0.0f32; STRIP]; 3];
+            let diag: [&[f32]; 6] = std::array::from_fn(|c| &d[c][start..end]);
+            strip_product::<false>(diag, x.slices(start..end), &mut acc, 0);
+            for &(s, o) in slots {
+                let blocks = &self.blocks[s];
+                // Rows that anchor the block (partner p + o), then rows at its far end (p - o).
+                let anchors = start..end.min(n.saturating_sub(o));
+                if !anchors.is_empty() {
+                    let b: [&[f32]; 6] = std::array::from_fn(|c| &blocks[c][anchors.clone()]);
+                    let xs = x.slices(anchors.start + o..anchors.end + o);
+                    strip_product::<true>(b, xs, &mut acc, 0);
+                }
+                let ends = start.max(o)..end;
+                if !ends.is_empty() {
+                    let b: [&[f32]; 6] =
+                        std::array::from_fn(|c| &blocks[c][ends.start - o..ends.end - o]);
+                    let xs = x.slices(ends.start - o..ends.end - o);
+                    strip_product::<true>(b, xs, &mut acc, ends.start - start);
+                }
             }
+            let dst = start - range.start..end - range.start;
+            for (c, acc) in acc.iter().enumerate() {
+                let o = &mut out.component_mut(c)[dst.clone()];
+                match b {
+                    Some(b) if RESIDUAL => {
+                        let b = b.component(c, &(start..end));
+                        for ((o, a), b) in o.iter_mut().zip(acc).zip(b) {
+                            *o = b - a;
+                        }
+                    }
+                    _ => o.copy_from_slice(&acc[..o.len()]),
+                }
+            }
+            start = end;
         }
     }
 
@@ -308,6 +353,39 @@ impl BlockStencil {
                     }
                 }
             });
+    }
+}
+
+/// Rows per strip of [`BlockStencil::apply_range`]: three accumulators of 64 floats, twelve
+/// AVX-512 registers.
+const STRIP: usize = 64;
+
+/// `acc[.][at..] (+)= B x` for a run of at most a strip.
+#[inline(always)]
+fn strip_product<const ADD: bool>(
+    b: [&[f32]; 6],
+    x: Vec3Slice,
+    acc: &mut [[f32; STRIP]; 3],
+    at: usize,
+) {
+    let n = x.x.len();
+    let [bxx, byy, bzz, bxy, bxz, byz] = b.map(|s| &s[..n]);
+    let (xx, xy, xz) = (&x.x[..n], &x.y[..n], &x.z[..n]);
+    let [ax, ay, az] = acc;
+    let (ax, ay, az) = (
+        &mut ax[at..at + n],
+        &mut ay[at..at + n],
+        &mut az[at..at + n],
+    );
+    for i in 0..n {
+        let px = bxx[i] * xx[i] + bxy[i] * xy[i] + bxz[i] * xz[i];
+        let py = bxy[i] * xx[i] + byy[i] * xy[i] + byz[i] * xz[i];
+        let pz = bxz[i] * xx[i] + byz[i] * xy[i] + bzz[i] * xz[i];
+        (ax[i], ay[i], az[i]) = if ADD {
+            (ax[i] + px, ay[i] + py, az[i] + pz)
+        } else {
+            (px, py, pz)
+        };
     }
 }
 
