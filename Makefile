@@ -10,7 +10,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 RUST_SOURCES := $(shell find src benches -name '*.rs') Cargo.toml Cargo.lock $(wildcard scenes/*.toml)
 
-.PHONY: all demo test test-long fuzz lint fmt bench bench-peers accuracy setup system-deps clean
+.PHONY: all demo test test-long fuzz lint fmt bench bench-peers bench-stiff accuracy setup system-deps clean
 
 all: test
 
@@ -77,6 +77,12 @@ accuracy: setup
 bench-peers: setup
 	benches/peers/setup.sh
 	.venv-peers/bin/python benches/peers/run.py
+
+# Stiff cloth at 1/60 s (issue 14): rustcloth's solvers and newton's VBD on one scene; writes
+# docs/stiff.md and docs/stiff.png (about 40 minutes; BEFORE=python adds the old code's rows).
+bench-stiff: setup
+	benches/peers/setup.sh
+	$(PY) benches/peers/stiff.py $(if $(BEFORE),--before $(BEFORE))
 
 clean:
 	rm -rf target $(VENV) python/rustcloth/*.so

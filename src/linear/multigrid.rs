@@ -543,6 +543,10 @@ fn restrict(t: &(Transfer1d, Transfer1d), r: &Vec3s, half: &mut Vec3s, bc: &mut 
             (&mut *row.y, src.y),
             (&mut *row.z, src.z),
         ] {
+            if tx.coarsened() {
+                restrict_row(src, dst);
+                continue;
+            }
             for (ci, d) in dst.iter_mut().enumerate() {
                 let mut sum = 0.0;
                 for k in 0..3 {
@@ -570,6 +574,44 @@ fn restrict(t: &(Transfer1d, Transfer1d), r: &Vec3s, half: &mut Vec3s, bc: &mut 
                 }
             })
         });
+}
+
+/// One row of the restriction along a coarsened axis: coarse `c` is fine `2c` plus half of
+/// `2c - 1` and `2c + 1`, where they exist (the taps of [`Transfer1d`], without their indices).
+fn restrict_row(fine: &[f32], coarse: &mut [f32]) {
+    let n = fine.len();
+    let at = |i: usize| if i < n { fine[i] } else { 0.0 };
+    coarse[0] = fine[0] + 0.5 * at(1);
+    // Interior: every coarse node with both odd neighbours on the grid.
+    let interior = (n - 1) / 2;
+    for (d, w) in coarse[1..interior.max(1)]
+        .iter_mut()
+        .zip(fine[1..].windows(3).step_by(2))
+    {
+        *d = w[1] + 0.5 * (w[0] + w[2]);
+    }
+    for (c, d) in coarse.iter_mut().enumerate().skip(interior.max(1)) {
+        *d = at(2 * c) + 0.5 * (fine[2 * c - 1] + at(2 * c + 1));
+    }
+}
+
+/// One row of the prolongation along a coarsened axis, masked: fine `2c` copies coarse `c`,
+/// fine `2c + 1` averages `c` and `c + 1`.
+fn prolong_row(coarse: &[f32], free: &[f32], fine: &mut [f32]) {
+    let pairs = fine.len() / 2;
+    let (head, tail) = fine.split_at_mut(2 * pairs);
+    for (((out, f), c), w) in head
+        .chunks_exact_mut(2)
+        .zip(free.chunks_exact(2))
+        .zip(coarse)
+        .zip(coarse.windows(2))
+    {
+        out[0] += f[0] * c;
+        out[1] += f[1] * (0.5 * (w[0] + w[1]));
+    }
+    if let Some(last) = tail.first_mut() {
+        *last += free[2 * pairs] * coarse[pairs];
+    }
 }
 
 /// `x += S P x_c`, as two 1-D passes: along j into `half`, then along i.
@@ -607,6 +649,10 @@ fn prolong(
             (&mut *row.y, src.y),
             (&mut *row.z, src.z),
         ] {
+            if tx.coarsened() {
+                prolong_row(src, f, dst);
+                continue;
+            }
             for (i, d) in dst.iter_mut().enumerate() {
                 let sum = tx.parent_weight[0][i] * src[tx.parent_index[0][i] as usize]
                     + tx.parent_weight[1][i] * src[tx.parent_index[1][i] as usize];
@@ -886,6 +932,30 @@ mod tests {
         }
         let iterations = pcg_iterations(&a, &mut mg, &b, 1e-5);
         assert!(iterations <= 12, "{iterations} iterations");
+    }
+
+    #[test]
+    fn the_row_transfers_are_the_taps_of_the_interpolation() {
+        for n in 4..13 {
+            let t = Transfer1d::new(n);
+            let fine: Vec<f32> = (0..n).map(|i| (i as f32 * 0.7).sin()).collect();
+            let mut coarse = vec![0.0; t.coarse];
+            restrict_row(&fine, &mut coarse);
+            for (c, taps) in t.children.iter().enumerate() {
+                let want: f32 = taps.iter().map(|(f, w)| w * fine[f as usize]).sum();
+                assert!((coarse[c] - want).abs() < 1e-6, "n {n}, restrict {c}");
+            }
+            let free: Vec<f32> = (0..n).map(|i| (i % 5 != 3) as u32 as f32).collect();
+            let mut out = vec![1.0; n];
+            prolong_row(&coarse, &free, &mut out);
+            for (f, taps) in t.parents.iter().enumerate() {
+                let sum: f32 = taps.iter().map(|(c, w)| w * coarse[c as usize]).sum();
+                assert!(
+                    (out[f] - (1.0 + free[f] * sum)).abs() < 1e-6,
+                    "n {n}, prolong {f}"
+                );
+            }
+        }
     }
 
     #[test]
