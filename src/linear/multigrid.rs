@@ -562,18 +562,30 @@ fn restrict(t: &(Transfer1d, Transfer1d), r: &Vec3s, half: &mut Vec3s, bc: &mut 
         .for_each(|(cj, mut row)| {
             let taps: [(usize, f32); 3] =
                 std::array::from_fn(|k| (ty.child_index[k][cj] as usize, ty.child_weight[k][cj]));
-            let rows = taps.map(|(j, _)| half.slices(j * ncx..(j + 1) * ncx));
-            crate::simd::dispatch!({
-                for c in 0..3 {
-                    let dst = row.component_mut(c);
-                    let src = rows.map(|r| [r.x, r.y, r.z][c]);
-                    for i in 0..dst.len() {
-                        dst[i] =
-                            taps[0].1 * src[0][i] + taps[1].1 * src[1][i] + taps[2].1 * src[2][i];
-                    }
-                }
-            })
+            crate::simd::dispatch!(weighted_rows(&taps, half, ncx, &mut row))
         });
+}
+
+/// `dst = sum_k w_k src[row_k]` for rows of `width` nodes: one pass along j of a transfer.
+#[inline(always)]
+fn weighted_rows<const K: usize>(
+    taps: &[(usize, f32); K],
+    src: &Vec3s,
+    width: usize,
+    dst: &mut crate::soa::Vec3SliceMut,
+) {
+    let rows = taps.map(|(j, _)| src.slices(j * width..(j + 1) * width));
+    for c in 0..3 {
+        let out = dst.component_mut(c);
+        let rows = rows.map(|r| [r.x, r.y, r.z][c]);
+        for (i, o) in out.iter_mut().enumerate() {
+            let mut sum = 0.0;
+            for (row, &(_, w)) in rows.iter().zip(taps) {
+                sum += w * row[i];
+            }
+            *o = sum;
+        }
+    }
 }
 
 /// One row of the restriction along a coarsened axis: coarse `c` is fine `2c` plus half of
@@ -629,16 +641,7 @@ fn prolong(
         .for_each(|(j, mut row)| {
             let taps: [(usize, f32); 2] =
                 std::array::from_fn(|k| (ty.parent_index[k][j] as usize, ty.parent_weight[k][j]));
-            let rows = taps.map(|(cj, _)| xc.slices(cj * ncx..(cj + 1) * ncx));
-            crate::simd::dispatch!({
-                for c in 0..3 {
-                    let dst = row.component_mut(c);
-                    let src = rows.map(|r| [r.x, r.y, r.z][c]);
-                    for i in 0..dst.len() {
-                        dst[i] = taps[0].1 * src[0][i] + taps[1].1 * src[1][i];
-                    }
-                }
-            })
+            crate::simd::dispatch!(weighted_rows(&taps, xc, ncx, &mut row))
         });
     let half = &*half;
     x.par_chunks_mut(nx).enumerate().for_each(|(j, row)| {
