@@ -16,7 +16,7 @@ WHEEL_INPUTS := $(RUST_SOURCES) $(PY_SOURCES) pyproject.toml README.md LICENSE
 # The oldest glibc the wheel runs on: zig links against this version's symbols.
 MANYLINUX := manylinux_2_17
 
-.PHONY: all demo test test-long test-wheel wheel fuzz lint fmt bench bench-peers accuracy setup system-deps clean
+.PHONY: all demo test test-long test-wheel wheel fuzz lint fmt bench bench-peers bench-stiff accuracy setup system-deps clean
 
 all: test
 
@@ -104,6 +104,12 @@ accuracy: setup
 bench-peers: setup
 	benches/peers/setup.sh
 	.venv-peers/bin/python benches/peers/run.py
+
+# Stiff cloth at 1/60 s (issue 14): rustcloth's solvers and newton's VBD on one scene; writes
+# docs/stiff.md and docs/stiff.png (about 40 minutes; BEFORE=python adds the old code's rows).
+bench-stiff: setup
+	benches/peers/setup.sh
+	$(PY) benches/peers/stiff.py $(if $(BEFORE),--before $(BEFORE))
 
 clean:
 	rm -rf target dist $(VENV) python/rustcloth/*.so

@@ -23,6 +23,7 @@ pub mod forces;
 pub mod grid;
 pub mod integrators;
 pub mod interaction;
+pub mod linear;
 pub mod model;
 pub mod parallel;
 pub mod particles;

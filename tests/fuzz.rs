@@ -331,6 +331,7 @@ fn scene_any() -> BoxedStrategy<Scene> {
                 spheres,
                 watchdog,
                 strain_limit,
+                ..Scene::default()
             },
         )
         .boxed()
@@ -480,8 +481,24 @@ fn scene_small() -> BoxedStrategy<Scene> {
                 spheres,
                 watchdog,
                 strain_limit,
+                ..Scene::default()
             },
         )
+        .prop_flat_map(|scene| {
+            // The implicit solvers' own settings: every preconditioner, few and many
+            // local-global iterations.
+            (
+                select(rustcloth::integrators::Preconditioner::ALL.to_vec()),
+                select(&[1u32, 4, 20][..]),
+                select(&[0.0, 0.9][..]),
+            )
+                .prop_map(move |(preconditioner, pd_iterations, rho)| Scene {
+                    preconditioner,
+                    pd_iterations,
+                    pd_chebyshev_rho: rho,
+                    ..scene.clone()
+                })
+        })
         .prop_filter("the validation accepts it", |s| s.validate().is_ok())
         .boxed()
 }
@@ -496,6 +513,10 @@ const KEYS: &[&str] = &[
     "air_drag",
     "cg_tolerance",
     "cg_max_iterations",
+    "preconditioner",
+    "pd_iterations",
+    "pd_tolerance",
+    "pd_chebyshev_rho",
     "nx",
     "ny",
     "size",

@@ -7,7 +7,7 @@ use rustcloth::scene::PinSpec;
 use rustcloth::IntegratorKind;
 use rustcloth::{Scene, Simulation};
 
-const ALL: [IntegratorKind; 5] = IntegratorKind::ALL;
+const ALL: [IntegratorKind; 6] = IntegratorKind::ALL;
 
 /// Position error at t = 1 s of a mass on a spring (k = 100 N/m, m = 1 kg, so omega = 10
 /// rad/s) released 0.5 m from rest: `x(t) = L + 0.5 cos(10 t)`. Stiff enough that truncation

@@ -119,12 +119,46 @@ class ReferenceCloth:
             elif self.integrator == "implicit_euler":
                 v = v0 + self.implicit_dv(x0, v0)
                 x = x0 + h * v
+            elif self.integrator == "projective_dynamics":
+                x = self.backward_euler(x0, v0)
+                v = (x - x0) / h
             else:
                 raise ValueError(self.integrator)
             self.x = np.where(moving, x, self.x)
             self.v = np.where(moving, v, self.v)
 
     verlet_primed = False
+
+    def backward_euler(self, x0: np.ndarray, v0: np.ndarray) -> np.ndarray:
+        """The exact (not linearised) backward-Euler step, which projective dynamics converges
+        to: the x with ``M (x - x0 - h v0) / h^2 = f(x, (x - x0) / h)``, found by Newton's
+        method on a dense Jacobian, pinned particles held."""
+        n, h = len(x0), self.h
+        free = np.repeat(self.inv_mass > 0, 3)
+        mass = np.repeat(self.mass, 3)
+        eye = np.eye(3)
+        x = x0 + h * v0
+        for _ in range(50):
+            v = (x - x0) / h
+            residual = mass * (x - x0 - h * v0).ravel() / h**2 - self.forces(x, v).ravel()
+            if np.abs(residual[free]).max() < 1e-12 * max(1.0, np.abs(mass).max() / h**2):
+                break
+            # -df/dx (exact, compressed springs included) and -df/dv.
+            jacobian = np.diag(mass / h**2) + np.eye(3 * n) * self.drag / h
+            for a, b, k, rest in zip(self.a, self.b, self.k, self.rest, strict=True):
+                d = x[b] - x[a]
+                length = np.linalg.norm(d)
+                if length == 0:
+                    continue
+                u = d / length
+                block = k * (np.outer(u, u) + (1 - rest / length) * (eye - np.outer(u, u)))
+                block += self.c / h * np.outer(u, u)
+                for p, q, sign in ((a, a, 1), (b, b, 1), (a, b, -1), (b, a, -1)):
+                    jacobian[3 * p:3 * p + 3, 3 * q:3 * q + 3] += sign * block
+            step = np.zeros(3 * n)
+            step[free] = np.linalg.solve(jacobian[np.ix_(free, free)], -residual[free])
+            x = x + step.reshape(n, 3)
+        return x
 
     def implicit_dv(self, x: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Solve (M - h df/dv - h^2 df/dx) dv = h (f + h df/dx v) densely, pinned particles

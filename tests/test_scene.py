@@ -11,8 +11,10 @@ def test_defaults_are_filled_in_and_documented_keys_exist():
     d = Scene().to_dict()
     assert set(d) == {
         "integrator", "dt", "substeps", "gravity", "air_drag", "cloth", "floor", "spheres",
-        "cg_tolerance", "cg_max_iterations", "watchdog", "strain_limit",
+        "cg_tolerance", "cg_max_iterations", "preconditioner", "pd_iterations", "pd_tolerance",
+        "pd_chebyshev_rho", "watchdog", "strain_limit",
     }
+    assert d["preconditioner"] == "multigrid" and d["pd_iterations"] == 20
     assert set(d["cloth"]) >= {
         "nx", "ny", "size", "center", "plane", "k_structural", "k_shear", "k_bend",
         "damping", "pins",

@@ -4,6 +4,7 @@ per-particle masses and ``Scene.stability_report``."""
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -117,3 +118,17 @@ def test_stability_report_matches_the_formula_and_warns():
         bad = rustcloth.Simulation(fast.replace(substeps=max(1, needed // 2)))
     with pytest.raises(rustcloth.SimulationDiverged):
         bad.step(2000)
+
+
+def test_stability_report_covers_both_implicit_solvers():
+    # Both solve backward Euler implicitly: no step limit, no warning at a frame's step, and the
+    # simulation's own estimate agrees.
+    for integrator in ("implicit_euler", "projective_dynamics"):
+        scene = small_scene(integrator=integrator, dt=1 / 30)
+        report = scene.stability_report()
+        assert report.stable_dt[integrator] is None
+        assert report.stable and report.substeps_needed() is None
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", StabilityWarning)
+            sim = rustcloth.Simulation(scene)
+        assert sim.stable_dt() is None

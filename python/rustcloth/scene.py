@@ -195,14 +195,15 @@ class StabilityReport:
         for name, limit in self.stable_dt.items():
             mark = "*" if name == self.integrator else " "
             if limit is None:
-                verdict = "stable at any dt" if name == "implicit_euler" else "no springs"
+                implicit = name in ("implicit_euler", "projective_dynamics")
+                verdict = "stable at any dt" if implicit else "no springs"
             elif limit == 0.0:
                 verdict = "never stable (no damping)"
             else:
                 needed = self.substeps_needed(name)
                 ok = "ok" if self.dt <= limit else f"UNSTABLE, needs {needed} substeps"
                 verdict = f"stable up to dt = {limit:.3g} s: {ok}"
-            lines.append(f"{mark} {name:17s} {verdict}")
+            lines.append(f"{mark} {name:19s} {verdict}")
         return "\n".join(lines)
 
 

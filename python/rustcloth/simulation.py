@@ -69,9 +69,15 @@ class Profile:
     steps: int = 0
     total_seconds: float = 0.0
     solver: dict[str, float] | None = None
-    """For ``implicit_euler``: conjugate-gradient ``solves``, ``iterations`` (total),
-    ``last_iterations``, ``last_residual`` (relative), ``not_converged`` (solves that hit
-    ``cg_max_iterations``) and ``worst_residual``. None for the explicit integrators."""
+    """For the implicit integrators (see :meth:`Simulation.solver_stats`): ``solves``,
+    ``iterations`` (total), ``last_iterations``, ``most_iterations``, ``last_residual`` and
+    ``worst_residual`` (relative), ``not_converged`` (solves that missed the tolerance),
+    ``factorizations``, ``setup_seconds`` and ``solve_seconds``. For ``implicit_euler`` a solve
+    is one conjugate-gradient solve and its residual ``|r| / |b|``; for
+    ``projective_dynamics`` a solve is one substep's local-global iterations and its residual
+    the relative gradient ``|g_k| / |g_0|``. None for the explicit integrators."""
+    integrator: str = ""
+    """The integrator the steps ran with (when profiled), naming the solver line of ``str``."""
 
     def per_step_ms(self) -> dict[str, float]:
         """Milliseconds per step spent in each pass."""
@@ -87,9 +93,11 @@ class Profile:
         if self.solver:
             s = self.solver
             mean = s["iterations"] / max(s["solves"], 1)
+            method = "local-global" if self.integrator == "projective_dynamics" else "CG"
             lines.append(
-                f"  CG: {mean:.1f} iterations/solve, last residual {s['last_residual']:.1e}, "
-                f"{s['not_converged']} of {s['solves']} solves hit the iteration cap"
+                f"  {method}: {mean:.1f} iterations/solve, last residual "
+                f"{s['last_residual']:.1e}, {s['not_converged']} of {s['solves']} solves "
+                "did not converge"
             )
         return "\n".join(lines)
 
@@ -469,6 +477,7 @@ class Simulation:
             steps=steps,
             total_seconds=total,
             solver=self.solver_stats(),
+            integrator=self.integrator,
         )
 
     def solver_stats(self) -> dict[str, float] | None:

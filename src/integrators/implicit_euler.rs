@@ -1,48 +1,20 @@
 //! Backward Euler, linearised once per step (Baraff and Witkin, "Large steps in cloth
-//! simulation", SIGGRAPH 1998), solved by a matrix-free, Jacobi-preconditioned conjugate
-//! gradient.
+//! simulation", SIGGRAPH 1998), solved by a preconditioned conjugate gradient on the assembled
+//! block matrix (`src/linear/`).
+
+use std::time::Instant;
 
 use rayon::prelude::*;
 
+use super::solver::{Preconditioner, SolverSettings, SolverStats};
 use super::{par_update, FiniteCheck, StepContext};
 use crate::forces::Force;
 use crate::grid::SpringKind;
-use crate::soa::{Vec3SliceMut, Vec3s};
-use crate::springs::{anchored_run, neighbour_runs, SpringRun as Run};
-
-/// Settings of the linear solve.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SolverSettings {
-    /// Relative residual `|r| / |b|` at which CG stops. Default 1e-4: well below the step's
-    /// own linearisation error; float32 arithmetic stalls a little below 1e-6.
-    pub tolerance: f32,
-    /// Most CG iterations per step. Default 200. A solve that hits the cap is used (it is still
-    /// a descent step) but counted in `profile()` as not converged.
-    pub max_iterations: u32,
-}
-
-impl Default for SolverSettings {
-    fn default() -> Self {
-        SolverSettings {
-            tolerance: 1e-4,
-            max_iterations: 200,
-        }
-    }
-}
-
-/// What the solver did, accumulated since the integrator was created.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct SolverStats {
-    pub solves: u64,
-    pub iterations: u64,
-    pub last_iterations: u32,
-    /// `|r| / |b|` at the end of the last solve.
-    pub last_residual: f32,
-    /// Solves that stopped at the iteration cap above the tolerance.
-    pub not_converged: u64,
-    /// The largest final `|r| / |b|` among those.
-    pub worst_residual: f32,
-}
+use crate::linear::reduce::{dot3, partials, REDUCE_CHUNK};
+use crate::linear::stencil::{par_chunks6, set_product, slot_of, SlotArrays};
+use crate::linear::{BlockStencil, Multigrid};
+use crate::soa::{Floats, Vec3SliceMut, Vec3s};
+use crate::springs::{anchored_run, neighbour_runs};
 
 /// Backward Euler: find `dv` with
 ///
@@ -54,59 +26,71 @@ pub struct SolverStats {
 /// For a spring with direction `u`, length `l`, rest length `L`, the blocks are
 /// `df_a/dx_a = -k (u u^T + g (I - u u^T))` with `g = max(0, 1 - L/l)` and
 /// `df_a/dv_a = -c u u^T`. Clamping `g` at zero drops the destabilising transverse stiffness of
-/// compressed springs (the standard fix that keeps the matrix positive definite). Pinned and
-/// cut particles are held by filtering: their rows and columns are removed from the solve.
+/// compressed springs (the standard fix that keeps the matrix positive definite).
 ///
-/// Unconditionally stable and first order: it damps, strongly at large steps. Cost per step is
-/// one force evaluation plus one matrix-vector product per CG iteration.
+/// **Held particles.** Pinned and cut particles (`inv_mass == 0`) are filtered out of the system:
+/// their rows and columns are zero and their `dv` stays zero. A cut particle's springs are dead,
+/// and nothing computed from them enters the system: every value taken from a dead spring is
+/// selected away (not multiplied by zero, which would let an infinite or NaN direction through),
+/// so where a cut particle sits cannot change the solve. A pinned particle's springs do enter
+/// the right-hand side, through `h^2 df/dx v`, with the pin's velocity: that is how the cloth
+/// follows a dragged pin.
+///
+/// **State between steps.** None: the solve starts from `dv = 0`, the matrix and the multigrid
+/// hierarchy are rebuilt from the step's own state. A refused step therefore needs no rollback
+/// here, and [`Integrator::reset_history`] has nothing to do.
+///
+/// Unconditionally stable and first order: it damps, strongly at large steps. Cost per step:
+/// one force evaluation, one assembly of the matrix, the preconditioner's setup, and per CG
+/// iteration one matrix-vector product and one preconditioner application.
 pub struct ImplicitEuler {
     settings: SolverSettings,
     stats: SolverStats,
+    /// `(family, k, c)` of the spring terms, refilled each step (kept to reuse its allocation).
+    families: Vec<(crate::grid::Family, f32, f32)>,
     work: Option<Work>,
 }
 
-/// Per-spring blocks `C = alpha u u^T + beta I` of `h D + h^2 K`, and the CG vectors.
+/// The matrix `A = M + h drag I + sum_s C_s` (filtered), per-spring data and the CG vectors.
 struct Work {
-    alpha: [Vec<f32>; 6],
-    beta: [Vec<f32>; 6],
-    u: [Vec3s; 6],
-    /// Which spring kinds take part, with their family's `h c` (damping part of `alpha`).
-    kinds: Vec<(SpringKind, f32)>,
-    /// `(kind index, index offset)` of the same kinds (kept to reuse its allocation).
-    offsets: Vec<(usize, usize)>,
+    matrix: BlockStencil,
+    /// Which spring kinds take part, with the matrix slot of each.
+    kinds: Vec<(SpringKind, usize)>,
+    /// Per kind, `K_s (v_a - v_b)` of the spring anchored at each particle (`h^2 df/dx` part
+    /// of its block times the velocity difference).
+    kv: [Vec3s; 6],
+    /// The preconditioner's blocks (Jacobi: the inverse diagonal as diagonal blocks).
+    jacobi: SlotArrays,
+    multigrid: Multigrid,
     rhs: Vec3s,
     dv: Vec3s,
     r: Vec3s,
     z: Vec3s,
     p: Vec3s,
     q: Vec3s,
-    diag: Vec3s,
-    /// Per-chunk partial sums of one and of two dot products.
     partials: Vec<f64>,
-    partials2: Vec<[f64; 2]>,
 }
 
-/// Particles per work item of the CG passes, and per partial sum of their dot products: fixed,
-/// so that the sums are bitwise the same for any number of threads.
-const REDUCE_CHUNK: usize = 1024;
-
 impl Work {
-    fn new(n: usize) -> Self {
+    fn new(n: usize, nx: usize, ny: usize, kinds: Vec<(SpringKind, usize)>) -> Self {
+        let slots: Vec<usize> = kinds.iter().map(|k| k.1).collect();
+        let mut kv: [Vec3s; 6] = Default::default();
+        for &(kind, _) in &kinds {
+            kv[kind.index()] = Vec3s::zeros(n);
+        }
         Work {
-            alpha: Default::default(),
-            beta: Default::default(),
-            u: Default::default(),
-            kinds: Vec::new(),
-            offsets: Vec::new(),
+            matrix: BlockStencil::new(nx, ny, &slots),
+            kinds,
+            kv,
+            jacobi: std::array::from_fn(|_| Floats::zeros(n)),
+            multigrid: Multigrid::new(),
             rhs: Vec3s::zeros(n),
             dv: Vec3s::zeros(n),
             r: Vec3s::zeros(n),
             z: Vec3s::zeros(n),
             p: Vec3s::zeros(n),
             q: Vec3s::zeros(n),
-            diag: Vec3s::zeros(n),
-            partials: vec![0.0; n.div_ceil(REDUCE_CHUNK)],
-            partials2: vec![[0.0; 2]; n.div_ceil(REDUCE_CHUNK)],
+            partials: partials(n),
         }
     }
 }
@@ -116,9 +100,19 @@ impl ImplicitEuler {
         ImplicitEuler {
             settings,
             stats: SolverStats::default(),
+            families: Vec::new(),
             work: None,
         }
     }
+}
+
+/// The matrix slot of a spring kind's block `A[anchor, partner]`.
+fn kind_slot(kind: SpringKind) -> usize {
+    let (di, dj) = kind.step();
+    slot_of(di as i32, dj as i32)
+        .filter(|&(_, transposed)| !transposed)
+        .expect("every spring kind is an upper-half offset")
+        .0
 }
 
 impl ImplicitEuler {
@@ -127,171 +121,64 @@ impl ImplicitEuler {
     }
 
     pub fn step(&mut self, h: f32, ctx: &mut StepContext) -> bool {
-        let n = ctx.current.pos.len();
-        let work = self.work.get_or_insert_with(|| Work::new(n));
         ctx.eval_forces_at(ctx.current);
-
-        // Which terms depend on the state, and how.
+        let started = Instant::now();
+        let n = ctx.current.pos.len();
         let mut drag = 0.0f32;
-        work.kinds.clear();
+        let families = &mut self.families;
+        families.clear();
         for &force in ctx.forces.forces() {
             match force {
-                Force::Gravity { .. } => {}
+                Force::Springs { family, k, c } => families.push((family, k, c)),
                 Force::Drag { c } => drag += c,
-                Force::Springs { family, k, c } => {
-                    for kind in family.kinds() {
-                        work.kinds.push((kind, h * c));
-                        build_blocks(work, kind, h, k, c, ctx);
+                Force::Gravity { .. } => {}
+            }
+        }
+        let work = self.work.get_or_insert_with(|| {
+            let kinds = families
+                .iter()
+                .flat_map(|&(family, _, _)| family.kinds().map(|kind| (kind, kind_slot(kind))))
+                .collect();
+            Work::new(n, ctx.grid.nx, ctx.grid.ny, kinds)
+        });
+        // Two kinds per family, in the order the work was built with.
+        for (&(_, k, c), kinds) in families.iter().zip(work.kinds.chunks(2)) {
+            for &(kind, slot) in kinds {
+                build_blocks(&mut work.matrix, &mut work.kv, kind, slot, h, k, c, ctx);
+            }
+        }
+        assemble_diagonal_and_rhs(work, h, drag, ctx);
+        filter_couplings(work, ctx);
+
+        let settings = self.settings;
+        match settings.preconditioner {
+            Preconditioner::Jacobi => {
+                let d = work.matrix.slot(0);
+                for (c, out) in work.jacobi.iter_mut().enumerate() {
+                    for (p, o) in out.iter_mut().enumerate() {
+                        *o = if c < 3 && d[c][p] > 0.0 {
+                            1.0 / d[c][p]
+                        } else {
+                            0.0
+                        };
                     }
                 }
             }
-        }
-
-        let w = &ctx.particles.inv_mass;
-        let mass = &ctx.particles.mass;
-        let chunk = ctx.chunk;
-        let grid_n = ctx.grid.len();
-        work.offsets.clear();
-        let grid = ctx.grid;
-        work.offsets.extend(
-            work.kinds
-                .iter()
-                .map(|&(kind, _)| (kind.index(), grid.offset(kind))),
-        );
-        let offsets = std::mem::take(&mut work.offsets);
-
-        // Right-hand side b = h f - h^2 K v (K v gathered like a force), and the Jacobi
-        // diagonal of A = M + h drag I + sum C.
-        {
-            let Work {
-                alpha,
-                beta,
-                u,
-                kinds,
-                rhs,
-                diag,
-                ..
-            } = work;
-            let (f, vel, springs) = (&*ctx.force, &ctx.current.vel, ctx.springs);
-            let rhs_and_diag = rhs.par_chunks_mut(chunk).zip(diag.par_chunks_mut(chunk));
-            rhs_and_diag.enumerate().for_each(|(c, (mut b, mut d))| {
-                let range = c * chunk..c * chunk + b.len();
-                crate::simd::dispatch!({
-                    for (comp, (b, d)) in [
-                        (&mut *b.x, &mut *d.x),
-                        (&mut *b.y, &mut *d.y),
-                        (&mut *b.z, &mut *d.z),
-                    ]
-                    .into_iter()
-                    .enumerate()
-                    {
-                        let f = f.component(comp, &range);
-                        for (i, p) in range.clone().enumerate() {
-                            b[i] = h * f[i];
-                            d[i] = mass[p] + h * drag;
-                        }
-                    }
-                    for (&(k, o), &(_, hc)) in offsets.iter().zip(kinds.iter()) {
-                        let blocks = Blocks {
-                            alpha: &alpha[k],
-                            beta: &beta[k],
-                            u: &u[k],
-                        };
-                        for run in neighbour_runs(grid_n, o, range.clone())
-                            .into_iter()
-                            .flatten()
-                        {
-                            // K = C - h c u u^T: the damping part has no x-derivative.
-                            let stiffness_only = Some((hc, &springs.active[k][..]));
-                            blocks.apply(run, vel, stiffness_only, -1.0, &mut b, range.start);
-                            blocks.add_diagonal(run, &mut d, range.start);
-                        }
-                    }
-                    filter_held(&mut b, &w[range.clone()]);
-                })
-            });
-        }
-
-        // Preconditioned conjugate gradient from dv = 0.
-        let settings = self.settings;
-        // q = A p, returning p . q.
-        let product = |work: &mut Work| -> f64 {
-            let Work {
-                alpha,
-                beta,
-                u,
-                p,
-                q,
-                partials,
-                ..
-            } = work;
-            let p = &*p;
-            q.par_chunks_mut(REDUCE_CHUNK)
-                .zip(partials.par_iter_mut())
-                .enumerate()
-                .for_each(|(c, (mut q, partial))| {
-                    let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + q.len();
-                    *partial = crate::simd::dispatch!({
-                        for (comp, q) in [&mut *q.x, &mut *q.y, &mut *q.z].into_iter().enumerate() {
-                            let p = p.component(comp, &range);
-                            for (i, a) in range.clone().enumerate() {
-                                q[i] = (mass[a] + h * drag) * p[i];
-                            }
-                        }
-                        for &(k, o) in &offsets {
-                            let blocks = Blocks {
-                                alpha: &alpha[k],
-                                beta: &beta[k],
-                                u: &u[k],
-                            };
-                            for run in neighbour_runs(grid_n, o, range.clone())
-                                .into_iter()
-                                .flatten()
-                            {
-                                blocks.apply(run, p, None, 1.0, &mut q, range.start);
-                            }
-                        }
-                        filter_held(&mut q, &w[range.clone()]);
-                        chunk_dot(p.slices(range.clone()), &q)
-                    });
-                });
-            partials.iter().sum()
-        };
-        // Preconditioned conjugate gradient from dv = 0, three parallel passes per iteration
-        // with the dot products fused into them. Partial sums are over fixed chunks and added
-        // in order, so the solve is bitwise the same for any number of threads.
-        let (b_dot_b, mut rz) = start_solve(work);
-        let b_norm = b_dot_b.sqrt();
-        let mut residual = if b_norm > 0.0 { 1.0 } else { 0.0 };
-        let mut iterations = 0;
-        while residual > settings.tolerance as f64 && iterations < settings.max_iterations {
-            let pq = product(work);
-            if pq <= 0.0 || !pq.is_finite() {
-                break; // breakdown: the matrix is not positive definite along p
+            Preconditioner::BlockJacobi => {
+                work.matrix.diagonal_inverse(&mut work.jacobi, ctx.chunk)
             }
-            let (r_dot_r, rz_new) = advance_solution(work, (rz / pq) as f32);
-            iterations += 1;
-            residual = r_dot_r.sqrt() / b_norm;
-            if residual <= settings.tolerance as f64 {
-                break;
-            }
-            next_direction(work, (rz_new / rz) as f32);
-            rz = rz_new;
+            Preconditioner::Multigrid => work.multigrid.build(&work.matrix, ctx.chunk),
         }
-        self.stats.solves += 1;
-        self.stats.iterations += iterations as u64;
-        self.stats.last_iterations = iterations;
-        self.stats.last_residual = residual as f32;
-        if residual > settings.tolerance as f64 {
-            self.stats.not_converged += 1;
-            self.stats.worst_residual = self.stats.worst_residual.max(residual as f32);
-        }
-
-        work.offsets = offsets; // hand the allocation back for the next step
+        let solving = Instant::now();
+        self.stats.setup_seconds += (solving - started).as_secs_f64();
+        let (iterations, residual) = conjugate_gradient(work, settings, ctx.chunk);
+        self.stats.solve_seconds += solving.elapsed().as_secs_f64();
+        self.stats
+            .record(iterations, residual, settings.tolerance as f64);
 
         // v' = v + dv, x' = x + h v'.
-        let (cur, dv) = (ctx.current, &work.dv);
-        par_update(ctx.next, chunk, |mut out| {
+        let (cur, dv, w) = (ctx.current, &work.dv, &ctx.particles.inv_mass);
+        par_update(ctx.next, ctx.chunk, |mut out| {
             let mut check = FiniteCheck::default();
             for (i, p) in out.range.clone().enumerate() {
                 let (x, v) = (cur.pos.get(p), cur.vel.get(p));
@@ -312,226 +199,302 @@ impl ImplicitEuler {
     }
 }
 
-/// One spring kind's blocks `C_s = alpha_s u_s u_s^T + beta_s I`, indexed by spring slot.
-struct Blocks<'a> {
-    alpha: &'a [f32],
-    beta: &'a [f32],
-    u: &'a Vec3s,
-}
-
-impl Blocks<'_> {
-    /// `out[a] += scale * C_s (p_a - p_b)` over a run of particles `a` with neighbours `b`.
-    /// With `stiffness_only = Some((h c, active))`, the damping part `h c u u^T` is left out of
-    /// `C`, which leaves `h^2 K`.
-    #[inline(always)]
-    fn apply(
-        &self,
-        run: Run,
-        p: &Vec3s,
-        stiffness_only: Option<(f32, &[f32])>,
-        scale: f32,
-        out: &mut Vec3SliceMut,
-        out_start: usize,
-    ) {
-        let n = run.len;
-        let (a, b, s) = (
-            run.a..run.a + n,
-            run.b..run.b + n,
-            run.spring..run.spring + n,
-        );
-        let (pax, pay, paz) = (p.component(0, &a), p.component(1, &a), p.component(2, &a));
-        let (pbx, pby, pbz) = (p.component(0, &b), p.component(1, &b), p.component(2, &b));
-        let (ux, uy, uz) = (
-            self.u.component(0, &s),
-            self.u.component(1, &s),
-            self.u.component(2, &s),
-        );
-        let (alpha, beta) = (&self.alpha[s.clone()], &self.beta[s.clone()]);
-        let (cut, active) = match stiffness_only {
-            Some((hc, active)) => (hc, &active[s]),
-            None => (0.0, alpha), // any slice of the right length: multiplied by zero
-        };
-        let o = a.start - out_start..a.end - out_start;
-        let (ox, oy, oz) = (&mut out.x[o.clone()], &mut out.y[o.clone()], &mut out.z[o]);
-        for i in 0..n {
-            let (dx, dy, dz) = (pax[i] - pbx[i], pay[i] - pby[i], paz[i] - pbz[i]);
-            let along = (alpha[i] - cut * active[i]) * (ux[i] * dx + uy[i] * dy + uz[i] * dz);
-            ox[i] += scale * (beta[i] * dx + along * ux[i]);
-            oy[i] += scale * (beta[i] * dy + along * uy[i]);
-            oz[i] += scale * (beta[i] * dz + along * uz[i]);
-        }
-    }
-
-    /// `out[a] += diag(C_s)` over a run.
-    #[inline(always)]
-    fn add_diagonal(&self, run: Run, out: &mut Vec3SliceMut, out_start: usize) {
-        let n = run.len;
-        let s = run.spring..run.spring + n;
-        let (alpha, beta) = (&self.alpha[s.clone()], &self.beta[s.clone()]);
-        let o = run.a - out_start..run.a - out_start + n;
-        for (comp, out) in [&mut *out.x, &mut *out.y, &mut *out.z]
-            .into_iter()
-            .enumerate()
-        {
-            let (u, out) = (self.u.component(comp, &s), &mut out[o.clone()]);
-            for i in 0..n {
-                out[i] += beta[i] + alpha[i] * u[i] * u[i];
-            }
-        }
-    }
-}
-
-/// Zeroes the rows of held particles (`inv_mass == 0`): they are filtered out of the solve.
+/// `x` where `live`, else zero: a select, so that an infinite or NaN `x` computed from a dead
+/// spring (a cut particle far away) cannot leak through as `0 * inf`.
 #[inline(always)]
-fn filter_held(v: &mut Vec3SliceMut, inv_mass: &[f32]) {
-    for comp in [&mut *v.x, &mut *v.y, &mut *v.z] {
-        for (x, w) in comp.iter_mut().zip(inv_mass) {
-            *x = if *w == 0.0 { 0.0 } else { *x };
-        }
+fn live_or_zero(live: bool, x: f32) -> f32 {
+    if live {
+        x
+    } else {
+        0.0
     }
 }
 
-/// The blocks of every spring of `kind` at the current state.
-fn build_blocks(work: &mut Work, kind: SpringKind, h: f32, k: f32, c: f32, ctx: &StepContext) {
+/// The blocks `-C_s` of every spring of `kind` into the matrix slot `slot` (unfiltered), and
+/// `K_s (v_a - v_b)` into `kv`, with `C_s = alpha u u^T + beta I`, `alpha = h c + h^2 k (1 - g)`,
+/// `beta = h^2 k g`, `K_s = C_s - h c u u^T`. Slots with no live spring get zeros.
+#[allow(clippy::too_many_arguments)]
+fn build_blocks(
+    matrix: &mut BlockStencil,
+    kv: &mut [Vec3s; 6],
+    kind: SpringKind,
+    slot: usize,
+    h: f32,
+    k: f32,
+    c: f32,
+    ctx: &StepContext,
+) {
     let n = ctx.grid.len();
     let o = ctx.grid.offset(kind);
     let ki = kind.index();
-    let (pos, springs) = (&ctx.current.pos, ctx.springs);
-    if work.alpha[ki].len() != n {
-        work.alpha[ki] = vec![0.0; n];
-        work.beta[ki] = vec![0.0; n];
-        work.u[ki] = Vec3s::zeros(n);
-    }
+    let (pos, vel, springs) = (&ctx.current.pos, &ctx.current.vel, ctx.springs);
     let (rest, active) = (&springs.rest[ki], &springs.active[ki]);
     let chunk = ctx.chunk;
-    let (alpha, beta, u) = (&mut work.alpha[ki], &mut work.beta[ki], &mut work.u[ki]);
-    alpha
-        .par_chunks_mut(chunk)
-        .zip(beta.par_chunks_mut(chunk))
-        .zip(u.par_chunks_mut(chunk))
+    par_chunks6(matrix.slot_mut(slot), chunk)
+        .zip(kv[ki].par_chunks_mut(chunk))
         .enumerate()
-        .for_each(|(ci, ((alpha, beta), u))| {
-            // Slots whose partner would be off the end hold no spring (active = 0).
+        .for_each(|(ci, ([bxx, byy, bzz, bxy, bxz, byz], mut kv))| {
+            // Slots whose partner would be off the end hold no spring.
             let start = ci * chunk;
-            let run = anchored_run(n, o, start..start + alpha.len());
-            let (s, t, len) = (run.a_range(), run.b_range(), run.len);
-            let (ax, ay, az) = (
-                pos.component(0, &s),
-                pos.component(1, &s),
-                pos.component(2, &s),
-            );
-            let (bx, by, bz) = (
-                pos.component(0, &t),
-                pos.component(1, &t),
-                pos.component(2, &t),
-            );
+            let run = anchored_run(n, o, start..start + bxx.len());
+            let (len, s, t) = (run.len, run.a_range(), run.b_range());
+            let (xa, xb) = (pos.slices(s.clone()), pos.slices(t.clone()));
+            let (va, vb) = (vel.slices(s.clone()), vel.slices(t));
             let (rest, active) = (&rest[s.clone()], &active[s]);
             crate::simd::dispatch!({
                 for i in 0..len {
-                    let (dx, dy, dz) = (bx[i] - ax[i], by[i] - ay[i], bz[i] - az[i]);
+                    let (dx, dy, dz) = (xb.x[i] - xa.x[i], xb.y[i] - xa.y[i], xb.z[i] - xa.z[i]);
                     let l = (dx * dx + dy * dy + dz * dz).sqrt();
                     let inv_l = if l > 0.0 { 1.0 / l } else { 0.0 };
                     let g = (1.0 - rest[i] * inv_l).max(0.0) * (l > 0.0) as u32 as f32;
-                    alpha[i] = active[i] * (h * c + h * h * k * (1.0 - g));
-                    beta[i] = active[i] * (h * h * k * g);
-                    // A dead slot's direction is zero: its far end may be a cut particle
-                    // anywhere, whose direction is not finite (and 0 * NaN is NaN).
+                    let alpha = h * c + h * h * k * (1.0 - g);
+                    let beta = h * h * k * g;
+                    let (ux, uy, uz) = (dx * inv_l, dy * inv_l, dz * inv_l);
                     let live = active[i] != 0.0;
-                    let dead = |u: f32| if live { u } else { 0.0 };
-                    u.x[i] = dead(dx * inv_l);
-                    u.y[i] = dead(dy * inv_l);
-                    u.z[i] = dead(dz * inv_l);
+                    bxx[i] = live_or_zero(live, -(alpha * ux * ux + beta));
+                    byy[i] = live_or_zero(live, -(alpha * uy * uy + beta));
+                    bzz[i] = live_or_zero(live, -(alpha * uz * uz + beta));
+                    bxy[i] = live_or_zero(live, -(alpha * ux * uy));
+                    bxz[i] = live_or_zero(live, -(alpha * ux * uz));
+                    byz[i] = live_or_zero(live, -(alpha * uy * uz));
+                    // K (v_a - v_b): the damping part h c u u^T has no x-derivative.
+                    let (wx, wy, wz) = (va.x[i] - vb.x[i], va.y[i] - vb.y[i], va.z[i] - vb.z[i]);
+                    let along = (alpha - h * c) * (ux * wx + uy * wy + uz * wz);
+                    kv.x[i] = live_or_zero(live, along * ux + beta * wx);
+                    kv.y[i] = live_or_zero(live, along * uy + beta * wy);
+                    kv.z[i] = live_or_zero(live, along * uz + beta * wz);
                 }
             });
-            alpha[len..].fill(0.0);
-            beta[len..].fill(0.0);
-            for comp in [&mut *u.x, &mut *u.y, &mut *u.z] {
-                comp[len..].fill(0.0);
+            for b in [bxx, byy, bzz, bxy, bxz, byz] {
+                b[len..].fill(0.0);
             }
+            kv.sub_mut(len..kv.len()).fill(glam::Vec3::ZERO);
         });
 }
 
-/// `dv = 0, r = b, z = P^-1 r, p = z`; returns `(b . b, r . z)`.
-fn start_solve(work: &mut Work) -> (f64, f64) {
+/// The diagonal blocks `D_a = (m_a + h drag) I + sum_s C_s` and the right-hand side
+/// `b_a = h f_a - sum_s K_s (v_a - v_other)` (gathered over the springs each particle anchors and
+/// ends, from the unfiltered blocks); zero for held particles.
+fn assemble_diagonal_and_rhs(work: &mut Work, h: f32, drag: f32, ctx: &StepContext) {
     let Work {
+        matrix,
+        kinds,
+        kv,
         rhs,
-        diag,
-        dv,
-        r,
-        z,
-        p,
-        partials2,
         ..
     } = work;
-    let (rhs, diag) = (&*rhs, &*diag);
-    dv.fill(glam::Vec3::ZERO);
-    r.copy_from(rhs);
-    z.par_chunks_mut(REDUCE_CHUNK)
-        .zip(partials2.par_iter_mut())
+    let (grid_n, chunk) = (ctx.grid.len(), ctx.chunk);
+    let (force, mass, w) = (&*ctx.force, &ctx.particles.mass, &ctx.particles.inv_mass);
+    let mut diag = std::mem::take(matrix.slot_mut(0));
+    let matrix = &*matrix;
+    par_chunks6(&mut diag, chunk)
+        .zip(rhs.par_chunks_mut(chunk))
         .enumerate()
-        .for_each(|(c, (z, partial))| {
-            let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + z.len();
-            let (b, d) = (rhs.slices(range.clone()), diag.slices(range));
-            let mut sums = [0.0f64; 2];
-            for (z, b, d) in [(z.x, b.x, d.x), (z.y, b.y, d.y), (z.z, b.z, d.z)] {
-                for i in 0..z.len() {
-                    z[i] = b[i] / d[i];
+        .for_each(|(ci, (mut d, mut b))| {
+            let range = ci * chunk..ci * chunk + d[0].len();
+            crate::simd::dispatch!({
+                let f = force.slices(range.clone());
+                for (i, p) in range.clone().enumerate() {
+                    let m = mass[p] + h * drag;
+                    d[0][i] = m;
+                    d[1][i] = m;
+                    d[2][i] = m;
+                    d[3][i] = 0.0;
+                    d[4][i] = 0.0;
+                    d[5][i] = 0.0;
+                    b.x[i] = h * f.x[i];
+                    b.y[i] = h * f.y[i];
+                    b.z[i] = h * f.z[i];
                 }
-                sums[0] += dot(b, b);
-                sums[1] += dot(b, z);
-            }
-            *partial = sums;
+                for &(kind, slot) in kinds.iter() {
+                    let o = ctx.grid.offset(kind);
+                    let blocks = matrix.slot(slot);
+                    let kv = &kv[kind.index()];
+                    for (end, run) in neighbour_runs(grid_n, o, range.clone())
+                        .into_iter()
+                        .enumerate()
+                    {
+                        let Some(run) = run else { continue };
+                        let (s, dst) = (run.spring..run.spring + run.len, run.a - range.start);
+                        for c in 0..6 {
+                            // The stored block is -C_s.
+                            for (t, &v) in d[c][dst..dst + run.len]
+                                .iter_mut()
+                                .zip(&blocks[c][s.clone()])
+                            {
+                                *t -= v;
+                            }
+                        }
+                        // +K (v_a - v_b) for the anchor, -K (v_a - v_b) for the far end.
+                        let sign = if end == 0 { -1.0 } else { 1.0 };
+                        let kv = kv.slices(s.clone());
+                        for (out, kv) in [(&mut *b.x, kv.x), (&mut *b.y, kv.y), (&mut *b.z, kv.z)] {
+                            for (t, &v) in out[dst..dst + run.len].iter_mut().zip(kv) {
+                                *t += sign * v;
+                            }
+                        }
+                    }
+                }
+                for (i, p) in range.clone().enumerate() {
+                    if w[p] == 0.0 {
+                        for dc in d.iter_mut() {
+                            dc[i] = 0.0;
+                        }
+                        b.set(i, glam::Vec3::ZERO);
+                    }
+                }
+            });
         });
-    p.copy_from(z);
-    sum_pairs(partials2)
+    *work.matrix.slot_mut(0) = diag;
 }
 
-/// `dv += step p, r -= step q, z = P^-1 r`; returns `(r . r, r . z)`.
-fn advance_solution(work: &mut Work, step: f32) -> (f64, f64) {
+/// Zeroes the coupling blocks of every spring with a held end: the filtered matrix.
+fn filter_couplings(work: &mut Work, ctx: &StepContext) {
+    let (grid_n, chunk) = (ctx.grid.len(), ctx.chunk);
+    let w = &ctx.particles.inv_mass;
+    for &(kind, slot) in &work.kinds {
+        let o = ctx.grid.offset(kind);
+        par_chunks6(work.matrix.slot_mut(slot), chunk)
+            .enumerate()
+            .for_each(|(ci, blocks)| {
+                let start = ci * chunk;
+                // Anchors whose partner exists; the blocks past them are zero already.
+                let run = anchored_run(grid_n, o, start..start + blocks[0].len());
+                let (wa, wb) = (&w[run.a_range()], &w[run.b_range()]);
+                let len = run.len;
+                crate::simd::dispatch!({
+                    for comp in blocks {
+                        for ((x, wa), wb) in comp[..len].iter_mut().zip(wa).zip(wb) {
+                            *x = live_or_zero(*wa != 0.0 && *wb != 0.0, *x);
+                        }
+                    }
+                })
+            });
+    }
+}
+
+/// Preconditioned CG for `A dv = b` from `dv = 0`; returns the iterations and the final
+/// relative residual `|r| / |b|`. Partial sums are over fixed chunks and added in order, so the
+/// solve is bitwise the same for any number of threads.
+fn conjugate_gradient(work: &mut Work, settings: SolverSettings, chunk: usize) -> (u32, f64) {
+    work.dv.fill(glam::Vec3::ZERO);
+    work.r.copy_from(&work.rhs);
+    let b_dot_b = crate::linear::reduce::par_dot(&work.rhs, &work.rhs, &mut work.partials);
+    let b_norm = b_dot_b.sqrt();
+    if !(b_norm > 0.0 && b_norm.is_finite()) {
+        // Nothing to solve (every particle held, or no force), or a non-finite right-hand
+        // side, which the step's finite check then reports.
+        return (0, if b_norm == 0.0 { 0.0 } else { f64::NAN });
+    }
+    let mut rz = precondition(work, settings.preconditioner, chunk);
+    work.p.copy_from(&work.z);
+    let mut residual = 1.0;
+    let mut iterations = 0;
+    while residual > settings.tolerance as f64 && iterations < settings.max_iterations {
+        let pq = product(work);
+        if pq <= 0.0 || !pq.is_finite() {
+            break; // breakdown: the matrix is not positive definite along p
+        }
+        let r_dot_r = advance_solution(work, (rz / pq) as f32);
+        iterations += 1;
+        residual = r_dot_r.sqrt() / b_norm;
+        if residual <= settings.tolerance as f64 {
+            break;
+        }
+        let rz_new = precondition(work, settings.preconditioner, chunk);
+        next_direction(work, (rz_new / rz) as f32);
+        rz = rz_new;
+    }
+    if iterations == 0 {
+        // The first direction was already a breakdown; keep dv = 0.
+        residual = 1.0;
+    }
+    (iterations, residual)
+}
+
+/// `z = M^-1 r`, returning `r . z`.
+fn precondition(work: &mut Work, preconditioner: Preconditioner, chunk: usize) -> f64 {
     let Work {
-        dv,
+        matrix,
+        jacobi,
+        multigrid,
         r,
         z,
+        partials,
+        ..
+    } = work;
+    match preconditioner {
+        Preconditioner::Multigrid => multigrid.apply(matrix, r, z, chunk),
+        Preconditioner::Jacobi | Preconditioner::BlockJacobi => z
+            .par_chunks_mut(REDUCE_CHUNK)
+            .enumerate()
+            .for_each(|(c, mut z)| {
+                let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + z.len();
+                let d: [&[f32]; 6] = std::array::from_fn(|k| &jacobi[k][range.clone()]);
+                crate::simd::dispatch!(set_product(d, r.slices(range.clone()), &mut z));
+            }),
+    }
+    crate::linear::reduce::par_dot(r, z, partials)
+}
+
+/// `q = A p`, returning `p . q`.
+fn product(work: &mut Work) -> f64 {
+    let Work {
+        matrix,
         p,
         q,
-        diag,
-        partials2,
+        partials,
         ..
     } = work;
-    let (p, q, diag) = (&*p, &*q, &*diag);
-    let chunks = dv
-        .par_chunks_mut(REDUCE_CHUNK)
-        .zip(r.par_chunks_mut(REDUCE_CHUNK));
-    chunks
-        .zip(z.par_chunks_mut(REDUCE_CHUNK))
-        .zip(partials2.par_iter_mut())
+    let (matrix, p) = (&*matrix, &*p);
+    q.par_chunks_mut(REDUCE_CHUNK)
+        .zip(partials.par_iter_mut())
         .enumerate()
-        .for_each(|(c, (((dv, r), z), partial))| {
+        .for_each(|(c, (mut q, partial))| {
+            let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + q.len();
+            *partial = crate::simd::dispatch!({
+                matrix.apply_range(p, range.clone(), &mut q);
+                dot3(p.slices(range.clone()), q.slices_at_start())
+            });
+        });
+    partials.iter().sum()
+}
+
+/// `dv += step p, r -= step q`; returns `r . r`.
+fn advance_solution(work: &mut Work, step: f32) -> f64 {
+    let Work {
+        dv,
+        r,
+        p,
+        q,
+        partials,
+        ..
+    } = work;
+    let (p, q) = (&*p, &*q);
+    dv.par_chunks_mut(REDUCE_CHUNK)
+        .zip(r.par_chunks_mut(REDUCE_CHUNK))
+        .zip(partials.par_iter_mut())
+        .enumerate()
+        .for_each(|(c, ((dv, r), partial))| {
             let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + dv.len();
             *partial = crate::simd::dispatch!({
-                let mut sums = [0.0f64; 2];
-                let (p, q, d) = (
-                    p.slices(range.clone()),
-                    q.slices(range.clone()),
-                    diag.slices(range),
-                );
-                for (dv, r, z, p, q, d) in [
-                    (dv.x, r.x, z.x, p.x, q.x, d.x),
-                    (dv.y, r.y, z.y, p.y, q.y, d.y),
-                    (dv.z, r.z, z.z, p.z, q.z, d.z),
+                let (p, q) = (p.slices(range.clone()), q.slices(range.clone()));
+                let mut sum = 0.0;
+                for (dv, r, p, q) in [
+                    (dv.x, &mut *r.x, p.x, q.x),
+                    (dv.y, &mut *r.y, p.y, q.y),
+                    (dv.z, &mut *r.z, p.z, q.z),
                 ] {
                     for i in 0..dv.len() {
                         dv[i] += step * p[i];
                         r[i] -= step * q[i];
-                        z[i] = r[i] / d[i];
                     }
-                    sums[0] += dot(r, r);
-                    sums[1] += dot(r, z);
+                    sum += crate::linear::reduce::dot(r, r);
                 }
-                sums
+                sum
             });
         });
-    sum_pairs(partials2)
+    partials.iter().sum()
 }
 
 /// `p = z + beta p`.
@@ -543,47 +506,27 @@ fn next_direction(work: &mut Work, beta: f32) {
         .for_each(|(c, p)| {
             let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + p.len();
             let z = z.slices(range);
-            for (p, z) in [(p.x, z.x), (p.y, z.y), (p.z, z.z)] {
-                for i in 0..p.len() {
-                    p[i] = z[i] + beta * p[i];
+            crate::simd::dispatch!({
+                for (p, z) in [(p.x, z.x), (p.y, z.y), (p.z, z.z)] {
+                    for (p, z) in p.iter_mut().zip(z) {
+                        *p = z + beta * *p;
+                    }
                 }
-            }
+            })
         });
 }
 
-/// Dot product of one chunk's three components, in f64.
-#[inline(always)]
-fn chunk_dot(a: crate::soa::Vec3Slice, b: &Vec3SliceMut) -> f64 {
-    dot(a.x, b.x) + dot(a.y, b.y) + dot(a.z, b.z)
+/// Read-only view of a chunk's own output, for a dot product after writing it.
+trait AsSlices {
+    fn slices_at_start(&self) -> crate::soa::Vec3Slice<'_>;
 }
 
-/// `a . b`: sixteen independent float32 lanes (so the loop vectorises without reordering any
-/// sum, and every instruction set gives the same bits), added up in f64 at the end.
-#[inline(always)]
-fn dot(a: &[f32], b: &[f32]) -> f64 {
-    const LANES: usize = 16;
-    let n = a.len().min(b.len());
-    let (a, b) = (&a[..n], &b[..n]);
-    let mut lanes = [0.0f32; LANES];
-    let whole = n / LANES * LANES;
-    for (x, y) in a[..whole]
-        .chunks_exact(LANES)
-        .zip(b[..whole].chunks_exact(LANES))
-    {
-        for l in 0..LANES {
-            lanes[l] += x[l] * y[l];
+impl AsSlices for Vec3SliceMut<'_> {
+    fn slices_at_start(&self) -> crate::soa::Vec3Slice<'_> {
+        crate::soa::Vec3Slice {
+            x: self.x,
+            y: self.y,
+            z: self.z,
         }
     }
-    let tail: f64 = a[whole..]
-        .iter()
-        .zip(&b[whole..])
-        .map(|(x, y)| (x * y) as f64)
-        .sum();
-    lanes.iter().map(|&l| l as f64).sum::<f64>() + tail
-}
-
-fn sum_pairs(partials: &[[f64; 2]]) -> (f64, f64) {
-    partials
-        .iter()
-        .fold((0.0, 0.0), |acc, s| (acc.0 + s[0], acc.1 + s[1]))
 }

@@ -8,15 +8,19 @@
 
 mod explicit_euler;
 mod implicit_euler;
+mod projective_dynamics;
 mod rk4;
+pub mod solver;
 mod symplectic_euler;
 mod verlet;
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-pub use implicit_euler::{ImplicitEuler, SolverSettings, SolverStats};
+pub use implicit_euler::ImplicitEuler;
+pub use projective_dynamics::ProjectiveDynamics;
 pub use rk4::Rk4;
+pub use solver::{Preconditioner, SolverSettings, SolverStats};
 pub use verlet::Verlet;
 
 use crate::error::{Error, Result};
@@ -37,15 +41,17 @@ pub enum IntegratorKind {
     Verlet,
     Rk4,
     ImplicitEuler,
+    ProjectiveDynamics,
 }
 
 impl IntegratorKind {
-    pub const ALL: [IntegratorKind; 5] = [
+    pub const ALL: [IntegratorKind; 6] = [
         IntegratorKind::ExplicitEuler,
         IntegratorKind::SymplecticEuler,
         IntegratorKind::Verlet,
         IntegratorKind::Rk4,
         IntegratorKind::ImplicitEuler,
+        IntegratorKind::ProjectiveDynamics,
     ];
 
     /// Its name in scenes, `effects` and `profile()`.
@@ -56,6 +62,7 @@ impl IntegratorKind {
             IntegratorKind::Verlet => "verlet",
             IntegratorKind::Rk4 => "rk4",
             IntegratorKind::ImplicitEuler => "implicit_euler",
+            IntegratorKind::ProjectiveDynamics => "projective_dynamics",
         }
     }
 
@@ -90,12 +97,15 @@ impl IntegratorKind {
             IntegratorKind::ImplicitEuler => {
                 Integrator::ImplicitEuler(Box::new(ImplicitEuler::new(solver)))
             }
+            IntegratorKind::ProjectiveDynamics => {
+                Integrator::ProjectiveDynamics(Box::new(ProjectiveDynamics::new(solver)))
+            }
         }
     }
 
     /// The largest substep `h` (s) at which this integrator stays stable on a mode of angular
     /// frequency `omega` (rad/s, `omega2 = omega^2`) damped at a rate between `gamma_lo` and
-    /// `gamma_hi` (1/s), or None when any is (implicit Euler). For the damped oscillator
+    /// `gamma_hi` (1/s), or None when any is (the implicit solvers). For the damped oscillator
     /// `x'' = -omega^2 x - gamma x'`:
     ///
     /// - symplectic Euler and Verlet need `h^2 omega^2 + 2 h gamma < 4` (Jury's test on the step
@@ -112,7 +122,8 @@ impl IntegratorKind {
             (d > 0.0).then(|| gamma / 2.0 + d.sqrt())
         };
         match self {
-            IntegratorKind::ImplicitEuler => None,
+            // Both solve backward Euler implicitly; neither has a step limit.
+            IntegratorKind::ImplicitEuler | IntegratorKind::ProjectiveDynamics => None,
             IntegratorKind::Rk4 => Some(match overdamped(gamma_hi) {
                 Some(lambda) => 2.785 / lambda,
                 None => 2.0 * std::f64::consts::SQRT_2 / omega,
@@ -190,6 +201,7 @@ pub enum Integrator {
     Verlet(Verlet),
     Rk4(Box<Rk4>),
     ImplicitEuler(Box<ImplicitEuler>),
+    ProjectiveDynamics(Box<ProjectiveDynamics>),
 }
 
 impl Integrator {
@@ -200,6 +212,7 @@ impl Integrator {
             Integrator::Verlet(_) => IntegratorKind::Verlet,
             Integrator::Rk4(_) => IntegratorKind::Rk4,
             Integrator::ImplicitEuler(_) => IntegratorKind::ImplicitEuler,
+            Integrator::ProjectiveDynamics(_) => IntegratorKind::ProjectiveDynamics,
         }
     }
 
@@ -217,6 +230,7 @@ impl Integrator {
             Integrator::Verlet(v) => v.step(h, ctx),
             Integrator::Rk4(r) => r.step(h, ctx),
             Integrator::ImplicitEuler(i) => i.step(h, ctx),
+            Integrator::ProjectiveDynamics(p) => p.step(h, ctx),
         }
     }
 
@@ -257,6 +271,7 @@ impl Integrator {
     pub fn solver_stats(&self) -> Option<SolverStats> {
         match self {
             Integrator::ImplicitEuler(i) => Some(i.solver_stats()),
+            Integrator::ProjectiveDynamics(p) => Some(p.solver_stats()),
             _ => None,
         }
     }

@@ -15,7 +15,7 @@ use super::conv::{
 use super::errors::IntoPyResult;
 use super::shared::{Held, Shared};
 use super::state;
-use crate::{Error, Simulation};
+use crate::{Error, IntegratorKind, Simulation};
 
 /// The solver. See `rustcloth.Simulation` for the documented API.
 #[pyclass(name = "Simulation", module = "rustcloth._core", frozen)]
@@ -23,7 +23,7 @@ pub(crate) struct PySimulation {
     pub(crate) shared: Shared,
 }
 
-/// The warning to give once per simulation when the implicit solver stopped at its cap.
+/// The warning to give once per simulation when an implicit solver stopped at its cap.
 fn not_converged_warning(held: &mut Held) -> Option<String> {
     let stats = held.sim.solver_stats()?;
     if stats.not_converged == 0 || held.warned_not_converged {
@@ -31,14 +31,28 @@ fn not_converged_warning(held: &mut Held) -> Option<String> {
     }
     held.warned_not_converged = true;
     let scene = held.sim.scene();
+    let (what, cap, tolerance, remedy) = match scene.integrator {
+        IntegratorKind::ProjectiveDynamics => (
+            "the local-global iterations stopped at pd_iterations",
+            scene.pd_iterations,
+            ("relative gradient", "pd_tolerance", scene.pd_tolerance),
+            "the last iterate. Raise pd_iterations, loosen pd_tolerance",
+        ),
+        _ => (
+            "the conjugate gradient stopped at cg_max_iterations",
+            scene.cg_max_iterations,
+            ("relative residual", "cg_tolerance", scene.cg_tolerance),
+            "the partial solution. Raise cg_max_iterations, loosen cg_tolerance",
+        ),
+    };
     Some(format!(
-        "implicit_euler: the conjugate gradient stopped at cg_max_iterations = {} with \
-         relative residual up to {:.2e} > cg_tolerance = {:.0e} ({} of {} solves so far); \
-         the step was taken with the partial solution. Raise cg_max_iterations, loosen \
-         cg_tolerance or reduce dt. profile() counts these.",
-        scene.cg_max_iterations,
+        "{}: {what} = {cap} with {} up to {:.2e} > {} = {:.0e} ({} of {} solves so far); the \
+         step was taken with {remedy} or reduce dt. profile() counts these.",
+        scene.integrator,
+        tolerance.0,
         stats.worst_residual,
-        scene.cg_tolerance,
+        tolerance.1,
+        tolerance.2,
         stats.not_converged,
         stats.solves,
     ))
@@ -364,7 +378,9 @@ impl PySimulation {
         Ok((passes, profile.steps, profile.total.as_secs_f64()))
     }
 
-    /// Statistics of the implicit solver, or None for integrators that solve nothing.
+    /// Statistics of the implicit solver (`solves`, `iterations`, `last_iterations`,
+    /// `last_residual`, `not_converged`, `worst_residual`, `most_iterations`, `factorizations`,
+    /// `setup_seconds`, `solve_seconds`), or None for integrators that solve nothing.
     fn solver_stats<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
         let Some(stats) = self.with(py, |h| Ok(h.sim.solver_stats()))? else {
             return Ok(None);
@@ -376,6 +392,10 @@ impl PySimulation {
         dict.set_item("last_residual", stats.last_residual)?;
         dict.set_item("not_converged", stats.not_converged)?;
         dict.set_item("worst_residual", stats.worst_residual)?;
+        dict.set_item("most_iterations", stats.most_iterations)?;
+        dict.set_item("factorizations", stats.factorizations)?;
+        dict.set_item("setup_seconds", stats.setup_seconds)?;
+        dict.set_item("solve_seconds", stats.solve_seconds)?;
         Ok(Some(dict))
     }
 

@@ -33,6 +33,20 @@ impl Scene {
                 "must be an integer >= 1, got 0",
             ));
         }
+        if self.pd_iterations == 0 {
+            return Err(Error::value(
+                "pd_iterations",
+                "must be an integer >= 1, got 0",
+            ));
+        }
+        check_scalar("pd_tolerance", self.pd_tolerance, Bound::NonNegative)?;
+        let rho = self.pd_chebyshev_rho;
+        if !(rho.is_finite() && (0.0..1.0).contains(&rho)) {
+            return Err(Error::value(
+                "pd_chebyshev_rho",
+                format!("must be a number in [0, 1), got {rho}"),
+            ));
+        }
         self.cloth.validate()?;
         if let Some(floor) = &self.floor {
             check_scalar("floor.height", floor.height, Bound::Any)?;

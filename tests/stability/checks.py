@@ -9,7 +9,8 @@ import rustcloth
 from conftest import state_digest
 
 EXPLICIT = ["explicit_euler", "symplectic_euler", "verlet", "rk4"]
-ALL = [*EXPLICIT, "implicit_euler"]
+IMPLICIT = ["implicit_euler", "projective_dynamics"]
+ALL = [*EXPLICIT, *IMPLICIT]
 
 
 def check_state(sim: rustcloth.Simulation, bound: float, dragged: set[int] = frozenset(),
@@ -68,9 +69,9 @@ def hanging(n: int = 12, **changes) -> rustcloth.Scene:
 
 
 def stable(scene: rustcloth.Scene, implicit_dt: float = 1 / 60) -> rustcloth.Scene:
-    """The scene at half its integrator's stable dt (at most its own dt); implicit Euler at
-    ``implicit_dt``."""
-    if scene.integrator == "implicit_euler":
+    """The scene at half its integrator's stable dt (at most its own dt); the implicit solvers
+    at ``implicit_dt``."""
+    if scene.integrator in IMPLICIT:
         return scene.replace(dt=implicit_dt)
     limit = scene.stability_report(warn=False).limit
     return scene if limit is None else scene.replace(dt=min(scene.dt, 0.5 * limit))

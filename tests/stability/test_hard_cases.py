@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import rustcloth
 from rustcloth import StabilityWarning
-from stability.checks import ALL, EXPLICIT, check_state, hanging, run_checked, stable
+from stability.checks import ALL, EXPLICIT, IMPLICIT, check_state, hanging, run_checked, stable
 
 
 def make(scene: rustcloth.Scene) -> rustcloth.Simulation:
@@ -27,8 +27,9 @@ def make(scene: rustcloth.Scene) -> rustcloth.Simulation:
 STIFF = {"k_structural": 1e5}
 
 
-def test_very_stiff_springs_hold_with_implicit_euler():
-    sim = make(hanging(integrator="implicit_euler", cloth=STIFF,
+@pytest.mark.parametrize("integrator", IMPLICIT)
+def test_very_stiff_springs_hold_with_the_implicit_solvers(integrator):
+    sim = make(hanging(integrator=integrator, cloth=STIFF,
                        watchdog={"max_stretch": 1.2}))
     assert run_checked(sim, 200) is None
     assert sim.watchdog_stats()["caught"] == 0
@@ -66,8 +67,9 @@ def test_explicit_euler_past_max_substeps_is_reported():
 # ----- large steps: 1/30 s and 1/15 s -----------------------------------------------------------
 
 @pytest.mark.parametrize("dt", [1 / 30, 1 / 15])
-def test_large_steps_hold_with_implicit_euler(dt):
-    sim = make(hanging(integrator="implicit_euler", dt=dt, substeps=1, air_drag=0.001))
+@pytest.mark.parametrize("integrator", IMPLICIT)
+def test_large_steps_hold_with_the_implicit_solvers(integrator, dt):
+    sim = make(hanging(integrator=integrator, dt=dt, substeps=1, air_drag=0.001))
     assert run_checked(sim, 60) is None
 
 
@@ -100,7 +102,7 @@ def test_mass_ratio_of_1000_to_1_across_the_cloth(integrator):
     masses = np.where((i + j).ravel() % 2 == 0, 1e-3, 1.0)
     sim.set_masses(masses)
     np.testing.assert_array_equal(sim.masses, masses.astype(np.float32))
-    steps = 120 if integrator == "implicit_euler" else 400
+    steps = 120 if integrator in IMPLICIT else 400
     assert run_checked(sim, steps) is None
 
 
@@ -117,11 +119,21 @@ def test_very_light_particles(integrator):
 @pytest.mark.parametrize("integrator", ALL)
 def test_a_cloth_collapsed_into_one_point_stays_finite(integrator):
     # Every spring has zero length and so no direction: no spring force, nothing to divide by.
-    sim = rustcloth.Simulation(stable(hanging(integrator=integrator, cloth={"pins": []})))
+    # It is an unstable equilibrium (a spring of rest length L at length ~0 pushes with k L as
+    # soon as rounding gives it a direction), so it stays a point only where every particle's
+    # arithmetic is the same: the explicit integrators, and implicit Euler with the Jacobi
+    # preconditioner. Solvers that couple the particles (the multigrid preconditioner,
+    # projective dynamics' factorisation) round differently at the edges; they must stay finite.
+    scene = stable(hanging(integrator=integrator, cloth={"pins": []}))
+    exact = integrator in EXPLICIT or integrator == "implicit_euler"
+    if integrator == "implicit_euler":
+        scene = scene.replace(preconditioner="jacobi")
+    sim = rustcloth.Simulation(scene)
     sim.set_positions(np.tile([0.3, 1.0, -0.2], (sim.num_particles, 1)))
     assert run_checked(sim, 200) is None
     x = sim.positions
-    assert np.ptp(x, axis=0).max() == 0.0, "a point cloth with no forces but gravity stays one"
+    if exact:
+        assert np.ptp(x, axis=0).max() == 0.0, "a point cloth with only gravity stays one"
 
 
 @pytest.mark.parametrize("integrator", ALL)
