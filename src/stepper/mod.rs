@@ -22,6 +22,7 @@ use crate::integrators::{History, Integrator, IntegratorKind, SolverStats, StepC
 use crate::model::Model;
 use crate::parallel::{chunk_len, on_pool};
 use crate::profile::Profile;
+use crate::self_collision::SelfCollisionStats;
 use crate::soa::Vec3s;
 use crate::state::{Kinematics, State};
 use pipeline::Pipeline;
@@ -393,6 +394,11 @@ impl Stepper {
 
     pub fn solver_stats(&self) -> Option<SolverStats> {
         self.pipeline.integrator.solver_stats()
+    }
+
+    /// What the self-collision pass did, when the scene has one.
+    pub fn self_collision_stats(&self) -> Option<SelfCollisionStats> {
+        self.pipeline.self_collision.as_ref().map(|s| s.stats())
     }
 
     /// The total force on each particle of `state`, for tests and diagnostics.
