@@ -1,6 +1,6 @@
 //! The broad phase: a spatial hash of axis-aligned boxes. Each box is entered in every cell it
-//! overlaps; the cell is as large as the largest box, so a box overlaps at most two cells along
-//! each axis and a query visits at most eight. Built by a counting sort in item order, so the
+//! overlaps, a query visits every cell its box overlaps; the cell is about the mean box, so a
+//! typical box overlaps two cells along each axis. Built by a counting sort in item order, so the
 //! buckets (and every answer) are the same for any thread count.
 
 use glam::Vec3;
@@ -46,12 +46,17 @@ pub struct HashGrid {
 impl HashGrid {
     /// Buckets `boxes` (all finite) by cell.
     pub fn build(&mut self, boxes: &[Aabb]) {
-        let extent = boxes
-            .iter()
-            .map(|b| (b.max - b.min).max_element())
-            .fold(0.0f32, f32::max);
-        // A cell no smaller than any box; never zero (a cloth of coincident points).
-        self.inv_cell = 1.0 / extent.max(1e-9);
+        let (mut largest, mut sum) = (0.0f32, 0.0f64);
+        for b in boxes {
+            let e = (b.max - b.min).max_element();
+            largest = largest.max(e);
+            sum += e as f64;
+        }
+        let mean = (sum / boxes.len().max(1) as f64) as f32;
+        // About the mean box: a query then meets few items per cell. Never below an eighth of
+        // the largest, so that one stretched box spans at most nine cells along an axis; never
+        // zero (a cloth of coincident points).
+        self.inv_cell = 1.0 / mean.max(largest / 8.0).max(1e-9);
         let buckets = (2 * boxes.len()).next_power_of_two().max(16);
         self.mask = buckets - 1;
         self.start.clear();
