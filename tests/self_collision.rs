@@ -157,6 +157,7 @@ fn twist_never_intersects_and_does_without_the_pass() {
     let (sim, found) = run_twist(twist_scene(20), 2.0, 2.0, 5);
     assert!(found.iter().all(|&k| k == 0), "intersections: {found:?}");
     let stats = sim.self_collision_stats().unwrap();
+    eprintln!("twist: {stats:?}");
     assert!(stats.contacts > 1000, "a twist in heavy contact: {stats:?}");
     assert!(stats.min_distance > 0.0, "{stats:?}");
     // The same twist without the pass passes through itself: the scene tests something.
@@ -202,6 +203,7 @@ fn pile_never_intersects_with_any_integrator() {
             "{integrator:?}: intersections {found:?}"
         );
         let stats = sim.self_collision_stats().unwrap();
+        eprintln!("{integrator:?}: {stats:?}");
         assert!(stats.contacts > 100, "{integrator:?}: {stats:?}");
     }
 }
@@ -215,6 +217,7 @@ fn fold_never_intersects_with_any_integrator() {
             "{integrator:?}: intersections {found:?}"
         );
         let stats = sim.self_collision_stats().unwrap();
+        eprintln!("{integrator:?}: {stats:?}");
         assert!(stats.contacts > 100, "{integrator:?}: {stats:?}");
     }
 }
@@ -286,6 +289,7 @@ fn a_free_cloth_colliding_with_itself_keeps_its_momentum() {
     let total_mass = 0.001 * (25.0 - 1.0) * 12.0;
     // Round-off of float32 velocities below 1 m/s: ~1e-7 relative per step, over 200 steps.
     let tolerance = 1e-5 * total_mass * 2.0;
+    eprintln!("momentum {before} -> {after}, {stats:?}");
     assert!(
         (after - before).length() < tolerance,
         "momentum {before} -> {after} (tolerance {tolerance:e})"

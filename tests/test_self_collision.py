@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 import rustcloth
 from rustcloth import Scene, Simulation
 from rustcloth.errors import ParameterError, ParameterTypeError

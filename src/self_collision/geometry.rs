@@ -41,7 +41,7 @@ pub fn point_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> [f64; 3] {
         return [0.0, 1.0 - w, w];
     }
     let denom = va + vb + vc;
-    if !(denom > 0.0) {
+    if denom.is_nan() || denom <= 0.0 {
         // Degenerate beyond what the regions caught (collinear with p off the line): the
         // nearest of the three vertices is a safe answer, never a NaN.
         let d = [

@@ -38,7 +38,8 @@
 //!    two triangles sharing no vertex can only start to intersect through a vertex touching a
 //!    face or an edge touching an edge.
 //!
-//! Everything parallel is a map in item order; all updates are sequential in pair order, so the
+//! The candidate lists are collected afresh each substep (this pass allocates; the others do
+//! not). Everything parallel is a map in item order; all updates are sequential in pair order, so the
 //! result is bitwise the same for any thread count.
 
 mod geometry;

@@ -5,7 +5,8 @@
 //! `pipeline.rs`. The integrator writes into a scratch buffer, swapped with the state only when
 //! the result is finite and within the watchdog's limits, so a step that goes wrong leaves the
 //! previous state in place; what then happens (a retry, a rollback, an error) is in
-//! `recovery.rs`, the watchdog's memory in `watchdog.rs`. A step allocates nothing.
+//! `recovery.rs`, the watchdog's memory in `watchdog.rs`. A step allocates nothing, except in the
+//! self-collision pass (its candidate lists are built afresh each substep).
 
 mod pipeline;
 mod recovery;
