@@ -916,8 +916,10 @@ def test_issue_11_item_10_dicts_and_sets_are_not_vectors(sim):
 def test_issue_11_item_10_complex_arrays_are_not_vectors(sim):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # as users run: a ComplexWarning is no refusal
+        # The array's dtype is wrong as a whole, before any component is read.
         _refused(sim, lambda s: s.pin(3, target=np.array([1j, 0, 0])), ParameterTypeError,
-                 "target[0]")
+                 "target")
+        _refused(sim, lambda s: s.pin(3, target=[1j, 0, 0]), ParameterTypeError, "target[0]")
 
 
 def test_issue_11_item_10_scene_tables_are_not_lists():
