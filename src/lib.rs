@@ -31,6 +31,7 @@ pub mod picking;
 pub mod pins;
 pub mod profile;
 pub mod scene;
+pub mod self_collision;
 pub mod simd;
 pub mod simulation;
 pub mod snapshot;

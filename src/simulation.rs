@@ -199,6 +199,12 @@ impl Simulation {
         self.stepper.solver_stats()
     }
 
+    /// What the self-collision pass did since the simulation was built (None without
+    /// `[self_collision]`).
+    pub fn self_collision_stats(&self) -> Option<crate::self_collision::SelfCollisionStats> {
+        self.stepper.self_collision_stats()
+    }
+
     /// Increments whenever positions change.
     pub fn state_version(&self) -> u64 {
         self.state.version

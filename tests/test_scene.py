@@ -12,7 +12,7 @@ def test_defaults_are_filled_in_and_documented_keys_exist():
     assert set(d) == {
         "integrator", "dt", "substeps", "gravity", "air_drag", "cloth", "floor", "spheres",
         "cg_tolerance", "cg_max_iterations", "preconditioner", "pd_iterations", "pd_tolerance",
-        "pd_chebyshev_rho", "watchdog", "strain_limit",
+        "pd_chebyshev_rho", "watchdog", "strain_limit", "self_collision",
     }
     assert d["preconditioner"] == "multigrid" and d["pd_iterations"] == 20
     assert set(d["cloth"]) >= {

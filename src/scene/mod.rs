@@ -15,7 +15,8 @@ use serde::{Deserialize, Serialize};
 
 pub use pins::PIN_GROUPS;
 pub use specs::{
-    ClothSpec, FloorSpec, OnTrouble, PinSpec, Plane, SphereSpec, StrainLimitSpec, WatchdogSpec,
+    ClothSpec, FloorSpec, OnTrouble, PinSpec, Plane, SelfCollisionSpec, SphereSpec,
+    StrainLimitSpec, WatchdogSpec,
 };
 pub use stability::stable_substep;
 pub(crate) use validate::check_substep;
@@ -78,6 +79,9 @@ pub struct Scene {
     /// Provot strain limiting after each substep; absent means none (no pass).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub strain_limit: Option<StrainLimitSpec>,
+    /// Self-collision after each substep; absent means none (no pass).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub self_collision: Option<SelfCollisionSpec>,
 }
 
 impl Default for Scene {
@@ -99,6 +103,7 @@ impl Default for Scene {
             spheres: Vec::new(),
             watchdog: WatchdogSpec::default(),
             strain_limit: None,
+            self_collision: None,
         }
     }
 }
@@ -109,6 +114,9 @@ const BUILTIN: &[(&str, &str)] = &[
     ("drape", include_str!("../../scenes/drape.toml")),
     ("freefall", include_str!("../../scenes/freefall.toml")),
     ("curtain", include_str!("../../scenes/curtain.toml")),
+    ("twist", include_str!("../../scenes/twist.toml")),
+    ("fold", include_str!("../../scenes/fold.toml")),
+    ("pile", include_str!("../../scenes/pile.toml")),
 ];
 
 impl Scene {

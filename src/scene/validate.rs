@@ -100,6 +100,28 @@ impl Scene {
                 ));
             }
         }
+        if let Some(sc) = &self.self_collision {
+            check_scalar("self_collision.thickness", sc.thickness, Bound::Positive)?;
+            let c = &self.cloth;
+            let spacing = (c.size[0] / (c.nx - 1) as f64).min(c.size[1] / (c.ny - 1) as f64);
+            if sc.thickness >= 0.5 * spacing {
+                return Err(Error::value(
+                    "self_collision.thickness",
+                    format!(
+                        "must be below half the cloth's grid spacing ({spacing} m), so that a \
+                         cloth at rest is not in contact with itself; got {}",
+                        sc.thickness
+                    ),
+                ));
+            }
+            check_scalar("self_collision.friction", sc.friction, Bound::NonNegative)?;
+            if sc.iterations == 0 {
+                return Err(Error::value(
+                    "self_collision.iterations",
+                    "must be an integer >= 1, got 0",
+                ));
+            }
+        }
         Ok(())
     }
 }
@@ -228,7 +250,13 @@ pub(super) fn require_tables(scene: &toml::Value) -> Result<()> {
             value.type_str()
         ),
     };
-    for key in ["cloth", "floor", "watchdog", "strain_limit"] {
+    for key in [
+        "cloth",
+        "floor",
+        "watchdog",
+        "strain_limit",
+        "self_collision",
+    ] {
         match scene.get(key) {
             Some(value) if !value.is_table() => return Err(not_a_table(key.into(), value)),
             _ => {}

@@ -5,7 +5,8 @@
 //! `pipeline.rs`. The integrator writes into a scratch buffer, swapped with the state only when
 //! the result is finite and within the watchdog's limits, so a step that goes wrong leaves the
 //! previous state in place; what then happens (a retry, a rollback, an error) is in
-//! `recovery.rs`, the watchdog's memory in `watchdog.rs`. A step allocates nothing.
+//! `recovery.rs`, the watchdog's memory in `watchdog.rs`. A step allocates nothing, except in the
+//! self-collision pass (its candidate lists are built afresh each substep).
 
 mod pipeline;
 mod recovery;
@@ -22,6 +23,7 @@ use crate::integrators::{History, Integrator, IntegratorKind, SolverStats, StepC
 use crate::model::Model;
 use crate::parallel::{chunk_len, on_pool};
 use crate::profile::Profile;
+use crate::self_collision::SelfCollisionStats;
 use crate::soa::Vec3s;
 use crate::state::{Kinematics, State};
 use pipeline::Pipeline;
@@ -393,6 +395,11 @@ impl Stepper {
 
     pub fn solver_stats(&self) -> Option<SolverStats> {
         self.pipeline.integrator.solver_stats()
+    }
+
+    /// What the self-collision pass did, when the scene has one.
+    pub fn self_collision_stats(&self) -> Option<SelfCollisionStats> {
+        self.pipeline.self_collision.as_ref().map(|s| s.stats())
     }
 
     /// The total force on each particle of `state`, for tests and diagnostics.

@@ -7,7 +7,11 @@
 //! 2. the integrator, writing the end-of-step state into a second buffer;
 //! 3. kinematic pins (while the user drags a pinned particle);
 //! 4. strain limiting (when the scene asks for it, `src/strain_limit/`);
-//! 5. colliders (spheres, then the floor).
+//! 5. colliders (spheres, then the floor);
+//! 6. self-collision (when the scene asks for it, `src/self_collision/`), last, so that its
+//!    guarantee covers everything the passes before it did. It only shortens a particle's
+//!    motion along its path from the substep's start, so the floor (a half-space, which holds
+//!    both ends of that path) stays satisfied.
 
 use std::time::Instant;
 
@@ -21,6 +25,7 @@ use crate::model::Model;
 use crate::pins::KinematicPins;
 use crate::profile::Profile;
 use crate::scene::Scene;
+use crate::self_collision::SelfCollision;
 use crate::state::{Kinematics, State};
 use crate::strain_limit::StrainLimit;
 
@@ -31,6 +36,8 @@ pub(super) struct Pipeline {
     /// Only when the scene asks for strain limiting.
     pub strain_limit: Option<StrainLimit>,
     pub colliders: Vec<Collider>,
+    /// Only when the scene asks for self-collision.
+    pub self_collision: Option<SelfCollision>,
 }
 
 impl Pipeline {
@@ -43,6 +50,10 @@ impl Pipeline {
                 .as_ref()
                 .map(|s| StrainLimit::new(s.max_strain as f32, s.iterations)),
             colliders: colliders_of(scene),
+            self_collision: scene
+                .self_collision
+                .as_ref()
+                .map(|s| SelfCollision::new(s.thickness as f32, s.friction as f32, s.iterations)),
         }
     }
 
@@ -57,11 +68,14 @@ impl Pipeline {
             out.push(StrainLimit::NAME);
         }
         out.extend(self.colliders.iter().map(Collider::name));
+        if self.self_collision.is_some() {
+            out.push(SelfCollision::NAME);
+        }
         out
     }
 
     /// The passes after the integrator, on `next`: kinematic pins, strain limiting,
-    /// colliders. Returns whether what they wrote is finite; they write few values (a drag,
+    /// colliders, self-collision. Returns whether what they wrote is finite; they write few values (a drag,
     /// contacts, limited springs), so checking costs next to nothing.
     pub fn after_integration(
         &mut self,
@@ -93,6 +107,11 @@ impl Pipeline {
             finite &= collider.resolve(&state.kin, next, &model.particles, chunk);
             profile.add(collider.name(), t.elapsed());
         }
+        if let Some(contact) = &mut self.self_collision {
+            let t = Instant::now();
+            finite &= contact.apply(model, &state.kin, next);
+            profile.add(SelfCollision::NAME, t.elapsed());
+        }
         finite
     }
 
@@ -102,6 +121,10 @@ impl Pipeline {
                 .strain_limit
                 .as_ref()
                 .map_or(0, StrainLimit::heap_bytes)
+            + self
+                .self_collision
+                .as_ref()
+                .map_or(0, SelfCollision::heap_bytes)
     }
 }
 
