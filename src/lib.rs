@@ -17,6 +17,7 @@
 //! This crate is pure Rust; the Python binding lives behind the `python` feature.
 
 pub mod collisions;
+pub mod cutting;
 pub mod diagnostics;
 pub mod error;
 pub mod forces;

@@ -374,6 +374,19 @@ pub fn pick_triangle_scan(
     pos: &Vec3s,
     alive: &[bool],
 ) -> Option<TriangleHit> {
+    pick_triangle_scan_where(ray, grid, pos, |id| {
+        cell_triangle(grid, id).iter().all(|&q| alive[q])
+    })
+}
+
+/// [`pick_triangle_scan`] over the triangles `drawn` says are there (by id), such as
+/// [`crate::model::Model::triangle_drawn`] after cuts that severed springs.
+pub fn pick_triangle_scan_where(
+    ray: &Ray,
+    grid: Grid,
+    pos: &Vec3s,
+    drawn: impl Fn(usize) -> bool,
+) -> Option<TriangleHit> {
     let nx = grid.nx;
     let rows: Vec<(Vec3, Vec3)> = (0..grid.ny)
         .map(|j| {
@@ -406,10 +419,10 @@ pub fn pick_triangle_scan(
         }
         let first = 2 * j * (nx - 1);
         for id in first..first + 2 * (nx - 1) {
-            let tri = cell_triangle(grid, id);
-            if !tri.iter().all(|&q| alive[q]) {
+            if !drawn(id) {
                 continue;
             }
+            let tri = cell_triangle(grid, id);
             let [a, b, c] = tri.map(|q| pos.get(q));
             if let Some((distance, barycentric)) = ray_triangle(ray, a, b, c) {
                 let hit = TriangleHit {

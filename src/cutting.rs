@@ -1,0 +1,228 @@
+//! Cuts that sever springs: a mouse stroke (a sequence of rays) sweeps a surface, and every live
+//! spring whose segment crosses it is severed. No particle is removed, so mass is conserved to
+//! the bit; the pieces fall apart because nothing joins them any more. Also here: which of the
+//! mesh's triangles a severed cell still draws, and how many pieces the cloth is in.
+//!
+//! **Representation.** Physics stays on the grid: a severed spring is a slot whose `active`
+//! flag is 0, which every pass already reads (forces, implicit solvers, strain limiting, the
+//! watchdog), so a cut costs the step nothing and the particle count never changes (no spare
+//! capacity, no reallocation, no renumbering of the BVH leaves). The mesh is derived per cell:
+//! a triangle of a cell is drawn only while its three corners are joined within that cell by
+//! live springs ([`triangle_drawn`]), so no drawn triangle spans a cut. The price: triangles
+//! have particles as vertices, so the rendered edge runs along the particles next to the cut
+//! (up to one grid spacing from the stroke), not through the cut point itself.
+//!
+//! The swept surface between rays `k` and `k + 1` is the quad `o_k, o_{k+1}, o_{k+1} + F d_{k+1},
+//! o_k + F d_k`, split into two triangles, with `F` the distance from the farthest ray origin to
+//! the farthest corner of the live cloth's bounding box: the surface reaches through the whole
+//! cloth and no farther. Everything is in f64.
+
+use glam::DVec3;
+
+use crate::grid::{Grid, SpringKind};
+use crate::picking::{cell_triangle, Ray};
+use crate::soa::Vec3s;
+use crate::springs::Springs;
+
+/// A severed spring: its kind and its anchor particle (the slot it is stored in).
+pub type SpringSlot = (SpringKind, usize);
+
+/// The live springs whose segments cross the surface the rays sweep, each once, in order of
+/// (quad, kind, anchor). Fewer than two rays sweep nothing; a quad of two equal rays (a mouse
+/// that did not move) has no area and crosses nothing.
+pub fn springs_crossing_stroke(
+    grid: Grid,
+    springs: &Springs,
+    alive: &[bool],
+    pos: &Vec3s,
+    rays: &[Ray],
+) -> Vec<SpringSlot> {
+    let mut out = Vec::new();
+    if rays.len() < 2 {
+        return out;
+    }
+    let Some(far) = far_distance(pos, alive, rays) else {
+        return out; // nothing alive
+    };
+    // One flag per slot, so a spring crossing two quads (or both halves of one) counts once.
+    let mut taken: [Vec<bool>; 6] = Default::default();
+    for t in &mut taken {
+        *t = vec![false; grid.len()];
+    }
+    let mut side = vec![0i8; grid.len()];
+    for pair in rays.windows(2) {
+        let (o0, d0) = (pair[0].origin.as_dvec3(), pair[0].dir.as_dvec3());
+        let (o1, d1) = (pair[1].origin.as_dvec3(), pair[1].dir.as_dvec3());
+        let quad = [o0, o1, o1 + far * d1, o0 + far * d0];
+        for tri in [[quad[0], quad[1], quad[2]], [quad[0], quad[2], quad[3]]] {
+            let normal = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+            if normal == DVec3::ZERO {
+                continue; // a degenerate triangle: no surface
+            }
+            // Which side of the triangle's plane each particle is on: a spring can only cross
+            // the triangle if its ends are on different sides (or one lies on the plane), which
+            // leaves the exact test for the few springs near the plane.
+            for (p, s) in side.iter_mut().enumerate() {
+                let d = normal.dot(pos.get(p).as_dvec3() - tri[0]);
+                *s = (d > 0.0) as i8 - (d < 0.0) as i8;
+            }
+            for kind in SpringKind::ALL {
+                let k = kind.index();
+                let o = grid.offset(kind);
+                for a in 0..grid.len().saturating_sub(o) {
+                    let b = a + o;
+                    if springs.active[k][a] == 0.0
+                        || taken[k][a]
+                        || side[a] * side[b] > 0
+                        || !(alive[a] && alive[b])
+                    {
+                        continue;
+                    }
+                    let (pa, pb) = (pos.get(a).as_dvec3(), pos.get(b).as_dvec3());
+                    if segment_crosses_triangle(pa, pb, tri) {
+                        taken[k][a] = true;
+                        out.push((kind, a));
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Distance along the rays that reaches every live particle from every ray origin: the
+/// farthest corner of the live particles' bounding box, plus one metre so that a particle on
+/// the box's corner is strictly inside the swept surface. `None` if no particle is alive.
+fn far_distance(pos: &Vec3s, alive: &[bool], rays: &[Ray]) -> Option<f64> {
+    let mut lo = DVec3::splat(f64::INFINITY);
+    let mut hi = DVec3::splat(f64::NEG_INFINITY);
+    for p in (0..pos.len()).filter(|&p| alive[p]) {
+        let x = pos.get(p).as_dvec3();
+        lo = lo.min(x);
+        hi = hi.max(x);
+    }
+    if lo.x > hi.x {
+        return None;
+    }
+    let far = rays
+        .iter()
+        .map(|r| {
+            let o = r.origin.as_dvec3();
+            (o - lo).abs().max((o - hi).abs()).length()
+        })
+        .fold(0.0, f64::max);
+    Some(far + 1.0)
+}
+
+/// Whether the closed segment `p-q` meets the closed triangle `tri` (Moeller-Trumbore with the
+/// segment's own parameter in `[0, 1]`). A segment lying in the triangle's plane never does:
+/// it is parallel to the surface, not across it.
+pub fn segment_crosses_triangle(p: DVec3, q: DVec3, tri: [DVec3; 3]) -> bool {
+    let dir = q - p;
+    let (e1, e2) = (tri[1] - tri[0], tri[2] - tri[0]);
+    let h = dir.cross(e2);
+    let det = e1.dot(h);
+    if det == 0.0 {
+        return false;
+    }
+    let inv = 1.0 / det;
+    let s = p - tri[0];
+    let u = inv * s.dot(h);
+    if !(0.0..=1.0).contains(&u) {
+        return false;
+    }
+    let qv = s.cross(e1);
+    let v = inv * dir.dot(qv);
+    if v < 0.0 || u + v > 1.0 {
+        return false;
+    }
+    let t = inv * e2.dot(qv);
+    (0.0..=1.0).contains(&t)
+}
+
+/// Whether triangle `id` ([`cell_triangle`]) is drawn: its three corners are alive and joined
+/// within their cell by live springs (the cell's four edges and two diagonals). On a cloth
+/// that was never severed this is "all three corners alive", as before cuts severed springs;
+/// after a cut through the cell, the corners on the two sides are not joined, so no drawn
+/// triangle spans the cut.
+pub fn triangle_drawn(grid: Grid, springs: &Springs, alive: &[bool], id: usize) -> bool {
+    let tri = cell_triangle(grid, id);
+    if !tri.iter().all(|&q| alive[q]) {
+        return false;
+    }
+    // Corners 0..4 = a (i, j), b (i+1, j), c (i, j+1), d (i+1, j+1).
+    let a = cell_triangle(grid, id & !1)[0];
+    let (b, c) = (a + 1, a + grid.nx);
+    let live = |kind: SpringKind, anchor: usize| springs.active[kind.index()][anchor] != 0.0;
+    let edges = [
+        (0, 1, live(SpringKind::StructuralI, a)),
+        (2, 3, live(SpringKind::StructuralI, c)),
+        (0, 2, live(SpringKind::StructuralJ, a)),
+        (1, 3, live(SpringKind::StructuralJ, b)),
+        (0, 3, live(SpringKind::ShearDiagonal, a)),
+        (1, 2, live(SpringKind::ShearAntiDiagonal, b)),
+    ];
+    // Connected components of four nodes: relax the labels until nothing changes (at most
+    // three rounds for a path of four).
+    let mut label = [0usize, 1, 2, 3];
+    for _ in 0..3 {
+        for &(x, y, on) in &edges {
+            if on {
+                let m = label[x].min(label[y]);
+                label[x] = m;
+                label[y] = m;
+            }
+        }
+    }
+    let corner = |q: usize| match q - a {
+        0 => 0,
+        1 => 1,
+        o if o == grid.nx => 2,
+        _ => 3,
+    };
+    let [x, y, z] = tri.map(corner);
+    label[x] == label[y] && label[y] == label[z]
+}
+
+/// The number of pieces the cloth is in: connected components of the live particles joined by
+/// live springs (of any family, whatever its stiffness). A particle with no live spring is a
+/// piece of its own.
+pub fn pieces(grid: Grid, springs: &Springs, alive: &[bool]) -> usize {
+    let labels = piece_labels(grid, springs, alive);
+    (0..grid.len())
+        .filter(|&p| alive[p] && labels[p] == p as u32)
+        .count()
+}
+
+/// The piece each live particle belongs to, named by the smallest particle index in it
+/// (`u32::MAX` for a removed particle). Union-find over the live springs, `O(n)`.
+pub fn piece_labels(grid: Grid, springs: &Springs, alive: &[bool]) -> Vec<u32> {
+    let n = grid.len();
+    let mut parent: Vec<u32> = (0..n as u32).collect();
+    fn root(parent: &mut [u32], mut x: u32) -> u32 {
+        while parent[x as usize] != x {
+            let up = parent[parent[x as usize] as usize];
+            parent[x as usize] = up; // path halving
+            x = up;
+        }
+        x
+    }
+    for kind in SpringKind::ALL {
+        springs.for_each(grid, kind, |a, b, _| {
+            if alive[a] && alive[b] {
+                let (ra, rb) = (root(&mut parent, a as u32), root(&mut parent, b as u32));
+                // The smaller index stays the root, so a root is its piece's smallest index.
+                parent[ra.max(rb) as usize] = ra.min(rb);
+            }
+        });
+    }
+    (0..n)
+        .map(|p| {
+            if alive[p] {
+                root(&mut parent, p as u32)
+            } else {
+                u32::MAX
+            }
+        })
+        .collect()
+}
