@@ -27,8 +27,8 @@ use crate::springs::Springs;
 /// A severed spring: its kind and its anchor particle (the slot it is stored in).
 pub type SpringSlot = (SpringKind, usize);
 
-/// The live springs whose segments cross the surface the rays sweep, each once, in order of
-/// (quad, kind, anchor). Fewer than two rays sweep nothing; a quad of two equal rays (a mouse
+/// The live springs whose segments cross the surface the rays sweep, in order of (quad,
+/// triangle, row, kind, anchor); a spring crossing twice is listed twice. Fewer than two rays sweep nothing; a quad of two equal rays (a mouse
 /// that did not move) has no area and crosses nothing.
 pub fn springs_crossing_stroke(
     grid: Grid,
@@ -44,12 +44,10 @@ pub fn springs_crossing_stroke(
     let Some(far) = far_distance(pos, alive, rays) else {
         return out; // nothing alive
     };
-    // One flag per slot, so a spring crossing two quads (or both halves of one) counts once.
-    let mut taken: [Vec<bool>; 6] = Default::default();
-    for t in &mut taken {
-        *t = vec![false; grid.len()];
-    }
+    let nx = grid.nx;
     let mut side = vec![0i8; grid.len()];
+    // Per row, where its sides change: see `RowSides`.
+    let mut rows = vec![RowSides::default(); grid.ny];
     for pair in rays.windows(2) {
         let (o0, d0) = (pair[0].origin.as_dvec3(), pair[0].dir.as_dvec3());
         let (o1, d1) = (pair[1].origin.as_dvec3(), pair[1].dir.as_dvec3());
@@ -62,32 +60,101 @@ pub fn springs_crossing_stroke(
             // Which side of the triangle's plane each particle is on: a spring can only cross
             // the triangle if its ends are on different sides (or one lies on the plane), which
             // leaves the exact test for the few springs near the plane.
-            for (p, s) in side.iter_mut().enumerate() {
-                let d = normal.dot(pos.get(p).as_dvec3() - tri[0]);
-                *s = (d > 0.0) as i8 - (d < 0.0) as i8;
+            for (j, row) in rows.iter_mut().enumerate() {
+                *row = RowSides::measure(&mut side[j * nx..(j + 1) * nx], |i| {
+                    let p = j * nx + i;
+                    let x = DVec3::new(pos.x[p] as f64, pos.y[p] as f64, pos.z[p] as f64);
+                    normal.dot(x - tri[0])
+                });
             }
-            for kind in SpringKind::ALL {
-                let k = kind.index();
-                let o = grid.offset(kind);
-                for a in 0..grid.len().saturating_sub(o) {
-                    let b = a + o;
-                    if springs.active[k][a] == 0.0
-                        || taken[k][a]
-                        || side[a] * side[b] > 0
-                        || !(alive[a] && alive[b])
-                    {
-                        continue;
-                    }
-                    let (pa, pb) = (pos.get(a).as_dvec3(), pos.get(b).as_dvec3());
-                    if segment_crosses_triangle(pa, pb, tri) {
-                        taken[k][a] = true;
-                        out.push((kind, a));
+            for j in 0..grid.ny {
+                let Some(columns) = anchor_columns(&rows[j..=(j + 2).min(grid.ny - 1)], nx) else {
+                    continue;
+                };
+                for kind in SpringKind::ALL {
+                    let k = kind.index();
+                    let o = grid.offset(kind);
+                    let row = j * nx + columns.start..j * nx + columns.end;
+                    let anchors = row.start..row.end.min(grid.len().saturating_sub(o));
+                    for a in anchors {
+                        let b = a + o;
+                        if side[a] * side[b] > 0 || springs.active[k][a] == 0.0 {
+                            continue;
+                        }
+                        if !(alive[a] && alive[b]) {
+                            continue;
+                        }
+                        let (pa, pb) = (pos.get(a).as_dvec3(), pos.get(b).as_dvec3());
+                        // A spring on two quads or on both halves of one is listed twice;
+                        // severing it the second time finds it severed and counts nothing.
+                        if segment_crosses_triangle(pa, pb, tri) {
+                            out.push((kind, a));
+                        }
                     }
                 }
             }
         }
     }
     out
+}
+
+/// Where the sides of one row's particles change: outside columns `lo..=hi` every particle is
+/// strictly on the side `left` (columns below `lo`) or `right` (above `hi`); inside, a particle
+/// is on the plane or differs from a neighbour. A row wholly on one side has `lo > hi`.
+#[derive(Clone, Copy, Debug, Default)]
+struct RowSides {
+    left: i8,
+    right: i8,
+    lo: usize,
+    hi: usize,
+}
+
+impl RowSides {
+    /// Fills `side` with the sign of `distance(i)` for each column `i` and says where it
+    /// changes, in one pass.
+    fn measure(side: &mut [i8], distance: impl Fn(usize) -> f64) -> RowSides {
+        let n = side.len();
+        let (mut lo, mut hi, mut prev) = (n, 0, 0i8);
+        for (i, out) in side.iter_mut().enumerate() {
+            let d = distance(i);
+            let s = (d > 0.0) as i8 - (d < 0.0) as i8;
+            *out = s;
+            if s == 0 {
+                (lo, hi) = (lo.min(i), hi.max(i));
+            } else if i > 0 && s != prev {
+                (lo, hi) = (lo.min(i - 1), hi.max(i));
+            }
+            prev = s;
+        }
+        RowSides {
+            left: side[0],
+            right: side[n - 1],
+            lo,
+            hi,
+        }
+    }
+}
+
+/// The columns of row `rows[0]` whose springs (reaching up to two rows on, one column back
+/// and two on) may join particles on different sides; `None` if none can. Left of every row's
+/// `lo` by more than two columns, all the rows are on one side if their `left`s agree, and so
+/// on the right.
+fn anchor_columns(rows: &[RowSides], nx: usize) -> Option<std::ops::Range<usize>> {
+    let uniform = |s: &dyn Fn(&RowSides) -> i8| {
+        let first = s(&rows[0]);
+        first != 0 && rows.iter().all(|r| s(r) == first)
+    };
+    let (left_ok, right_ok) = (uniform(&|r| r.left), uniform(&|r| r.right));
+    let lo = rows.iter().map(|r| r.lo).min().expect("one row at least");
+    let hi = rows.iter().filter(|r| r.lo <= r.hi).map(|r| r.hi).max();
+    let start = if left_ok { lo.saturating_sub(2) } else { 0 };
+    let end = match (right_ok, hi) {
+        (false, _) => nx,
+        (true, Some(hi)) => (hi + 3).min(nx),
+        (true, None) if left_ok => return None, // every row wholly on the same side
+        (true, None) => nx,
+    };
+    (start < end).then_some(start..end)
 }
 
 /// Distance along the rays that reaches every live particle from every ray origin: the
