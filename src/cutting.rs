@@ -160,7 +160,7 @@ fn anchor_columns(rows: &[RowSides], nx: usize) -> Option<std::ops::Range<usize>
 /// Distance along the rays that reaches every live particle from every ray origin: the
 /// farthest corner of the live particles' bounding box, plus one metre so that a particle on
 /// the box's corner is strictly inside the swept surface. `None` if no particle is alive.
-fn far_distance(pos: &Vec3s, alive: &[bool], rays: &[Ray]) -> Option<f64> {
+pub fn far_distance(pos: &Vec3s, alive: &[bool], rays: &[Ray]) -> Option<f64> {
     let mut lo = DVec3::splat(f64::INFINITY);
     let mut hi = DVec3::splat(f64::NEG_INFINITY);
     for p in (0..pos.len()).filter(|&p| alive[p]) {

@@ -443,3 +443,55 @@ fn cuts_are_deterministic_for_any_thread_count() {
         assert!(run(threads) == one, "{threads} threads differ");
     }
 }
+
+/// The culling in `springs_crossing_stroke` (rows and columns wholly on one side of the swept
+/// plane) against testing every live spring, on a crumpled cloth and random strokes.
+#[test]
+fn the_culled_stroke_test_finds_what_testing_every_spring_finds() {
+    use rustcloth::cutting::{far_distance, segment_crosses_triangle, springs_crossing_stroke};
+    let mut sim = Simulation::new(curtain(IntegratorKind::ImplicitEuler)).unwrap();
+    sim.grab(3).unwrap();
+    sim.drag_to(Vec3::new(0.3, 1.6, 0.4)).unwrap();
+    sim.step(300).unwrap();
+    let mut rng = 0x9e37_79b9_7f4a_7c15u64;
+    let mut next = || {
+        rng ^= rng << 13;
+        rng ^= rng >> 7;
+        rng ^= rng << 17;
+        (rng >> 40) as f32 / (1u64 << 24) as f32
+    };
+    let grid = sim.grid();
+    let mut found = 0;
+    for _ in 0..30 {
+        let rays: Vec<Ray> = (0..3)
+            .map(|_| {
+                let o = Vec3::new(next() * 2.0 - 1.0, 0.8 + next() * 1.4, 1.0 + next());
+                Ray::new(o, Vec3::new(next() - 0.5, next() - 0.5, -1.0)).unwrap()
+            })
+            .collect();
+        let (springs, alive, pos) = (sim.springs(), &sim.particles().alive, sim.positions());
+        let mut got = springs_crossing_stroke(grid, springs, alive, pos, &rays);
+        got.sort_by_key(|&(kind, a)| (kind.index(), a));
+        got.dedup();
+        let far = far_distance(pos, alive, &rays).unwrap();
+        let mut want = Vec::new();
+        for kind in SpringKind::ALL {
+            springs.for_each(grid, kind, |a, b, _| {
+                let (pa, pb) = (pos.get(a).as_dvec3(), pos.get(b).as_dvec3());
+                let crosses = rays.windows(2).any(|w| {
+                    let (o0, d0) = (w[0].origin.as_dvec3(), w[0].dir.as_dvec3());
+                    let (o1, d1) = (w[1].origin.as_dvec3(), w[1].dir.as_dvec3());
+                    let q = [o0, o1, o1 + far * d1, o0 + far * d0];
+                    segment_crosses_triangle(pa, pb, [q[0], q[1], q[2]])
+                        || segment_crosses_triangle(pa, pb, [q[0], q[2], q[3]])
+                });
+                if crosses {
+                    want.push((kind, a));
+                }
+            });
+        }
+        assert_eq!(got, want);
+        found += want.len();
+    }
+    assert!(found > 100, "the strokes crossed only {found} springs");
+}
