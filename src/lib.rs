@@ -40,6 +40,7 @@ pub mod springs;
 pub mod state;
 pub mod stepper;
 pub mod strain_limit;
+pub mod tearing;
 
 #[cfg(feature = "python")]
 mod python;

@@ -62,7 +62,7 @@ impl Simulation {
     pub fn step_with(&mut self, n: u64, interrupted: &mut dyn FnMut() -> bool) -> Result<()> {
         let outcome = self
             .stepper
-            .step_with(&self.model, &mut self.state, n, interrupted);
+            .step_with(&mut self.model, &mut self.state, n, interrupted);
         self.after_stepping(outcome)
     }
 
@@ -82,9 +82,9 @@ impl Simulation {
         seconds: f64,
         interrupted: &mut dyn FnMut() -> bool,
     ) -> Result<u64> {
-        let outcome = self
-            .stepper
-            .advance_with(&self.model, &mut self.state, seconds, interrupted);
+        let outcome =
+            self.stepper
+                .advance_with(&mut self.model, &mut self.state, seconds, interrupted);
         self.after_stepping(outcome)
     }
 

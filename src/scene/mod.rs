@@ -15,7 +15,8 @@ use serde::{Deserialize, Serialize};
 
 pub use pins::PIN_GROUPS;
 pub use specs::{
-    ClothSpec, FloorSpec, OnTrouble, PinSpec, Plane, SphereSpec, StrainLimitSpec, WatchdogSpec,
+    ClothSpec, FloorSpec, OnTrouble, PinSpec, Plane, SphereSpec, StrainLimitSpec, TearingSpec,
+    WatchdogSpec,
 };
 pub use stability::stable_substep;
 pub(crate) use validate::check_substep;
@@ -78,6 +79,9 @@ pub struct Scene {
     /// Provot strain limiting after each substep; absent means none (no pass).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub strain_limit: Option<StrainLimitSpec>,
+    /// Springs break past a strain, after each step; absent means none (no pass).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tearing: Option<TearingSpec>,
 }
 
 impl Default for Scene {
@@ -99,6 +103,7 @@ impl Default for Scene {
             spheres: Vec::new(),
             watchdog: WatchdogSpec::default(),
             strain_limit: None,
+            tearing: None,
         }
     }
 }
@@ -109,6 +114,7 @@ const BUILTIN: &[(&str, &str)] = &[
     ("drape", include_str!("../../scenes/drape.toml")),
     ("freefall", include_str!("../../scenes/freefall.toml")),
     ("curtain", include_str!("../../scenes/curtain.toml")),
+    ("tear", include_str!("../../scenes/tear.toml")),
 ];
 
 impl Scene {

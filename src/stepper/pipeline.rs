@@ -7,7 +7,11 @@
 //! 2. the integrator, writing the end-of-step state into a second buffer;
 //! 3. kinematic pins (while the user drags a pinned particle);
 //! 4. strain limiting (when the scene asks for it, `src/strain_limit/`);
-//! 5. colliders (spheres, then the floor).
+//! 5. colliders (spheres, then the floor);
+//!
+//! and once per step, after its last substep was accepted, tearing (when the scene asks for it,
+//! `src/tearing.rs`): it changes the model (springs break), not the state, so it runs between
+//! steps rather than inside one.
 
 use std::time::Instant;
 
@@ -23,6 +27,7 @@ use crate::profile::Profile;
 use crate::scene::Scene;
 use crate::state::{Kinematics, State};
 use crate::strain_limit::StrainLimit;
+use crate::tearing::Tearing;
 
 /// The passes of a step.
 pub(super) struct Pipeline {
@@ -31,6 +36,8 @@ pub(super) struct Pipeline {
     /// Only when the scene asks for strain limiting.
     pub strain_limit: Option<StrainLimit>,
     pub colliders: Vec<Collider>,
+    /// Only when the scene asks for tearing; runs after each whole step.
+    pub tearing: Option<Tearing>,
 }
 
 impl Pipeline {
@@ -43,6 +50,10 @@ impl Pipeline {
                 .as_ref()
                 .map(|s| StrainLimit::new(s.max_strain as f32, s.iterations)),
             colliders: colliders_of(scene),
+            tearing: scene
+                .tearing
+                .as_ref()
+                .map(|t| Tearing::new(t.max_strain as f32, t.max_per_step)),
         }
     }
 
@@ -57,6 +68,9 @@ impl Pipeline {
             out.push(StrainLimit::NAME);
         }
         out.extend(self.colliders.iter().map(Collider::name));
+        if self.tearing.is_some() {
+            out.push(Tearing::NAME);
+        }
         out
     }
 
@@ -102,6 +116,7 @@ impl Pipeline {
                 .strain_limit
                 .as_ref()
                 .map_or(0, StrainLimit::heap_bytes)
+            + self.tearing.as_ref().map_or(0, Tearing::heap_bytes)
     }
 }
 
