@@ -204,7 +204,8 @@ class Viewer:
             f"{self.name}  t = {sim.time:.2f} s  {self.fps:.1f} fps  render "
             f"{1e3 * self.render_s:.1f} ms{scale}  physics {1e3 * physics.seconds:.1f} ms/frame "
             f"({physics.steps} steps, {per_step:.2f} ms/step)  {state}".rstrip(),
-            f"{sim.num_particles} particles  {self._pieces()} pieces  {sim.integrator}  dt {sim.dt:g} s  {substeps}  "
+            f"{sim.num_particles} particles  {self._pieces()} pieces  {sim.integrator}  "
+            f"dt {sim.dt:g} s  {substeps}  "
             f"view {r.view}  lights {r.lights.name}  SSAO {'on' if r.ssao else 'off'}",
             f"effects: {', '.join(sim.effects)}",
         ]
