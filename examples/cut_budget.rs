@@ -1,5 +1,6 @@
 //! What a stroke cut costs (one segment: two rays, the quad between them, across the whole
-//! cloth) at 128 x 128 and 512 x 512, and the step after many cuts against an uncut cloth.
+//! cloth) at 128 x 128 and 512 x 512, the step after many cuts against an uncut cloth, and the
+//! tearing pass (its scan of every spring, most steps tearing nothing, and a step that tears).
 //! Each cut is made on a fresh copy so that every sample severs the same springs.
 //!
 //! `cargo run --release --example cut_budget`; the README's cutting section quotes its output.
@@ -103,4 +104,36 @@ fn main() {
         median(a),
         median(b)
     );
+
+    // The tearing pass: per step, from the profile, on the tear scene at 128 and 512.
+    for n in [128u32, 512] {
+        let mut scene = Scene::builtin("tear").unwrap();
+        scene.cloth.nx = n;
+        scene.cloth.ny = n;
+        scene.integrator = rustcloth::IntegratorKind::ImplicitEuler;
+        scene.substeps = 1;
+        let mut sim = Simulation::new(scene).unwrap();
+        let steps = if n == 128 { 200 } else { 20 };
+        sim.step(steps).unwrap();
+        let pass = sim.profile().get("tearing").expect("the pass ran");
+        println!(
+            "{n} x {n}: tearing pass (nothing past the limit): {:.1} us per step, step {:.0} us",
+            pass.time.as_secs_f64() * 1e6 / pass.calls as f64,
+            sim.profile().total.as_secs_f64() * 1e6 / sim.profile().steps as f64,
+        );
+        // One tear: stretch the bottom-left corner far past the limit, then one step.
+        let before = sim.topology_version();
+        let p0 = sim.positions().get(0);
+        sim.pin(0, Some(p0 + Vec3::new(-0.5, -0.5, 0.0))).unwrap();
+        let calls = sim.profile().get("tearing").unwrap().calls;
+        let time = sim.profile().get("tearing").unwrap().time;
+        sim.step(1).unwrap();
+        let after = sim.profile().get("tearing").unwrap();
+        assert_eq!(after.calls, calls + 1);
+        println!(
+            "{n} x {n}: a step that tears ({} topology change): tearing pass {:.1} us",
+            sim.topology_version() - before,
+            (after.time - time).as_secs_f64() * 1e6
+        );
+    }
 }

@@ -12,6 +12,9 @@ use crate::grid::{Family, SpringKind};
 use crate::model::Model;
 use crate::soa::Vec3s;
 
+/// Anchors tested together before looking for which spring of them is past the limit.
+const BLOCK: usize = 64;
+
 /// The tearing pass and its workspace.
 #[derive(Clone, Debug)]
 pub struct Tearing {
@@ -50,13 +53,34 @@ impl Tearing {
             for kind in family.kinds() {
                 let (k, o) = (kind.index(), grid.offset(kind));
                 let (rest, active) = (&springs.rest[k], &springs.active[k]);
-                for a in 0..grid.len().saturating_sub(o) {
-                    let d = pos.get(a + o) - pos.get(a);
-                    let l2 = d.length_squared();
-                    // Squared lengths first: a square root only for the few springs past it.
-                    let bound = limit * rest[a];
-                    if active[a] != 0.0 && l2 > bound * bound {
-                        self.over.push((l2.sqrt() / rest[a] - 1.0, kind, a));
+                let n = grid.len().saturating_sub(o);
+                // Blocks of anchors: a branch-free test of the whole block first (it
+                // vectorises), the push loop only in the rare block with a spring past it.
+                for start in (0..n).step_by(BLOCK) {
+                    let block = start..(start + BLOCK).min(n);
+                    let (ax, ay, az) = (
+                        &pos.x[block.clone()],
+                        &pos.y[block.clone()],
+                        &pos.z[block.clone()],
+                    );
+                    let b = block.start + o..block.end + o;
+                    let (bx, by, bz) = (&pos.x[b.clone()], &pos.y[b.clone()], &pos.z[b]);
+                    let (rest, active) = (&rest[block.clone()], &active[block.clone()]);
+                    let len = block.len();
+                    let over = |i: usize| {
+                        let (dx, dy, dz) = (bx[i] - ax[i], by[i] - ay[i], bz[i] - az[i]);
+                        let l2 = dx * dx + dy * dy + dz * dz;
+                        let bound = limit * rest[i];
+                        // Squared lengths: a square root only for the springs past the limit.
+                        (active[i] * l2 > bound * bound, l2)
+                    };
+                    if !(0..len).fold(false, |any, i| any | over(i).0) {
+                        continue;
+                    }
+                    for (i, &r) in rest.iter().enumerate() {
+                        if let (true, l2) = over(i) {
+                            self.over.push((l2.sqrt() / r - 1.0, kind, block.start + i));
+                        }
                     }
                 }
             }
