@@ -207,7 +207,14 @@ def _zero_d(v: Any) -> bool:
     return isinstance(v, np.ndarray) and v.shape == () and v.dtype.kind in "fiu"
 
 
+def _zero_d_int(v: Any) -> bool:
+    """A 0-d integer array: an integer to ``operator.index``, so a count or index takes it."""
+    return _zero_d(v) and v.dtype.kind in "iu"
+
+
 def count_oracle(v: Any) -> str:
+    if _zero_d_int(v):
+        v = int(v)
     if not _is_int(v):
         return TYPE
     if not 0 <= int(v) < 2**64:
@@ -231,6 +238,8 @@ def seconds_oracle(v: Any) -> str:
 
 
 def index_oracle(v: Any) -> str:
+    if _zero_d_int(v):
+        v = int(v)
     if not _is_int(v):
         return TYPE
     return OK if 0 <= int(v) < N else INDEX
@@ -287,6 +296,8 @@ def dt_oracle(v: Any) -> str:
 
 
 def substeps_oracle(v: Any) -> str:
+    if _zero_d_int(v):
+        v = int(v)
     if not _is_int(v):
         return TYPE
     return OK if 1 <= int(v) <= 10**6 else VALUE  # dt / substeps >= 1 ns at dt = 1 ms
@@ -905,8 +916,10 @@ def test_issue_11_item_10_dicts_and_sets_are_not_vectors(sim):
 def test_issue_11_item_10_complex_arrays_are_not_vectors(sim):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # as users run: a ComplexWarning is no refusal
+        # The array's dtype is wrong as a whole, before any component is read.
         _refused(sim, lambda s: s.pin(3, target=np.array([1j, 0, 0])), ParameterTypeError,
-                 "target[0]")
+                 "target")
+        _refused(sim, lambda s: s.pin(3, target=[1j, 0, 0]), ParameterTypeError, "target[0]")
 
 
 def test_issue_11_item_10_scene_tables_are_not_lists():
@@ -1004,3 +1017,36 @@ def test_a_ray_direction_of_any_finite_nonzero_length_gives_the_same_answer(sim)
         assert sim.pick(origin, direction) == pytest.approx(expected, rel=1e-6), scale
         hit = sim.pick_triangle(origin, direction)
         assert hit[0] == triangle[0] and hit[1] == pytest.approx(triangle[1], rel=1e-6), scale
+
+
+# ----- found by the generated inputs with a fresh seed (derandomize off, 4,000 examples) ------
+
+
+def test_issue_11_a_0_d_bool_array_is_not_a_number(sim):
+    # np.array(False) converted to 0.0 and was refused as a value (dt) or taken as 0 (advance).
+    _refused(sim, lambda s: setattr(s, "dt", np.array(False)), ParameterTypeError, "dt")
+    _refused(sim, lambda s: s.advance(np.array(True)), ParameterTypeError, "seconds")
+
+
+def test_issue_11_a_bool_array_of_any_length_is_a_type_error(sim):
+    # The component count was checked before the dtype: 48 bools were "not 3 components".
+    _refused(sim, lambda s: s.drag_to(np.zeros(48, bool)), ParameterTypeError, "target")
+    _refused(sim, lambda s: s.pick(np.zeros(48, bool), [0, 0, -1]), ParameterTypeError, "origin")
+
+
+def test_issue_11_a_0_d_integer_array_is_an_integer(sim):
+    # operator.index takes it, so counts, indices and substeps do.
+    steps = sim.steps
+    sim.step(np.array(2))
+    sim.substeps = np.array(2, np.uint8)
+    assert (sim.steps - steps, sim.substeps) == (2, 2)
+    _refused(sim, lambda s: s.step(np.array(-1)), ParameterError, "n")
+
+
+def test_issue_11_a_tiny_direction_keeps_its_direction(sim):
+    # (0, 0, -1e-300) became (0, 0, -0) in float32 and was refused as a zero vector.
+    at = [0.0, 1.0, 2.0]
+    for tiny in (-1e-30, -1e-164, -1e-300, -5e-324):
+        assert sim.pick(at, [0, 0, tiny]) == sim.pick(at, [0, 0, -1])
+    _refused(sim, lambda s: s.pick(at, [0, 0, 0.0]), ParameterError, "direction")
+    _refused(sim, lambda s: s.pick(at, [0, 0, 1e300]), ParameterError, "direction")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import sys
 import threading
 import time
@@ -168,9 +169,15 @@ def test_stepping_releases_the_gil():
     # so a step that held the GIL for 0.8 s still passed. Here the increments must fall
     # *during* the step, in its middle: a Python thread runs while another thread steps.
     sim = Simulation(small_scene(cloth={"nx": 128, "ny": 128}))
-    inside, span = _increments_inside(lambda: sim.step(400))
-    assert span > 20 * sys.getswitchinterval()  # long enough for the margins to mean anything
-    assert inside >= 1000, (inside, span)
+    # The step must last long enough for the margins to mean anything, however fast the machine:
+    # twice the steps until it does.
+    steps = 400
+    inside, span = _increments_inside(functools.partial(sim.step, steps))
+    while span <= 20 * sys.getswitchinterval() and steps < 400 * 2**6:
+        steps *= 2
+        inside, span = _increments_inside(functools.partial(sim.step, steps))
+    assert span > 20 * sys.getswitchinterval()
+    assert inside >= 1000, (inside, span, steps)
 
 
 def test_the_gil_test_fails_for_a_call_that_holds_the_gil():

@@ -1,8 +1,8 @@
 //! Conversions between Python objects and core types. Every failure names the parameter.
 
 use numpy::{
-    PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArray,
-    PyUntypedArrayMethods,
+    PyArray1, PyArray2, PyArrayDescrMethods, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2,
+    PyUntypedArray, PyUntypedArrayMethods,
 };
 use pyo3::exceptions::PyOverflowError;
 use pyo3::prelude::*;
@@ -232,7 +232,7 @@ pub fn read_only(array: &Bound<'_, PyAny>) -> PyResult<()> {
 /// A 3-vector from a sequence (or array) of 3 real numbers. Strings, bytes and booleans are
 /// not numbers here (`b"abc"` would otherwise be the vector (97, 98, 99)); components must be
 /// finite in float32 after conversion, which the core checks.
-pub fn vec3_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<glam::Vec3> {
+fn vec3_from_any_f64(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<glam::DVec3> {
     let kind = type_name(obj);
     if obj.is_instance_of::<PyString>()
         || obj.is_instance_of::<PyBytes>()
@@ -246,6 +246,14 @@ pub fn vec3_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<glam::Vec3>
     // A sequence (list, tuple, numpy array, any `collections.abc.Sequence`): a dict would be
     // read as its keys, a set in any order.
     let sequence = match obj.cast::<PyUntypedArray>() {
+        // An array of anything but numbers is the wrong type whatever its length (its dtype
+        // is known before its items are read).
+        Ok(array) if !matches!(array.dtype().kind(), b'f' | b'i' | b'u') && array.ndim() == 1 => {
+            return Err(type_error(
+                name,
+                format!("must be a sequence of 3 numbers, got {kind} {}", repr(obj)),
+            ))
+        }
         // A 0-d array is a number, not a sequence.
         Ok(array) => array.ndim() == 1,
         Err(_) => {
@@ -273,7 +281,28 @@ pub fn vec3_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<glam::Vec3>
     for (c, item) in items.iter().enumerate() {
         v[c] = float_from_any(item, &format!("{name}[{c}]"))?;
     }
-    Ok(glam::DVec3::from(v).as_vec3())
+    Ok(glam::DVec3::from(v))
+}
+
+/// A 3-vector as [`vec3_from_any_f64`] reads it, in float32.
+pub fn vec3_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<glam::Vec3> {
+    Ok(vec3_from_any_f64(obj, name)?.as_vec3())
+}
+
+/// A direction: a 3-vector normalised in float64 before it becomes float32, so that a short
+/// one such as `(0, 0, 1e-300)`, whose float32 components would be zero, keeps its direction.
+/// A vector that is zero, or not finite in float32, passes through unnormalised for the core to
+/// refuse with its usual message.
+pub fn direction_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<glam::Vec3> {
+    let v = vec3_from_any_f64(obj, name)?;
+    let single = v.as_vec3();
+    // Scaled by the largest component first: the squared length of (0, 0, 1e-200) underflows
+    // even in float64.
+    let largest = v.abs().max_element();
+    Ok(match single.is_finite() && largest > 0.0 {
+        true => (v / largest).normalize().as_vec3(),
+        false => single,
+    })
 }
 
 /// A real number: a Python `int` or `float`, or a numpy scalar, never a `bool` or a string.
@@ -287,12 +316,7 @@ pub fn float_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<f64> {
     }
     // Complex numbers convert to float by dropping their imaginary part (numpy's do, with only
     // a warning): not a real number.
-    let complex = obj.is_instance_of::<PyComplex>()
-        || obj
-            .getattr("dtype")
-            .and_then(|d| d.getattr("kind"))
-            .and_then(|k| k.extract::<String>())
-            .is_ok_and(|k| k == "c");
+    let complex = obj.is_instance_of::<PyComplex>() || dtype_kind(obj).is_some_and(|k| k == "c");
     if obj.is_instance_of::<PyString>()
         || obj.is_instance_of::<PyBytes>()
         || obj.is_instance_of::<PyByteArray>()
@@ -358,9 +382,20 @@ pub fn str_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<String> {
     })
 }
 
-/// Whether `obj` is a numpy boolean scalar (not a Python `bool` subclass).
+/// The numpy dtype kind (`'f'`, `'b'`, `'c'`, ...) of a numpy scalar or array, else None.
+fn dtype_kind(obj: &Bound<'_, PyAny>) -> Option<String> {
+    obj.getattr("dtype")
+        .and_then(|d| d.getattr("kind"))
+        .and_then(|k| k.extract::<String>())
+        .ok()
+}
+
+/// Whether `obj` is a numpy boolean: a scalar (not a Python `bool` subclass) or a 0-d array,
+/// which would otherwise convert to 0 or 1.
 fn is_numpy_bool(obj: &Bound<'_, PyAny>) -> bool {
-    type_name(obj) == "bool" && !obj.is_instance_of::<PyBool>() || type_name(obj) == "bool_"
+    type_name(obj) == "bool" && !obj.is_instance_of::<PyBool>()
+        || type_name(obj) == "bool_"
+        || dtype_kind(obj).is_some_and(|k| k == "b")
 }
 
 /// `repr(obj)`, shortened for messages.

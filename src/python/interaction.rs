@@ -3,7 +3,9 @@
 
 use pyo3::prelude::*;
 
-use super::conv::{float_from_any, index_from_any, str_from_any, vec3_from_any};
+use super::conv::{
+    direction_from_any, float_from_any, index_from_any, str_from_any, vec3_from_any,
+};
 use super::errors::{type_error, value_error, IntoPyResult};
 use super::simulation::PySimulation;
 use crate::picking::PickStrategy;
@@ -25,7 +27,7 @@ fn ray_from_any(item: &Bound<'_, PyAny>, k: usize) -> PyResult<(glam::Vec3, glam
         ));
     }
     let origin = vec3_from_any(&item.get_item(0)?, &format!("{name}.origin"))?;
-    let direction = vec3_from_any(&item.get_item(1)?, &format!("{name}.direction"))?;
+    let direction = direction_from_any(&item.get_item(1)?, &format!("{name}.direction"))?;
     Ok((origin, direction))
 }
 
@@ -43,7 +45,7 @@ impl PySimulation {
         direction: &Bound<'_, PyAny>,
     ) -> PyResult<Option<(usize, f32)>> {
         let origin = vec3_from_any(origin, "origin")?;
-        let direction = vec3_from_any(direction, "direction")?;
+        let direction = direction_from_any(direction, "direction")?;
         self.with(py, |h| py.detach(|| h.sim.pick(origin, direction)).py())
     }
 
@@ -56,7 +58,7 @@ impl PySimulation {
         direction: &Bound<'_, PyAny>,
     ) -> PyResult<Option<TriangleHit>> {
         let origin = vec3_from_any(origin, "origin")?;
-        let direction = vec3_from_any(direction, "direction")?;
+        let direction = direction_from_any(direction, "direction")?;
         let hit = self.with(py, |h| {
             py.detach(|| h.sim.pick_triangle(origin, direction)).py()
         })?;
@@ -124,7 +126,7 @@ impl PySimulation {
         direction: &Bound<'_, PyAny>,
     ) -> PyResult<Option<usize>> {
         let origin = vec3_from_any(origin, "origin")?;
-        let direction = vec3_from_any(direction, "direction")?;
+        let direction = direction_from_any(direction, "direction")?;
         self.with(py, |h| py.detach(|| h.sim.cut_ray(origin, direction)).py())
     }
 
