@@ -351,7 +351,9 @@ impl Simulation {
     }
 
     /// Removes particle `index` and every spring touching it from the cloth; its triangles
-    /// leave the mesh. Cutting a particle twice does nothing the second time.
+    /// leave the mesh. Cutting a particle twice does nothing the second time. The seed's cut,
+    /// kept as it was: the particle's mass leaves the cloth. [`Simulation::sever_stroke`] cuts
+    /// without removing anything.
     pub fn cut(&mut self, index: i64) -> Result<()> {
         let p = self.check_index("index", index)?;
         if self.model.particles.alive[p] {
@@ -539,6 +541,7 @@ impl Simulation {
         Ok(self.cut_along(&ray, false))
     }
 
+    /// The seed's stroke cut (see [`Simulation::sever_stroke`] for one that keeps the mass).
     /// Cuts, ray after ray, the particle each ray of a mouse stroke picks (a later ray sees
     /// the cloth without the particles cut before it); returns the particles cut, in order.
     /// Every ray is checked before anything is cut, so bad input changes nothing. Sample the

@@ -11,7 +11,11 @@
 //! - particles were cut: their leaves are removed from the tree (`O(log n)` each; the tree is
 //!   not rebuilt). A cut made by a query (`cut_ray`, `cut_stroke`) removes the leaves at once
 //!   and, since a cut moves nothing, spares the next query a refit ([`Picker::after_cut`]);
-//!   after a cut made elsewhere the next query finds the dead particles in an `O(n)` scan.
+//!   after a cut made elsewhere the next query finds the dead particles in an `O(n)` scan;
+//! - springs were severed (`sever_stroke`, tearing): no particle died, so the particle tree
+//!   keeps every leaf; the triangle tree drops the triangles no longer drawn
+//!   ([`Model::triangle_drawn`]) in one pass over its leaf flags at the next query, without a
+//!   rebuild.
 //!
 //! The particle tree and the triangle tree are kept separately, so picking particles never
 //! pays for the triangles and the other way round.
