@@ -5,7 +5,7 @@
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
-use crate::grid::{Family, Grid};
+use crate::grid::{cell_triangle, Family, Grid};
 use crate::model::{plane_axes, Model};
 use crate::parallel::chunk_len;
 use crate::soa::Vec3s;
@@ -126,10 +126,12 @@ pub struct Mesh {
 }
 
 impl Mesh {
-    /// The triangles of the live cloth, two per grid cell.
+    /// The triangles of the live cloth, two per grid cell, less those a cut or a tear runs
+    /// through ([`Model::triangle_drawn`]); in the order of their ids ([`cell_triangle`]).
     pub fn triangles(&mut self, model: &Model) -> &[[u32; 3]] {
         if self.triangles_for != Some(model.topology_version) {
-            self.triangles = model.grid.triangles(&model.particles.alive);
+            self.triangles.clear();
+            self.triangles.extend(model.triangles());
             self.triangles_for = Some(model.topology_version);
         }
         &self.triangles
@@ -142,7 +144,8 @@ impl Mesh {
         if self.normals_for != Some(now) {
             let (e1, e2) = plane_axes(model.scene.cloth.plane);
             let fallback = e1.cross(e2);
-            let (grid, pos, alive) = (model.grid, &state.kin.pos, &model.particles.alive);
+            let (grid, pos) = (model.grid, &state.kin.pos);
+            let drawn = |id: usize| model.triangle_drawn(id);
             let normals = &mut self.normals;
             if normals.len() != grid.len() {
                 *normals = Vec3s::zeros(grid.len());
@@ -153,7 +156,7 @@ impl Mesh {
                 .enumerate()
                 .for_each(|(c, mut out)| {
                     for i in 0..out.len() {
-                        let n = vertex_normal(grid, pos, alive, c * chunk + i);
+                        let n = vertex_normal(grid, pos, &drawn, c * chunk + i);
                         out.set(i, n.try_normalize().unwrap_or(fallback));
                     }
                 });
@@ -167,14 +170,15 @@ impl Mesh {
     }
 }
 
-/// Sum of the area-weighted normals of the live triangles around particle `p`; see
-/// [`Grid::triangles`] for the split of each cell into `(a, b, d)` and `(a, d, c)`.
-fn vertex_normal(grid: Grid, pos: &Vec3s, alive: &[bool], p: usize) -> Vec3 {
+/// Sum of the area-weighted normals of the drawn triangles around particle `p`; see
+/// [`cell_triangle`] for the split of each cell into `(a, b, d)` (id `2 cell`) and `(a, d, c)`
+/// (id `2 cell + 1`).
+fn vertex_normal(grid: Grid, pos: &Vec3s, drawn: &impl Fn(usize) -> bool, p: usize) -> Vec3 {
     let (i, j) = grid.coords(p);
     let mut sum = Vec3::ZERO;
-    let mut add = |tri: [usize; 3]| {
-        if tri.iter().all(|&q| alive[q]) {
-            let (a, b, c) = (pos.get(tri[0]), pos.get(tri[1]), pos.get(tri[2]));
+    let mut add = |id: usize| {
+        if drawn(id) {
+            let [a, b, c] = cell_triangle(grid, id).map(|q| pos.get(q));
             sum += (b - a).cross(c - a);
         }
     };
@@ -185,12 +189,12 @@ fn vertex_normal(grid: Grid, pos: &Vec3s, alive: &[bool], p: usize) -> Vec3 {
         }
         let a = grid.index(i - di, j - dj);
         let (b, c) = (a + 1, a + grid.nx);
-        let d = c + 1;
+        let cell = (j - dj) * (grid.nx - 1) + (i - di);
         if p != c {
-            add([a, b, d]); // p is a, b or d
+            add(2 * cell); // (a, b, d): p is a, b or d
         }
         if p != b {
-            add([a, d, c]); // p is a, d or c
+            add(2 * cell + 1); // (a, d, c): p is a, d or c
         }
     }
     sum

@@ -164,6 +164,27 @@ impl Grid {
     }
 }
 
+/// Number of triangle ids of `grid`: two per cell.
+pub fn triangle_slots(grid: Grid) -> usize {
+    2 * (grid.nx - 1) * (grid.ny - 1)
+}
+
+/// The vertices of triangle `id`: cell `id / 2` (cell `(i, j)` is `j * (nx - 1) + i`) and half
+/// `id % 2`, in the order and winding of [`Grid::triangles`]. Triangle ids are stable across cuts,
+/// which is what lets the picking trees and the mesh key their triangles by them.
+pub fn cell_triangle(grid: Grid, id: usize) -> [usize; 3] {
+    let cell = id / 2;
+    let (i, j) = (cell % (grid.nx - 1), cell / (grid.nx - 1));
+    let a = grid.index(i, j);
+    let (b, c) = (a + 1, a + grid.nx);
+    let d = c + 1;
+    if id % 2 == 0 {
+        [a, b, d]
+    } else {
+        [a, d, c]
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

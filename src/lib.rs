@@ -17,6 +17,7 @@
 //! This crate is pure Rust; the Python binding lives behind the `python` feature.
 
 pub mod collisions;
+pub mod cutting;
 pub mod diagnostics;
 pub mod error;
 pub mod forces;
@@ -40,6 +41,7 @@ pub mod springs;
 pub mod state;
 pub mod stepper;
 pub mod strain_limit;
+pub mod tearing;
 
 #[cfg(feature = "python")]
 mod python;

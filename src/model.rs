@@ -19,7 +19,8 @@ pub struct Model {
     pub grid: Grid,
     pub particles: Particles,
     pub springs: Springs,
-    /// Increments whenever the triangle list changes (a cut).
+    /// Increments whenever the springs or the particles that make up the cloth change (a cut,
+    /// a severed spring, a tear), and with them the triangle list.
     pub topology_version: u64,
 }
 
@@ -74,6 +75,38 @@ impl Model {
         self.particles.cut(p);
         self.springs.remove_particle(self.grid, p);
         self.topology_version += 1;
+    }
+
+    /// Severs the springs `slots` (kind, anchor); those already severed are skipped. Returns
+    /// how many were live; the topology version moves only if one was. No particle changes, so
+    /// the cloth's mass stays exactly what it was.
+    pub fn sever(&mut self, slots: &[crate::cutting::SpringSlot]) -> usize {
+        let mut severed = 0;
+        for &(kind, anchor) in slots {
+            let flag = &mut self.springs.active[kind.index()][anchor];
+            if *flag != 0.0 {
+                *flag = 0.0;
+                severed += 1;
+            }
+        }
+        if severed > 0 {
+            self.topology_version += 1;
+        }
+        severed
+    }
+
+    /// Whether triangle `id` of the grid's cells is drawn (see [`crate::cutting::triangle_drawn`]).
+    pub fn triangle_drawn(&self, id: usize) -> bool {
+        crate::cutting::triangle_drawn(self.grid, &self.springs, &self.particles.alive, id)
+    }
+
+    /// The triangles of the cloth: two per grid cell, less those a cut or a tear runs through
+    /// ([`Model::triangle_drawn`]), in the order of their ids ([`crate::grid::cell_triangle`]). What
+    /// the renderer draws and what self-collision keeps apart are the same surface.
+    pub fn triangles(&self) -> impl Iterator<Item = [u32; 3]> + '_ {
+        (0..crate::grid::triangle_slots(self.grid))
+            .filter(|&id| self.triangle_drawn(id))
+            .map(|id| crate::grid::cell_triangle(self.grid, id).map(|q| q as u32))
     }
 
     /// The stiffness (N/m) of a spring family in the scene.

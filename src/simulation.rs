@@ -62,7 +62,7 @@ impl Simulation {
     pub fn step_with(&mut self, n: u64, interrupted: &mut dyn FnMut() -> bool) -> Result<()> {
         let outcome = self
             .stepper
-            .step_with(&self.model, &mut self.state, n, interrupted);
+            .step_with(&mut self.model, &mut self.state, n, interrupted);
         self.after_stepping(outcome)
     }
 
@@ -82,9 +82,9 @@ impl Simulation {
         seconds: f64,
         interrupted: &mut dyn FnMut() -> bool,
     ) -> Result<u64> {
-        let outcome = self
-            .stepper
-            .advance_with(&self.model, &mut self.state, seconds, interrupted);
+        let outcome =
+            self.stepper
+                .advance_with(&mut self.model, &mut self.state, seconds, interrupted);
         self.after_stepping(outcome)
     }
 
@@ -357,7 +357,9 @@ impl Simulation {
     }
 
     /// Removes particle `index` and every spring touching it from the cloth; its triangles
-    /// leave the mesh. Cutting a particle twice does nothing the second time.
+    /// leave the mesh. Cutting a particle twice does nothing the second time. The seed's cut,
+    /// kept as it was: the particle's mass leaves the cloth. [`Simulation::sever_stroke`] cuts
+    /// without removing anything.
     pub fn cut(&mut self, index: i64) -> Result<()> {
         let p = self.check_index("index", index)?;
         if self.model.particles.alive[p] {
@@ -545,24 +547,64 @@ impl Simulation {
         Ok(self.cut_along(&ray, false))
     }
 
+    /// The seed's stroke cut (see [`Simulation::sever_stroke`] for one that keeps the mass).
     /// Cuts, ray after ray, the particle each ray of a mouse stroke picks (a later ray sees
     /// the cloth without the particles cut before it); returns the particles cut, in order.
     /// Every ray is checked before anything is cut, so bad input changes nothing. Sample the
     /// stroke densely enough (about one ray per grid spacing on screen) to leave no gaps.
     pub fn cut_stroke(&mut self, rays: &[(Vec3, Vec3)]) -> Result<Vec<usize>> {
-        let rays = rays
-            .iter()
-            .enumerate()
-            .map(|(k, &(o, d))| {
-                let (origin, dir) = (format!("rays[{k}].origin"), format!("rays[{k}].direction"));
-                Ray::named(o, d, &origin, &dir)
-            })
-            .collect::<Result<Vec<_>>>()?;
+        let rays = checked_rays(rays)?;
         let many = rays.len() >= STROKE_TREE_MIN_RAYS;
         Ok(rays
             .iter()
             .filter_map(|ray| self.cut_along(ray, many))
             .collect())
+    }
+
+    /// Severs the cloth along a mouse stroke: every live spring whose segment crosses the
+    /// surface the rays sweep between consecutive samples (the quad from one ray to the next,
+    /// reaching through the whole cloth) is severed, and the mesh's triangles across it go.
+    /// Returns how many springs were severed. No particle is removed, so the cloth's mass is
+    /// exactly what it was, and a grabbed particle stays grabbed on whichever piece it is now.
+    ///
+    /// Every ray is checked before anything changes (an error names `rays[k].origin` or
+    /// `rays[k].direction`). Documented no-ops, returning 0 with nothing changed (not even the
+    /// topology version): fewer than two rays (a click sweeps no surface), rays that do not
+    /// move (a stroke of zero length), a stroke that misses the cloth or crosses only springs
+    /// already severed (cutting a piece that is already separate along the same line).
+    pub fn sever_stroke(&mut self, rays: &[(Vec3, Vec3)]) -> Result<usize> {
+        let rays = checked_rays(rays)?;
+        let model = &self.model;
+        let slots = crate::cutting::springs_crossing_stroke(
+            model.grid,
+            &model.springs,
+            &model.particles.alive,
+            &self.state.kin.pos,
+            &rays,
+        );
+        Ok(self.model.sever(&slots))
+    }
+
+    /// The number of pieces the cloth is in: connected components of the live particles
+    /// joined by live springs (`O(n)`).
+    pub fn pieces(&self) -> usize {
+        let model = &self.model;
+        crate::cutting::pieces(model.grid, &model.springs, &model.particles.alive)
+    }
+
+    /// The piece each particle belongs to, named by the smallest particle index in it
+    /// (`u32::MAX` for a removed particle).
+    pub fn piece_labels(&self) -> Vec<u32> {
+        let model = &self.model;
+        crate::cutting::piece_labels(model.grid, &model.springs, &model.particles.alive)
+    }
+
+    /// Whether the spring of `kind` anchored at particle `anchor` is live (false for a slot
+    /// off the grid, or a spring cut, severed or torn).
+    pub fn spring_live(&self, kind: crate::grid::SpringKind, anchor: usize) -> bool {
+        self.model.springs.active[kind.index()]
+            .get(anchor)
+            .is_some_and(|&a| a != 0.0)
     }
 
     /// Cuts the particle `ray` picks, removing its leaves from the picking trees that were up
@@ -605,6 +647,17 @@ impl Simulation {
         sim.grab = snapshot.apply(model, state, stepper, picker)?;
         Ok(sim)
     }
+}
+
+/// The rays of a stroke, each checked and named `rays[k].origin` / `rays[k].direction`.
+fn checked_rays(rays: &[(Vec3, Vec3)]) -> Result<Vec<Ray>> {
+    rays.iter()
+        .enumerate()
+        .map(|(k, &(o, d))| {
+            let (origin, dir) = (format!("rays[{k}].origin"), format!("rays[{k}].direction"));
+            Ray::named(o, d, &origin, &dir)
+        })
+        .collect()
 }
 
 /// Total force on each particle of the current state, for tests and diagnostics.

@@ -107,7 +107,7 @@ def test_light_view_projection_holds_every_point() -> None:
     assert (np.abs(ndc).max(axis=0) > 0.95).all()  # tight, not a loose box
 
 
-@pytest.mark.parametrize("name", ["drape", "hanging", "freefall", "curtain"])
+@pytest.mark.parametrize("name", ["drape", "hanging", "freefall", "curtain", "tear"])
 def test_each_scene_opens_framed_with_its_front_towards_the_camera(name: str) -> None:
     """Regression (issue 18): hanging and curtain opened on the cloth's back, the curtain's
     top edge was out of frame and freefall ran off the bottom of the window."""

@@ -396,6 +396,7 @@ SIM_TARGETS: list[tuple[str, str, Call, Callable[[Any], str]]] = [
     ("cut_ray", "origin", lambda s, v: s.cut_ray(v, [0, 0, -1]), vector_oracle),
     ("cut_ray", "direction", lambda s, v: s.cut_ray([0.1, 1.0, 2.0], v), direction_oracle),
     ("cut_stroke", "rays", lambda s, v: s.cut_stroke(v), rays_oracle),
+    ("sever_stroke", "rays", lambda s, v: s.sever_stroke(v), rays_oracle),
     ("dt", "dt", lambda s, v: setattr(s, "dt", v), dt_oracle),
     ("substeps", "substeps", lambda s, v: setattr(s, "substeps", v), substeps_oracle),
     ("integrator", "integrator", lambda s, v: setattr(s, "integrator", v),

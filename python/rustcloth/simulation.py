@@ -257,7 +257,8 @@ class Simulation:
 
     @property
     def topology_version(self) -> int:
-        """Increments whenever the triangle list changes (a cut): caches compare it."""
+        """Increments whenever the cloth's springs or particles change, and with them the
+        triangle list (a cut, a severed stroke, a tear): caches compare it."""
         return self._core.topology_version
 
     @property
@@ -373,10 +374,30 @@ class Simulation:
         return self._core.cut_ray(origin, direction)
 
     def cut_stroke(self, rays: Sequence[tuple[Vector, Vector]] | npt.ArrayLike) -> list[int]:
-        """Cut what a mouse stroke passes over: ``rays`` is a sequence of ``(origin,
-        direction)`` pairs (or an ``(M, 2, 3)`` array), each cutting the particle it picks
-        after the rays before it. Returns the indices cut. Bad input raises and cuts nothing."""
+        """The seed's cut: remove the particles a mouse stroke passes over. ``rays`` is a
+        sequence of ``(origin, direction)`` pairs (or an ``(M, 2, 3)`` array), each cutting the
+        particle it picks after the rays before it. Returns the indices cut; their mass leaves
+        the cloth. Bad input raises and cuts nothing. :meth:`sever_stroke` cuts like scissors."""
         return self._core.cut_stroke(rays)
+
+    def sever_stroke(self, rays: Sequence[tuple[Vector, Vector]] | npt.ArrayLike) -> int:
+        """Cut the cloth along a mouse stroke, like scissors: every live spring whose segment
+        crosses the surface swept between consecutive rays (from each ray's origin through the
+        whole cloth) is severed, and the mesh's triangles across the cut go. ``rays`` is a
+        sequence of ``(origin, direction)`` pairs (or an ``(M, 2, 3)`` array; directions need
+        not be unit). Returns the number of springs severed. No particle is removed: the
+        cloth's mass is unchanged to the bit, and a grabbed particle stays grabbed.
+
+        Fewer than two rays, rays that do not move, a stroke that misses the cloth or crosses
+        only springs already severed sever nothing and change nothing (``topology_version``
+        included). A non-finite origin or a zero or non-finite direction raises ``ValueError``
+        naming ``rays[k].origin`` or ``rays[k].direction``, before anything changes."""
+        return self._core.sever_stroke(rays)
+
+    def pieces(self) -> int:
+        """The number of pieces the cloth is in: connected components of the live particles
+        joined by live springs (O(n))."""
+        return self._core.pieces()
 
     def bvh_stats(self) -> dict[str, int]:
         """Work done on the picking trees: scans, builds, refits and removals."""

@@ -5,10 +5,10 @@ use parry3d::bounding_volume::Aabb;
 use parry3d::partitioning::{Bvh, BvhBuildStrategy};
 
 use super::ray::{
-    cell_triangle, hit_particle, nearest_hit, particle_box, ray_triangle, triangle_bounds,
-    triangle_query_margin, triangle_slots, ParticleHit, Ray, TriangleHit,
+    hit_particle, nearest_hit, particle_box, ray_triangle, triangle_bounds, triangle_query_margin,
+    ParticleHit, Ray, TriangleHit,
 };
-use crate::grid::Grid;
+use crate::grid::{cell_triangle, triangle_slots, Grid};
 use crate::soa::Vec3s;
 
 /// A binned-SAH BVH over `(leaf id, box)` pairs.
@@ -128,9 +128,14 @@ fn triangle_box(pos: &Vec3s, tri: [usize; 3]) -> Aabb {
 
 impl TriangleBvh {
     pub fn build(grid: Grid, pos: &Vec3s, alive: &[bool]) -> Self {
-        let in_tree: Vec<bool> = (0..triangle_slots(grid))
-            .map(|id| cell_triangle(grid, id).iter().all(|&q| alive[q]))
-            .collect();
+        Self::build_where(grid, pos, |id| {
+            cell_triangle(grid, id).iter().all(|&q| alive[q])
+        })
+    }
+
+    /// A tree of the triangles `drawn` says are there (by id).
+    pub fn build_where(grid: Grid, pos: &Vec3s, drawn: impl Fn(usize) -> bool) -> Self {
+        let in_tree: Vec<bool> = (0..triangle_slots(grid)).map(drawn).collect();
         let leaves = (0..in_tree.len())
             .filter(|&id| in_tree[id])
             .map(|id| (id, triangle_box(pos, cell_triangle(grid, id))));
@@ -173,9 +178,15 @@ impl TriangleBvh {
 
     /// Removes the leaves of triangles with a dead vertex; returns how many.
     pub fn remove_dead(&mut self, alive: &[bool]) -> usize {
+        let grid = self.grid;
+        self.remove_undrawn(|id| cell_triangle(grid, id).iter().all(|&q| alive[q]))
+    }
+
+    /// Removes the leaves of triangles `drawn` says are gone (a cut or tear severed their
+    /// cell); returns how many. One pass over the leaf flags, no rebuild.
+    pub fn remove_undrawn(&mut self, drawn: impl Fn(usize) -> bool) -> usize {
         let dead: Vec<usize> = (0..self.in_tree.len())
-            .filter(|&id| self.in_tree[id])
-            .filter(|&id| !cell_triangle(self.grid, id).iter().all(|&q| alive[q]))
+            .filter(|&id| self.in_tree[id] && !drawn(id))
             .collect();
         dead.into_iter().filter(|&id| self.remove(id)).count()
     }

@@ -11,7 +11,11 @@
 //! - particles were cut: their leaves are removed from the tree (`O(log n)` each; the tree is
 //!   not rebuilt). A cut made by a query (`cut_ray`, `cut_stroke`) removes the leaves at once
 //!   and, since a cut moves nothing, spares the next query a refit ([`Picker::after_cut`]);
-//!   after a cut made elsewhere the next query finds the dead particles in an `O(n)` scan.
+//!   after a cut made elsewhere the next query finds the dead particles in an `O(n)` scan;
+//! - springs were severed (`sever_stroke`, tearing): no particle died, so the particle tree
+//!   keeps every leaf; the triangle tree drops the triangles no longer drawn
+//!   ([`Model::triangle_drawn`]) in one pass over its leaf flags at the next query, without a
+//!   rebuild.
 //!
 //! The particle tree and the triangle tree are kept separately, so picking particles never
 //! pays for the triangles and the other way round.
@@ -23,13 +27,15 @@
 //! [`STROKE_TREE_MIN_RAYS`] rays or more refits at once). docs/picking.md has the measurements.
 
 mod bvh;
-mod ray;
+pub mod ray;
 
+/// Where the triangle ids live (re-exported: picking is where they are used most).
+pub use crate::grid::{cell_triangle, triangle_slots};
 pub use bvh::{ParticleBvh, TriangleBvh};
 pub use ray::{
-    cell_triangle, hit_particle, pick_particle_brute_force, pick_particle_scan,
-    pick_triangle_brute_force, pick_triangle_scan, ray_aabb, ray_triangle, triangle_slots,
-    ParticleHit, Ray, TriangleHit,
+    hit_particle, pick_particle_brute_force, pick_particle_scan, pick_triangle_brute_force,
+    pick_triangle_scan, pick_triangle_scan_where, ray_aabb, ray_triangle, ParticleHit, Ray,
+    TriangleHit,
 };
 
 use crate::error::{Error, Result};
@@ -192,7 +198,9 @@ impl Picker {
             self.triangles.as_ref()?.tree.cast(ray, &state.kin.pos)?
         } else {
             self.stats.triangle_scans += 1;
-            pick_triangle_scan(ray, model.grid, &state.kin.pos, &model.particles.alive)?
+            pick_triangle_scan_where(ray, model.grid, &state.kin.pos, |id| {
+                model.triangle_drawn(id)
+            })?
         };
         hit.index = self.triangle_rank(model, hit.index);
         Some(hit)
@@ -301,18 +309,19 @@ impl Picker {
 
     fn sync_triangle_tree(&mut self, model: &Model, state: &State) {
         let (sv, tv) = versions(model, state);
-        let (grid, pos, alive) = (model.grid, &state.kin.pos, &model.particles.alive);
+        let (grid, pos) = (model.grid, &state.kin.pos);
+        let drawn = |id: usize| model.triangle_drawn(id);
         match &mut self.triangles {
             None => {
                 self.triangles = Some(Cached {
-                    tree: TriangleBvh::build(grid, pos, alive),
+                    tree: TriangleBvh::build_where(grid, pos, drawn),
                     versions: (sv, tv),
                 });
                 self.stats.triangle_builds += 1;
             }
             Some(cache) => {
                 if cache.versions.1 != tv {
-                    self.stats.triangle_removals += cache.tree.remove_dead(alive) as u64;
+                    self.stats.triangle_removals += cache.tree.remove_undrawn(drawn) as u64;
                     cache.versions.1 = tv;
                 }
                 if cache.versions.0 != sv {
@@ -329,12 +338,11 @@ impl Picker {
     fn triangle_rank(&mut self, model: &Model, id: usize) -> usize {
         let tv = model.topology_version;
         if self.triangle_rank.as_ref().is_none_or(|(v, _)| *v != tv) {
-            let (grid, alive) = (model.grid, &model.particles.alive);
             let mut next = 0u32;
-            let rank = (0..triangle_slots(grid))
+            let rank = (0..triangle_slots(model.grid))
                 .map(|t| {
                     let r = next;
-                    if cell_triangle(grid, t).iter().all(|&q| alive[q]) {
+                    if model.triangle_drawn(t) {
                         next += 1;
                     }
                     r

@@ -27,7 +27,7 @@ use glam::Vec3;
 use parry3d::partitioning::{Bvh, TraversalAction};
 
 use crate::error::{Error, Result};
-use crate::grid::Grid;
+use crate::grid::{cell_triangle, Grid};
 use crate::soa::Vec3s;
 
 /// A ray with a unit direction; distances along it are in m.
@@ -374,6 +374,19 @@ pub fn pick_triangle_scan(
     pos: &Vec3s,
     alive: &[bool],
 ) -> Option<TriangleHit> {
+    pick_triangle_scan_where(ray, grid, pos, |id| {
+        cell_triangle(grid, id).iter().all(|&q| alive[q])
+    })
+}
+
+/// [`pick_triangle_scan`] over the triangles `drawn` says are there (by id), such as
+/// [`crate::model::Model::triangle_drawn`] after cuts that severed springs.
+pub fn pick_triangle_scan_where(
+    ray: &Ray,
+    grid: Grid,
+    pos: &Vec3s,
+    drawn: impl Fn(usize) -> bool,
+) -> Option<TriangleHit> {
     let nx = grid.nx;
     let rows: Vec<(Vec3, Vec3)> = (0..grid.ny)
         .map(|j| {
@@ -406,10 +419,10 @@ pub fn pick_triangle_scan(
         }
         let first = 2 * j * (nx - 1);
         for id in first..first + 2 * (nx - 1) {
-            let tri = cell_triangle(grid, id);
-            if !tri.iter().all(|&q| alive[q]) {
+            if !drawn(id) {
                 continue;
             }
+            let tri = cell_triangle(grid, id);
             let [a, b, c] = tri.map(|q| pos.get(q));
             if let Some((distance, barycentric)) = ray_triangle(ray, a, b, c) {
                 let hit = TriangleHit {
@@ -459,26 +472,6 @@ pub(super) fn box_margin(lo: Vec3, hi: Vec3) -> f32 {
 /// degrade towards testing every triangle (still with the same answer).
 pub(super) fn triangle_query_margin(ray: &Ray) -> f32 {
     TRIANGLE_ROUNDING * ray.origin.abs().max_element()
-}
-
-/// Number of triangle ids of `grid`: two per cell.
-pub fn triangle_slots(grid: Grid) -> usize {
-    2 * (grid.nx - 1) * (grid.ny - 1)
-}
-
-/// The vertices of triangle `id`: cell `id / 2` (cell `(i, j)` is `j * (nx - 1) + i`) and half
-/// `id % 2`, in the order and winding of [`Grid::triangles`].
-pub fn cell_triangle(grid: Grid, id: usize) -> [usize; 3] {
-    let cell = id / 2;
-    let (i, j) = (cell % (grid.nx - 1), cell / (grid.nx - 1));
-    let a = grid.index(i, j);
-    let (b, c) = (a + 1, a + grid.nx);
-    let d = c + 1;
-    if id % 2 == 0 {
-        [a, b, d]
-    } else {
-        [a, d, c]
-    }
 }
 
 /// The bounds of triangle `(a, b, c)` widened by [`box_margin`]: its leaf box in the tree.

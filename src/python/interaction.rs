@@ -132,25 +132,20 @@ impl PySimulation {
 
     /// Cuts what a stroke of ``(origin, direction)`` rays passes over; returns the indices.
     fn cut_stroke(&self, py: Python<'_>, rays: &Bound<'_, PyAny>) -> PyResult<Vec<usize>> {
-        if rays.is_instance_of::<pyo3::types::PyString>()
-            || rays.is_instance_of::<pyo3::types::PyBytes>()
-        {
-            return Err(type_error(
-                "rays",
-                format!("must be a sequence of (origin, direction) pairs, got {rays}"),
-            ));
-        }
-        let items = rays.try_iter().map_err(|_| {
-            type_error(
-                "rays",
-                format!("must be a sequence of (origin, direction) pairs, got {rays}"),
-            )
-        })?;
-        let rays = items
-            .enumerate()
-            .map(|(k, item)| ray_from_any(&item?, k))
-            .collect::<PyResult<Vec<_>>>()?;
+        let rays = rays_from_any(rays)?;
         self.with(py, |h| py.detach(|| h.sim.cut_stroke(&rays)).py())
+    }
+
+    /// Severs the springs the surface swept between consecutive rays crosses; returns how
+    /// many. No particle is removed.
+    fn sever_stroke(&self, py: Python<'_>, rays: &Bound<'_, PyAny>) -> PyResult<usize> {
+        let rays = rays_from_any(rays)?;
+        self.with(py, |h| py.detach(|| h.sim.sever_stroke(&rays)).py())
+    }
+
+    /// Connected pieces of the cloth (live particles joined by live springs).
+    fn pieces(&self, py: Python<'_>) -> PyResult<usize> {
+        self.with(py, |h| Ok(py.detach(|| h.sim.pieces())))
     }
 
     /// Work done on the picking trees so far.
@@ -169,6 +164,28 @@ impl PySimulation {
         .into_iter()
         .collect())
     }
+}
+
+/// A stroke: a sequence of ``(origin, direction)`` pairs, each named ``rays[k]`` in errors.
+fn rays_from_any(rays: &Bound<'_, PyAny>) -> PyResult<Vec<(glam::Vec3, glam::Vec3)>> {
+    if rays.is_instance_of::<pyo3::types::PyString>()
+        || rays.is_instance_of::<pyo3::types::PyBytes>()
+    {
+        return Err(type_error(
+            "rays",
+            format!("must be a sequence of (origin, direction) pairs, got {rays}"),
+        ));
+    }
+    let items = rays.try_iter().map_err(|_| {
+        type_error(
+            "rays",
+            format!("must be a sequence of (origin, direction) pairs, got {rays}"),
+        )
+    })?;
+    items
+        .enumerate()
+        .map(|(k, item)| ray_from_any(&item?, k))
+        .collect()
 }
 
 impl PySimulation {

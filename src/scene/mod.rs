@@ -16,7 +16,7 @@ use serde::{Deserialize, Serialize};
 pub use pins::PIN_GROUPS;
 pub use specs::{
     ClothSpec, FloorSpec, OnTrouble, PinSpec, Plane, SelfCollisionSpec, SphereSpec,
-    StrainLimitSpec, WatchdogSpec,
+    StrainLimitSpec, TearingSpec, WatchdogSpec,
 };
 pub use stability::stable_substep;
 pub(crate) use validate::check_substep;
@@ -82,6 +82,9 @@ pub struct Scene {
     /// Self-collision after each substep; absent means none (no pass).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub self_collision: Option<SelfCollisionSpec>,
+    /// Springs break past a strain, after each step; absent means none (no pass).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tearing: Option<TearingSpec>,
 }
 
 impl Default for Scene {
@@ -104,6 +107,7 @@ impl Default for Scene {
             watchdog: WatchdogSpec::default(),
             strain_limit: None,
             self_collision: None,
+            tearing: None,
         }
     }
 }
@@ -117,6 +121,7 @@ const BUILTIN: &[(&str, &str)] = &[
     ("twist", include_str!("../../scenes/twist.toml")),
     ("fold", include_str!("../../scenes/fold.toml")),
     ("pile", include_str!("../../scenes/pile.toml")),
+    ("tear", include_str!("../../scenes/tear.toml")),
 ];
 
 impl Scene {

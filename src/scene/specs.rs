@@ -101,6 +101,34 @@ impl Default for SelfCollisionSpec {
     }
 }
 
+/// Tearing: after each step, the springs stretched past `max_strain` break (severed as a cut
+/// severs them: the mesh, the picking trees and `topology_version` follow), the most strained
+/// first, at most `max_per_step` of them. Absent means none (no pass, the step bitwise as
+/// without it).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TearingSpec {
+    /// Strain `(l - L) / L` past which a spring breaks (> 0, dimensionless). Default 0.5: a
+    /// spring half again its rest length. Lower tears under its own weight (a heavy cloth
+    /// hanging from two corners reaches 0.1 to 0.3 there); with strain limiting on, keep it
+    /// above `strain_limit.max_strain`, or nothing ever tears.
+    pub max_strain: f64,
+    /// Most springs that break in one step (>= 1). Default 16. Fewer makes a tear run along
+    /// the cloth over several steps (each break passes its load to the next spring, as a real
+    /// rip does) rather than a whole overstretched region letting go at once; more lets a
+    /// violent pull rip at once.
+    pub max_per_step: u32,
+}
+
+impl Default for TearingSpec {
+    fn default() -> Self {
+        TearingSpec {
+            max_strain: 0.5,
+            max_per_step: 16,
+        }
+    }
+}
+
 /// The plane the cloth starts in.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]

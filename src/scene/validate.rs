@@ -122,6 +122,25 @@ impl Scene {
                 ));
             }
         }
+        if let Some(tearing) = &self.tearing {
+            check_scalar("tearing.max_strain", tearing.max_strain, Bound::Positive)?;
+            // Compared in float32 in the pass.
+            if !(tearing.max_strain as f32).is_finite() {
+                return Err(Error::value(
+                    "tearing.max_strain",
+                    format!(
+                        "must be within float32 range (3.4e38), got {}",
+                        tearing.max_strain
+                    ),
+                ));
+            }
+            if tearing.max_per_step == 0 {
+                return Err(Error::value(
+                    "tearing.max_per_step",
+                    "must be an integer >= 1, got 0",
+                ));
+            }
+        }
         Ok(())
     }
 }
@@ -256,6 +275,7 @@ pub(super) fn require_tables(scene: &toml::Value) -> Result<()> {
         "watchdog",
         "strain_limit",
         "self_collision",
+        "tearing",
     ] {
         match scene.get(key) {
             Some(value) if !value.is_table() => return Err(not_a_table(key.into(), value)),

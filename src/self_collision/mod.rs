@@ -176,7 +176,8 @@ impl SelfCollision {
     /// as any non-finite step does), and otherwise whether the velocities it wrote are finite.
     pub fn apply(&mut self, model: &Model, start: &Kinematics, next: &mut Kinematics) -> bool {
         if self.topology.version != Some(model.topology_version) {
-            let triangles = model.grid.triangles(&model.particles.alive);
+            // The cut-aware surface: a triangle a cut or tear runs through is no surface.
+            let triangles = model.triangles().collect();
             self.topology
                 .rebuild(model.topology_version, model.grid.len(), triangles);
         }
@@ -548,5 +549,36 @@ mod tests {
         assert_eq!(pair.c.iter().sum::<f64>(), 0.0);
         let e = edge_edge(&x0, [0, 1, 2, 3]);
         assert!(e.c.iter().sum::<f64>().abs() < 1e-15);
+    }
+
+    /// Before the cutting and contact branches met, the pass rebuilt its mesh from the live
+    /// particles alone, so the triangles a severed stroke runs through stayed in it as a
+    /// surface stretched across the gap. It must keep apart exactly the drawn triangles.
+    #[test]
+    fn issue_15_the_mesh_it_keeps_apart_is_the_drawn_one_after_a_cut() {
+        let scene = crate::Scene::builtin("hanging").unwrap();
+        let (mut model, pos) = Model::new(scene).unwrap();
+        let n = model.grid.len();
+        let kin = Kinematics {
+            pos,
+            vel: Vec3s::zeros(n),
+        };
+        let mut next = Kinematics::zeros(n);
+        next.copy_from(&kin);
+        // Every spring between rows 3 and 4, as a stroke between them severs: the cells of rows
+        // 3-4 lose their triangles.
+        use crate::grid::SpringKind::{ShearAntiDiagonal, ShearDiagonal, StructuralJ};
+        let (nx, grid) = (model.grid.nx, model.grid);
+        let mut slots: Vec<_> = (0..nx).map(|i| (StructuralJ, grid.index(i, 3))).collect();
+        for i in 0..nx - 1 {
+            slots.push((ShearDiagonal, grid.index(i, 3)));
+            slots.push((ShearAntiDiagonal, grid.index(i + 1, 3)));
+        }
+        assert!(model.sever(&slots) > 0);
+        let drawn: Vec<[u32; 3]> = model.triangles().collect();
+        assert!(drawn.len() < 2 * (nx - 1) * (model.grid.ny - 1));
+        let mut pass = SelfCollision::new(1e-3, 0.0, 1);
+        pass.apply(&model, &kin, &mut next);
+        assert_eq!(pass.topology.triangles, drawn);
     }
 }

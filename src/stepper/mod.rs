@@ -26,6 +26,7 @@ use crate::profile::Profile;
 use crate::self_collision::SelfCollisionStats;
 use crate::soa::Vec3s;
 use crate::state::{Kinematics, State};
+use crate::tearing::Tearing;
 use pipeline::Pipeline;
 use watchdog::{Failure, Watchdog};
 
@@ -95,7 +96,7 @@ impl Stepper {
     /// state at that step boundary. The answer never changes the steps taken before it.
     pub fn step_with(
         &mut self,
-        model: &Model,
+        model: &mut Model,
         state: &mut State,
         n: u64,
         interrupted: &mut dyn FnMut() -> bool,
@@ -118,7 +119,7 @@ impl Stepper {
     /// abandons the rest of its request. At most [`MAX_ADVANCE_STEPS`] steps per call.
     pub fn advance_with(
         &mut self,
-        model: &Model,
+        model: &mut Model,
         state: &mut State,
         seconds: f64,
         interrupted: &mut dyn FnMut() -> bool,
@@ -158,7 +159,7 @@ impl Stepper {
 
     /// Up to `n` steps, stopping after the first step that ends past [`INTERRUPT_SLICE`] of
     /// wall time; returns the steps taken.
-    fn run_slice(&mut self, model: &Model, state: &mut State, n: u64) -> Result<u64> {
+    fn run_slice(&mut self, model: &mut Model, state: &mut State, n: u64) -> Result<u64> {
         let until = Instant::now() + INTERRUPT_SLICE;
         on_pool(|| {
             let mut taken = 0;
@@ -174,7 +175,7 @@ impl Stepper {
     }
 
     /// One step of `dt`, with the watchdog's recovery when it goes wrong.
-    fn step_once(&mut self, model: &Model, state: &mut State) -> Result<()> {
+    fn step_once(&mut self, model: &mut Model, state: &mut State) -> Result<()> {
         let started = Instant::now();
         let target = state.clock.steps + 1;
         // Recovering from trouble found one step late reruns the previous step, moving `steps`
@@ -183,6 +184,13 @@ impl Stepper {
             if let Err(failure) = self.attempt_step(model, state) {
                 self.recover(model, state, failure)?;
             }
+        }
+        // On the accepted end-of-step positions. A tear is not undone by a later rollback: the
+        // watchdog restores states, not springs (a rerun step sees the cloth as torn).
+        if let Some(tearing) = &mut self.pipeline.tearing {
+            let t = Instant::now();
+            tearing.apply(model, &state.kin.pos);
+            self.profile.add(Tearing::NAME, t.elapsed());
         }
         self.profile.total += started.elapsed();
         Ok(())

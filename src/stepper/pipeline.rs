@@ -12,6 +12,10 @@
 //!    guarantee covers everything the passes before it did. It only shortens a particle's
 //!    motion along its path from the substep's start, so the floor (a half-space, which holds
 //!    both ends of that path) stays satisfied.
+//!
+//! and once per step, after its last substep was accepted, tearing (when the scene asks for it,
+//! `src/tearing.rs`): it changes the model (springs break), not the state, so it runs between
+//! steps rather than inside one.
 
 use std::time::Instant;
 
@@ -28,6 +32,7 @@ use crate::scene::Scene;
 use crate::self_collision::SelfCollision;
 use crate::state::{Kinematics, State};
 use crate::strain_limit::StrainLimit;
+use crate::tearing::Tearing;
 
 /// The passes of a step.
 pub(super) struct Pipeline {
@@ -38,6 +43,8 @@ pub(super) struct Pipeline {
     pub colliders: Vec<Collider>,
     /// Only when the scene asks for self-collision.
     pub self_collision: Option<SelfCollision>,
+    /// Only when the scene asks for tearing; runs after each whole step.
+    pub tearing: Option<Tearing>,
 }
 
 impl Pipeline {
@@ -54,6 +61,10 @@ impl Pipeline {
                 .self_collision
                 .as_ref()
                 .map(|s| SelfCollision::new(s.thickness as f32, s.friction as f32, s.iterations)),
+            tearing: scene
+                .tearing
+                .as_ref()
+                .map(|t| Tearing::new(t.max_strain as f32, t.max_per_step)),
         }
     }
 
@@ -70,6 +81,9 @@ impl Pipeline {
         out.extend(self.colliders.iter().map(Collider::name));
         if self.self_collision.is_some() {
             out.push(SelfCollision::NAME);
+        }
+        if self.tearing.is_some() {
+            out.push(Tearing::NAME);
         }
         out
     }
@@ -125,6 +139,7 @@ impl Pipeline {
                 .self_collision
                 .as_ref()
                 .map_or(0, SelfCollision::heap_bytes)
+            + self.tearing.as_ref().map_or(0, Tearing::heap_bytes)
     }
 }
 

@@ -132,7 +132,8 @@ def main_demo(argv: list[str]) -> int:
             wall = time.perf_counter() - start
             print(f"demo: {v.frames} frames in {wall:.1f} s ({v.frames / max(wall, 1e-9):.1f} "
                   f"fps), t = {v.sim.time:.2f} s simulated, {v.interaction.cut_count} "
-                  f"particles cut, {v.sim.integrator} with {v.sim.substeps} substeps")
+                  f"springs cut ({v.sim.pieces()} pieces), {v.sim.integrator} with "
+                  f"{v.sim.substeps} substeps")
             return rc
         finally:
             demo.close()

@@ -28,7 +28,7 @@ class Grabbable(Protocol):
     def drag_to(self, target: Any) -> None: ...
     def release(self) -> None: ...
     def grabbed(self) -> int | None: ...
-    def cut_stroke(self, rays: Any) -> list[int]: ...
+    def sever_stroke(self, rays: Any) -> int: ...
 
 
 class Interaction:
@@ -44,6 +44,7 @@ class Interaction:
         self.stroke_version = 0
         self.cut_count = 0
         self._last_hit: F32 | None = None
+        self._last_ray: Ray | None = None
 
     @property
     def grabbed(self) -> int | None:
@@ -69,24 +70,36 @@ class Interaction:
         self.drag_point = None
 
     def cut(self, rays: list[Ray]) -> int:
-        """Cut what the rays of one stroke sample hit; returns how many particles were cut.
-        The stroke is drawn through the particles it cut, joined to the previous sample's."""
-        cut = self.sim.cut_stroke(rays)
-        if cut:
-            hits = list(self.sim.positions[cut])
+        """Sever the cloth along one stroke sample: the surface swept from the previous
+        sample's last ray (none at the start of a stroke) through these rays. Returns how many
+        springs were severed. The stroke is drawn through the points where the rays meet the
+        particles' pick boxes (the triangles along the cut are gone), joined to the previous
+        sample's."""
+        stroke = rays if self._last_ray is None else [self._last_ray, *rays]
+        self._last_ray = rays[-1]
+        severed = self.sim.sever_stroke(stroke) if len(stroke) >= 2 else 0
+        hits: list[F32] = []
+        for origin, direction in rays:
+            hit = self.sim.pick(origin, direction)
+            if hit is not None:
+                d = np.asarray(direction, dtype=np.float64)
+                point = np.asarray(origin, dtype=np.float64) + hit[1] * d / np.linalg.norm(d)
+                hits.append(point.astype(np.float32))
+        if hits:
             if self._last_hit is not None:
                 hits.insert(0, self._last_hit)
-            self._last_hit = np.asarray(hits[-1], dtype=np.float32)
+            self._last_hit = hits[-1]
             if len(hits) >= 2:
                 pts = np.asarray(hits, dtype=np.float32)
                 self.segments.append(np.stack([pts[:-1], pts[1:]], axis=1).reshape(-1, 3))
                 self.stroke_version += 1
-        self.cut_count += len(cut)
-        return len(cut)
+        self.cut_count += severed
+        return severed
 
     def end_stroke(self) -> None:
         """The cut gesture is over: its line goes away with it."""
         self._last_hit = None
+        self._last_ray = None
         if self.segments:
             self.segments.clear()
             self.stroke_version += 1

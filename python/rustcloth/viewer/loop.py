@@ -99,6 +99,7 @@ class Viewer:
         self.interaction = Interaction(sim)
         self.pointer = Pointer(self.interaction, self.camera, self.pointer_size)
         self._overlay_at = -1.0
+        self._pieces_at: tuple[int, int] | None = None
 
     # -- the frame -------------------------------------------------------------------------
     def frame(self, target: moderngl.Framebuffer, seconds: float) -> None:
@@ -178,6 +179,13 @@ class Viewer:
         if self.on_notice is not None:
             self.on_notice(text)
 
+    def _pieces(self) -> int:
+        """The cloth's pieces, counted again only after a cut or a tear (an O(n) pass)."""
+        version = self.sim.topology_version
+        if self._pieces_at is None or self._pieces_at[0] != version:
+            self._pieces_at = (version, self.sim.pieces())
+        return self._pieces_at[1]
+
     def status_lines(self) -> list[Line]:
         sim, r = self.sim, self.renderer
         physics = self.last_physics
@@ -196,7 +204,8 @@ class Viewer:
             f"{self.name}  t = {sim.time:.2f} s  {self.fps:.1f} fps  render "
             f"{1e3 * self.render_s:.1f} ms{scale}  physics {1e3 * physics.seconds:.1f} ms/frame "
             f"({physics.steps} steps, {per_step:.2f} ms/step)  {state}".rstrip(),
-            f"{sim.num_particles} particles  {sim.integrator}  dt {sim.dt:g} s  {substeps}  "
+            f"{sim.num_particles} particles  {self._pieces()} pieces  {sim.integrator}  "
+            f"dt {sim.dt:g} s  {substeps}  "
             f"view {r.view}  lights {r.lights.name}  SSAO {'on' if r.ssao else 'off'}",
             f"effects: {', '.join(sim.effects)}",
         ]

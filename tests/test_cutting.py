@@ -1,0 +1,128 @@
+"""Cuts that sever springs along a stroke and tearing, from Python (issue 15). The physics is
+tested in tests/cutting.rs and tests/tearing.rs; this checks the binding, its errors and the
+viewer's cut gesture."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import rustcloth
+from conftest import small_scene, state_digest
+from rustcloth import Simulation
+from rustcloth.viewer.interaction import Interaction
+
+FRONT = np.array([0.0, 0.0, -1.0], np.float32)
+
+
+def across(sim: Simulation, y: float, k: int = 3) -> list[tuple[np.ndarray, np.ndarray]]:
+    """A stroke from the front (z = 2, looking along -z) across the cloth at height ``y``."""
+    x = sim.positions[:, 0]
+    xs = np.linspace(x.min() - 0.2, x.max() + 0.2, k)
+    return [(np.array([xi, y, 2.0], np.float32), FRONT) for xi in xs]
+
+
+def between_rows(sim: Simulation, j: int) -> float:
+    """Halfway between rows ``j`` and ``j + 1`` of the (vertical, xy-plane) small scene."""
+    y = sim.positions[:, 1].reshape(sim.ny, sim.nx)[:, 0]
+    return float(0.5 * (y[j] + y[j + 1]))
+
+
+def live_mass(sim: Simulation) -> float:
+    return float(np.sum(sim.masses.astype(np.float64)))
+
+
+def test_a_stroke_across_severs_the_cloth_in_two_keeping_the_mass():
+    sim = Simulation(small_scene())
+    mass, version, full = live_mass(sim), sim.topology_version, len(sim.triangles)
+    y = between_rows(sim, 2)
+    severed = sim.sever_stroke(across(sim, y))
+    nx = sim.nx
+    assert severed == nx + 2 * (nx - 1) + 2 * nx  # structural, shear, bending across
+    assert sim.pieces() == 2
+    assert sim.topology_version == version + 1
+    assert live_mass(sim) == mass
+    tris = sim.triangles
+    assert len(tris) == full - 2 * (nx - 1)
+    above = sim.positions[tris][:, :, 1] > y
+    assert np.all(above.all(axis=1) | (~above).all(axis=1)), "a triangle spans the cut"
+    sim.step(100)
+    lower = sim.positions.reshape(sim.ny, sim.nx, 3)[:3]
+    v = sim.velocities.reshape(sim.ny, sim.nx, 3)[:3, :, 1].mean()
+    assert np.isfinite(lower).all() and abs(v + 9.81 * 0.1) < 0.05 * 9.81 * 0.1
+
+
+def test_an_array_of_rays_works_like_a_list():
+    a, b = Simulation(small_scene()), Simulation(small_scene())
+    rays = across(a, between_rows(a, 3), 4)
+    assert a.sever_stroke(rays) == b.sever_stroke(np.asarray(rays)) > 0
+    assert state_digest(a) == state_digest(b) and a.pieces() == b.pieces() == 2
+
+
+def test_strokes_that_sever_nothing_change_nothing():
+    sim = Simulation(small_scene())
+    sim.step(5)
+    digest, version = state_digest(sim), sim.topology_version
+    one = across(sim, between_rows(sim, 2), 2)[:1]
+    assert sim.sever_stroke(one) == 0
+    assert sim.sever_stroke(one * 3) == 0
+    assert sim.sever_stroke([]) == 0
+    assert sim.sever_stroke(across(sim, 10.0)) == 0
+    assert (state_digest(sim), sim.topology_version) == (digest, version)
+
+
+@pytest.mark.parametrize(("rays", "error", "name"), [
+    ([([0, 1, 2], [0, 0, -1]), ([0, 1, 2], [0, 0, 0])], ValueError, "rays[1].direction"),
+    ([([0, 1, 2], [0, 0, -1]), ([np.nan, 1, 2], [0, 0, -1])], ValueError, "rays[1].origin"),
+    ([([0, 1, 2], [0, 0, -1]), 3], TypeError, "rays[1]"),
+    (7, TypeError, "rays"),
+    ("rays", TypeError, "rays"),
+])
+def test_bad_rays_are_named_and_change_nothing(rays, error, name):
+    sim = Simulation(small_scene())
+    digest, version = state_digest(sim), sim.topology_version
+    with pytest.raises(error) as info:
+        sim.sever_stroke(rays)
+    assert info.value.parameter == name
+    assert (state_digest(sim), sim.topology_version) == (digest, version)
+
+
+def test_the_viewers_cut_gesture_severs_along_its_samples():
+    sim = Simulation(small_scene())
+    cut = Interaction(sim)
+    y = between_rows(sim, 2)
+    rays = across(sim, y, 6)
+    # A press is one ray: nothing swept yet. Each move sweeps from the last ray on.
+    assert cut.cut(rays[:1]) == 0
+    severed = sum(cut.cut(rays[k:k + 1]) for k in range(1, 6))
+    assert severed == cut.cut_count > 0 and sim.pieces() == 2
+    assert len(cut.stroke()) > 0
+    cut.end_stroke()
+    assert len(cut.stroke()) == 0
+    # After the stroke ended, a new press starts afresh: no surface back to the old stroke.
+    version = sim.topology_version
+    assert cut.cut(across(sim, between_rows(sim, 4), 2)[:1]) == 0
+    assert sim.topology_version == version
+
+
+def test_the_tear_scene_has_tearing_and_tears():
+    scene = rustcloth.load_scene("tear")
+    assert scene.to_dict()["tearing"] == {"max_strain": 0.3, "max_per_step": 8}
+    sim = Simulation(scene)
+    assert "tearing" in sim.effects
+    sim.step(100)
+    start = sim.positions[:13].copy()
+    for s in range(1, 400):
+        for p in range(13):
+            sim.pin(p, target=start[p] + s * 0.001 * np.array([-0.8, -0.5, 0.3], np.float32))
+        sim.step(1)
+    assert sim.pieces() >= 2
+    assert np.isfinite(sim.positions).all()
+
+
+def test_bad_tearing_settings_are_named():
+    with pytest.raises(ValueError) as info:
+        rustcloth.Scene(tearing={"max_strain": -1.0})
+    assert info.value.parameter == "tearing.max_strain"
+    with pytest.raises(ValueError) as info:
+        rustcloth.Scene(tearing={"max_per_step": 0})
+    assert info.value.parameter == "tearing.max_per_step"
