@@ -15,7 +15,7 @@ use serde::{Deserialize, Serialize};
 
 pub use pins::PIN_GROUPS;
 pub use specs::{
-    ClothSpec, FloorSpec, OnTrouble, PinSpec, Plane, SelfCollisionSpec, SphereSpec,
+    ClothSpec, ColliderSpec, FloorSpec, OnTrouble, ShapeKind, PinSpec, Plane, SelfCollisionSpec, SphereSpec,
     StrainLimitSpec, WatchdogSpec,
 };
 pub use stability::stable_substep;
@@ -74,6 +74,8 @@ pub struct Scene {
     pub floor: Option<FloorSpec>,
     /// Spheres the cloth collides with; empty means none.
     pub spheres: Vec<SphereSpec>,
+    /// Colliders of any shape, static or moving (`[[colliders]]`); empty means none (no pass).
+    pub colliders: Vec<ColliderSpec>,
     /// What a step does when it goes wrong (see `src/watchdog.rs`).
     pub watchdog: WatchdogSpec,
     /// Provot strain limiting after each substep; absent means none (no pass).
@@ -101,6 +103,7 @@ impl Default for Scene {
             cloth: ClothSpec::default(),
             floor: None,
             spheres: Vec::new(),
+            colliders: Vec::new(),
             watchdog: WatchdogSpec::default(),
             strain_limit: None,
             self_collision: None,
