@@ -38,8 +38,8 @@ impl Collider {
     }
 
     /// Moves every dynamic particle of `next` that ended inside the collider out of it.
-    /// `start` holds the positions at the start of the step, `time` is the simulated time at
-    /// its end (s), where moving colliders are posed. Returns whether every value it
+    /// `start` holds the positions at the start of the step, `h` is its length and `time` the
+    /// simulated time at its end (s), where moving colliders are posed. Returns whether every value it
     /// wrote is finite (a contact at speeds near float32's limit can overflow).
     pub fn resolve(
         &self,
@@ -47,11 +47,12 @@ impl Collider {
         next: &mut Kinematics,
         particles: &Particles,
         chunk: usize,
+        h: f32,
         time: f64,
     ) -> bool {
         match self {
             Collider::Spheres(s) => s.resolve(start, next, particles, chunk),
-            Collider::Shapes(s) => s.resolve(next, particles, chunk, time),
+            Collider::Shapes(s) => s.resolve(next, particles, chunk, h, time),
             Collider::Floor(f) => f.resolve(start, next, particles, chunk),
         }
     }

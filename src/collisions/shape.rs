@@ -6,7 +6,10 @@
 //! nearest surface point. A particle inside, or closer than `thickness` outside, is put
 //! `thickness` outside along the surface normal; its velocity relative to the surface's own
 //! velocity there (`v + w x r`) loses the inward part and is slowed by Coulomb friction, so a
-//! moving shape carries cloth that sticks to it. Work is per particle and independent, so the
+//! moving shape carries cloth that sticks to it. The position takes the same tangential change
+//! as the velocity, times the substep (`x1 = x0 + h v1` with the velocity after friction):
+//! otherwise the nearest-point projection keeps the slide of a particle that static friction
+//! stopped, and cloth crept down every slope at `g h sin(angle)` per substep. Work is per particle and independent, so the
 //! result is the same for any thread count, and a step allocates nothing.
 //!
 //! The test is discrete (the end of the substep only): a particle whose motion relative to the
@@ -69,11 +72,14 @@ struct Posed {
     rotation: Quat,
     velocity: Vec3,
     angular_velocity: Vec3,
+    /// How far beyond `thickness` particles are put, in m.
+    margin: f32,
 }
 
-/// Particles are put this much (relative to the shape's reach) beyond `thickness`, so that
-/// rounding in the frame change never leaves one a hair inside.
-const SURFACE_MARGIN: f32 = 1e-5;
+/// Particles are put this much (relative to the size of the coordinates involved) beyond
+/// `thickness`, so that rounding in the frame change never leaves one a hair inside. A few
+/// ulps: a larger lift leaves a resting particle airborne for whole substeps, sliding free.
+const SURFACE_MARGIN: f32 = 8.0 * f32::EPSILON;
 
 impl Shapes {
     pub fn new(specs: &[ColliderSpec]) -> Self {
@@ -89,9 +95,7 @@ impl Shapes {
                         (Geometry::Cuboid(Cuboid::new(h)), h.length())
                     }
                     ShapeKind::Capsule => (Geometry::Capsule(Capsule::new_y(hh, r)), hh + r),
-                    ShapeKind::Cylinder => {
-                        (Geometry::Cylinder(Cylinder::new(hh, r)), hh.hypot(r))
-                    }
+                    ShapeKind::Cylinder => (Geometry::Cylinder(Cylinder::new(hh, r)), hh.hypot(r)),
                 };
                 let rotation = DVec3::from(s.rotation);
                 ShapeCollider {
@@ -110,13 +114,14 @@ impl Shapes {
     }
 
     /// Moves every dynamic particle of `next` that ended inside a shape (posed at `time`, the
-    /// end of the substep, in s) or within its thickness onto the offset surface; see
-    /// [`super::Collider::resolve`].
+    /// end of the substep of length `h`, in s) or within its thickness onto the offset surface;
+    /// see [`super::Collider::resolve`].
     pub fn resolve(
         &self,
         next: &mut Kinematics,
         particles: &Particles,
         chunk: usize,
+        h: f32,
         time: f64,
     ) -> bool {
         let Kinematics { pos, vel } = next;
@@ -142,8 +147,10 @@ impl Shapes {
                         }
                         if let Some((n, at)) = shape.contact(&posed, pos.get(i)) {
                             let surface = posed.surface_velocity(at);
-                            let v = surface
-                                + contact_velocity(vel.get(i) - surface, n, shape.friction);
+                            let v0 = vel.get(i);
+                            let v = surface + contact_velocity(v0 - surface, n, shape.friction);
+                            let dv = v - v0;
+                            let at = at + h * (dv - dv.dot(n) * n);
                             pos.set(i, at);
                             vel.set(i, v);
                             finite &= at.is_finite() && v.is_finite();
@@ -159,8 +166,10 @@ impl Shapes {
 impl ShapeCollider {
     fn posed(&self, time: f64) -> Posed {
         let turn = DQuat::from_scaled_axis(self.angular_velocity * time);
+        let center = (self.center + self.velocity * time).as_vec3();
         Posed {
-            center: (self.center + self.velocity * time).as_vec3(),
+            center,
+            margin: SURFACE_MARGIN * (self.reach + center.abs().max_element()),
             rotation: (turn * self.rotation).normalize().as_quat(),
             velocity: self.velocity.as_vec3(),
             angular_velocity: self.angular_velocity.as_vec3(),
@@ -187,7 +196,7 @@ impl ShapeCollider {
         } else {
             offset.normalize_or(fallback)
         };
-        let lift = self.thickness + SURFACE_MARGIN * self.reach;
+        let lift = self.thickness + posed.margin;
         let at = posed.center + posed.rotation * (on_surface + n * lift);
         Some((posed.rotation * n, at))
     }
@@ -221,14 +230,19 @@ mod tests {
         let s = &shapes.shapes[0];
         let (n, at) = s.contact(&s.posed(0.0), Vec3::new(0.2, 0.9, 0.1)).unwrap();
         assert_eq!(n, Vec3::Y);
-        assert!(at.y >= 1.0 && at.y < 1.001 && (at.x - 0.2).abs() < 1e-6, "{at}");
+        assert!(
+            at.y >= 1.0 && at.y < 1.001 && (at.x - 0.2).abs() < 1e-6,
+            "{at}"
+        );
     }
 
     #[test]
     fn a_point_outside_beyond_the_thickness_is_untouched() {
         let shapes = unit_box();
         let s = &shapes.shapes[0];
-        assert!(s.contact(&s.posed(0.0), Vec3::new(0.0, 1.01, 0.0)).is_none());
+        assert!(s
+            .contact(&s.posed(0.0), Vec3::new(0.0, 1.01, 0.0))
+            .is_none());
     }
 
     #[test]

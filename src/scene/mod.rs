@@ -15,8 +15,8 @@ use serde::{Deserialize, Serialize};
 
 pub use pins::PIN_GROUPS;
 pub use specs::{
-    ClothSpec, ColliderSpec, FloorSpec, OnTrouble, ShapeKind, PinSpec, Plane, SelfCollisionSpec, SphereSpec,
-    StrainLimitSpec, WatchdogSpec,
+    ClothSpec, ColliderSpec, FloorSpec, OnTrouble, PinSpec, Plane, SelfCollisionSpec, ShapeKind,
+    SphereSpec, StrainLimitSpec, WatchdogSpec,
 };
 pub use stability::stable_substep;
 pub(crate) use validate::check_substep;

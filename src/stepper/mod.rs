@@ -258,17 +258,18 @@ impl Stepper {
             // Where moving colliders are posed: the substep's end, from the clock, so that a
             // retried or restored step sees the same poses.
             let time = start + dt * (j + 1) as f64 / substeps as f64;
-            let outcome =
-                catch_unwind(AssertUnwindSafe(|| self.substep(model, state, h, time, substeps)))
-                    .unwrap_or_else(|payload| {
-                        self.panic_message = Some(panic_text(payload.as_ref()));
-                        Err(Failure {
-                            reason: Trouble::Panicked,
-                            particle: 0,
-                            in_start_state: false,
-                            substeps,
-                        })
-                    });
+            let outcome = catch_unwind(AssertUnwindSafe(|| {
+                self.substep(model, state, h, time, substeps)
+            }))
+            .unwrap_or_else(|payload| {
+                self.panic_message = Some(panic_text(payload.as_ref()));
+                Err(Failure {
+                    reason: Trouble::Panicked,
+                    particle: 0,
+                    in_start_state: false,
+                    substeps,
+                })
+            });
             outcome.map_err(|failure| Failure {
                 in_start_state: failure.in_start_state && j == 0,
                 ..failure

@@ -105,7 +105,7 @@ impl Pipeline {
         }
         for collider in &self.colliders {
             let t = Instant::now();
-            finite &= collider.resolve(&state.kin, next, &model.particles, chunk, time);
+            finite &= collider.resolve(&state.kin, next, &model.particles, chunk, h, time);
             profile.add(collider.name(), t.elapsed());
         }
         if let Some(contact) = &mut self.self_collision {
