@@ -52,7 +52,7 @@ impl Collider {
     ) -> bool {
         match self {
             Collider::Spheres(s) => s.resolve(start, next, particles, chunk),
-            Collider::Shapes(s) => s.resolve(next, particles, chunk, h, time),
+            Collider::Shapes(s) => s.resolve(start, next, particles, chunk, h, time),
             Collider::Floor(f) => f.resolve(start, next, particles, chunk),
         }
     }

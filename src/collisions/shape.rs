@@ -12,12 +12,16 @@
 //! stopped, and cloth crept down every slope at `g h sin(angle)` per substep. Work is per particle and independent, so the
 //! result is the same for any thread count, and a step allocates nothing.
 //!
-//! The test is discrete (the end of the substep only): a particle whose motion relative to the
-//! shape crosses it within one substep is missed. That cannot happen while the relative travel
-//! per substep stays below the shape's smallest half-size plus `thickness`.
+//! Swept, as the spheres are: the particle's path over the substep is taken into the shape's
+//! frame at its start and its end (`x0` posed at the substep's start, `x1` at its end: the
+//! relative motion, linearised), and a ray cast along it (parry's `RayCast`) finds where it
+//! entered. A particle that crossed the shape within one substep, or that went deeper than the
+//! middle, so that the nearest surface point is on the far side, is stopped at its entry point
+//! instead: a fast particle or a fast shape neither tunnels nor pushes cloth through. A turning
+//! shape's path is linearised over the substep, exact while `|angular_velocity| h` is small.
 
 use glam::{DQuat, DVec3, Quat, Vec3};
-use parry3d::query::PointQuery;
+use parry3d::query::{PointQuery, Ray, RayCast};
 use parry3d::shape::{Ball, Capsule, Cuboid, Cylinder};
 use rayon::prelude::*;
 
@@ -49,6 +53,20 @@ impl Geometry {
             Geometry::Cylinder(s) => s.project_local_point(local, false),
         };
         (p.point, p.is_inside)
+    }
+
+    /// Where the segment `from + t d`, `t` in `[0, 1]`, first meets the solid shape, and the
+    /// outward normal there; `t = 0` when `from` is inside.
+    #[inline]
+    fn entry(&self, from: Vec3, d: Vec3) -> Option<(f32, Vec3)> {
+        let ray = Ray::new(from, d);
+        let hit = match self {
+            Geometry::Ball(s) => s.cast_local_ray_and_get_normal(&ray, 1.0, true),
+            Geometry::Cuboid(s) => s.cast_local_ray_and_get_normal(&ray, 1.0, true),
+            Geometry::Capsule(s) => s.cast_local_ray_and_get_normal(&ray, 1.0, true),
+            Geometry::Cylinder(s) => s.cast_local_ray_and_get_normal(&ray, 1.0, true),
+        };
+        hit.map(|h| (h.time_of_impact, h.normal))
     }
 }
 
@@ -118,6 +136,7 @@ impl Shapes {
     /// see [`super::Collider::resolve`].
     pub fn resolve(
         &self,
+        start: &Kinematics,
         next: &mut Kinematics,
         particles: &Particles,
         chunk: usize,
@@ -134,18 +153,23 @@ impl Shapes {
                 for shape in &self.shapes {
                     // Posed once per chunk: a few dozen flops, and no buffer to keep.
                     let posed = shape.posed(time);
-                    let r2 = shape.reach * shape.reach;
+                    let before = shape.posed(time - h as f64);
+                    let drift = (posed.center - before.center).length();
+                    let turn = posed.angular_velocity.length() * h;
                     for i in 0..pos.len() {
-                        let (dx, dy, dz) = (
-                            pos.x[i] - posed.center.x,
-                            pos.y[i] - posed.center.y,
-                            pos.z[i] - posed.center.z,
-                        );
-                        // A cheap screen: only particles within the shape's bounding ball.
-                        if dx * dx + dy * dy + dz * dz >= r2 || !particles.is_dynamic(first + i) {
+                        let (p0, p1) = (start.pos.get(first + i), pos.get(i));
+                        // A cheap screen: the path relative to the shape moves at most
+                        // |x1 - x0| + |c1 - c0| + |w| h |x0 - c0|, so only a particle that
+                        // ends within that of the shape's bounding ball can touch it.
+                        let travel =
+                            (p1 - p0).length() + drift + turn * (p0 - before.center).length();
+                        let limit = (shape.reach + travel) * (1.0 + 1e-4);
+                        if (p1 - posed.center).length_squared() >= limit * limit
+                            || !particles.is_dynamic(first + i)
+                        {
                             continue;
                         }
-                        if let Some((n, at)) = shape.contact(&posed, pos.get(i)) {
+                        if let Some((n, at)) = shape.contact(&before, &posed, p0, p1) {
                             let surface = posed.surface_velocity(at);
                             let v0 = vel.get(i);
                             let v = surface + contact_velocity(v0 - surface, n, shape.friction);
@@ -176,25 +200,41 @@ impl ShapeCollider {
         }
     }
 
-    /// The outward normal and the point `thickness` outside the surface nearest `p`, when `p`
-    /// is inside the shape or closer to it than `thickness`.
+    /// For a particle moving from `p0` (with the shape posed `before`) to `p1` (posed
+    /// `posed`): the outward normal and the point `thickness` outside the surface where it
+    /// ends up, when `p1` is inside the shape or closer to it than `thickness`, or its path
+    /// crossed the shape. That point is the surface point nearest `p1`, or the entry point when
+    /// the particle crossed the shape or went past its middle (the nearest point faces the way
+    /// it was going).
     #[inline]
-    fn contact(&self, posed: &Posed, p: Vec3) -> Option<(Vec3, Vec3)> {
-        let local = posed.rotation.inverse() * (p - posed.center);
+    fn contact(&self, before: &Posed, posed: &Posed, p0: Vec3, p1: Vec3) -> Option<(Vec3, Vec3)> {
+        let local = posed.rotation.inverse() * (p1 - posed.center);
+        let local0 = before.rotation.inverse() * (p0 - before.center);
+        let d = local - local0;
         let (on_surface, inside) = self.geometry.project(local);
         let offset = local - on_surface;
-        let distance = offset.length();
-        if !inside && distance >= self.thickness {
-            return None;
-        }
         // Outward normal: away from the surface point when outside, towards it when inside.
         // A point exactly on the surface has no direction to it; the one from the centre is
         // outward for every convex shape here.
         let fallback = local.normalize_or(Vec3::Y);
-        let n = if inside {
+        let nearest = if inside {
             (-offset).normalize_or(fallback)
         } else {
             offset.normalize_or(fallback)
+        };
+        // The entry point, for a particle that started outside and whose path meets the shape.
+        let entry = self
+            .geometry
+            .entry(local0, d)
+            .filter(|&(t, _)| t > 0.0 && d != Vec3::ZERO);
+        let (on_surface, n) = match entry {
+            // Tunnelled (ended outside, having crossed), or pushed past the middle (the nearest
+            // surface point is on the side it was heading for).
+            Some((t, normal)) if !inside || nearest.dot(d) > 0.0 => {
+                (local0 + t * d, normal.normalize_or(nearest))
+            }
+            _ if !inside && offset.length() >= self.thickness => return None,
+            _ => (on_surface, nearest),
         };
         let lift = self.thickness + posed.margin;
         let at = posed.center + posed.rotation * (on_surface + n * lift);
@@ -228,7 +268,8 @@ mod tests {
     fn a_point_inside_a_box_goes_to_the_nearest_face() {
         let shapes = unit_box();
         let s = &shapes.shapes[0];
-        let (n, at) = s.contact(&s.posed(0.0), Vec3::new(0.2, 0.9, 0.1)).unwrap();
+        let (posed, p) = (s.posed(0.0), Vec3::new(0.2, 0.9, 0.1));
+        let (n, at) = s.contact(&posed, &posed, p, p).unwrap();
         assert_eq!(n, Vec3::Y);
         assert!(
             at.y >= 1.0 && at.y < 1.001 && (at.x - 0.2).abs() < 1e-6,
@@ -240,9 +281,25 @@ mod tests {
     fn a_point_outside_beyond_the_thickness_is_untouched() {
         let shapes = unit_box();
         let s = &shapes.shapes[0];
-        assert!(s
-            .contact(&s.posed(0.0), Vec3::new(0.0, 1.01, 0.0))
-            .is_none());
+        let (posed, p) = (s.posed(0.0), Vec3::new(0.0, 1.01, 0.0));
+        assert!(s.contact(&posed, &posed, p, p).is_none());
+    }
+
+    #[test]
+    fn a_particle_crossing_the_whole_box_in_one_step_stops_at_the_entry_point() {
+        let shapes = unit_box();
+        let s = &shapes.shapes[0];
+        let posed = s.posed(0.0);
+        let (p0, p1) = (Vec3::new(0.3, 5.0, 0.0), Vec3::new(0.3, -5.0, 0.0));
+        let (n, at) = s.contact(&posed, &posed, p0, p1).unwrap();
+        assert_eq!(n, Vec3::Y);
+        assert!(at.y >= 1.0 && at.y < 1.001, "{at}");
+        // Past the middle but still inside: the entry point too, not the bottom face.
+        let (n, at) = s
+            .contact(&posed, &posed, p0, Vec3::new(0.3, -0.8, 0.0))
+            .unwrap();
+        assert_eq!(n, Vec3::Y);
+        assert!(at.y >= 1.0, "{at}");
     }
 
     #[test]
