@@ -120,6 +120,7 @@ const BUILTIN: &[(&str, &str)] = &[
     ("twist", include_str!("../../scenes/twist.toml")),
     ("fold", include_str!("../../scenes/fold.toml")),
     ("pile", include_str!("../../scenes/pile.toml")),
+    ("drape_box", include_str!("../../scenes/drape_box.toml")),
 ];
 
 impl Scene {
