@@ -222,19 +222,25 @@ impl ShapeCollider {
         } else {
             offset.normalize_or(fallback)
         };
-        // The entry point, for a particle that started outside and whose path meets the shape.
-        let entry = self
-            .geometry
-            .entry(local0, d)
-            .filter(|&(t, _)| t > 0.0 && d != Vec3::ZERO);
+        // The entry point matters only for a particle that ended inside heading away from the
+        // nearest surface point (past the middle), or one that ended outside but whose path is
+        // long enough to have crossed the shape. The ray cast is the costly part (a GJK
+        // iteration for the cylinder, 10x a projection), so it runs only then.
+        let distance = offset.length();
+        let may_cross = if inside {
+            nearest.dot(d) > 0.0
+        } else {
+            distance < d.length()
+        };
+        let entry = may_cross
+            .then(|| self.geometry.entry(local0, d))
+            .flatten()
+            .filter(|&(t, _)| t > 0.0);
         let (on_surface, n) = match entry {
-            // Tunnelled (ended outside, having crossed), or pushed past the middle (the nearest
-            // surface point is on the side it was heading for).
-            Some((t, normal)) if !inside || nearest.dot(d) > 0.0 => {
-                (local0 + t * d, normal.normalize_or(nearest))
-            }
-            _ if !inside && offset.length() >= self.thickness => return None,
-            _ => (on_surface, nearest),
+            // Tunnelled (ended outside, having crossed), or pushed past the middle.
+            Some((t, normal)) => (local0 + t * d, normal.normalize_or(nearest)),
+            None if !inside && distance >= self.thickness => return None,
+            None => (on_surface, nearest),
         };
         let lift = self.thickness + posed.margin;
         let at = posed.center + posed.rotation * (on_surface + n * lift);
