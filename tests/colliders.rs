@@ -144,9 +144,9 @@ fn a_particle_on_a_tilted_box_slides_iff_the_slope_beats_friction() {
     // stays put while tan(angle) <= mu, else it slides down the slope with acceleration
     // g (sin - mu cos), covering a t^2 / 2 in t.
     let (g, t) = (9.81f64, 0.5f64);
-    for mu in [0.2, 0.5] {
+    for mu in [0.2f64, 0.5] {
         for ratio in [0.8, 1.25] {
-            let angle = (ratio * mu as f64).atan();
+            let angle = (ratio * mu).atan();
             let collider = ColliderSpec {
                 shape: ShapeKind::Box,
                 half_extents: Some([2.0, 0.1, 2.0]),
@@ -387,8 +387,10 @@ fn a_scene_without_colliders_has_no_collider_pass_and_round_trips() {
         .unwrap()
         .effects()
         .contains(&"colliders"));
-    let mut with = Scene::default();
-    with.colliders = vec![shape(ShapeKind::Cylinder)];
+    let with = Scene {
+        colliders: vec![shape(ShapeKind::Cylinder)],
+        ..Scene::default()
+    };
     assert_eq!(Scene::from_toml_str(&with.to_toml_string()).unwrap(), with);
 }
 

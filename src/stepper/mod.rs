@@ -328,8 +328,7 @@ impl Stepper {
             model,
             state,
             &mut self.scratch,
-            h,
-            time,
+            (h, time),
             chunk,
             &mut self.profile,
         );

@@ -75,15 +75,15 @@ impl Pipeline {
     }
 
     /// The passes after the integrator, on `next`: kinematic pins, strain limiting,
-    /// colliders (moving ones posed at `time`, the substep's end in s), self-collision. Returns whether what they wrote is finite; they write few values (a drag,
+    /// colliders, self-collision, for a substep of length `h` ending at `time` (s; where moving
+    /// colliders are posed). Returns whether what they wrote is finite; they write few values (a drag,
     /// contacts, limited springs), so checking costs next to nothing.
     pub fn after_integration(
         &mut self,
         model: &Model,
         state: &State,
         next: &mut Kinematics,
-        h: f32,
-        time: f64,
+        (h, time): (f32, f64),
         chunk: usize,
         profile: &mut Profile,
     ) -> bool {
