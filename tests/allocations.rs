@@ -231,3 +231,20 @@ fn strain_limiting_allocates_only_on_its_first_call() {
         assert!(allocations > 0 && copy == state);
     });
 }
+
+#[test]
+fn moving_colliders_allocate_nothing_while_stepping() {
+    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    with_threads(2, || {
+        rayon::broadcast(|_| WATCHED.with(|w| w.set(true)));
+        for integrator in [
+            IntegratorKind::SymplecticEuler,
+            IntegratorKind::ImplicitEuler,
+        ] {
+            let mut scene = Scene::builtin("drape_box").unwrap();
+            scene.integrator = integrator;
+            scene.colliders[0].velocity = [0.1, 0.0, 0.0];
+            check_stepping(integrator, scene);
+        }
+    });
+}

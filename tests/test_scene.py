@@ -13,14 +13,15 @@ def test_defaults_are_filled_in_and_documented_keys_exist():
         "integrator", "dt", "substeps", "gravity", "air_drag", "cloth", "floor", "spheres",
         "cg_tolerance", "cg_max_iterations", "preconditioner", "pd_iterations", "pd_tolerance",
         "pd_chebyshev_rho", "watchdog", "strain_limit", "self_collision", "tearing",
+        "colliders",
     }
     assert d["preconditioner"] == "multigrid" and d["pd_iterations"] == 20
     assert set(d["cloth"]) >= {
         "nx", "ny", "size", "center", "plane", "k_structural", "k_shear", "k_bend",
         "damping", "pins",
     }
-    assert d["floor"] is None and d["spheres"] == [] and d["strain_limit"] is None
-    assert d["tearing"] is None
+    assert d["floor"] is None and d["spheres"] == [] and d["colliders"] == []
+    assert d["strain_limit"] is None and d["tearing"] is None
     assert d["watchdog"] == {
         "max_stretch": None, "on_trouble": "raise", "max_substeps": 64, "hold_steps": 100,
     }

@@ -149,6 +149,8 @@ class Scene:
             extras.append("floor")
         if self._data["spheres"]:
             extras.append(f"{len(self._data['spheres'])} sphere(s)")
+        if self._data["colliders"]:
+            extras.append(f"{len(self._data['colliders'])} collider(s)")
         return (
             f"Scene({cloth['nx']}x{cloth['ny']} cloth, {self._data['integrator']}, "
             f"dt={self._data['dt']:g}" + "".join(f", {e}" for e in extras) + ")"

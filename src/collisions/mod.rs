@@ -7,19 +7,23 @@
 //! `|dv_t| <= mu |dv_n|`, stopping it altogether when the normal impulse is large enough.
 
 mod floor;
+mod shape;
 mod sphere;
 
 use glam::Vec3;
 
 pub use floor::Floor;
+pub use shape::Shapes;
 pub use sphere::{FloorLevel, Spheres};
 
 use crate::particles::Particles;
 use crate::state::Kinematics;
 
-/// A static collider: the closed set of shapes a scene can hold.
+/// A collider: the closed set of shapes a scene can hold.
 pub enum Collider {
     Spheres(Spheres),
+    /// The `[[colliders]]` of any shape, static or moving.
+    Shapes(Shapes),
     Floor(Floor),
 }
 
@@ -28,12 +32,14 @@ impl Collider {
     pub fn name(&self) -> &'static str {
         match self {
             Collider::Spheres(_) => "spheres",
+            Collider::Shapes(_) => "colliders",
             Collider::Floor(_) => "floor",
         }
     }
 
     /// Moves every dynamic particle of `next` that ended inside the collider out of it.
-    /// `start` holds the positions at the start of the step. Returns whether every value it
+    /// `start` holds the positions at the start of the step, `h` is its length and `time` the
+    /// simulated time at its end (s), where moving colliders are posed. Returns whether every value it
     /// wrote is finite (a contact at speeds near float32's limit can overflow).
     pub fn resolve(
         &self,
@@ -41,9 +47,12 @@ impl Collider {
         next: &mut Kinematics,
         particles: &Particles,
         chunk: usize,
+        h: f32,
+        time: f64,
     ) -> bool {
         match self {
             Collider::Spheres(s) => s.resolve(start, next, particles, chunk),
+            Collider::Shapes(s) => s.resolve(start, next, particles, chunk, h, time),
             Collider::Floor(f) => f.resolve(start, next, particles, chunk),
         }
     }

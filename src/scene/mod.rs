@@ -15,8 +15,8 @@ use serde::{Deserialize, Serialize};
 
 pub use pins::PIN_GROUPS;
 pub use specs::{
-    ClothSpec, FloorSpec, OnTrouble, PinSpec, Plane, SelfCollisionSpec, SphereSpec,
-    StrainLimitSpec, TearingSpec, WatchdogSpec,
+    ClothSpec, ColliderSpec, FloorSpec, OnTrouble, PinSpec, Plane, SelfCollisionSpec, ShapeKind,
+    SphereSpec, StrainLimitSpec, TearingSpec, WatchdogSpec,
 };
 pub use stability::stable_substep;
 pub(crate) use validate::check_substep;
@@ -74,6 +74,8 @@ pub struct Scene {
     pub floor: Option<FloorSpec>,
     /// Spheres the cloth collides with; empty means none.
     pub spheres: Vec<SphereSpec>,
+    /// Colliders of any shape, static or moving (`[[colliders]]`); empty means none (no pass).
+    pub colliders: Vec<ColliderSpec>,
     /// What a step does when it goes wrong (see `src/watchdog.rs`).
     pub watchdog: WatchdogSpec,
     /// Provot strain limiting after each substep; absent means none (no pass).
@@ -104,6 +106,7 @@ impl Default for Scene {
             cloth: ClothSpec::default(),
             floor: None,
             spheres: Vec::new(),
+            colliders: Vec::new(),
             watchdog: WatchdogSpec::default(),
             strain_limit: None,
             self_collision: None,
@@ -122,6 +125,7 @@ const BUILTIN: &[(&str, &str)] = &[
     ("fold", include_str!("../../scenes/fold.toml")),
     ("pile", include_str!("../../scenes/pile.toml")),
     ("tear", include_str!("../../scenes/tear.toml")),
+    ("drape_box", include_str!("../../scenes/drape_box.toml")),
 ];
 
 impl Scene {

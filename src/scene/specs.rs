@@ -244,3 +244,76 @@ impl Default for SphereSpec {
         }
     }
 }
+
+/// The shape of a collider (parry3d's `Ball`, `Cuboid`, `Capsule`, `Cylinder`), in its local
+/// frame: centred on the origin, capsule and cylinder along local +y.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ShapeKind {
+    /// Needs `radius`.
+    Sphere,
+    /// Needs `half_extents`.
+    Box,
+    /// Needs `half_height` (of the segment between the two caps' centres) and `radius`.
+    Capsule,
+    /// Needs `half_height` and `radius`.
+    Cylinder,
+}
+
+/// A collider of any of [`ShapeKind`]'s shapes, static or moving kinematically (its motion is
+/// prescribed; the cloth does not push it). Keys a shape does not use must be absent.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ColliderSpec {
+    /// `"sphere"`, `"box"`, `"capsule"` or `"cylinder"`. Default `"box"`.
+    pub shape: ShapeKind,
+    /// Sphere, capsule, cylinder: radius in m (> 0). No default: required by those shapes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub radius: Option<f64>,
+    /// Box: half its size along local x, y, z in m (each > 0). No default: required by `box`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub half_extents: Option<[f64; 3]>,
+    /// Capsule, cylinder: half the length along local y in m (> 0; for a capsule, between the
+    /// centres of its end caps). No default: required by those shapes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub half_height: Option<f64>,
+    /// Centre of the shape at time 0, in m. Default `[0, 0.5, 0]`.
+    pub center: [f64; 3],
+    /// Orientation at time 0 as a rotation vector (axis times angle, in rad, right-handed).
+    /// Default `[0, 0, 0]`. A rotation vector has no unit-norm constraint to break, unlike a
+    /// quaternion; `[0, 0, 0.3]` tilts the shape 0.3 rad about z.
+    pub rotation: [f64; 3],
+    /// Coulomb friction coefficient against the shape's surface (>= 0, dimensionless). Default
+    /// 0.3, as the floor's. Applied to the velocity relative to the moving surface, so a
+    /// moving collider carries cloth that sticks to it.
+    pub friction: f64,
+    /// Particles are kept this far outside the surface, in m (>= 0). Default 0.002. A thicker
+    /// gap hides the cloth's triangles dipping into the shape between particles; a thinner one
+    /// looks tighter.
+    pub thickness: f64,
+    /// Velocity of the centre in m/s. Default `[0, 0, 0]`: the centre at time `t` is
+    /// `center + velocity t`.
+    pub velocity: [f64; 3],
+    /// Angular velocity about the centre in rad/s (axis times rate). Default `[0, 0, 0]`: the
+    /// orientation at time `t` is `rotation` followed by a turn of `angular_velocity t`. Poses
+    /// are functions of the simulated time, so snapshots, retries and thread counts all see the
+    /// same ones.
+    pub angular_velocity: [f64; 3],
+}
+
+impl Default for ColliderSpec {
+    fn default() -> Self {
+        ColliderSpec {
+            shape: ShapeKind::Box,
+            radius: None,
+            half_extents: None,
+            half_height: None,
+            center: [0.0, 0.5, 0.0],
+            rotation: [0.0; 3],
+            friction: 0.3,
+            thickness: 0.002,
+            velocity: [0.0; 3],
+            angular_velocity: [0.0; 3],
+        }
+    }
+}

@@ -2,7 +2,7 @@
 //! first offending parameter and its value.
 
 use super::pins::pin_indices;
-use super::specs::{ClothSpec, Plane, WatchdogSpec};
+use super::specs::{ClothSpec, ColliderSpec, Plane, ShapeKind, WatchdogSpec};
 use super::Scene;
 use crate::error::{check_scalar, check_vector, Bound, Error, Result};
 use crate::grid::Grid;
@@ -90,6 +90,9 @@ impl Scene {
                 ));
             }
         }
+        for (c, collider) in self.colliders.iter().enumerate() {
+            collider.validate(&format!("colliders[{c}]"))?;
+        }
         self.watchdog.validate()?;
         if let Some(limit) = &self.strain_limit {
             check_scalar("strain_limit.max_strain", limit.max_strain, Bound::Positive)?;
@@ -141,6 +144,78 @@ impl Scene {
                 ));
             }
         }
+        Ok(())
+    }
+}
+
+/// Largest size (m), speed (m/s) or rate (rad/s) of a collider: the contact works in float32
+/// and squares lengths, so anything near float32's limit would overflow to infinity.
+pub const MAX_COLLIDER_VALUE: f64 = 1e15;
+
+impl ColliderSpec {
+    fn validate(&self, at: &str) -> Result<()> {
+        let name = |key: &str| format!("{at}.{key}");
+        let within = |key: &str, v: &[f64]| -> Result<()> {
+            match v.iter().find(|x| x.abs() > MAX_COLLIDER_VALUE) {
+                Some(x) => Err(Error::value(
+                    name(key),
+                    format!("must be at most {MAX_COLLIDER_VALUE:e} in size, got {x}"),
+                )),
+                None => Ok(()),
+            }
+        };
+        let (radius, half_extents, half_height) = match self.shape {
+            ShapeKind::Sphere => (true, false, false),
+            ShapeKind::Box => (false, true, false),
+            ShapeKind::Capsule | ShapeKind::Cylinder => (true, false, true),
+        };
+        let shape = format!("{:?}", self.shape).to_lowercase();
+        let presence = [
+            ("radius", radius, self.radius.is_some()),
+            ("half_extents", half_extents, self.half_extents.is_some()),
+            ("half_height", half_height, self.half_height.is_some()),
+        ];
+        for (key, needed, given) in presence {
+            match (needed, given) {
+                (true, false) => {
+                    return Err(Error::value(
+                        name(key),
+                        format!("is required for shape = \"{shape}\""),
+                    ))
+                }
+                (false, true) => {
+                    return Err(Error::value(
+                        name(key),
+                        format!("is not a key of shape = \"{shape}\""),
+                    ))
+                }
+                _ => {}
+            }
+        }
+        if let Some(r) = self.radius {
+            check_scalar(&name("radius"), r, Bound::Positive)?;
+            within("radius", &[r])?;
+        }
+        if let Some(h) = &self.half_extents {
+            check_vector(&name("half_extents"), h, Bound::Positive)?;
+            within("half_extents", h)?;
+        }
+        if let Some(h) = self.half_height {
+            check_scalar(&name("half_height"), h, Bound::Positive)?;
+            within("half_height", &[h])?;
+        }
+        for (key, v) in [
+            ("center", &self.center),
+            ("rotation", &self.rotation),
+            ("velocity", &self.velocity),
+            ("angular_velocity", &self.angular_velocity),
+        ] {
+            check_vector(&name(key), v, Bound::Any)?;
+            within(key, v)?;
+        }
+        check_scalar(&name("friction"), self.friction, Bound::NonNegative)?;
+        check_scalar(&name("thickness"), self.thickness, Bound::NonNegative)?;
+        within("thickness", &[self.thickness])?;
         Ok(())
     }
 }
@@ -282,10 +357,12 @@ pub(super) fn require_tables(scene: &toml::Value) -> Result<()> {
             _ => {}
         }
     }
-    if let Some(toml::Value::Array(spheres)) = scene.get("spheres") {
-        for (s, sphere) in spheres.iter().enumerate() {
-            if !sphere.is_table() {
-                return Err(not_a_table(format!("spheres[{s}]"), sphere));
+    for key in ["spheres", "colliders"] {
+        if let Some(toml::Value::Array(items)) = scene.get(key) {
+            for (s, item) in items.iter().enumerate() {
+                if !item.is_table() {
+                    return Err(not_a_table(format!("{key}[{s}]"), item));
+                }
             }
         }
     }

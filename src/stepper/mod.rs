@@ -259,19 +259,25 @@ impl Stepper {
         state: &mut State,
         substeps: u32,
     ) -> std::result::Result<(), Failure> {
-        let h = (model.scene.dt / substeps as f64) as f32;
+        let dt = model.scene.dt;
+        let h = (dt / substeps as f64) as f32;
+        let start = state.clock.time(dt);
         for j in 0..substeps {
-            let outcome =
-                catch_unwind(AssertUnwindSafe(|| self.substep(model, state, h, substeps)))
-                    .unwrap_or_else(|payload| {
-                        self.panic_message = Some(panic_text(payload.as_ref()));
-                        Err(Failure {
-                            reason: Trouble::Panicked,
-                            particle: 0,
-                            in_start_state: false,
-                            substeps,
-                        })
-                    });
+            // Where moving colliders are posed: the substep's end, from the clock, so that a
+            // retried or restored step sees the same poses.
+            let time = start + dt * (j + 1) as f64 / substeps as f64;
+            let outcome = catch_unwind(AssertUnwindSafe(|| {
+                self.substep(model, state, h, time, substeps)
+            }))
+            .unwrap_or_else(|payload| {
+                self.panic_message = Some(panic_text(payload.as_ref()));
+                Err(Failure {
+                    reason: Trouble::Panicked,
+                    particle: 0,
+                    in_start_state: false,
+                    substeps,
+                })
+            });
             outcome.map_err(|failure| Failure {
                 in_start_state: failure.in_start_state && j == 0,
                 ..failure
@@ -288,6 +294,7 @@ impl Stepper {
         model: &Model,
         state: &mut State,
         h: f32,
+        time: f64,
         substeps: u32,
     ) -> std::result::Result<(), Failure> {
         let chunk = chunk_len(model.grid.len());
@@ -329,7 +336,7 @@ impl Stepper {
             model,
             state,
             &mut self.scratch,
-            h,
+            (h, time),
             chunk,
             &mut self.profile,
         );

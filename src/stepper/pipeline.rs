@@ -7,7 +7,7 @@
 //! 2. the integrator, writing the end-of-step state into a second buffer;
 //! 3. kinematic pins (while the user drags a pinned particle);
 //! 4. strain limiting (when the scene asks for it, `src/strain_limit/`);
-//! 5. colliders (spheres, then the floor);
+//! 5. colliders (spheres, then the `[[colliders]]` of any shape, then the floor);
 //! 6. self-collision (when the scene asks for it, `src/self_collision/`), last, so that its
 //!    guarantee covers everything the passes before it did. It only shortens a particle's
 //!    motion along its path from the substep's start, so the floor (a half-space, which holds
@@ -21,7 +21,7 @@ use std::time::Instant;
 
 use glam::{DVec3, Vec3};
 
-use crate::collisions::{Collider, Floor, FloorLevel, Spheres};
+use crate::collisions::{Collider, Floor, FloorLevel, Shapes, Spheres};
 use crate::forces::{Force, ForceModel};
 use crate::grid::Family;
 use crate::integrators::Integrator;
@@ -89,14 +89,15 @@ impl Pipeline {
     }
 
     /// The passes after the integrator, on `next`: kinematic pins, strain limiting,
-    /// colliders, self-collision. Returns whether what they wrote is finite; they write few values (a drag,
+    /// colliders, self-collision, for a substep of length `h` ending at `time` (s; where moving
+    /// colliders are posed). Returns whether what they wrote is finite; they write few values (a drag,
     /// contacts, limited springs), so checking costs next to nothing.
     pub fn after_integration(
         &mut self,
         model: &Model,
         state: &State,
         next: &mut Kinematics,
-        h: f32,
+        (h, time): (f32, f64),
         chunk: usize,
         profile: &mut Profile,
     ) -> bool {
@@ -118,7 +119,7 @@ impl Pipeline {
         }
         for collider in &self.colliders {
             let t = Instant::now();
-            finite &= collider.resolve(&state.kin, next, &model.particles, chunk);
+            finite &= collider.resolve(&state.kin, next, &model.particles, chunk, h, time);
             profile.add(collider.name(), t.elapsed());
         }
         if let Some(contact) = &mut self.self_collision {
@@ -172,7 +173,8 @@ fn forces_of(scene: &Scene) -> Vec<Force> {
     forces
 }
 
-/// The colliders of a scene: spheres (knowing the floor's level), then the floor.
+/// The colliders of a scene: spheres (knowing the floor's level), the shapes, then the floor
+/// (last, so that nothing ends below it).
 fn colliders_of(scene: &Scene) -> Vec<Collider> {
     let mut colliders = Vec::new();
     if !scene.spheres.is_empty() {
@@ -181,6 +183,9 @@ fn colliders_of(scene: &Scene) -> Vec<Collider> {
             .as_ref()
             .map(|f| FloorLevel((f.height + f.thickness) as f32));
         colliders.push(Collider::Spheres(Spheres::new(&scene.spheres, floor)));
+    }
+    if !scene.colliders.is_empty() {
+        colliders.push(Collider::Shapes(Shapes::new(&scene.colliders)));
     }
     if let Some(floor) = &scene.floor {
         colliders.push(Collider::Floor(Floor {
