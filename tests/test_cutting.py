@@ -9,7 +9,6 @@ import pytest
 import rustcloth
 from conftest import small_scene, state_digest
 from rustcloth import Simulation
-from rustcloth.viewer.interaction import Interaction
 
 FRONT = np.array([0.0, 0.0, -1.0], np.float32)
 
@@ -87,6 +86,9 @@ def test_bad_rays_are_named_and_change_nothing(rays, error, name):
 
 
 def test_the_viewers_cut_gesture_severs_along_its_samples():
+    pytest.importorskip("moderngl")  # rustcloth.viewer needs the viewer extra
+    from rustcloth.viewer.interaction import Interaction
+
     sim = Simulation(small_scene())
     cut = Interaction(sim)
     y = between_rows(sim, 2)
