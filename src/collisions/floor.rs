@@ -1,5 +1,4 @@
 use glam::Vec3;
-use rayon::prelude::*;
 
 use super::contact_velocity;
 use crate::particles::Particles;
@@ -27,22 +26,17 @@ impl Floor {
         chunk: usize,
     ) -> bool {
         let top = self.height + self.thickness;
-        let Kinematics { pos, vel } = next;
-        pos.par_chunks_mut(chunk)
-            .zip(vel.par_chunks_mut(chunk))
-            .enumerate()
-            .map(|(c, (pos, mut vel))| {
-                let mut finite = true;
-                for i in 0..pos.len() {
-                    if pos.y[i] < top && particles.is_dynamic(c * chunk + i) {
-                        pos.y[i] = top;
-                        let v = contact_velocity(vel.get(i), Vec3::Y, self.friction);
-                        vel.set(i, v);
-                        finite &= v.is_finite();
-                    }
+        super::resolve_chunks(next, chunk, |first, pos, mut vel| {
+            let mut finite = true;
+            for i in 0..pos.len() {
+                if pos.y[i] < top && particles.is_dynamic(first + i) {
+                    pos.y[i] = top;
+                    let v = contact_velocity(vel.get(i), Vec3::Y, self.friction);
+                    vel.set(i, v);
+                    finite &= v.is_finite();
                 }
-                finite
-            })
-            .reduce(|| true, |a, b| a & b)
+            }
+            finite
+        })
     }
 }

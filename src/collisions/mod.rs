@@ -17,7 +17,25 @@ pub use shape::Shapes;
 pub use sphere::{FloorLevel, Spheres};
 
 use crate::particles::Particles;
+use crate::soa::Vec3SliceMut;
 use crate::state::Kinematics;
+
+/// Runs `contact` on each parallel chunk of `next` (given the chunk's first particle index, its
+/// positions and its velocities) and returns whether every chunk reported finite output: the
+/// traversal every collider shares, so each writes only its contact test.
+fn resolve_chunks(
+    next: &mut Kinematics,
+    chunk: usize,
+    contact: impl Fn(usize, Vec3SliceMut<'_>, Vec3SliceMut<'_>) -> bool + Sync + Send,
+) -> bool {
+    use rayon::prelude::*;
+    let Kinematics { pos, vel } = next;
+    pos.par_chunks_mut(chunk)
+        .zip(vel.par_chunks_mut(chunk))
+        .enumerate()
+        .map(|(c, (pos, vel))| contact(c * chunk, pos, vel))
+        .reduce(|| true, |a, b| a & b)
+}
 
 /// A collider: the closed set of shapes a scene can hold.
 pub enum Collider {

@@ -23,7 +23,6 @@
 use glam::{DQuat, DVec3, Quat, Vec3};
 use parry3d::query::{PointQuery, Ray, RayCast};
 use parry3d::shape::{Ball, Capsule, Cuboid, Cylinder};
-use rayon::prelude::*;
 
 use super::contact_velocity;
 use crate::particles::Particles;
@@ -143,47 +142,40 @@ impl Shapes {
         h: f32,
         time: f64,
     ) -> bool {
-        let Kinematics { pos, vel } = next;
-        pos.par_chunks_mut(chunk)
-            .zip(vel.par_chunks_mut(chunk))
-            .enumerate()
-            .map(|(c, (mut pos, mut vel))| {
-                let mut finite = true;
-                let first = c * chunk;
-                for shape in &self.shapes {
-                    // Posed once per chunk: a few dozen flops, and no buffer to keep.
-                    let posed = shape.posed(time);
-                    let before = shape.posed(time - h as f64);
-                    let drift = (posed.center - before.center).length();
-                    let turn = posed.angular_velocity.length() * h;
-                    for i in 0..pos.len() {
-                        let (p0, p1) = (start.pos.get(first + i), pos.get(i));
-                        // A cheap screen: the path relative to the shape moves at most
-                        // |x1 - x0| + |c1 - c0| + |w| h |x0 - c0|, so only a particle that
-                        // ends within that of the shape's bounding ball can touch it.
-                        let travel =
-                            (p1 - p0).length() + drift + turn * (p0 - before.center).length();
-                        let limit = (shape.reach + travel) * (1.0 + 1e-4);
-                        if (p1 - posed.center).length_squared() >= limit * limit
-                            || !particles.is_dynamic(first + i)
-                        {
-                            continue;
-                        }
-                        if let Some((n, at)) = shape.contact(&before, &posed, p0, p1) {
-                            let surface = posed.surface_velocity(at);
-                            let v0 = vel.get(i);
-                            let v = surface + contact_velocity(v0 - surface, n, shape.friction);
-                            let dv = v - v0;
-                            let at = at + h * (dv - dv.dot(n) * n);
-                            pos.set(i, at);
-                            vel.set(i, v);
-                            finite &= at.is_finite() && v.is_finite();
-                        }
+        super::resolve_chunks(next, chunk, |first, mut pos, mut vel| {
+            let mut finite = true;
+            for shape in &self.shapes {
+                // Posed once per chunk: a few dozen flops, and no buffer to keep.
+                let posed = shape.posed(time);
+                let before = shape.posed(time - h as f64);
+                let drift = (posed.center - before.center).length();
+                let turn = posed.angular_velocity.length() * h;
+                for i in 0..pos.len() {
+                    let (p0, p1) = (start.pos.get(first + i), pos.get(i));
+                    // A cheap screen: the path relative to the shape moves at most
+                    // |x1 - x0| + |c1 - c0| + |w| h |x0 - c0|, so only a particle that
+                    // ends within that of the shape's bounding ball can touch it.
+                    let travel = (p1 - p0).length() + drift + turn * (p0 - before.center).length();
+                    let limit = (shape.reach + travel) * (1.0 + 1e-4);
+                    if (p1 - posed.center).length_squared() >= limit * limit
+                        || !particles.is_dynamic(first + i)
+                    {
+                        continue;
+                    }
+                    if let Some((n, at)) = shape.contact(&before, &posed, p0, p1) {
+                        let surface = posed.surface_velocity(at);
+                        let v0 = vel.get(i);
+                        let v = surface + contact_velocity(v0 - surface, n, shape.friction);
+                        let dv = v - v0;
+                        let at = at + h * (dv - dv.dot(n) * n);
+                        pos.set(i, at);
+                        vel.set(i, v);
+                        finite &= at.is_finite() && v.is_finite();
                     }
                 }
-                finite
-            })
-            .reduce(|| true, |a, b| a & b)
+            }
+            finite
+        })
     }
 }
 

@@ -1,5 +1,4 @@
 use glam::{DVec3, Vec3};
-use rayon::prelude::*;
 
 use super::contact_velocity;
 use crate::particles::Particles;
@@ -172,48 +171,42 @@ impl Spheres {
         particles: &Particles,
         chunk: usize,
     ) -> bool {
-        let Kinematics { pos, vel } = next;
-        pos.par_chunks_mut(chunk)
-            .zip(vel.par_chunks_mut(chunk))
-            .enumerate()
-            .map(|(c, (mut pos, mut vel))| {
-                let mut finite = true;
-                let first = c * chunk;
-                let start_pos = start.pos.slices(first..first + pos.len());
-                let mut candidates = [false; SCREEN];
-                for block in (0..pos.len()).step_by(SCREEN) {
-                    let len = SCREEN.min(pos.len() - block);
-                    let p0 = start_pos.slices_at(block..block + len);
-                    // A cheap, vectorised screen first; the exact swept test only where the
-                    // particle could touch a sphere (a few percent of the cloth at most).
-                    crate::simd::dispatch!(self.screen(
-                        p0,
-                        (
-                            &pos.x[block..block + len],
-                            &pos.y[block..block + len],
-                            &pos.z[block..block + len]
-                        ),
-                        &mut candidates[..len],
-                    ));
-                    for j in (0..len).filter(|&j| candidates[j]) {
-                        let (i, p) = (block + j, first + block + j);
-                        if !particles.is_dynamic(p) {
-                            continue;
-                        }
-                        let p0 = start.pos.get(p);
-                        for sphere in &self.spheres {
-                            if let Some((n, surface)) = sphere.contact(p0, pos.get(i)) {
-                                let v = contact_velocity(vel.get(i), n, sphere.friction);
-                                pos.set(i, surface);
-                                vel.set(i, v);
-                                finite &= surface.is_finite() && v.is_finite();
-                            }
+        super::resolve_chunks(next, chunk, |first, mut pos, mut vel| {
+            let mut finite = true;
+            let start_pos = start.pos.slices(first..first + pos.len());
+            let mut candidates = [false; SCREEN];
+            for block in (0..pos.len()).step_by(SCREEN) {
+                let len = SCREEN.min(pos.len() - block);
+                let p0 = start_pos.slices_at(block..block + len);
+                // A cheap, vectorised screen first; the exact swept test only where the
+                // particle could touch a sphere (a few percent of the cloth at most).
+                crate::simd::dispatch!(self.screen(
+                    p0,
+                    (
+                        &pos.x[block..block + len],
+                        &pos.y[block..block + len],
+                        &pos.z[block..block + len]
+                    ),
+                    &mut candidates[..len],
+                ));
+                for j in (0..len).filter(|&j| candidates[j]) {
+                    let (i, p) = (block + j, first + block + j);
+                    if !particles.is_dynamic(p) {
+                        continue;
+                    }
+                    let p0 = start.pos.get(p);
+                    for sphere in &self.spheres {
+                        if let Some((n, surface)) = sphere.contact(p0, pos.get(i)) {
+                            let v = contact_velocity(vel.get(i), n, sphere.friction);
+                            pos.set(i, surface);
+                            vel.set(i, v);
+                            finite &= surface.is_finite() && v.is_finite();
                         }
                     }
                 }
-                finite
-            })
-            .reduce(|| true, |a, b| a & b)
+            }
+            finite
+        })
     }
 }
 
