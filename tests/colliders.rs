@@ -7,7 +7,6 @@ mod common;
 use common::*;
 use glam::{DQuat, DVec3, Vec3};
 use rustcloth::scene::{ColliderSpec, ShapeKind};
-use rustcloth::soa::Vec3s;
 use rustcloth::{Scene, Simulation};
 
 /// Signed distance (m) from `p` to the collider's surface at time `t`, negative inside: the
@@ -125,17 +124,7 @@ fn particle_on(collider: ColliderSpec, start: Vec3, v0: Vec3) -> Simulation {
     let mut scene = bare_scene(2, 2);
     scene.gravity = [0.0, -9.81, 0.0];
     scene.colliders = vec![collider];
-    let mut sim = Simulation::new(scene).unwrap();
-    for p in 1..4 {
-        sim.cut(p).unwrap();
-    }
-    let mut pos = sim.positions().clone();
-    pos.set(0, start);
-    sim.set_positions(&pos).unwrap();
-    let mut vel = Vec3s::zeros(4);
-    vel.set(0, v0);
-    sim.set_velocities(&vel).unwrap();
-    sim
+    lone_particle(scene, start, v0)
 }
 
 #[test]

@@ -300,17 +300,7 @@ fn slider(start: Vec3, v0: Vec3, floor: Option<f64>, sphere: Option<(Vec3, f64)>
             thickness: 0.0,
         }];
     }
-    let mut sim = Simulation::new(scene).unwrap();
-    for p in 1..4 {
-        sim.cut(p).unwrap();
-    }
-    let mut pos = sim.positions().clone();
-    pos.set(0, start);
-    sim.set_positions(&pos).unwrap();
-    let mut vel = Vec3s::zeros(4);
-    vel.set(0, v0);
-    sim.set_velocities(&vel).unwrap();
-    sim
+    lone_particle(scene, start, v0)
 }
 
 /// Steps until particle 0 stops (or 5 s pass); returns the time (s) and distance (m) it slid.

@@ -5,6 +5,7 @@ use std::hash::{Hash, Hasher};
 
 use glam::Vec3;
 use rustcloth::scene::{ClothSpec, Plane};
+use rustcloth::soa::Vec3s;
 use rustcloth::IntegratorKind;
 use rustcloth::{Scene, Simulation};
 
@@ -20,6 +21,23 @@ pub fn bare_scene(nx: u32, ny: u32) -> Scene {
         },
         ..Scene::default()
     }
+}
+
+/// `scene`'s 2 x 2 cloth with three particles cut: one free particle (index 0) at `start`
+/// with velocity `v0`, for contact and friction tests against an analytic trajectory.
+pub fn lone_particle(scene: Scene, start: Vec3, v0: Vec3) -> Simulation {
+    assert_eq!((scene.cloth.nx, scene.cloth.ny), (2, 2));
+    let mut sim = Simulation::new(scene).unwrap();
+    for p in 1..4 {
+        sim.cut(p).unwrap();
+    }
+    let mut pos = sim.positions().clone();
+    pos.set(0, start);
+    sim.set_positions(&pos).unwrap();
+    let mut vel = Vec3s::zeros(4);
+    vel.set(0, v0);
+    sim.set_velocities(&vel).unwrap();
+    sim
 }
 
 /// Two particles joined by one structural spring of rest length 1 m: a 2 x 2 grid in the
