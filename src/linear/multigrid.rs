@@ -292,7 +292,50 @@ struct Level {
     r: Vec3s,
 }
 
+/// One level's part of a V-cycle: its matrix, right-hand side and unknowns (the caller's on
+/// the finest level, the level's own below it), with its smoother, free mask and residual.
+struct System<'a> {
+    matrix: &'a BlockStencil,
+    b: &'a Vec3s,
+    x: &'a mut Vec3s,
+    r: &'a mut Vec3s,
+    dinv: &'a SlotArrays,
+    free: &'a Floats,
+}
+
 impl Level {
+    /// This level, number `l`, as a V-cycle works on it: level 0 solves the caller's system
+    /// `fine z = r`.
+    fn system<'a>(
+        &'a mut self,
+        l: usize,
+        fine: &'a BlockStencil,
+        r: &'a Vec3s,
+        z: &'a mut Vec3s,
+    ) -> System<'a> {
+        let Level {
+            matrix,
+            dinv,
+            free,
+            b,
+            x,
+            r: residual,
+        } = self;
+        let (matrix, b, x) = if l == 0 {
+            (fine, r, z)
+        } else {
+            (&*matrix, &*b, x)
+        };
+        System {
+            matrix,
+            b,
+            x,
+            r: residual,
+            dinv,
+            free,
+        }
+    }
+
     fn new(nx: usize, ny: usize, own_matrix: bool) -> Self {
         let n = nx * ny;
         Level {
@@ -443,18 +486,12 @@ impl Multigrid {
         // Down: pre-smooth from zero, restrict the residual.
         for l in 0..depth - 1 {
             let (head, tail) = self.levels.split_at_mut(l + 1);
-            let level = &mut head[l];
-            let matrix = if l == 0 { fine } else { &level.matrix };
-            let (b, x) = if l == 0 {
-                (r, &mut *z)
-            } else {
-                (&level.b, &mut level.x)
-            };
-            smooth::<false>(&level.dinv, b, x, chunk);
-            residual(matrix, x, b, &mut level.r, chunk);
+            let level = head[l].system(l, fine, r, z);
+            smooth::<false>(level.dinv, level.b, level.x, chunk);
+            residual(level.matrix, level.x, level.b, level.r, chunk);
             restrict(
                 &self.transfers[l],
-                &level.r,
+                level.r,
                 &mut self.halves[l],
                 &mut tail[0].b,
             );
@@ -463,22 +500,16 @@ impl Multigrid {
         // Up: prolong the correction, post-smooth.
         for l in (0..depth - 1).rev() {
             let (head, tail) = self.levels.split_at_mut(l + 1);
-            let level = &mut head[l];
-            let matrix = if l == 0 { fine } else { &level.matrix };
-            let (b, x) = if l == 0 {
-                (r, &mut *z)
-            } else {
-                (&level.b, &mut level.x)
-            };
+            let level = head[l].system(l, fine, r, z);
             prolong(
                 &self.transfers[l],
                 &tail[0].x,
                 &mut self.halves[l],
-                &level.free,
-                x,
+                level.free,
+                level.x,
             );
-            residual(matrix, x, b, &mut level.r, chunk);
-            smooth::<true>(&level.dinv, &level.r, x, chunk);
+            residual(level.matrix, level.x, level.b, level.r, chunk);
+            smooth::<true>(level.dinv, level.r, level.x, chunk);
         }
     }
 
