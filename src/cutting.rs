@@ -19,7 +19,7 @@
 
 use glam::DVec3;
 
-use crate::grid::{cell_triangle, Grid, SpringKind};
+use crate::grid::{cell_triangle, triangle_alive, Grid, SpringKind};
 use crate::picking::ray::Ray;
 use crate::soa::Vec3s;
 use crate::springs::Springs;
@@ -213,8 +213,7 @@ pub fn segment_crosses_triangle(p: DVec3, q: DVec3, tri: [DVec3; 3]) -> bool {
 /// after a cut through the cell, the corners on the two sides are not joined, so no drawn
 /// triangle spans the cut.
 pub fn triangle_drawn(grid: Grid, springs: &Springs, alive: &[bool], id: usize) -> bool {
-    let tri = cell_triangle(grid, id);
-    if !tri.iter().all(|&q| alive[q]) {
+    if !triangle_alive(grid, alive, id) {
         return false;
     }
     // Corners 0..4 = a (i, j), b (i+1, j), c (i, j+1), d (i+1, j+1).
@@ -252,7 +251,7 @@ pub fn triangle_drawn(grid: Grid, springs: &Springs, alive: &[bool], id: usize) 
         o if o == grid.nx => 2,
         _ => 3,
     };
-    let [x, y, z] = tri.map(corner);
+    let [x, y, z] = cell_triangle(grid, id).map(corner);
     label[x] == label[y] && label[y] == label[z]
 }
 

@@ -164,6 +164,12 @@ impl Grid {
     }
 }
 
+/// Whether every corner of triangle `id` is alive: the seed's rule, where only removing a
+/// particle takes triangles away. [`crate::model::Model::triangle_drawn`] adds severed springs.
+pub fn triangle_alive(grid: Grid, alive: &[bool], id: usize) -> bool {
+    cell_triangle(grid, id).iter().all(|&q| alive[q])
+}
+
 /// Number of triangle ids of `grid`: two per cell.
 pub fn triangle_slots(grid: Grid) -> usize {
     2 * (grid.nx - 1) * (grid.ny - 1)

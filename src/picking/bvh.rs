@@ -8,7 +8,7 @@ use super::ray::{
     hit_particle, nearest_hit, particle_box, ray_triangle, triangle_bounds, triangle_query_margin,
     ParticleHit, Ray, TriangleHit,
 };
-use crate::grid::{cell_triangle, triangle_slots, Grid};
+use crate::grid::{cell_triangle, triangle_alive, triangle_slots, Grid};
 use crate::soa::Vec3s;
 
 /// A binned-SAH BVH over `(leaf id, box)` pairs.
@@ -128,9 +128,7 @@ fn triangle_box(pos: &Vec3s, tri: [usize; 3]) -> Aabb {
 
 impl TriangleBvh {
     pub fn build(grid: Grid, pos: &Vec3s, alive: &[bool]) -> Self {
-        Self::build_where(grid, pos, |id| {
-            cell_triangle(grid, id).iter().all(|&q| alive[q])
-        })
+        Self::build_where(grid, pos, |id| triangle_alive(grid, alive, id))
     }
 
     /// A tree of the triangles `drawn` says are there (by id).
@@ -174,12 +172,6 @@ impl TriangleBvh {
         if !self.is_empty() {
             self.bvh.refit_without_opt();
         }
-    }
-
-    /// Removes the leaves of triangles with a dead vertex; returns how many.
-    pub fn remove_dead(&mut self, alive: &[bool]) -> usize {
-        let grid = self.grid;
-        self.remove_undrawn(|id| cell_triangle(grid, id).iter().all(|&q| alive[q]))
     }
 
     /// Removes the leaves of triangles `drawn` says are gone (a cut or tear severed their

@@ -27,7 +27,7 @@ use glam::Vec3;
 use parry3d::partitioning::{Bvh, TraversalAction};
 
 use crate::error::{Error, Result};
-use crate::grid::{cell_triangle, Grid};
+use crate::grid::{cell_triangle, triangle_alive, Grid};
 use crate::soa::Vec3s;
 
 /// A ray with a unit direction; distances along it are in m.
@@ -374,9 +374,7 @@ pub fn pick_triangle_scan(
     pos: &Vec3s,
     alive: &[bool],
 ) -> Option<TriangleHit> {
-    pick_triangle_scan_where(ray, grid, pos, |id| {
-        cell_triangle(grid, id).iter().all(|&q| alive[q])
-    })
+    pick_triangle_scan_where(ray, grid, pos, |id| triangle_alive(grid, alive, id))
 }
 
 /// [`pick_triangle_scan`] over the triangles `drawn` says are there (by id), such as
