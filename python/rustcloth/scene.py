@@ -194,18 +194,19 @@ class StabilityReport:
             f"dt = {self.dt:g} s with {self.substeps} substep(s); stiffest mode "
             f"omega = {self.omega:.4g} rad/s"
         ]
+        width = max(map(len, self.stable_dt), default=0)
         for name, limit in self.stable_dt.items():
             mark = "*" if name == self.integrator else " "
             if limit is None:
-                implicit = name in ("implicit_euler", "projective_dynamics")
-                verdict = "stable at any dt" if implicit else "no springs"
+                # No limit: an implicit solver, or no spring to be stiff (omega = 0).
+                verdict = "no springs" if self.omega == 0 else "stable at any dt"
             elif limit == 0.0:
                 verdict = "never stable (no damping)"
             else:
                 needed = self.substeps_needed(name)
                 ok = "ok" if self.dt <= limit else f"UNSTABLE, needs {needed} substeps"
                 verdict = f"stable up to dt = {limit:.3g} s: {ok}"
-            lines.append(f"{mark} {name:19s} {verdict}")
+            lines.append(f"{mark} {name:{width}s} {verdict}")
         return "\n".join(lines)
 
 
