@@ -188,10 +188,13 @@ fn small(name: &str, n: u32, integrator: IntegratorKind) -> Scene {
 
 /// The integrators the pass is tested with (every one runs the passes after integration the
 /// same way; these three cover explicit, position-history and implicit schemes).
-const INTEGRATORS: [IntegratorKind; 3] = [
+const INTEGRATORS: [IntegratorKind; 6] = [
     IntegratorKind::SymplecticEuler,
     IntegratorKind::Verlet,
     IntegratorKind::ImplicitEuler,
+    IntegratorKind::ExplicitEuler,
+    IntegratorKind::Rk4,
+    IntegratorKind::ProjectiveDynamics,
 ];
 
 /// The built-in scene `name` at `n x n`, 900 steps with each of [`INTEGRATORS`], checked every
@@ -208,6 +211,27 @@ fn never_intersects_with_any_integrator(name: &str, n: u32) {
         eprintln!("{name}, {integrator:?}: {stats:?}");
         assert!(stats.contacts > 100, "{name}, {integrator:?}: {stats:?}");
     }
+}
+
+/// The pass keeps its pair list from substep to substep. Which pairs a substep looks at must
+/// not depend on when that list was built, or a state restored into a new simulation (whose
+/// list is built afresh) would step differently from the one it was saved from.
+#[test]
+fn a_restored_pile_in_contact_steps_as_the_original() {
+    let mut a = Simulation::new(small("pile", 20, IntegratorKind::SymplecticEuler)).unwrap();
+    a.step(450).unwrap();
+    let mut b = Simulation::restore(a.snapshot()).unwrap();
+    a.step(250).unwrap();
+    b.step(250).unwrap();
+    assert_eq!(a.snapshot(), b.snapshot());
+    // Both ways of finding pairs ran, the list was kept across substeps, and there was contact.
+    let stats = a.self_collision_stats().unwrap();
+    assert!(stats.contacts > 100, "{stats:?}");
+    assert!(stats.swept_substeps > 0, "{stats:?}");
+    assert!(
+        stats.rebuilds > 0 && stats.rebuilds * 4 < stats.substeps - stats.swept_substeps,
+        "{stats:?}"
+    );
 }
 
 #[test]
@@ -261,6 +285,43 @@ fn two_layers_of_one_free_cloth() -> Simulation {
     sim.set_positions(&pos).unwrap();
     sim.set_velocities(&vel).unwrap();
     sim
+}
+
+/// A substep whose repulsion moves vertices farther than the pair list allowed for is redone
+/// with the swept search. Two layers of one cloth laid a tenth of `thickness` apart at rest:
+/// the first substep pushes them apart by most of `thickness` at once.
+#[test]
+fn a_substep_the_list_does_not_cover_is_redone_and_still_keeps_apart() {
+    let mut scene = bare_scene(25, 12);
+    scene.cloth.size = [1.0, 0.5];
+    let thickness = 0.004;
+    scene.self_collision = Some(SelfCollisionSpec {
+        thickness,
+        friction: 0.3,
+        iterations: 4,
+    });
+    let mut sim = Simulation::new(scene).unwrap();
+    for j in 0..12 {
+        sim.cut(j * 25 + 12).unwrap();
+    }
+    let mut pos = sim.positions().clone();
+    for p in (0..pos.len()).filter(|p| p % 25 > 12) {
+        pos.set(
+            p,
+            pos.get(p) + Vec3::new(-0.51, 0.1 * thickness as f32, 0.003),
+        );
+    }
+    sim.set_positions(&pos).unwrap();
+    assert_eq!(intersections(&mut sim), vec![], "the start");
+    sim.step(1).unwrap();
+    let stats = sim.self_collision_stats().unwrap();
+    assert_eq!((stats.substeps, stats.redone), (1, 1), "{stats:?}");
+    for _ in 0..20 {
+        sim.step(5).unwrap();
+        assert_eq!(intersections(&mut sim), vec![]);
+    }
+    let stats = sim.self_collision_stats().unwrap();
+    assert!(stats.contacts > 0 && stats.min_distance > 0.0, "{stats:?}");
 }
 
 fn momentum(sim: &Simulation) -> DVec3 {

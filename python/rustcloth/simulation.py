@@ -510,6 +510,15 @@ class Simulation:
         current substeps and the lightest moving particle, or None when any is."""
         return self._core.stable_dt()
 
+    def self_collision_stats(self) -> dict[str, float] | None:
+        """What the self-collision pass did since the simulation was built, or None without
+        ``[self_collision]``: ``substeps`` it ran, candidate ``pairs`` and ``contacts`` (pairs
+        closer than ``thickness``) summed over substeps, ``rebuilds`` of its pair list,
+        vertices the cap slowed (``capped``) or ``stopped``, the most cap rounds in one
+        substep (``max_cap_rounds``) and the smallest distance between a vertex and a
+        triangle, or two edges, at the start of a substep (``min_distance``, m)."""
+        return self._core.self_collision_stats()
+
     def watchdog_stats(self) -> dict[str, int]:
         """What the watchdog caught (``caught``), saved by retrying (``retried``), the
         substeps those retries cost (``retry_substeps``), the most a saved step needed

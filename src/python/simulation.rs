@@ -416,6 +416,24 @@ impl PySimulation {
         Ok(out)
     }
 
+    fn self_collision_stats<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let Some(stats) = self.with(py, |h| Ok(h.sim.self_collision_stats()))? else {
+            return Ok(None);
+        };
+        let out = PyDict::new(py);
+        out.set_item("substeps", stats.substeps)?;
+        out.set_item("pairs", stats.pairs)?;
+        out.set_item("rebuilds", stats.rebuilds)?;
+        out.set_item("swept_substeps", stats.swept_substeps)?;
+        out.set_item("redone", stats.redone)?;
+        out.set_item("contacts", stats.contacts)?;
+        out.set_item("capped", stats.capped)?;
+        out.set_item("stopped", stats.stopped)?;
+        out.set_item("max_cap_rounds", stats.max_cap_rounds)?;
+        out.set_item("min_distance", stats.min_distance)?;
+        Ok(Some(out))
+    }
+
     fn memory_bytes(&self, py: Python<'_>) -> PyResult<usize> {
         self.with(py, |h| Ok(h.sim.memory_bytes()))
     }

@@ -2,13 +2,26 @@
 //! about `thickness` apart, with Coulomb friction. The last pass of a substep (after the
 //! colliders), present only when the scene has `[self_collision]`.
 //!
-//! Two stages on the substep's motion from `x0` (its start, assumed free of intersections) to
+//! Three stages on the substep's motion from `x0` (its start, assumed free of intersections) to
 //! `x1` (what the integrator, pins and colliders made of it):
 //!
-//! 1. **Repulsion** (soft, what keeps the gap). The broad phase (`hash.rs`) finds every
-//!    vertex-triangle pair (the vertex not in the triangle) and edge-edge pair (no shared
-//!    vertex) whose boxes, swept from `x0` to `x1` and grown by `thickness`, overlap. For each,
-//!    the closest points at `x0` (`geometry.rs`) give weights `c_i` with `sum c_i = 0` and a
+//! 0. **Pairs** (`list.rs`, `search.rs`). Only pairs that can come within `thickness` in the
+//!    substep are looked at, found one of two ways, chosen by the substep's motion alone:
+//!    - *the pair list*, when no vertex strays far from the cloth's common motion (a resting,
+//!      falling or slowly moving cloth): every pair closer than
+//!      `needed = thickness + 2 (r + PUSH thickness)` at `x0`, `r` the most any vertex's
+//!      displacement strays from the common one. The list reaches `SKIN thickness` farther
+//!      and is kept until the cloth has moved too far for it (a Verlet list). If the
+//!      repulsion or the cap then moves a vertex more than `PUSH thickness` away, the
+//!      substep is redone the second way.
+//!    - *the swept search*, otherwise: every pair whose boxes, swept from `x0` to `x1` and
+//!      grown by `thickness / 2`, overlap and whose distance at `x0` is below `thickness`
+//!      plus how far its vertices' boxes reach.
+//!
+//!    Either way the pairs looked at, and their order, are a function of the substep, so a
+//!    restored state steps exactly as the one it was saved from.
+//! 1. **Repulsion** (soft, what keeps the gap). For each pair (a vertex and a triangle without
+//!    it, or two edges with no shared vertex), the closest points at `x0` (`geometry.rs`) give weights `c_i` with `sum c_i = 0` and a
 //!    unit normal `n`, and the gap `g = (sum c_i x_i) . n`. `iterations` Gauss-Seidel sweeps
 //!    in pair order push every pair with `g < thickness` apart along `n`, shared by inverse
 //!    mass, `dx_i = w_i c_i (thickness - g) n / sum_j w_j c_j^2`. Then, in as many sweeps, each
@@ -32,18 +45,24 @@
 //!    toward `x0` (`dx_i -> s_i dx_i`), for a few rounds in proportion,
 //!    then by stopping them (`s = 0`), until no pair is left: it ends because each round stops
 //!    at least one more vertex, and a pair whose vertices all stand still has `m = 0`. Each
-//!    vertex is also kept inside its own grown swept box, so a pair the broad phase did not
-//!    find (boxes apart) stays apart. Capped vertices get their velocity scaled by `s` too.
+//!    vertex is also kept inside its own grown swept box, so a pair the swept search did not
+//!    look at stays apart. A pair the list leaves out is farther than `needed` at `x0`, and
+//!    no vertex strayed more than `r + PUSH thickness` (checked at the end), so it stays
+//!    `thickness` apart. Capped vertices get their velocity scaled by `s` too.
 //!    With no triangle pair in contact at the start, none touches at any time of any substep:
 //!    two triangles sharing no vertex can only start to intersect through a vertex touching a
 //!    face or an edge touching an edge.
 //!
-//! The candidate lists are collected afresh each substep (this pass allocates; the others do
-//! not). Everything parallel is a map in item order; all updates are sequential in pair order, so the
-//! result is bitwise the same for any thread count.
+//! A list build and a swept search allocate (per parallel task); a substep on a kept list
+//! does not. Everything parallel is a map in item order or an exact reduction (min, max); all
+//! updates are sequential in pair order, so the result is bitwise the same for any thread
+//! count.
 
 mod geometry;
 mod hash;
+mod list;
+mod pair;
+mod search;
 mod topology;
 
 use glam::{DVec3, Vec3};
@@ -52,7 +71,10 @@ use rayon::prelude::*;
 use crate::model::Model;
 use crate::soa::Vec3s;
 use crate::state::Kinematics;
-use hash::{Aabb, HashGrid};
+use hash::Aabb;
+use list::{displacements, PairList};
+use pair::{inverse_mass, Pair};
+use search::Broad;
 use topology::Topology;
 
 /// Fraction of a pair's distance at the start of a substep that its relative motion may close
@@ -65,13 +87,37 @@ const APPROACH: f64 = 0.9;
 /// fast. More rounds keep more motion in a tangle of contacts, at one pass over the pairs each.
 const SCALE_ROUNDS: u32 = 8;
 
+/// How far, as a fraction of `thickness`, the repulsion and the cap may move a vertex away from
+/// the cloth's common motion within a substep before the substep is redone with the swept
+/// search. Every pair that this much motion could bring within `thickness` is looked at; more
+/// looks at more pairs in every substep, less redoes more substeps.
+const PUSH: f64 = 0.25;
+
+/// How much farther than a substep needs the pair list reaches, as a fraction of `thickness`:
+/// the relative motion the cloth may make before the list is built again. More keeps the list
+/// longer, at more pairs looked at in every substep.
+const SKIN: f64 = 1.0;
+
+/// The farthest, as a multiple of `thickness`, that a substep may need to look for the pair list
+/// to be built for it. A list reaching farther holds many more pairs than the swept search
+/// finds (their number grows with the square of the reach in a layered cloth), so a substep
+/// whose motion needs more uses the swept search instead.
+const LIST_LIMIT: f64 = 2.0;
+
 /// What the pass did, summed since the simulation was built.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SelfCollisionStats {
     /// Substeps the pass ran.
     pub substeps: u64,
-    /// Candidate pairs from the broad phase, summed over substeps.
+    /// Pairs looked at, summed over substeps.
     pub pairs: u64,
+    /// Times the pair list was built.
+    pub rebuilds: u64,
+    /// Substeps that used the swept search: their motion needed more than the list reaches,
+    /// or (`redone`) they were redone because the repulsion or the cap moved a vertex farther
+    /// than the list allowed for.
+    pub swept_substeps: u64,
+    pub redone: u64,
     /// Pairs closer than `thickness` after the integrator (the repulsion's first sweep).
     pub contacts: u64,
     /// Vertices whose displacement the cap shortened, summed over substeps.
@@ -81,7 +127,7 @@ pub struct SelfCollisionStats {
     /// Most cap rounds one substep took.
     pub max_cap_rounds: u32,
     /// Smallest distance at the start of a substep between a vertex and a triangle without it,
-    /// or two edges with no shared vertex, among the broad phase's pairs (m; infinite if none).
+    /// or two edges with no shared vertex, among the pairs looked at (m; infinite if none).
     pub min_distance: f64,
 }
 
@@ -90,36 +136,15 @@ impl Default for SelfCollisionStats {
         SelfCollisionStats {
             substeps: 0,
             pairs: 0,
+            rebuilds: 0,
+            swept_substeps: 0,
+            redone: 0,
             contacts: 0,
             capped: 0,
             stopped: 0,
             max_cap_rounds: 0,
             min_distance: f64::INFINITY,
         }
-    }
-}
-
-/// A candidate pair: a vertex and a triangle without it (`split = 1`: `verts[0]` against
-/// `verts[1..]`) or two edges with no shared vertex (`split = 2`).
-#[derive(Clone, Copy, Debug)]
-struct Pair {
-    verts: [u32; 4],
-    split: usize,
-    /// Weights of the closest points at the start: the gap vector is `sum c_i x_i`.
-    c: [f64; 4],
-    /// Unit normal at the start, from the second primitive to the first (zero if degenerate).
-    n: DVec3,
-    /// Distance at the start, in m.
-    d0: f64,
-}
-
-impl Pair {
-    fn gap(&self, x: &Vec3s) -> f64 {
-        let mut g = DVec3::ZERO;
-        for k in 0..4 {
-            g += self.c[k] * x.get(self.verts[k] as usize).as_dvec3();
-        }
-        g.dot(self.n)
     }
 }
 
@@ -132,12 +157,16 @@ pub struct SelfCollision {
     /// Repulsion sweeps per substep.
     pub iterations: u32,
     topology: Topology,
+    /// Each vertex's grown swept box this substep.
     vertex_boxes: Vec<Aabb>,
-    tri_boxes: Vec<Aabb>,
-    edge_boxes: Vec<Aabb>,
-    tri_grid: HashGrid,
-    edge_grid: HashGrid,
+    /// Each vertex's box for building the pair list.
+    search_boxes: Vec<Aabb>,
+    broad: Broad,
+    list: PairList,
     pairs: Vec<Pair>,
+    /// The vertices of this substep's pairs as the integrator left them, to redo it from.
+    saved: Vec<(u32, Vec3, Vec3)>,
+    marked: Vec<bool>,
     /// Pairs the repulsion looks at, and whether each was in contact in some sweep.
     near: Vec<(u32, bool)>,
     scale: Vec<f64>,
@@ -155,11 +184,12 @@ impl SelfCollision {
             iterations,
             topology: Topology::default(),
             vertex_boxes: Vec::new(),
-            tri_boxes: Vec::new(),
-            edge_boxes: Vec::new(),
-            tri_grid: HashGrid::default(),
-            edge_grid: HashGrid::default(),
+            search_boxes: Vec::new(),
+            broad: Broad::default(),
+            list: PairList::default(),
             pairs: Vec::new(),
+            saved: Vec::new(),
+            marked: Vec::new(),
             near: Vec::new(),
             scale: Vec::new(),
             scale_next: Vec::new(),
@@ -180,8 +210,9 @@ impl SelfCollision {
             let triangles = model.triangles().collect();
             self.topology
                 .rebuild(model.topology_version, model.grid.len(), triangles);
+            self.list.clear();
+            self.marked = vec![false; model.grid.len()];
         }
-        let n = model.grid.len();
         let (x0, inv_mass) = (&start.pos, &model.particles.inv_mass);
         let mut reach = 0.0f32;
         for &v in &self.topology.vertices {
@@ -193,33 +224,65 @@ impl SelfCollision {
         }
         // A margin above float32 round-off of coordinates up to `reach` (8 ulps and more).
         let eps = 1e-6 * (1.0 + reach as f64);
+        let before = self.stats;
         self.stats.substeps += 1;
-        self.broad_phase(x0, &next.pos, n, eps as f32);
-        self.narrow_phase(x0);
+        // The pairs this substep looks at: those that can come closer than `thickness`. A pair
+        // farther than `needed` at the start cannot, while no vertex strays more than
+        // `allowed` from the cloth's common motion (twice that, the most any pair closes).
+        let thickness = self.thickness as f64;
+        let motion = displacements(&self.topology.vertices, x0, &next.pos);
+        let allowed = motion.radius() + PUSH * thickness;
+        let needed = thickness + 2.0 * allowed + eps;
+        // Which pairs a substep looks at depends on the substep alone, never on when the list
+        // was built, so a restored state steps exactly as the original.
+        let finite = if needed <= LIST_LIMIT * thickness {
+            if !self.list.covers(&self.topology.vertices, x0, needed, eps) {
+                self.rebuild_list(x0, needed + SKIN * thickness, eps as f32);
+            }
+            self.listed_pairs(x0, needed);
+            if self.pairs.is_empty() {
+                return true;
+            }
+            self.sweep_boxes(x0, &next.pos, eps as f32);
+            self.save_listed(next);
+            let finite = self.resolve(x0, next, inv_mass, eps);
+            // Only the pairs' vertices moved from where the integrator left them.
+            let mut moved = motion;
+            for &(v, ..) in &self.saved {
+                let v = v as usize;
+                moved.add(next.pos.get(v).as_dvec3() - x0.get(v).as_dvec3());
+            }
+            if moved.radius() <= allowed {
+                finite
+            } else {
+                // The repulsion or the cap moved a vertex farther than the list allowed for:
+                // redo the substep with the swept search, which bounds each vertex by its box.
+                self.restore_listed(next);
+                self.stats = before;
+                self.stats.substeps += 1;
+                self.stats.swept_substeps += 1;
+                self.stats.redone += 1;
+                self.swept_pairs(x0, eps);
+                self.resolve(x0, next, inv_mass, eps)
+            }
+        } else {
+            self.stats.swept_substeps += 1;
+            self.sweep_boxes(x0, &next.pos, eps as f32);
+            self.swept_pairs(x0, eps);
+            self.resolve(x0, next, inv_mass, eps)
+        };
         self.stats.pairs += self.pairs.len() as u64;
         if let Some(d) = self.pairs.iter().map(|p| p.d0).min_by(f64::total_cmp) {
             self.stats.min_distance = self.stats.min_distance.min(d);
         }
-        let h_finite = self.repel(next, inv_mass);
-        // Back inside each vertex's grown swept box, where the broad phase looked.
-        for &(k, touched) in &self.near {
-            if touched {
-                for &v in &self.pairs[k as usize].verts {
-                    let b = &self.vertex_boxes[v as usize];
-                    let p = next.pos.get(v as usize).clamp(b.min, b.max);
-                    next.pos.set(v as usize, p);
-                }
-            }
-        }
-        self.cap(x0, next, eps);
-        h_finite
+        finite
     }
 
-    /// Candidate pairs: boxes swept from `x0` to `x1`, each vertex's grown by `thickness / 2 +
-    /// eps`, a primitive's the union of its vertices'.
-    fn broad_phase(&mut self, x0: &Vec3s, x1: &Vec3s, n: usize, eps: f32) {
+    /// Each vertex's box, swept from `x0` to `x1` and grown by `thickness / 2 + eps`: where the
+    /// pass keeps it, and what the swept search overlaps.
+    fn sweep_boxes(&mut self, x0: &Vec3s, x1: &Vec3s, eps: f32) {
         let grow = Vec3::splat(0.5 * self.thickness + eps);
-        self.vertex_boxes.resize(n, Aabb::EMPTY);
+        self.vertex_boxes.resize(x0.len(), Aabb::EMPTY);
         self.vertex_boxes
             .par_iter_mut()
             .enumerate()
@@ -230,78 +293,98 @@ impl SelfCollision {
                     max: a.max(c) + grow,
                 };
             });
-        let (topo, vb) = (&self.topology, &self.vertex_boxes);
-        self.tri_boxes.clear();
-        self.tri_boxes
-            .par_extend(topo.triangles.par_iter().map(|t| {
-                vb[t[0] as usize]
-                    .union(vb[t[1] as usize])
-                    .union(vb[t[2] as usize])
-            }));
-        self.edge_boxes.clear();
-        self.edge_boxes.par_extend(
-            topo.edges
-                .par_iter()
-                .map(|e| vb[e[0] as usize].union(vb[e[1] as usize])),
-        );
-        self.tri_grid.build(&self.tri_boxes);
-        self.edge_grid.build(&self.edge_boxes);
     }
 
-    /// The closest points at `x0` of every candidate pair, in the broad phase's order.
-    fn narrow_phase(&mut self, x0: &Vec3s) {
-        let (topo, vb, tb, eb) = (
-            &self.topology,
-            &self.vertex_boxes,
-            &self.tri_boxes,
-            &self.edge_boxes,
-        );
-        let (tri_grid, edge_grid) = (&self.tri_grid, &self.edge_grid);
+    /// Lists every pair closer than `reach` at `x0`.
+    fn rebuild_list(&mut self, x0: &Vec3s, reach: f64, eps: f32) {
+        let grow = Vec3::splat(0.5 * reach as f32 + eps);
+        let mut boxes = std::mem::take(&mut self.search_boxes);
+        boxes.clear();
+        boxes.extend((0..x0.len()).map(|v| {
+            let p = x0.get(v);
+            Aabb {
+                min: p - grow,
+                max: p + grow,
+            }
+        }));
+        let keep = |p: &Pair| p.d0 < reach;
+        self.broad
+            .search(&self.topology, &boxes, x0, keep, &mut self.pairs);
+        self.search_boxes = boxes;
+        self.list
+            .rebuild(x0, reach, self.pairs.iter().map(Pair::candidate));
+        self.stats.rebuilds += 1;
+    }
+
+    /// The listed pairs closer than `needed` at `x0`, with their closest points there, in the
+    /// list's order (vertex then triangle, edge then edge: the same whenever the list was
+    /// built, so the result depends on the substep alone).
+    fn listed_pairs(&mut self, x0: &Vec3s, needed: f64) {
         self.pairs.clear();
         self.pairs
-            .par_extend(topo.vertices.par_iter().flat_map_iter(|&v| {
-                let b = vb[v as usize];
-                let mut found = Vec::new();
-                tri_grid.query(&b, |t| {
-                    let tri = topo.triangles[t as usize];
-                    if !tri.contains(&v) && tb[t as usize].overlaps(&b) {
-                        found.push(t);
-                    }
-                });
-                found.sort_unstable();
-                found.dedup();
-                found.into_iter().map(move |t| {
-                    let [a, b, c] = topo.triangles[t as usize];
-                    vertex_triangle(x0, [v, a, b, c])
-                })
-            }));
-        self.pairs.par_extend(
-            topo.edges
-                .par_iter()
-                .enumerate()
-                .flat_map_iter(|(e, &[a, b])| {
-                    let bx = eb[e];
-                    let mut found = Vec::new();
-                    edge_grid.query(&bx, |f| {
-                        let [c, d] = topo.edges[f as usize];
-                        if (f as usize) > e
-                            && a != c
-                            && a != d
-                            && b != c
-                            && b != d
-                            && eb[f as usize].overlaps(&bx)
-                        {
-                            found.push(f);
-                        }
-                    });
-                    found.sort_unstable();
-                    found.dedup();
-                    found.into_iter().map(move |f| {
-                        let [c, d] = topo.edges[f as usize];
-                        edge_edge(x0, [a, b, c, d])
-                    })
-                }),
-        );
+            .par_extend(self.list.candidates.par_iter().map(|c| c.at(x0)));
+        self.pairs.retain(|p| p.d0 < needed);
+    }
+
+    /// The swept search, for a substep whose motion the list does not cover: every pair whose
+    /// swept boxes overlap and which the motion its boxes allow could bring within
+    /// `thickness`. A vertex ends the substep in its box, so a pair at `d0` whose vertices'
+    /// boxes reach at most `l_a` and `l_b` from where they start stays `d0 - l_a - l_b` apart.
+    fn swept_pairs(&mut self, x0: &Vec3s, eps: f64) {
+        let (boxes, thickness) = (&self.vertex_boxes, self.thickness as f64);
+        let reach = |v: u32| {
+            let (b, p) = (&boxes[v as usize], x0.get(v as usize));
+            (p - b.min).max(b.max - p).as_dvec3().length()
+        };
+        let keep = |pair: &Pair| {
+            let (a, b) = pair.verts.split_at(pair.split);
+            let side = |s: &[u32]| s.iter().map(|&v| reach(v)).fold(0.0, f64::max);
+            pair.d0 < thickness + side(a) + side(b) + eps
+        };
+        self.broad
+            .search(&self.topology, boxes, x0, keep, &mut self.pairs);
+    }
+
+    /// Keeps the positions and velocities of the pairs' vertices, the only ones the pass
+    /// changes, so that a substep can be redone.
+    fn save_listed(&mut self, next: &Kinematics) {
+        self.saved.clear();
+        for pair in &self.pairs {
+            for &v in &pair.verts {
+                if !std::mem::replace(&mut self.marked[v as usize], true) {
+                    let v = v as usize;
+                    self.saved
+                        .push((v as u32, next.pos.get(v), next.vel.get(v)));
+                }
+            }
+        }
+        for &(v, ..) in &self.saved {
+            self.marked[v as usize] = false;
+        }
+    }
+
+    fn restore_listed(&self, next: &mut Kinematics) {
+        for &(v, x, u) in &self.saved {
+            next.pos.set(v as usize, x);
+            next.vel.set(v as usize, u);
+        }
+    }
+
+    /// The repulsion, each touched vertex put back inside its box, and the cap.
+    fn resolve(&mut self, x0: &Vec3s, next: &mut Kinematics, inv_mass: &[f32], eps: f64) -> bool {
+        let finite = self.repel(next, inv_mass);
+        // Back inside each vertex's grown swept box, where the swept search looks.
+        for &(k, touched) in &self.near {
+            if touched {
+                for &v in &self.pairs[k as usize].verts {
+                    let b = &self.vertex_boxes[v as usize];
+                    let p = next.pos.get(v as usize).clamp(b.min, b.max);
+                    next.pos.set(v as usize, p);
+                }
+            }
+        }
+        self.cap(x0, next, eps);
+        finite
     }
 
     /// The repulsion sweeps and the inelastic, frictional velocity impulses; returns whether
@@ -476,80 +559,20 @@ impl SelfCollision {
 
     pub fn heap_bytes(&self) -> usize {
         self.topology.heap_bytes()
-            + (self.vertex_boxes.capacity()
-                + self.tri_boxes.capacity()
-                + self.edge_boxes.capacity())
-                * size_of::<Aabb>()
-            + self.tri_grid.heap_bytes()
-            + self.edge_grid.heap_bytes()
+            + (self.vertex_boxes.capacity() + self.search_boxes.capacity()) * size_of::<Aabb>()
+            + self.broad.heap_bytes()
+            + self.list.heap_bytes()
             + self.pairs.capacity() * size_of::<Pair>()
+            + self.saved.capacity() * size_of::<(u32, Vec3, Vec3)>()
+            + self.marked.capacity()
             + self.near.capacity() * 8
             + (self.scale.capacity() + self.scale_next.capacity()) * 8
-    }
-}
-
-/// `sum_i w_i c_i^2` of a pair, its inverse effective mass along the normal; None when no
-/// vertex of it can move.
-fn inverse_mass(pair: &Pair, inv_mass: &[f32]) -> Option<f64> {
-    let w: f64 = (0..4)
-        .map(|k| inv_mass[pair.verts[k] as usize] as f64 * pair.c[k] * pair.c[k])
-        .sum();
-    (w > 0.0).then_some(w)
-}
-
-/// Vertex `q[0]` against triangle `q[1..]` at positions `x`.
-fn vertex_triangle(x: &Vec3s, q: [u32; 4]) -> Pair {
-    let [p, a, b, c] = q.map(|v| x.get(v as usize).as_dvec3());
-    let w = geometry::point_triangle(p, a, b, c);
-    let gap = p - (w[0] * a + w[1] * b + w[2] * c);
-    let fallback = || (b - a).cross(c - a).normalize_or_zero();
-    finish(q, 1, [1.0, -w[0], -w[1], -w[2]], gap, fallback)
-}
-
-/// Edge `q[0..2]` against edge `q[2..]` at positions `x`.
-fn edge_edge(x: &Vec3s, q: [u32; 4]) -> Pair {
-    let [a, b, c, d] = q.map(|v| x.get(v as usize).as_dvec3());
-    let (s, t) = geometry::segment_segment(a, b, c, d);
-    let gap = (a + s * (b - a)) - (c + t * (d - c));
-    let fallback = || (b - a).cross(d - c).normalize_or_zero();
-    finish(q, 2, [1.0 - s, s, t - 1.0, -t], gap, fallback)
-}
-
-fn finish(
-    verts: [u32; 4],
-    split: usize,
-    c: [f64; 4],
-    gap: DVec3,
-    fallback: impl Fn() -> DVec3,
-) -> Pair {
-    let d0 = gap.length();
-    let n = if d0 > 0.0 { gap / d0 } else { fallback() };
-    Pair {
-        verts,
-        split,
-        c,
-        n,
-        d0,
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn pair_weights_sum_to_zero_and_the_normal_points_from_the_triangle() {
-        // Zero-sum weights are what make every correction keep momentum.
-        let x0 = Vec3s::from_fn(4, |v| {
-            [Vec3::new(0.2, 0.01, 0.2), Vec3::ZERO, Vec3::X, Vec3::Z][v]
-        });
-        let pair = vertex_triangle(&x0, [0, 1, 2, 3]);
-        assert!((pair.d0 - 0.01).abs() < 1e-8, "{}", pair.d0);
-        assert!((pair.n - DVec3::Y).length() < 1e-12);
-        assert_eq!(pair.c.iter().sum::<f64>(), 0.0);
-        let e = edge_edge(&x0, [0, 1, 2, 3]);
-        assert!(e.c.iter().sum::<f64>().abs() < 1e-15);
-    }
 
     /// Before the cutting and contact branches met, the pass rebuilt its mesh from the live
     /// particles alone, so the triangles a severed stroke runs through stayed in it as a

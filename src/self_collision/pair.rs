@@ -1,0 +1,120 @@
+//! A pair of primitives that may touch, a vertex and a triangle without it or two edges with
+//! no shared vertex, and its closest points: the narrow phase of self-collision.
+
+use glam::DVec3;
+
+use crate::self_collision::geometry;
+use crate::soa::Vec3s;
+
+/// A candidate pair: a vertex and a triangle without it (`split = 1`: `verts[0]` against
+/// `verts[1..]`) or two edges with no shared vertex (`split = 2`).
+#[derive(Clone, Copy, Debug)]
+pub struct Pair {
+    pub verts: [u32; 4],
+    pub split: usize,
+    /// Weights of the closest points at the start: the gap vector is `sum c_i x_i`.
+    pub c: [f64; 4],
+    /// Unit normal at the start, from the second primitive to the first (zero if degenerate).
+    pub n: DVec3,
+    /// Distance at the start, in m.
+    pub d0: f64,
+}
+
+/// A pair by its vertices alone, as the pair list keeps it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Candidate {
+    pub verts: [u32; 4],
+    pub split: u8,
+}
+
+impl Candidate {
+    /// The pair with its closest points at `x`.
+    pub fn at(self, x: &Vec3s) -> Pair {
+        match self.split {
+            1 => vertex_triangle(x, self.verts),
+            _ => edge_edge(x, self.verts),
+        }
+    }
+}
+
+impl Pair {
+    pub fn candidate(&self) -> Candidate {
+        Candidate {
+            verts: self.verts,
+            split: self.split as u8,
+        }
+    }
+
+    pub fn gap(&self, x: &Vec3s) -> f64 {
+        let mut g = DVec3::ZERO;
+        for k in 0..4 {
+            g += self.c[k] * x.get(self.verts[k] as usize).as_dvec3();
+        }
+        g.dot(self.n)
+    }
+}
+
+/// `sum_i w_i c_i^2` of a pair, its inverse effective mass along the normal; None when no
+/// vertex of it can move.
+pub fn inverse_mass(pair: &Pair, inv_mass: &[f32]) -> Option<f64> {
+    let w: f64 = (0..4)
+        .map(|k| inv_mass[pair.verts[k] as usize] as f64 * pair.c[k] * pair.c[k])
+        .sum();
+    (w > 0.0).then_some(w)
+}
+
+/// Vertex `q[0]` against triangle `q[1..]` at positions `x`.
+pub fn vertex_triangle(x: &Vec3s, q: [u32; 4]) -> Pair {
+    let [p, a, b, c] = q.map(|v| x.get(v as usize).as_dvec3());
+    let w = geometry::point_triangle(p, a, b, c);
+    let gap = p - (w[0] * a + w[1] * b + w[2] * c);
+    let fallback = || (b - a).cross(c - a).normalize_or_zero();
+    finish(q, 1, [1.0, -w[0], -w[1], -w[2]], gap, fallback)
+}
+
+/// Edge `q[0..2]` against edge `q[2..]` at positions `x`.
+pub fn edge_edge(x: &Vec3s, q: [u32; 4]) -> Pair {
+    let [a, b, c, d] = q.map(|v| x.get(v as usize).as_dvec3());
+    let (s, t) = geometry::segment_segment(a, b, c, d);
+    let gap = (a + s * (b - a)) - (c + t * (d - c));
+    let fallback = || (b - a).cross(d - c).normalize_or_zero();
+    finish(q, 2, [1.0 - s, s, t - 1.0, -t], gap, fallback)
+}
+
+fn finish(
+    verts: [u32; 4],
+    split: usize,
+    c: [f64; 4],
+    gap: DVec3,
+    fallback: impl Fn() -> DVec3,
+) -> Pair {
+    let d0 = gap.length();
+    let n = if d0 > 0.0 { gap / d0 } else { fallback() };
+    Pair {
+        verts,
+        split,
+        c,
+        n,
+        d0,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    #[test]
+    fn pair_weights_sum_to_zero_and_the_normal_points_from_the_triangle() {
+        // Zero-sum weights are what make every correction keep momentum.
+        let x0 = Vec3s::from_fn(4, |v| {
+            [Vec3::new(0.2, 0.01, 0.2), Vec3::ZERO, Vec3::X, Vec3::Z][v]
+        });
+        let pair = vertex_triangle(&x0, [0, 1, 2, 3]);
+        assert!((pair.d0 - 0.01).abs() < 1e-8, "{}", pair.d0);
+        assert!((pair.n - DVec3::Y).length() < 1e-12);
+        assert_eq!(pair.c.iter().sum::<f64>(), 0.0);
+        let e = edge_edge(&x0, [0, 1, 2, 3]);
+        assert!(e.c.iter().sum::<f64>().abs() < 1e-15);
+    }
+}
