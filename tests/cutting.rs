@@ -446,8 +446,8 @@ fn cuts_are_deterministic_for_any_thread_count() {
     }
 }
 
-/// The culling in `springs_crossing_stroke` (rows and columns wholly on one side of the swept
-/// plane) against testing every live spring, on a crumpled cloth and random strokes.
+/// The culling in `springs_crossing_stroke` (particles' codes against the swept triangles'
+/// planes) against testing every live spring, on a crumpled cloth and random strokes.
 #[test]
 fn the_culled_stroke_test_finds_what_testing_every_spring_finds() {
     use rustcloth::cutting::{far_distance, segment_crosses_triangle, springs_crossing_stroke};
@@ -472,9 +472,17 @@ fn the_culled_stroke_test_finds_what_testing_every_spring_finds() {
             })
             .collect();
         let (springs, alive, pos) = (sim.springs(), &sim.particles().alive, sim.positions());
-        let mut got = springs_crossing_stroke(grid, springs, alive, pos, &rays);
+        let crossings = springs_crossing_stroke(grid, springs, alive, pos, &rays);
+        let mut got: Vec<_> = crossings.iter().map(|&(slot, _)| slot).collect();
         got.sort_by_key(|&(kind, a)| (kind.index(), a));
         got.dedup();
+        // Each crossing is where the spring's segment meets the surface.
+        for &((kind, a), t) in &crossings {
+            let b = a + grid.offset(kind);
+            let x = pos.get(a).lerp(pos.get(b), t);
+            assert!((0.0..=1.0).contains(&t), "{kind:?} {a}: t = {t}");
+            assert!(x.is_finite());
+        }
         let far = far_distance(pos, alive, &rays).unwrap();
         let mut want = Vec::new();
         for kind in SpringKind::ALL {
