@@ -22,7 +22,10 @@
 //! distance from `p` as a fraction of the spring. On an undeformed or uniformly strained
 //! cloth that is exactly the crossing point; as the pieces part, each side's edge goes with
 //! it and no triangle reaches across the gap. A particle left with one live neighbour in
-//! line with the edge extrapolates along it; with none, its cut vertices sit on it.
+//! line with the edge extrapolates along it. One with no such frame (on a strip one particle
+//! wide, as a tear along a row leaves, or alone) puts its cut vertex at its rest distance
+//! toward the other end ([`Frame::Toward`]): the direction is the only thing read from the
+//! other side, and the edge never grows past its rest length.
 //!
 //! **Cost.** Building the topology walks every triangle once (`O(n)`, as the grid's triangle
 //! list does) when the topology version moves. A frame copies the particles' positions and
@@ -38,16 +41,65 @@ use crate::model::Model;
 use crate::soa::Vec3s;
 use crate::state::State;
 
-/// A vertex on a severed edge, on one side of it.
+/// A vertex on a severed edge, on one side of it: `s` of the way from particle `from` to
+/// `toward`, at rest.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CutVertex {
-    /// The particle whose side the vertex is on, and the two that give its frame.
-    pub particles: [u32; 3],
-    /// Its position is `sum weights[k] * x[particles[k]]`.
-    pub weights: [f32; 3],
-    /// The edge it is on: from `particles[0]` to `toward`, at fraction `s` of the way.
+    /// The particle whose side the vertex is on.
+    pub from: u32,
     pub toward: u32,
     pub s: f32,
+    pub frame: Frame,
+}
+
+/// How a cut vertex follows its side.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Frame {
+    /// `w[0] x_from + w[1] x_u + w[2] x_w` for two live neighbours `u`, `w` of `from`.
+    Affine {
+        neighbours: [u32; 2],
+        weights: [f32; 3],
+    },
+    /// On a strip one particle wide (a tear along a row leaves one): `along` m along the
+    /// strip (toward live neighbour `neighbour`) and `across` m square to it, on the side
+    /// where `toward` is. The rest offset is kept, so the edge never reaches across the gap.
+    Strip {
+        neighbour: u32,
+        along: f32,
+        across: f32,
+    },
+    /// `reach` m from a lone particle toward `toward`.
+    Toward { reach: f32 },
+}
+
+impl CutVertex {
+    pub fn position(&self, pos: &Vec3s) -> Vec3 {
+        let from = pos.get(self.from as usize);
+        match self.frame {
+            Frame::Affine {
+                neighbours: [u, w],
+                weights,
+            } => {
+                weights[0] * from
+                    + weights[1] * pos.get(u as usize)
+                    + weights[2] * pos.get(w as usize)
+            }
+            Frame::Strip {
+                neighbour,
+                along,
+                across,
+            } => {
+                let tangent = (pos.get(neighbour as usize) - from).normalize_or_zero();
+                let d = pos.get(self.toward as usize) - from;
+                let square = (d - d.dot(tangent) * tangent).normalize_or_zero();
+                from + along * tangent + across * square
+            }
+            Frame::Toward { reach } => {
+                let d = (pos.get(self.toward as usize) - from).normalize_or_zero();
+                from + reach * d
+            }
+        }
+    }
 }
 
 /// The drawn mesh, rebuilt when the topology changes, its positions when the state does.
@@ -119,12 +171,9 @@ impl RenderMesh {
                 out.z[..n].copy_from_slice(&src.z[..n]);
             }
             for (k, v) in self.cut.iter().enumerate() {
-                let x = (0..3).fold(Vec3::ZERO, |x, c| {
-                    x + v.weights[c] * pos.get(v.particles[c] as usize)
-                });
-                self.positions.set(n + k, x);
-                let owner = v.particles[0] as usize;
-                self.normals.set(n + k, particle_normals.get(owner));
+                self.positions.set(n + k, v.position(pos));
+                self.normals
+                    .set(n + k, particle_normals.get(v.from as usize));
             }
             self.frame_for = Some(now);
         }
@@ -247,8 +296,8 @@ fn embed(model: &Model, from: usize, to: usize, s: f32) -> CutVertex {
             }
         }
     }
-    // Else one neighbour in line with the edge; else the particle itself.
-    let (frame, coef) = best.map(|b| (b.1, b.2)).unwrap_or_else(|| {
+    // Else one neighbour in line with the edge.
+    let collinear = || {
         live.iter()
             .find(|(_, d)| d.0 * g.1 == d.1 * g.0)
             .map(|&(u, d)| {
@@ -259,15 +308,45 @@ fn embed(model: &Model, from: usize, to: usize, s: f32) -> CutVertex {
                 };
                 ([u, from], [alpha, 0.0])
             })
-            .unwrap_or(([from, from], [0.0, 0.0]))
-    });
-    let s = s as f64;
-    let (wu, ww) = (s * coef[0], s * coef[1]);
+    };
+    let s64 = s as f64;
+    let frame = match best.map(|b| (b.1, b.2)).or_else(collinear) {
+        Some((frame, coef)) => {
+            let (wu, ww) = (s64 * coef[0], s64 * coef[1]);
+            Frame::Affine {
+                neighbours: frame.map(|q| q as u32),
+                weights: [(1.0 - wu - ww) as f32, wu as f32, ww as f32],
+            }
+        }
+        None => {
+            // Rest offsets in m: the grid steps scaled by the spacing.
+            let size = model.scene.cloth.size;
+            let h = glam::DVec2::new(
+                size[0] / (grid.nx - 1) as f64,
+                size[1] / (grid.ny - 1) as f64,
+            );
+            let offset = s64 * glam::DVec2::new(g.0 as f64, g.1 as f64) * h;
+            match live.first() {
+                Some(&(u, du)) => {
+                    let tangent = (glam::DVec2::new(du.0 as f64, du.1 as f64) * h).normalize();
+                    let along = offset.dot(tangent);
+                    Frame::Strip {
+                        neighbour: u as u32,
+                        along: along as f32,
+                        across: (offset - along * tangent).length() as f32,
+                    }
+                }
+                None => Frame::Toward {
+                    reach: offset.length() as f32,
+                },
+            }
+        }
+    };
     CutVertex {
-        particles: [from as u32, frame[0] as u32, frame[1] as u32],
-        weights: [(1.0 - wu - ww) as f32, wu as f32, ww as f32],
+        from: from as u32,
         toward: to as u32,
-        s: s as f32,
+        s,
+        frame,
     }
 }
 
