@@ -363,3 +363,31 @@ fn live_neighbour(model: &Model, p: usize, d: (i64, i64)) -> Option<usize> {
     let live = model.springs.active[kind.index()][anchor] != 0.0 && model.particles.alive[q];
     live.then_some(q)
 }
+
+/// Texture coordinates of the drawn mesh's vertices: particle `(i, j)` at
+/// `(i / (nx - 1), j / (ny - 1))`, a cut vertex where its edge was crossed.
+pub fn uvs(grid: Grid, cut: &[CutVertex]) -> Vec<[f32; 2]> {
+    let uv = |p: usize| {
+        let (i, j) = grid.coords(p);
+        glam::Vec2::new(
+            i as f32 / (grid.nx - 1) as f32,
+            j as f32 / (grid.ny - 1) as f32,
+        )
+    };
+    (0..grid.len())
+        .map(uv)
+        .chain(
+            cut.iter()
+                .map(|v| uv(v.from as usize).lerp(uv(v.toward as usize), v.s)),
+        )
+        .map(|x| x.to_array())
+        .collect()
+}
+
+/// The particle each vertex of the drawn mesh shows the values of (its colour in a strain or
+/// speed view): a particle itself, a cut vertex the particle whose side it is on.
+pub fn sources(grid: Grid, cut: &[CutVertex]) -> Vec<u32> {
+    (0..grid.len() as u32)
+        .chain(cut.iter().map(|v| v.from))
+        .collect()
+}
