@@ -197,16 +197,17 @@ impl StrokeCutter {
 /// Each particle's code against the triangle with the given plane and edge planes (see
 /// [`StrokeCutter`]).
 fn classify(code: &mut [u8], pos: &Vec3s, alive: &[bool], plane: Plane32, edges: [Plane32; 3]) {
-    let (xs, ys, zs) = (&pos.x[..], &pos.y[..], &pos.z[..]);
     let n = code.len();
-    let (xs, ys, zs, alive) = (&xs[..n], &ys[..n], &zs[..n], &alive[..n]);
+    let (xs, ys, zs, alive) = (&pos.x[..n], &pos.y[..n], &pos.z[..n], &alive[..n]);
+    let [e0, e1, e2] = edges;
     for i in 0..n {
         let (x, y, z) = (xs[i], ys[i], zs[i]);
         let d = plane.distance(x, y, z);
-        let mut c = (ABOVE * (d > plane.margin) as u8) | (BELOW * (d < -plane.margin) as u8);
-        for (e, edge) in edges.iter().enumerate() {
-            c |= (OUTSIDE << e) * (edge.distance(x, y, z) > edge.margin) as u8;
-        }
+        let c = (ABOVE * (d > plane.margin) as u8)
+            | (BELOW * (d < -plane.margin) as u8)
+            | (OUTSIDE * (e0.distance(x, y, z) > e0.margin) as u8)
+            | ((OUTSIDE << 1) * (e1.distance(x, y, z) > e1.margin) as u8)
+            | ((OUTSIDE << 2) * (e2.distance(x, y, z) > e2.margin) as u8);
         code[i] = if alive[i] { c } else { DEAD };
     }
 }
@@ -215,18 +216,27 @@ fn classify(code: &mut [u8], pos: &Vec3s, alive: &[bool], plane: Plane32, edges:
 /// so that it vectorises.
 fn live_bounds(pos: &Vec3s, alive: &[bool]) -> Option<(DVec3, DVec3)> {
     const LANES: usize = 8;
+    let n = alive.len();
     let bound = |values: &[f32]| {
         let (mut lo, mut hi) = ([f32::INFINITY; LANES], [f32::NEG_INFINITY; LANES]);
-        for (v, a) in values.chunks(LANES).zip(alive.chunks(LANES)) {
-            for l in 0..v.len() {
-                let (low, high) = if a[l] {
-                    (v[l], v[l])
-                } else {
-                    (f32::INFINITY, f32::NEG_INFINITY)
-                };
+        let (values, alive) = (&values[..n], &alive[..n]);
+        let chunks = values.chunks_exact(LANES).zip(alive.chunks_exact(LANES));
+        for (v, a) in chunks {
+            for l in 0..LANES {
+                // Selects, not branches: the loop runs eight lanes at once.
+                let low = if a[l] { v[l] } else { f32::INFINITY };
+                let high = if a[l] { v[l] } else { f32::NEG_INFINITY };
                 lo[l] = if low < lo[l] { low } else { lo[l] };
                 hi[l] = if high > hi[l] { high } else { hi[l] };
             }
+        }
+        let tail = n - n % LANES;
+        for (&v, _) in values[tail..]
+            .iter()
+            .zip(&alive[tail..])
+            .filter(|(_, &a)| a)
+        {
+            (lo[0], hi[0]) = (lo[0].min(v), hi[0].max(v));
         }
         let lo = lo.into_iter().fold(f32::INFINITY, f32::min);
         let hi = hi.into_iter().fold(f32::NEG_INFINITY, f32::max);
