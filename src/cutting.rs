@@ -27,150 +27,227 @@ use crate::springs::Springs;
 /// A severed spring: its kind and its anchor particle (the slot it is stored in).
 pub type SpringSlot = (SpringKind, usize);
 
-/// The live springs whose segments cross the surface the rays sweep, in order of (quad,
-/// triangle, row, kind, anchor); a spring crossing twice is listed twice. Fewer than two rays sweep nothing; a quad of two equal rays (a mouse
-/// that did not move) has no area and crosses nothing.
+/// A severed spring and where the stroke crossed it: `t` in `[0, 1]` along its segment from
+/// the anchor.
+pub type Crossing = (SpringSlot, f32);
+
+/// The live springs whose segments cross the surface the rays sweep, each with where it
+/// crosses, in order of (quad, triangle, kind, anchor); a spring crossing twice is listed
+/// twice. Fewer than two rays sweep nothing; a quad of two equal rays (a mouse that did not
+/// move) has no area and crosses nothing. [`StrokeCutter::crossings`] without keeping the
+/// workspace.
 pub fn springs_crossing_stroke(
     grid: Grid,
     springs: &Springs,
     alive: &[bool],
     pos: &Vec3s,
     rays: &[Ray],
-) -> Vec<SpringSlot> {
-    let mut out = Vec::new();
-    if rays.len() < 2 {
-        return out;
+) -> Vec<Crossing> {
+    StrokeCutter::default()
+        .crossings(grid, springs, alive, pos, rays)
+        .to_vec()
+}
+
+/// The workspace of the stroke test, kept between strokes so that a stroke segment allocates
+/// nothing once the cloth has been cut once.
+///
+/// Per triangle of the swept surface, one branch-free pass over the particles gives each a
+/// code of five bits, in float32 with a margin that makes it conservative: strictly above or
+/// below the triangle's plane, and strictly outside each of its three edges (the half-space
+/// beyond the plane through the edge along the normal). A segment whose two ends share a bit
+/// lies wholly on one side of that plane, so it cannot meet the triangle: a spring is tested
+/// exactly (in f64) only if `code[a] & code[b] == 0`, which one byte-wise pass per spring kind
+/// finds, 64 anchors at a time. The exact tests are as many as the springs near the swept
+/// triangle, not the springs along the whole line its plane cuts through the cloth.
+#[derive(Default)]
+pub struct StrokeCutter {
+    code: Vec<u8>,
+    out: Vec<Crossing>,
+}
+
+/// Strictly above the plane.
+const ABOVE: u8 = 1;
+/// Strictly below the plane.
+const BELOW: u8 = 2;
+/// Strictly outside edge `e` of the triangle: `OUTSIDE << e`.
+const OUTSIDE: u8 = 4;
+/// A removed particle: shares a bit with every particle but one on the triangle.
+const DEAD: u8 = 0xff;
+/// Anchors whose codes are compared at once before looking for the spring that may cross.
+const BLOCK: usize = 64;
+
+/// A plane `n . x = c` in float32, and the margin beyond which the sign of `n . x - c`
+/// computed in float32 is certain.
+#[derive(Clone, Copy)]
+struct Plane32 {
+    n: [f32; 3],
+    c: f32,
+    margin: f32,
+}
+
+impl Plane32 {
+    /// The plane through `point` with unit normal `n`, for points within `reach` of the origin
+    /// (in each coordinate).
+    fn new(n: DVec3, point: DVec3, reach: f64) -> Plane32 {
+        let c = n.dot(point);
+        // float32 rounding of n, of c and of each product and sum is a few 1e-7 relative to
+        // the sizes involved; 1e-5 leaves a factor of ten or more.
+        let margin = 1e-5 * (1.0 + c.abs() + 3.0 * reach);
+        Plane32 {
+            n: n.as_vec3().to_array(),
+            c: c as f32,
+            margin: margin as f32,
+        }
     }
-    let Some(far) = far_distance(pos, alive, rays) else {
-        return out; // nothing alive
-    };
-    let nx = grid.nx;
-    let mut side = vec![0i8; grid.len()];
-    // Per row, where its sides change: see `RowSides`.
-    let mut rows = vec![RowSides::default(); grid.ny];
-    for pair in rays.windows(2) {
-        let (o0, d0) = (pair[0].origin.as_dvec3(), pair[0].dir.as_dvec3());
-        let (o1, d1) = (pair[1].origin.as_dvec3(), pair[1].dir.as_dvec3());
-        let quad = [o0, o1, o1 + far * d1, o0 + far * d0];
-        for tri in [[quad[0], quad[1], quad[2]], [quad[0], quad[2], quad[3]]] {
-            let normal = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
-            if normal == DVec3::ZERO {
-                continue; // a degenerate triangle: no surface
-            }
-            // Which side of the triangle's plane each particle is on: a spring can only cross
-            // the triangle if its ends are on different sides (or one lies on the plane), which
-            // leaves the exact test for the few springs near the plane.
-            for (j, row) in rows.iter_mut().enumerate() {
-                *row = RowSides::measure(&mut side[j * nx..(j + 1) * nx], |i| {
-                    let p = j * nx + i;
-                    let x = DVec3::new(pos.x[p] as f64, pos.y[p] as f64, pos.z[p] as f64);
-                    normal.dot(x - tri[0])
+
+    #[inline(always)]
+    fn distance(&self, x: f32, y: f32, z: f32) -> f32 {
+        self.n[0] * x + self.n[1] * y + self.n[2] * z - self.c
+    }
+}
+
+impl StrokeCutter {
+    /// [`springs_crossing_stroke`], in this workspace.
+    pub fn crossings(
+        &mut self,
+        grid: Grid,
+        springs: &Springs,
+        alive: &[bool],
+        pos: &Vec3s,
+        rays: &[Ray],
+    ) -> &[Crossing] {
+        self.out.clear();
+        if rays.len() < 2 {
+            return &self.out;
+        }
+        let Some((lo, hi)) = live_bounds(pos, alive) else {
+            return &self.out; // nothing alive
+        };
+        let far = far_from_bounds(lo, hi, rays);
+        let reach = lo.abs().max(hi.abs()).max_element();
+        self.code.resize(grid.len(), 0);
+        for pair in rays.windows(2) {
+            let (o0, d0) = (pair[0].origin.as_dvec3(), pair[0].dir.as_dvec3());
+            let (o1, d1) = (pair[1].origin.as_dvec3(), pair[1].dir.as_dvec3());
+            let quad = [o0, o1, o1 + far * d1, o0 + far * d0];
+            for tri in [[quad[0], quad[1], quad[2]], [quad[0], quad[2], quad[3]]] {
+                let normal = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+                if normal == DVec3::ZERO {
+                    continue; // a degenerate triangle: no surface
+                }
+                let n = normal.normalize();
+                let plane = Plane32::new(n, tri[0], reach.max(far));
+                let edges: [Plane32; 3] = std::array::from_fn(|e| {
+                    let (p, q) = (tri[e], tri[(e + 1) % 3]);
+                    Plane32::new((q - p).cross(n).normalize(), p, reach.max(far))
                 });
+                classify(&mut self.code, pos, alive, plane, edges);
+                self.test_springs(grid, springs, alive, pos, tri);
             }
-            for j in 0..grid.ny {
-                let Some(columns) = anchor_columns(&rows[j..=(j + 2).min(grid.ny - 1)], nx) else {
+        }
+        &self.out
+    }
+
+    /// Appends the springs whose ends' codes share no bit and that cross `tri` exactly.
+    fn test_springs(
+        &mut self,
+        grid: Grid,
+        springs: &Springs,
+        alive: &[bool],
+        pos: &Vec3s,
+        tri: [DVec3; 3],
+    ) {
+        let code = &self.code;
+        for kind in SpringKind::ALL {
+            let (k, o) = (kind.index(), grid.offset(kind));
+            let n = grid.len().saturating_sub(o);
+            let (ca, cb) = (&code[..n], &code[o..o + n]);
+            for start in (0..n).step_by(BLOCK) {
+                let end = (start + BLOCK).min(n);
+                // Branch-free over the block (it vectorises): the smallest shared bit set.
+                let shared = ca[start..end]
+                    .iter()
+                    .zip(&cb[start..end])
+                    .fold(u8::MAX, |m, (&x, &y)| m.min(x & y));
+                if shared != 0 {
                     continue;
-                };
-                for kind in SpringKind::ALL {
-                    let k = kind.index();
-                    let o = grid.offset(kind);
-                    let row = j * nx + columns.start..j * nx + columns.end;
-                    let anchors = row.start..row.end.min(grid.len().saturating_sub(o));
-                    for a in anchors {
-                        let b = a + o;
-                        if side[a] * side[b] > 0 || springs.active[k][a] == 0.0 {
-                            continue;
-                        }
-                        if !(alive[a] && alive[b]) {
-                            continue;
-                        }
-                        let (pa, pb) = (pos.get(a).as_dvec3(), pos.get(b).as_dvec3());
-                        // A spring on two quads or on both halves of one is listed twice;
-                        // severing it the second time finds it severed and counts nothing.
-                        if segment_crosses_triangle(pa, pb, tri) {
-                            out.push((kind, a));
-                        }
+                }
+                for a in start..end {
+                    let b = a + o;
+                    if ca[a] & cb[a] != 0 || springs.active[k][a] == 0.0 || !(alive[a] && alive[b])
+                    {
+                        continue;
+                    }
+                    let (pa, pb) = (pos.get(a).as_dvec3(), pos.get(b).as_dvec3());
+                    // A spring on two quads or on both halves of one is listed twice;
+                    // severing it the second time finds it severed and counts nothing.
+                    if let Some(t) = segment_crossing(pa, pb, tri) {
+                        self.out.push(((kind, a), t as f32));
                     }
                 }
             }
         }
     }
-    out
+
+    pub fn heap_bytes(&self) -> usize {
+        self.code.capacity() + self.out.capacity() * size_of::<Crossing>()
+    }
 }
 
-/// Where the sides of one row's particles change: outside columns `lo..=hi` every particle is
-/// strictly on the side `left` (columns below `lo`) or `right` (above `hi`); inside, a particle
-/// is on the plane or differs from a neighbour. A row wholly on one side has `lo > hi`.
-#[derive(Clone, Copy, Debug, Default)]
-struct RowSides {
-    left: i8,
-    right: i8,
-    lo: usize,
-    hi: usize,
+/// Each particle's code against the triangle with the given plane and edge planes (see
+/// [`StrokeCutter`]).
+fn classify(code: &mut [u8], pos: &Vec3s, alive: &[bool], plane: Plane32, edges: [Plane32; 3]) {
+    let n = code.len();
+    let (xs, ys, zs, alive) = (&pos.x[..n], &pos.y[..n], &pos.z[..n], &alive[..n]);
+    let [e0, e1, e2] = edges;
+    for i in 0..n {
+        let (x, y, z) = (xs[i], ys[i], zs[i]);
+        let d = plane.distance(x, y, z);
+        let c = (ABOVE * (d > plane.margin) as u8)
+            | (BELOW * (d < -plane.margin) as u8)
+            | (OUTSIDE * (e0.distance(x, y, z) > e0.margin) as u8)
+            | ((OUTSIDE << 1) * (e1.distance(x, y, z) > e1.margin) as u8)
+            | ((OUTSIDE << 2) * (e2.distance(x, y, z) > e2.margin) as u8);
+        code[i] = if alive[i] { c } else { DEAD };
+    }
 }
 
-impl RowSides {
-    /// Fills `side` with the sign of `distance(i)` for each column `i` and says where it
-    /// changes, in one pass.
-    fn measure(side: &mut [i8], distance: impl Fn(usize) -> f64) -> RowSides {
-        let n = side.len();
-        let (mut lo, mut hi, mut prev) = (n, 0, 0i8);
-        for (i, out) in side.iter_mut().enumerate() {
-            let d = distance(i);
-            let s = (d > 0.0) as i8 - (d < 0.0) as i8;
-            *out = s;
-            if s == 0 {
-                (lo, hi) = (lo.min(i), hi.max(i));
-            } else if i > 0 && s != prev {
-                (lo, hi) = (lo.min(i - 1), hi.max(i));
+/// The bounding box of the live particles, or `None` if none is alive. Eight lanes at a time,
+/// so that it vectorises.
+fn live_bounds(pos: &Vec3s, alive: &[bool]) -> Option<(DVec3, DVec3)> {
+    const LANES: usize = 8;
+    let n = alive.len();
+    let bound = |values: &[f32]| {
+        let (mut lo, mut hi) = ([f32::INFINITY; LANES], [f32::NEG_INFINITY; LANES]);
+        let (values, alive) = (&values[..n], &alive[..n]);
+        let chunks = values.chunks_exact(LANES).zip(alive.chunks_exact(LANES));
+        for (v, a) in chunks {
+            for l in 0..LANES {
+                // Selects, not branches: the loop runs eight lanes at once.
+                let low = if a[l] { v[l] } else { f32::INFINITY };
+                let high = if a[l] { v[l] } else { f32::NEG_INFINITY };
+                lo[l] = if low < lo[l] { low } else { lo[l] };
+                hi[l] = if high > hi[l] { high } else { hi[l] };
             }
-            prev = s;
         }
-        RowSides {
-            left: side[0],
-            right: side[n - 1],
-            lo,
-            hi,
+        let tail = n - n % LANES;
+        for (&v, _) in values[tail..]
+            .iter()
+            .zip(&alive[tail..])
+            .filter(|(_, &a)| a)
+        {
+            (lo[0], hi[0]) = (lo[0].min(v), hi[0].max(v));
         }
-    }
+        let lo = lo.into_iter().fold(f32::INFINITY, f32::min);
+        let hi = hi.into_iter().fold(f32::NEG_INFINITY, f32::max);
+        (lo as f64, hi as f64)
+    };
+    let (x, y, z) = (bound(&pos.x[..]), bound(&pos.y[..]), bound(&pos.z[..]));
+    (x.0 <= x.1).then(|| (DVec3::new(x.0, y.0, z.0), DVec3::new(x.1, y.1, z.1)))
 }
 
-/// The columns of row `rows[0]` whose springs (reaching up to two rows on, one column back
-/// and two on) may join particles on different sides; `None` if none can. Left of every row's
-/// `lo` by more than two columns, all the rows are on one side if their `left`s agree, and so
-/// on the right.
-fn anchor_columns(rows: &[RowSides], nx: usize) -> Option<std::ops::Range<usize>> {
-    let uniform = |s: &dyn Fn(&RowSides) -> i8| {
-        let first = s(&rows[0]);
-        first != 0 && rows.iter().all(|r| s(r) == first)
-    };
-    let (left_ok, right_ok) = (uniform(&|r| r.left), uniform(&|r| r.right));
-    let lo = rows.iter().map(|r| r.lo).min().expect("one row at least");
-    let hi = rows.iter().filter(|r| r.lo <= r.hi).map(|r| r.hi).max();
-    let start = if left_ok { lo.saturating_sub(2) } else { 0 };
-    let end = match (right_ok, hi) {
-        (false, _) => nx,
-        (true, Some(hi)) => (hi + 3).min(nx),
-        (true, None) if left_ok => return None, // every row wholly on the same side
-        (true, None) => nx,
-    };
-    (start < end).then_some(start..end)
-}
-
-/// Distance along the rays that reaches every live particle from every ray origin: the
-/// farthest corner of the live particles' bounding box, plus one metre so that a particle on
-/// the box's corner is strictly inside the swept surface. `None` if no particle is alive.
-pub fn far_distance(pos: &Vec3s, alive: &[bool], rays: &[Ray]) -> Option<f64> {
-    let mut lo = DVec3::splat(f64::INFINITY);
-    let mut hi = DVec3::splat(f64::NEG_INFINITY);
-    for p in (0..pos.len()).filter(|&p| alive[p]) {
-        let x = pos.get(p).as_dvec3();
-        lo = lo.min(x);
-        hi = hi.max(x);
-    }
-    if lo.x > hi.x {
-        return None;
-    }
+/// See [`far_distance`].
+fn far_from_bounds(lo: DVec3, hi: DVec3, rays: &[Ray]) -> f64 {
     let far = rays
         .iter()
         .map(|r| {
@@ -178,33 +255,46 @@ pub fn far_distance(pos: &Vec3s, alive: &[bool], rays: &[Ray]) -> Option<f64> {
             (o - lo).abs().max((o - hi).abs()).length()
         })
         .fold(0.0, f64::max);
-    Some(far + 1.0)
+    far + 1.0
+}
+
+/// Distance along the rays that reaches every live particle from every ray origin: the
+/// farthest corner of the live particles' bounding box, plus one metre so that a particle on
+/// the box's corner is strictly inside the swept surface. `None` if no particle is alive.
+pub fn far_distance(pos: &Vec3s, alive: &[bool], rays: &[Ray]) -> Option<f64> {
+    live_bounds(pos, alive).map(|(lo, hi)| far_from_bounds(lo, hi, rays))
 }
 
 /// Whether the closed segment `p-q` meets the closed triangle `tri` (Moeller-Trumbore with the
 /// segment's own parameter in `[0, 1]`). A segment lying in the triangle's plane never does:
 /// it is parallel to the surface, not across it.
 pub fn segment_crosses_triangle(p: DVec3, q: DVec3, tri: [DVec3; 3]) -> bool {
+    segment_crossing(p, q, tri).is_some()
+}
+
+/// Where the closed segment `p-q` meets the closed triangle `tri`: the parameter `t` in
+/// `[0, 1]` of the point `p + t (q - p)` (see [`segment_crosses_triangle`]).
+pub fn segment_crossing(p: DVec3, q: DVec3, tri: [DVec3; 3]) -> Option<f64> {
     let dir = q - p;
     let (e1, e2) = (tri[1] - tri[0], tri[2] - tri[0]);
     let h = dir.cross(e2);
     let det = e1.dot(h);
     if det == 0.0 {
-        return false;
+        return None;
     }
     let inv = 1.0 / det;
     let s = p - tri[0];
     let u = inv * s.dot(h);
     if !(0.0..=1.0).contains(&u) {
-        return false;
+        return None;
     }
     let qv = s.cross(e1);
     let v = inv * dir.dot(qv);
     if v < 0.0 || u + v > 1.0 {
-        return false;
+        return None;
     }
     let t = inv * e2.dot(qv);
-    (0.0..=1.0).contains(&t)
+    (0.0..=1.0).contains(&t).then_some(t)
 }
 
 /// Whether triangle `id` ([`cell_triangle`]) is drawn: its three corners are alive and joined

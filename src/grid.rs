@@ -50,6 +50,11 @@ impl SpringKind {
         }
     }
 
+    /// The kind whose step is `(di, dj)`, if one is.
+    pub fn from_step(step: (i64, i64)) -> Option<SpringKind> {
+        SpringKind::ALL.into_iter().find(|k| k.step() == step)
+    }
+
     pub fn family(self) -> Family {
         match self {
             SpringKind::StructuralI | SpringKind::StructuralJ => Family::Structural,
@@ -139,6 +144,14 @@ impl Grid {
         let (pi, pj) = (i as i64 + di, j as i64 + dj);
         let inside = (0..self.nx as i64).contains(&pi) && (0..self.ny as i64).contains(&pj);
         inside.then(|| self.index(pi as usize, pj as usize))
+    }
+
+    /// The spring slot `(kind, anchor)` joining particles `p` and `q`, if the stencil has one.
+    pub fn spring_between(&self, p: usize, q: usize) -> Option<(SpringKind, usize)> {
+        let (lo, hi) = (p.min(q), p.max(q));
+        let ((i0, j0), (i1, j1)) = (self.coords(lo), self.coords(hi));
+        let step = (i1 as i64 - i0 as i64, j1 as i64 - j0 as i64);
+        SpringKind::from_step(step).map(|kind| (kind, lo))
     }
 
     /// The two triangles of each cell `(i, j)-(i+1, j+1)`, split along the shear diagonal,

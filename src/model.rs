@@ -4,6 +4,9 @@
 
 use glam::{DVec3, Vec3};
 
+use std::collections::HashMap;
+
+use crate::cutting::SpringSlot;
 use crate::error::{check_scalar, Bound, Error, Result};
 use crate::grid::Grid;
 use crate::scene::{Plane, Scene};
@@ -19,6 +22,11 @@ pub struct Model {
     pub grid: Grid,
     pub particles: Particles,
     pub springs: Springs,
+    /// Where a stroke crossed each spring it severed: the parameter `t` in `[0, 1]` along the
+    /// spring's segment from its anchor, as the cut found it (see
+    /// [`crate::cutting::springs_crossing_stroke`]). Springs severed without a stroke (a tear)
+    /// have none; the drawn mesh puts their cut at the midpoint. Nothing in a step reads it.
+    pub crossings: HashMap<SpringSlot, f32>,
     /// Increments whenever the springs or the particles that make up the cloth change (a cut,
     /// a severed spring, a tear), and with them the triangle list.
     pub topology_version: u64,
@@ -40,6 +48,7 @@ impl Model {
             grid,
             particles,
             springs,
+            crossings: HashMap::new(),
             topology_version: 0,
         };
         Ok((model, pos))
@@ -77,16 +86,31 @@ impl Model {
         self.topology_version += 1;
     }
 
-    /// Severs the springs `slots` (kind, anchor); those already severed are skipped. Returns
-    /// how many were live; the topology version moves only if one was. No particle changes, so
-    /// the cloth's mass stays exactly what it was.
-    pub fn sever(&mut self, slots: &[crate::cutting::SpringSlot]) -> usize {
+    /// Severs the springs `slots` (kind, anchor) without a stroke (a tear: the drawn mesh
+    /// opens at their midpoints); those already severed are skipped. Returns how many were
+    /// live; the topology version moves only if one was. No particle changes, so the cloth's
+    /// mass stays exactly what it was.
+    pub fn sever(&mut self, slots: &[SpringSlot]) -> usize {
+        self.sever_each(slots.iter().map(|&slot| (slot, None)))
+    }
+
+    /// [`Model::sever`] for springs a stroke crossed, each with where it crossed (`t` from the
+    /// anchor, kept in [`Model::crossings`] for the drawn mesh). A spring listed twice keeps
+    /// its first crossing.
+    pub fn sever_crossing(&mut self, crossings: &[(SpringSlot, f32)]) -> usize {
+        self.sever_each(crossings.iter().map(|&(slot, t)| (slot, Some(t))))
+    }
+
+    fn sever_each(&mut self, cuts: impl Iterator<Item = (SpringSlot, Option<f32>)>) -> usize {
         let mut severed = 0;
-        for &(kind, anchor) in slots {
+        for ((kind, anchor), t) in cuts {
             let flag = &mut self.springs.active[kind.index()][anchor];
             if *flag != 0.0 {
                 *flag = 0.0;
                 severed += 1;
+                if let Some(t) = t {
+                    self.crossings.insert((kind, anchor), t);
+                }
             }
         }
         if severed > 0 {
@@ -120,7 +144,9 @@ impl Model {
     }
 
     pub fn heap_bytes(&self) -> usize {
-        self.particles.heap_bytes() + self.springs.heap_bytes()
+        self.particles.heap_bytes()
+            + self.springs.heap_bytes()
+            + self.crossings.capacity() * size_of::<(SpringSlot, f32)>()
     }
 }
 

@@ -6,6 +6,7 @@
 
 use glam::Vec3;
 
+use crate::cutting::StrokeCutter;
 use crate::diagnostics::{self, Energy, Mesh};
 use crate::error::{check_scalar, check_vec3s, Bound, Error, Result};
 use crate::grid::Grid;
@@ -16,6 +17,7 @@ use crate::particles::Particles;
 use crate::picking::STROKE_TREE_MIN_RAYS;
 use crate::picking::{BvhStats, ParticleHit, PickStrategy, Picker, Ray, TriangleHit};
 use crate::profile::Profile;
+use crate::render_mesh::{CutVertex, RenderMesh};
 use crate::scene::{check_substep, Scene};
 use crate::snapshot::Snapshot;
 use crate::soa::Vec3s;
@@ -33,6 +35,8 @@ pub struct Simulation {
     picker: Picker,
     grab: Option<Grab>,
     mesh: Mesh,
+    render: RenderMesh,
+    cutter: StrokeCutter,
 }
 
 impl Simulation {
@@ -46,6 +50,8 @@ impl Simulation {
             picker: Picker::default(),
             grab: None,
             mesh: Mesh::default(),
+            render: RenderMesh::default(),
+            cutter: StrokeCutter::default(),
         })
     }
 
@@ -117,6 +123,7 @@ impl Simulation {
     fn drop_caches(&mut self) {
         self.picker.drop_caches();
         self.mesh = Mesh::default();
+        self.render = RenderMesh::default();
         self.state.version += 1;
         self.model.topology_version += 1;
     }
@@ -241,6 +248,25 @@ impl Simulation {
         self.mesh.normals(&self.model, &self.state)
     }
 
+    /// The drawn mesh's triangles: the particles' and the cut vertices' indices, the cut
+    /// vertices numbered from `grid().len()` on ([`crate::render_mesh`]); rebuilt on first
+    /// request after the topology changed.
+    pub fn render_triangles(&mut self) -> &[[u32; 3]] {
+        self.render.triangles(&self.model)
+    }
+
+    /// The drawn mesh's cut vertices, vertex `grid().len() + k` being entry `k`.
+    pub fn render_cut_vertices(&mut self) -> &[CutVertex] {
+        self.render.cut_vertices(&self.model)
+    }
+
+    /// The drawn mesh's vertex positions and unit normals (particles first), computed on
+    /// first request after the state or the topology changed.
+    pub fn render_frame(&mut self) -> (&Vec3s, &Vec3s) {
+        let normals = self.mesh.normals(&self.model, &self.state);
+        self.render.frame(&self.model, &self.state, normals)
+    }
+
     /// Heap memory held by the simulation, in bytes: state, scratch, springs, force tables,
     /// derived data and the picking trees once built.
     pub fn memory_bytes(&self) -> usize {
@@ -248,6 +274,8 @@ impl Simulation {
             + self.state.heap_bytes()
             + self.stepper.heap_bytes()
             + self.mesh.heap_bytes()
+            + self.render.heap_bytes()
+            + self.cutter.heap_bytes()
             + self.picker.heap_bytes()
     }
 
@@ -575,14 +603,14 @@ impl Simulation {
     pub fn sever_stroke(&mut self, rays: &[(Vec3, Vec3)]) -> Result<usize> {
         let rays = checked_rays(rays)?;
         let model = &self.model;
-        let slots = crate::cutting::springs_crossing_stroke(
+        let crossings = self.cutter.crossings(
             model.grid,
             &model.springs,
             &model.particles.alive,
             &self.state.kin.pos,
             &rays,
         );
-        Ok(self.model.sever(&slots))
+        Ok(self.model.sever_crossing(crossings))
     }
 
     /// The number of pieces the cloth is in: connected components of the live particles

@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{state_hash, with_threads};
+use common::{state_hash, with_threads, Drawn};
 use glam::Vec3;
 use rustcloth::grid::SpringKind;
 use rustcloth::picking::{pick_triangle_brute_force, Ray};
@@ -431,11 +431,18 @@ fn cuts_are_deterministic_for_any_thread_count() {
                 .collect();
             let severed = sim.sever_stroke(&rays).unwrap();
             sim.step(30).unwrap();
+            let drawn = Drawn::of(&mut sim);
+            let bits: Vec<[u32; 3]> = drawn
+                .positions
+                .iter()
+                .map(|x| x.to_array().map(f32::to_bits))
+                .collect();
             (
                 severed,
                 sim.pieces(),
                 state_hash(&sim),
                 sim.triangles().to_vec(),
+                (drawn.triangles, bits),
             )
         })
     };
@@ -446,8 +453,8 @@ fn cuts_are_deterministic_for_any_thread_count() {
     }
 }
 
-/// The culling in `springs_crossing_stroke` (rows and columns wholly on one side of the swept
-/// plane) against testing every live spring, on a crumpled cloth and random strokes.
+/// The culling in `springs_crossing_stroke` (particles' codes against the swept triangles'
+/// planes) against testing every live spring, on a crumpled cloth and random strokes.
 #[test]
 fn the_culled_stroke_test_finds_what_testing_every_spring_finds() {
     use rustcloth::cutting::{far_distance, segment_crosses_triangle, springs_crossing_stroke};
@@ -472,9 +479,17 @@ fn the_culled_stroke_test_finds_what_testing_every_spring_finds() {
             })
             .collect();
         let (springs, alive, pos) = (sim.springs(), &sim.particles().alive, sim.positions());
-        let mut got = springs_crossing_stroke(grid, springs, alive, pos, &rays);
+        let crossings = springs_crossing_stroke(grid, springs, alive, pos, &rays);
+        let mut got: Vec<_> = crossings.iter().map(|&(slot, _)| slot).collect();
         got.sort_by_key(|&(kind, a)| (kind.index(), a));
         got.dedup();
+        // Each crossing is where the spring's segment meets the surface.
+        for &((kind, a), t) in &crossings {
+            let b = a + grid.offset(kind);
+            let x = pos.get(a).lerp(pos.get(b), t);
+            assert!((0.0..=1.0).contains(&t), "{kind:?} {a}: t = {t}");
+            assert!(x.is_finite());
+        }
         let far = far_distance(pos, alive, &rays).unwrap();
         let mut want = Vec::new();
         for kind in SpringKind::ALL {
@@ -537,4 +552,231 @@ fn self_collision_sees_the_cut_surface() {
         drawn < 2 * (N as usize - 1).pow(2),
         "the cut left every triangle drawn"
     );
+}
+
+// ----- the drawn mesh follows the cut --------------------------------------------------------
+
+/// Distance in the xy plane from `x` to the polyline through the stroke's ray origins: the
+/// surface that rays along -z sweep is that polyline extruded along z.
+fn distance_to_stroke(x: Vec3, stroke: &[(Vec3, Vec3)]) -> f32 {
+    let p = x.truncate();
+    stroke
+        .windows(2)
+        .map(|w| {
+            let (a, b) = (w[0].0.truncate(), w[1].0.truncate());
+            let t = ((p - a).dot(b - a) / (b - a).length_squared()).clamp(0.0, 1.0);
+            p.distance(a + t * (b - a))
+        })
+        .fold(f32::INFINITY, f32::min)
+}
+
+const DY: f32 = 1.0 / (N - 1) as f32;
+
+/// The largest distance of a cut vertex from the nearest of `strokes`.
+fn worst_cut_vertex(drawn: &Drawn, strokes: &[&[(Vec3, Vec3)]]) -> f32 {
+    drawn.positions[drawn.particles..]
+        .iter()
+        .map(|&x| {
+            strokes
+                .iter()
+                .map(|s| distance_to_stroke(x, s))
+                .fold(f32::INFINITY, f32::min)
+        })
+        .fold(0.0, f32::max)
+}
+
+/// Panics if a drawn triangle has a vertex more than `tol` m above the line through `stroke`
+/// (a straight one) and another more than `tol` below it.
+fn assert_no_triangle_straddles(drawn: &Drawn, stroke: &[(Vec3, Vec3)], tol: f32) {
+    let (a, b) = (
+        stroke[0].0.truncate(),
+        stroke[stroke.len() - 1].0.truncate(),
+    );
+    let side = |x: Vec3| (b - a).perp_dot(x.truncate() - a) / (b - a).length();
+    for tri in &drawn.triangles {
+        let d = tri.map(|v| side(drawn.positions[v as usize]));
+        let (lo, hi) = (
+            d.iter().copied().fold(f32::INFINITY, f32::min),
+            d.iter().copied().fold(f32::NEG_INFINITY, f32::max),
+        );
+        assert!(
+            !(lo < -tol && hi > tol),
+            "triangle {tri:?} straddles the cut: {d:?}"
+        );
+    }
+}
+
+/// Cuts a sagging curtain along each stroke, then checks the drawn mesh at the cut (every cut
+/// vertex on a stroke to within `on_stroke` spacings, the pieces sharing no vertex) and after
+/// the pieces part for `steps` steps (no drawn edge stretched past 1.5 times its rest length).
+/// Returns the simulation and the cut vertices' worst distance, in spacings.
+fn cut_and_part(strokes: &[&[(Vec3, Vec3)]], steps: u64, on_stroke: f32) -> (Simulation, f32) {
+    let mut sim = Simulation::new(curtain(IntegratorKind::SymplecticEuler)).unwrap();
+    sim.step(200).unwrap(); // sagging: the grid is no longer a flat, even lattice
+    for stroke in strokes {
+        assert!(sim.sever_stroke(stroke).unwrap() > 0);
+    }
+    let drawn = Drawn::of(&mut sim);
+    assert!(drawn.positions.len() > drawn.particles, "no cut vertex");
+    let worst = worst_cut_vertex(&drawn, strokes) / DY;
+    assert!(
+        worst < on_stroke,
+        "a cut vertex is {worst} spacings from the stroke"
+    );
+    drawn.assert_pieces_share_no_vertex(&sim.piece_labels());
+    sim.step(steps).unwrap();
+    let after = Drawn::of(&mut sim);
+    after.assert_pieces_share_no_vertex(&sim.piece_labels());
+    let stretch = after.max_edge_stretch(0.05 * DY);
+    assert!(
+        stretch < 1.5,
+        "a drawn edge is stretched {stretch} times its rest length"
+    );
+    (sim, worst)
+}
+
+/// Issue 15: the drawn edge of a cut ran along the particles next to it (a staircase up to a
+/// grid spacing from the stroke, with a gap). Now it runs through the points where the stroke
+/// crossed the springs, each side's edge with its own vertices, and goes with its piece.
+#[test]
+fn issue_15_the_drawn_edge_follows_a_straight_cut() {
+    let stroke = across(cut_height(), 2);
+    let (mut sim, worst) = cut_and_part(&[&stroke], 150, 0.02);
+    // The lower piece fell some 0.11 m: its edge went with it and the upper's stayed.
+    let drawn = Drawn::of(&mut sim);
+    let lower = |v: usize| sim.grid().coords(drawn.owner[v]).1 <= 9;
+    let cut: Vec<usize> = (drawn.particles..drawn.positions.len()).collect();
+    let lowest_upper = cut
+        .iter()
+        .filter(|&&v| !lower(v))
+        .map(|&v| drawn.positions[v].y);
+    let highest_lower = cut
+        .iter()
+        .filter(|&&v| lower(v))
+        .map(|&v| drawn.positions[v].y);
+    let gap = lowest_upper.fold(f32::INFINITY, f32::min)
+        - highest_lower.fold(f32::NEG_INFINITY, f32::max);
+    assert!(gap > 1.5 * DY, "the two edges are {gap} m apart");
+    assert!(worst < 0.02, "{worst}");
+    // At the cut, nothing straddles it: the particles are at least a third of a spacing
+    // from it, the cut vertices on it.
+    let mut fresh = Simulation::new(curtain(IntegratorKind::SymplecticEuler)).unwrap();
+    fresh.step(200).unwrap();
+    fresh.sever_stroke(&stroke).unwrap();
+    assert_no_triangle_straddles(&Drawn::of(&mut fresh), &stroke, 0.02 * DY);
+}
+
+#[test]
+fn the_drawn_edge_follows_oblique_and_curved_strokes() {
+    let oblique: Vec<(Vec3, Vec3)> = (0..2)
+        .map(|s| {
+            (
+                Vec3::new(-0.8 + 1.6 * s as f32, 1.25 + 0.5 * s as f32, 2.0),
+                Vec3::NEG_Z,
+            )
+        })
+        .collect();
+    let (mut sim, _) = cut_and_part(&[&oblique], 150, 0.05);
+    assert_eq!(sim.pieces(), 2);
+    let mut fresh = Simulation::new(curtain(IntegratorKind::SymplecticEuler)).unwrap();
+    fresh.step(200).unwrap();
+    fresh.sever_stroke(&oblique).unwrap();
+    assert_no_triangle_straddles(&Drawn::of(&mut fresh), &oblique, 0.05 * DY);
+    let _ = Drawn::of(&mut sim);
+
+    let curved: Vec<(Vec3, Vec3)> = (0..25)
+        .map(|s| {
+            let x = -0.8 + 1.6 * s as f32 / 24.0;
+            (Vec3::new(x, 1.5 + 0.15 * (5.0 * x).sin(), 2.0), Vec3::NEG_Z)
+        })
+        .collect();
+    let (sim, _) = cut_and_part(&[&curved], 150, 0.05);
+    assert_eq!(sim.pieces(), 2);
+}
+
+/// Two strokes across each other: the cells at the crossing are cut twice (triangles with
+/// three severed edges), and the four pieces still share no vertex.
+#[test]
+fn two_crossing_cuts_leave_four_pieces_with_clean_edges() {
+    let down: Vec<(Vec3, Vec3)> = (0..2)
+        .map(|s| (Vec3::new(0.013, 0.8 + 1.4 * s as f32, 2.0), Vec3::NEG_Z))
+        .collect();
+    let stroke = across(cut_height() + 0.01, 2);
+    let (sim, _) = cut_and_part(&[&stroke, &down], 150, 0.05);
+    assert_eq!(sim.pieces(), 4);
+}
+
+#[test]
+fn querying_the_drawn_mesh_changes_no_physics() {
+    let run = |query: bool| {
+        let mut sim = Simulation::new(curtain(IntegratorKind::SymplecticEuler)).unwrap();
+        sim.step(20).unwrap();
+        sim.sever_stroke(&across(cut_height(), 3)).unwrap();
+        for _ in 0..50 {
+            sim.step(1).unwrap();
+            if query {
+                Drawn::of(&mut sim);
+            }
+        }
+        (
+            state_hash(&sim),
+            live_mass(&sim).to_bits(),
+            sim.grid().len(),
+        )
+    };
+    assert_eq!(run(true), run(false));
+}
+
+#[test]
+fn the_drawn_topology_changes_only_with_the_topology_version() {
+    let mut sim = Simulation::new(curtain(IntegratorKind::SymplecticEuler)).unwrap();
+    let whole = sim.render_triangles().to_vec();
+    assert_eq!(
+        whole,
+        sim.triangles().to_vec(),
+        "an uncut cloth draws the grid"
+    );
+    assert!(sim.render_cut_vertices().is_empty());
+    sim.step(5).unwrap();
+    assert_eq!(sim.render_triangles(), whole);
+    let version = sim.topology_version();
+    sim.sever_stroke(&across(cut_height(), 3)).unwrap();
+    assert_eq!(sim.topology_version(), version + 1);
+    let cut = sim.render_triangles().to_vec();
+    // Each of the row's 19 cells: two triangles of two severed edges, each in three pieces.
+    assert_eq!(cut.len(), whole.len() + 4 * (N as usize - 1));
+    // Two cut vertices on each severed edge: 20 structural and 19 diagonal.
+    assert_eq!(
+        sim.render_cut_vertices().len(),
+        2 * (N as usize + N as usize - 1)
+    );
+    let before = Drawn::of(&mut sim).positions;
+    sim.step(5).unwrap();
+    assert_eq!(sim.render_triangles(), cut);
+    assert_ne!(
+        Drawn::of(&mut sim).positions,
+        before,
+        "the positions follow the state"
+    );
+    // Severing nothing moves nothing.
+    assert_eq!(sim.sever_stroke(&across(cut_height(), 3)).unwrap(), 0);
+    assert_eq!(sim.topology_version(), version + 1);
+    assert_eq!(sim.render_triangles(), cut);
+}
+
+/// The seed's cut removes a particle: its triangles go (its mass with it), and no cut vertex
+/// appears, as nothing crossed a spring between two live particles.
+#[test]
+fn a_removed_particle_is_a_hole_without_cut_vertices() {
+    let mut sim = Simulation::new(curtain(IntegratorKind::SymplecticEuler)).unwrap();
+    let p = sim.grid().index(5, 5);
+    sim.cut(p as i64).unwrap();
+    assert!(sim.render_cut_vertices().is_empty());
+    assert!(sim
+        .render_triangles()
+        .iter()
+        .flatten()
+        .all(|&v| v as usize != p));
+    let physics = sim.triangles().to_vec();
+    assert_eq!(sim.render_triangles(), physics);
 }

@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{state_hash, with_threads};
+use common::{state_hash, with_threads, Drawn};
 use glam::Vec3;
 use rustcloth::grid::{Family, SpringKind};
 use rustcloth::scene::TearingSpec;
@@ -216,5 +216,33 @@ fn bad_tearing_settings_are_named() {
             max_strain: 0.2,
             max_per_step: 3
         })
+    );
+}
+
+/// A tear has no stroke: the drawn mesh opens each broken spring at its midpoint, each side
+/// with its own vertices, and as the corner is pulled away no drawn triangle reaches across
+/// the tear. The story: this tear runs just above the grip's row, which is left a strip one
+/// particle wide with no two-dimensional frame; its cut vertices first sat on their particles
+/// and then pointed straight at the other side, and the slivers along the strip were drawn
+/// 2.0 and then 1.7 times their rest length. `Frame::Strip` keeps the rest offset.
+#[test]
+fn a_tear_along_a_one_particle_strip_draws_a_clean_edge() {
+    let mut torn = None;
+    let mut sim = drag_corner(1500, |sim| {
+        if torn.is_none() && sim.pieces() > 1 {
+            torn = Some(sim.steps());
+        }
+    });
+    assert!(torn.is_some(), "the corner did not rip off");
+    let drawn = Drawn::of(&mut sim);
+    assert!(
+        drawn.positions.len() > drawn.particles,
+        "no cut vertex along the tear"
+    );
+    drawn.assert_pieces_share_no_vertex(&sim.piece_labels());
+    let stretch = drawn.max_edge_stretch(0.05 * 1.0 / (sim.grid().ny - 1) as f32);
+    assert!(
+        stretch < 1.5,
+        "a drawn edge is stretched {stretch} times its rest length"
     );
 }

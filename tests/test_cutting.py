@@ -128,3 +128,63 @@ def test_bad_tearing_settings_are_named():
     with pytest.raises(ValueError) as info:
         rustcloth.Scene(tearing={"max_per_step": 0})
     assert info.value.parameter == "tearing.max_per_step"
+
+
+def test_the_drawn_mesh_follows_the_cut_and_its_sides_share_no_vertex():
+    sim = Simulation(small_scene())
+    sim.step(50)
+    y = between_rows(sim, 2) + 0.01  # off the middle: the crossings are not midpoints
+    spacing = 0.5 / (sim.ny - 1)
+    sim.sever_stroke(across(sim, y))
+    mesh = sim.render_mesh()
+    n, v = sim.num_particles, len(mesh.positions)
+    assert v > n and mesh.positions.shape == mesh.normals.shape == (v, 3)
+    assert mesh.uvs.shape == (v, 2) and mesh.sources.shape == (v,)
+    assert np.isfinite(mesh.positions).all() and (np.abs(mesh.positions) < 10).all()
+    assert np.array_equal(mesh.positions[:n], sim.positions)
+    # Every cut vertex lies on the stroke's plane y = const (rays along -z): to float32
+    # rounding of the affine frame, well inside half a spacing.
+    worst = float(np.abs(mesh.positions[n:, 1] - y).max())
+    assert worst < 0.05 * spacing, f"{worst / spacing} spacings"
+    # No drawn triangle has vertices clearly on both sides of the plane.
+    d = mesh.positions[mesh.triangles][:, :, 1] - y
+    assert not ((d.min(axis=1) < -0.05 * spacing) & (d.max(axis=1) > 0.05 * spacing)).any()
+    # Each triangle's vertices belong to one piece; no vertex is drawn by both pieces.
+    above = mesh.positions[mesh.sources][:, 1] > y  # the side of each vertex's particle
+    side = above[mesh.triangles]
+    assert (side.all(axis=1) | (~side).all(axis=1)).all()
+    upper = np.unique(mesh.triangles[side.all(axis=1)])
+    lower = np.unique(mesh.triangles[(~side).all(axis=1)])
+    assert len(upper) and len(lower) and len(np.intersect1d(upper, lower)) == 0
+    # The cut vertices' texture coordinates lie between the rows they were cut from.
+    v_rows = mesh.uvs[n:, 1] * (sim.ny - 1)
+    assert ((v_rows > 2.0) & (v_rows < 3.0)).all()
+
+
+def test_the_drawn_topology_is_read_again_only_after_a_cut():
+    sim = Simulation(small_scene())
+    tris, uvs, sources = sim.render_topology()
+    assert np.array_equal(tris, sim.triangles) and len(uvs) == sim.num_particles
+    version = sim.topology_version
+    sim.step(10)
+    assert sim.topology_version == version
+    assert np.array_equal(sim.render_topology()[0], tris)
+    before = sim.render_positions()[0]
+    sim.step(10)
+    assert not np.array_equal(sim.render_positions()[0], before)
+    sim.sever_stroke(across(sim, between_rows(sim, 3)))
+    assert sim.topology_version == version + 1
+    after, uvs_after, _ = sim.render_topology()
+    assert len(after) > len(tris) and len(uvs_after) > len(uvs)
+
+
+def test_querying_the_drawn_mesh_changes_no_physics():
+    a, b = Simulation(small_scene()), Simulation(small_scene())
+    for sim in (a, b):
+        sim.sever_stroke(across(sim, between_rows(sim, 2)))
+    for _ in range(30):
+        a.step(1)
+        b.step(1)
+        a.render_mesh()
+    assert state_digest(a) == state_digest(b)
+    assert live_mass(a) == live_mass(b)

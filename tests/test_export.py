@@ -174,7 +174,7 @@ def test_usd_run_has_every_frame_at_its_time_code(tmp_path, pxr, suffix):
         assert np.array_equal(lo, x.min(axis=0)) and np.array_equal(hi, x.max(axis=0))
     st = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("st")
     assert st.GetInterpolation() == UsdGeom.Tokens.vertex
-    assert np.array_equal(np.asarray(st.Get()), export.grid_uvs(8, 6))
+    assert np.array_equal(np.asarray(st.Get(0.0)), export.grid_uvs(8, 6))
 
 
 def test_usd_topology_follows_cuts(tmp_path, pxr):
@@ -229,3 +229,33 @@ def test_recorder_refuses_frames_after_close(tmp_path, pxr):
     rec.close()
     with pytest.raises(ValueError, match="closed"):
         rec.add(sim)
+
+
+def test_exports_draw_the_cut_edge_and_usd_resamples_its_points(tmp_path, pxr):
+    from pxr import Usd, UsdGeom
+
+    sim = rustcloth.Simulation(small_scene())
+    with export.UsdRecorder(tmp_path / "sever.usd", fps=10) as rec:
+        rec.add(sim)
+        sim.advance(0.1)
+        y = float(sim.positions[:, 1].reshape(sim.ny, sim.nx)[2:4, 0].mean())
+        x = sim.positions[:, 0]
+        rays = [([float(x.min()) - 0.2, y, 2.0], [0, 0, -1]),
+                ([float(x.max()) + 0.2, y, 2.0], [0, 0, -1])]
+        assert sim.sever_stroke(rays) > 0
+        rec.add(sim)
+        mesh = export.to_mesh(sim)
+        sources = sim.render_topology()[2]
+    drawn = sim.render_mesh()
+    assert np.array_equal(mesh.vertices, drawn.positions)
+    assert np.array_equal(mesh.triangles, drawn.triangles) and len(mesh.uvs) > sim.num_particles
+    stage = Usd.Stage.Open(str(tmp_path / "sever.usd"))
+    usd = UsdGeom.Mesh(stage.GetDefaultPrim())
+    # The cut vertices join the points at the frame of the cut, with UVs and velocities.
+    assert len(usd.GetPointsAttr().Get(0.0)) == sim.num_particles
+    assert len(usd.GetPointsAttr().Get(1.0)) == len(mesh.vertices)
+    st = UsdGeom.PrimvarsAPI(usd).GetPrimvar("st")
+    assert np.array_equal(np.asarray(st.Get(1.0)), mesh.uvs)
+    velocities = np.asarray(usd.GetVelocitiesAttr().Get(1.0))
+    assert np.array_equal(velocities, sim.velocities[sources])
+    assert np.asarray(usd.GetFaceVertexIndicesAttr().Get(1.0)).max() >= sim.num_particles

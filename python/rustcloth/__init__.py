@@ -20,7 +20,7 @@ from .errors import (
     StabilityWarning,
 )
 from .scene import Scene, StabilityReport, load_scene, scenes
-from .simulation import Energy, PassTime, Profile, Simulation
+from .simulation import Energy, PassTime, Profile, RenderMesh, Simulation
 
 INTEGRATORS: tuple[str, ...] = tuple(_core.INTEGRATORS)
 """Names of the available time integrators."""
@@ -41,6 +41,7 @@ __all__ = [
     "ParticleIndexError",
     "PassTime",
     "Profile",
+    "RenderMesh",
     "RustclothError",
     "Scene",
     "Simulation",

@@ -2,9 +2,12 @@
 (through trimesh, ``pip install 'rustcloth[export]'``), a whole run as one USD file (through
 usd-core, ``pip install 'rustcloth[usd]'``), or a run as a numbered OBJ sequence.
 
-Vertex ``p`` of every mesh is particle ``p`` (row ``j * nx + i``), cut particles included: they
-stay as vertices that no triangle uses, so indices never shift when the cloth is cut and a USD
-file keeps one point count for the whole run.
+Every mesh is the drawn surface (:meth:`rustcloth.Simulation.render_mesh`). Vertex ``p < N`` is
+particle ``p`` (row ``j * nx + i``), cut particles included: they stay as vertices that no
+triangle uses, so a particle's index never shifts. After them come the cut vertices that put
+the edge of a severed stroke or a tear where it crossed the springs (docs/cutting.md); their
+number changes only when the topology does, and a USD file samples the point count, the UVs and
+the faces again then.
 
 >>> import rustcloth
 >>> sim = rustcloth.Simulation("hanging")
@@ -39,18 +42,19 @@ USD_FORMATS = (".usd", ".usda", ".usdc")
 
 @dataclass(frozen=True)
 class Mesh:
-    """One frame of the cloth as numpy arrays. ``N`` particles, ``T`` live triangles."""
+    """One frame of the cloth as numpy arrays. ``V`` vertices (the ``N`` particles, then the
+    cut vertices), ``T`` drawn triangles."""
 
     vertices: npt.NDArray[np.float32]
-    """``(N, 3)`` float32 positions in m."""
+    """``(V, 3)`` float32 positions in m."""
     triangles: npt.NDArray[np.uint32]
-    """``(T, 3)`` uint32 vertex indices of the live triangles, counter-clockwise seen from the
+    """``(T, 3)`` uint32 vertex indices of the drawn triangles, counter-clockwise seen from the
     side the normals point to."""
     normals: npt.NDArray[np.float32]
-    """``(N, 3)`` float32 unit vertex normals."""
+    """``(V, 3)`` float32 unit vertex normals."""
     uvs: npt.NDArray[np.float32]
-    """``(N, 2)`` float32 texture coordinates: particle ``(i, j)`` at ``(i / (nx - 1),
-    j / (ny - 1))``."""
+    """``(V, 2)`` float32 texture coordinates: particle ``(i, j)`` at ``(i / (nx - 1),
+    j / (ny - 1))``, a cut vertex where its edge was crossed."""
 
 
 def grid_uvs(nx: int, ny: int) -> npt.NDArray[np.float32]:
@@ -61,13 +65,14 @@ def grid_uvs(nx: int, ny: int) -> npt.NDArray[np.float32]:
 
 
 def to_mesh(sim: Simulation) -> Mesh:
-    """The simulation's current frame: positions, live triangles (``sim.triangles``), vertex
-    normals and grid texture coordinates."""
+    """The simulation's current frame: the drawn mesh's positions, triangles, vertex normals
+    and texture coordinates (:meth:`rustcloth.Simulation.render_mesh`)."""
+    drawn = sim.render_mesh()
     return Mesh(
-        vertices=np.ascontiguousarray(sim.positions, dtype=np.float32),
-        triangles=np.ascontiguousarray(sim.triangles, dtype=np.uint32),
-        normals=np.ascontiguousarray(sim.normals, dtype=np.float32),
-        uvs=grid_uvs(sim.nx, sim.ny),
+        vertices=np.ascontiguousarray(drawn.positions, dtype=np.float32),
+        triangles=np.ascontiguousarray(drawn.triangles, dtype=np.uint32),
+        normals=np.ascontiguousarray(drawn.normals, dtype=np.float32),
+        uvs=np.ascontiguousarray(drawn.uvs, dtype=np.float32),
     )
 
 
@@ -142,8 +147,9 @@ class Recorder:
 class UsdRecorder(Recorder):
     """Writes a whole run as one USD file: a ``UsdGeom.Mesh`` at ``prim_path`` (the stage's
     default prim) with time-sampled ``points``, ``normals``, ``velocities`` and ``extent``, and
-    its topology (``faceVertexCounts``, ``faceVertexIndices``) sampled again whenever the cloth
-    is cut. Texture coordinates are the constant primvar ``st``.
+    its topology (``faceVertexCounts``, ``faceVertexIndices``) and texture coordinates (the
+    primvar ``st``) sampled again whenever the cloth is cut (the cut vertices change the point
+    count). Each cut vertex's velocity is its particle's.
 
     A frame added at simulated time ``t`` seconds is sampled at time code
     ``t * time_codes_per_second``; the stage's ``timeCodesPerSecond`` and ``framesPerSecond``
@@ -186,6 +192,8 @@ class UsdRecorder(Recorder):
         self._counts = self._mesh.CreateFaceVertexCountsAttr()
         self._indices = self._mesh.CreateFaceVertexIndicesAttr()
         self._topology: int | None = None
+        self._st: Any = None
+        self._sources: npt.NDArray[np.uint32] = np.zeros(0, dtype=np.uint32)
         self._codes: list[float] = []
         self._closed = False
 
@@ -199,11 +207,12 @@ class UsdRecorder(Recorder):
         code = round(sim.time * self.fps, 9)
         mesh = to_mesh(sim)
         if not self._codes:
-            st = UsdGeom.PrimvarsAPI(self._mesh).CreatePrimvar(
+            self._st = UsdGeom.PrimvarsAPI(self._mesh).CreatePrimvar(
                 "st", self._Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.vertex)
-            st.Set(Vt.Vec2fArray.FromNumpy(mesh.uvs))
         if sim.topology_version != self._topology:
             self._topology = sim.topology_version
+            self._sources = sim.render_topology()[2]
+            self._st.Set(Vt.Vec2fArray.FromNumpy(mesh.uvs), code)
             self._counts.Set(Vt.IntArray.FromNumpy(
                 np.full(len(mesh.triangles), 3, dtype=np.int32)), code)
             self._indices.Set(Vt.IntArray.FromNumpy(
@@ -212,7 +221,7 @@ class UsdRecorder(Recorder):
         self._points.Set(points, code)
         self._normals.Set(Vt.Vec3fArray.FromNumpy(mesh.normals), code)
         self._velocities.Set(Vt.Vec3fArray.FromNumpy(
-            np.ascontiguousarray(sim.velocities, dtype=np.float32)), code)
+            np.ascontiguousarray(sim.velocities[self._sources], dtype=np.float32)), code)
         self._extent.Set(UsdGeom.PointBased.ComputeExtent(points), code)
         self._codes.append(code)
         self.frames += 1

@@ -50,6 +50,22 @@ class Energy(NamedTuple):
         return self.kinetic + self.gravitational + self.elastic
 
 
+class RenderMesh(NamedTuple):
+    """The drawn surface (:meth:`Simulation.render_mesh`): ``V`` vertices, the particles first,
+    then the cut vertices along severed edges; ``T`` triangles."""
+
+    positions: FloatArray
+    """``(V, 3)`` float32 in m."""
+    triangles: npt.NDArray[np.uint32]
+    """``(T, 3)`` uint32 vertex indices."""
+    normals: FloatArray
+    """``(V, 3)`` float32 unit vertex normals."""
+    uvs: FloatArray
+    """``(V, 2)`` float32 texture coordinates."""
+    sources: npt.NDArray[np.uint32]
+    """``(V,)`` uint32: the particle whose values each vertex shows."""
+
+
 @dataclass(frozen=True)
 class PassTime:
     """Time spent in one pass of the step."""
@@ -246,14 +262,42 @@ class Simulation:
 
     @property
     def triangles(self) -> npt.NDArray[np.uint32]:
-        """``(T, 3)`` uint32 vertex indices of the live triangles, two per grid cell, wound so
-        that a flat cloth's normal is ``e_i x e_j``. Recomputed only after a cut."""
+        """``(T, 3)`` uint32 particle indices of the physics surface (what self-collision keeps
+        apart): two triangles per grid cell, wound so that a flat cloth's normal is
+        ``e_i x e_j``, less those a cut or a tear runs through. Recomputed only after a cut.
+        What is drawn and exported follows the cut more closely: :meth:`render_mesh`."""
         return self._core.triangles
 
     @property
     def normals(self) -> FloatArray:
         """``(N, 3)`` float32 unit vertex normals (area-weighted over live triangles)."""
         return self._core.normals
+
+    def render_positions(self) -> tuple[FloatArray, FloatArray]:
+        """The drawn mesh's ``(positions, normals)``, ``(V, 3)`` float32 each: the ``N``
+        particles first (as :attr:`positions` and :attr:`normals`), then the cut vertices,
+        which put the edge of a severed stroke or a tear where it crossed the springs (see
+        docs/cutting.md). ``V`` changes only with :attr:`topology_version`."""
+        return self._core.render_positions()
+
+    def render_topology(
+        self,
+    ) -> tuple[npt.NDArray[np.uint32], FloatArray, npt.NDArray[np.uint32]]:
+        """What of the drawn mesh changes only with :attr:`topology_version`: ``triangles``
+        ``(T, 3)`` uint32 into the vertices of :meth:`render_positions` (the grid's triangles,
+        those a cut crosses clipped along it, the two sides of a cut sharing no vertex);
+        ``uvs`` ``(V, 2)`` float32 (particle ``(i, j)`` at ``(i / (nx - 1), j / (ny - 1))``,
+        a cut vertex where its edge was crossed); ``sources`` ``(V,)`` uint32, the particle
+        whose values (strain, speed) each vertex shows."""
+        return self._core.render_topology()
+
+    def render_mesh(self) -> RenderMesh:
+        """The drawn mesh now: :meth:`render_positions` and :meth:`render_topology` in one
+        :class:`RenderMesh`. A renderer calls the two apart, the topology only when
+        :attr:`topology_version` moved."""
+        positions, normals = self.render_positions()
+        triangles, uvs, sources = self.render_topology()
+        return RenderMesh(positions, triangles, normals, uvs, sources)
 
     @property
     def topology_version(self) -> int:
@@ -383,7 +427,8 @@ class Simulation:
     def sever_stroke(self, rays: Sequence[tuple[Vector, Vector]] | npt.ArrayLike) -> int:
         """Cut the cloth along a mouse stroke, like scissors: every live spring whose segment
         crosses the surface swept between consecutive rays (from each ray's origin through the
-        whole cloth) is severed, and the mesh's triangles across the cut go. ``rays`` is a
+        whole cloth) is severed, and the drawn mesh (:meth:`render_mesh`) is clipped along
+        where the stroke crossed them. ``rays`` is a
         sequence of ``(origin, direction)`` pairs (or an ``(M, 2, 3)`` array; directions need
         not be unit). Returns the number of springs severed. No particle is removed: the
         cloth's mass is unchanged to the bit, and a grabbed particle stays grabbed.
@@ -536,11 +581,11 @@ class Simulation:
         )
 
     def to_mesh(self) -> Any:
-        """The current frame as a :class:`rustcloth.export.Mesh`: ``vertices`` ``(N, 3)``
-        float32 in m (vertex ``p`` is particle ``p``; cut particles stay, used by no triangle),
-        ``triangles`` ``(T, 3)`` uint32 (the live ones), ``normals`` ``(N, 3)`` float32 unit
-        vectors and ``uvs`` ``(N, 2)`` float32, particle ``(i, j)`` at
-        ``(i / (nx - 1), j / (ny - 1))``."""
+        """The current frame's drawn mesh (:meth:`render_mesh`) as a
+        :class:`rustcloth.export.Mesh`: ``vertices`` ``(V, 3)`` float32 in m (vertex ``p < N``
+        is particle ``p``; cut particles stay, used by no triangle; the cut vertices follow),
+        ``triangles`` ``(T, 3)`` uint32, ``normals`` ``(V, 3)`` float32 unit vectors and
+        ``uvs`` ``(V, 2)`` float32, particle ``(i, j)`` at ``(i / (nx - 1), j / (ny - 1))``."""
         from .export import to_mesh
 
         return to_mesh(self)

@@ -215,8 +215,17 @@ pub fn interleaved(v: &Vec3s) -> Vec<f32> {
 /// copy: a write to it would change nothing in the simulation, so numpy refuses it instead of
 /// losing it silently (`set_positions` writes).
 pub fn vec3s_to_array(py: Python<'_>, flat: Vec<f32>) -> PyResult<Bound<'_, PyArray2<f32>>> {
-    let n = flat.len() / 3;
-    let array = PyArray1::from_vec(py, flat).reshape([n, 3])?;
+    rows_to_array(py, flat, 3)
+}
+
+/// Row-major values as a new read-only `(n, width)` array (a copy, as [`vec3s_to_array`]).
+pub fn rows_to_array<T: numpy::Element>(
+    py: Python<'_>,
+    flat: Vec<T>,
+    width: usize,
+) -> PyResult<Bound<'_, PyArray2<T>>> {
+    let n = flat.len() / width;
+    let array = PyArray1::from_vec(py, flat).reshape([n, width])?;
     read_only(array.as_any())?;
     Ok(array)
 }

@@ -3,19 +3,27 @@
 //! (shared.rs); stepping runs detached from the interpreter and checks for Ctrl-C between
 //! steps. The documented public API is `rustcloth.Simulation`, which wraps this class.
 
-use numpy::{PyArray1, PyArray2, PyArrayMethods};
+use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 
 use super::conv::{
     count_from_any, f64s_from_array, float_from_any, index_from_any, int_from_any, interleaved,
-    read_only, scene_from_dict, scene_to_dict, str_from_any, vec3_from_any, vec3s_from_array,
-    vec3s_to_array,
+    read_only, rows_to_array, scene_from_dict, scene_to_dict, str_from_any, vec3_from_any,
+    vec3s_from_array, vec3s_to_array,
 };
 use super::errors::IntoPyResult;
 use super::shared::{Held, Shared};
 use super::state;
 use crate::{Error, IntegratorKind, Simulation};
+
+type Arrays2<'py> = Bound<'py, PyArray2<f32>>;
+/// `(triangles (T, 3), uvs (V, 2), sources (V,))` of the drawn mesh.
+type RenderTopology<'py> = (
+    Bound<'py, PyArray2<u32>>,
+    Bound<'py, PyArray2<f32>>,
+    Bound<'py, PyArray1<u32>>,
+);
 
 /// The solver. See `rustcloth.Simulation` for the documented API.
 #[pyclass(name = "Simulation", module = "rustcloth._core", frozen)]
@@ -202,13 +210,35 @@ impl PySimulation {
 
     #[getter]
     fn triangles<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<u32>>> {
-        let flat: Vec<u32> = self.with(py, |h| {
-            Ok(h.sim.triangles().iter().flatten().copied().collect())
+        let flat: Vec<u32> = self.with(py, |h| Ok(h.sim.triangles().as_flattened().to_vec()))?;
+        rows_to_array(py, flat, 3)
+    }
+
+    /// The drawn mesh's `(positions, normals)`, particles first, then the cut vertices.
+    fn render_positions<'py>(&self, py: Python<'py>) -> PyResult<(Arrays2<'py>, Arrays2<'py>)> {
+        let (pos, nrm) = self.with(py, |h| {
+            let (pos, nrm) = h.sim.render_frame();
+            Ok((interleaved(pos), interleaved(nrm)))
         })?;
-        let rows = flat.len() / 3;
-        let array = PyArray1::from_vec(py, flat).reshape([rows, 3])?;
-        read_only(array.as_any())?;
-        Ok(array)
+        Ok((vec3s_to_array(py, pos)?, vec3s_to_array(py, nrm)?))
+    }
+
+    /// The drawn mesh's `(triangles, uvs, sources)`: what changes only with the topology.
+    fn render_topology<'py>(&self, py: Python<'py>) -> PyResult<RenderTopology<'py>> {
+        let (tris, uvs, sources) = self.with(py, |h| {
+            let grid = h.sim.grid();
+            let tris = h.sim.render_triangles().as_flattened().to_vec();
+            let cut = h.sim.render_cut_vertices();
+            let uvs = crate::render_mesh::uvs(grid, cut).as_flattened().to_vec();
+            Ok((tris, uvs, crate::render_mesh::sources(grid, cut)))
+        })?;
+        let sources = PyArray1::from_vec(py, sources);
+        read_only(sources.as_any())?;
+        Ok((
+            rows_to_array(py, tris, 3)?,
+            rows_to_array(py, uvs, 2)?,
+            sources,
+        ))
     }
 
     #[getter]

@@ -110,3 +110,87 @@ pub fn proptest_config(cases: u32, seed: u64) -> proptest::test_runner::Config {
         ..Config::default()
     }
 }
+
+/// The drawn mesh of a simulation ([`rustcloth::render_mesh`]) as plain arrays, with what the
+/// tests of the cut edge need: each vertex's particle (itself for a particle, the particle
+/// whose side it is on for a cut vertex) and its place on the cloth at rest, in m along the
+/// grid (`(i dx, j dy)`, a cut vertex where its edge was crossed).
+pub struct Drawn {
+    pub positions: Vec<Vec3>,
+    pub triangles: Vec<[u32; 3]>,
+    pub owner: Vec<usize>,
+    pub rest: Vec<glam::Vec2>,
+    /// The number of particles: vertices from here on are cut vertices.
+    pub particles: usize,
+}
+
+impl Drawn {
+    pub fn of(sim: &mut Simulation) -> Drawn {
+        let grid = sim.grid();
+        let size = sim.scene().cloth.size;
+        let spacing = glam::Vec2::new(
+            (size[0] / (grid.nx - 1) as f64) as f32,
+            (size[1] / (grid.ny - 1) as f64) as f32,
+        );
+        let at_rest = |p: usize| {
+            let (i, j) = grid.coords(p);
+            glam::Vec2::new(i as f32, j as f32) * spacing
+        };
+        let n = grid.len();
+        let mut owner: Vec<usize> = (0..n).collect();
+        let mut rest: Vec<glam::Vec2> = (0..n).map(at_rest).collect();
+        for v in sim.render_cut_vertices() {
+            let from = v.from as usize;
+            owner.push(from);
+            rest.push(at_rest(from).lerp(at_rest(v.toward as usize), v.s));
+        }
+        let triangles = sim.render_triangles().to_vec();
+        let pos = sim.render_frame().0;
+        let positions = (0..pos.len()).map(|v| pos.get(v)).collect();
+        Drawn {
+            positions,
+            triangles,
+            owner,
+            rest,
+            particles: n,
+        }
+    }
+
+    /// The largest ratio of a drawn edge's length to its length at rest, over the edges longer
+    /// than `floor` m at rest (a cut vertex next to its particle makes a vanishing edge).
+    pub fn max_edge_stretch(&self, floor: f32) -> f32 {
+        let mut worst = 0.0f32;
+        for tri in &self.triangles {
+            for e in 0..3 {
+                let (a, b) = (tri[e] as usize, tri[(e + 1) % 3] as usize);
+                let rest = self.rest[a].distance(self.rest[b]);
+                if rest > floor {
+                    worst = worst.max(self.positions[a].distance(self.positions[b]) / rest);
+                }
+            }
+        }
+        worst
+    }
+
+    /// Panics unless every drawn triangle's vertices are on one piece (`labels`, from
+    /// `Simulation::piece_labels`), and unless no vertex is drawn by two pieces.
+    pub fn assert_pieces_share_no_vertex(&self, labels: &[u32]) {
+        let mut piece_of = vec![u32::MAX; self.positions.len()];
+        for tri in &self.triangles {
+            let piece = labels[self.owner[tri[0] as usize]];
+            for &v in tri {
+                let v = v as usize;
+                assert_eq!(
+                    labels[self.owner[v]], piece,
+                    "triangle {tri:?} spans two pieces"
+                );
+                assert!(
+                    piece_of[v] == u32::MAX || piece_of[v] == piece,
+                    "vertex {v} is drawn by pieces {} and {piece}",
+                    piece_of[v]
+                );
+                piece_of[v] = piece;
+            }
+        }
+    }
+}

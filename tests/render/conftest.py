@@ -92,6 +92,14 @@ class StandInSimulation:
     def pinned(self) -> np.ndarray:
         return self._pinned.copy()
 
+    def render_positions(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.positions, self.normals
+
+    def render_topology(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        u, v = np.meshgrid(np.linspace(0, 1, self.nx), np.linspace(0, 1, self.ny))
+        uvs = np.column_stack([u.ravel(), v.ravel()]).astype(np.float32)
+        return self.triangles, uvs, np.arange(self.num_particles, dtype=np.uint32)
+
     @property
     def alive(self) -> np.ndarray:
         return self._alive.copy()

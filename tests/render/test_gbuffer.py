@@ -184,3 +184,34 @@ def test_shader_compile_error_names_file_and_line(ctx: Any, tmp_path: Any) -> No
     )
     with pytest.raises(ShaderError, match=r"broken\.frag:4"):
         load_program(ctx, "fullscreen.vert", "broken.frag", directory=tmp_path)
+
+
+def test_a_severed_cloth_grows_its_buffers_once_and_then_uploads_positions_only(
+        ctx: Any) -> None:
+    import rustcloth
+
+    sim = rustcloth.Simulation("hanging")
+    r = Renderer(ctx, sim, SIZE, shadow_size=256)
+    ibo = r.cloth_ibo
+    writes: list[int] = []
+    original = type(ibo).write
+
+    def spy(self: Any, data: Any, offset: int = 0) -> None:
+        if self is ibo:
+            writes.append(data.nbytes)
+        original(self, data, offset=offset)
+
+    z = float(sim.positions[:, 2].mean()) + 0.01  # the hanging sheet lies in the xz plane
+    assert sim.sever_stroke([([-2.0, 5.0, z], [0, -1, 0]), ([2.0, 5.0, z], [0, -1, 0])]) > 0
+    type(ibo).write = spy  # type: ignore[method-assign]
+    try:
+        r.update()
+        sim.step(5)
+        r.update()
+    finally:
+        type(ibo).write = original  # type: ignore[method-assign]
+    tris, uvs, _ = sim.render_topology()
+    assert writes == [tris.nbytes]
+    assert r.index_count == tris.size and tris.max() >= sim.num_particles
+    assert r.cloth_pos.size >= len(uvs) * 12 and r.cloth_uv.size >= uvs.nbytes
+    assert np.array_equal(r.positions, sim.render_positions()[0])

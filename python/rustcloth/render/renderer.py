@@ -49,6 +49,10 @@ class ClothSource(Protocol):
     @property
     def scene(self) -> Any: ...
     def spring_strain(self) -> F32: ...
+    def render_positions(self) -> tuple[F32, F32]: ...
+    def render_topology(
+        self,
+    ) -> tuple[npt.NDArray[np.uint32], F32, npt.NDArray[np.uint32]]: ...
 
 
 def layout_of(sim: ClothSource) -> SceneLayout:
@@ -66,10 +70,13 @@ class _Panel:
 class Renderer:
     """Draws one simulation into any framebuffer.
 
-    Per frame, :meth:`update` uploads positions and normals into persistent vertex buffers
-    with ``buffer.write``; the index buffer is rewritten only when ``topology_version``
-    changes. :meth:`render` then runs the passes. ``pass_timer``, when set, is called with
-    each pass's name as it finishes (benches use it to time passes).
+    It draws the simulation's drawn mesh (``render_positions``, ``render_topology``: the
+    particles, then the cut vertices along severed edges). Per frame, :meth:`update` uploads
+    positions and normals into persistent vertex buffers with ``buffer.write``; the index
+    buffer and the texture coordinates are rewritten only when ``topology_version`` changes
+    (the vertex buffers grow then, if the cut vertices need more room). :meth:`render` then
+    runs the passes. ``pass_timer``, when set, is called with each pass's name as it finishes
+    (benches use it to time passes).
     """
 
     def __init__(self, ctx: moderngl.Context, sim: ClothSource, size: tuple[int, int],
@@ -193,9 +200,10 @@ class Renderer:
         n = sim.num_particles
         self.cloth_pos = ctx.buffer(reserve=n * 12, dynamic=True)
         self.cloth_nrm = ctx.buffer(reserve=n * 12, dynamic=True)
-        self.cloth_uv = ctx.buffer(meshes.cloth_uv(sim.nx, sim.ny))
+        self.cloth_uv = ctx.buffer(meshes.cloth_uv(sim.nx, sim.ny), dynamic=True)
         self.cloth_scalar = ctx.buffer(reserve=n * 4, dynamic=True)
         self.cloth_ibo = ctx.buffer(reserve=max(1, sim.triangles.nbytes), dynamic=True)
+        self._sources = np.arange(n, dtype=np.uint32)
         self.cloth_vao = ctx.vertex_array(
             self.geometry,
             [
@@ -257,20 +265,24 @@ class Renderer:
     def update(self) -> None:
         """Upload the simulation's current state (the one per-frame position upload)."""
         sim = self.sim
-        positions = sim.positions
+        if sim.topology_version != self._topology:
+            tris, uvs, self._sources = sim.render_topology()
+            _write_growing(self.cloth_ibo, tris)
+            _write_growing(self.cloth_uv, uvs)
+            for buffer, width in ((self.cloth_pos, 12), (self.cloth_nrm, 12),
+                                  (self.cloth_scalar, 4)):
+                if len(uvs) * width > buffer.size:
+                    buffer.orphan(len(uvs) * width)
+            self.index_count = tris.size
+            self._topology = sim.topology_version
+            self.positions = np.zeros((0, 3), dtype=np.float32)  # upload them below
+            self._shadow_positions = None
+            self._state_serial += 1
+        positions, normals = sim.render_positions()
         if not np.array_equal(positions, self.positions):
             self.positions = positions
             self.cloth_pos.write(positions)
-            self.cloth_nrm.write(sim.normals)
-            self._state_serial += 1
-        if sim.topology_version != self._topology:
-            tris = sim.triangles
-            if tris.nbytes > self.cloth_ibo.size:
-                self.cloth_ibo.orphan(tris.nbytes)
-            self.cloth_ibo.write(tris)
-            self.index_count = tris.size
-            self._topology = sim.topology_version
-            self._shadow_positions = None
+            self.cloth_nrm.write(normals)
             self._state_serial += 1
         if self.view in K.SCALAR_VIEWS:
             self.cloth_scalar.write(self._scalar(self.view))
@@ -281,16 +293,17 @@ class Renderer:
         self._topology = -1
 
     def _scalar(self, view: str) -> F32:
+        # Per particle, then per drawn vertex: a cut vertex shows its particle's value.
         sim = self.sim
         if view == "strain":
-            return np.ascontiguousarray(sim.spring_strain(), dtype=np.float32)
-        if view == "speed":
-            speed: F32 = np.linalg.norm(sim.velocities, axis=1).astype(np.float32)
-            return speed
-        value = np.asarray(sim.pinned, dtype=np.float32)
-        if self.highlight is not None and 0 <= self.highlight < len(value):
-            value[self.highlight] = 2.0
-        return value
+            value = np.asarray(sim.spring_strain(), dtype=np.float32)
+        elif view == "speed":
+            value = np.linalg.norm(sim.velocities, axis=1).astype(np.float32)
+        else:
+            value = np.asarray(sim.pinned, dtype=np.float32)
+            if self.highlight is not None and 0 <= self.highlight < len(value):
+                value[self.highlight] = 2.0
+        return np.ascontiguousarray(value[self._sources], dtype=np.float32)
 
     def sync_stroke(self, segments: F32, version: int) -> None:
         """Upload the cut stroke (world-space segment end points, (M*2, 3)) only when its
@@ -543,6 +556,13 @@ class Renderer:
         world = ndc @ self._inv_view_proj.astype(np.float64).T
         out["position"] = (world[..., :3] / world[..., 3:]).astype(np.float32)
         return out
+
+
+def _write_growing(buffer: moderngl.Buffer, data: npt.NDArray[Any]) -> None:
+    """Write ``data`` at the start of ``buffer``, giving it new storage first if too small."""
+    if data.nbytes > buffer.size:
+        buffer.orphan(data.nbytes)
+    buffer.write(data)
 
 
 def _scaled(color: K.RGB, intensity: float) -> tuple[float, float, float]:
