@@ -434,3 +434,36 @@ fn the_drape_box_scene_keeps_the_cloth_out_of_the_turning_box() {
     let p = sim.positions().get(24 * 48 + 40).as_dvec3();
     assert!(p.z < -0.1, "the cloth did not turn with the box: {p}");
 }
+
+#[test]
+fn the_tablecloth_mannequin_and_spinner_scenes_run_stably() {
+    // 400 steps (0.4 s: the cloth has landed and is draping): every value finite and within
+    // the scene, no particle inside any collider by more than 1 mm (where two colliders meet,
+    // the later one has the last word, and may leave a particle within the other's thickness).
+    for name in ["tablecloth", "mannequin", "spinner"] {
+        let scene = Scene::builtin(name).unwrap();
+        let colliders = scene.colliders.clone();
+        let mut sim = Simulation::new(scene).unwrap();
+        for _ in 0..40 {
+            sim.step(10).unwrap();
+            let pos = sim.positions();
+            for p in 0..pos.len() {
+                let x = pos.get(p);
+                assert!(x.is_finite() && x.abs().max_element() < 5.0, "{name}: {x}");
+                for (c, collider) in colliders.iter().enumerate() {
+                    let d = signed_distance(collider, x, sim.time());
+                    assert!(
+                        d > -1e-3,
+                        "{name}: particle {p} is {d} m inside collider {c}"
+                    );
+                }
+            }
+        }
+        // The cloth came to rest on the colliders, not on the floor beneath them.
+        let middle = sim.grid().index(sim.grid().nx / 2, sim.grid().ny / 2);
+        assert!(
+            sim.positions().get(middle).y > 0.5,
+            "{name}: the cloth fell through"
+        );
+    }
+}

@@ -128,6 +128,9 @@ const BUILTIN: &[(&str, &str)] = &[
     ("pile", include_str!("../../scenes/pile.toml")),
     ("tear", include_str!("../../scenes/tear.toml")),
     ("drape_box", include_str!("../../scenes/drape_box.toml")),
+    ("tablecloth", include_str!("../../scenes/tablecloth.toml")),
+    ("mannequin", include_str!("../../scenes/mannequin.toml")),
+    ("spinner", include_str!("../../scenes/spinner.toml")),
 ];
 
 impl Scene {
