@@ -11,6 +11,11 @@ use glam::{DVec3, Vec3};
 use rustcloth::scene::{ColliderSpec, ShapeKind};
 use rustcloth::{Error, Scene, Simulation};
 
+/// A call that should be refused, returning its error.
+type BadCall<'a> = &'a dyn Fn(&mut Simulation) -> Error;
+/// A change to a good mesh's vertices and triangles.
+type MeshChange<'a> = &'a dyn Fn(&mut Vec<[f64; 3]>, &mut Vec<[i64; 3]>);
+
 fn mesh_box(half: [f64; 3]) -> ColliderSpec {
     let (vertices, triangles) = box_mesh(half);
     ColliderSpec {
@@ -248,7 +253,7 @@ fn a_pose_set_once_is_reached_over_one_step_and_then_held() {
 
 #[test]
 fn bad_poses_are_refused_naming_the_parameter_and_change_nothing() {
-    let run = |bad: &dyn Fn(&mut Simulation) -> Error| {
+    let run = |bad: BadCall| {
         let mut sim = carried(0.2, 5);
         let err = bad(&mut sim);
         sim.step(20).unwrap();
@@ -258,7 +263,7 @@ fn bad_poses_are_refused_naming_the_parameter_and_change_nothing() {
     good.step(20).unwrap();
     let reference = (state_hash(&good), good.collider_poses()[0]);
     let unit = [0.0, 0.0, 0.0, 1.0];
-    let cases: [(&str, &dyn Fn(&mut Simulation) -> Error); 5] = [
+    let cases: [(&str, BadCall); 5] = [
         ("index", &|s| {
             s.set_collider_pose(1, [0.0; 3], unit).unwrap_err()
         }),
@@ -299,7 +304,7 @@ fn bad_poses_are_refused_naming_the_parameter_and_change_nothing() {
 #[test]
 fn bad_meshes_are_refused_naming_the_parameter() {
     let (vertices, triangles) = box_mesh([0.5, 0.5, 0.5]);
-    let with = |f: &dyn Fn(&mut Vec<[f64; 3]>, &mut Vec<[i64; 3]>)| {
+    let with = |f: MeshChange| {
         let (mut v, mut t) = (vertices.clone(), triangles.clone());
         f(&mut v, &mut t);
         let scene = Scene {
@@ -312,7 +317,7 @@ fn bad_meshes_are_refused_naming_the_parameter() {
         };
         scene.validate().unwrap_err().to_string()
     };
-    let cases: [(&str, &dyn Fn(&mut Vec<[f64; 3]>, &mut Vec<[i64; 3]>)); 9] = [
+    let cases: [(&str, MeshChange); 9] = [
         ("colliders[0].vertices[3][1]", &|v, _| v[3][1] = f64::NAN),
         ("colliders[0].vertices[0][2]", &|v, _| {
             v[0][2] = f64::INFINITY
