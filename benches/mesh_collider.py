@@ -40,7 +40,7 @@ def icosphere(level: int, radius: float) -> tuple[np.ndarray, np.ndarray]:
     for _ in range(level):
         middle: dict[tuple[int, int], int] = {}
 
-        def mid(a: int, b: int) -> int:
+        def mid(a: int, b: int, middle: dict[tuple[int, int], int] = middle) -> int:
             key = (min(a, b), max(a, b))
             if key not in middle:
                 p = vertices[a] + vertices[b]
