@@ -50,6 +50,7 @@ def test_round_and_box_colliders_are_closed_outward_solids_of_their_size(
     vertices, indices = meshes.collider_mesh(collider)
     assert vertices.dtype == np.float32 and vertices.shape == (VERTEX_COUNTS[collider["shape"]], 8)
     assert indices.dtype == np.uint32 and indices.max() < len(vertices)
+    assert vertices.flags.c_contiguous and indices.flags.c_contiguous  # as GL buffers take them
     # The bounding box is the shape's, centred on its origin.
     np.testing.assert_allclose(vertices[:, :3].min(axis=0), -half, atol=1e-6)
     np.testing.assert_allclose(vertices[:, :3].max(axis=0), half, atol=1e-6)

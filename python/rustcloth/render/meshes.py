@@ -86,7 +86,7 @@ def box(half_extents: npt.ArrayLike) -> Mesh:
                 p = (n + cu * u + cv * v) * half
                 vertices.append(np.concatenate([p, n, [(cu + 1) / 2, (cv + 1) / 2]]))
     quads = np.arange(24, dtype=np.uint32).reshape(6, 4)
-    indices = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+    indices = np.ascontiguousarray(np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]]))
     return np.asarray(vertices, dtype=np.float32), indices
 
 
