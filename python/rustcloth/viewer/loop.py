@@ -33,6 +33,7 @@ KEY_LABELS = {"SPACE": "Space", "EQUAL": "+", "MINUS": "-", "ESCAPE": "Esc"}
 MOUSE_HELP = [
     "left drag: grab and drag      right drag / shift + left drag: cut",
     "middle drag / alt + left drag: orbit      scroll: zoom",
+    "ctrl + left drag: move a collider (it pushes the cloth; a turning one stops turning)",
 ]
 
 
@@ -109,6 +110,7 @@ class Viewer:
         if self.script is not None:
             self.script.update(self.clock, self.input, self.renderer.positions)
         if not self.paused:
+            self.interaction.pose_collider()
             budget = max(MIN_BUDGET_S, self.render_s) if self.realtime else None
             self._physics(self.stepper.run(seconds, budget))
         t0 = time.perf_counter()
