@@ -6,6 +6,7 @@
 
 use glam::Vec3;
 
+use crate::collisions::Pose;
 use crate::cutting::StrokeCutter;
 use crate::diagnostics::{self, Energy, Mesh};
 use crate::error::{check_scalar, check_vec3s, Bound, Error, Result};
@@ -443,6 +444,42 @@ impl Simulation {
         self.model.topology_version = topology;
         self.state.version = state;
         Ok(())
+    }
+
+    // ----- colliders ------------------------------------------------------------------------
+
+    /// Puts collider `index` (of the scene's `[[colliders]]`) at `position` (m, its frame's
+    /// origin) with orientation `rotation`, a unit quaternion `[x, y, z, w]`, by the end of the
+    /// next step. Over that step it moves there from where it is now at the constant velocity
+    /// and turn rate that this takes, which friction sees: cloth resting on a collider set each
+    /// step is carried along. It rests there after, its scripted `velocity` and
+    /// `angular_velocity` over. Refuses an index out of range (naming `index`), a non-finite
+    /// position (`position`) or a rotation that is not a unit quaternion within
+    /// [`crate::collisions::ROTATION_TOLERANCE`] (`rotation`), changing nothing.
+    pub fn set_collider_pose(
+        &mut self,
+        index: i64,
+        position: [f64; 3],
+        rotation: [f64; 4],
+    ) -> Result<()> {
+        let n = self.model.scene.colliders.len();
+        if !(0..n as i64).contains(&index) {
+            return Err(Error::index("index", index, n));
+        }
+        let pose = Pose::checked(("position", "rotation"), position, rotation)?;
+        let (now, dt) = (self.time(), self.model.scene.dt);
+        if let Some(shapes) = self.stepper.shapes_mut() {
+            shapes.set_pose(index as usize, pose, now, dt);
+        }
+        Ok(())
+    }
+
+    /// Each collider's pose now (see [`Simulation::set_collider_pose`]), in the scene's order.
+    pub fn collider_poses(&self) -> Vec<Pose> {
+        let time = self.time();
+        self.stepper.shapes().map_or_else(Vec::new, |shapes| {
+            (0..shapes.len()).map(|i| shapes.pose(i, time)).collect()
+        })
     }
 
     // ----- picking --------------------------------------------------------------------------

@@ -10,6 +10,7 @@
 
 use glam::Vec3;
 
+use crate::collisions::{Pose, PoseKey};
 use crate::error::{check_scalar, check_vec3s, Bound, Error, Result};
 use crate::grid::SpringKind;
 use crate::integrators::History;
@@ -53,6 +54,8 @@ pub struct Snapshot {
     pub accumulator: f64,
     pub history: History,
     pub watchdog: WatchdogSnapshot,
+    /// Per collider of the scene, the pose set between steps (`set_collider_pose`), if any.
+    pub collider_keys: Vec<Option<PoseKey>>,
     pub state_version: u64,
     pub topology_version: u64,
 }
@@ -103,6 +106,9 @@ impl Snapshot {
             accumulator: state.clock.accumulator,
             history: stepper.history(),
             watchdog: stepper.watchdog_snapshot(),
+            collider_keys: stepper
+                .shapes()
+                .map_or_else(Vec::new, |s| s.keys().to_vec()),
             state_version: state.version,
             topology_version: model.topology_version,
         }
@@ -198,6 +204,24 @@ impl Snapshot {
             ));
         }
         stepper.restore_watchdog(self.watchdog, n)?;
+        let colliders = model.scene.colliders.len();
+        if self.collider_keys.len() != colliders {
+            return Err(Error::value(
+                "collider_keys",
+                format!(
+                    "must hold one entry per collider ({colliders}), got {}",
+                    self.collider_keys.len()
+                ),
+            ));
+        }
+        for (c, key) in self.collider_keys.iter().enumerate() {
+            if let Some(key) = key {
+                check_pose_key(&format!("collider_keys[{c}]"), key)?;
+            }
+        }
+        if let Some(shapes) = stepper.shapes_mut() {
+            shapes.set_keys(self.collider_keys);
+        }
 
         state.kin.pos.copy_from(&self.positions);
         state.kin.vel.copy_from(&self.velocities);
@@ -233,4 +257,29 @@ impl Snapshot {
             previous_target,
         }))
     }
+}
+
+/// A pose key's poses pass [`Pose::checked`] unchanged, and it spans a positive time.
+fn check_pose_key(name: &str, key: &PoseKey) -> Result<()> {
+    for (part, pose) in [("from", key.from), ("to", key.to)] {
+        let (position, rotation) = (
+            format!("{name}.{part}.position"),
+            format!("{name}.{part}.rotation"),
+        );
+        Pose::checked(
+            (&position, &rotation),
+            pose.position.to_array(),
+            pose.rotation.to_array(),
+        )?;
+    }
+    if !(key.start.is_finite() && key.end.is_finite() && key.end > key.start) {
+        return Err(Error::value(
+            format!("{name}.end"),
+            format!(
+                "must be finite and after start, got start {} and end {}",
+                key.start, key.end
+            ),
+        ));
+    }
+    Ok(())
 }

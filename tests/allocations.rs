@@ -22,7 +22,9 @@ use common::with_threads;
 use glam::Vec3;
 use rustcloth::grid::Grid;
 use rustcloth::model::Particles;
-use rustcloth::scene::{FloorSpec, OnTrouble, StrainLimitSpec, WatchdogSpec};
+use rustcloth::scene::{
+    ColliderSpec, FloorSpec, OnTrouble, ShapeKind, StrainLimitSpec, WatchdogSpec,
+};
 use rustcloth::soa::Vec3s;
 use rustcloth::springs::Springs;
 use rustcloth::state::Kinematics;
@@ -246,5 +248,92 @@ fn moving_colliders_allocate_nothing_while_stepping() {
             scene.colliders[0].velocity = [0.1, 0.0, 0.0];
             check_stepping(integrator, scene);
         }
+    });
+}
+
+#[test]
+fn mesh_and_plane_colliders_and_set_poses_allocate_nothing_while_stepping() {
+    // An icosahedron mesh (parry's BVH queries keep their stacks on the stack) and a plane,
+    // with the mesh's pose set before every step.
+    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    with_threads(2, || {
+        rayon::broadcast(|_| WATCHED.with(|w| w.set(true)));
+        let mut scene = Scene::builtin("drape_box").unwrap();
+        let t = (1.0 + 5f64.sqrt()) / 2.0;
+        let s = 0.3 / (1.0 + t * t).sqrt();
+        let vertices: Vec<[f64; 3]> = [
+            [-1.0, t, 0.0],
+            [1.0, t, 0.0],
+            [-1.0, -t, 0.0],
+            [1.0, -t, 0.0],
+            [0.0, -1.0, t],
+            [0.0, 1.0, t],
+            [0.0, -1.0, -t],
+            [0.0, 1.0, -t],
+            [t, 0.0, -1.0],
+            [t, 0.0, 1.0],
+            [-t, 0.0, -1.0],
+            [-t, 0.0, 1.0],
+        ]
+        .iter()
+        .map(|v| v.map(|x| x * s))
+        .collect();
+        let triangles = vec![
+            [0, 11, 5],
+            [0, 5, 1],
+            [0, 1, 7],
+            [0, 7, 10],
+            [0, 10, 11],
+            [1, 5, 9],
+            [5, 11, 4],
+            [11, 10, 2],
+            [10, 7, 6],
+            [7, 1, 8],
+            [3, 9, 4],
+            [3, 4, 2],
+            [3, 2, 6],
+            [3, 6, 8],
+            [3, 8, 9],
+            [4, 9, 5],
+            [2, 4, 11],
+            [6, 2, 10],
+            [8, 6, 7],
+            [9, 8, 1],
+        ];
+        scene.colliders = vec![
+            ColliderSpec {
+                shape: ShapeKind::Mesh,
+                vertices: Some(vertices),
+                triangles: Some(triangles),
+                center: [0.0, 0.68, 0.0],
+                ..ColliderSpec::default()
+            },
+            ColliderSpec {
+                shape: ShapeKind::Plane,
+                center: [0.0, 0.1, 0.0],
+                ..ColliderSpec::default()
+            },
+        ];
+        // The icosahedron's top 2 cm under the cloth: in contact after the first 100 steps.
+        let mut sim = Simulation::new(scene).unwrap();
+        sim.step(100).unwrap();
+        let before = sim.positions().clone();
+        let allocations = fewest(|| {
+            counted(|| {
+                for k in 0..5 {
+                    let x = 0.001 * k as f64;
+                    sim.set_collider_pose(0, [x, 0.68, 0.0], [0.0, 0.0, 0.0, 1.0])
+                        .unwrap();
+                    sim.step(1).unwrap();
+                }
+            })
+            .0
+        });
+        assert_eq!(allocations, 0, "steps with a mesh collider allocated");
+        // The mesh held the cloth up: the middle rests on its top edge (y = 0.68 + 0.3 t /
+        // sqrt(1 + t^2) = 0.935), not fallen past it.
+        let middle = 24 * 48 + 24;
+        let y = sim.positions().get(middle).y;
+        assert!(y > 0.935, "at {y}, from {}", before.get(middle));
     });
 }

@@ -10,15 +10,18 @@ from __future__ import annotations
 import copy
 import math
 import os
+import tomllib
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from . import _core
-from .errors import ParameterTypeError, StabilityWarning
+from .errors import ParameterError, ParameterTypeError, StabilityWarning
+from .meshes import read_mesh, resolve_paths
 
 
 def _plain(value: Any) -> Any:
@@ -49,7 +52,7 @@ class Scene:
     __slots__ = ("_data",)
 
     def __init__(self, **settings: Any) -> None:
-        self._data: dict[str, Any] = _core.normalize_scene(_plain(settings))
+        self._data: dict[str, Any] = _core.normalize_scene(_plain(resolve_paths(settings, None)))
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> Scene:
@@ -58,25 +61,81 @@ class Scene:
             raise ParameterTypeError(
                 f"data: must be a mapping of scene keys, got {type(data).__name__}", "data"
             )
+        return cls._from_dict(data, None)
+
+    @classmethod
+    def _from_dict(cls, data: Mapping[str, Any], base: str | None) -> Scene:
         scene = cls.__new__(cls)
         # Straight to the core, which names a non-string key (`cls(**data)` would raise
         # Python's own TypeError for it).
-        scene._data = _core.normalize_scene(_plain(dict(data)))
+        scene._data = _core.normalize_scene(_plain(resolve_paths(dict(data), base)))
         return scene
 
     @classmethod
     def from_toml(cls, path: str | os.PathLike[str]) -> Scene:
-        """A scene from a TOML file."""
+        """A scene from a TOML file. A mesh collider's ``path`` is taken from the file's
+        folder."""
         _check_path(path, "path")
         with open(path, encoding="utf-8") as f:
-            return cls.from_toml_str(f.read())
+            return cls._from_toml_text(f.read(), os.path.dirname(os.path.abspath(path)))
 
     @classmethod
     def from_toml_str(cls, text: str) -> Scene:
-        """A scene from TOML text."""
+        """A scene from TOML text (a mesh collider's ``path`` from the working directory)."""
+        return cls._from_toml_text(text, None)
+
+    @classmethod
+    def _from_toml_text(cls, text: str, base: str | None) -> Scene:
+        # Only a scene with a mesh file to read goes through Python's TOML reader; every other
+        # one (and every malformed one) is parsed by the core, for the core's messages.
+        try:
+            table = tomllib.loads(text)
+        except (tomllib.TOMLDecodeError, TypeError):
+            table = {}
+        colliders = table.get("colliders")
+        if isinstance(colliders, list) and any(
+            isinstance(c, dict) and "path" in c for c in colliders
+        ):
+            return cls._from_dict(table, base)
         scene = cls.__new__(cls)
         scene._data = _core.scene_from_toml(text)
         return scene
+
+    def with_mesh_collider(
+        self,
+        vertices: npt.ArrayLike | None = None,
+        triangles: npt.ArrayLike | None = None,
+        *,
+        path: str | os.PathLike[str] | None = None,
+        **keys: Any,
+    ) -> Scene:
+        """A copy with a mesh collider added after the others: ``vertices`` (``(N, 3)``, m, in
+        the collider's frame) and ``triangles`` (``(M, 3)`` indices, counter-clockwise seen
+        from outside), or ``path``, a mesh file read with trimesh (the ``export`` extra). The
+        other ``keys`` are those of any collider (``center``, ``rotation``, ``friction``,
+        ``thickness``, ``velocity``, ``angular_velocity``). A scene is a value, so this returns
+        a new one. Errors name ``colliders[k].vertices``, ``colliders[k].triangles[t]``,
+        ``colliders[k].path``, ... as the scene's own checks do.
+
+        A closed mesh (every edge in two triangles) is a solid; an open one is a one-sided
+        sheet that pushes towards the side its triangles face (docs/colliders.md)."""
+        at = f"colliders[{len(self._data['colliders'])}]"
+        if path is not None:
+            if vertices is not None or triangles is not None:
+                raise ParameterError(
+                    f"{at}.path: give a file or vertices and triangles, not both", f"{at}.path"
+                )
+            vertices, triangles = read_mesh(path, f"{at}.path")
+        elif vertices is None or triangles is None:
+            missing = "vertices" if vertices is None else "triangles"
+            raise ParameterError(
+                f"{at}.{missing}: is required for a mesh collider (or give path)", f"{at}.{missing}"
+            )
+        collider = {**keys, "shape": "mesh", "vertices": _mesh_array(vertices, f"{at}.vertices"),
+                    "triangles": _mesh_array(triangles, f"{at}.triangles")}
+        data = self.to_dict()
+        data["colliders"] = [*data["colliders"], collider]
+        return Scene.from_dict(data)
 
     def to_dict(self) -> dict[str, Any]:
         """Every key with its value (defaults included); ``Scene.from_dict`` round-trips it."""
@@ -208,6 +267,24 @@ class StabilityReport:
                 verdict = f"stable up to dt = {limit:.3g} s: {ok}"
             lines.append(f"{mark} {name:{width}s} {verdict}")
         return "\n".join(lines)
+
+
+def _mesh_array(values: npt.ArrayLike, parameter: str) -> Any:
+    """An ``(n, 3)`` array as nested lists; a wrong shape or a non-number is named here, before
+    the core's element-by-element checks."""
+    try:
+        array = np.asarray(values)
+    except (TypeError, ValueError) as err:
+        raise ParameterTypeError(f"{parameter}: must be an (n, 3) array: {err}", parameter) from err
+    if array.dtype.kind not in "fiu":
+        raise ParameterTypeError(
+            f"{parameter}: must be an (n, 3) array of numbers, got dtype {array.dtype}", parameter
+        )
+    if array.ndim != 2 or array.shape[1] != 3:
+        raise ParameterError(
+            f"{parameter}: must have shape (n, 3), got {array.shape}", parameter
+        )
+    return array.tolist()
 
 
 def scenes() -> list[str]:

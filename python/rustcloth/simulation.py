@@ -448,6 +448,53 @@ class Simulation:
         """Work done on the picking trees: scans, builds, refits and removals."""
         return self._core.bvh_stats()
 
+    # ----- colliders -----------------------------------------------------------------------
+
+    def set_collider_pose(
+        self, index: int, position: Vector, rotation: Sequence[float] | npt.ArrayLike
+    ) -> None:
+        """Put collider ``index`` (of the scene's ``colliders``) at ``position`` (m, its frame's
+        origin) turned by ``rotation``, a unit quaternion ``(x, y, z, w)``, by the end of the
+        next step.
+
+        Over that step the collider moves there from where it is now at the constant velocity
+        and turn rate this takes, and friction acts on the cloth's velocity relative to that
+        motion: a cloth resting on a collider posed every step (a box carried by a hand, a
+        tracked body) is carried along. After it the collider rests at the pose; its scene
+        ``velocity`` and ``angular_velocity`` no longer apply. ``reset()`` returns it to the
+        scene's motion; ``get_state()`` and pickling keep the pose.
+
+        Raises ``IndexError`` naming ``index`` for a collider that does not exist, and
+        ``ValueError`` naming ``position`` (not finite) or ``rotation`` (not finite, or a norm
+        more than 1e-3 from 1; it is normalised), changing nothing.
+        """
+        self._core.set_collider_pose(index, position, rotation)
+
+    def collider_poses(self) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+        """Each collider's pose now, in the scene's order: ``(positions, rotations)``, a
+        ``(K, 3)`` float64 array in m and a ``(K, 4)`` float64 array of unit quaternions
+        ``(x, y, z, w)``. With :meth:`colliders` this is what a renderer draws."""
+        return self._core.collider_poses()
+
+    def colliders(self) -> list[dict[str, Any]]:
+        """What each collider is, in the scene's order, for drawing it at its
+        :meth:`collider_poses` pose: a dict with ``shape`` (``"sphere"``, ``"box"``,
+        ``"capsule"``, ``"cylinder"``, ``"plane"`` or ``"mesh"``), ``thickness`` (m) and the
+        shape's size keys: ``radius``, ``half_extents``, ``half_height`` (m, capsule and
+        cylinder along local y), or ``vertices`` (``(N, 3)`` float64, local frame) and
+        ``triangles`` (``(M, 3)`` int64). A plane is the surface local y = 0, solid below."""
+        out = []
+        for collider in self.scene.colliders:
+            shape: dict[str, Any] = {"shape": collider["shape"], "thickness": collider["thickness"]}
+            for key in ("radius", "half_extents", "half_height"):
+                if key in collider:
+                    shape[key] = collider[key]
+            if collider["shape"] == "mesh":
+                shape["vertices"] = np.asarray(collider["vertices"], dtype=np.float64)
+                shape["triangles"] = np.asarray(collider["triangles"], dtype=np.int64)
+            out.append(shape)
+        return out
+
     # ----- settings ------------------------------------------------------------------------
 
     @property

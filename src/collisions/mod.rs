@@ -13,7 +13,7 @@ mod sphere;
 use glam::Vec3;
 
 pub use floor::Floor;
-pub use shape::Shapes;
+pub use shape::{Pose, PoseKey, Shapes, ROTATION_TOLERANCE};
 pub use sphere::{FloorLevel, Spheres};
 
 use crate::particles::Particles;

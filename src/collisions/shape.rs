@@ -1,5 +1,6 @@
-//! Colliders of any parry3d shape (sphere, box, capsule, cylinder), static or moving with a
-//! prescribed linear and angular velocity: the `[[colliders]]` of a scene.
+//! Colliders of any parry3d shape (sphere, box, capsule, cylinder, plane, triangle mesh), static,
+//! moving with a prescribed linear and angular velocity, or posed between steps by the caller
+//! (`set_collider_pose`): the `[[colliders]]` of a scene.
 //!
 //! Each substep poses every shape at the substep's end time, brings each candidate particle
 //! into the shape's local frame and asks parry's `PointQuery::project_local_point` for the
@@ -19,19 +20,128 @@
 //! middle, so that the nearest surface point is on the far side, is stopped at its entry point
 //! instead: a fast particle or a fast shape neither tunnels nor pushes cloth through. A turning
 //! shape's path is linearised over the substep, exact while `|angular_velocity| h` is small.
+//!
+//! A mesh asks the same two questions of parry's `TriMesh` (its BVH): the nearest point within
+//! `thickness` plus the particle's path length over the substep (a particle further than that
+//! from the surface cannot have touched it, so the query stays local however large the mesh),
+//! and a ray cast that ignores back faces for the entry point. A closed mesh tells inside from
+//! outside by the angle-weighted pseudo-normals (`TriMeshFlags::ORIENTED`); an open one is a
+//! one-sided sheet: only the side its triangles face pushes, a particle that crosses it from
+//! the front within a substep is stopped where it crossed, one behind it within `thickness` is
+//! put `thickness` in front, and one further behind is free.
+//!
+//! A pose set between steps ([`Shapes::set_pose`]) is reached over the next step, at the
+//! constant velocity and turn rate that take the shape from where it was to where it was put
+//! (a [`PoseKey`]); friction acts on the velocity relative to that motion, so cloth resting on
+//! a collider moved every step is carried along. After that step the shape rests at the pose.
 
 use glam::{DQuat, DVec3, Quat, Vec3};
-use parry3d::query::{PointQuery, Ray, RayCast};
-use parry3d::shape::{Ball, Capsule, Cuboid, Cylinder};
+use parry3d::query::{PointQuery, PointQueryWithLocation, Ray, RayCast, RayCullingMode};
+use parry3d::shape::{Ball, Capsule, Cuboid, Cylinder, HalfSpace, TriMesh, TriMeshFlags};
 
 use super::contact_velocity;
+use crate::error::{Error, Result};
 use crate::particles::Particles;
-use crate::scene::{ColliderSpec, ShapeKind};
+use crate::scene::{is_closed, ColliderSpec, ShapeKind, MAX_COLLIDER_VALUE};
 use crate::state::Kinematics;
 
 /// The scene's `[[colliders]]`, in order; a later one has the last word where two overlap.
 pub struct Shapes {
     shapes: Vec<ShapeCollider>,
+    /// Per collider, the pose set between steps, if any (then its scripted motion is over).
+    keys: Vec<Option<PoseKey>>,
+}
+
+/// Where a collider's frame is: its origin (m) and orientation (a unit quaternion).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Pose {
+    pub position: DVec3,
+    pub rotation: DQuat,
+}
+
+/// A pose set between steps: the collider goes from `from` at time `start` to `to` at `end`
+/// (s; the end of the step after the call) at constant velocity and turn rate, and rests at
+/// `to` after that.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PoseKey {
+    pub from: Pose,
+    pub to: Pose,
+    pub start: f64,
+    pub end: f64,
+}
+
+/// How far from 1 the norm of a quaternion given as a rotation may be (it is normalised).
+pub const ROTATION_TOLERANCE: f64 = 1e-3;
+
+impl Pose {
+    /// A pose from a position (m, finite, within [`MAX_COLLIDER_VALUE`]) and a unit quaternion
+    /// `[x, y, z, w]` (norm within [`ROTATION_TOLERANCE`] of 1; normalised), each named in the
+    /// error on bad input.
+    pub fn checked(names: (&str, &str), position: [f64; 3], rotation: [f64; 4]) -> Result<Pose> {
+        let (pos_name, rot_name) = names;
+        if let Some(x) = position
+            .iter()
+            .find(|x| !(x.is_finite() && x.abs() <= MAX_COLLIDER_VALUE))
+        {
+            return Err(Error::value(
+                pos_name,
+                format!(
+                    "must be finite numbers of at most {MAX_COLLIDER_VALUE:e} m, got {x} in \
+                     {position:?}"
+                ),
+            ));
+        }
+        let q = DQuat::from_array(rotation);
+        let norm = q.length();
+        if !(q.is_finite() && (norm - 1.0).abs() <= ROTATION_TOLERANCE) {
+            return Err(Error::value(
+                rot_name,
+                format!(
+                    "must be a unit quaternion [x, y, z, w] (norm within {ROTATION_TOLERANCE} \
+                     of 1), got {rotation:?} of norm {norm}"
+                ),
+            ));
+        }
+        Ok(Pose {
+            position: DVec3::from(position),
+            rotation: q / norm,
+        })
+    }
+}
+
+impl PoseKey {
+    /// The pose, velocity (m/s) and angular velocity (rad/s) at `time`.
+    fn at(&self, time: f64) -> (Pose, DVec3, DVec3) {
+        let span = self.end - self.start;
+        let f = (time - self.start) / span;
+        // The step's last substep ends at `end` up to rounding in the clock's sums.
+        if f > 1.0 + 1e-9 {
+            return (self.to, DVec3::ZERO, DVec3::ZERO);
+        }
+        let velocity = (self.to.position - self.from.position) / span;
+        let mut turn = self.to.rotation * self.from.rotation.inverse();
+        if turn.w < 0.0 {
+            turn = -turn; // the short way round
+        }
+        let angular_velocity = turn.to_scaled_axis() / span;
+        let pose = if f >= 1.0 {
+            self.to
+        } else {
+            let f = f.max(0.0);
+            Pose {
+                position: self.from.position.lerp(self.to.position, f),
+                rotation: (DQuat::from_scaled_axis(turn.to_scaled_axis() * f) * self.from.rotation)
+                    .normalize(),
+            }
+        };
+        (pose, velocity, angular_velocity)
+    }
+}
+
+/// A triangle mesh and whether it is closed (a solid) or open (a one-sided sheet).
+struct MeshShape {
+    mesh: TriMesh,
+    closed: bool,
 }
 
 enum Geometry {
@@ -39,19 +149,55 @@ enum Geometry {
     Cuboid(Cuboid),
     Capsule(Capsule),
     Cylinder(Cylinder),
+    HalfSpace(HalfSpace),
+    Mesh(Box<MeshShape>),
+}
+
+/// The surface point nearest a local point, whether the point is inside, and the normal to use
+/// where the point is on the surface (no direction to it).
+struct Projection {
+    point: Vec3,
+    inside: bool,
+    fallback: Vec3,
 }
 
 impl Geometry {
+    /// The nearest surface point to `local`; a mesh answers only within `max_dist` of it.
     #[inline]
-    fn project(&self, local: Vec3) -> (Vec3, bool) {
-        // `solid = false`: a point inside gets the nearest boundary point, not itself.
-        let p = match self {
-            Geometry::Ball(s) => s.project_local_point(local, false),
-            Geometry::Cuboid(s) => s.project_local_point(local, false),
-            Geometry::Capsule(s) => s.project_local_point(local, false),
-            Geometry::Cylinder(s) => s.project_local_point(local, false),
+    fn project(&self, local: Vec3, max_dist: f32) -> Option<Projection> {
+        // `solid = false`: a point inside gets the nearest boundary point, not itself. The
+        // direction from the centre is outward on every convex shape here.
+        let convex = |p: parry3d::query::PointProjection| Projection {
+            point: p.point,
+            inside: p.is_inside,
+            fallback: local.normalize_or(Vec3::Y),
         };
-        (p.point, p.is_inside)
+        Some(match self {
+            Geometry::Ball(s) => convex(s.project_local_point(local, false)),
+            Geometry::Cuboid(s) => convex(s.project_local_point(local, false)),
+            Geometry::Capsule(s) => convex(s.project_local_point(local, false)),
+            Geometry::Cylinder(s) => convex(s.project_local_point(local, false)),
+            Geometry::HalfSpace(s) => Projection {
+                fallback: Vec3::Y,
+                ..convex(s.project_local_point(local, false))
+            },
+            Geometry::Mesh(m) => {
+                let (p, (triangle, _)) = m
+                    .mesh
+                    .project_local_point_and_get_location_with_max_dist(local, false, max_dist)?;
+                Projection {
+                    point: p.point,
+                    inside: p.is_inside,
+                    fallback: m.mesh.triangle(triangle).normal().unwrap_or(Vec3::Y),
+                }
+            }
+        })
+    }
+
+    /// Whether only one side pushes and the inside is no solid: an open mesh.
+    #[inline]
+    fn one_sided(&self) -> bool {
+        matches!(self, Geometry::Mesh(m) if !m.closed)
     }
 
     /// Where the segment `from + t d`, `t` in `[0, 1]`, first meets the solid shape, and the
@@ -64,6 +210,13 @@ impl Geometry {
             Geometry::Cuboid(s) => s.cast_local_ray_and_get_normal(&ray, 1.0, true),
             Geometry::Capsule(s) => s.cast_local_ray_and_get_normal(&ray, 1.0, true),
             Geometry::Cylinder(s) => s.cast_local_ray_and_get_normal(&ray, 1.0, true),
+            Geometry::HalfSpace(s) => s.cast_local_ray_and_get_normal(&ray, 1.0, true),
+            // Front faces only: where the path entered the solid (or crossed the sheet's
+            // pushing side); leaving through a back face is no contact.
+            Geometry::Mesh(m) => {
+                m.mesh
+                    .cast_local_ray_with_culling(&ray, 1.0, RayCullingMode::IgnoreBackfaces)
+            }
         };
         hit.map(|h| (h.time_of_impact, h.normal))
     }
@@ -78,8 +231,11 @@ struct ShapeCollider {
     angular_velocity: DVec3,
     friction: f32,
     thickness: f32,
-    /// Radius of a ball around the centre holding the shape, plus thickness: the screen.
+    /// Radius of a ball around the centre holding the shape, plus thickness: the screen
+    /// (infinite for a plane).
     reach: f32,
+    /// The shape's size (m, finite; 0 for a plane), which scales the rounding margin.
+    scale: f32,
 }
 
 /// Where a shape is at one instant, and how its surface moves.
@@ -99,8 +255,9 @@ struct Posed {
 const SURFACE_MARGIN: f32 = 8.0 * f32::EPSILON;
 
 impl Shapes {
+    /// The colliders of validated specs.
     pub fn new(specs: &[ColliderSpec]) -> Self {
-        let shapes = specs
+        let shapes: Vec<ShapeCollider> = specs
             .iter()
             .map(|s| {
                 let r = s.radius.unwrap_or(0.0) as f32;
@@ -113,6 +270,12 @@ impl Shapes {
                     }
                     ShapeKind::Capsule => (Geometry::Capsule(Capsule::new_y(hh, r)), hh + r),
                     ShapeKind::Cylinder => (Geometry::Cylinder(Cylinder::new(hh, r)), hh.hypot(r)),
+                    ShapeKind::Plane => (Geometry::HalfSpace(HalfSpace::new(Vec3::Y)), 0.0),
+                    ShapeKind::Mesh => mesh_geometry(s),
+                };
+                let reach = match s.shape {
+                    ShapeKind::Plane => f32::INFINITY,
+                    _ => (bound + s.thickness as f32) * (1.0 + 1e-4) + 1e-6,
                 };
                 let rotation = DVec3::from(s.rotation);
                 ShapeCollider {
@@ -123,11 +286,50 @@ impl Shapes {
                     angular_velocity: DVec3::from(s.angular_velocity),
                     friction: s.friction as f32,
                     thickness: s.thickness as f32,
-                    reach: (bound + s.thickness as f32) * (1.0 + 1e-4) + 1e-6,
+                    reach,
+                    scale: bound + s.thickness as f32,
                 }
             })
             .collect();
-        Shapes { shapes }
+        let keys = vec![None; shapes.len()];
+        Shapes { shapes, keys }
+    }
+
+    /// How many colliders there are.
+    pub fn len(&self) -> usize {
+        self.shapes.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.shapes.is_empty()
+    }
+
+    /// Collider `i`'s pose at `time` (s).
+    pub fn pose(&self, i: usize, time: f64) -> Pose {
+        self.shapes[i].pose_at(time, self.keys[i].as_ref()).0
+    }
+
+    /// Puts collider `i` at `to` by `now + dt` (s): over the step from `now`, it moves there
+    /// from where it is at `now`, and rests there after (its scripted motion is over).
+    pub fn set_pose(&mut self, i: usize, to: Pose, now: f64, dt: f64) {
+        self.keys[i] = Some(PoseKey {
+            from: self.pose(i, now),
+            to,
+            start: now,
+            end: now + dt,
+        });
+    }
+
+    /// The poses set between steps, per collider (what a snapshot keeps).
+    pub fn keys(&self) -> &[Option<PoseKey>] {
+        &self.keys
+    }
+
+    /// Replaces the poses set between steps (from a snapshot); `keys` must hold one entry per
+    /// collider.
+    pub fn set_keys(&mut self, keys: Vec<Option<PoseKey>>) {
+        assert_eq!(keys.len(), self.shapes.len(), "one key per collider");
+        self.keys = keys;
     }
 
     /// Moves every dynamic particle of `next` that ended inside a shape (posed at `time`, the
@@ -144,10 +346,10 @@ impl Shapes {
     ) -> bool {
         super::resolve_chunks(next, chunk, |first, mut pos, mut vel| {
             let mut finite = true;
-            for shape in &self.shapes {
+            for (shape, key) in self.shapes.iter().zip(&self.keys) {
                 // Posed once per chunk: a few dozen flops, and no buffer to keep.
-                let posed = shape.posed(time);
-                let before = shape.posed(time - h as f64);
+                let posed = shape.posed(time, key.as_ref());
+                let before = shape.posed(time - h as f64, key.as_ref());
                 let drift = (posed.center - before.center).length();
                 let turn = posed.angular_velocity.length() * h;
                 for i in 0..pos.len() {
@@ -179,16 +381,56 @@ impl Shapes {
     }
 }
 
+/// The triangle mesh of a validated `mesh` spec, and the radius of a ball about its frame's
+/// origin holding it.
+fn mesh_geometry(s: &ColliderSpec) -> (Geometry, f32) {
+    let vertices: Vec<Vec3> = s
+        .vertices
+        .iter()
+        .flatten()
+        .map(|&v| DVec3::from(v).as_vec3())
+        .collect();
+    let triangles: Vec<[u32; 3]> = s
+        .triangles
+        .iter()
+        .flatten()
+        .map(|t| t.map(|k| k as u32))
+        .collect();
+    let closed = is_closed("mesh", s.vertices.as_deref().unwrap_or(&[]), &triangles)
+        .expect("a validated mesh is wound consistently");
+    let bound = vertices.iter().map(|v| v.length()).fold(0.0, f32::max);
+    // ORIENTED: the pseudo-normals of the inside test; merged duplicates, so that a mesh with
+    // one vertex per corner has shared edges and vertices to average them over.
+    let flags = TriMeshFlags::ORIENTED | TriMeshFlags::MERGE_DUPLICATE_VERTICES;
+    let mesh =
+        TriMesh::with_flags(vertices, triangles, flags).expect("a validated mesh has triangles");
+    (Geometry::Mesh(Box::new(MeshShape { mesh, closed })), bound)
+}
+
 impl ShapeCollider {
-    fn posed(&self, time: f64) -> Posed {
+    /// The pose, velocity (m/s) and angular velocity (rad/s) at `time` (s): set between steps
+    /// (`key`), or scripted by the scene.
+    fn pose_at(&self, time: f64, key: Option<&PoseKey>) -> (Pose, DVec3, DVec3) {
+        if let Some(key) = key {
+            return key.at(time);
+        }
         let turn = DQuat::from_scaled_axis(self.angular_velocity * time);
-        let center = (self.center + self.velocity * time).as_vec3();
+        let pose = Pose {
+            position: self.center + self.velocity * time,
+            rotation: (turn * self.rotation).normalize(),
+        };
+        (pose, self.velocity, self.angular_velocity)
+    }
+
+    fn posed(&self, time: f64, key: Option<&PoseKey>) -> Posed {
+        let (pose, velocity, angular_velocity) = self.pose_at(time, key);
+        let center = pose.position.as_vec3();
         Posed {
             center,
-            margin: SURFACE_MARGIN * (self.reach + center.abs().max_element()),
-            rotation: (turn * self.rotation).normalize().as_quat(),
-            velocity: self.velocity.as_vec3(),
-            angular_velocity: self.angular_velocity.as_vec3(),
+            margin: SURFACE_MARGIN * (self.scale + center.abs().max_element()),
+            rotation: pose.rotation.as_quat(),
+            velocity: velocity.as_vec3(),
+            angular_velocity: angular_velocity.as_vec3(),
         }
     }
 
@@ -203,23 +445,28 @@ impl ShapeCollider {
         let local = posed.rotation.inverse() * (p1 - posed.center);
         let local0 = before.rotation.inverse() * (p0 - before.center);
         let d = local - local0;
-        let (on_surface, inside) = self.geometry.project(local);
+        // Further than this from the surface, a particle that started outside cannot touch it.
+        let max_dist = (self.thickness + d.length() + posed.margin) * (1.0 + 1e-4);
+        let Projection {
+            point: on_surface,
+            inside,
+            fallback,
+        } = self.geometry.project(local, max_dist)?;
         let offset = local - on_surface;
         // Outward normal: away from the surface point when outside, towards it when inside.
-        // A point exactly on the surface has no direction to it; the one from the centre is
-        // outward for every convex shape here.
-        let fallback = local.normalize_or(Vec3::Y);
         let nearest = if inside {
             (-offset).normalize_or(fallback)
         } else {
             offset.normalize_or(fallback)
         };
+        let one_sided = self.geometry.one_sided();
         // The entry point matters only for a particle that ended inside heading away from the
         // nearest surface point (past the middle), or one that ended outside but whose path is
         // long enough to have crossed the shape. The ray cast is the costly part (a GJK
         // iteration for the cylinder, 10x a projection), so it runs only then.
         let distance = offset.length();
-        let may_cross = if inside {
+        // A one-sided sheet has no middle: a particle behind it may have crossed it.
+        let may_cross = if inside && !one_sided {
             nearest.dot(d) > 0.0
         } else {
             distance < d.length()
@@ -231,7 +478,8 @@ impl ShapeCollider {
         let (on_surface, n) = match entry {
             // Tunnelled (ended outside, having crossed), or pushed past the middle.
             Some((t, normal)) => (local0 + t * d, normal.normalize_or(nearest)),
-            None if !inside && distance >= self.thickness => return None,
+            // Outside beyond the thickness; or behind a sheet, further than that.
+            None if (!inside || one_sided) && distance >= self.thickness => return None,
             None => (on_surface, nearest),
         };
         let lift = self.thickness + posed.margin;
@@ -266,7 +514,7 @@ mod tests {
     fn a_point_inside_a_box_goes_to_the_nearest_face() {
         let shapes = unit_box();
         let s = &shapes.shapes[0];
-        let (posed, p) = (s.posed(0.0), Vec3::new(0.2, 0.9, 0.1));
+        let (posed, p) = (s.posed(0.0, None), Vec3::new(0.2, 0.9, 0.1));
         let (n, at) = s.contact(&posed, &posed, p, p).unwrap();
         assert_eq!(n, Vec3::Y);
         assert!(
@@ -279,7 +527,7 @@ mod tests {
     fn a_point_outside_beyond_the_thickness_is_untouched() {
         let shapes = unit_box();
         let s = &shapes.shapes[0];
-        let (posed, p) = (s.posed(0.0), Vec3::new(0.0, 1.01, 0.0));
+        let (posed, p) = (s.posed(0.0, None), Vec3::new(0.0, 1.01, 0.0));
         assert!(s.contact(&posed, &posed, p, p).is_none());
     }
 
@@ -287,7 +535,7 @@ mod tests {
     fn a_particle_crossing_the_whole_box_in_one_step_stops_at_the_entry_point() {
         let shapes = unit_box();
         let s = &shapes.shapes[0];
-        let posed = s.posed(0.0);
+        let posed = s.posed(0.0, None);
         let (p0, p1) = (Vec3::new(0.3, 5.0, 0.0), Vec3::new(0.3, -5.0, 0.0));
         let (n, at) = s.contact(&posed, &posed, p0, p1).unwrap();
         assert_eq!(n, Vec3::Y);
@@ -310,7 +558,7 @@ mod tests {
             angular_velocity: [0.0, 0.0, std::f64::consts::PI],
             ..ColliderSpec::default()
         }]);
-        let posed = shapes.shapes[0].posed(0.5);
+        let posed = shapes.shapes[0].posed(0.5, None);
         assert!((posed.center - Vec3::new(1.0, 1.0, 0.0)).length() < 1e-6);
         // Half a turn a second for half a second: local x now points along world y.
         assert!((posed.rotation * Vec3::X - Vec3::Y).length() < 1e-6);

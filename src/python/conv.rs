@@ -238,10 +238,10 @@ pub fn read_only(array: &Bound<'_, PyAny>) -> PyResult<()> {
     Ok(())
 }
 
-/// A 3-vector from a sequence (or array) of 3 real numbers. Strings, bytes and booleans are
+/// N numbers from a sequence (or array) of N real numbers. Strings, bytes and booleans are
 /// not numbers here (`b"abc"` would otherwise be the vector (97, 98, 99)); components must be
 /// finite in float32 after conversion, which the core checks.
-fn vec3_from_any_f64(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<glam::DVec3> {
+pub fn floats_from_any<const N: usize>(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<[f64; N]> {
     let kind = type_name(obj);
     if obj.is_instance_of::<PyString>()
         || obj.is_instance_of::<PyBytes>()
@@ -249,7 +249,10 @@ fn vec3_from_any_f64(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<glam::DVec3
     {
         return Err(type_error(
             name,
-            format!("must be a sequence of 3 numbers, got {kind} {}", repr(obj)),
+            format!(
+                "must be a sequence of {N} numbers, got {kind} {}",
+                repr(obj)
+            ),
         ));
     }
     // A sequence (list, tuple, numpy array, any `collections.abc.Sequence`): a dict would be
@@ -260,7 +263,10 @@ fn vec3_from_any_f64(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<glam::DVec3
         Ok(array) if !matches!(array.dtype().kind(), b'f' | b'i' | b'u') && array.ndim() == 1 => {
             return Err(type_error(
                 name,
-                format!("must be a sequence of 3 numbers, got {kind} {}", repr(obj)),
+                format!(
+                    "must be a sequence of {N} numbers, got {kind} {}",
+                    repr(obj)
+                ),
             ))
         }
         // A 0-d array is a number, not a sequence.
@@ -276,21 +282,29 @@ fn vec3_from_any_f64(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<glam::DVec3
         false => {
             return Err(type_error(
                 name,
-                format!("must be a sequence of 3 numbers, got {kind} {}", repr(obj)),
+                format!(
+                    "must be a sequence of {N} numbers, got {kind} {}",
+                    repr(obj)
+                ),
             ))
         }
     };
-    if items.len() != 3 {
+    if items.len() != N {
         return Err(value_error(
             name,
-            format!("must have 3 components, got {}", items.len()),
+            format!("must have {N} components, got {}", items.len()),
         ));
     }
-    let mut v = [0.0f64; 3];
+    let mut v = [0.0f64; N];
     for (c, item) in items.iter().enumerate() {
         v[c] = float_from_any(item, &format!("{name}[{c}]"))?;
     }
-    Ok(glam::DVec3::from(v))
+    Ok(v)
+}
+
+/// A 3-vector as [`floats_from_any`] reads it.
+fn vec3_from_any_f64(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<glam::DVec3> {
+    Ok(glam::DVec3::from(floats_from_any::<3>(obj, name)?))
 }
 
 /// A 3-vector as [`vec3_from_any_f64`] reads it, in float32.

@@ -5,6 +5,7 @@
 //! simulation's methods in simulation.rs and interaction.rs. The public Python API in
 //! `python/rustcloth/` wraps these classes.
 
+mod colliders;
 mod conv;
 mod errors;
 mod interaction;

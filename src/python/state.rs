@@ -12,14 +12,16 @@ use super::conv::{
     vec3_from_any, vec3s_from_array, vec3s_to_array,
 };
 use super::errors::{type_error, value_error};
+use crate::collisions::{Pose, PoseKey};
 use crate::integrators::History;
 use crate::picking::PickStrategy;
 use crate::snapshot::{Snapshot, WatchdogSnapshot};
 use crate::soa::Vec3s;
 use crate::stepper::WatchdogStats;
 
-/// The layout of the dict; a state of another layout is refused rather than guessed at.
-const VERSION: u64 = 1;
+/// The layout of the dict; a state of another layout is refused rather than guessed at. 2 added
+/// `collider_keys`.
+const VERSION: u64 = 2;
 
 pub fn to_dict<'py>(py: Python<'py>, s: &Snapshot) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
@@ -79,6 +81,21 @@ pub fn to_dict<'py>(py: Python<'py>, s: &Snapshot) -> PyResult<Bound<'py, PyDict
     stats.set_item("held_steps", w.stats.held_steps)?;
     watchdog.set_item("stats", stats)?;
     d.set_item("watchdog", watchdog)?;
+    let keys = PyList::empty(py);
+    for key in &s.collider_keys {
+        match key {
+            Some(k) => keys.append((
+                k.from.position.to_array(),
+                k.from.rotation.to_array(),
+                k.to.position.to_array(),
+                k.to.rotation.to_array(),
+                k.start,
+                k.end,
+            ))?,
+            None => keys.append(py.None())?,
+        }
+    }
+    d.set_item("collider_keys", keys)?;
     d.set_item("state_version", s.state_version)?;
     d.set_item("topology_version", s.topology_version)?;
     Ok(d)
@@ -287,7 +304,23 @@ pub fn from_dict(obj: &Bound<'_, PyAny>) -> PyResult<Snapshot> {
             "out of range".into(),
         )
     })?;
+    let keys_obj = d.get("collider_keys")?;
+    let mut collider_keys = Vec::new();
+    for (k, item) in keys_obj
+        .try_iter()
+        .map_err(|_| type_error("state.collider_keys", "must be a list".into()))?
+        .enumerate()
+    {
+        let item = item?;
+        let name = format!("state.collider_keys[{k}]");
+        collider_keys.push(if item.is_none() {
+            None
+        } else {
+            Some(pose_key_from_any(&item, &name)?)
+        });
+    }
     Ok(Snapshot {
+        collider_keys,
         positions: state_vectors(&d.get("positions")?, "state.positions", n)?,
         velocities: state_vectors(&d.get("velocities")?, "state.velocities", n)?,
         masses: f32_array(&d.get("masses")?, "state.masses", n)?,
@@ -319,6 +352,35 @@ pub fn from_dict(obj: &Bound<'_, PyAny>) -> PyResult<Snapshot> {
         state_version: d.count("state_version")?,
         topology_version: d.count("topology_version")?,
         scene,
+    })
+}
+
+/// A pose key as `to_dict` writes it: `(from position, from rotation, to position, to rotation,
+/// start, end)`; its values are checked when the snapshot is applied.
+fn pose_key_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<PoseKey> {
+    let parts = items(obj, name, 6)?;
+    let floats = |part: &Bound<'_, PyAny>| -> PyResult<Vec<f64>> {
+        part.extract::<Vec<f64>>()
+            .map_err(|_| type_error(name, format!("must hold lists of floats, got {part}")))
+    };
+    let pose = |position: &Bound<'_, PyAny>, rotation: &Bound<'_, PyAny>| -> PyResult<Pose> {
+        let (p, q) = (floats(position)?, floats(rotation)?);
+        if p.len() != 3 || q.len() != 4 {
+            return Err(value_error(
+                name,
+                "a position needs 3 floats and a rotation 4".into(),
+            ));
+        }
+        Ok(Pose {
+            position: glam::DVec3::from_slice(&p),
+            rotation: glam::DQuat::from_slice(&q),
+        })
+    };
+    Ok(PoseKey {
+        from: pose(&parts[0], &parts[1])?,
+        to: pose(&parts[2], &parts[3])?,
+        start: float_from_any(&parts[4], name)?,
+        end: float_from_any(&parts[5], name)?,
     })
 }
 

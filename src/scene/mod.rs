@@ -1,11 +1,12 @@
 //! The scene: everything that describes a simulation before it starts (cloth, forces,
 //! colliders, stepping). Read from TOML or, through the Python binding, from a dict with the
 //! same keys; parsed and validated once into this typed value, so every caller gets the same
-//! errors. The tables are in `specs.rs`, the checks in `validate.rs`, pins in `pins.rs`, the
+//! errors. The tables are in `specs.rs`, the checks in `validate.rs` (a mesh collider's in `mesh.rs`), pins in `pins.rs`, the
 //! stability estimate in `stability.rs`.
 //!
 //! Units are SI throughout: metres, kilograms, seconds, newtons.
 
+mod mesh;
 mod pins;
 mod specs;
 mod stability;
@@ -13,6 +14,7 @@ mod validate;
 
 use serde::{Deserialize, Serialize};
 
+pub use mesh::{is_closed, merged_indices};
 pub use pins::PIN_GROUPS;
 pub use specs::{
     ClothSpec, ColliderSpec, FloorSpec, OnTrouble, PinSpec, Plane, SelfCollisionSpec, ShapeKind,
@@ -21,7 +23,7 @@ pub use specs::{
 pub use stability::stable_substep;
 pub(crate) use validate::check_substep;
 use validate::require_tables;
-pub use validate::{MAX_PARTICLES, MAX_SPHERE_REACH, MIN_SUBSTEP};
+pub use validate::{MAX_COLLIDER_VALUE, MAX_PARTICLES, MAX_SPHERE_REACH, MIN_SUBSTEP};
 
 use crate::error::{Error, Result};
 use crate::grid::Grid;
@@ -126,6 +128,9 @@ const BUILTIN: &[(&str, &str)] = &[
     ("pile", include_str!("../../scenes/pile.toml")),
     ("tear", include_str!("../../scenes/tear.toml")),
     ("drape_box", include_str!("../../scenes/drape_box.toml")),
+    ("tablecloth", include_str!("../../scenes/tablecloth.toml")),
+    ("mannequin", include_str!("../../scenes/mannequin.toml")),
+    ("spinner", include_str!("../../scenes/spinner.toml")),
 ];
 
 impl Scene {

@@ -245,8 +245,8 @@ impl Default for SphereSpec {
     }
 }
 
-/// The shape of a collider (parry3d's `Ball`, `Cuboid`, `Capsule`, `Cylinder`), in its local
-/// frame: centred on the origin, capsule and cylinder along local +y.
+/// The shape of a collider (parry3d's `Ball`, `Cuboid`, `Capsule`, `Cylinder`, `HalfSpace`,
+/// `TriMesh`), in its local frame: centred on the origin, capsule and cylinder along local +y.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum ShapeKind {
@@ -258,6 +258,16 @@ pub enum ShapeKind {
     Capsule,
     /// Needs `half_height` and `radius`.
     Cylinder,
+    /// An infinite plane: the half-space below local y = 0 is solid, its outward normal is
+    /// local +y. Needs no size: `center` is a point on the plane and `rotation` turns the normal
+    /// (world +y unrotated; `[0, 0, 0.3]` tilts it 0.3 rad about z). Nothing tunnels through
+    /// it: a particle below it at the end of a substep is caught however fast it came.
+    Plane,
+    /// A triangle mesh: needs `vertices` and `triangles` (see there). A closed mesh (every
+    /// edge shared by exactly two triangles) is a solid, whose inside is told by parry's
+    /// angle-weighted pseudo-normals; an open mesh is a one-sided sheet that pushes towards the
+    /// side its triangles face (counter-clockwise seen from that side).
+    Mesh,
 }
 
 /// A collider of any of [`ShapeKind`]'s shapes, static or moving kinematically (its motion is
@@ -265,7 +275,7 @@ pub enum ShapeKind {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ColliderSpec {
-    /// `"sphere"`, `"box"`, `"capsule"` or `"cylinder"`. Default `"box"`.
+    /// `"sphere"`, `"box"`, `"capsule"`, `"cylinder"`, `"plane"` or `"mesh"`. Default `"box"`.
     pub shape: ShapeKind,
     /// Sphere, capsule, cylinder: radius in m (> 0). No default: required by those shapes.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -277,7 +287,19 @@ pub struct ColliderSpec {
     /// centres of its end caps). No default: required by those shapes.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub half_height: Option<f64>,
-    /// Centre of the shape at time 0, in m. Default `[0, 0.5, 0]`.
+    /// Mesh: the vertices in the collider's local frame (m; `center` and `rotation` pose that
+    /// frame), at least 3, each finite. Duplicate positions are merged. No default: required by
+    /// `mesh`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub vertices: Option<Vec<[f64; 3]>>,
+    /// Mesh: the triangles, each three indices into `vertices`, wound counter-clockwise seen
+    /// from outside (the side that pushes), at least one. A triangle of zero area (repeated or
+    /// collinear corners) is refused, as is a closed mesh wound inside out or inconsistently.
+    /// No default: required by `mesh`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub triangles: Option<Vec<[i64; 3]>>,
+    /// Centre of the shape at time 0, in m (a plane: a point on it; a mesh: its frame's
+    /// origin). Default `[0, 0.5, 0]`.
     pub center: [f64; 3],
     /// Orientation at time 0 as a rotation vector (axis times angle, in rad, right-handed).
     /// Default `[0, 0, 0]`. A rotation vector has no unit-norm constraint to break, unlike a
@@ -308,6 +330,8 @@ impl Default for ColliderSpec {
             radius: None,
             half_extents: None,
             half_height: None,
+            vertices: None,
+            triangles: None,
             center: [0.0, 0.5, 0.0],
             rotation: [0.0; 3],
             friction: 0.3,

@@ -1,6 +1,7 @@
 //! Validation of a scene, in one place: every value is checked once, and the error names the
 //! first offending parameter and its value.
 
+use super::mesh::{check_mesh, is_closed};
 use super::pins::pin_indices;
 use super::specs::{ClothSpec, ColliderSpec, Plane, ShapeKind, WatchdogSpec};
 use super::Scene;
@@ -152,28 +153,35 @@ impl Scene {
 /// and squares lengths, so anything near float32's limit would overflow to infinity.
 pub const MAX_COLLIDER_VALUE: f64 = 1e15;
 
+/// Refuses a collider value beyond [`MAX_COLLIDER_VALUE`], naming it `name`.
+fn within_collider_limit(name: &str, v: &[f64]) -> Result<()> {
+    match v.iter().find(|x| x.abs() > MAX_COLLIDER_VALUE) {
+        Some(x) => Err(Error::value(
+            name,
+            format!("must be at most {MAX_COLLIDER_VALUE:e} in size, got {x}"),
+        )),
+        None => Ok(()),
+    }
+}
+
 impl ColliderSpec {
     fn validate(&self, at: &str) -> Result<()> {
         let name = |key: &str| format!("{at}.{key}");
-        let within = |key: &str, v: &[f64]| -> Result<()> {
-            match v.iter().find(|x| x.abs() > MAX_COLLIDER_VALUE) {
-                Some(x) => Err(Error::value(
-                    name(key),
-                    format!("must be at most {MAX_COLLIDER_VALUE:e} in size, got {x}"),
-                )),
-                None => Ok(()),
-            }
-        };
-        let (radius, half_extents, half_height) = match self.shape {
-            ShapeKind::Sphere => (true, false, false),
-            ShapeKind::Box => (false, true, false),
-            ShapeKind::Capsule | ShapeKind::Cylinder => (true, false, true),
+        let within = |key: &str, v: &[f64]| within_collider_limit(&name(key), v);
+        let (radius, half_extents, half_height, mesh) = match self.shape {
+            ShapeKind::Sphere => (true, false, false, false),
+            ShapeKind::Box => (false, true, false, false),
+            ShapeKind::Capsule | ShapeKind::Cylinder => (true, false, true, false),
+            ShapeKind::Plane => (false, false, false, false),
+            ShapeKind::Mesh => (false, false, false, true),
         };
         let shape = format!("{:?}", self.shape).to_lowercase();
         let presence = [
             ("radius", radius, self.radius.is_some()),
             ("half_extents", half_extents, self.half_extents.is_some()),
             ("half_height", half_height, self.half_height.is_some()),
+            ("vertices", mesh, self.vertices.is_some()),
+            ("triangles", mesh, self.triangles.is_some()),
         ];
         for (key, needed, given) in presence {
             match (needed, given) {
@@ -203,6 +211,10 @@ impl ColliderSpec {
         if let Some(h) = self.half_height {
             check_scalar(&name("half_height"), h, Bound::Positive)?;
             within("half_height", &[h])?;
+        }
+        if let (Some(vertices), Some(triangles)) = (&self.vertices, &self.triangles) {
+            let triangles = check_mesh(at, vertices, triangles, within_collider_limit)?;
+            is_closed(at, vertices, &triangles)?;
         }
         for (key, v) in [
             ("center", &self.center),

@@ -17,6 +17,7 @@ use std::time::{Duration, Instant};
 
 pub use watchdog::WatchdogStats;
 
+use crate::collisions::Shapes;
 use crate::error::{Error, Result, Trouble};
 use crate::forces::StateRef;
 use crate::integrators::{History, Integrator, IntegratorKind, SolverStats, StepContext};
@@ -457,6 +458,15 @@ impl Stepper {
     }
 
     // ----- saving and restoring -------------------------------------------------------------
+
+    /// The scene's `[[colliders]]` (None without any), with the poses set between steps.
+    pub fn shapes(&self) -> Option<&Shapes> {
+        self.pipeline.shapes()
+    }
+
+    pub fn shapes_mut(&mut self) -> Option<&mut Shapes> {
+        self.pipeline.shapes_mut()
+    }
 
     pub fn history(&self) -> History {
         self.pipeline.integrator.history()

@@ -130,6 +130,21 @@ impl Pipeline {
         finite
     }
 
+    /// The `[[colliders]]`, when the scene has any.
+    pub fn shapes(&self) -> Option<&Shapes> {
+        self.colliders.iter().find_map(|c| match c {
+            Collider::Shapes(s) => Some(s),
+            _ => None,
+        })
+    }
+
+    pub fn shapes_mut(&mut self) -> Option<&mut Shapes> {
+        self.colliders.iter_mut().find_map(|c| match c {
+            Collider::Shapes(s) => Some(s),
+            _ => None,
+        })
+    }
+
     pub fn heap_bytes(&self) -> usize {
         self.forces.heap_bytes()
             + self

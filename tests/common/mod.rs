@@ -194,3 +194,92 @@ impl Drawn {
         }
     }
 }
+
+/// A closed box mesh of half extents `h` centred on the origin: 8 vertices, 12 triangles wound
+/// counter-clockwise seen from outside.
+pub fn box_mesh(h: [f64; 3]) -> (Vec<[f64; 3]>, Vec<[i64; 3]>) {
+    let vertices = (0..8)
+        .map(|k| {
+            let s = |bit: usize| if k & (1 << bit) != 0 { 1.0 } else { -1.0 };
+            [s(0) * h[0], s(1) * h[1], s(2) * h[2]]
+        })
+        .collect();
+    // Each face as a quad (a, b, c, d) counter-clockwise from outside; vertex k has x from
+    // bit 0, y from bit 1, z from bit 2.
+    let quads = [
+        [0, 2, 3, 1], // z-
+        [4, 5, 7, 6], // z+
+        [0, 4, 6, 2], // x-
+        [1, 3, 7, 5], // x+
+        [0, 1, 5, 4], // y-
+        [2, 6, 7, 3], // y+
+    ];
+    let triangles = quads
+        .iter()
+        .flat_map(|&[a, b, c, d]| [[a, b, c], [a, c, d]])
+        .collect();
+    (vertices, triangles)
+}
+
+/// The point of triangle `(a, b, c)` nearest `p` (Ericson, Real-Time Collision Detection,
+/// 5.1.5): written here apart from parry, to judge it.
+pub fn closest_on_triangle(
+    p: glam::DVec3,
+    a: glam::DVec3,
+    b: glam::DVec3,
+    c: glam::DVec3,
+) -> glam::DVec3 {
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return a + ab * (d1 / (d1 - d3));
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return a + ac * (d2 / (d2 - d6));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
+        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+    }
+    let denom = 1.0 / (va + vb + vc);
+    a + ab * (vb * denom) + ac * (vc * denom)
+}
+
+/// Signed distance (m) from the local point `q` to a convex closed mesh (negative inside):
+/// inside, the largest distance to a face's plane; outside, the distance to the nearest
+/// triangle. Exact for convex polyhedra, which is what the tests build.
+pub fn convex_mesh_distance(q: glam::DVec3, vertices: &[[f64; 3]], triangles: &[[i64; 3]]) -> f64 {
+    let corners = |t: &[i64; 3]| t.map(|k| glam::DVec3::from(vertices[k as usize]));
+    let plane = triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = corners(t);
+            (q - a).dot((b - a).cross(c - a).normalize())
+        })
+        .fold(f64::NEG_INFINITY, f64::max);
+    if plane <= 0.0 {
+        return plane;
+    }
+    triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = corners(t);
+            (q - closest_on_triangle(q, a, b, c)).length()
+        })
+        .fold(f64::INFINITY, f64::min)
+}

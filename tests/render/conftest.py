@@ -104,6 +104,12 @@ class StandInSimulation:
     def alive(self) -> np.ndarray:
         return self._alive.copy()
 
+    def colliders(self) -> list[dict[str, Any]]:
+        return []  # the old [[spheres]] only
+
+    def collider_poses(self) -> tuple[np.ndarray, np.ndarray]:
+        return np.zeros((0, 3)), np.zeros((0, 4))
+
     def spring_strain(self) -> np.ndarray:
         return np.abs(self._pos[:, 1] - self.height).astype(np.float32)
 

@@ -63,7 +63,8 @@ class Material:
     color: RGB
     """Base colour as sRGB (0..1), what a colour picker shows; the shaders get it linear."""
     roughness: float
-    """Perceptual roughness: of the GGX lobe (floor, sphere) or the sheen lobe (cloth)."""
+    """Perceptual roughness: of the GGX lobe (floor, sphere, collider) or the sheen lobe
+    (cloth)."""
     debug: RGB
     """Its colour in the material debug view and legend (sRGB)."""
     sheen: RGB = (0.0, 0.0, 0.0)
@@ -84,7 +85,9 @@ MARKER = Material(5, "MARKER", (1.0, 0.80, 0.12), 1.0, (1.0, 0.85, 0.10), emissi
 """The grabbed particle."""
 LIGHT = Material(6, "LIGHT", (1.0, 1.0, 1.0), 1.0, (1.0, 1.0, 1.0), emissive=2.2)
 """The point lights' markers (coloured per light)."""
-MATERIALS = (CLOTH_FRONT, CLOTH_BACK, FLOOR, SPHERE, MARKER, LIGHT)
+COLLIDER = Material(7, "COLLIDER", (0.55, 0.42, 0.30), 0.45, (0.85, 0.55, 0.25))
+"""The scene's ``colliders`` of every shape: a warm wood, apart from the spheres' blue."""
+MATERIALS = (CLOTH_FRONT, CLOTH_BACK, FLOOR, SPHERE, MARKER, LIGHT, COLLIDER)
 
 # Debug views, in the order V cycles through them. Each id is its branch in the shaders.
 VIEWS = ("lit", "position", "normal", "albedo", "material", "depth", "shadow map",

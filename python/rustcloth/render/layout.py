@@ -12,6 +12,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..camera import Camera, fit_distance
+from .meshes import bounding_radius
 
 F32 = npt.NDArray[np.float32]
 
@@ -42,7 +43,8 @@ class SceneLayout:
     spheres: tuple[Sphere, ...]
     reach_min: F32
     reach_max: F32
-    """A box the cloth stays inside (at rest, falling, hanging) plus the spheres."""
+    """A box the cloth stays inside (at rest, falling, hanging) plus the spheres and the
+    colliders where the scene starts them (planes, which have no end, left out)."""
     front: F32
     """Unit normal of the cloth's front side as it will be seen: up for a sheet lying in
     xz, towards -z for one in xy; towards where it swings for a sheet hung by one side."""
@@ -81,9 +83,12 @@ class SceneLayout:
             bottom = float(lo[1]) - max(size)  # falls: to the floor, or out of sight
         ground = float(floor["height"]) if floor else bottom - 0.1
         lo[1] = min(float(lo[1]), max(bottom, ground))
-        for s in spheres:
-            lo = np.minimum(lo, s.center - s.radius)
-            hi = np.maximum(hi, s.center + s.radius)
+        balls = [(s.center, s.radius) for s in spheres] + [
+            (np.asarray(c["center"], dtype=np.float32), bounding_radius(c))
+            for c in scene.get("colliders") or [] if c["shape"] != "plane"]
+        for center, radius in balls:
+            lo = np.minimum(lo, center - radius)
+            hi = np.maximum(hi, center + radius)
         plane = cloth.get("plane", "xz")
         front = _front(plane, rest_positions, pins, hang)
         winding = float(np.mean(rest_normals @ _rest_front(plane))) > 0.0

@@ -53,6 +53,8 @@ class ClothSource(Protocol):
     def render_topology(
         self,
     ) -> tuple[npt.NDArray[np.uint32], F32, npt.NDArray[np.uint32]]: ...
+    def colliders(self) -> list[dict[str, Any]]: ...
+    def collider_poses(self) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
 
 
 def layout_of(sim: ClothSource) -> SceneLayout:
@@ -65,6 +67,18 @@ def layout_of(sim: ClothSource) -> SceneLayout:
 class _Panel:
     texture: Any
     corner: str
+
+
+@dataclass
+class _Solid:
+    """A rigid mesh drawn by the shadow and geometry passes at ``model``: a ``[[spheres]]``
+    sphere (placed once) or collider ``collider`` (posed each frame from ``collider_poses``)."""
+
+    vao: moderngl.VertexArray
+    shadow_vao: moderngl.VertexArray
+    model: F32
+    material: K.Material
+    collider: int | None = None
 
 
 class Renderer:
@@ -88,6 +102,8 @@ class Renderer:
         self.ssao = False
         self.point_lights = True
         self.highlight: int | None = None
+        self._show_colliders = True
+        self._shadow_positions: F32 | None = None  # the cloth the shadow map was drawn for
         self.pass_timer: Callable[[str], None] | None = None
         self.lights: LightPreset = preset(lights)
 
@@ -113,11 +129,10 @@ class Renderer:
         self.shadow_fbo = ctx.framebuffer(depth_attachment=self.shadow_depth)
         self.shadow_size = shadow_size
 
-        sphere_v, sphere_i = meshes.uv_sphere(32, 64)
-        self.sphere_vbo = ctx.buffer(sphere_v)
-        self.sphere_ibo = ctx.buffer(sphere_i)
-        self.sphere_vao = self._mesh_vao(self.geometry, self.sphere_vbo, self.sphere_ibo)
-        self.sphere_shadow_vao = self._mesh_vao(self.shadow_prog, self.sphere_vbo, self.sphere_ibo)
+        # One unit sphere for every ``[[spheres]]`` sphere, scaled by its model matrix.
+        self.sphere_vbo, self.sphere_ibo, self.sphere_vao, self.sphere_shadow_vao = (
+            self._solid_buffers(meshes.uv_sphere(32, 64)))
+        self._collider_buffers: list[moderngl.Buffer] = []
         # Markers are a few pixels across: a coarse sphere (vertex work is not free here).
         marker_v, marker_i = meshes.uv_sphere(8, 16)
         self.marker_vbo = ctx.buffer(marker_v)
@@ -139,6 +154,17 @@ class Renderer:
         self.resize(size)
         self.set_simulation(sim)
 
+    @property
+    def show_colliders(self) -> bool:
+        """Whether the scene's colliders and spheres are drawn (off: cloth, floor, markers)."""
+        return self._show_colliders
+
+    @show_colliders.setter
+    def show_colliders(self, show: bool) -> None:
+        if show != self._show_colliders:
+            self._show_colliders = show
+            self._shadow_positions = None  # they cast shadows, or no longer
+
     # -- set-up ----------------------------------------------------------------------------
     def _mesh_vao(
         self, prog: moderngl.Program, vbo: moderngl.Buffer, ibo: moderngl.Buffer
@@ -147,6 +173,46 @@ class Renderer:
             [(vbo, "3f 3f 2f", "in_position", "in_normal", "in_uv")] if "in_normal" in prog
             else [(vbo, "3f 12x 8x", "in_position")])
         return self.ctx.vertex_array(prog, fmt, index_buffer=ibo, index_element_size=4)
+
+    def _solid_buffers(self, mesh: meshes.Mesh) -> tuple[
+            moderngl.Buffer, moderngl.Buffer, moderngl.VertexArray, moderngl.VertexArray]:
+        """A mesh uploaded once, with its vertex arrays for the geometry and shadow passes."""
+        vbo, ibo = self.ctx.buffer(mesh[0]), self.ctx.buffer(mesh[1])
+        return (vbo, ibo, self._mesh_vao(self.geometry, vbo, ibo),
+                self._mesh_vao(self.shadow_prog, vbo, ibo))
+
+    def _build_solids(self, sim: ClothSource) -> None:
+        """The spheres and the colliders, each collider's mesh built and uploaded once here
+        (per load or reset); their poses come in :meth:`update`."""
+        for buffer in self._collider_buffers:
+            buffer.release()
+        self._collider_buffers = []
+        self.solids = [_Solid(self.sphere_vao, self.sphere_shadow_vao,
+                              meshes.translate_scale(s.center, s.radius), K.SPHERE)
+                       for s in self.layout.spheres]
+        for k, collider in enumerate(sim.colliders()):
+            vbo, ibo, vao, shadow_vao = self._solid_buffers(
+                meshes.collider_mesh(collider, _FLOOR_HALF_SIZE))
+            self._collider_buffers += [vbo, ibo]
+            self.solids.append(_Solid(vao, shadow_vao, np.identity(4, dtype=np.float32),
+                                      K.COLLIDER, k))
+        self._poses: tuple[npt.NDArray[np.float64], ...] | None = None
+
+    def _pose_colliders(self) -> None:
+        """Each collider's model matrix from its pose now; the shadow map and the kept lit
+        image are redrawn when a pose changed."""
+        positions, rotations = self.sim.collider_poses()
+        last = self._poses
+        if last is not None and np.array_equal(last[0], positions) and np.array_equal(
+                last[1], rotations):
+            return
+        self._poses = (positions, rotations)
+        for solid in self.solids:
+            if solid.collider is not None:
+                solid.model = meshes.pose_matrix(positions[solid.collider],
+                                                 rotations[solid.collider])
+        self._shadow_positions = None
+        self._state_serial += 1
 
     def resize(self, size: tuple[int, int], scale: float | None = None) -> None:
         """The output is ``size`` pixels; the 3D passes draw ``scale`` (0.25..1, default:
@@ -221,7 +287,7 @@ class Renderer:
         self._topology = -1
         self.index_count = 0
         self.positions = np.zeros((n, 3), dtype=np.float32)
-        self._shadow_positions: F32 | None = None
+        self._shadow_positions = None
         self._state_serial = 0
 
         lay = self.layout
@@ -231,7 +297,7 @@ class Renderer:
         self.floor_vbo = ctx.buffer(floor_v)
         self.floor_ibo = ctx.buffer(floor_i)
         self.floor_vao = self._mesh_vao(self.geometry, self.floor_vbo, self.floor_ibo)
-        self.sphere_models = [meshes.translate_scale(s.center, s.radius) for s in lay.spheres]
+        self._build_solids(sim)
         self.set_lights(self.lights.name)
         self.update()
 
@@ -287,6 +353,8 @@ class Renderer:
         if self.view in K.SCALAR_VIEWS:
             self.cloth_scalar.write(self._scalar(self.view))
             self._state_serial += 1
+        if any(solid.collider is not None for solid in self.solids):
+            self._pose_colliders()
 
     def invalidate_topology(self) -> None:
         """Force an index upload next frame (after ``reset()``, whatever its versions do)."""
@@ -348,7 +416,8 @@ class Renderer:
         # can go straight to the target: a debug view at full scale.
         retained = (self.fxaa and lit_view) or self.inner != self.size
         key = (self._state_serial, camera.view_projection.tobytes(), self.view, self.ssao,
-               self.shadows, self.point_lights, self.lights.name, self.inner, self.highlight)
+               self.shadows, self.point_lights, self.lights.name, self.inner, self.highlight,
+               self.show_colliders)
         if not (retained and key == self._lit_key):
             self._shadow_pass()
             self._geometry_pass(camera)
@@ -391,9 +460,9 @@ class Renderer:
                   model=np.identity(4, dtype=np.float32))
         if self.index_count:
             self.cloth_shadow_vao.render(vertices=self.index_count)
-        for model in self.sphere_models:
-            _uniforms(self.shadow_prog, model=model)
-            self.sphere_shadow_vao.render()
+        for solid in self._shown_solids():
+            _uniforms(self.shadow_prog, model=solid.model)
+            solid.shadow_vao.render()
         ctx.polygon_offset = (0.0, 0.0)
         self._done("shadow")
 
@@ -413,9 +482,9 @@ class Renderer:
             _uniforms(g, model=np.identity(4, dtype=np.float32), material=K.CLOTH_FRONT.id,
                       base_color=K.srgb_to_linear(K.CLOTH_FRONT.color))
             self.cloth_vao.render(vertices=self.index_count)
-        for model in self.sphere_models:
-            self._draw_mesh(self.sphere_vao, model, K.SPHERE.id,
-                            K.srgb_to_linear(K.SPHERE.color))
+        for solid in self._shown_solids():
+            self._draw_mesh(solid.vao, solid.model, solid.material.id,
+                            K.srgb_to_linear(solid.material.color))
         if self.highlight is not None and 0 <= self.highlight < len(self.positions):
             model = meshes.translate_scale(self.positions[self.highlight], 0.9 * lay.spacing)
             self._draw_mesh(self.marker_vao, model, K.MARKER.id,
@@ -428,6 +497,9 @@ class Renderer:
         self._draw_mesh(self.floor_vao, np.identity(4, dtype=np.float32), K.FLOOR.id,
                         K.srgb_to_linear(K.FLOOR.color))
         self._done("geometry")
+
+    def _shown_solids(self) -> list[_Solid]:
+        return self.solids if self.show_colliders else []
 
     def _point_uniforms(self) -> dict[str, Any]:
         points = self.points

@@ -1,6 +1,6 @@
 #version 330 core
-// Geometry pass: world-space attributes for the G-buffer. Cloth, floor, spheres and the
-// markers share this program; `model` places the static meshes.
+// Geometry pass: world-space attributes for the G-buffer. Cloth, floor, spheres, colliders
+// and the markers share this program; `model` places the static meshes.
 uniform mat4 view_proj;
 uniform mat4 model;
 
@@ -17,7 +17,8 @@ out float v_scalar;
 void main() {
     vec4 world = model * vec4(in_position, 1.0);
     v_world = world.xyz;
-    // Models are translation + uniform scale, so the upper 3x3 transforms normals correctly.
+    // Models are rotation, translation and uniform scale, so the upper 3x3 transforms
+    // normals correctly.
     v_normal = mat3(model) * in_normal;
     v_uv = in_uv;
     v_scalar = in_scalar;

@@ -2,8 +2,8 @@
 // Lighting pass: shades every pixel once from the G-buffer, in linear light. The key light
 // is shadow-mapped; the point lights' diffuse light and SSAO come from the half-size fill
 // pass; a sky and ground ambient is darkened by the AO. Under the key light cloth is a
-// Lambert base beneath the Charlie sheen lobe (KHR_materials_sheen), floor and sphere are
-// GGX, and the sphere also mirrors the point lights; distant surfaces fog into the sky. Then:
+// Lambert base beneath the Charlie sheen lobe (KHR_materials_sheen), floor, sphere and
+// colliders are GGX, and the sphere also mirrors the point lights; distant surfaces fog into the sky. Then:
 // exposure, Khronos PBR Neutral tone mapping, the sRGB curve and a dither against banding.
 // The scalar debug views keep their colour map: lit by the key alone, not tone-mapped.
 
@@ -223,7 +223,8 @@ void main() {
     s.albedo = albedo;
     s.sheen = vec3(0.0);
     s.base = 1.0;
-    float roughness = mat == MAT_FLOOR ? MAT_FLOOR_ROUGHNESS : MAT_SPHERE_ROUGHNESS;
+    float roughness = mat == MAT_FLOOR ? MAT_FLOOR_ROUGHNESS
+                    : mat == MAT_COLLIDER ? MAT_COLLIDER_ROUGHNESS : MAT_SPHERE_ROUGHNESS;
     if (mat == MAT_CLOTH_FRONT || mat == MAT_CLOTH_BACK) {
         bool front = mat == MAT_CLOTH_FRONT;
         roughness = front ? MAT_CLOTH_FRONT_ROUGHNESS : MAT_CLOTH_BACK_ROUGHNESS;
@@ -240,7 +241,7 @@ void main() {
     vec3 hemi = mix(ground_color, 0.5 * (sky_zenith + sky_horizon), 0.5 + 0.5 * n.y);
     color = ambient * hemi * albedo * s.base * ao;
     color += albedo * s.base * fill.rgb * mix(1.0, ao, 0.5);
-    if (mat == MAT_FLOOR || mat == MAT_SPHERE) {
+    if (mat == MAT_FLOOR || mat == MAT_SPHERE || mat == MAT_COLLIDER) {
         color += ambient * sky_reflection(n, v, roughness) * ao;
     }
     color += shadow * shade(s, n, v, l, key_color);

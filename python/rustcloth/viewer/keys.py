@@ -17,8 +17,17 @@ KEYS: dict[str, tuple[str, str]] = {
     "ESCAPE": ("quit", "quit"),
 }
 """Key name (as glfw spells it after ``KEY_``) -> (viewer command, help)."""
-for _k in range(1, 10):
+# Keys 1..9 load the first nine built-in scenes; later ones load by name (`rustcloth demo NAME`).
+NUMBER_KEYS = 9
+for _k in range(1, NUMBER_KEYS + 1):
     KEYS[str(_k)] = (f"scene_{_k}", "")  # help for these says which scenes exist
+
+
+def scene_key_help(names: list[str]) -> str:
+    """What the number keys load, and the scenes past them that load by name."""
+    keyed, rest = names[:NUMBER_KEYS], names[NUMBER_KEYS:]
+    text = f"1..{len(keyed)}: " + ", ".join(keyed)
+    return text + (f"; by name (rustcloth demo NAME): {', '.join(rest)}" if rest else "")
 
 ALIASES = {"KP_ADD": "EQUAL", "KP_SUBTRACT": "MINUS", "PLUS": "EQUAL", "+": "EQUAL",
            "-": "MINUS", "ESC": "ESCAPE"}

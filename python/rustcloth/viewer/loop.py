@@ -16,7 +16,7 @@ from ..render.constants import VIEWS
 from ..render.overlay import Line, legend, text_panel
 from ..render.renderer import Renderer
 from .interaction import Interaction, Pointer
-from .keys import KEYS, command_for
+from .keys import KEYS, command_for, scene_key_help
 from .physics import MIN_BUDGET_S, FramePhysics, Stepper
 from .script import ScriptInput, ScriptPlayer
 
@@ -33,6 +33,7 @@ KEY_LABELS = {"SPACE": "Space", "EQUAL": "+", "MINUS": "-", "ESCAPE": "Esc"}
 MOUSE_HELP = [
     "left drag: grab and drag      right drag / shift + left drag: cut",
     "middle drag / alt + left drag: orbit      scroll: zoom",
+    "ctrl + left drag: move a collider (it pushes the cloth; a turning one stops turning)",
 ]
 
 
@@ -109,6 +110,7 @@ class Viewer:
         if self.script is not None:
             self.script.update(self.clock, self.input, self.renderer.positions)
         if not self.paused:
+            self.interaction.pose_collider()
             budget = max(MIN_BUDGET_S, self.render_s) if self.realtime else None
             self._physics(self.stepper.run(seconds, budget))
         t0 = time.perf_counter()
@@ -215,7 +217,7 @@ class Viewer:
             return [*lines, "H: help"]
         names = scenes()
         keys = [f"{KEY_LABELS.get(k, k)}: {h}" for k, (_, h) in KEYS.items() if h]
-        scene_keys = f"1..{len(names)}: " + ", ".join(names)
+        scene_keys = scene_key_help(names)
         return lines + MOUSE_HELP + ["   ".join(keys[i:i + 4]) for i in range(0, len(keys), 4)] \
             + [scene_keys]
 
@@ -302,7 +304,7 @@ class Viewer:
         if 1 <= k <= len(names):
             self.load(names[k - 1])
         else:
-            self.notify(f"no scene {k}: keys 1..{len(names)} load {', '.join(names)}")
+            self.notify(f"no scene {k}: {scene_key_help(names)}")
 
     def load(self, name: str) -> None:
         """Show the scene ``name`` (a built-in name or a TOML path) from its start."""

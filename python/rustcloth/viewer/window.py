@@ -116,6 +116,8 @@ class Demo:
         pointer = self.viewer.pointer
         if action == glfw.RELEASE:
             pointer.release()
+        elif button == glfw.MOUSE_BUTTON_LEFT and mods & glfw.MOD_CONTROL:
+            pointer.press("collider", x, y)
         elif button == glfw.MOUSE_BUTTON_RIGHT or (
                 button == glfw.MOUSE_BUTTON_LEFT and mods & glfw.MOD_SHIFT):
             pointer.press("cut", x, y)
@@ -171,17 +173,19 @@ class Demo:
 
 class WindowInput(ViewerInput):
     """Scripted input as window events: presses and releases go through the glfw button
-    handler (a scripted cut is a right-button drag, an orbit a middle one), keys through the
-    key handler."""
+    handler (a scripted cut is a right-button drag, an orbit a middle one, a collider move a
+    Ctrl + left one), keys through the key handler."""
 
     def __init__(self, demo: Demo) -> None:
         super().__init__(demo.viewer)
         self.demo = demo
 
     def press(self, mode: str, x: float, y: float) -> None:
-        button = {"grab": glfw.MOUSE_BUTTON_LEFT, "cut": glfw.MOUSE_BUTTON_RIGHT,
-                  "orbit": glfw.MOUSE_BUTTON_MIDDLE}[mode]
-        self.demo.mouse_button(button, glfw.PRESS, 0, x, y)
+        button, mods = {"grab": (glfw.MOUSE_BUTTON_LEFT, 0),
+                        "cut": (glfw.MOUSE_BUTTON_RIGHT, 0),
+                        "orbit": (glfw.MOUSE_BUTTON_MIDDLE, 0),
+                        "collider": (glfw.MOUSE_BUTTON_LEFT, glfw.MOD_CONTROL)}[mode]
+        self.demo.mouse_button(button, glfw.PRESS, mods, x, y)
 
     def release(self) -> None:
         self.demo.mouse_button(glfw.MOUSE_BUTTON_LEFT, glfw.RELEASE, 0, *self.pos)
