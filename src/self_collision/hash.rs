@@ -18,13 +18,6 @@ impl Aabb {
         max: Vec3::splat(f32::NEG_INFINITY),
     };
 
-    pub fn union(self, other: Aabb) -> Aabb {
-        Aabb {
-            min: self.min.min(other.min),
-            max: self.max.max(other.max),
-        }
-    }
-
     /// Closed boxes: touching counts as overlapping (the test must never miss a pair).
     #[inline]
     pub fn overlaps(&self, other: &Aabb) -> bool {
@@ -37,9 +30,10 @@ impl Aabb {
 pub struct HashGrid {
     inv_cell: f32,
     mask: usize,
-    /// Bucket `h` holds `entries[start[h]..start[h + 1]]`.
+    /// Bucket `h` holds `entries[start[h]..start[h + 1]]`: each item with its box, so that a
+    /// query tests the boxes of a bucket in one sweep through memory.
     start: Vec<u32>,
-    entries: Vec<u32>,
+    entries: Vec<(Aabb, u32)>,
     fill: Vec<u32>,
 }
 
@@ -71,27 +65,31 @@ impl HashGrid {
         self.fill.clear();
         self.fill.extend_from_slice(&self.start[..buckets]);
         self.entries.clear();
-        self.entries.resize(self.start[buckets] as usize, 0);
+        self.entries
+            .resize(self.start[buckets] as usize, (Aabb::EMPTY, 0));
         for (item, b) in boxes.iter().enumerate() {
             for_cells(inv, mask, b, |h| {
-                self.entries[self.fill[h] as usize] = item as u32;
+                self.entries[self.fill[h] as usize] = (*b, item as u32);
                 self.fill[h] += 1;
             });
         }
     }
 
-    /// Calls `f` with every item entered in a cell that `query` overlaps (possibly more than
-    /// once, and items whose box does not overlap `query`: the caller tests and deduplicates).
+    /// Calls `f` with every item whose box overlaps `query`, possibly more than once (once per
+    /// cell both overlap: the caller deduplicates).
     pub fn query(&self, query: &Aabb, mut f: impl FnMut(u32)) {
         for_cells(self.inv_cell, self.mask, query, |h| {
-            for &item in &self.entries[self.start[h] as usize..self.start[h + 1] as usize] {
-                f(item);
+            for (b, item) in &self.entries[self.start[h] as usize..self.start[h + 1] as usize] {
+                if b.overlaps(query) {
+                    f(*item);
+                }
             }
         });
     }
 
     pub fn heap_bytes(&self) -> usize {
-        (self.start.capacity() + self.entries.capacity() + self.fill.capacity()) * 4
+        (self.start.capacity() + self.fill.capacity()) * 4
+            + self.entries.capacity() * size_of::<(Aabb, u32)>()
     }
 }
 
@@ -143,9 +141,8 @@ mod tests {
         for (a, ba) in boxes.iter().enumerate() {
             let mut found = Vec::new();
             grid.query(ba, |b| {
-                if boxes[b as usize].overlaps(ba) {
-                    found.push(b as usize)
-                }
+                assert!(boxes[b as usize].overlaps(ba));
+                found.push(b as usize)
             });
             found.sort_unstable();
             found.dedup();

@@ -11,11 +11,9 @@
 //! The translation is the centre of the displacements' bounding box, so a cloth that falls
 //! or is carried as a whole keeps its list however far it goes.
 
-use glam::DVec3;
-use rayon::prelude::*;
-
 use crate::self_collision::pair::Candidate;
 use crate::soa::Vec3s;
+use glam::DVec3;
 
 /// The list and where it was built.
 #[derive(Default)]
@@ -24,7 +22,9 @@ pub struct PairList {
     anchor: Option<Vec3s>,
     /// Every pair closer than this at `anchor` is listed, in m.
     reach: f64,
-    pub candidates: Vec<Candidate>,
+    /// The listed pairs, nearest at the anchor first, each with its distance there (m).
+    candidates: Vec<Candidate>,
+    distances: Vec<f64>,
 }
 
 impl PairList {
@@ -32,44 +32,49 @@ impl PairList {
     pub fn clear(&mut self) {
         self.anchor = None;
         self.candidates.clear();
+        self.distances.clear();
     }
 
-    /// Whether every pair of `verts` closer than `needed` at `x` is listed, allowing `eps` for
-    /// round-off.
-    pub fn covers(&self, verts: &[u32], x: &Vec3s, needed: f64, eps: f64) -> bool {
-        self.anchor
-            .as_ref()
-            .is_some_and(|a| self.reach - 2.0 * spread(verts, a, x) - eps >= needed)
+    /// Where the list was built, if it was.
+    pub fn anchor(&self) -> Option<&Vec3s> {
+        self.anchor.as_ref()
     }
 
-    /// Takes `candidates`, every pair closer than `reach` at `x`, as the new list.
-    pub fn rebuild(&mut self, x: &Vec3s, reach: f64, candidates: impl Iterator<Item = Candidate>) {
+    /// Whether every pair closer than `needed` at some positions is listed, given `drift`, the
+    /// displacements from the anchor to those positions; `eps` allows for round-off.
+    pub fn covers(&self, drift: Option<Spread>, needed: f64, eps: f64) -> bool {
+        drift.is_some_and(|d| self.reach - 2.0 * d.radius() - eps >= needed)
+    }
+
+    /// Takes `found`, every pair closer than `reach` at `x` with its distance there, as the new
+    /// list.
+    pub fn rebuild(&mut self, x: &Vec3s, reach: f64, mut found: Vec<(Candidate, f64)>) {
         match &mut self.anchor {
             Some(a) if a.len() == x.len() => a.copy_from(x),
             anchor => *anchor = Some(x.clone()),
         }
         self.reach = reach;
+        // Nearest first, ties by the pair (unique), so the order is the same however `found`
+        // was.
+        found.sort_unstable_by(|p, q| p.1.total_cmp(&q.1).then(p.0.key().cmp(&q.0.key())));
         self.candidates.clear();
-        self.candidates.extend(candidates);
+        self.distances.clear();
+        for (c, d) in found {
+            self.candidates.push(c);
+            self.distances.push(d);
+        }
+    }
+
+    /// The listed pairs that were closer than `d` at the anchor.
+    pub fn within(&self, d: f64) -> &[Candidate] {
+        &self.candidates[..self.distances.partition_point(|&e| e < d)]
     }
 
     pub fn heap_bytes(&self) -> usize {
         self.anchor.as_ref().map_or(0, Vec3s::heap_bytes)
             + self.candidates.capacity() * size_of::<Candidate>()
+            + self.distances.capacity() * 8
     }
-}
-
-/// The bounding box of the displacements `b_i - a_i` over `verts` (m; empty if none). Exact
-/// reductions (min and max), so the same for any thread count.
-pub fn displacements(verts: &[u32], a: &Vec3s, b: &Vec3s) -> Spread {
-    verts
-        .par_iter()
-        .with_min_len(4096)
-        .map(|&v| {
-            let d = b.get(v as usize).as_dvec3() - a.get(v as usize).as_dvec3();
-            Spread { lo: d, hi: d }
-        })
-        .reduce(Spread::default, Spread::union)
 }
 
 /// A bounding box of displacements. Half its diagonal bounds `|d_i - T|` for every
@@ -91,6 +96,11 @@ impl Default for Spread {
 }
 
 impl Spread {
+    /// The box of the one displacement `d`.
+    pub fn of(d: DVec3) -> Spread {
+        Spread { lo: d, hi: d }
+    }
+
     pub fn union(self, other: Spread) -> Spread {
         Spread {
             lo: self.lo.min(other.lo),
@@ -113,15 +123,26 @@ impl Spread {
     }
 }
 
-/// `displacements(verts, a, b).radius()`.
-pub fn spread(verts: &[u32], a: &Vec3s, b: &Vec3s) -> f64 {
-    displacements(verts, a, b).radius()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use glam::Vec3;
+    use rayon::prelude::*;
+
+    /// The bounding box of the displacements `b_i - a_i` over `verts` (m; empty if none). Exact
+    /// reductions (min and max), so the same for any thread count.
+    fn displacements(verts: &[u32], a: &Vec3s, b: &Vec3s) -> Spread {
+        verts
+            .par_iter()
+            .with_min_len(4096)
+            .map(|&v| Spread::of(b.get(v as usize).as_dvec3() - a.get(v as usize).as_dvec3()))
+            .reduce(Spread::default, Spread::union)
+    }
+
+    /// `displacements(verts, a, b).radius()`.
+    fn spread(verts: &[u32], a: &Vec3s, b: &Vec3s) -> f64 {
+        displacements(verts, a, b).radius()
+    }
 
     #[test]
     fn a_common_translation_does_not_spread() {
@@ -145,17 +166,40 @@ mod tests {
     fn the_list_covers_what_it_reaches_less_twice_the_spread() {
         let a = Vec3s::from_fn(2, |v| Vec3::new(v as f32, 0.0, 0.0));
         let mut list = PairList::default();
-        assert!(
-            !list.covers(&[0, 1], &a, 0.0, 0.0),
-            "an empty list covers nothing"
-        );
-        list.rebuild(&a, 0.01, std::iter::empty());
-        assert!(list.covers(&[0, 1], &a, 0.01, 0.0));
+        assert!(list.anchor().is_none(), "an empty list covers nothing");
+        assert!(!list.covers(None, 0.0, 0.0));
+        list.rebuild(&a, 0.01, Vec::new());
+        let drift = |x: &Vec3s| Some(displacements(&[0, 1], &a, x));
+        assert!(list.covers(drift(&a), 0.01, 0.0));
         let mut b = a.clone();
         b.set(1, Vec3::new(1.002, 0.0, 0.0)); // spread 0.001
-        assert!(list.covers(&[0, 1], &b, 0.0079, 0.0));
-        assert!(!list.covers(&[0, 1], &b, 0.0081, 0.0));
+        assert!(list.covers(drift(&b), 0.0079, 0.0));
+        assert!(!list.covers(drift(&b), 0.0081, 0.0));
         list.clear();
-        assert!(!list.covers(&[0, 1], &a, 0.0, 0.0));
+        assert!(list.anchor().is_none());
+    }
+
+    #[test]
+    fn the_nearest_are_first_whatever_their_order() {
+        let a = Vec3s::zeros(1);
+        let at = |d: f64, v: u32| {
+            (
+                Candidate {
+                    verts: [v, 1, 2, 3],
+                    split: 1,
+                },
+                d,
+            )
+        };
+        let mut list = PairList::default();
+        list.rebuild(
+            &a,
+            0.01,
+            vec![at(0.005, 0), at(0.001, 1), at(0.003, 2), at(0.001, 3)],
+        );
+        let first: Vec<u32> = list.within(0.004).iter().map(|c| c.verts[0]).collect();
+        assert_eq!(first, [1, 3, 2]);
+        assert_eq!(list.within(0.001).len(), 0);
+        assert_eq!(list.within(1.0).len(), 4);
     }
 }

@@ -72,7 +72,7 @@ use crate::model::Model;
 use crate::soa::Vec3s;
 use crate::state::Kinematics;
 use hash::Aabb;
-use list::{displacements, PairList};
+use list::{PairList, Spread};
 use pair::{inverse_mass, Pair};
 use search::Broad;
 use topology::Topology;
@@ -214,32 +214,30 @@ impl SelfCollision {
             self.marked = vec![false; model.grid.len()];
         }
         let (x0, inv_mass) = (&start.pos, &model.particles.inv_mass);
-        let mut reach = 0.0f32;
-        for &v in &self.topology.vertices {
-            let (a, b) = (x0.get(v as usize), next.pos.get(v as usize));
-            if !(a.is_finite() && b.is_finite()) {
-                return false;
-            }
-            reach = reach.max(a.abs().max_element()).max(b.abs().max_element());
-        }
+        let verts = &self.topology.vertices;
+        let Some(survey) = Survey::of(verts, x0, &next.pos, self.list.anchor()) else {
+            return false;
+        };
+        let (reach, motion) = (survey.reach, survey.motion);
         // A margin above float32 round-off of coordinates up to `reach` (8 ulps and more).
-        let eps = 1e-6 * (1.0 + reach as f64);
+        let eps = 1e-6 * (1.0 + reach);
         let before = self.stats;
         self.stats.substeps += 1;
         // The pairs this substep looks at: those that can come closer than `thickness`. A pair
         // farther than `needed` at the start cannot, while no vertex strays more than
         // `allowed` from the cloth's common motion (twice that, the most any pair closes).
         let thickness = self.thickness as f64;
-        let motion = displacements(&self.topology.vertices, x0, &next.pos);
         let allowed = motion.radius() + PUSH * thickness;
         let needed = thickness + 2.0 * allowed + eps;
         // Which pairs a substep looks at depends on the substep alone, never on when the list
         // was built, so a restored state steps exactly as the original.
         let finite = if needed <= LIST_LIMIT * thickness {
-            if !self.list.covers(&self.topology.vertices, x0, needed, eps) {
+            let mut drift = survey.drift.map_or(0.0, |d| d.radius()) + eps;
+            if !self.list.covers(survey.drift, needed, eps) {
                 self.rebuild_list(x0, needed + SKIN * thickness, eps as f32);
+                drift = eps;
             }
-            self.listed_pairs(x0, needed);
+            self.listed_pairs(x0, needed, drift);
             if self.pairs.is_empty() {
                 return true;
             }
@@ -255,15 +253,8 @@ impl SelfCollision {
             if moved.radius() <= allowed {
                 finite
             } else {
-                // The repulsion or the cap moved a vertex farther than the list allowed for:
-                // redo the substep with the swept search, which bounds each vertex by its box.
-                self.restore_listed(next);
-                self.stats = before;
-                self.stats.substeps += 1;
-                self.stats.swept_substeps += 1;
-                self.stats.redone += 1;
-                self.swept_pairs(x0, eps);
-                self.resolve(x0, next, inv_mass, eps)
+                // The repulsion or the cap moved a vertex farther than the list allowed for.
+                self.redo_loose(x0, next, inv_mass, eps, before)
             }
         } else {
             self.stats.swept_substeps += 1;
@@ -311,19 +302,21 @@ impl SelfCollision {
         self.broad
             .search(&self.topology, &boxes, x0, keep, &mut self.pairs);
         self.search_boxes = boxes;
-        self.list
-            .rebuild(x0, reach, self.pairs.iter().map(Pair::candidate));
+        let found = self.pairs.iter().map(|p| (p.candidate(), p.d0)).collect();
+        self.list.rebuild(x0, reach, found);
         self.stats.rebuilds += 1;
     }
 
-    /// The listed pairs closer than `needed` at `x0`, with their closest points there, in the
-    /// list's order (vertex then triangle, edge then edge: the same whenever the list was
-    /// built, so the result depends on the substep alone).
-    fn listed_pairs(&mut self, x0: &Vec3s, needed: f64) {
+    /// The listed pairs closer than `needed` at `x0`, with their closest points there, ordered
+    /// by their vertices (the same whenever the list was built, so the result depends on the
+    /// substep alone). A pair that was `d` apart at the anchor is at least `d - 2 drift` apart
+    /// now, so only the list's nearest need a look.
+    fn listed_pairs(&mut self, x0: &Vec3s, needed: f64, drift: f64) {
+        let near = self.list.within(needed + 2.0 * drift);
         self.pairs.clear();
-        self.pairs
-            .par_extend(self.list.candidates.par_iter().map(|c| c.at(x0)));
+        self.pairs.par_extend(near.par_iter().map(|c| c.at(x0)));
         self.pairs.retain(|p| p.d0 < needed);
+        self.pairs.sort_unstable_by_key(|p| p.candidate().key());
     }
 
     /// The swept search, for a substep whose motion the list does not cover: every pair whose
@@ -343,6 +336,25 @@ impl SelfCollision {
         };
         self.broad
             .search(&self.topology, boxes, x0, keep, &mut self.pairs);
+    }
+
+    /// Redoes the substep from where the integrator left it with the swept search (`before`:
+    /// the statistics to count it from).
+    fn redo_loose(
+        &mut self,
+        x0: &Vec3s,
+        next: &mut Kinematics,
+        inv_mass: &[f32],
+        eps: f64,
+        before: SelfCollisionStats,
+    ) -> bool {
+        self.restore_listed(next);
+        self.stats = before;
+        self.stats.substeps += 1;
+        self.stats.swept_substeps += 1;
+        self.stats.redone += 1;
+        self.swept_pairs(x0, eps);
+        self.resolve(x0, next, inv_mass, eps)
     }
 
     /// Keeps the positions and velocities of the pairs' vertices, the only ones the pass
@@ -567,6 +579,50 @@ impl SelfCollision {
             + self.marked.capacity()
             + self.near.capacity() * 8
             + (self.scale.capacity() + self.scale_next.capacity()) * 8
+    }
+}
+
+/// What one pass over the mesh's vertices finds of a substep.
+#[derive(Clone, Copy)]
+struct Survey {
+    /// The largest coordinate at the start or the end, in m.
+    reach: f64,
+    /// The bounding box of the displacements `x1 - x0`.
+    motion: Spread,
+    /// The bounding box of the displacements from the pair list's anchor to `x0`, if it has one.
+    drift: Option<Spread>,
+}
+
+impl Survey {
+    /// None if a position at `x0` or `x1` is not finite.
+    fn of(verts: &[u32], x0: &Vec3s, x1: &Vec3s, anchor: Option<&Vec3s>) -> Option<Survey> {
+        let empty = Survey {
+            reach: 0.0,
+            motion: Spread::default(),
+            drift: anchor.map(|_| Spread::default()),
+        };
+        verts
+            .par_iter()
+            .with_min_len(4096)
+            .map(|&v| {
+                let (a, b) = (x0.get(v as usize), x1.get(v as usize));
+                (a.is_finite() && b.is_finite()).then(|| Survey {
+                    reach: a.abs().max_element().max(b.abs().max_element()) as f64,
+                    motion: Spread::of(b.as_dvec3() - a.as_dvec3()),
+                    drift: anchor.map(|x| Spread::of(a.as_dvec3() - x.get(v as usize).as_dvec3())),
+                })
+            })
+            .reduce(
+                || Some(empty),
+                |p, q| {
+                    let (p, q) = (p?, q?);
+                    Some(Survey {
+                        reach: p.reach.max(q.reach),
+                        motion: p.motion.union(q.motion),
+                        drift: p.drift.zip(q.drift).map(|(a, b)| a.union(b)),
+                    })
+                },
+            )
     }
 }
 

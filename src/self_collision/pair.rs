@@ -28,6 +28,11 @@ pub struct Candidate {
 }
 
 impl Candidate {
+    /// What orders pairs the same way whenever they were found.
+    pub fn key(&self) -> (u8, [u32; 4]) {
+        (self.split, self.verts)
+    }
+
     /// The pair with its closest points at `x`.
     pub fn at(self, x: &Vec3s) -> Pair {
         match self.split {

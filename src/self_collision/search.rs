@@ -2,6 +2,7 @@
 //! edge-edge pair (no shared vertex) whose boxes overlap, through a spatial hash of the
 //! triangles' and the edges' boxes, each the union of its vertices' boxes.
 
+use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::self_collision::hash::{Aabb, HashGrid};
@@ -25,7 +26,7 @@ pub struct Broad {
 impl Broad {
     /// Into `out`, in vertex then triangle and edge then edge order (so the same for any
     /// thread count): every pair whose boxes overlap, given each vertex's box, that `keep`
-    /// keeps, with its closest points at `x`.
+    /// keeps, with its closest points at `x`. A primitive's box is the union of its vertices'.
     pub fn search(
         &mut self,
         topo: &Topology,
@@ -37,20 +38,13 @@ impl Broad {
         let vb = vertex_boxes;
         self.tri_boxes.clear();
         self.tri_boxes
-            .par_extend(topo.triangles.par_iter().map(|t| {
-                vb[t[0] as usize]
-                    .union(vb[t[1] as usize])
-                    .union(vb[t[2] as usize])
-            }));
+            .par_extend(topo.triangles.par_iter().map(|t| union(vb, t)));
         self.edge_boxes.clear();
-        self.edge_boxes.par_extend(
-            topo.edges
-                .par_iter()
-                .map(|e| vb[e[0] as usize].union(vb[e[1] as usize])),
-        );
+        self.edge_boxes
+            .par_extend(topo.edges.par_iter().map(|e| union(vb, e)));
         self.tri_grid.build(&self.tri_boxes);
         self.edge_grid.build(&self.edge_boxes);
-        let (tb, eb) = (&self.tri_boxes, &self.edge_boxes);
+        let eb = &self.edge_boxes;
         let (tri_grid, edge_grid) = (&self.tri_grid, &self.edge_grid);
         let vertex_triangles = topo.vertices.par_chunks(CHUNK).map(|chunk| {
             let (mut found, mut pairs) = (Vec::new(), Vec::new());
@@ -58,7 +52,7 @@ impl Broad {
                 let b = vb[v as usize];
                 found.clear();
                 tri_grid.query(&b, |t| {
-                    if !topo.triangles[t as usize].contains(&v) && tb[t as usize].overlaps(&b) {
+                    if !topo.triangles[t as usize].contains(&v) {
                         found.push(t);
                     }
                 });
@@ -78,10 +72,11 @@ impl Broad {
                 let bx = eb[e];
                 found.clear();
                 edge_grid.query(&bx, |f| {
-                    let [c, d] = topo.edges[f as usize];
-                    let disjoint = a != c && a != d && b != c && b != d;
-                    if (f as usize) > e && disjoint && eb[f as usize].overlaps(&bx) {
-                        found.push(f);
+                    if (f as usize) > e {
+                        let [c, d] = topo.edges[f as usize];
+                        if a != c && a != d && b != c && b != d {
+                            found.push(f);
+                        }
                     }
                 });
                 found.sort_unstable();
@@ -104,4 +99,14 @@ impl Broad {
             + self.tri_grid.heap_bytes()
             + self.edge_grid.heap_bytes()
     }
+}
+
+/// The union of `vertices`' boxes.
+fn union(vertex_boxes: &[Aabb], vertices: &[u32]) -> Aabb {
+    let (mut min, mut max) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+    for &v in vertices {
+        let b = &vertex_boxes[v as usize];
+        (min, max) = (min.min(b.min), max.max(b.max));
+    }
+    Aabb { min, max }
 }

@@ -12,6 +12,7 @@ import moderngl
 
 from .. import INTEGRATORS, Simulation, load_scene, scenes
 from ..camera import Camera
+from ..drivers import driver_for
 from ..render.constants import VIEWS
 from ..render.overlay import Line, legend, text_panel
 from ..render.renderer import Renderer
@@ -94,7 +95,7 @@ class Viewer:
         """Start showing ``sim``: camera, gestures and stepping for it."""
         self.sim = sim
         self.name = name
-        self.stepper = Stepper(sim)
+        self.stepper = Stepper(sim, driver_for(name, sim))
         layout = self.renderer.layout
         self.camera: Camera = layout.camera(self.size[0] / max(self.size[1], 1))
         self.interaction = Interaction(sim)

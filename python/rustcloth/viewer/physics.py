@@ -9,6 +9,7 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
+from ..drivers import Driver
 from ..errors import SimulationDiverged
 from .recovery import Recovery
 
@@ -33,8 +34,10 @@ class Stepper:
     """Runs the steps of ``dt`` that the frames' simulated time adds up to, keeping the
     remainder for the next frame (as ``Simulation.advance`` does, but with a budget)."""
 
-    def __init__(self, sim: Any) -> None:
+    def __init__(self, sim: Any, driver: Driver | None = None) -> None:
         self.sim = sim
+        self.driver = driver
+        """Run before every step (the scene's scripted motion), or None."""
         self.recovery = Recovery(sim)
         self.owed = 0.0
         self.step_s = 1e-4
@@ -60,7 +63,7 @@ class Stepper:
                 n = min(n, max(1, int(0.5 * left / self.step_s)))
             before, t0 = sim.steps, time.perf_counter()
             try:
-                sim.step(n)
+                self._step(n)
             except SimulationDiverged as err:
                 report.notices.append(self.recovery.handle(err))
                 failures += 1
@@ -79,6 +82,14 @@ class Stepper:
         self.recovery.after_steps()
         self._remember(seconds, report)
         return report
+
+    def _step(self, n: int) -> None:
+        if self.driver is None:
+            self.sim.step(n)
+            return
+        for _ in range(n):
+            self.driver.before_step(self.sim)
+            self.sim.step(1)
 
     def step_once(self) -> FramePhysics:
         """One step, whatever the clock says (the N key)."""
