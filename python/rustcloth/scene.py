@@ -89,8 +89,9 @@ class Scene:
         # Only a scene with a mesh file to read goes through Python's TOML reader; every other
         # one (and every malformed one) is parsed by the core, for the core's messages.
         try:
-            table = tomllib.loads(text)
-        except (tomllib.TOMLDecodeError, TypeError):
+            # Not text at all goes to the core too, which names the parameter.
+            table = tomllib.loads(text) if isinstance(text, str) else {}
+        except tomllib.TOMLDecodeError:
             table = {}
         colliders = table.get("colliders")
         if isinstance(colliders, list) and any(
