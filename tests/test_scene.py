@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 import rustcloth
 from rustcloth import Scene
+from rustcloth.errors import ParameterTypeError
 
 
 def test_defaults_are_filled_in_and_documented_keys_exist():
@@ -75,3 +76,11 @@ def test_numpy_values_are_accepted():
     scene = Scene(gravity=np.array([0.0, -3.0, 0.0]), dt=np.float32(0.002))
     assert scene.gravity == [0.0, -3.0, 0.0]
     assert scene.dt == pytest.approx(0.002)
+
+
+def test_issue_13_from_toml_str_of_something_not_text_names_the_parameter():
+    # The mesh colliders' path pre-read parsed the text with tomllib before the core saw it,
+    # and tomllib raised AttributeError on None instead of the core's ParameterTypeError.
+    for value in (None, 3, b"dt = 0.01"):
+        with pytest.raises(ParameterTypeError, match="text"):
+            Scene.from_toml_str(value)  # type: ignore[arg-type]
