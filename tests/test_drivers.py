@@ -7,9 +7,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 import rustcloth
 from rustcloth.drivers import TwistDriver, driver_for
-from rustcloth.viewer.physics import Stepper
 
 
 def _twist(n: int = 12) -> rustcloth.Simulation:
@@ -39,6 +39,9 @@ def test_the_edges_follow_the_prescribed_turn():
 
 
 def test_only_the_twist_has_a_driver_and_the_demo_runs_it_every_step():
+    pytest.importorskip("moderngl")  # the viewer package, whose stepper this is
+    from rustcloth.viewer.physics import Stepper
+
     sim = _twist()
     assert driver_for("hanging", sim) is None
     driver = driver_for("twist", sim)
