@@ -283,3 +283,34 @@ pub fn convex_mesh_distance(q: glam::DVec3, vertices: &[[f64; 3]], triangles: &[
         })
         .fold(f64::INFINITY, f64::min)
 }
+
+/// Coulomb on a surface tilted by `angle` about z: a particle set at rest on it stays put while
+/// `tan(angle) <= mu`, else slides down the slope at `a = g (sin - mu cos)`, `a t^2 / 2` in `t`.
+/// For `mu` 0.2 and 0.5 and slopes 0.8 and 1.25 times `mu`, `setup(angle, mu)` builds the
+/// simulation (particle 0 at rest on the surface) and returns it with the particle's start;
+/// after 0.5 s the slide must match to 2 % and `off_surface(sim)` (m) stay below 0.1 mm.
+pub fn check_slides_iff_the_slope_beats_friction(
+    setup: impl Fn(f64, f64) -> (Simulation, Vec3),
+    off_surface: impl Fn(&Simulation) -> f64,
+) {
+    let (g, t) = (9.81f64, 0.5f64);
+    for mu in [0.2f64, 0.5] {
+        for ratio in [0.8, 1.25] {
+            let angle = (ratio * mu).atan();
+            let (mut sim, start) = setup(angle, mu);
+            sim.step((t / sim.dt()).round() as u64).unwrap();
+            let moved = (sim.positions().get(0) - start).as_dvec3();
+            let a = g * (angle.sin() - mu * angle.cos());
+            let expected = if a > 0.0 { 0.5 * a * t * t } else { 0.0 };
+            let downhill = -glam::DVec3::new(angle.cos(), angle.sin(), 0.0);
+            let along = moved.dot(downhill);
+            assert!(
+                (along - expected).abs() <= 0.02 * expected + 1e-5,
+                "mu {mu}, tan {}: slid {along} m, expected {expected}",
+                angle.tan()
+            );
+            let d = off_surface(&sim);
+            assert!(d.abs() < 1e-4, "mu {mu}: it left the surface by {d} m");
+        }
+    }
+}
