@@ -16,7 +16,8 @@
 //!      substep is redone the second way.
 //!    - *the swept search*, otherwise: every pair whose boxes, swept from `x0` to `x1` and
 //!      grown by `thickness / 2`, overlap and whose distance at `x0` is below `thickness`
-//!      plus how far its vertices' boxes reach.
+//!      plus how far its vertices may end from where they start (`|x1 - x0| + thickness / 2`
+//!      each: see the cap).
 //!
 //!    Either way the pairs looked at, and their order, are a function of the substep, so a
 //!    restored state steps exactly as the one it was saved from.
@@ -45,16 +46,22 @@
 //!    toward `x0` (`dx_i -> s_i dx_i`), for a few rounds in proportion,
 //!    then by stopping them (`s = 0`), until no pair is left: it ends because each round stops
 //!    at least one more vertex, and a pair whose vertices all stand still has `m = 0`. Each
-//!    vertex is also kept inside its own grown swept box, so a pair the swept search did not
-//!    look at stays apart. A pair the list leaves out is farther than `needed` at `x0`, and
+//!    vertex is also kept within `thickness / 2` of its straight path from `x0` to `x1` (a
+//!    capsule, inside its grown swept box), so a pair the swept search did not look at stays
+//!    apart: either their boxes are disjoint, or they were farther at `x0` than their
+//!    capsules reach. A capsule rather than the box because its reach from `x0` is
+//!    `|x1 - x0| + thickness / 2`, against `|x1 - x0| + sqrt(3) thickness / 2` to the box's
+//!    corner: in a layered cloth the pairs within reach grow with its square, so the capsule
+//!    looks at about half as many. A pair the list leaves out is farther than `needed` at `x0`, and
 //!    no vertex strayed more than `r + PUSH thickness` (checked at the end), so it stays
 //!    `thickness` apart. Capped vertices get their velocity scaled by `s` too.
 //!    With no triangle pair in contact at the start, none touches at any time of any substep:
 //!    two triangles sharing no vertex can only start to intersect through a vertex touching a
 //!    face or an edge touching an edge.
 //!
-//! A list build and a swept search allocate (per parallel task); a substep on a kept list
-//! does not. Everything parallel is a map in item order or an exact reduction (min, max); all
+//! A list build and a swept search allocate (per parallel task), and so do the parallel
+//! filters of the repulsion and the cap when there are pairs; a substep with no pair on a kept
+//! list does not. Everything parallel is a map in item order or an exact reduction (min, max); all
 //! updates are sequential in pair order, so the result is bitwise the same for any thread
 //! count.
 
@@ -159,6 +166,11 @@ pub struct SelfCollision {
     topology: Topology,
     /// Each vertex's grown swept box this substep.
     vertex_boxes: Vec<Aabb>,
+    /// Each vertex's end of its path this substep, as the integrator left it (`x1`): with
+    /// `x0` and `path_radius`, the capsule it is kept in.
+    path_ends: Vec<Vec3>,
+    /// The capsules' radius this substep (m): `thickness / 2` and a round-off margin.
+    path_radius: f32,
     /// Each vertex's box for building the pair list.
     search_boxes: Vec<Aabb>,
     broad: Broad,
@@ -184,6 +196,8 @@ impl SelfCollision {
             iterations,
             topology: Topology::default(),
             vertex_boxes: Vec::new(),
+            path_ends: Vec::new(),
+            path_radius: 0.0,
             search_boxes: Vec::new(),
             broad: Broad::default(),
             list: PairList::default(),
@@ -269,21 +283,48 @@ impl SelfCollision {
         finite
     }
 
-    /// Each vertex's box, swept from `x0` to `x1` and grown by `thickness / 2 + eps`: where the
-    /// pass keeps it, and what the swept search overlaps.
+    /// Each vertex's box, swept from `x0` to `x1` and grown by `thickness / 2 + eps`, what the
+    /// swept search overlaps; and its path's end `x1`, for the capsule the pass keeps it in.
     fn sweep_boxes(&mut self, x0: &Vec3s, x1: &Vec3s, eps: f32) {
-        let grow = Vec3::splat(0.5 * self.thickness + eps);
+        self.path_radius = 0.5 * self.thickness + eps;
+        let grow = Vec3::splat(self.path_radius);
         self.vertex_boxes.resize(x0.len(), Aabb::EMPTY);
+        self.path_ends.resize(x0.len(), Vec3::ZERO);
         self.vertex_boxes
             .par_iter_mut()
+            .zip(self.path_ends.par_iter_mut())
             .enumerate()
-            .for_each(|(v, b)| {
+            .for_each(|(v, (b, end))| {
                 let (a, c) = (x0.get(v), x1.get(v));
                 *b = Aabb {
                     min: a.min(c) - grow,
                     max: a.max(c) + grow,
                 };
+                *end = c;
             });
+    }
+
+    /// `p` moved into vertex `v`'s capsule: the points within `path_radius` of its path from
+    /// `x0` to `x1`, and (against round-off) inside its box.
+    #[inline]
+    fn kept_on_path(&self, v: usize, x0: &Vec3s, p: Vec3) -> Vec3 {
+        let (a, d) = (x0.get(v), self.path_ends[v] - x0.get(v));
+        let len2 = d.length_squared();
+        let t = if len2 > 0.0 {
+            ((p - a).dot(d) / len2).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let on_path = a + t * d;
+        let off = p - on_path;
+        let r = self.path_radius;
+        let p = if off.length_squared() > r * r {
+            on_path + off * (r / off.length())
+        } else {
+            p
+        };
+        let b = &self.vertex_boxes[v];
+        p.clamp(b.min, b.max)
     }
 
     /// Lists every pair closer than `reach` at `x0`.
@@ -320,14 +361,16 @@ impl SelfCollision {
     }
 
     /// The swept search, for a substep whose motion the list does not cover: every pair whose
-    /// swept boxes overlap and which the motion its boxes allow could bring within
-    /// `thickness`. A vertex ends the substep in its box, so a pair at `d0` whose vertices'
-    /// boxes reach at most `l_a` and `l_b` from where they start stays `d0 - l_a - l_b` apart.
+    /// swept boxes overlap and which the motion its vertices' capsules allow could bring
+    /// within `thickness`. A vertex ends the substep in its capsule, so a pair at `d0` whose
+    /// vertices' capsules reach at most `l_a` and `l_b` from where they start stays
+    /// `d0 - l_a - l_b` apart.
     fn swept_pairs(&mut self, x0: &Vec3s, eps: f64) {
         let (boxes, thickness) = (&self.vertex_boxes, self.thickness as f64);
+        let (ends, radius) = (&self.path_ends, self.path_radius as f64);
         let reach = |v: u32| {
-            let (b, p) = (&boxes[v as usize], x0.get(v as usize));
-            (p - b.min).max(b.max - p).as_dvec3().length()
+            let v = v as usize;
+            (ends[v] - x0.get(v)).as_dvec3().length() + radius
         };
         let keep = |pair: &Pair| {
             let (a, b) = pair.verts.split_at(pair.split);
@@ -385,12 +428,11 @@ impl SelfCollision {
     /// The repulsion, each touched vertex put back inside its box, and the cap.
     fn resolve(&mut self, x0: &Vec3s, next: &mut Kinematics, inv_mass: &[f32], eps: f64) -> bool {
         let finite = self.repel(next, inv_mass);
-        // Back inside each vertex's grown swept box, where the swept search looks.
+        // Back inside each vertex's capsule, what the swept search allows for.
         for &(k, touched) in &self.near {
             if touched {
                 for &v in &self.pairs[k as usize].verts {
-                    let b = &self.vertex_boxes[v as usize];
-                    let p = next.pos.get(v as usize).clamp(b.min, b.max);
+                    let p = self.kept_on_path(v as usize, x0, next.pos.get(v as usize));
                     next.pos.set(v as usize, p);
                 }
             }
@@ -409,13 +451,17 @@ impl SelfCollision {
     fn repel(&mut self, next: &mut Kinematics, inv_mass: &[f32]) -> bool {
         let thickness = self.thickness as f64;
         self.near.clear();
-        for (k, pair) in self.pairs.iter().enumerate() {
-            // Pairs beyond twice the gap are out of the sweeps' reach (each moves a vertex by
-            // at most the gap's shortfall).
-            if pair.n != DVec3::ZERO && pair.gap(&next.pos) < 2.0 * thickness {
-                self.near.push((k as u32, false));
-            }
-        }
+        // Pairs beyond twice the gap are out of the sweeps' reach (each moves a vertex by at
+        // most the gap's shortfall). An ordered parallel filter: the same for any thread count.
+        let pos = &next.pos;
+        self.near.par_extend(
+            self.pairs
+                .par_iter()
+                .enumerate()
+                .with_min_len(1024)
+                .filter(|(_, pair)| pair.n != DVec3::ZERO && pair.gap(pos) < 2.0 * thickness)
+                .map(|(k, _)| (k as u32, false)),
+        );
         for sweep in 0..self.iterations {
             let mut any = false;
             for slot in &mut self.near {
@@ -493,52 +539,26 @@ impl SelfCollision {
         self.scale.resize(n, 1.0);
         self.scale_next.clear();
         self.scale_next.resize(n, 1.0);
-        let disp = |v: usize| next.pos.get(v).as_dvec3() - x0.get(v).as_dvec3();
-        let start = |v: usize| x0.get(v).as_dvec3();
         let mut rounds = 0;
         loop {
-            let mut violated = false;
-            for pair in &self.pairs {
-                let s = &self.scale;
-                // The Lipschitz bound's relative motion `m`, and for the plane bound the least
-                // gap along `n` at the end and the most approach along it.
-                let (mut m, mut gap_end, mut approach) = (0.0f64, f64::INFINITY, 0.0f64);
-                let mut slack_start = f64::INFINITY;
-                for i in 0..pair.split {
-                    let a = pair.verts[i] as usize;
-                    let da = s[a] * disp(a);
-                    for j in pair.split..4 {
-                        let b = pair.verts[j] as usize;
-                        let rel = da - s[b] * disp(b);
-                        m = m.max(rel.length());
-                        let base = (start(a) - start(b)).dot(pair.n);
-                        gap_end = gap_end.min(base + rel.dot(pair.n));
-                        approach = approach.max(-rel.dot(pair.n));
-                        slack_start = slack_start.min(base);
-                    }
-                }
-                let allowed = (APPROACH * pair.d0 - eps).max(0.0);
-                let keep = (1.0 - APPROACH) * pair.d0 + eps;
-                // Safe by either bound: relative motion below the distance, or the plane
-                // through the closest points at the start separating the two at the end (and
-                // so, by linearity, all along).
-                if m > allowed && gap_end < keep {
-                    violated = true;
-                    let f = if rounds < SCALE_ROUNDS {
-                        let lip = if m > 0.0 { allowed / m } else { 1.0 };
-                        let plane = if approach > 0.0 {
-                            ((slack_start - keep) / approach).max(0.0)
-                        } else {
-                            1.0
-                        };
-                        0.99 * lip.max(plane).min(1.0)
-                    } else {
-                        0.0
-                    };
-                    for &v in &pair.verts {
-                        let v = v as usize;
-                        self.scale_next[v] = self.scale_next[v].min(s[v] * f);
-                    }
+            // Each pair's factor depends only on the scales of the round before (a Jacobi
+            // round), so the pairs are checked in parallel; taking the least factor per vertex
+            // is exact whatever the order.
+            let (s, pos) = (&self.scale, &next.pos);
+            let violations: Vec<(u32, f64)> = self
+                .pairs
+                .par_iter()
+                .enumerate()
+                .with_min_len(1024)
+                .filter_map(|(k, pair)| {
+                    cap_factor(pair, s, x0, pos, eps, rounds).map(|f| (k as u32, f))
+                })
+                .collect();
+            let violated = !violations.is_empty();
+            for (k, f) in violations {
+                for &v in &self.pairs[k as usize].verts {
+                    let v = v as usize;
+                    self.scale_next[v] = self.scale_next[v].min(self.scale[v] * f);
                 }
             }
             if !violated {
@@ -560,8 +580,8 @@ impl SelfCollision {
                 if d == Vec3::ZERO {
                     continue;
                 }
-                let b = &self.vertex_boxes[v];
-                next.pos.set(v, (a + d * s as f32).clamp(b.min, b.max));
+                // Toward `x0` stays in the (convex) capsule; kept there against round-off.
+                next.pos.set(v, self.kept_on_path(v, x0, a + d * s as f32));
                 next.vel.set(v, next.vel.get(v) * s as f32);
                 self.stats.capped += 1;
                 self.stats.stopped += (s == 0.0) as u64;
@@ -572,6 +592,7 @@ impl SelfCollision {
     pub fn heap_bytes(&self) -> usize {
         self.topology.heap_bytes()
             + (self.vertex_boxes.capacity() + self.search_boxes.capacity()) * size_of::<Aabb>()
+            + self.path_ends.capacity() * size_of::<Vec3>()
             + self.broad.heap_bytes()
             + self.list.heap_bytes()
             + self.pairs.capacity() * size_of::<Pair>()
@@ -580,6 +601,50 @@ impl SelfCollision {
             + self.near.capacity() * 8
             + (self.scale.capacity() + self.scale_next.capacity()) * 8
     }
+}
+
+/// The factor the cap scales a pair's vertices' displacements by in round `round`, given the
+/// scales `s` so far, or None when the pair is safe by either bound (see the module's comment).
+#[inline]
+fn cap_factor(pair: &Pair, s: &[f64], x0: &Vec3s, x: &Vec3s, eps: f64, round: u32) -> Option<f64> {
+    let disp = |v: usize| x.get(v).as_dvec3() - x0.get(v).as_dvec3();
+    let start = |v: usize| x0.get(v).as_dvec3();
+    // The Lipschitz bound's relative motion `m`, and for the plane bound the least gap along
+    // `n` at the end and the most approach along it.
+    let (mut m, mut gap_end, mut approach) = (0.0f64, f64::INFINITY, 0.0f64);
+    let mut slack_start = f64::INFINITY;
+    for i in 0..pair.split {
+        let a = pair.verts[i] as usize;
+        let da = s[a] * disp(a);
+        for j in pair.split..4 {
+            let b = pair.verts[j] as usize;
+            let rel = da - s[b] * disp(b);
+            m = m.max(rel.length());
+            let base = (start(a) - start(b)).dot(pair.n);
+            gap_end = gap_end.min(base + rel.dot(pair.n));
+            approach = approach.max(-rel.dot(pair.n));
+            slack_start = slack_start.min(base);
+        }
+    }
+    let allowed = (APPROACH * pair.d0 - eps).max(0.0);
+    let keep = (1.0 - APPROACH) * pair.d0 + eps;
+    // Safe by either bound: relative motion below the distance, or the plane through the
+    // closest points at the start separating the two at the end (and so, by linearity, all
+    // along).
+    if m <= allowed || gap_end >= keep {
+        return None;
+    }
+    Some(if round < SCALE_ROUNDS {
+        let lip = if m > 0.0 { allowed / m } else { 1.0 };
+        let plane = if approach > 0.0 {
+            ((slack_start - keep) / approach).max(0.0)
+        } else {
+            1.0
+        };
+        0.99 * lip.max(plane).min(1.0)
+    } else {
+        0.0
+    })
 }
 
 /// What one pass over the mesh's vertices finds of a substep.
@@ -629,6 +694,38 @@ impl Survey {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The capsule a vertex is kept in: a point within `path_radius` of the straight path
+    /// from `x0` to `x1` stays where it is; one farther is brought onto the capsule, so that
+    /// it ends no farther from `x0` than `|x1 - x0| + path_radius`, the reach the swept
+    /// search's filter counts on.
+    #[test]
+    fn a_vertex_is_kept_within_its_capsule_and_box() {
+        let x0 = Vec3s::from_fn(1, |_| Vec3::new(1.0, 2.0, 3.0));
+        let x1 = Vec3s::from_fn(1, |_| Vec3::new(1.01, 2.0, 3.0));
+        let mut pass = SelfCollision::new(0.004, 0.0, 1);
+        pass.sweep_boxes(&x0, &x1, 1e-7);
+        let r = pass.path_radius;
+        let (a, c) = (x0.get(0), x1.get(0));
+        let inside = Vec3::new(1.005, 2.0015, 3.0);
+        assert_eq!(pass.kept_on_path(0, &x0, inside), inside);
+        // A box corner is inside the box but outside the capsule: sqrt(2) r off the path.
+        let corner = Vec3::new(1.005, 2.0 + r, 3.0 + r);
+        let kept = pass.kept_on_path(0, &x0, corner);
+        // Up to round-off of coordinates near 3 (the pass's `eps` allows for 1e-6 per unit).
+        let round_off = 1e-6;
+        let off_path = (kept - Vec3::new(kept.x, 2.0, 3.0)).length();
+        assert!(off_path <= r + round_off, "{off_path} > {r}");
+        assert!((kept.x - 1.005).abs() < 1e-6);
+        // Far beyond the end: onto the end's cap, at most |x1 - x0| + r from the start.
+        for far in [Vec3::new(2.0, 2.5, 3.0), Vec3::new(0.0, 1.0, 4.0)] {
+            let kept = pass.kept_on_path(0, &x0, far);
+            let reach = (c - a).length() + r;
+            assert!((kept - a).length() <= reach + round_off, "{kept}");
+            let b = pass.vertex_boxes[0];
+            assert_eq!(kept.clamp(b.min, b.max), kept);
+        }
+    }
 
     /// Before the cutting and contact branches met, the pass rebuilt its mesh from the live
     /// particles alone, so the triangles a severed stroke runs through stayed in it as a
