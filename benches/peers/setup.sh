@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Creates /work/main/.venv-peers (next to this repository: <repo>/.venv-peers) with pinned peers
-# for benches/peers/run.py: newton (NVIDIA, on Warp, CPU device), Taichi, numpy, and rustcloth
+# for benches/peers/run.py and contact.py: newton (NVIDIA, on Warp, CPU device), Taichi, numpy, and rustcloth
 # itself built from this repository (maturin, release profile: a few minutes the first time).
 # Idempotent: a venv that already has every pin and rustcloth is left alone; FORCE=1 rebuilds
 # rustcloth (e.g. after changing the Rust code).
@@ -16,6 +16,7 @@ PINS=(
     "newton==1.8.0"
     "warp-lang==1.19.0"
     "taichi==1.7.4"
+    "usd-core==26.11"  # pxr: newton's example_cloth_twist reads warp's square_cloth.usd
 )
 
 if [[ ! -x "$VENV/bin/python" ]]; then
