@@ -25,7 +25,6 @@ import json
 import os
 import resource
 import sys
-import tempfile
 import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -34,6 +33,7 @@ sys.path.insert(0, os.path.dirname(HERE))
 
 import numpy as np  # noqa: E402
 import warp as wp  # noqa: E402
+from warp_cpu import start_warp_on_cpu  # noqa: E402
 
 N = 128
 SIZE = 1.6  # m
@@ -82,12 +82,8 @@ def main() -> None:
     p.add_argument("--steps", type=int, default=30, help="substeps per timed slice")
     p.add_argument("--cold", action="store_true", help="compile every kernel (empty cache)")
     args = p.parse_args()
-    if args.cold:
-        wp.config.kernel_cache_dir = tempfile.mkdtemp(prefix="warp-cold-")
-    wp.config.quiet = True
     t0 = time.perf_counter()
-    wp.init()
-    wp.set_device("cpu")
+    start_warp_on_cpu(args.cold)
     newton, model, solver, pipeline, mesh_triangles = build(args.substeps, args.iterations)
     state_0, state_1 = model.state(), model.state()
     control = model.control()

@@ -21,7 +21,6 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import tempfile
 import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -29,6 +28,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import numpy as np  # noqa: E402
 import warp as wp  # noqa: E402
 from twist_common import emit, sample  # noqa: E402
+from warp_cpu import start_warp_on_cpu  # noqa: E402
 
 
 def main() -> None:
@@ -37,12 +37,8 @@ def main() -> None:
     p.add_argument("--every", type=int, default=30)
     p.add_argument("--cold", action="store_true", help="compile every kernel (empty cache)")
     args = p.parse_args()
-    if args.cold:
-        wp.config.kernel_cache_dir = tempfile.mkdtemp(prefix="warp-cold-")
-    wp.config.quiet = True
     t0 = time.perf_counter()
-    wp.init()
-    wp.set_device("cpu")
+    start_warp_on_cpu(args.cold)
     import newton  # noqa: PLC0415
     import newton.viewer  # noqa: PLC0415
     from newton.examples.cloth.example_cloth_twist import Example  # noqa: PLC0415
