@@ -344,23 +344,59 @@ impl Simulation {
     /// (m), the particle moves there over the next step and stays (a kinematic pin); calling
     /// again with a new target drags it.
     pub fn pin(&mut self, index: i64, target: Option<Vec3>) -> Result<()> {
-        let p = self.check_index("index", index)?;
-        if let Some(t) = target {
-            if !t.is_finite() {
-                return Err(Error::value(
-                    "target",
-                    format!("must be finite, got {:?}", t.to_array()),
-                ));
-            }
+        let p = self.check_pin(("index", "target"), index, target)?;
+        self.pin_live(p, target);
+        Ok(())
+    }
+
+    /// Pins every particle of `indices` as [`Simulation::pin`] pins one, at `targets[k]` for
+    /// `indices[k]` when given: one call for a whole edge moved every step (a driver) instead
+    /// of one per particle. Every index and target is checked before anything changes, so a
+    /// bad one (named `indices[k]` or `targets[k]`) pins nothing. A repeated index takes its
+    /// last target.
+    pub fn pin_many(&mut self, indices: &[i64], targets: Option<&Vec3s>) -> Result<()> {
+        if let Some(t) = targets.filter(|t| t.len() != indices.len()) {
+            return Err(Error::value(
+                "targets",
+                format!(
+                    "must have one row per index: {} rows for {} indices",
+                    t.len(),
+                    indices.len()
+                ),
+            ));
+        }
+        let target = |k: usize| targets.map(|t| t.get(k));
+        let checked = indices
+            .iter()
+            .enumerate()
+            .map(|(k, &i)| {
+                let names = (format!("indices[{k}]"), format!("targets[{k}]"));
+                self.check_pin((&names.0, &names.1), i, target(k))
+            })
+            .collect::<Result<Vec<usize>>>()?;
+        for (k, p) in checked.into_iter().enumerate() {
+            self.pin_live(p, target(k));
+        }
+        Ok(())
+    }
+
+    /// The particle `index` names, if it can be pinned (live) at `target` (finite); errors
+    /// name the index and the target with `names`.
+    fn check_pin(&self, names: (&str, &str), index: i64, target: Option<Vec3>) -> Result<usize> {
+        let p = self.check_index(names.0, index)?;
+        if let Some(t) = target.filter(|t| !t.is_finite()) {
+            return Err(Error::value(
+                names.1,
+                format!("must be finite, got {:?}", t.to_array()),
+            ));
         }
         if !self.model.particles.alive[p] {
             return Err(Error::value(
-                "index",
+                names.0,
                 format!("particle {p} was cut and cannot be pinned"),
             ));
         }
-        self.pin_live(p, target);
-        Ok(())
+        Ok(p)
     }
 
     /// Pins live particle `p`, statically (`None`: it stops where it is) or at a target.

@@ -105,6 +105,15 @@ BAD_CALLS = [
     (lambda s: s.pin(True), TypeError, "index"),
     (lambda s: s.pin(3, target=[0.0, math.nan, 0.0]), ValueError, "target"),
     (lambda s: s.pin(3, target=[0.0, 1.0]), ValueError, "target"),
+    # pin_many checks every index and target before it pins any (the first ones are good).
+    (lambda s: s.pin_many([1, 2, 48]), IndexError, "indices[2]: index 48"),
+    (lambda s: s.pin_many([1, -1]), IndexError, "indices[1]: index -1"),
+    (lambda s: s.pin_many(np.array([1, 2**63], np.uint64)), IndexError, "indices"),
+    (lambda s: s.pin_many([1.0, 2.0]), TypeError, "indices"),
+    (lambda s: s.pin_many([True]), TypeError, "indices"),
+    (lambda s: s.pin_many([[1, 2]]), ValueError, "indices"),
+    (lambda s: s.pin_many([1, 2], np.zeros((3, 3))), ValueError, "targets"),
+    (lambda s: s.pin_many([1, 2], [[0, 0, 0], [0, math.inf, 0]]), ValueError, "targets[1]"),
     (lambda s: s.pin(3, target="up"), TypeError, "target"),
     (lambda s: s.unpin(10_000), IndexError, "index"),
     (lambda s: s.cut(-5), IndexError, "index"),
@@ -149,6 +158,7 @@ def test_bad_calls_raise_and_leave_the_simulation_unchanged(stepped, action, exc
 def test_pinning_a_cut_particle_is_refused(stepped):
     stepped.cut(5)
     unchanged_after(stepped, lambda s: s.pin(5), ValueError, "cut")
+    unchanged_after(stepped, lambda s: s.pin_many([4, 5]), ValueError, "indices[1]")
 
 
 def test_the_wrong_type_of_scene_is_a_type_error():

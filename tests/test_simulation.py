@@ -84,6 +84,23 @@ def test_pins_move_and_release(sim):
     assert "kinematic_pins" not in sim.effects
 
 
+def test_pin_many_pins_as_pin_does_one_at_a_time(sim):
+    indices = np.array([3, 7, 11])
+    targets = sim.positions[indices] + np.float32([0.0, 0.1, 0.0])
+    one_by_one = Simulation(sim.scene)
+    for i, t in zip(indices, targets, strict=True):
+        one_by_one.pin(int(i), tuple(float(c) for c in t))
+    sim.pin_many(indices, targets)
+    one_by_one.step(20)
+    sim.step(20)
+    np.testing.assert_array_equal(sim.positions, one_by_one.positions)
+    np.testing.assert_array_equal(sim.positions[indices], targets)
+    # Static pins (no targets), from a list; an empty call does nothing.
+    sim.pin_many([0, 1])
+    sim.pin_many([])
+    assert sim.pinned[[0, 1, 3, 7, 11]].all()
+
+
 def test_energy_is_reported_in_joules(sim):
     e = sim.energy()
     assert e.kinetic == 0.0 and e.elastic == pytest.approx(0.0, abs=1e-9)

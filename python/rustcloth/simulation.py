@@ -17,7 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _core
-from .errors import ParameterTypeError, StabilityWarning
+from .errors import ParameterError, ParameterTypeError, ParticleIndexError, StabilityWarning
 from .scene import Scene, load_scene
 
 IntegratorName: TypeAlias = Literal[
@@ -316,6 +316,32 @@ class Simulation:
         of that move. Raises :class:`~rustcloth.errors.ParticleIndexError` out of range and
         :class:`~rustcloth.errors.ParameterError` for a cut particle or a non-finite target."""
         self._core.pin(index, target)
+
+    def pin_many(self, indices: npt.ArrayLike, targets: npt.ArrayLike | None = None) -> None:
+        """Pin every particle of ``indices`` (1-D, integers) as :meth:`pin` pins one, at
+        ``targets[k]`` (m, an ``(len(indices), 3)`` array) for ``indices[k]`` when given: one
+        call for a whole edge moved every step (a driver such as
+        :class:`~rustcloth.drivers.TwistDriver`) instead of one per particle. Every index and
+        target is checked first, and a bad one, named ``indices[k]`` or ``targets[k]``, pins
+        nothing. A repeated index takes its last target."""
+        array = np.asarray(indices)
+        if array.ndim != 1:
+            raise ParameterError(
+                f"indices: must be 1-D, got shape {array.shape}", "indices"
+            )
+        if array.size and array.dtype.kind not in "iu":
+            raise ParameterTypeError(
+                f"indices: must hold integers, got dtype {array.dtype}", "indices"
+            )
+        if array.dtype.kind == "u" and array.size and array.max() > np.iinfo(np.int64).max:
+            raise ParticleIndexError(
+                f"indices: index {array.max()} is out of range for {self.num_particles} "
+                "particles",
+                "indices",
+                int(np.iinfo(np.int64).max),
+            )
+        rows = None if targets is None else np.asarray(targets)
+        self._core.pin_many(np.ascontiguousarray(array, np.int64), rows)
 
     def unpin(self, index: int) -> None:
         """Release particle ``index``; it keeps its velocity. Does nothing if not pinned."""

@@ -3,7 +3,7 @@
 //! (shared.rs); stepping runs detached from the interpreter and checks for Ctrl-C between
 //! steps. The documented public API is `rustcloth.Simulation`, which wraps this class.
 
-use numpy::{PyArray1, PyArray2};
+use numpy::{PyArray1, PyArray2, PyReadonlyArray1};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 
@@ -12,7 +12,7 @@ use super::conv::{
     read_only, rows_to_array, scene_from_dict, scene_to_dict, str_from_any, vec3_from_any,
     vec3s_from_array, vec3s_to_array,
 };
-use super::errors::IntoPyResult;
+use super::errors::{type_error, IntoPyResult};
 use super::shared::{Held, Shared};
 use super::state;
 use crate::{Error, IntegratorKind, Simulation};
@@ -261,6 +261,31 @@ impl PySimulation {
             _ => None,
         };
         self.with(py, |h| h.sim.pin(index, target).py())
+    }
+
+    /// Pins many particles in one call; `indices` a 1-D int64 array (the Python wrapper
+    /// coerces), `targets` None or an `(len(indices), 3)` float array.
+    #[pyo3(signature = (indices, targets = None))]
+    fn pin_many(
+        &self,
+        py: Python<'_>,
+        indices: &Bound<'_, PyAny>,
+        targets: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<()> {
+        let indices: Vec<i64> = match indices.extract::<PyReadonlyArray1<'_, i64>>() {
+            Ok(a) => a.as_array().to_vec(),
+            Err(_) => {
+                return Err(type_error(
+                    "indices",
+                    "must be a 1-D int64 numpy array".into(),
+                ))
+            }
+        };
+        let targets = match targets {
+            Some(t) if !t.is_none() => Some(vec3s_from_array(t, "targets", indices.len())?),
+            _ => None,
+        };
+        self.with(py, |h| h.sim.pin_many(&indices, targets.as_ref()).py())
     }
 
     fn unpin(&self, py: Python<'_>, index: &Bound<'_, PyAny>) -> PyResult<()> {
