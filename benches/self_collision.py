@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import os
 import platform
+import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -123,7 +124,8 @@ def main() -> None:
         [
             f"Measured on {platform.processor() or platform.machine()}, "
             f"{os.cpu_count()} cores, {args.window} steps per case "
-            "(`python benches/self_collision.py`). Pairs, contacts and swept are per substep, "
+            f"(`{' '.join(['python', 'benches/self_collision.py', *sys.argv[1:]])}`). "
+            "Pairs, contacts and swept are per substep, "
             "averaged over the whole run with the pass.",
             "",
             "| case | cloth | step with the pass (ms) | without (ms) | ratio | pairs looked at "
