@@ -44,9 +44,8 @@ class TwistDriver:
         axis = positions[self.right].mean(0) - positions[self.left].mean(0)
         self.axis = axis / np.linalg.norm(axis)
         self.edges = np.concatenate([self.left, self.right])
-        self.start = positions[self.edges].astype(np.float64)
-        # +1 turns the left edge, -1 the right, about the same axis.
-        self.signs = np.repeat([1.0, -1.0], ny)
+        # Each edge particle's offset from the centre when the driver was made, left edge first.
+        self.offsets = positions[self.edges].astype(np.float64) - self.center
         self.rate = turns * 2.0 * math.pi / seconds
         self.seconds = seconds
 
@@ -57,11 +56,11 @@ class TwistDriver:
     def _targets(self, time: float) -> np.ndarray:
         """The targets of ``self.edges`` at ``time``, one row each (m)."""
         angle = self.rate * min(time, self.seconds)
-        offsets = self.start - self.center
-        out: np.ndarray = np.empty_like(self.start)
-        for sign in (1.0, -1.0):
-            side = self.signs == sign
-            out[side] = self.center + offsets[side] @ _rotation(self.axis, sign * angle).T
+        out: np.ndarray = np.empty_like(self.offsets)
+        ny = len(self.left)
+        for side, sign in ((slice(None, ny), 1.0), (slice(ny, None), -1.0)):
+            rotation = _rotation(self.axis, sign * angle)
+            out[side] = self.center + self.offsets[side] @ rotation.T
         return out
 
     def before_step(self, sim: Simulation) -> None:
