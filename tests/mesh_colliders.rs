@@ -37,6 +37,86 @@ fn falling_cloth(top: f64, colliders: Vec<ColliderSpec>) -> Simulation {
     Simulation::new(scene).unwrap()
 }
 
+/// A closed sphere mesh of `radius` centred on the origin: `rings` bands of latitude between
+/// two poles, `segments` around, wound counter-clockwise seen from outside.
+fn uv_sphere(rings: usize, segments: usize, radius: f64) -> (Vec<[f64; 3]>, Vec<[i64; 3]>) {
+    use std::f64::consts::PI;
+    let mut vertices = vec![[0.0, radius, 0.0]];
+    for r in 1..rings {
+        let (s, c) = (PI * r as f64 / rings as f64).sin_cos();
+        vertices.extend((0..segments).map(|k| {
+            let a = 2.0 * PI * k as f64 / segments as f64;
+            [radius * s * a.cos(), radius * c, -radius * s * a.sin()]
+        }));
+    }
+    vertices.push([0.0, -radius, 0.0]);
+    let ring = |r: usize, k: usize| (1 + (r - 1) * segments + k % segments) as i64;
+    let south = vertices.len() as i64 - 1;
+    let mut triangles = Vec::new();
+    for k in 0..segments {
+        triangles.push([0, ring(1, k), ring(1, k + 1)]);
+        for r in 1..rings - 1 {
+            let (a, b, c, d) = (
+                ring(r, k),
+                ring(r + 1, k),
+                ring(r + 1, k + 1),
+                ring(r, k + 1),
+            );
+            triangles.extend([[a, b, c], [a, c, d]]);
+        }
+        triangles.push([ring(rings - 1, k), south, ring(rings - 1, k + 1)]);
+    }
+    (vertices, triangles)
+}
+
+/// The regression test of the mesh grid (`collisions::mesh`), which answers a resting cloth's
+/// nearest-point queries in place of parry's BVH: a cloth draped over a 7 936-triangle sphere
+/// stays `thickness` outside every triangle, judged by a brute-force nearest point written apart
+/// from both, and rests where the analytic sphere holds it, less the facets' sag.
+#[test]
+fn a_cloth_draped_on_a_fine_sphere_mesh_stays_thickness_outside_every_triangle() {
+    let (vertices, triangles) = uv_sphere(63, 64, 0.15);
+    assert_eq!(triangles.len(), 7936);
+    let thickness = 0.002;
+    let mesh = ColliderSpec {
+        shape: ShapeKind::Mesh,
+        vertices: Some(vertices.clone()),
+        triangles: Some(triangles.clone()),
+        center: [0.0; 3],
+        thickness,
+        ..ColliderSpec::default()
+    };
+    let mut sim = falling_cloth(0.15, vec![mesh]);
+    let corner = |t: &[i64; 3], k: usize| DVec3::from(vertices[t[k] as usize]);
+    let mut touching = 0;
+    for _ in 0..6 {
+        sim.step(100).unwrap();
+        for i in 0..sim.positions().len() {
+            let p = sim.positions().get(i).as_dvec3();
+            let d = triangles
+                .iter()
+                .map(|t| {
+                    (p - closest_on_triangle(p, corner(t, 0), corner(t, 1), corner(t, 2))).length()
+                })
+                .fold(f64::INFINITY, f64::min);
+            // Outside the polyhedron (it is convex; its faces are within sag of the sphere).
+            assert!(p.length() > 0.149, "particle {i} inside the mesh at {p}");
+            assert!(
+                d > 0.99 * thickness,
+                "particle {i} {d} m from the mesh at {p}"
+            );
+            touching += usize::from(d < 1.5 * thickness);
+        }
+    }
+    assert!(
+        touching > 100,
+        "{touching} resting contacts: the cloth never lay on the mesh"
+    );
+    // A particle by the pole rests at the radius plus thickness, less the facets' sag there.
+    let top = sim.positions().get(8 * 16 + 8).as_dvec3();
+    assert!((top.length() - 0.152).abs() < 5e-4, "{top}");
+}
+
 #[test]
 fn a_box_mesh_holds_the_cloth_where_the_analytic_box_does() {
     let half = [0.2, 0.1, 0.2];

@@ -7,6 +7,7 @@
 //! `|dv_t| <= mu |dv_n|`, stopping it altogether when the normal impulse is large enough.
 
 mod floor;
+mod mesh;
 mod shape;
 mod sphere;
 
