@@ -398,9 +398,9 @@ impl Shapes {
 
 /// How far beyond the thickness a particle may travel relative to a mesh in a substep (m) and
 /// still have its nearest-point query answered from the mesh's grid (the grid's reach is this plus
-/// twice the thickness). 5 mm is 10 m/s at a 0.5 ms substep; faster particles are answered by
+/// twice the thickness). 2 mm is 4 m/s at a 0.5 ms substep; faster particles are answered by
 /// the BVH, exactly, only slower, and a longer reach would make every cell's list longer.
-const MESH_GRID_TRAVEL: f32 = 0.005;
+const MESH_GRID_TRAVEL: f32 = 0.002;
 
 /// The triangle mesh of a validated `mesh` spec, and the radius of a ball about its frame's
 /// origin holding it.
