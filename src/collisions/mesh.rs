@@ -11,7 +11,8 @@
 //!
 //! Queries the grid cannot answer from one list go to the BVH, unchanged: a longer one (a fast
 //! particle, a fast shape), one in a crowded cell (a mesh much finer in one place than the mean),
-//! and a point that is not finite. The swept ray cast stays with the BVH too: it runs only for a
+//! a point that is not finite, and every query of a mesh that would list its triangles too often
+//! (large overlapping triangles among small ones; see [`ENTRIES_PER_TRIANGLE`]). The swept ray cast stays with the BVH too: it runs only for a
 //! particle that may have crossed the surface, rarely at rest.
 //!
 //! The winner is projected by parry's own triangle projection and told inside or outside by the
@@ -31,6 +32,13 @@ const MAX_CANDIDATES: usize = 64;
 /// triangles are small against its extent gets coarser cells rather than a huge grid.
 const CELLS_PER_TRIANGLE: usize = 16;
 const MIN_CELLS: usize = 1 << 15;
+
+/// At most this many list entries per triangle on average (and never fewer than
+/// [`MIN_ENTRIES`] in all), counted before the grid is built; a mesh that would need more
+/// (triangles far larger than its mean edge, overlapping) gets no grid, and all its queries go
+/// to the BVH. This bounds the grid's memory (36 bytes an entry) and build time for any mesh.
+const ENTRIES_PER_TRIANGLE: usize = 64;
+const MIN_ENTRIES: usize = 1 << 20;
 
 /// A uniform grid over a mesh's triangles, in the mesh's frame.
 pub(super) struct MeshGrid {
@@ -87,14 +95,18 @@ impl MeshGrid {
             })
             .sum::<f32>()
             / (3 * count).max(1) as f32;
-        let mut cell = mean_edge.max(f32::MIN_POSITIVE);
+        // No smaller than the reach either: a triangle's box grown by the reach then spans a few
+        // cells on each axis, however thick the collider.
+        let mut cell = mean_edge.max(reach).max(f32::MIN_POSITIVE);
         let max_cells = (CELLS_PER_TRIANGLE * boxes.len()).max(MIN_CELLS);
         let dims_of = |cell: f32| {
             let extent = hi - lo + Vec3::splat(2.0 * reach);
             let d = (extent / cell).ceil().max(Vec3::ONE);
             [d.x as usize, d.y as usize, d.z as usize]
         };
-        while dims_of(cell).iter().product::<usize>() > max_cells {
+        // Counted in f64: a mesh kilometres across would overflow the product.
+        let cells_of = |cell: f32| dims_of(cell).iter().map(|&d| d as f64).product::<f64>();
+        while cells_of(cell) > max_cells as f64 {
             cell *= 1.25;
         }
         let dims = dims_of(cell);
@@ -125,6 +137,19 @@ impl MeshGrid {
                 }
             }
         };
+        // The cells the grown boxes span bound the entries, before any is made.
+        let spanned: f64 = boxes
+            .iter()
+            .map(|[b_lo, b_hi]| {
+                let first = ((*b_lo - Vec3::splat(reach) - origin) * inv_cell).floor();
+                let last = ((*b_hi + Vec3::splat(reach) - origin) * inv_cell).floor();
+                let n = (last - first + Vec3::ONE).as_dvec3();
+                n.x * n.y * n.z
+            })
+            .sum();
+        if spanned > (ENTRIES_PER_TRIANGLE * boxes.len()).max(MIN_ENTRIES) as f64 {
+            return MeshGrid::none();
+        }
         // Two passes (count, then fill) into one flat array: a cell's list is contiguous, and
         // filled in triangle order, which is what breaks exact ties.
         let cells = dims.iter().product::<usize>();
@@ -155,6 +180,19 @@ impl MeshGrid {
             starts,
             triangles,
             boxes,
+        }
+    }
+
+    /// A grid that answers nothing, sending every query to the BVH.
+    fn none() -> MeshGrid {
+        MeshGrid {
+            origin: Vec3::ZERO,
+            inv_cell: 1.0,
+            dims: [1; 3],
+            reach: f32::NEG_INFINITY,
+            starts: vec![0; 2],
+            triangles: Vec::new(),
+            boxes: Vec::new(),
         }
     }
 
@@ -404,6 +442,52 @@ mod tests {
             .map(|p| Vec3::new(p.x + 0.5, 0.1 * p.y, p.z + 0.5))
             .collect();
         agree(&mesh, &near, 0.02, 0.9);
+    }
+
+    /// The regression test of a grid that listed a triangle in every cell its grown box spans,
+    /// however many: a mesh of 500 large overlapping triangles among ten thousand small
+    /// ones, which would list the large ones millions of times, gets no grid, and every query
+    /// still finds the right answer (through the tree).
+    #[test]
+    fn a_mesh_the_grid_would_list_too_often_is_left_to_the_tree() {
+        let corners = points(3 * 11_000, 1.0);
+        let vertices: Vec<Vec3> = corners
+            .chunks(3)
+            .enumerate()
+            .flat_map(|(k, c)| {
+                // Triangles 0..500 span the 10 m box; the rest are 1 mm, near their first corner.
+                let (centre, size) = if k < 500 {
+                    (Vec3::ZERO, 5.0)
+                } else {
+                    (c[0], 0.001)
+                };
+                c.iter().map(move |&p| centre * 5.0 + p * size)
+            })
+            .collect();
+        let triangles: Vec<[u32; 3]> = (0..11_000u32)
+            .map(|k| [3 * k, 3 * k + 1, 3 * k + 2])
+            .collect();
+        let mesh = TriMesh::new(vertices, triangles).unwrap();
+        let grid = MeshGrid::new(&mesh, 0.01);
+        assert!(grid.triangles.is_empty() && grid.boxes.is_empty());
+        for p in points(100, 5.0) {
+            assert!(matches!(grid.nearest(&mesh, p, 0.01), Nearest::AskTheTree));
+        }
+    }
+
+    #[test]
+    fn a_thick_collider_keeps_its_grid_small() {
+        // Thickness of 5 cm against triangles of about 1 cm: cells grow to the reach.
+        let (v, f) = octasphere(5, 0.5);
+        let mesh = oriented(v, f);
+        let grid = MeshGrid::new(&mesh, 0.1);
+        // Built (not given up on), and within the entry budget.
+        let entries = grid.triangles.len();
+        assert!(
+            entries > 0 && entries <= ENTRIES_PER_TRIANGLE * 8192,
+            "{entries}"
+        );
+        agree(&mesh, &points(5000, 0.6), 0.1, 0.0);
     }
 
     #[test]
