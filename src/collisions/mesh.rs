@@ -12,8 +12,9 @@
 //! Queries the grid cannot answer from one list go to the BVH, unchanged: a longer one (a fast
 //! particle, a fast shape), one in a crowded cell (a mesh much finer in one place than the mean),
 //! a point that is not finite, and every query of a mesh that would list its triangles too often
-//! (large overlapping triangles among small ones; see [`ENTRIES_PER_TRIANGLE`]). The swept ray cast stays with the BVH too: it runs only for a
-//! particle that may have crossed the surface, rarely at rest.
+//! (large overlapping triangles among small ones; see [`ENTRIES_PER_TRIANGLE`]). The swept ray
+//! cast stays with the BVH too: it runs only for a particle that may have crossed the surface,
+//! rarely at rest.
 //!
 //! The winner is projected by parry's own triangle projection and told inside or outside by the
 //! mesh's own angle-weighted pseudo-normals, as `TriMesh`'s query does, so the two answer alike:
@@ -60,11 +61,8 @@ pub(super) struct MeshGrid {
 
 /// What the grid says of one query.
 pub(super) enum Nearest {
-    /// The nearest surface point within the query's distance, on triangle `triangle`.
-    Found {
-        projection: PointProjection,
-        triangle: u32,
-    },
+    /// The nearest surface point within the query's distance, on triangle `subshape`.
+    Found(PointProjection),
     /// No triangle is within the query's distance.
     None,
     /// The grid cannot tell from one cell: ask the BVH.
@@ -115,10 +113,17 @@ impl MeshGrid {
         // Triangle `t` is listed in every cell within `reach` of it: first the cells its box,
         // grown by `reach`, overlaps; of those, the cells its plane passes within `reach` of
         // (a tilted triangle's box spans many cells its plane is far from).
+        // The first and last cell (unclamped) along each axis of triangle `t`'s box grown by
+        // `reach`.
+        let span = |t: usize| {
+            let [b_lo, b_hi] = boxes[t];
+            (
+                ((b_lo - Vec3::splat(reach) - origin) * inv_cell).floor(),
+                ((b_hi + Vec3::splat(reach) - origin) * inv_cell).floor(),
+            )
+        };
         let visit = |t: u32, f: &mut dyn FnMut(usize)| {
-            let [b_lo, b_hi] = boxes[t as usize];
-            let first = ((b_lo - Vec3::splat(reach) - origin) * inv_cell).floor();
-            let last = ((b_hi + Vec3::splat(reach) - origin) * inv_cell).floor();
+            let (first, last) = span(t as usize);
             let clamp = |v: f32, d: usize| (v.max(0.0) as usize).min(d - 1);
             let tri = mesh.triangle(t);
             let normal = tri.normal().unwrap_or(Vec3::Y);
@@ -138,11 +143,9 @@ impl MeshGrid {
             }
         };
         // The cells the grown boxes span bound the entries, before any is made.
-        let spanned: f64 = boxes
-            .iter()
-            .map(|[b_lo, b_hi]| {
-                let first = ((*b_lo - Vec3::splat(reach) - origin) * inv_cell).floor();
-                let last = ((*b_hi + Vec3::splat(reach) - origin) * inv_cell).floor();
+        let spanned: f64 = (0..boxes.len())
+            .map(|t| {
+                let (first, last) = span(t);
                 let n = (last - first + Vec3::ONE).as_dvec3();
                 n.x * n.y * n.z
             })
@@ -242,10 +245,7 @@ impl MeshGrid {
             projection.is_inside = (point - projection.point).dot(pseudo_normal) <= 0.0;
         }
         projection.subshape = triangle;
-        Nearest::Found {
-            projection,
-            triangle,
-        }
+        Nearest::Found(projection)
     }
 }
 
@@ -343,7 +343,7 @@ mod tests {
             match (grid.nearest(mesh, p, max_dist), tree) {
                 (Nearest::AskTheTree, _) => continue,
                 (Nearest::None, None) => {}
-                (Nearest::Found { projection, .. }, Some((expected, _))) => {
+                (Nearest::Found(projection), Some((expected, _))) => {
                     let (d, e) = (
                         (projection.point - p).length(),
                         (expected.point - p).length(),
@@ -355,7 +355,7 @@ mod tests {
                     );
                 }
                 (Nearest::None, Some((e, _))) => panic!("{p}: missed {}", (e.point - p).length()),
-                (Nearest::Found { projection, .. }, None) => {
+                (Nearest::Found(projection), None) => {
                     panic!(
                         "{p}: found {} beyond the reach",
                         (projection.point - p).length()
@@ -504,10 +504,7 @@ mod tests {
             grid.nearest(&mesh, Vec3::NAN, 0.01),
             Nearest::AskTheTree
         ));
-        assert!(matches!(
-            grid.nearest(&mesh, on, 0.01),
-            Nearest::Found { .. }
-        ));
+        assert!(matches!(grid.nearest(&mesh, on, 0.01), Nearest::Found(_)));
         // Far outside the grid: nothing within reach.
         assert!(matches!(
             grid.nearest(&mesh, Vec3::splat(5.0), 0.01),

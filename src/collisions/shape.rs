@@ -25,11 +25,12 @@
 //! path length over the substep (a particle further than that from the surface cannot have
 //! touched it, so the query stays local however large the mesh), answered from a uniform grid
 //! over the triangles when it is short (`super::mesh`, exact) and by parry's `TriMesh` BVH when
-//! not; and a ray cast through the BVH that ignores back faces, for the entry point. A closed mesh tells inside from
-//! outside by the angle-weighted pseudo-normals (`TriMeshFlags::ORIENTED`); an open one is a
-//! one-sided sheet: only the side its triangles face pushes, a particle that crosses it from
-//! the front within a substep is stopped where it crossed, one behind it within `thickness` is
-//! put `thickness` in front, and one further behind is free.
+//! not; and a ray cast through the BVH that ignores back faces, for the entry point. A closed
+//! mesh tells inside from outside by the angle-weighted pseudo-normals
+//! (`TriMeshFlags::ORIENTED`); an open one is a one-sided sheet: only the side its triangles
+//! face pushes, a particle that crosses it from the front within a substep is stopped where it
+//! crossed, one behind it within `thickness` is put `thickness` in front, and one further behind
+//! is free.
 //!
 //! A pose set between steps ([`Shapes::set_pose`]) is reached over the next step, at the
 //! constant velocity and turn rate that take the shape from where it was to where it was put
@@ -186,24 +187,22 @@ impl Geometry {
                 ..convex(s.project_local_point(local, false))
             },
             Geometry::Mesh(m) => {
-                let (p, triangle) = match m.grid.nearest(&m.mesh, local, max_dist) {
-                    Nearest::Found {
-                        projection,
-                        triangle,
-                    } => (projection, triangle),
+                // Either way, the projection's `subshape` is the triangle it lies on.
+                let p = match m.grid.nearest(&m.mesh, local, max_dist) {
+                    Nearest::Found(projection) => projection,
                     Nearest::None => return None,
                     Nearest::AskTheTree => {
-                        let (p, (triangle, _)) =
-                            m.mesh.project_local_point_and_get_location_with_max_dist(
+                        m.mesh
+                            .project_local_point_and_get_location_with_max_dist(
                                 local, false, max_dist,
-                            )?;
-                        (p, triangle)
+                            )?
+                            .0
                     }
                 };
                 Projection {
                     point: p.point,
                     inside: p.is_inside,
-                    fallback: m.mesh.triangle(triangle).normal().unwrap_or(Vec3::Y),
+                    fallback: m.mesh.triangle(p.subshape).normal().unwrap_or(Vec3::Y),
                 }
             }
         })
