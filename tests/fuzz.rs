@@ -31,7 +31,7 @@ use rustcloth::picking::PickStrategy;
 use rustcloth::picking::{pick_particle_brute_force, pick_triangle_brute_force, Ray};
 use rustcloth::scene::{
     ClothSpec, FloorSpec, OnTrouble, PinSpec, Plane, SphereSpec, StrainLimitSpec, WatchdogSpec,
-    MAX_PARTICLES, PIN_GROUPS,
+    MAX_COLLIDER_VALUE, MAX_PARTICLES, PIN_GROUPS,
 };
 use rustcloth::soa::{Floats, Vec3s};
 use rustcloth::IntegratorKind;
@@ -1483,7 +1483,7 @@ fn issue_sphere_of_radius_f32_max() {
     let err = scene.validate().unwrap_err();
     assert!(err.to_string().starts_with("spheres[0].radius"), "{err}");
     // The largest sphere validation accepts keeps the cloth finite.
-    scene.spheres[0].radius = 1e19;
+    scene.spheres[0].radius = 1e15;
     let mut sim = Simulation::new(scene.clone()).unwrap();
     sim.step(1).unwrap();
     assert_eq!(non_finite(&sim), None);
@@ -1748,8 +1748,8 @@ fn issue_sphere_under_the_floor_blows_up_velocities() {
         thickness: 1e15,
     });
     high_floor.spheres = vec![sphere(0.0)];
-    // A ball 3.4e38 m down, brought in by a second ball at the origin; the cloth collapsed
-    // onto the origin.
+    // A ball as far down as a collider may be (a ball 3.4e38 m down is refused), brought in
+    // by a second ball at the origin; the cloth collapsed onto the origin.
     let far_ball = Scene {
         integrator: IntegratorKind::ExplicitEuler,
         dt: 0.0155,
@@ -1770,9 +1770,13 @@ fn issue_sphere_under_the_floor_blows_up_velocities() {
             friction: 0.0,
             thickness: 0.001,
         }),
-        spheres: vec![sphere(-(f32::MAX as f64)), sphere(0.0)],
+        spheres: vec![sphere(-MAX_COLLIDER_VALUE), sphere(0.0)],
         ..Scene::default()
     };
+    let mut too_far = far_ball.clone();
+    too_far.spheres[0] = sphere(-(f32::MAX as f64));
+    let err = too_far.validate().unwrap_err();
+    assert!(err.to_string().starts_with("spheres[0].center"), "{err}");
     for (case, scene, collapse) in [
         ("high floor", high_floor, false),
         ("far ball", far_ball, true),

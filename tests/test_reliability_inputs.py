@@ -454,12 +454,14 @@ def _scene_oracle(kind: str) -> Callable[[Any], str]:
                 return TYPE
             least = 2 if kind == "count2" else 1
             return OK if least <= v <= 64 else (EITHER if v > 64 else VALUE)
-        if kind == "vec3":
+        if kind in ("vec3", "collider_vec3"):
             if not isinstance(v, list | tuple):
                 return TYPE
             if len(v) != 3 or not all(real(x) for x in v):
                 return EITHER
-            return OK if all(_f32_ok(float(x)) for x in v) else VALUE
+            # A collider's size and place are at most MAX_COLLIDER_VALUE (float32 squares).
+            limit = 1e15 if kind == "collider_vec3" else math.inf
+            return OK if all(_f32_ok(float(x)) and abs(float(x)) <= limit for x in v) else VALUE
         if kind in ("table", "table_in_list"):
             return OK if isinstance(v, dict) and not v else (TYPE if not isinstance(v, dict)
                                                              else EITHER)
@@ -500,7 +502,7 @@ SCENE_KEYS: list[tuple[str, Callable[[Any], Scene], str]] = [
     ("floor.friction", lambda v: Scene(floor={"friction": v}), "nonneg"),
     ("floor.height", lambda v: Scene(floor={"height": v}), "any"),
     ("spheres[0].radius", lambda v: Scene(spheres=[{"radius": v}]), "radius"),
-    ("spheres[0].center", lambda v: Scene(spheres=[{"center": v}]), "vec3"),
+    ("spheres[0].center", lambda v: Scene(spheres=[{"center": v}]), "collider_vec3"),
     ("watchdog.max_stretch", lambda v: Scene(watchdog={"max_stretch": v}), "stretch"),
     ("watchdog.on_trouble", lambda v: Scene(watchdog={"on_trouble": v}), "on_trouble"),
     ("watchdog.max_substeps", lambda v: Scene(watchdog={"max_substeps": v}), "count"),
@@ -525,8 +527,8 @@ def _dt_scene_oracle(v: Any) -> str:
 
 def _radius_oracle(v: Any) -> str:
     kind = _scene_oracle("pos")(v)
-    if kind == OK and v is not None and float(v) > 1e19:
-        return VALUE  # MAX_SPHERE_REACH: radius + thickness squared in float32
+    if kind == OK and v is not None and float(v) > 1e15:
+        return VALUE  # MAX_COLLIDER_VALUE: radius + thickness squared in float32
     return kind
 
 

@@ -70,6 +70,13 @@ pub(super) enum Nearest {
 }
 
 impl MeshGrid {
+    /// Bytes the grid holds on the heap.
+    pub(super) fn heap_bytes(&self) -> usize {
+        self.starts.capacity() * size_of::<u32>()
+            + self.triangles.capacity() * size_of::<u32>()
+            + self.boxes.capacity() * size_of::<[Vec3A; 2]>()
+    }
+
     /// The grid of `mesh`, for queries up to `reach` m (the collider's thickness and some
     /// travel). A longer reach answers faster particles from the grid, at the price of longer
     /// lists for every query.

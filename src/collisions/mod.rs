@@ -9,13 +9,11 @@
 mod floor;
 mod mesh;
 mod shape;
-mod sphere;
 
 use glam::Vec3;
 
 pub use floor::Floor;
 pub use shape::{Pose, PoseKey, Shapes, ROTATION_TOLERANCE};
-pub use sphere::{FloorLevel, Spheres};
 
 use crate::particles::Particles;
 use crate::soa::Vec3SliceMut;
@@ -40,7 +38,8 @@ fn resolve_chunks(
 
 /// A collider: the closed set of shapes a scene can hold.
 pub enum Collider {
-    Spheres(Spheres),
+    /// The scene's `[[spheres]]`: balls, as the `[[colliders]]` pass treats them.
+    Spheres(Shapes),
     /// The `[[colliders]]` of any shape, static or moving.
     Shapes(Shapes),
     Floor(Floor),
@@ -53,6 +52,14 @@ impl Collider {
             Collider::Spheres(_) => "spheres",
             Collider::Shapes(_) => "colliders",
             Collider::Floor(_) => "floor",
+        }
+    }
+
+    /// Bytes the collider holds on the heap.
+    pub fn heap_bytes(&self) -> usize {
+        match self {
+            Collider::Spheres(s) | Collider::Shapes(s) => s.heap_bytes(),
+            Collider::Floor(_) => 0,
         }
     }
 
@@ -70,7 +77,7 @@ impl Collider {
         time: f64,
     ) -> bool {
         match self {
-            Collider::Spheres(s) => s.resolve(start, next, particles, chunk),
+            Collider::Spheres(s) => s.resolve(start, next, particles, chunk, h, time),
             Collider::Shapes(s) => s.resolve(start, next, particles, chunk, h, time),
             Collider::Floor(f) => f.resolve(start, next, particles, chunk),
         }

@@ -39,7 +39,10 @@
 
 use glam::{DQuat, DVec3, Quat, Vec3};
 use parry3d::query::{PointQuery, PointQueryWithLocation, Ray, RayCast, RayCullingMode};
-use parry3d::shape::{Ball, Capsule, Cuboid, Cylinder, HalfSpace, TriMesh, TriMeshFlags};
+use parry3d::shape::{
+    Ball, Capsule, Cuboid, Cylinder, HalfSpace, TopoFace, TopoHalfEdge, TopoVertex, TriMesh,
+    TriMeshFlags,
+};
 
 use super::contact_velocity;
 use super::mesh::{MeshGrid, Nearest};
@@ -167,6 +170,30 @@ struct Projection {
 }
 
 impl Geometry {
+    /// Bytes a mesh holds on the heap (its triangles, parry's tree, normals and topology, and
+    /// the grid); nothing for the other shapes.
+    fn heap_bytes(&self) -> usize {
+        let Geometry::Mesh(m) = self else {
+            return 0;
+        };
+        let mesh = &m.mesh;
+        let normals = mesh.pseudo_normals().map_or(0, |p| {
+            p.vertices_pseudo_normal.len() * size_of::<Vec3>()
+                + p.edges_pseudo_normal.len() * size_of::<[Vec3; 3]>()
+        });
+        let topology = mesh.topology().map_or(0, |t| {
+            t.vertices.len() * size_of::<TopoVertex>()
+                + t.faces.len() * size_of::<TopoFace>()
+                + t.half_edges.len() * size_of::<TopoHalfEdge>()
+        });
+        size_of_val(mesh.vertices())
+            + size_of_val(mesh.indices())
+            + mesh.bvh().heap_memory_size()
+            + normals
+            + topology
+            + m.grid.heap_bytes()
+    }
+
     /// The nearest surface point to `local`; a mesh answers only within `max_dist` of it.
     #[inline]
     fn project(&self, local: Vec3, max_dist: f32) -> Option<Projection> {
@@ -250,6 +277,9 @@ struct ShapeCollider {
     reach: f32,
     /// The shape's size (m, finite; 0 for a plane), which scales the rounding margin.
     scale: f32,
+    /// For a ball in a scene with a floor, the lowest height the floor leaves a particle at (m:
+    /// its height plus its thickness), else minus infinity. See [`ShapeCollider::contact`].
+    floor: f32,
 }
 
 /// Where a shape is at one instant, and how its surface moves.
@@ -269,8 +299,9 @@ struct Posed {
 const SURFACE_MARGIN: f32 = 8.0 * f32::EPSILON;
 
 impl Shapes {
-    /// The colliders of validated specs.
-    pub fn new(specs: &[ColliderSpec]) -> Self {
+    /// The colliders of validated specs; `floor` is the lowest height the scene's floor leaves
+    /// a particle at (m), when it has one.
+    pub fn new(specs: &[ColliderSpec], floor: Option<f32>) -> Self {
         let shapes: Vec<ShapeCollider> = specs
             .iter()
             .map(|s| {
@@ -292,6 +323,10 @@ impl Shapes {
                     _ => (bound + s.thickness as f32) * (1.0 + 1e-4) + 1e-6,
                 };
                 let rotation = DVec3::from(s.rotation);
+                let floor = match (s.shape, floor) {
+                    (ShapeKind::Sphere, Some(level)) => level,
+                    _ => f32::NEG_INFINITY,
+                };
                 ShapeCollider {
                     geometry,
                     center: DVec3::from(s.center),
@@ -302,11 +337,21 @@ impl Shapes {
                     thickness: s.thickness as f32,
                     reach,
                     scale: bound + s.thickness as f32,
+                    floor,
                 }
             })
             .collect();
         let keys = vec![None; shapes.len()];
         Shapes { shapes, keys }
+    }
+
+    /// Bytes the colliders hold on the heap: what their meshes take.
+    pub fn heap_bytes(&self) -> usize {
+        self.shapes
+            .iter()
+            .map(|s| s.geometry.heap_bytes())
+            .sum::<usize>()
+            + self.keys.capacity() * size_of::<Option<PoseKey>>()
     }
 
     /// How many colliders there are.
@@ -368,12 +413,14 @@ impl Shapes {
                 let turn = posed.angular_velocity.length() * h;
                 for i in 0..pos.len() {
                     let (p0, p1) = (start.pos.get(first + i), pos.get(i));
+                    // As in `contact`: where the floor will leave it.
+                    let lifted = Vec3::new(p1.x, p1.y.max(shape.floor), p1.z);
                     // A cheap screen: the path relative to the shape moves at most
                     // |x1 - x0| + |c1 - c0| + |w| h |x0 - c0|, so only a particle that
                     // ends within that of the shape's bounding ball can touch it.
                     let travel = (p1 - p0).length() + drift + turn * (p0 - before.center).length();
                     let limit = (shape.reach + travel) * (1.0 + 1e-4);
-                    if (p1 - posed.center).length_squared() >= limit * limit
+                    if (lifted - posed.center).length_squared() >= limit * limit
                         || !particles.is_dynamic(first + i)
                     {
                         continue;
@@ -466,6 +513,9 @@ impl ShapeCollider {
     /// it was going).
     #[inline]
     fn contact(&self, before: &Posed, posed: &Posed, p0: Vec3, p1: Vec3) -> Option<(Vec3, Vec3)> {
+        // Judged where the floor pass, which runs next, will leave it: a particle under the
+        // floor beside a ball standing on it is lifted, possibly into the ball.
+        let p1 = Vec3::new(p1.x, p1.y.max(self.floor), p1.z);
         let local = posed.rotation.inverse() * (p1 - posed.center);
         let local0 = before.rotation.inverse() * (p0 - before.center);
         let d = local - local0;
@@ -508,7 +558,25 @@ impl ShapeCollider {
         };
         let lift = self.thickness + posed.margin;
         let at = posed.center + posed.rotation * (on_surface + n * lift);
-        Some((posed.rotation * n, at))
+        Some(self.above_floor(posed.center, posed.rotation * n, at))
+    }
+
+    /// The contact point `at` with outward normal `n` of a ball centred at `center`, moved up
+    /// the ball's offset surface to the floor's level, in the same vertical plane, where it lies
+    /// under that level. The floor pass, which runs next, would lift it straight back into the
+    /// ball: a cloth caught in the crease between a ball and the floor it stands on sank into
+    /// the ball. Other shapes, and points above the floor, are returned as they are.
+    #[inline]
+    fn above_floor(&self, center: Vec3, n: Vec3, at: Vec3) -> (Vec3, Vec3) {
+        if at.y >= self.floor {
+            return (n, at);
+        }
+        let radius = (at - center).length();
+        let drop = self.floor - center.y;
+        let ring = (radius * radius - drop * drop).max(0.0).sqrt();
+        let across = Vec3::new(n.x, 0.0, n.z).normalize_or(Vec3::X);
+        let offset = across * ring + Vec3::Y * drop;
+        (offset.normalize_or(Vec3::Y), center + offset)
     }
 }
 
@@ -525,13 +593,16 @@ mod tests {
     use super::*;
 
     fn unit_box() -> Shapes {
-        Shapes::new(&[ColliderSpec {
-            shape: ShapeKind::Box,
-            half_extents: Some([1.0, 1.0, 1.0]),
-            center: [0.0; 3],
-            thickness: 0.0,
-            ..ColliderSpec::default()
-        }])
+        Shapes::new(
+            &[ColliderSpec {
+                shape: ShapeKind::Box,
+                half_extents: Some([1.0, 1.0, 1.0]),
+                center: [0.0; 3],
+                thickness: 0.0,
+                ..ColliderSpec::default()
+            }],
+            None,
+        )
     }
 
     #[test]
@@ -574,14 +645,17 @@ mod tests {
 
     #[test]
     fn a_moving_turning_shape_is_posed_from_the_time() {
-        let shapes = Shapes::new(&[ColliderSpec {
-            shape: ShapeKind::Sphere,
-            radius: Some(1.0),
-            center: [1.0, 0.0, 0.0],
-            velocity: [0.0, 2.0, 0.0],
-            angular_velocity: [0.0, 0.0, std::f64::consts::PI],
-            ..ColliderSpec::default()
-        }]);
+        let shapes = Shapes::new(
+            &[ColliderSpec {
+                shape: ShapeKind::Sphere,
+                radius: Some(1.0),
+                center: [1.0, 0.0, 0.0],
+                velocity: [0.0, 2.0, 0.0],
+                angular_velocity: [0.0, 0.0, std::f64::consts::PI],
+                ..ColliderSpec::default()
+            }],
+            None,
+        );
         let posed = shapes.shapes[0].posed(0.5, None);
         assert!((posed.center - Vec3::new(1.0, 1.0, 0.0)).length() < 1e-6);
         // Half a turn a second for half a second: local x now points along world y.

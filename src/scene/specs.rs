@@ -245,6 +245,20 @@ impl Default for SphereSpec {
     }
 }
 
+impl SphereSpec {
+    /// The same ball as a static `[[colliders]]` sphere.
+    pub fn as_collider(&self) -> ColliderSpec {
+        ColliderSpec {
+            shape: ShapeKind::Sphere,
+            radius: Some(self.radius),
+            center: self.center,
+            friction: self.friction,
+            thickness: self.thickness,
+            ..ColliderSpec::default()
+        }
+    }
+}
+
 /// The shape of a collider (parry3d's `Ball`, `Cuboid`, `Capsule`, `Cylinder`, `HalfSpace`,
 /// `TriMesh`), in its local frame: centred on the origin, capsule and cylinder along local +y.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]

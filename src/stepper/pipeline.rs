@@ -7,7 +7,7 @@
 //! 2. the integrator, writing the end-of-step state into a second buffer;
 //! 3. kinematic pins (while the user drags a pinned particle);
 //! 4. strain limiting (when the scene asks for it, `src/strain_limit/`);
-//! 5. colliders (spheres, then the `[[colliders]]` of any shape, then the floor);
+//! 5. colliders (the `[[spheres]]`, then the `[[colliders]]` of any shape, then the floor);
 //! 6. self-collision (when the scene asks for it, `src/self_collision/`), last, so that its
 //!    guarantee covers everything the passes before it did. It only shortens a particle's
 //!    motion along its path from the substep's start, so the floor (a half-space, which holds
@@ -21,14 +21,14 @@ use std::time::Instant;
 
 use glam::{DVec3, Vec3};
 
-use crate::collisions::{Collider, Floor, FloorLevel, Shapes, Spheres};
+use crate::collisions::{Collider, Floor, Shapes};
 use crate::forces::{Force, ForceModel};
 use crate::grid::Family;
 use crate::integrators::Integrator;
 use crate::model::Model;
 use crate::pins::KinematicPins;
 use crate::profile::Profile;
-use crate::scene::Scene;
+use crate::scene::{ColliderSpec, Scene, SphereSpec};
 use crate::self_collision::SelfCollision;
 use crate::state::{Kinematics, State};
 use crate::strain_limit::StrainLimit;
@@ -156,6 +156,11 @@ impl Pipeline {
                 .as_ref()
                 .map_or(0, SelfCollision::heap_bytes)
             + self.tearing.as_ref().map_or(0, Tearing::heap_bytes)
+            + self
+                .colliders
+                .iter()
+                .map(Collider::heap_bytes)
+                .sum::<usize>()
     }
 }
 
@@ -188,19 +193,22 @@ fn forces_of(scene: &Scene) -> Vec<Force> {
     forces
 }
 
-/// The colliders of a scene: spheres (knowing the floor's level), the shapes, then the floor
-/// (last, so that nothing ends below it).
+/// The colliders of a scene: spheres, the shapes, then the floor (last, so that nothing ends
+/// below it). The spheres are balls of the shapes' pass, one contact model for every shape; a
+/// ball knows the floor's level, so that cloth in the crease where it meets the floor is put
+/// outside both.
 fn colliders_of(scene: &Scene) -> Vec<Collider> {
+    let floor = scene
+        .floor
+        .as_ref()
+        .map(|f| (f.height + f.thickness) as f32);
     let mut colliders = Vec::new();
     if !scene.spheres.is_empty() {
-        let floor = scene
-            .floor
-            .as_ref()
-            .map(|f| FloorLevel((f.height + f.thickness) as f32));
-        colliders.push(Collider::Spheres(Spheres::new(&scene.spheres, floor)));
+        let balls: Vec<ColliderSpec> = scene.spheres.iter().map(SphereSpec::as_collider).collect();
+        colliders.push(Collider::Spheres(Shapes::new(&balls, floor)));
     }
     if !scene.colliders.is_empty() {
-        colliders.push(Collider::Shapes(Shapes::new(&scene.colliders)));
+        colliders.push(Collider::Shapes(Shapes::new(&scene.colliders, floor)));
     }
     if let Some(floor) = &scene.floor {
         colliders.push(Collider::Floor(Floor {
