@@ -21,9 +21,11 @@ __all__ = [
     "instruction_set",
     "thread_count",
     "INTEGRATORS",
+    "MAX_NESTING",
 ]
 
 INTEGRATORS: list[str]
+MAX_NESTING: int
 
 def normalize_scene(scene: Any) -> dict[str, Any]: ...
 def scene_from_toml(text: Any) -> dict[str, Any]: ...

@@ -24,6 +24,25 @@ from .errors import ParameterError, ParameterTypeError, StabilityWarning
 from .meshes import read_mesh, resolve_paths
 
 
+def _check_nesting(settings: Mapping[str, Any]) -> None:
+    """Refuses lists and tables nested deeper than the core reads (``_core.MAX_NESTING``),
+    naming the key, before anything recursive touches them: a list nested thousands deep
+    would end Python's recursion (or the stack) on the way in. Walked with a stack of its own,
+    so that the check itself cannot recurse."""
+    pending: list[tuple[Any, str, int]] = [(v, str(k), 1) for k, v in settings.items()]
+    while pending:
+        value, name, depth = pending.pop()
+        if depth > _core.MAX_NESTING:
+            raise ParameterError(
+                f"{name}: lists and tables nest at most {_core.MAX_NESTING} deep in a scene",
+                name,
+            )
+        if isinstance(value, Mapping):
+            pending.extend((v, f"{name}.{k}", depth + 1) for k, v in value.items())
+        elif isinstance(value, list | tuple):
+            pending.extend((v, f"{name}[{i}]", depth + 1) for i, v in enumerate(value))
+
+
 def _plain(value: Any) -> Any:
     """numpy arrays and scalars as Python lists and numbers, the types the core reads."""
     if isinstance(value, Mapping):
@@ -52,6 +71,7 @@ class Scene:
     __slots__ = ("_data",)
 
     def __init__(self, **settings: Any) -> None:
+        _check_nesting(settings)
         self._data: dict[str, Any] = _core.normalize_scene(_plain(resolve_paths(settings, None)))
 
     @classmethod
@@ -66,6 +86,7 @@ class Scene:
     @classmethod
     def _from_dict(cls, data: Mapping[str, Any], base: str | None) -> Scene:
         scene = cls.__new__(cls)
+        _check_nesting(data)
         # Straight to the core, which names a non-string key (`cls(**data)` would raise
         # Python's own TypeError for it).
         scene._data = _core.normalize_scene(_plain(resolve_paths(dict(data), base)))
@@ -91,7 +112,9 @@ class Scene:
         try:
             # Not text at all goes to the core too, which names the parameter.
             table = tomllib.loads(text) if isinstance(text, str) else {}
-        except tomllib.TOMLDecodeError:
+        except (tomllib.TOMLDecodeError, RecursionError):
+            # Python's reader recurses per level of nesting; the core's reader stops at its
+            # own limit and says so.
             table = {}
         colliders = table.get("colliders")
         if isinstance(colliders, list) and any(

@@ -16,9 +16,14 @@ use crate::scene::Scene;
 use crate::soa::Vec3s;
 use crate::Error;
 
+/// How deeply lists and tables may nest in a scene. The deepest key of the schema is a mesh
+/// collider's vertex coordinate, `colliders[k].vertices[i][j]`, four levels down; this leaves
+/// room for any future key while stopping input whose conversion would overflow the stack.
+pub const MAX_NESTING: usize = 32;
+
 /// A scene dict, validated by the core (one parse, one validation).
 pub fn scene_from_dict(obj: &Bound<'_, PyAny>) -> PyResult<Scene> {
-    Scene::from_toml_value(to_toml(obj, "")?).py()
+    Scene::from_toml_value(to_toml(obj, "", 0)?).py()
 }
 
 /// A scene as a dict with every key spelled out, absent optional tables as `None`.
@@ -42,9 +47,16 @@ pub fn scene_to_dict<'py>(py: Python<'py>, scene: &Scene) -> PyResult<Bound<'py,
 
 /// A Python scene dict (plain dicts, lists, numbers, strings) as a TOML value, so that the core
 /// parses dicts and TOML files with the same deserializer and the same errors. `None` values in
-/// a dict mean "absent".
-pub fn to_toml(obj: &Bound<'_, PyAny>, path: &str) -> PyResult<toml::Value> {
+/// a dict mean "absent". `depth` is how many lists and tables hold `obj`, at most
+/// [`MAX_NESTING`].
+pub fn to_toml(obj: &Bound<'_, PyAny>, path: &str, depth: usize) -> PyResult<toml::Value> {
     let name = if path.is_empty() { "scene" } else { path };
+    if depth > MAX_NESTING {
+        return Err(value_error(
+            name,
+            format!("lists and tables nest at most {MAX_NESTING} deep in a scene"),
+        ));
+    }
     if let Ok(dict) = obj.cast::<PyDict>() {
         let mut table = toml::Table::new();
         for (key, value) in dict.iter() {
@@ -65,7 +77,7 @@ pub fn to_toml(obj: &Bound<'_, PyAny>, path: &str) -> PyResult<toml::Value> {
             } else {
                 format!("{path}.{key}")
             };
-            table.insert(key, to_toml(&value, &child)?);
+            table.insert(key, to_toml(&value, &child, depth + 1)?);
         }
         Ok(toml::Value::Table(table))
     } else if obj.is_instance_of::<PyBool>() {
@@ -82,7 +94,7 @@ pub fn to_toml(obj: &Bound<'_, PyAny>, path: &str) -> PyResult<toml::Value> {
         let items = obj
             .try_iter()?
             .enumerate()
-            .map(|(i, item)| to_toml(&item?, &format!("{name}[{i}]")))
+            .map(|(i, item)| to_toml(&item?, &format!("{name}[{i}]"), depth + 1))
             .collect::<PyResult<Vec<_>>>()?;
         Ok(toml::Value::Array(items))
     } else {

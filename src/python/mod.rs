@@ -94,5 +94,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(instruction_set, m)?)?;
     m.add_function(wrap_pyfunction!(thread_count, m)?)?;
     m.add("INTEGRATORS", IntegratorKind::names())?;
+    m.add("MAX_NESTING", conv::MAX_NESTING)?;
     Ok(())
 }
