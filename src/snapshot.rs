@@ -20,7 +20,7 @@ use crate::picking::{PickStrategy, Picker};
 use crate::scene::Scene;
 use crate::soa::Vec3s;
 use crate::state::{Clock, State};
-use crate::stepper::{Stepper, WatchdogStats};
+use crate::stepper::{Stepper, WatchdogStats, MAX_ADVANCE_STEPS};
 
 /// What a grab remembers: the particle, whether it was pinned before, and the kinematic target
 /// it had.
@@ -194,6 +194,18 @@ impl Snapshot {
         ] {
             check_scalar(name, x, Bound::NonNegative)?;
         }
+        // What an `advance` can leave owed: less than a step, or the steps of a refused call.
+        let owed = (MAX_ADVANCE_STEPS + 1) as f64 * model.scene.dt;
+        if self.accumulator > owed {
+            return Err(Error::value(
+                "accumulator",
+                format!(
+                    "must be at most {owed} s (the time of {MAX_ADVANCE_STEPS} steps of dt = {} \
+                     s, the most one advance can owe), got {}",
+                    model.scene.dt, self.accumulator
+                ),
+            ));
+        }
         if self.steps_base > self.steps {
             return Err(Error::value(
                 "steps_base",
@@ -203,7 +215,7 @@ impl Snapshot {
                 ),
             ));
         }
-        stepper.restore_watchdog(self.watchdog, n)?;
+        stepper.restore_watchdog(self.watchdog, n, self.steps, model.scene.substeps)?;
         let colliders = model.scene.colliders.len();
         if self.collider_keys.len() != colliders {
             return Err(Error::value(

@@ -23,7 +23,7 @@ pub use specs::{
 pub use stability::stable_substep;
 pub(crate) use validate::check_substep;
 use validate::require_tables;
-pub use validate::{MAX_COLLIDER_VALUE, MAX_PARTICLES, MAX_SPHERE_REACH, MIN_SUBSTEP};
+pub use validate::{MAX_COLLIDER_VALUE, MAX_ITERATIONS, MAX_PARTICLES, MIN_SUBSTEP};
 
 use crate::error::{Error, Result};
 use crate::grid::Grid;
@@ -132,6 +132,28 @@ const BUILTIN: &[(&str, &str)] = &[
     ("mannequin", include_str!("../../scenes/mannequin.toml")),
     ("spinner", include_str!("../../scenes/spinner.toml")),
 ];
+
+impl Scene {
+    /// Bytes the scene holds on the heap beyond its fixed fields: the lists of spheres and
+    /// colliders, and each mesh collider's vertices and triangles.
+    pub fn heap_bytes(&self) -> usize {
+        let meshes: usize = self
+            .colliders
+            .iter()
+            .map(|c| {
+                c.vertices
+                    .as_ref()
+                    .map_or(0, |v| v.capacity() * size_of::<[f64; 3]>())
+                    + c.triangles
+                        .as_ref()
+                        .map_or(0, |t| t.capacity() * size_of::<[i64; 3]>())
+            })
+            .sum();
+        self.spheres.capacity() * size_of::<SphereSpec>()
+            + self.colliders.capacity() * size_of::<ColliderSpec>()
+            + meshes
+    }
+}
 
 impl Scene {
     /// Parses and validates a TOML document.

@@ -12,11 +12,6 @@ use crate::grid::Grid;
 /// fit a GPU index buffer. 4096 x 4096 is far beyond interactive rates anyway.
 pub const MAX_PARTICLES: usize = 1 << 24;
 
-/// Largest `radius + thickness` of a sphere, in m: the collider squares it in float32 (whose
-/// largest value is 3.4e38), so a reach beyond about 1.8e19 m would make every particle
-/// "inside" and project it to infinity.
-pub const MAX_SPHERE_REACH: f64 = 1e19;
-
 impl Scene {
     /// Checks every value; the error names the first offending parameter and its value.
     pub fn validate(&self) -> Result<()> {
@@ -28,18 +23,8 @@ impl Scene {
         check_vector("gravity", &self.gravity, Bound::Any)?;
         check_scalar("air_drag", self.air_drag, Bound::NonNegative)?;
         check_scalar("cg_tolerance", self.cg_tolerance, Bound::Positive)?;
-        if self.cg_max_iterations == 0 {
-            return Err(Error::value(
-                "cg_max_iterations",
-                "must be an integer >= 1, got 0",
-            ));
-        }
-        if self.pd_iterations == 0 {
-            return Err(Error::value(
-                "pd_iterations",
-                "must be an integer >= 1, got 0",
-            ));
-        }
+        check_iterations("cg_max_iterations", self.cg_max_iterations)?;
+        check_iterations("pd_iterations", self.pd_iterations)?;
         check_scalar("pd_tolerance", self.pd_tolerance, Bound::NonNegative)?;
         let rho = self.pd_chebyshev_rho;
         if !(rho.is_finite() && (0.0..1.0).contains(&rho)) {
@@ -66,6 +51,7 @@ impl Scene {
         }
         for (s, sphere) in self.spheres.iter().enumerate() {
             check_vector(&format!("spheres[{s}].center"), &sphere.center, Bound::Any)?;
+            within_collider_limit(&format!("spheres[{s}].center"), &sphere.center)?;
             check_scalar(
                 &format!("spheres[{s}].radius"),
                 sphere.radius,
@@ -81,11 +67,12 @@ impl Scene {
                 sphere.thickness,
                 Bound::NonNegative,
             )?;
-            if sphere.radius + sphere.thickness > MAX_SPHERE_REACH {
+            // A sphere is a ball of the colliders' pass, within the same float32 limits.
+            if sphere.radius + sphere.thickness > MAX_COLLIDER_VALUE {
                 return Err(Error::value(
                     format!("spheres[{s}].radius"),
                     format!(
-                        "radius + thickness must be at most {MAX_SPHERE_REACH:e} m, got {} + {}",
+                        "radius + thickness must be at most {MAX_COLLIDER_VALUE:e} m, got {} + {}",
                         sphere.radius, sphere.thickness
                     ),
                 ));
@@ -97,12 +84,7 @@ impl Scene {
         self.watchdog.validate()?;
         if let Some(limit) = &self.strain_limit {
             check_scalar("strain_limit.max_strain", limit.max_strain, Bound::Positive)?;
-            if limit.iterations == 0 {
-                return Err(Error::value(
-                    "strain_limit.iterations",
-                    "must be an integer >= 1, got 0",
-                ));
-            }
+            check_iterations("strain_limit.iterations", limit.iterations)?;
         }
         if let Some(sc) = &self.self_collision {
             check_scalar("self_collision.thickness", sc.thickness, Bound::Positive)?;
@@ -119,12 +101,7 @@ impl Scene {
                 ));
             }
             check_scalar("self_collision.friction", sc.friction, Bound::NonNegative)?;
-            if sc.iterations == 0 {
-                return Err(Error::value(
-                    "self_collision.iterations",
-                    "must be an integer >= 1, got 0",
-                ));
-            }
+            check_iterations("self_collision.iterations", sc.iterations)?;
         }
         if let Some(tearing) = &self.tearing {
             check_scalar("tearing.max_strain", tearing.max_strain, Bound::Positive)?;
@@ -146,6 +123,24 @@ impl Scene {
             }
         }
         Ok(())
+    }
+}
+
+/// Most iterations a solver, strain limiting or self-collision may be asked for per step or
+/// substep. They all run inside one step, which an interrupt (Ctrl-C) cannot stop: at this
+/// bound a step of a 256 x 256 cloth still ends within seconds, and none of these iterations
+/// gains anything in float32 long before it (their defaults are 4 to 200).
+pub const MAX_ITERATIONS: u32 = 10_000;
+
+/// Refuses an iteration count of 0 or above [`MAX_ITERATIONS`], naming it `name`.
+fn check_iterations(name: &str, n: u32) -> Result<()> {
+    if (1..=MAX_ITERATIONS).contains(&n) {
+        Ok(())
+    } else {
+        Err(Error::value(
+            name,
+            format!("must be an integer from 1 to {MAX_ITERATIONS}, got {n}"),
+        ))
     }
 }
 

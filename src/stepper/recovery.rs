@@ -221,12 +221,39 @@ impl Stepper {
     }
 
     /// Puts back the watchdog's memory from a saved state; the error names what does not fit.
-    pub fn restore_watchdog(&mut self, saved: WatchdogSnapshot, n: usize) -> Result<()> {
-        if saved.last_substeps == 0 {
+    ///
+    /// Only what a simulation of `substeps` substeps per step can have written is taken: a
+    /// step's substeps between 1 and the most the watchdog retries with, and a hold that ends
+    /// within `hold_steps` of `steps`, the clock of the state restored, so that no crafted
+    /// state makes the next step run for hours.
+    pub fn restore_watchdog(
+        &mut self,
+        saved: WatchdogSnapshot,
+        n: usize,
+        steps: u64,
+        substeps: u32,
+    ) -> Result<()> {
+        let most = self.watchdog.spec.max_substeps.max(substeps);
+        if !(1..=most).contains(&saved.last_substeps) {
             return Err(Error::value(
                 "watchdog",
-                "last_substeps must be an integer >= 1, got 0",
+                format!(
+                    "last_substeps must be an integer from 1 to {most}, got {}",
+                    saved.last_substeps
+                ),
             ));
+        }
+        if let Some((held, until)) = saved.hold {
+            let latest = steps.saturating_add(2 + self.watchdog.spec.hold_steps as u64);
+            if !(1..=most).contains(&held) || until > latest {
+                return Err(Error::value(
+                    "watchdog.hold",
+                    format!(
+                        "must be (substeps from 1 to {most}, a step no later than {latest}), \
+                         got ({held}, {until})"
+                    ),
+                ));
+            }
         }
         let w = &mut self.watchdog;
         match (saved.previous, w.previous.as_mut()) {
