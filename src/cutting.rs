@@ -44,9 +44,15 @@ pub fn springs_crossing_stroke(
     rays: &[Ray],
 ) -> Vec<Crossing> {
     StrokeCutter::default()
-        .crossings(grid, springs, alive, pos, rays)
-        .to_vec()
+        .crossings(grid, springs, alive, pos, rays, &mut || false)
+        .map(<[Crossing]>::to_vec)
+        .unwrap_or_default()
 }
+
+/// Quads of a stroke swept between two checks for an interrupt: each passes over every
+/// particle, so at 64 a check comes every few milliseconds on a large cloth, and asking costs
+/// next to nothing beside that.
+const INTERRUPT_QUADS: usize = 64;
 
 /// The workspace of the stroke test, kept between strokes so that a stroke segment allocates
 /// nothing once the cloth has been cut once.
@@ -115,18 +121,22 @@ impl StrokeCutter {
         alive: &[bool],
         pos: &Vec3s,
         rays: &[Ray],
-    ) -> &[Crossing] {
+        interrupted: &mut dyn FnMut() -> bool,
+    ) -> Option<&[Crossing]> {
         self.out.clear();
         if rays.len() < 2 {
-            return &self.out;
+            return Some(&self.out);
         }
         let Some((lo, hi)) = live_bounds(pos, alive) else {
-            return &self.out; // nothing alive
+            return Some(&self.out); // nothing alive
         };
         let far = far_from_bounds(lo, hi, rays);
         let reach = lo.abs().max(hi.abs()).max_element();
         self.code.resize(grid.len(), 0);
-        for pair in rays.windows(2) {
+        for (k, pair) in rays.windows(2).enumerate() {
+            if k % INTERRUPT_QUADS == INTERRUPT_QUADS - 1 && interrupted() {
+                return None;
+            }
             let (o0, d0) = (pair[0].origin.as_dvec3(), pair[0].dir.as_dvec3());
             let (o1, d1) = (pair[1].origin.as_dvec3(), pair[1].dir.as_dvec3());
             let quad = [o0, o1, o1 + far * d1, o0 + far * d0];
@@ -145,7 +155,7 @@ impl StrokeCutter {
                 self.test_springs(grid, springs, alive, pos, tri);
             }
         }
-        &self.out
+        Some(&self.out)
     }
 
     /// Appends the springs whose ends' codes share no bit and that cross `tri` exactly.

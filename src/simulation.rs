@@ -674,6 +674,17 @@ impl Simulation {
     /// move (a stroke of zero length), a stroke that misses the cloth or crosses only springs
     /// already severed (cutting a piece that is already separate along the same line).
     pub fn sever_stroke(&mut self, rays: &[(Vec3, Vec3)]) -> Result<usize> {
+        self.sever_stroke_with(rays, &mut || false)
+    }
+
+    /// [`Simulation::sever_stroke`], asking `interrupted` now and then while it looks for the
+    /// springs to sever (a stroke of millions of rays takes seconds); an interrupted stroke
+    /// severs nothing and returns [`Error::Interrupted`].
+    pub fn sever_stroke_with(
+        &mut self,
+        rays: &[(Vec3, Vec3)],
+        interrupted: &mut dyn FnMut() -> bool,
+    ) -> Result<usize> {
         let rays = checked_rays(rays)?;
         let model = &self.model;
         let crossings = self.cutter.crossings(
@@ -682,8 +693,12 @@ impl Simulation {
             &model.particles.alive,
             &self.state.kin.pos,
             &rays,
+            interrupted,
         );
-        Ok(self.model.sever_crossing(crossings))
+        match crossings {
+            Some(crossings) => Ok(self.model.sever_crossing(crossings)),
+            None => Err(Error::Interrupted { steps: 0 }),
+        }
     }
 
     /// The number of pieces the cloth is in: connected components of the live particles

@@ -1,13 +1,15 @@
 //! Picking, dragging and cutting (src/interaction.rs) for Python. Queries run detached from the
 //! interpreter: the first one after the cloth moved refits a tree over every particle.
 
+use numpy::ndarray::ArrayView3;
+use numpy::PyReadonlyArray3;
 use pyo3::prelude::*;
 
 use super::conv::{
     direction_from_any, float_from_any, index_from_any, str_from_any, vec3_from_any,
 };
 use super::errors::{type_error, value_error, IntoPyResult};
-use super::simulation::PySimulation;
+use super::simulation::{stepping, PySimulation};
 use crate::picking::PickStrategy;
 
 /// `(origin, direction)` of ray `k` of a stroke: any pair of length-3 sequences, or a
@@ -138,9 +140,12 @@ impl PySimulation {
 
     /// Severs the springs the surface swept between consecutive rays crosses; returns how
     /// many. No particle is removed.
+    /// Ctrl-C interrupts it, and then nothing is severed.
     fn sever_stroke(&self, py: Python<'_>, rays: &Bound<'_, PyAny>) -> PyResult<usize> {
         let rays = rays_from_any(rays)?;
-        self.with(py, |h| py.detach(|| h.sim.sever_stroke(&rays)).py())
+        self.with(py, |h| {
+            stepping(py, h, |sim, stop| sim.sever_stroke_with(&rays, stop)).0
+        })
     }
 
     /// Connected pieces of the cloth (live particles joined by live springs).
@@ -176,6 +181,19 @@ fn rays_from_any(rays: &Bound<'_, PyAny>) -> PyResult<Vec<(glam::Vec3, glam::Vec
             format!("must be a sequence of (origin, direction) pairs, got {rays}"),
         ));
     }
+    // An (M, 2, 3) float array, read in one pass without the interpreter: a stroke of
+    // millions of rays took seconds item by item, under the interpreter's lock, where Ctrl-C
+    // could not reach it. Values are checked by the core, naming the ray.
+    if let Ok(array) = rays.extract::<PyReadonlyArray3<'_, f64>>() {
+        if let Some(rays) = rays_from_array(array.as_array()) {
+            return Ok(rays);
+        }
+    }
+    if let Ok(array) = rays.extract::<PyReadonlyArray3<'_, f32>>() {
+        if let Some(rays) = rays_from_array(array.as_array().mapv(f64::from).view()) {
+            return Ok(rays);
+        }
+    }
     let items = rays.try_iter().map_err(|_| {
         type_error(
             "rays",
@@ -186,6 +204,22 @@ fn rays_from_any(rays: &Bound<'_, PyAny>) -> PyResult<Vec<(glam::Vec3, glam::Vec
         .enumerate()
         .map(|(k, item)| ray_from_any(&item?, k))
         .collect()
+}
+
+/// The `(origin, direction)` pairs of an `(M, 2, 3)` array; `None` for any other shape, which
+/// the item-by-item reading names.
+fn rays_from_array(array: ArrayView3<'_, f64>) -> Option<Vec<(glam::Vec3, glam::Vec3)>> {
+    if array.shape()[1..] != [2, 3] {
+        return None;
+    }
+    let rays = array
+        .outer_iter()
+        .map(|ray| {
+            let v = |i: usize| glam::DVec3::new(ray[[i, 0]], ray[[i, 1]], ray[[i, 2]]).as_vec3();
+            (v(0), v(1))
+        })
+        .collect();
+    Some(rays)
 }
 
 impl PySimulation {

@@ -78,7 +78,7 @@ fn warn(py: Python<'_>, message: Option<String>) -> PyResult<()> {
 
 /// Runs a stepping call detached from the interpreter, asking Python between steps whether a
 /// signal (Ctrl-C) arrived; an interrupt comes back as the `KeyboardInterrupt` Python raised.
-fn stepping<R: Send>(
+pub(super) fn stepping<R: Send>(
     py: Python<'_>,
     held: &mut Held,
     call: impl FnOnce(&mut Simulation, &mut dyn FnMut() -> bool) -> crate::Result<R> + Send,
