@@ -144,7 +144,8 @@ impl Model {
     }
 
     pub fn heap_bytes(&self) -> usize {
-        self.particles.heap_bytes()
+        self.scene.heap_bytes()
+            + self.particles.heap_bytes()
             + self.springs.heap_bytes()
             + self.crossings.capacity() * size_of::<(SpringSlot, f32)>()
     }
