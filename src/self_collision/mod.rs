@@ -708,15 +708,9 @@ mod tests {
         let n = x0.len();
         let mut pass = SelfCollision::new(thickness, 0.0, 1);
         pass.topology.rebuild(0, n, triangles);
-        let reach = (0..n)
-            .map(|v| {
-                x0.get(v)
-                    .abs()
-                    .max_element()
-                    .max(x1.get(v).abs().max_element())
-            })
-            .fold(0.0f32, f32::max) as f64;
-        let eps = 1e-6 * (1.0 + reach);
+        // The round-off margin `apply` would use.
+        let survey = Survey::of(&pass.topology.vertices, x0, x1, None).unwrap();
+        let eps = 1e-6 * (1.0 + survey.reach);
         pass.sweep_boxes(x0, x1, eps as f32);
         pass.swept_pairs(x0, eps);
         assert!(!pass.pairs.is_empty(), "nothing for the cap to look at");
