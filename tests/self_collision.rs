@@ -506,21 +506,31 @@ fn mean_velocity(sim: &Simulation, particles: &[usize]) -> DVec3 {
 /// Coulomb friction between layers: a layer sliding on a still one under gravity is pressed
 /// on it by `m g`, so friction `mu m g` slows it at `mu g` until it stops, `v(t) = v0 - mu g t`
 /// (its springs are at rest and stay so: it moves as a whole), and static friction then holds
-/// it. At `mu = 0.3` from 0.5 m/s: 0.21 m/s after 0.1 s, at rest from 0.17 s; without friction
-/// it would keep its 0.5 m/s. The pass slows it about 5 % more than that: a vertex is in a
-/// vertex-triangle pair and in edge-edge pairs, and each pair, corrected in turn, takes
-/// friction on the normal velocity it removes, which a little exceeds `g h` in all.
+/// it. At `mu = 0.3` from 0.5 m/s: 0.29 m/s slower after 0.1 s than the same slide without
+/// friction, and at rest from 0.17 s.
+///
+/// Compared with the frictionless slide rather than with `v0`: even without friction the layer
+/// loses about 0.018 m/s, in a bump when its vertices pass over the lower layer's transverse
+/// edges (about 0.035 s in). An edge's distance to the end of a crossing edge is rounded, so
+/// for the substep the end is within `thickness` of it their normal tilts against the slide by
+/// up to `sqrt(2 sag / thickness)` (0.07 for a sag of 1e-5 m), and the inelastic impulse along
+/// it takes that much of the sliding speed.
 #[test]
 fn a_layer_sliding_on_another_slows_down_by_coulomb_friction() {
     let (mu, v0, g) = (0.3, 0.5, 9.81);
-    let (mut sim, upper) = a_layer_sliding_on_a_pinned_one(0.004, mu, v0 as f32);
-    sim.step(100).unwrap();
-    let (t, v) = (sim.time(), mean_velocity(&sim, &upper));
-    let expected = v0 - mu * g * t;
+    let slide = |mu| {
+        let (mut sim, upper) = a_layer_sliding_on_a_pinned_one(0.004, mu, v0 as f32);
+        sim.step(100).unwrap();
+        (sim.time(), mean_velocity(&sim, &upper).x, sim, upper)
+    };
+    let (_, free, ..) = slide(0.0);
+    let (t, v, mut sim, upper) = slide(mu);
+    let slowed = free - v;
     assert!(
-        (v.x - expected).abs() < 0.1 * mu * g * t,
-        "after {t} s the layer slides at {} m/s, Coulomb says {expected}",
-        v.x
+        (slowed - mu * g * t).abs() < 0.03 * mu * g * t,
+        "after {t} s friction took {slowed} m/s off the slide (at {v} against {free} m/s \
+         without), Coulomb says {}",
+        mu * g * t
     );
     sim.step(200).unwrap();
     let v = mean_velocity(&sim, &upper);
