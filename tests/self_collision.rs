@@ -511,10 +511,11 @@ fn mean_velocity(sim: &Simulation, particles: &[usize]) -> DVec3 {
 ///
 /// Compared with the frictionless slide rather than with `v0`: even without friction the layer
 /// loses about 0.018 m/s, in a bump when its vertices pass over the lower layer's transverse
-/// edges (about 0.035 s in). An edge's distance to the end of a crossing edge is rounded, so
-/// for the substep the end is within `thickness` of it their normal tilts against the slide by
-/// up to `sqrt(2 sag / thickness)` (0.07 for a sag of 1e-5 m), and the inelastic impulse along
-/// it takes that much of the sliding speed.
+/// edges (about 0.035 s in). The distance of a vertex to a triangle whose edge it is just
+/// short of, like that of an edge to the end of one it crosses, is rounded there: for the
+/// substep the pair is within `thickness`, its normal tilts against the slide by up to
+/// `sqrt(2 sag / thickness)` (0.07 for a sag of 1e-5 m), and the inelastic impulse along it
+/// takes that much of the sliding speed. Both kinds of pair do it, each alone.
 #[test]
 fn a_layer_sliding_on_another_slows_down_by_coulomb_friction() {
     let (mu, v0, g) = (0.3, 0.5, 9.81);
