@@ -229,6 +229,50 @@ fn a_moving_box_carries_the_cloth_resting_on_it() {
 }
 
 #[test]
+fn a_box_sliding_under_a_particle_drags_it_up_to_speed_by_kinetic_friction() {
+    // A particle set at rest on a box moving sideways at 2 m/s: the surface slips under it, and
+    // kinetic friction accelerates it at mu g (`v = mu g t`, `x = mu g t^2 / 2`) until it moves
+    // with the box, after v / (mu g) = 0.51 s at mu = 0.4; then static friction holds it there,
+    // v^2 / (2 mu g) = 0.51 m behind its starting point on the box. Friction against the
+    // surface's velocity, not against zero, and at its full coefficient.
+    let (v, mu, g) = (2.0f64, 0.4f64, 9.81f64);
+    let collider = ColliderSpec {
+        shape: ShapeKind::Box,
+        half_extents: Some([2.0, 0.1, 2.0]),
+        center: [0.0; 3],
+        velocity: [v, 0.0, 0.0],
+        friction: mu,
+        thickness: 0.0,
+        ..ColliderSpec::default()
+    };
+    let mut sim = particle_on(collider, Vec3::new(0.0, 0.1, 0.0), Vec3::ZERO);
+    sim.step(250).unwrap();
+    let t = sim.time();
+    let (p, u) = (sim.positions().get(0).as_dvec3(), sim.velocities().get(0));
+    let (speed, moved) = (mu * g * t, 0.5 * mu * g * t * t);
+    assert!(
+        (u.x as f64 - speed).abs() < 0.02 * speed && (p.x - moved).abs() < 0.02 * moved,
+        "at {t} s: at x = {}, moving at {}; kinetic friction says {moved}, {speed}",
+        p.x,
+        u.x
+    );
+    sim.step(750).unwrap();
+    let (t, p, u) = (
+        sim.time(),
+        sim.positions().get(0).as_dvec3(),
+        sim.velocities().get(0),
+    );
+    let behind = v * t - p.x;
+    let slip = v * v / (2.0 * mu * g);
+    assert!(
+        (u.x as f64 - v).abs() < 1e-3 * v && (behind - slip).abs() < 0.02 * slip,
+        "at {t} s: moving at {}, {behind} m behind its start on the box (slip {slip})",
+        u.x
+    );
+    assert!((p.y - 0.1).abs() < 1e-4, "off the top: {p}");
+}
+
+#[test]
 fn a_turning_disc_carries_a_particle_around() {
     // A particle set at rest on a cylinder turning about its axis (y) at 2 rad/s, 0.3 m out:
     // the disc slips under it until kinetic friction (mu g) has brought it to the disc's

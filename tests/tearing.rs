@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{state_hash, with_threads, Drawn};
+use common::{bare_scene, state_hash, with_threads, Drawn};
 use glam::Vec3;
 use rustcloth::grid::{Family, SpringKind};
 use rustcloth::scene::TearingSpec;
@@ -96,54 +96,104 @@ fn a_corner_dragged_far_enough_rips_off() {
     assert!((0..labels.len()).all(|p| sim.velocities().get(p).is_finite()));
 }
 
+/// Checks one step's tear: `before` the live springs (`strains`) before the step, `sim` after
+/// it. At most `cap` broke, each past `limit` on the positions the pass ran on (the ones after
+/// the step), and a spring left past the limit only when the cap stopped the pass, and then no
+/// more strained than any that broke; a tear moves the topology version past `version`.
+/// Returns how many broke.
+fn check_tear_step(
+    before: &[(SpringKind, usize, f32)],
+    sim: &Simulation,
+    limit: f32,
+    cap: usize,
+    version: u64,
+) -> usize {
+    let now = strains(sim);
+    let live: std::collections::HashSet<(usize, usize)> =
+        now.iter().map(|&(k, a, _)| (k.index(), a)).collect();
+    let broke: Vec<_> = before
+        .iter()
+        .filter(|&&(k, a, _)| !live.contains(&(k.index(), a)))
+        .collect();
+    assert!(broke.len() <= cap, "{} broke in one step", broke.len());
+    let spring_strain = |k: SpringKind, a: usize| {
+        let (grid, pos) = (sim.grid(), sim.positions());
+        let b = a + grid.offset(k);
+        (pos.get(b) - pos.get(a)).length() / sim.springs().rest[k.index()][a] - 1.0
+    };
+    let weakest = broke
+        .iter()
+        .map(|&&(k, a, _)| spring_strain(k, a))
+        .fold(f32::INFINITY, f32::min);
+    assert!(
+        broke.is_empty() || weakest > limit,
+        "broke at strain {weakest}"
+    );
+    let strongest_left = now.iter().map(|s| s.2).fold(f32::NEG_INFINITY, f32::max);
+    if broke.len() < cap {
+        assert!(strongest_left <= limit, "{strongest_left} left unbroken");
+    } else {
+        assert!(
+            strongest_left <= weakest,
+            "a spring at strain {strongest_left} was left while one at {weakest} broke"
+        );
+    }
+    if !broke.is_empty() {
+        assert!(sim.topology_version() > version);
+    }
+    broke.len()
+}
+
 #[test]
 fn only_springs_past_the_limit_break_the_most_strained_first() {
     let spec = tear_scene().tearing.unwrap();
     let (limit, cap) = (spec.max_strain as f32, spec.max_per_step as usize);
     let mut before: Vec<(SpringKind, usize, f32)> = Vec::new();
     let mut broke_total = 0;
-    let mut version = None;
+    let mut version = 0;
     drag_corner(1200, |sim| {
-        let now = strains(sim);
         if !before.is_empty() {
-            let live: std::collections::HashSet<(usize, usize)> =
-                now.iter().map(|&(k, a, _)| (k.index(), a)).collect();
-            let broke: Vec<_> = before
-                .iter()
-                .filter(|&&(k, a, _)| !live.contains(&(k.index(), a)))
-                .collect();
-            assert!(broke.len() <= cap, "{} broke in one step", broke.len());
-            // The pass ran on the positions we see now: each broken spring was past the limit.
-            let spring_strain = |k: SpringKind, a: usize| {
-                let (grid, pos) = (sim.grid(), sim.positions());
-                let b = a + grid.offset(k);
-                (pos.get(b) - pos.get(a)).length() / sim.springs().rest[k.index()][a] - 1.0
-            };
-            let weakest = broke
-                .iter()
-                .map(|&&(k, a, _)| spring_strain(k, a))
-                .fold(f32::INFINITY, f32::min);
-            assert!(
-                broke.is_empty() || weakest > limit,
-                "broke at strain {weakest}"
-            );
-            // What is left over the limit: only when the cap stopped the pass, and then no
-            // more strained than any spring that broke.
-            let strongest_left = now.iter().map(|s| s.2).fold(f32::NEG_INFINITY, f32::max);
-            if broke.len() < cap {
-                assert!(strongest_left <= limit, "{strongest_left} left unbroken");
-            } else {
-                assert!(strongest_left <= weakest);
-            }
-            if !broke.is_empty() {
-                assert!(version.is_some_and(|v| sim.topology_version() > v));
-            }
-            broke_total += broke.len();
+            broke_total += check_tear_step(&before, sim, limit, cap, version);
         }
-        version = Some(sim.topology_version());
-        before = now;
+        version = sim.topology_version();
+        before = strains(sim);
     });
     assert!(broke_total > 0, "nothing tore");
+}
+
+/// The cap and the order, where a drag never reaches them (it breaks a few springs a step):
+/// a free 10 x 10 cloth set down stretched along x, by `0.1 i` between columns `i` and
+/// `i + 1`, so that nearly 200 springs are past a limit of 0.25 at once. Each step must break
+/// exactly `max_per_step` of them, the most strained: the rip starts at the most stretched
+/// side and works back, `max_per_step` springs a step.
+#[test]
+fn a_cloth_stretched_past_the_limit_everywhere_tears_the_most_strained_first_a_few_a_step() {
+    let (limit, cap) = (0.25f32, 8usize);
+    let mut scene = bare_scene(10, 10);
+    scene.tearing = Some(TearingSpec {
+        max_strain: limit as f64,
+        max_per_step: cap as u32,
+    });
+    let mut sim = Simulation::new(scene).unwrap();
+    let (nx, n) = (10, sim.positions().len());
+    let mut pos = sim.positions().clone();
+    let dx = pos.get(1).x - pos.get(0).x;
+    for p in 0..n {
+        let i = (p % nx) as f32;
+        pos.set(
+            p,
+            pos.get(p) + Vec3::new(dx * 0.05 * i * (i - 1.0), 0.0, 0.0),
+        );
+    }
+    sim.set_positions(&pos).unwrap();
+    let over = strains(&sim).iter().filter(|s| s.2 > limit).count();
+    assert!(over > 5 * cap, "only {over} springs past the limit");
+    for _ in 0..5 {
+        let (before, version) = (strains(&sim), sim.topology_version());
+        sim.step(1).unwrap();
+        let broke = check_tear_step(&before, &sim, limit, cap, version);
+        assert_eq!(broke, cap, "springs broken in one step");
+    }
 }
 
 #[test]

@@ -695,6 +695,112 @@ impl Survey {
 mod tests {
     use super::*;
 
+    /// The cap alone on the motion from `x0` to `x1` of the mesh `triangles`, as `apply` runs
+    /// it after the repulsion: the swept search's pairs, then `cap`. Returns where the vertices
+    /// end and the pass's statistics. The repulsion is left out on purpose: it keeps pairs at
+    /// `thickness` on its own and would hide what the cap guarantees.
+    fn cap_only(
+        triangles: Vec<[u32; 3]>,
+        x0: &Vec3s,
+        x1: &Vec3s,
+        thickness: f32,
+    ) -> (Vec3s, SelfCollisionStats) {
+        let n = x0.len();
+        let mut pass = SelfCollision::new(thickness, 0.0, 1);
+        pass.topology.rebuild(0, n, triangles);
+        // The round-off margin `apply` would use.
+        let survey = Survey::of(&pass.topology.vertices, x0, x1, None).unwrap();
+        let eps = 1e-6 * (1.0 + survey.reach);
+        pass.sweep_boxes(x0, x1, eps as f32);
+        pass.swept_pairs(x0, eps);
+        assert!(!pass.pairs.is_empty(), "nothing for the cap to look at");
+        let mut next = Kinematics {
+            pos: Vec3s::from_fn(n, |v| x1.get(v)),
+            vel: Vec3s::zeros(n),
+        };
+        pass.cap(x0, &mut next, eps);
+        (next.pos, pass.stats)
+    }
+
+    /// A horizontal triangle of 1 cm legs at height `y` (m), its vertices `first..first + 3`.
+    fn flat_triangle(first: u32, y: f32) -> ([u32; 3], [Vec3; 3]) {
+        let corners = [
+            Vec3::new(0.0, y, 0.0),
+            Vec3::new(0.01, y, 0.0),
+            Vec3::new(0.0, y, 0.01),
+        ];
+        ([first, first + 1, first + 2], corners)
+    }
+
+    /// A vertex 1 mm above a still triangle, moved 3 mm down within one substep, through it.
+    /// The cap lets a pair close at most `APPROACH` of its starting distance, so the vertex
+    /// must stop at least `(1 - APPROACH) 1 mm = 0.1 mm` above the triangle's plane (0.109 mm:
+    /// the proportional round scales by 0.99 of the bound). A cap that let the pair close all
+    /// of its distance would leave it a round-off margin from touching.
+    #[test]
+    fn the_cap_stops_a_vertex_a_tenth_of_its_distance_above_a_triangle() {
+        let (below, corners) = flat_triangle(0, 0.0);
+        // The vertex (3) is the corner of a triangle whose other corners stand still 5 cm up.
+        let start = [
+            corners[0],
+            corners[1],
+            corners[2],
+            Vec3::new(0.002, 0.001, 0.002),
+            Vec3::new(0.002, 0.05, 0.03),
+            Vec3::new(0.03, 0.05, 0.002),
+        ];
+        let x0 = Vec3s::from_fn(6, |v| start[v]);
+        let x1 = Vec3s::from_fn(6, |v| {
+            start[v] - (v == 3) as u8 as f32 * Vec3::new(0.0, 0.003, 0.0)
+        });
+        let (end, stats) = cap_only(vec![below, [3, 4, 5]], &x0, &x1, 0.0005);
+        let height = end.get(3).y;
+        assert!(
+            height >= 1e-4,
+            "the vertex ended {height} m above the triangle: {stats:?}"
+        );
+        // It did move down, most of the way the bound allows (not stopped dead).
+        assert!(
+            height < 2e-4,
+            "the vertex ended {height} m above the triangle"
+        );
+        assert_eq!((0..3).map(|v| end.get(v)).collect::<Vec<_>>(), corners);
+    }
+
+    /// 41 triangles stacked 1 mm apart, the bottom one still and the 40 above it all moved
+    /// 10 mm down within one substep. Each pair may close at most 0.9 of its distance, and the
+    /// proportional rounds, one Jacobi sweep each, settle the stack from the bottom up a few
+    /// layers per round: `SCALE_ROUNDS` rounds are not enough, and the stopping round (`s = 0`
+    /// for every vertex still in a fast pair) is what keeps the upper layers from passing
+    /// through the ones the earlier rounds slowed. Every layer must end at least a tenth of
+    /// their 1 mm above the one below.
+    #[test]
+    fn the_cap_keeps_every_layer_of_a_falling_stack_above_the_one_below() {
+        let layers = 41;
+        let (mut triangles, mut start) = (Vec::new(), Vec::new());
+        for k in 0..layers {
+            let (t, corners) = flat_triangle(3 * k, 0.001 * k as f32);
+            triangles.push(t);
+            start.extend(corners);
+        }
+        let x0 = Vec3s::from_fn(start.len(), |v| start[v]);
+        let drop = Vec3::new(0.0, 0.01, 0.0);
+        let x1 = Vec3s::from_fn(start.len(), |v| start[v] - (v >= 3) as u8 as f32 * drop);
+        let (end, stats) = cap_only(triangles, &x0, &x1, 0.0005);
+        for k in 1..layers as usize {
+            for corner in 0..3 {
+                let (v, below) = (3 * k + corner, 3 * (k - 1) + corner);
+                let gap = end.get(v).y - end.get(below).y;
+                assert!(gap >= 1e-4, "layer {k} ends {gap} m above layer {}", k - 1);
+            }
+        }
+        // What the test is for: the proportional rounds were not enough.
+        assert!(
+            stats.max_cap_rounds > SCALE_ROUNDS && stats.stopped > 0,
+            "the stack did not reach the stopping round: {stats:?}"
+        );
+    }
+
     /// The capsule a vertex is kept in: a point within `path_radius` of the straight path
     /// from `x0` to `x1` stays where it is; one farther is brought onto the capsule, so that
     /// it ends no farther from `x0` than `|x1 - x0| + path_radius`, the reach the swept
