@@ -32,9 +32,10 @@ $(VENV)/.ready: pyproject.toml
 	touch $@
 
 # The extension module, built in release mode into the package (an editable install), with the
-# package's dependencies and the test extras; `ray` too, so the sweep's Ray tests run in CI.
+# package's dependencies, the `dev` dependency group (tests, linters, docs: pyproject.toml) and
+# the `ray` extra, so the sweep's Ray tests run in CI.
 $(VENV)/.built: $(VENV)/.ready $(RUST_SOURCES) pyproject.toml
-	$(VENV)/bin/maturin develop --release --extras test,ray -q
+	$(VENV)/bin/maturin develop --release --extras ray --group dev -q
 	touch $@
 
 setup: system-deps $(VENV)/.built
