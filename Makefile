@@ -87,6 +87,7 @@ lint: setup
 	cargo clippy -q --all-targets --all-features -- -D warnings
 	$(VENV)/bin/ruff check python tests benches
 	$(VENV)/bin/python -m mypy --strict python/rustcloth
+	$(VENV)/bin/python -m mypy --strict tests/typecheck
 	$(VENV)/bin/python -m mypy.stubtest rustcloth --allowlist scripts/stubtest-allowlist.txt
 	python3 scripts/module_cycles.py
 
