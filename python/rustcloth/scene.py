@@ -56,7 +56,7 @@ class Scene:
 
     >>> scene = Scene(dt=0.002, cloth={"nx": 16, "ny": 16, "pins": ["top_edge"]})
     >>> scene.cloth["k_structural"]
-    500.0
+    200.0
 
     Unknown keys, values of the wrong type and values out of range raise
     :class:`~rustcloth.errors.ParameterError` (a ``ValueError``) or
