@@ -103,3 +103,25 @@ def test_readme_links_work_on_a_package_index_page():
             assert target.startswith(repository + "/"), target
             path = target.removeprefix(repository + "/blob/main/").split("?")[0].split("#")[0]
             assert (REPO / path).exists(), f"README.md links to a missing file: {target}"
+
+
+@in_repo
+def test_changelog_opens_with_the_current_version():
+    cargo = tomllib.loads((REPO / "Cargo.toml").read_text())["package"]["version"]
+    changelog = (REPO / "CHANGELOG.md").read_text()
+    versions = re.findall(r"^## \[(\d+\.\d+\.\d+[^\]]*)\]", changelog, flags=re.M)
+    assert versions and versions[0] == cargo, versions[:1]
+    assert f"[{cargo}]: " in changelog  # the link to the release's tag
+
+
+@in_repo
+def test_citation_has_the_version_and_repository_of_the_package():
+    yaml = pytest.importorskip("yaml")
+    citation = yaml.safe_load((REPO / "CITATION.cff").read_text())
+    pyproject = tomllib.loads((REPO / "pyproject.toml").read_text())
+    cargo = tomllib.loads((REPO / "Cargo.toml").read_text())["package"]["version"]
+    assert citation["cff-version"] == "1.2.0"
+    assert citation["version"] == cargo
+    assert citation["repository-code"] == pyproject["project"]["urls"]["Repository"]
+    assert citation["license"] == pyproject["project"]["license"]
+    assert citation["title"] and citation["authors"]
