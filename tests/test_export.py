@@ -139,7 +139,7 @@ def test_export_without_trimesh_names_the_extra(tmp_path, monkeypatch):
 
 
 @pytest.mark.parametrize("suffix", [".obj", ".ply", ".glb"])
-def test_export_without_pillow_names_the_export_extra(tmp_path, monkeypatch, suffix):
+def test_export_without_pillow_names_the_export_extra(tmp_path, monkeypatch, trimesh, suffix):
     # trimesh imports Pillow only when it meets UVs: without it an OBJ lost its vt lines
     # silently and a .glb raised a bare ModuleNotFoundError for PIL. Now Pillow is part of the
     # export extra, and export checks for it before writing anything.
