@@ -16,7 +16,7 @@ WHEEL_INPUTS := $(RUST_SOURCES) $(PY_SOURCES) pyproject.toml README.md LICENSE
 # The oldest glibc the wheel runs on: zig links against this version's symbols.
 MANYLINUX := manylinux_2_17
 
-.PHONY: all demo test test-long test-wheel wheel fuzz lint fmt bench bench-peers bench-stiff accuracy setup system-deps clean
+.PHONY: all demo docs test test-long test-wheel wheel fuzz lint fmt bench bench-peers bench-stiff accuracy setup system-deps clean
 
 all: test
 
@@ -32,9 +32,10 @@ $(VENV)/.ready: pyproject.toml
 	touch $@
 
 # The extension module, built in release mode into the package (an editable install), with the
-# package's dependencies and the test extras; `ray` too, so the sweep's Ray tests run in CI.
+# package's dependencies, the `dev` dependency group (tests, linters, docs: pyproject.toml) and
+# the `ray` extra, so the sweep's Ray tests run in CI.
 $(VENV)/.built: $(VENV)/.ready $(RUST_SOURCES) pyproject.toml
-	$(VENV)/bin/maturin develop --release --extras test,ray -q
+	$(VENV)/bin/maturin develop --release --extras ray --group dev -q
 	touch $@
 
 setup: system-deps $(VENV)/.built
@@ -48,6 +49,13 @@ test: setup lint
 	cargo test -q
 	$(PY) -m pytest -q -m "not long"
 	$(MAKE) --no-print-directory test-wheel
+
+# The documentation site: docs/*.md and the API reference from the docstrings (mkdocs.yml), in
+# site/. --strict fails on a broken link or cross-reference and a page missing from the
+# navigation; not -q, which hides the warnings --strict counts. `make test` builds it too
+# (tests/test_docs.py), and runs every docstring example and every example in examples/.
+docs: setup
+	$(PY) -m mkdocs build --strict -d site
 
 # The distributions: one stripped abi3 wheel that runs on glibc 2.17 and later (linked by zig,
 # from the ziglang package, which maturin finds through the venv's python), and an sdist.
@@ -84,8 +92,9 @@ fuzz:
 lint: setup
 	cargo fmt --check
 	cargo clippy -q --all-targets --all-features -- -D warnings
-	$(VENV)/bin/ruff check python tests benches
+	$(VENV)/bin/ruff check python tests benches examples scripts/docs_roles.py
 	$(VENV)/bin/python -m mypy --strict python/rustcloth
+	$(VENV)/bin/python -m mypy --strict tests/typecheck
 	$(VENV)/bin/python -m mypy.stubtest rustcloth --allowlist scripts/stubtest-allowlist.txt
 	python3 scripts/module_cycles.py
 
@@ -112,4 +121,4 @@ bench-stiff: setup
 	$(PY) benches/peers/stiff.py $(if $(BEFORE),--before $(BEFORE))
 
 clean:
-	rm -rf target dist $(VENV) python/rustcloth/*.so
+	rm -rf target dist site $(VENV) python/rustcloth/*.so

@@ -138,6 +138,38 @@ def test_export_without_trimesh_names_the_extra(tmp_path, monkeypatch):
     assert isinstance(err.value, ImportError) and err.value.extra == "export"
 
 
+@pytest.mark.parametrize("suffix", [".obj", ".ply", ".glb"])
+def test_export_without_pillow_names_the_export_extra(tmp_path, monkeypatch, trimesh, suffix):
+    # trimesh imports Pillow only when it meets UVs: without it an OBJ lost its vt lines
+    # silently and a .glb raised a bare ModuleNotFoundError for PIL. Now Pillow is part of the
+    # export extra, and export checks for it before writing anything.
+    monkeypatch.setitem(sys.modules, "PIL", None)
+    sim = rustcloth.Simulation(small_scene())
+    with pytest.raises(MissingExtra, match=r"'PIL'.*pip install 'rustcloth\[export\]'") as err:
+        sim.export(tmp_path / f"cloth{suffix}")
+    assert err.value.extra == "export"
+    assert not (tmp_path / f"cloth{suffix}").exists()
+    with pytest.raises(MissingExtra, match=r"rustcloth\[export\]"):
+        export.recorder(tmp_path / "seq_##.obj")
+
+
+def test_required_modules_by_suffix():
+    assert export.required_modules("a/b.GLB") == ("trimesh", "PIL")
+    assert export.required_modules("seq_####.obj") == ("trimesh", "PIL")
+    assert export.required_modules("run.usdc") == ("pxr",)
+    with pytest.raises(ValueError, match=r"cloth\.stl"):
+        export.required_modules("cloth.stl")
+
+
+def test_check_required_names_the_extra_of_the_missing_module(monkeypatch):
+    monkeypatch.setitem(sys.modules, "pxr", None)
+    with pytest.raises(MissingExtra, match=r"rustcloth\[usd\]"):
+        export.check_required("run.usd")
+    monkeypatch.setitem(sys.modules, "trimesh", None)
+    with pytest.raises(MissingExtra, match=r"'trimesh'.*rustcloth\[export\]"):
+        export.check_required("cloth.ply")
+
+
 def test_usd_recorder_without_usd_core_names_the_extra(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "pxr", None)
     with pytest.raises(MissingExtra, match=r"rustcloth\[usd\]"):
@@ -175,6 +207,39 @@ def test_usd_run_has_every_frame_at_its_time_code(tmp_path, pxr, suffix):
     st = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("st")
     assert st.GetInterpolation() == UsdGeom.Tokens.vertex
     assert np.array_equal(np.asarray(st.Get(0.0)), export.grid_uvs(8, 6))
+
+
+def test_usd_frames_land_on_whole_codes_when_dt_does_not_divide_the_frame_time(tmp_path, pxr):
+    # At dt = 1 ms and 30 fps, frame k is at the step nearest k / 30 s (33 ms, 67 ms, ...):
+    # its samples landed at codes 0.99, 2.01, ... though the docstring promised whole codes.
+    from pxr import Usd, UsdGeom
+
+    fps = 30.0
+    sim = rustcloth.Simulation(small_scene())
+    times = []
+    with export.recorder(tmp_path / "run.usda", fps) as rec:
+        for k in range(10):
+            sim.step(round(k / fps / sim.dt) - sim.steps)
+            rec.add(sim)
+            times.append(sim.time)
+    assert times[1] == pytest.approx(0.033) and times[2] == pytest.approx(0.067)
+    stage = Usd.Stage.Open(str(tmp_path / "run.usda"))
+    points = UsdGeom.Mesh(stage.GetDefaultPrim()).GetPointsAttr()
+    assert points.GetTimeSamples() == [float(k) for k in range(10)]
+    assert (stage.GetStartTimeCode(), stage.GetEndTimeCode()) == (0.0, 9.0)
+
+
+def test_usd_frames_between_whole_codes_keep_their_own_time(tmp_path, pxr):
+    from pxr import Usd, UsdGeom
+
+    sim = rustcloth.Simulation(small_scene())
+    with export.recorder(tmp_path / "run.usda", fps=10.0) as rec:
+        for _ in range(3):
+            rec.add(sim)
+            sim.step(50)  # half a frame: 0, 0.5, 1.0
+    stage = Usd.Stage.Open(str(tmp_path / "run.usda"))
+    points = UsdGeom.Mesh(stage.GetDefaultPrim()).GetPointsAttr()
+    assert points.GetTimeSamples() == [0.0, 0.5, 1.0]
 
 
 def test_usd_topology_follows_cuts(tmp_path, pxr):

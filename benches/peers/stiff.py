@@ -12,7 +12,7 @@ the other in one session, and the results land in ``benches/peers/stiff_results.
 ``--before PYTHON`` names an interpreter whose rustcloth is the code before this work (build
 commit f63df6d into a venv); without it the report keeps the before-rows of the last run that
 had them. newton runs under ``--newton-python`` (default ``.venv-peers/bin/python``, made by
-``benches/peers/setup.sh``); the plot needs matplotlib (the ``[test]`` extra).
+``benches/peers/setup.sh``); the plot needs matplotlib (the ``[study]`` extra).
 """
 
 from __future__ import annotations
@@ -482,7 +482,7 @@ def main() -> int:
     try:
         plot(data, args.out / "stiff.png")
     except ImportError:
-        print("the plot needs matplotlib: pip install 'rustcloth[test]'", file=sys.stderr)
+        print("the plot needs matplotlib: pip install 'rustcloth[study]'", file=sys.stderr)
     print(f"wrote {args.out / 'stiff.md'}")
     return 0
 

@@ -7,6 +7,7 @@
 """
 
 from importlib import metadata as _metadata
+from typing import cast as _cast
 
 from . import _core
 from .errors import (
@@ -20,10 +21,12 @@ from .errors import (
     StabilityWarning,
 )
 from .scene import Scene, StabilityReport, load_scene, scenes
+from .settings import IntegratorName as _IntegratorName
 from .simulation import Energy, PassTime, Profile, RenderMesh, Simulation
 
-INTEGRATORS: tuple[str, ...] = tuple(_core.INTEGRATORS)
-"""Names of the available time integrators."""
+INTEGRATORS: tuple[_IntegratorName, ...] = _cast(
+    "tuple[_IntegratorName, ...]", tuple(_core.INTEGRATORS))
+"""Names of the available time integrators (``rustcloth.settings.IntegratorName``)."""
 
 # One source for the version: Cargo.toml's, which maturin writes into the installed metadata
 # (absent only when the package is imported from a source tree that was never installed).

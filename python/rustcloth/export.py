@@ -18,6 +18,7 @@ the faces again then.
 
 from __future__ import annotations
 
+import importlib.util
 import math
 import os
 import re
@@ -38,6 +39,53 @@ if TYPE_CHECKING:
 MESH_FORMATS = (".obj", ".ply", ".glb")
 #: Suffixes :class:`UsdRecorder` writes (``.usd`` is binary crate, ``.usda`` text).
 USD_FORMATS = (".usd", ".usda", ".usdc")
+
+# What writing each kind of file imports, and the extra that installs it. trimesh imports
+# Pillow only when it meets texture coordinates: without it an OBJ loses its ``vt`` lines
+# silently and a ``.glb`` fails half-way, so Pillow is a need of every mesh file, not an extra
+# dependency of trimesh's.
+_MESH_NEEDS = ("trimesh", "PIL")
+_USD_NEEDS = ("pxr",)
+
+
+def required_modules(path: str | os.PathLike[str]) -> tuple[str, ...]:
+    """The top-level modules writing ``path`` imports, by its suffix (a mesh file or an OBJ
+    sequence: trimesh and Pillow; USD: ``pxr``), so that a command can check them before it
+    starts a run. ``ValueError`` for a suffix nothing here writes.
+
+    >>> required_modules("out/cloth.glb"), required_modules("run.usda")
+    (('trimesh', 'PIL'), ('pxr',))
+    """
+    suffix = Path(path).suffix.lower()
+    if suffix in USD_FORMATS:
+        return _USD_NEEDS
+    if suffix in MESH_FORMATS:
+        return _MESH_NEEDS
+    raise ValueError(
+        f"cannot write {os.fspath(path)!r}: the suffix must be one of "
+        f"{', '.join(USD_FORMATS + MESH_FORMATS)}"
+    )
+
+
+def check_required(path: str | os.PathLike[str]) -> None:
+    """Raise :class:`MissingExtra` naming the extra (``export`` or ``usd``) when a module that
+    writing ``path`` needs is not installed (:func:`required_modules`); ``ValueError`` for an
+    unknown suffix. Cheap: it finds the modules without importing them."""
+    modules = required_modules(path)
+    extra = "usd" if modules == _USD_NEEDS else "export"
+    what = "USD export" if extra == "usd" else f"{Path(path).suffix.lower()} export"
+    for module in modules:
+        if not _importable(module):
+            raise MissingExtra(module, what, extra)
+
+
+def _importable(module: str) -> bool:
+    # A module set to None in sys.modules is one an import refuses (as tests simulate a
+    # missing package); find_spec raises ValueError for it.
+    try:
+        return importlib.util.find_spec(module) is not None
+    except ValueError:
+        return False
 
 
 @dataclass(frozen=True)
@@ -80,7 +128,7 @@ def _trimesh() -> Any:
     try:
         import trimesh
     except ModuleNotFoundError as err:
-        raise MissingExtra("trimesh", "mesh export") from err
+        raise MissingExtra("trimesh", "mesh export", "export") from err
     return trimesh
 
 
@@ -102,7 +150,8 @@ def export(sim: Simulation | Mesh, path: str | os.PathLike[str]) -> Path:
     """Write the current frame to ``path`` as Wavefront OBJ (``.obj``, with normals and UVs),
     binary PLY (``.ply``, with normals and UVs) or glTF binary (``.glb``), by suffix.
 
-    Needs trimesh (``pip install 'rustcloth[export]'``; :class:`MissingExtra` otherwise).
+    Needs trimesh and Pillow (``pip install 'rustcloth[export]'``; :class:`MissingExtra`
+    naming the extra otherwise, before anything is written).
     Raises ``ValueError`` for any other suffix. Returns the path written."""
     path = Path(path)
     suffix = path.suffix.lower()
@@ -110,6 +159,7 @@ def export(sim: Simulation | Mesh, path: str | os.PathLike[str]) -> Path:
         raise ValueError(
             f"cannot export {str(path)!r}: the suffix must be one of {', '.join(MESH_FORMATS)}"
         )
+    check_required(path)
     mesh = sim if isinstance(sim, Mesh) else to_mesh(sim)
     tm = _as_trimesh(mesh)
     if suffix == ".obj":
@@ -152,8 +202,10 @@ class UsdRecorder(Recorder):
     count). Each cut vertex's velocity is its particle's.
 
     A frame added at simulated time ``t`` seconds is sampled at time code
-    ``t * time_codes_per_second``; the stage's ``timeCodesPerSecond`` and ``framesPerSecond``
-    are ``fps``, so frames added every ``1 / fps`` s fall on whole time codes. The stage is
+    ``t * fps``; the stage's ``timeCodesPerSecond`` and ``framesPerSecond`` are ``fps``. A
+    frame added within half a step of ``k / fps`` s (the nearest a run of whole steps comes to
+    it) is sampled at the whole time code ``k``, so frames added every ``1 / fps`` s fall on
+    whole time codes 0, 1, 2, ... whether or not ``dt`` divides ``1 / fps``. The stage is
     y-up, in metres. Needs usd-core (``pip install 'rustcloth[usd]'``).
 
     >>> with UsdRecorder("run.usd", fps=30) as rec:          # doctest: +SKIP
@@ -169,7 +221,7 @@ class UsdRecorder(Recorder):
         try:
             from pxr import Sdf, Usd, UsdGeom, Vt  # type: ignore[import-untyped]  # no stubs
         except ModuleNotFoundError as err:
-            raise MissingExtra("pxr", "USD export") from err
+            raise MissingExtra("pxr", "USD export", "usd") from err
         self._Sdf, self._UsdGeom, self._Vt = Sdf, UsdGeom, Vt
         self.path = Path(path)
         self.fps = float(fps)
@@ -198,13 +250,13 @@ class UsdRecorder(Recorder):
         self._closed = False
 
     def add(self, sim: Simulation) -> None:
-        """Sample the simulation's current state at time code ``sim.time * fps`` (rounded to
-        1e-9)."""
+        """Sample the simulation's current state at time code ``sim.time * fps``, or at the
+        whole code ``k`` when ``sim.time`` is within half a step (``sim.dt / 2``) of
+        ``k / fps``."""
         if self._closed:
             raise ValueError(f"the recorder of {str(self.path)!r} is closed")
         Vt, UsdGeom = self._Vt, self._UsdGeom
-        # Rounded so that frames taken every 1 / fps s land on whole codes despite round-off.
-        code = round(sim.time * self.fps, 9)
+        code = self._code(sim.time, sim.dt)
         mesh = to_mesh(sim)
         if not self._codes:
             self._st = UsdGeom.PrimvarsAPI(self._mesh).CreatePrimvar(
@@ -225,6 +277,18 @@ class UsdRecorder(Recorder):
         self._extent.Set(UsdGeom.PointBased.ComputeExtent(points), code)
         self._codes.append(code)
         self.frames += 1
+
+    def _code(self, time: float, dt: float) -> float:
+        # A simulation can only stop at whole steps, so frame k of a run taken every 1 / fps s
+        # is at the step nearest k / fps, up to half a step away (at dt = 1 ms and 30 fps,
+        # frame 1 is at 33 ms, code 0.99): that is still frame k, and lands on code k. Any
+        # other time keeps its own code, as does a frame whose whole code is already taken.
+        exact = time * self.fps
+        whole = float(round(exact))
+        code = whole if abs(exact - whole) <= 0.5 * dt * self.fps + 1e-9 else round(exact, 9)
+        if self._codes and code <= self._codes[-1]:
+            code = round(exact, 9)
+        return code
 
     def close(self) -> None:
         """Set the stage's start and end time codes and save the file."""
@@ -252,7 +316,7 @@ class ObjSequenceRecorder(Recorder):
                 f"an OBJ sequence pattern ends in .obj and has one run of '#' in its file name "
                 f"for the frame number (e.g. out/cloth_####.obj), not {pattern!r}"
             )
-        _trimesh()
+        check_required(pattern)
         self.pattern = pattern
         self.paths: list[Path] = []
 

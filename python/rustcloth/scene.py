@@ -14,7 +14,7 @@ import tomllib
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -22,6 +22,20 @@ import numpy.typing as npt
 from . import _core
 from .errors import ParameterError, ParameterTypeError, StabilityWarning
 from .meshes import read_mesh, resolve_paths
+
+if TYPE_CHECKING:
+    from .settings import (
+        ClothSettings,
+        ColliderSettings,
+        FloorSettings,
+        IntegratorName,
+        PreconditionerName,
+        SelfCollisionSettings,
+        SphereSettings,
+        StrainLimitSettings,
+        TearingSettings,
+        WatchdogSettings,
+    )
 
 
 def _check_nesting(settings: Mapping[str, Any]) -> None:
@@ -61,7 +75,7 @@ class Scene:
 
     >>> scene = Scene(dt=0.002, cloth={"nx": 16, "ny": 16, "pins": ["top_edge"]})
     >>> scene.cloth["k_structural"]
-    500.0
+    200.0
 
     Unknown keys, values of the wrong type and values out of range raise
     :class:`~rustcloth.errors.ParameterError` (a ``ValueError``) or
@@ -69,6 +83,29 @@ class Scene:
     """
 
     __slots__ = ("_data",)
+
+    if TYPE_CHECKING:
+        # The scene keys, as __getattr__ answers them (a deep copy each time); declared for
+        # type checkers only, they are not attributes of the class.
+        cloth: ClothSettings
+        dt: float
+        substeps: int
+        integrator: IntegratorName
+        gravity: list[float]
+        air_drag: float
+        floor: FloorSettings | None
+        spheres: list[SphereSettings]
+        colliders: list[ColliderSettings]
+        watchdog: WatchdogSettings
+        strain_limit: StrainLimitSettings | None
+        self_collision: SelfCollisionSettings | None
+        tearing: TearingSettings | None
+        preconditioner: PreconditionerName
+        cg_tolerance: float
+        cg_max_iterations: int
+        pd_iterations: int
+        pd_tolerance: float
+        pd_chebyshev_rho: float
 
     def __init__(self, **settings: Any) -> None:
         _check_nesting(settings)

@@ -11,7 +11,7 @@ import os
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal, NamedTuple, TypeAlias, cast
+from typing import TYPE_CHECKING, Any, Literal, NamedTuple, TypeAlias, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -19,11 +19,12 @@ import numpy.typing as npt
 from . import _core
 from .errors import ParameterError, ParameterTypeError, ParticleIndexError, StabilityWarning
 from .scene import Scene, load_scene
+from .settings import IntegratorName
 
-IntegratorName: TypeAlias = Literal[
-    "explicit_euler", "symplectic_euler", "verlet", "rk4", "implicit_euler"
-]
-"""The names of the time integrators (``rustcloth.INTEGRATORS``)."""
+if TYPE_CHECKING:
+    from pathlib import Path
+
+    from .export import Mesh
 
 PickStrategyName: TypeAlias = Literal["auto", "bvh", "scan"]
 """How ray queries find what they hit; all three give the same answers."""
@@ -653,7 +654,7 @@ class Simulation:
             f"t={self.time:.4f}s effects={self.effects}>"
         )
 
-    def to_mesh(self) -> Any:
+    def to_mesh(self) -> Mesh:
         """The current frame's drawn mesh (:meth:`render_mesh`) as a
         :class:`rustcloth.export.Mesh`: ``vertices`` ``(V, 3)`` float32 in m (vertex ``p < N``
         is particle ``p``; cut particles stay, used by no triangle; the cut vertices follow),
@@ -663,7 +664,7 @@ class Simulation:
 
         return to_mesh(self)
 
-    def export(self, path: Any) -> Any:
+    def export(self, path: str | os.PathLike[str]) -> Path:
         """Write the current frame to ``path`` (a ``str`` or ``os.PathLike``) as ``.obj``,
         ``.ply`` or ``.glb`` (glTF binary), with normals and UVs, through trimesh
         (``pip install 'rustcloth[export]'``; ``ImportError`` naming the extra otherwise).

@@ -554,7 +554,7 @@ def main(argv: list[str] | None = None) -> int:
         cases = [Case(kind, damped, 24, t) for kind, t in (("hanging", 0.25), ("stretched", 0.1))
                  for damped in (False, True)]
         ladder, stiff_n, stiff_seconds = LADDER, 32, 0.5
-    integrators = list(INTEGRATORS)
+    integrators: list[str] = list(INTEGRATORS)
     args.out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
     with warnings.catch_warnings():

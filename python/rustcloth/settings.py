@@ -1,0 +1,99 @@
+"""Types of a scene's settings as :class:`rustcloth.Scene` answers them (``scene.cloth``,
+``scene.floor``, ...; the keys of the scene TOML, README.md), and the names of the integrators.
+
+These are for type checkers: at run time each is a plain ``dict``, ``list`` or ``str``.
+
+>>> import rustcloth
+>>> cloth: ClothSettings = rustcloth.load_scene("hanging").cloth
+>>> cloth["nx"], cloth["plane"]
+(32, 'xz')
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal, TypeAlias, TypedDict
+
+IntegratorName: TypeAlias = Literal[
+    "explicit_euler",
+    "symplectic_euler",
+    "verlet",
+    "rk4",
+    "implicit_euler",
+    "projective_dynamics",
+]
+"""The names of the time integrators, in the order of ``rustcloth.INTEGRATORS`` (the compiled
+module's list; tests/test_typing.py checks that the two agree)."""
+
+PreconditionerName: TypeAlias = Literal["jacobi", "block_jacobi", "multigrid"]
+"""The preconditioners of ``implicit_euler``'s conjugate gradient."""
+
+Pin: TypeAlias = str | list[int]
+"""A named set of particles (``"top_corners"``, ``"top_edge"``, ...) or one ``[i, j]``."""
+
+
+class ClothSettings(TypedDict):
+    """``scene.cloth``: the grid, its placement, mass and springs."""
+
+    nx: int
+    ny: int
+    size: list[float]
+    center: list[float]
+    plane: Literal["xz", "xy"]
+    particle_mass: float
+    k_structural: float
+    k_shear: float
+    k_bend: float
+    damping: float
+    pins: list[Pin]
+
+
+class FloorSettings(TypedDict):
+    """``scene.floor`` (None: no floor)."""
+
+    height: float
+    friction: float
+    thickness: float
+
+
+class SphereSettings(TypedDict):
+    """One of ``scene.spheres``."""
+
+    center: list[float]
+    radius: float
+    friction: float
+    thickness: float
+
+
+class WatchdogSettings(TypedDict):
+    """``scene.watchdog``: what a step does when it goes wrong (docs/stability.md)."""
+
+    max_stretch: float | None
+    on_trouble: Literal["raise", "substep"]
+    max_substeps: int
+    hold_steps: int
+
+
+class StrainLimitSettings(TypedDict):
+    """``scene.strain_limit`` (None: no pass)."""
+
+    max_strain: float
+    iterations: int
+
+
+class SelfCollisionSettings(TypedDict):
+    """``scene.self_collision`` (None: no pass)."""
+
+    thickness: float
+    friction: float
+    iterations: int
+
+
+class TearingSettings(TypedDict):
+    """``scene.tearing`` (None: no pass)."""
+
+    max_strain: float
+    max_per_step: int
+
+
+ColliderSettings: TypeAlias = dict[str, Any]
+"""One of ``scene.colliders``: ``shape`` and the keys of that shape (docs/colliders.md)."""
