@@ -1,8 +1,9 @@
 """The accuracy-versus-time study: what each integrator's accuracy costs.
 
-``python -m rustcloth accuracy`` (or ``make accuracy``) writes ``docs/accuracy.md`` (tables, the
-measured orders, Pareto fronts and a reading generated from the numbers) and
-``docs/accuracy.png``. It has two parts.
+``python -m rustcloth accuracy --out DIR`` writes ``DIR/accuracy.md`` (tables, the measured
+orders, Pareto fronts and a reading generated from the numbers) and ``DIR/accuracy.png``
+(``DIR`` is ``out/accuracy`` unless given; ``make accuracy`` writes the repository's
+``docs``). It has two parts.
 
 **Orders.** Every integrator over a ladder of time steps on smooth motion that exercises the
 springs: a cloth swinging down from two pinned corners, and a free sheet kicked into
@@ -27,7 +28,6 @@ import argparse
 import math
 import os
 import platform
-import sys
 import time
 import warnings
 from collections.abc import Callable
@@ -38,6 +38,8 @@ from typing import Any
 import numpy as np
 
 from .. import INTEGRATORS, Scene, Simulation
+from .._cli import Parser, guarded, progress, writable_folder
+from .._extras import require
 from ..errors import SimulationDiverged
 from .model import Cloth
 
@@ -525,26 +527,32 @@ def plot(orders: list[OrderResult], stiff: list[Run], integrators: list[str],
     plt.close(fig)
 
 
-def require_matplotlib() -> bool:
-    try:
-        import matplotlib  # noqa: F401
-    except ImportError:
-        return False
-    return True
+#: Where the study writes when --out is not given: a folder of the working directory's ``out``,
+#: never the docs of whatever checkout the user stands in (``make accuracy`` passes --out docs).
+DEFAULT_OUT = Path("out/accuracy")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The parser of ``rustcloth accuracy`` (matplotlib is needed only to run the study)."""
+    parser = Parser(prog="rustcloth accuracy", description=__doc__)
+    parser.add_argument("--out", type=Path, default=DEFAULT_OUT,
+                        help="folder for accuracy.md and accuracy.png, created if missing "
+                             "(the repository's own report: --out docs)")
+    parser.add_argument("--quick", action="store_true",
+                        help="a tiny study (8x8, three rungs of the ladder) to check the pipeline")
+    return parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="rustcloth accuracy", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--out", type=Path, default=Path("docs"),
-                        help="folder for accuracy.md and accuracy.png (default: docs)")
-    parser.add_argument("--quick", action="store_true",
-                        help="a tiny study (8x8, three rungs of the ladder) to check the pipeline")
-    args = parser.parse_args(argv)
-    if not require_matplotlib():
-        print("rustcloth accuracy needs matplotlib for its plot: pip install 'rustcloth[study]'",
-              file=sys.stderr)
-        return 2
+    """``rustcloth accuracy``; returns the exit status (2: a bad argument, an unwritable
+    folder or no matplotlib, said in one line)."""
+    return guarded("rustcloth accuracy", lambda: _main(argv))
+
+
+def _main(argv: list[str] | None) -> int:
+    args = build_parser().parse_args(argv)
+    writable_folder(args.out)
+    require("rustcloth accuracy", "matplotlib")
     if args.quick:
         cases = [Case("hanging", True, 8, 0.05), Case("stretched", False, 8, 0.05)]
         ladder, stiff_n, stiff_seconds = LADDER[:3], 8, 0.1
@@ -555,13 +563,22 @@ def main(argv: list[str] | None = None) -> int:
                  for damped in (False, True)]
         ladder, stiff_n, stiff_seconds = LADDER, 32, 0.5
     integrators = list(INTEGRATORS)
-    args.out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
-    with warnings.catch_warnings():
-        # Unstable settings and capped solves are part of what the study measures.
-        warnings.simplefilter("ignore", RuntimeWarning)
-        orders = order_study(cases, integrators, ladder)
-        stiff, ratio = stiff_study(stiff_n, stiff_seconds, args.quick)
+    # One tick per case of the order study and one for the stiff study; their lines above it.
+    bar = progress(len(cases) + 1, "part")
+
+    def log(line: str) -> None:
+        bar.write(line)
+        bar.update()
+
+    try:
+        with warnings.catch_warnings():
+            # Unstable settings and capped solves are part of what the study measures.
+            warnings.simplefilter("ignore", RuntimeWarning)
+            orders = order_study(cases, integrators, ladder, log)
+            stiff, ratio = stiff_study(stiff_n, stiff_seconds, args.quick, log)
+    finally:
+        bar.close()
     elapsed = time.perf_counter() - start
     write_report(orders, stiff, ratio, integrators, args.out / "accuracy.md", elapsed)
     plot(orders, stiff, integrators, args.out / "accuracy.png")
