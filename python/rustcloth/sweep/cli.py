@@ -100,14 +100,6 @@ class TqdmProgress:
         self.bar.close()
 
 
-def make_progress(kind: str, total: int, done: int) -> Any:
-    if kind == "none":
-        return None
-    if kind == "plain":
-        return PlainProgress(total, done)
-    return TqdmProgress(total, done)
-
-
 class _Bar:
     """The progress of ``kind``, started once the driver knows how many runs there are."""
 
@@ -116,9 +108,10 @@ class _Bar:
         self.bar: Any = None
 
     def start(self, total: int, done: int) -> None:
-        if self.kind != "none":
-            print(f"{total} runs, {done} already complete", file=sys.stderr)
-        self.bar = make_progress(self.kind, total, done)
+        if self.kind == "none":
+            return
+        print(f"{total} runs, {done} already complete", file=sys.stderr)
+        self.bar = (PlainProgress if self.kind == "plain" else TqdmProgress)(total, done)
 
     def __call__(self, record: dict[str, Any], done: int, total: int, failed: int) -> None:
         if self.bar is not None:
