@@ -3,8 +3,8 @@ its pieces: the Pareto front, the fitted order, the float64 reference."""
 
 from __future__ import annotations
 
-import builtins
 import math
+import sys
 
 import numpy as np
 import pytest
@@ -28,18 +28,28 @@ def test_quick_study_writes_tables_and_a_plot(tmp_path):
         assert image.size[0] > 400 and image.size[1] > 300
 
 
-def test_without_matplotlib_the_study_names_the_extra_and_exits_2(monkeypatch, capsys):
-    real_import = builtins.__import__
-
-    def no_matplotlib(name, *args, **kwargs):
-        if name == "matplotlib" or name.startswith("matplotlib."):
-            raise ImportError(name)
-        return real_import(name, *args, **kwargs)
-
-    monkeypatch.setattr(builtins, "__import__", no_matplotlib)
-    assert accuracy.main(["--quick"]) == 2
+def test_without_matplotlib_the_study_names_the_extra_and_exits_2(monkeypatch, capsys,
+                                                                   tmp_path):
+    monkeypatch.setitem(sys.modules, "matplotlib", None)
+    assert accuracy.main(["--quick", "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip()
     assert "rustcloth[study]" in err and len(err.splitlines()) == 1
+
+
+def test_the_study_writes_under_out_unless_told(monkeypatch, tmp_path):
+    # `rustcloth accuracy` wrote its report into ./docs of whatever folder the user stood in.
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # stop before the study itself
+    assert accuracy.main(["--quick"]) == 2
+    assert (tmp_path / "out" / "accuracy").is_dir() and not (tmp_path / "docs").exists()
+
+
+def test_an_unusable_out_folder_is_one_line_before_the_study(capsys):
+    # `accuracy --out /dev/full/x` ended in a NotADirectoryError traceback.
+    assert accuracy.main(["--quick", "--out", "/dev/full/x"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("rustcloth accuracy: error: Not a directory: '/dev/full/x'")
+    assert err.count("\n") == 1
 
 
 def test_pareto_front_keeps_only_unbeaten_runs():

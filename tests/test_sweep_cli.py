@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+
 import pytest
 from rustcloth.sweep import main, read_index
 
@@ -22,7 +26,7 @@ def test_a_sweep_runs_with_a_progress_line_and_ends_with_a_summary(sweep_file, t
     assert main([str(sweep_file), "--out", str(out), "--workers", "2", "--threads", "1",
                  "--progress", "plain"]) == 0
     captured = capsys.readouterr()
-    assert "progress: a plain line" in captured.err or "progress: tqdm" in captured.err
+    assert captured.err.startswith("4 runs, 0 already complete\n")
     assert "[4/4] 2 ok, 2 failed" in captured.err
     assert "4 runs in" in captured.out and "4 ran now, 0 already complete" in captured.out
     assert "ok              2" in captured.out and "diverged        2" in captured.out
@@ -49,8 +53,8 @@ def test_dry_run_lists_the_runs_and_runs_none(sweep_file, tmp_path, capsys):
     ("args", "message"),
     [
         (["missing.toml"], "cannot read 'missing.toml'"),
-        (["{sweep}", "--workers", "0"], "argument --workers: 0 is not >= 1"),
-        (["{sweep}", "--time-limit", "-3"], "argument --time-limit: -3.0 is not a positive"),
+        (["{sweep}", "--workers", "0"], "argument --workers: must be at least 1, not '0'"),
+        (["{sweep}", "--time-limit", "-3"], "argument --time-limit: must be a positive"),
         (["{sweep}", "--backend", "dask"], "argument --backend: invalid choice"),
         (["{sweep}", "--address", "auto"], "--address is for the ray backend"),
         (["{bad}"], "cloth.k_bnd: unknown field `k_bnd`"),
@@ -73,3 +77,74 @@ def test_help_documents_every_option_with_its_default(capsys):
                    "--retry-failed", "--progress", "--dry-run"):
         assert option in text
     assert "(default: local)" in text and "(default: auto)" in text
+
+
+# -- a sweep file is code -----------------------------------------------------------------------
+def test_dry_run_imports_nothing(tmp_path, capsys):
+    # `--dry-run` ("check the description and list the runs") imported and ran the functions
+    # a sweep file names: with `scene_fn = "make.py:make"`, make.py ran at import and make()
+    # once per run.
+    (tmp_path / "make.py").write_text(
+        "import pathlib\npathlib.Path(__file__).with_name('imported').write_text('yes')\n"
+        "def make(k_bend):\n    raise AssertionError('called')\n")
+    (tmp_path / "sweep.toml").write_text('scene_fn = "make.py:make"\nseconds = 1.0\n'
+                                         '[grid]\nk_bend = [1.0, 2.0]\n')
+    assert main([str(tmp_path / "sweep.toml"), "--dry-run"]) == 0
+    out = capsys.readouterr().out
+    assert "k_bend=2.0" in out and "2 runs (scene_fn is not called" in out
+    assert not (tmp_path / "imported").exists()
+
+
+def test_a_sweep_file_cannot_run_a_shell_command(tmp_path, capsys):
+    # `scene_fn = "os:system"` ran `touch pwned` for each run, even under --dry-run.
+    (tmp_path / "sweep.toml").write_text('scene_fn = "os:system"\nsteps = 1\n'
+                                         '[grid]\ncommand = ["touch pwned"]\n')
+    for extra in ([], ["--dry-run"]):
+        code = main([str(tmp_path / "sweep.toml"), "--out", str(tmp_path / "out"), *extra])
+        err = capsys.readouterr().err
+        assert code == 2 and err.count("\n") == 1 and "--module os" in err, err
+    assert not (tmp_path / "pwned").exists() and not (tmp_path / "out").exists()
+
+
+def test_help_says_a_sweep_file_is_code(capsys):
+    assert main(["--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "A sweep file is code" in text and "--module NAME" in text
+
+
+# -- errors in one line -------------------------------------------------------------------------
+@pytest.mark.parametrize("out", ["{file}", "/dev/full", "{file}/below"])
+def test_an_unusable_out_folder_is_one_line(sweep_file, tmp_path, capsys, out):
+    # `--out` naming a file (or /dev/full) ended in a NotADirectoryError traceback.
+    afile = tmp_path / "afile"
+    afile.write_text("")
+    for progress in ("none", "plain"):
+        code = main([str(sweep_file), "--out", out.format(file=afile), "--progress", progress])
+        err = capsys.readouterr().err
+        assert code == 2 and "Traceback" not in err, err
+        assert err.startswith("rustcloth sweep: error: Not a directory") and err.count("\n") == 1
+
+
+@pytest.mark.parametrize(("text", "needle"), [
+    ('base = "hanging"\nseconds = 1e308\n', "seconds = 1e+308 is more than 10,000,000"),
+    ('base = "hanging"\nsteps = 1180591620717411303424\n', "steps must be a whole number"),
+    ("x = " + "[" * 5000 + "]" * 5000 + "\n", "nested too deeply"),
+])
+def test_a_run_too_long_or_a_file_too_deep_is_one_line(tmp_path, capsys, text, needle):
+    # `seconds = 1e308` ended in "OverflowError: cannot convert float infinity to integer",
+    # a TOML nested thousands deep in a RecursionError; `steps = 2**70` was listed as a run.
+    (tmp_path / "sweep.toml").write_text(text)
+    for extra in ([], ["--dry-run"]):
+        code = main([str(tmp_path / "sweep.toml"), "--out", str(tmp_path / "out"), *extra])
+        err = capsys.readouterr().err
+        assert code == 2 and err.count("\n") == 1 and needle in err, err
+
+
+def test_sweep_errors_exit_2_from_the_shell(sweep_file, tmp_path):
+    # From the shell, `--out` naming a file was a traceback and exit status 1.
+    (tmp_path / "afile").write_text("")
+    proc = subprocess.run([sys.executable, "-m", "rustcloth", "sweep", str(sweep_file),
+                           "--out", str(tmp_path / "afile")], capture_output=True, text=True,
+                          timeout=60, env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)})
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert proc.stderr.count("\n") == 1 and "Not a directory" in proc.stderr

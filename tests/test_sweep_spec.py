@@ -3,6 +3,10 @@ run starts."""
 
 from __future__ import annotations
 
+import os
+import shutil
+import tracemalloc
+
 import pytest
 import rustcloth
 from conftest import small_scene
@@ -75,6 +79,8 @@ def test_a_scene_function_gets_the_parameters_as_keywords():
 
 def test_toml_gives_the_same_runs_as_python(tmp_path):
     (tmp_path / "base.toml").write_text(small_scene().to_toml())
+    # A sweep file loads .py files from its own folder only.
+    shutil.copy(os.path.join(HERE, "sweep_functions.py"), tmp_path)
     (tmp_path / "sweep.toml").write_text(
         'base = "base.toml"\n'
         "steps = 120\n"
@@ -84,7 +90,7 @@ def test_toml_gives_the_same_runs_as_python(tmp_path):
         "damping = [0.01, 0.05]\n"
         "[record]\n"
         "every = 25\n"
-        f'functions = {{ lowest = "{HERE}/sweep_functions.py:lowest_point" }}\n'
+        'functions = { lowest = "sweep_functions.py:lowest_point" }\n'
     )
     from_toml = Sweep.from_toml(tmp_path / "sweep.toml").expand()
     from_python = small_sweep().expand()
@@ -108,7 +114,7 @@ def test_toml_gives_the_same_runs_as_python(tmp_path):
         ({"grid": {"cloth.nx": ["many"]}}, rustcloth.ParameterTypeError, "nx"),
         ({"steps": None}, SweepError, "exactly one of seconds and steps"),
         ({"seconds": 1.0}, SweepError, "exactly one of seconds and steps"),
-        ({"steps": 0}, SweepError, "steps must be a positive integer"),
+        ({"steps": 0}, SweepError, "steps must be a whole number from 1"),
         ({"time_limit": -1.0}, SweepError, "time_limit"),
         ({"record": Record(every=-1)}, SweepError, "record.every"),
         ({"record": Record(functions={"positions": len})}, SweepError, "usable name"),
@@ -153,3 +159,136 @@ def test_bad_toml_is_rejected_naming_the_key(tmp_path, text, message):
     (tmp_path / "sweep.toml").write_text(text)
     with pytest.raises(SweepError, match=message):
         Sweep.from_toml(tmp_path / "sweep.toml").expand()
+
+
+# -- a sweep file is code -----------------------------------------------------------------------
+MARKER_MODULE = """
+import pathlib
+pathlib.Path(__file__).with_name("imported").write_text("yes")
+
+def make(k_bend):
+    raise AssertionError("called")
+"""
+
+
+def test_a_sweep_file_cannot_name_a_module_it_was_not_given(tmp_path):
+    # `scene_fn = "os:system"` in a sweep file ran a shell command for each run: any module of
+    # the interpreter was importable from a file the user may only have downloaded.
+    (tmp_path / "sweep.toml").write_text('scene_fn = "os:system"\nsteps = 1\n'
+                                         '[grid]\ncommand = ["touch pwned"]\n')
+    with pytest.raises(SweepError, match="--module os"):
+        Sweep.from_toml(tmp_path / "sweep.toml")
+    # Named by the caller, the module is allowed (and imported only when the sweep expands).
+    sweep = Sweep.from_toml(tmp_path / "sweep.toml", modules=["os"])
+    assert sweep.scene_fn == "os:system"
+
+
+@pytest.mark.parametrize("where", ["../elsewhere.py", "/tmp/elsewhere.py", "sub/../../x.py"])
+def test_a_sweep_file_loads_py_files_only_from_its_own_folder(tmp_path, where):
+    (tmp_path / "sweeps").mkdir()
+    path = tmp_path / "sweeps" / "sweep.toml"
+    path.write_text(f'base = "hanging"\nsteps = 1\n[filters]\nreject = "{where}:f"\n')
+    with pytest.raises(SweepError, match="only from its own folder"):
+        Sweep.from_toml(path)
+
+
+def test_reading_a_sweep_file_imports_nothing(tmp_path):
+    # Sweep.from_toml executed every file.py the description named, before anything else.
+    (tmp_path / "make.py").write_text(MARKER_MODULE)
+    (tmp_path / "sweep.toml").write_text('scene_fn = "make.py:make"\nsteps = 1\n'
+                                         '[grid]\nk_bend = [1.0]\n')
+    sweep = Sweep.from_toml(tmp_path / "sweep.toml")
+    assert [p.params for p in sweep.preview()] == [{"k_bend": 1.0}]
+    assert not (tmp_path / "imported").exists()
+    with pytest.raises(AssertionError, match="called"):  # expanding is what imports and calls
+        sweep.expand()
+    assert (tmp_path / "imported").exists()
+
+
+# -- bounds ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("changes", [{"steps": None, "seconds": 1e308}, {"steps": 2**70},
+                                     {"steps": 10**9}])
+def test_a_run_longer_than_the_step_limit_is_refused_naming_the_key(changes):
+    # `seconds = 1e308` died in round() with "cannot convert float infinity to integer", and
+    # `steps = 2**70` was accepted, to overflow in the core.
+    sweep = Sweep(**{"base": "hanging", "steps": 1, **changes})
+    key = "seconds" if "seconds" in changes else "steps"
+    with pytest.raises(SweepError, match=f"^{key}"):
+        sweep.expand()
+    with pytest.raises(SweepError, match=f"^{key}"):
+        list(sweep.preview())
+
+
+def test_a_sweep_file_nested_too_deeply_is_a_sweep_error(tmp_path):
+    path = tmp_path / "sweep.toml"
+    path.write_text("x = " + "[" * 5000 + "]" * 5000 + "\n")
+    with pytest.raises(SweepError, match="nested too deeply"):
+        Sweep.from_toml(path)
+    path.write_bytes(b'base = "\xff"\n')
+    with pytest.raises(SweepError, match="sweep.toml"):
+        Sweep.from_toml(path)
+
+
+def test_runs_are_built_one_at_a_time():
+    # Expanding a sweep kept a whole scene per run (1e5 runs: 514 MB before anything ran).
+    # Taking the runs one by one holds one scene at a time, whatever the size of the sweep.
+    def peak(n: int) -> int:
+        sweep = Sweep(base="hanging", grid={"cloth.k_bend": [float(k) for k in range(1, n + 1)]},
+                      steps=1)
+        tracemalloc.start()
+        try:
+            for _ in sweep.iter_runs():
+                pass
+            return tracemalloc.get_traced_memory()[1]
+        finally:
+            tracemalloc.stop()
+
+    small, large = peak(20), peak(2000)
+    # The bookkeeping of run ids grows (about 100 bytes a run); the scenes must not.
+    assert large < small + 2000 * 400, (small, large)
+
+
+@pytest.mark.parametrize("device", ["/dev/zero", "/dev/full"])
+def test_a_device_is_not_read_as_a_sweep_file(device):
+    # /dev/full and /dev/zero read zeros forever: reading one as a sweep file filled memory.
+    with pytest.raises(SweepError, match="not a regular file"):
+        Sweep.from_toml(device)
+
+
+class _Consuming:
+    """A backend that takes every run it is given and runs none."""
+
+    name, threads = "consuming", 1
+
+    def describe(self) -> str:
+        return self.name
+
+    def run(self, runs):
+        for _ in runs:
+            pass
+        yield from ()
+
+
+def test_run_sweep_holds_no_scene_per_run(tmp_path):
+    # run_sweep expanded the whole sweep into a list before anything ran, every run with its
+    # scene: with a mesh collider in the base, megabytes per hundred runs.
+    n = 12
+    vertices = [[x / n, 0.0, z / n] for z in range(n + 1) for x in range(n + 1)]
+    triangles = [[z * (n + 1) + x, (z + 1) * (n + 1) + x, z * (n + 1) + x + 1]
+                 for z in range(n) for x in range(n)]
+    base = small_scene(colliders=[{"shape": "mesh", "vertices": vertices,
+                                   "triangles": triangles}])
+
+    def peak(runs: int) -> int:
+        sweep = Sweep(base=base, grid={"cloth.k_bend": [float(k) for k in range(1, runs + 1)]},
+                      steps=1)
+        tracemalloc.start()
+        try:
+            run_sweep(sweep, tmp_path / str(runs), _Consuming())
+            return tracemalloc.get_traced_memory()[1]
+        finally:
+            tracemalloc.stop()
+
+    small, large = peak(10), peak(200)
+    # Each scene is about 35 KB here; the bookkeeping kept per run is a few hundred bytes.
+    assert large < small + 200 * 4000, (small, large)

@@ -1,10 +1,12 @@
 """The command line, ``rustcloth COMMAND`` or ``python -m rustcloth COMMAND``.
 
 ``run`` and ``scenes`` live here. ``demo``, ``render``, ``accuracy`` and ``sweep`` belong to other
-modules (:data:`DELEGATED`): each gets the arguments after its name, parses its own options and
-returns an exit code. Exit codes: 0 done, 1 the simulation diverged, 2 a bad argument, an
-unusable scene or a missing optional dependency (said in one line, naming the extra), 130
-interrupted.
+modules (:data:`DELEGATED`): each gets the arguments after its name, parses its own options
+(with the parser and argument types of :mod:`rustcloth._cli`) and returns an exit code. Those
+modules import no optional extra when they load, so every command's ``--help`` works before
+its extra is installed; the extra is checked after the arguments are parsed. Exit codes: 0
+done, 1 the simulation diverged, 2 a bad argument, an unusable scene or file, or a missing
+optional dependency (said in one line, naming the extra), 130 interrupted.
 """
 
 from __future__ import annotations
@@ -17,16 +19,16 @@ import time
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
-from typing import NoReturn
 
 from . import INTEGRATORS, __version__, export, load_scene, scenes
-from ._extras import MissingExtra, as_missing_extra, require
-from .errors import RustclothError, SimulationDiverged, StabilityWarning
+from ._cli import USER_ERRORS, Parser, describe, fail, guarded, positive, progress, writable_folder
+from ._extras import require
+from ._limits import MAX_STEPS
+from .errors import SimulationDiverged, StabilityWarning
 from .simulation import Simulation
 
-#: The most steps one ``run`` may ask for (2.8 hours of a scene at dt = 1 ms): ``--seconds``
-#: beyond it is a typo or an attack, not a run anyone waits for.
-MAX_STEPS = 10_000_000
+__all__ = ["DELEGATED", "MAX_STEPS", "Delegate", "UsageError", "build_parser", "main",
+           "run_headless"]
 
 #: Where ``demo`` and ``render`` live: the one line to change if they move.
 APP_MODULE = "rustcloth.app"
@@ -34,26 +36,22 @@ APP_MODULE = "rustcloth.app"
 
 @dataclass(frozen=True)
 class Delegate:
-    """A sub-command another module owns: ``module.function(argv) -> int``."""
+    """A sub-command another module owns: ``module.function(argv) -> int``. The module imports
+    no optional extra when it loads (the function checks for its extra after parsing)."""
 
     module: str
     function: str
     help: str
-    requires: tuple[str, ...] = ()
-    """Modules of optional extras it cannot start without (checked before importing it)."""
 
 
 DELEGATED: dict[str, Delegate] = {
     "demo": Delegate(APP_MODULE, "main_demo",
-                     "the interactive desktop demo (needs the viewer extra)",
-                     ("moderngl", "glfw", "PIL")),
+                     "the interactive desktop demo (needs the viewer extra)"),
     "render": Delegate(APP_MODULE, "main_render",
                        "render a scene offscreen to PNG frames, a GIF or an MP4 (needs the viewer "
-                       "extra, and video for MP4)",
-                       ("moderngl", "PIL", "imageio")),
+                       "extra, and video for MP4)"),
     "accuracy": Delegate("rustcloth.accuracy", "main",
-                         "the integrators' accuracy-versus-cost study (needs the study extra)",
-                         ("matplotlib", "PIL")),
+                         "the integrators' accuracy-versus-cost study (needs the study extra)"),
     "sweep": Delegate("rustcloth.sweep", "main", "parameter sweeps (the ray extra runs them on a "
                       "Ray cluster)"),
 }
@@ -63,38 +61,10 @@ class UsageError(ValueError):
     """A bad command-line value found after parsing (it depends on the scene)."""
 
 
-class _Formatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
-    """Defaults after every option's help, except where the help says it in words (a None
-    default); descriptions keep their line breaks."""
-
-    def _get_help_string(self, action: argparse.Action) -> str | None:
-        if action.default is None or action.default is False:
-            return action.help
-        return super()._get_help_string(action)
-
-
-class _Parser(argparse.ArgumentParser):
-    """Errors in one line: what is wrong, and where the help is."""
-
-    def error(self, message: str) -> NoReturn:
-        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
-
-
-def _positive(text: str) -> float:
-    """A positive, finite float (argparse names the option in front of the message)."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number, not {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"must be a positive, finite number, not {text!r}")
-    return value
-
-
 def build_parser() -> argparse.ArgumentParser:
     """The parser of ``rustcloth`` and of its ``run`` and ``scenes`` sub-commands."""
-    parser = _Parser(
-        prog="rustcloth", formatter_class=_Formatter,
+    parser = Parser(
+        prog="rustcloth",
         description="Real-time mass-spring cloth: simulate, export, render and study.",
         epilog="examples:\n"
                "  rustcloth run drape --seconds 3\n"
@@ -104,16 +74,15 @@ def build_parser() -> argparse.ArgumentParser:
                "Each command's options: rustcloth COMMAND --help.")
     parser.add_argument("--version", action="version", version=f"rustcloth {__version__}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", required=True,
-                                     parser_class=_Parser)
+                                     parser_class=Parser)
     run = commands.add_parser(
         "run", help="simulate a scene without a window: progress, a summary, optional export",
         description="Simulate a scene without a window. Prints time, energy and stretch once\n"
                     "per simulated second, then a summary with the time per pass; with --export,\n"
-                    "writes the run (USD, OBJ sequence) or its last frame (OBJ, PLY, glTF).",
-        formatter_class=_Formatter)
+                    "writes the run (USD, OBJ sequence) or its last frame (OBJ, PLY, glTF).")
     run.add_argument("scene", nargs="?", default="drape",
                      help="a built-in scene (rustcloth scenes lists them) or a TOML scene file")
-    run.add_argument("--seconds", type=_positive, default=5.0, metavar="S",
+    run.add_argument("--seconds", type=positive, default=5.0, metavar="S",
                      help=f"simulated seconds, run in whole steps of the scene's dt (at most "
                           f"{MAX_STEPS:,} steps)")
     run.add_argument("--integrator", choices=INTEGRATORS, default=None, metavar="NAME",
@@ -123,10 +92,10 @@ def build_parser() -> argparse.ArgumentParser:
                           "run (usd extra); a name with #### such as out/cloth_####.obj, one OBJ "
                           "per frame; .obj, .ply or .glb, the last frame (export extra) "
                           "(default: no export)")
-    run.add_argument("--fps", type=_positive, default=30.0,
+    run.add_argument("--fps", type=positive, default=30.0,
                      help="frames per simulated second written by --export to USD or an OBJ "
                           "sequence (at most one frame per step)")
-    commands.add_parser("scenes", help="list the built-in scenes", formatter_class=_Formatter,
+    commands.add_parser("scenes", help="list the built-in scenes",
                         description="List the built-in scenes, one name a line.")
     for name, delegate in DELEGATED.items():
         # Listed for the help only: main() hands these their arguments before parsing.
@@ -152,7 +121,7 @@ def _plan_export(path: Path | None) -> str | None:
     else:
         require(f"--export to {suffix}", "trimesh")
         mode = "run" if export.is_sequence(path) else "frame"
-    path.parent.mkdir(parents=True, exist_ok=True)
+    writable_folder(path.parent)
     return mode
 
 
@@ -167,8 +136,6 @@ def run_headless(scene_name: str, seconds: float, integrator: str | None = None,
     """Simulate ``seconds`` of a scene (a built-in name or a TOML path), printing time, energy
     and stretch once per simulated second, then a summary with the per-pass profile; with
     ``export_path``, record the run or write its last frame. Returns the exit code."""
-    from tqdm import tqdm
-
     mode = _plan_export(export_path)
     scene = load_scene(scene_name)
     if integrator:
@@ -199,8 +166,7 @@ def run_headless(scene_name: str, seconds: float, integrator: str | None = None,
     start = time.perf_counter()
     e0 = sim.energy()
     done, frames, second, status = 0, 0, 1, 0
-    bar = tqdm(total=total, unit="step", unit_scale=True, disable=None, leave=False,
-                    file=sys.stderr, dynamic_ncols=True)
+    bar = progress(total, "step")
     try:
         # Step to the nearest of: the end, the next progress update, the next whole simulated
         # second (a row of the table), the next recorded frame (frame k at k / fps seconds).
@@ -222,7 +188,7 @@ def run_headless(scene_name: str, seconds: float, integrator: str | None = None,
             second += on_second
             if on_second or done == total:
                 e = sim.energy()
-                tqdm.write(f"{sim.time:9.2f} {e.total:12.5f} {e.kinetic:12.5f} "
+                bar.write(f"{sim.time:9.2f} {e.total:12.5f} {e.kinetic:12.5f} "
                            f"{sim.max_stretch():12.2%} {time.perf_counter() - start:9.3f}")
     except SimulationDiverged as err:
         print(f"stopped: {err}")
@@ -255,46 +221,35 @@ def run_headless(scene_name: str, seconds: float, integrator: str | None = None,
 
 
 # -- dispatch ----------------------------------------------------------------------------------
-def _fail(command: str, message: str) -> int:
-    print(f"rustcloth {command}: error: {message}", file=sys.stderr)
-    return 2
-
-
 def _delegate(command: str, argv: list[str]) -> int:
     d = DELEGATED[command]
-    what = f"rustcloth {command}"
+    prog = f"rustcloth {command}"
     try:
-        require(what, *d.requires)
-        if command == "render" and "--mp4" in argv:
-            require("rustcloth render --mp4", "imageio_ffmpeg")
         module = importlib.import_module(d.module)
-        return int(getattr(module, d.function)(argv))
-    except MissingExtra as err:
-        return _fail(command, str(err))
     except ModuleNotFoundError as err:
-        if err.name == d.module:
-            return _fail(command, f"not available in this installation ({d.module} is missing)")
-        missing = as_missing_extra(err, what)
-        if missing is None:
+        if err.name != d.module:
             raise
-        return _fail(command, str(missing))
+        return fail(prog, f"not available in this installation ({d.module} is missing)")
+    return int(getattr(module, d.function)(argv))
+
+
+def _main(argv: list[str]) -> int:
+    args = build_parser().parse_args(argv)
+    if args.command == "scenes":
+        print("\n".join(scenes()))
+        return 0
+    try:
+        return run_headless(args.scene, args.seconds, args.integrator, args.export, args.fps)
+    except UsageError as err:
+        return fail("rustcloth run", str(err))
+    except USER_ERRORS as err:  # about the scene or the export, which the line names
+        return fail("rustcloth run", f"{args.scene}: {describe(err)}")
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line on ``argv`` (default ``sys.argv[1:]``) and return the exit code."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    try:
-        if argv and argv[0] in DELEGATED:
-            return _delegate(argv[0], argv[1:])
-        args = build_parser().parse_args(argv)
-        if args.command == "scenes":
-            print("\n".join(scenes()))
-            return 0
-        try:
-            return run_headless(args.scene, args.seconds, args.integrator, args.export, args.fps)
-        except (UsageError, MissingExtra) as err:
-            return _fail("run", str(err))
-        except (RustclothError, OSError) as err:
-            return _fail("run", f"{args.scene}: {err}")
-    except SystemExit as stop:  # argparse's --help, --version and errors
-        return stop.code if isinstance(stop.code, int) else 0 if stop.code is None else 1
+    if argv and argv[0] in DELEGATED:
+        return guarded(f"rustcloth {argv[0]}", lambda: _delegate(argv[0], argv[1:]))
+    # argparse reports its own errors under the right name; the rest can only come from `run`.
+    return guarded("rustcloth run", lambda: _main(argv))

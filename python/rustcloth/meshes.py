@@ -14,14 +14,20 @@ import numpy as np
 from ._extras import MissingExtra
 from .errors import ParameterError, ParameterTypeError
 
+#: A triangle whose doubled area is at most this times its longest edge squared, in float32,
+#: has zero area: the core's own test (src/scene/mesh.rs, DEGENERATE), made here too so that
+#: the error can name the file and the face.
+DEGENERATE = float(np.finfo(np.float32).eps)
+
 
 def read_mesh(
     path: str | os.PathLike[str], parameter: str
 ) -> tuple[list[list[float]], list[list[int]]]:
     """The vertices and triangles of the mesh file ``path`` (any format trimesh reads: OBJ,
-    STL, PLY, glTF, ...), read as written: nothing is merged or dropped here, so the core's
-    checks (degenerate triangles, winding) see the file's own triangles. Errors name
-    ``parameter``: a missing file, one trimesh cannot read, one without triangles."""
+    STL, PLY, glTF, ...), read as written: nothing is merged or dropped here (not even a
+    vertex no triangle uses), so the core's checks see the file's own triangles. Errors name
+    ``parameter`` and the file: a missing file, one trimesh cannot read, one without
+    triangles, a triangle with zero area (a repeated or collinear corner, with its index)."""
     if not isinstance(path, str | os.PathLike):
         raise ParameterTypeError(
             f"{parameter}: must be a str or os.PathLike, got {type(path).__name__} {path!r}",
@@ -34,7 +40,12 @@ def read_mesh(
     except ModuleNotFoundError as err:
         raise MissingExtra("trimesh", "reading a mesh collider's file") from err
     try:
-        mesh = trimesh.load(os.fspath(path), force="mesh", process=False)
+        # process=False: no merging; maintain_order (OBJ): keep the vertices no face uses, which
+        # trimesh otherwise drops, renumbering the rest.
+        extra: dict[str, Any] = (
+            {"maintain_order": True} if os.fspath(path).lower().endswith(".obj") else {}
+        )
+        mesh = trimesh.load(os.fspath(path), force="mesh", process=False, **extra)
     except Exception as err:  # trimesh raises many kinds on a malformed file
         raise ParameterError(
             f"{parameter}: cannot read {os.fspath(path)!r} as a mesh: {err}", parameter
@@ -45,7 +56,29 @@ def read_mesh(
         raise ParameterError(
             f"{parameter}: {os.fspath(path)!r} holds no triangles", parameter
         )
-    return vertices.tolist(), faces.astype(np.int64).tolist()
+    faces = faces.astype(np.int64)
+    bad = _degenerate(vertices, faces)
+    if bad.size:
+        t = int(bad[0])
+        raise ParameterError(
+            f"{parameter}: {os.fspath(path)!r}: triangle {t} (face {t + 1} of the file, "
+            f"corners {faces[t].tolist()}) has zero area (repeated or collinear corners)"
+            + (f", and {bad.size - 1} more" if bad.size > 1 else "") + "; remove it",
+            parameter,
+        )
+    return vertices.tolist(), faces.tolist()
+
+
+def _degenerate(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Indices of the triangles with zero area in float32, by the core's measure."""
+    if faces.size == 0 or faces.min() < 0 or faces.max() >= len(vertices):
+        return np.zeros(0, dtype=np.int64)  # out-of-range indices are the core's to report
+    a, b, c = (vertices.astype(np.float32).astype(np.float64)[faces[:, k]] for k in range(3))
+    doubled = np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    longest = np.max([np.sum((b - a) ** 2, axis=1), np.sum((c - b) ** 2, axis=1),
+                      np.sum((a - c) ** 2, axis=1)], axis=0)
+    with np.errstate(invalid="ignore"):
+        return np.flatnonzero(~(doubled > DEGENERATE * longest))
 
 
 def resolve_paths(data: Mapping[str, Any], base: str | os.PathLike[str] | None) -> dict[str, Any]:

@@ -199,7 +199,7 @@ def test_render_cli_writes_pngs_and_gif(tmp_path: Path, capsys: Any) -> None:
     assert sorted(p.name for p in tmp_path.glob("*.png")) == [
         f"frame_{k:04d}.png" for k in range(4)]
     assert (tmp_path / "animation.gif").stat().st_size > 0
-    assert "4/4 frames" in out and "physics" in out and str(tmp_path) in out
+    assert "4 frames: physics" in out and str(tmp_path) in out
 
 
 def test_render_cli_takes_a_scene_toml_and_warns_about_a_script_past_the_end(
@@ -228,9 +228,7 @@ def test_bad_render_arguments_exit_2_with_one_line(argv: list[str], words: list[
                                                    capsys: Any) -> None:
     from rustcloth.viewer.cli import main_render
 
-    with pytest.raises(SystemExit) as exit_info:
-        main_render(argv)
-    assert exit_info.value.code == 2
+    assert main_render(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].startswith("rustcloth render: error: ")
     assert all(w in err[-1] for w in words), err[-1]

@@ -1,5 +1,5 @@
 """``python -m rustcloth sweep SWEEP.toml [--backend local|ray] [--out DIR]``: run a sweep with a
-progress bar (tqdm if it is installed, else a plain line) and a summary table at the end."""
+progress bar and a summary table at the end."""
 
 from __future__ import annotations
 
@@ -8,79 +8,54 @@ import dataclasses
 import os
 import sys
 import time
-from typing import Any, NoReturn, TextIO
+from typing import Any, TextIO
 
-from ..errors import RustclothError
+from .._cli import Parser, fail, guarded, positive, positive_int, progress
 from .driver import BACKENDS, SweepResult, run_sweep
 from .local import available_cores
 from .runner import STATUSES
-from .spec import Sweep, SweepError
-from .store import Store
-
-
-class _Formatter(argparse.ArgumentDefaultsHelpFormatter):
-    """Shows a default where there is one to show (not None, not a flag's False)."""
-
-    def _get_help_string(self, action: argparse.Action) -> str:
-        if action.default in (None, False):
-            return action.help or ""
-        return super()._get_help_string(action) or ""
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> NoReturn:  # one line, exit 2
-        self.exit(2, f"{self.prog}: error: {message}\n")
-
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{value} is not >= 1")
-    return value
-
-
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not value > 0 or value == float("inf"):
-        raise argparse.ArgumentTypeError(f"{value} is not a positive number")
-    return value
+from .spec import Sweep
 
 
 def parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="rustcloth sweep", formatter_class=_Formatter,
-                description="Run the simulations a sweep file describes, skipping those whose "
-                            "results are already in the output folder; a progress bar while "
-                            "they run, a summary table at the end. Format, backends, "
-                            "statuses: docs/sweeps.md.")
+    p = Parser(prog="rustcloth sweep",
+               description="Run the simulations a sweep file describes, skipping those whose\n"
+                           "results are already in the output folder; a progress bar while they\n"
+                           "run, a summary table at the end. Format, backends, statuses:\n"
+                           "docs/sweeps.md.\n\n"
+                           "A sweep file is code: the functions it names (scene_fn,\n"
+                           "record.functions, filters.reject) run as Python in this process and\n"
+                           "in its workers, so run only sweep files you trust. They may load .py\n"
+                           "files from the sweep file's own folder, and a module only if you\n"
+                           "name it with --module; --dry-run imports none of them.")
     p.add_argument("sweep", help="the sweep description, a TOML file (format: docs/sweeps.md)")
     p.add_argument("--out", default=None,
-                   help="output folder (runs/*.npz, index.csv); default: the sweep file's name "
-                        "without .toml, beside it")
+                   help="output folder (runs/*.npz, index.csv) (default: the sweep file's name "
+                        "without .toml, beside it)")
     p.add_argument("--backend", choices=BACKENDS, default="local",
                    help="local: a process pool on this machine; ray: Ray tasks")
-    p.add_argument("--workers", type=_positive_int, default=None,
+    p.add_argument("--workers", type=positive_int, default=None,
                    help=f"local: worker processes (default: cores / threads; {available_cores()}"
                         " cores here)")
-    p.add_argument("--threads", type=_positive_int, default=None,
+    p.add_argument("--threads", type=positive_int, default=None,
                    help="rayon threads per run (default local: cores / workers; ray: 1)")
     p.add_argument("--address", default=None,
-                   help="ray: cluster address ('auto', 'ray://host:10001'); default: start a "
-                        "local Ray")
-    p.add_argument("--time-limit", type=_positive_float, default=None,
+                   help="ray: cluster address ('auto', 'ray://host:10001') (default: start a "
+                        "local Ray)")
+    p.add_argument("--time-limit", type=positive, default=None,
                    help="wall seconds per run (default: the file's time_limit; none there: no "
                         "limit)")
+    p.add_argument("--module", action="append", default=[], metavar="NAME",
+                   help="let the sweep file name functions in module NAME ('NAME:function'); "
+                        "repeat for more (default: none, only .py files beside the sweep file)")
     p.add_argument("--retry-failed", action="store_true",
                    help="run diverged and error runs again (timeout and crashed always are)")
     p.add_argument("--progress", choices=("auto", "tqdm", "plain", "none"), default="auto",
-                   help="auto: tqdm if installed, else a plain line")
+                   help="auto and tqdm: a tqdm bar on a terminal; plain: a line every few "
+                        "seconds (for logs); none: no progress")
     p.add_argument("--dry-run", action="store_true",
-                   help="check the description and list its runs without running them")
+                   help="check the description and list its runs without running them, and "
+                        "without importing or calling any function the file names")
     return p
 
 
@@ -115,9 +90,7 @@ class PlainProgress:
 
 class TqdmProgress:
     def __init__(self, total: int, done: int) -> None:
-        from tqdm import tqdm
-
-        self.bar = tqdm(total=total, initial=done, unit="run", dynamic_ncols=True)
+        self.bar = progress(total, "run", initial=done)
 
     def __call__(self, record: dict[str, Any], done: int, total: int, failed: int) -> None:
         self.bar.update(1)
@@ -127,16 +100,26 @@ class TqdmProgress:
         self.bar.close()
 
 
-def make_progress(kind: str, total: int, done: int) -> Any:
-    if kind in ("auto", "tqdm"):
-        try:
-            return TqdmProgress(total, done)
-        except ImportError:
-            if kind == "tqdm":
-                raise SweepError("--progress tqdm: tqdm is not installed") from None
-    if kind == "none":
-        return None
-    return PlainProgress(total, done)
+class _Bar:
+    """The progress of ``kind``, started once the driver knows how many runs there are."""
+
+    def __init__(self, kind: str) -> None:
+        self.kind = kind
+        self.bar: Any = None
+
+    def start(self, total: int, done: int) -> None:
+        if self.kind == "none":
+            return
+        print(f"{total} runs, {done} already complete", file=sys.stderr)
+        self.bar = (PlainProgress if self.kind == "plain" else TqdmProgress)(total, done)
+
+    def __call__(self, record: dict[str, Any], done: int, total: int, failed: int) -> None:
+        if self.bar is not None:
+            self.bar(record, done, total, failed)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
 
 
 def summary(result: SweepResult, stream: TextIO | None = None, failures: int = 10) -> None:
@@ -167,54 +150,47 @@ def summary(result: SweepResult, stream: TextIO | None = None, failures: int = 1
 
 def main(argv: list[str] | None = None) -> int:
     """The ``sweep`` command; returns the exit status (0: every run finished, whatever its
-    status; 1: interrupted; 2: a bad command line or description)."""
-    args_parser = parser()
-    try:
-        args = args_parser.parse_args(sys.argv[1:] if argv is None else argv)
-    except SystemExit as stop:
-        return int(stop.code or 0)
-    prog = args_parser.prog
+    status; 1: interrupted; 2: a bad command line, description or output folder, said in one
+    line)."""
+    return guarded("rustcloth sweep", lambda: _main(sys.argv[1:] if argv is None else argv))
+
+
+def _main(argv: list[str]) -> int:
+    args = parser().parse_args(argv)
+    prog = "rustcloth sweep"
     if args.address is not None and args.backend != "ray":
-        print(f"{prog}: error: --address is for the ray backend", file=sys.stderr)
-        return 2
+        return fail(prog, "--address is for the ray backend")
     if args.workers is not None and args.backend == "ray":
-        print(f"{prog}: error: --workers is for the local backend (ray runs as many tasks as "
-              "the cluster has CPUs for; --threads sets CPUs per task)", file=sys.stderr)
-        return 2
-    try:
-        sweep = Sweep.from_toml(args.sweep)
-        if args.time_limit is not None:
-            sweep = dataclasses.replace(sweep, time_limit=args.time_limit)
-        runs = sweep.expand()
-    except (ValueError, TypeError) as err:  # SweepError, and the scene's ParameterError
-        print(f"{prog}: error: {err}", file=sys.stderr)
-        return 2
+        return fail(prog, "--workers is for the local backend (ray runs as many tasks as the "
+                          "cluster has CPUs for; --threads sets CPUs per task)")
+    sweep = Sweep.from_toml(args.sweep, modules=args.module)
+    if args.time_limit is not None:
+        sweep = dataclasses.replace(sweep, time_limit=args.time_limit)
     if args.dry_run:
-        for run in runs:
-            params = ", ".join(f"{k}={v!r}" for k, v in run.params.items())
-            print(f"{run.index:>5} {run.run_id} {run.steps:>7} steps  {params}")
-        print(f"{len(runs)} runs")
-        return 0
+        return _dry_run(sweep)
     out = args.out or os.path.splitext(os.path.abspath(args.sweep))[0]
-    bar: Any = None
+    bar = _Bar(args.progress)
     try:
-        if args.progress != "none":
-            done = len(Store(out).completed(runs, args.retry_failed))
-            bar = make_progress(args.progress, len(runs), done)
-            kind = "tqdm" if isinstance(bar, TqdmProgress) else "a plain line (no tqdm)"
-            print(f"{len(runs)} runs, {done} already complete; progress: {kind}",
-                  file=sys.stderr)
         result = run_sweep(sweep, out, args.backend, workers=args.workers,
                            threads=args.threads, address=args.address,
-                           retry_failed=args.retry_failed, progress=bar)
-    except (SweepError, RustclothError, ImportError) as err:
-        print(f"{prog}: error: {err}", file=sys.stderr)
-        return 2
+                           retry_failed=args.retry_failed, progress=bar, on_plan=bar.start)
     except KeyboardInterrupt:
         print(f"\n{prog}: interrupted; run the same command again to resume", file=sys.stderr)
         return 1
     finally:
-        if bar is not None:
-            bar.close()
+        bar.close()
     summary(result)
+    return 0
+
+
+def _dry_run(sweep: Sweep) -> int:
+    """List the runs; with scene_fn, their parameters only (ids and steps need its scenes)."""
+    count = 0
+    for run in sweep.preview():
+        params = ", ".join(f"{k}={v!r}" for k, v in run.params.items())
+        steps = "?" if run.steps is None else run.steps
+        print(f"{run.index:>5} {run.run_id or '?':<16} {steps:>7} steps  {params}")
+        count += 1
+    print(f"{count} runs" + ("" if sweep.scene_fn is None else
+                             " (scene_fn is not called in a dry run: ids and steps unknown)"))
     return 0

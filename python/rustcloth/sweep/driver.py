@@ -6,7 +6,7 @@ from __future__ import annotations
 import os
 import time
 import warnings
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -15,12 +15,14 @@ import numpy as np
 from .local import LocalBackend
 from .runner import RETRIED
 from .spec import Run, Sweep, SweepError, check_picklable
-from .store import Store, load_run, statuses
+from .store import Keyed, RunKey, Store, load_run, statuses
 
 BACKENDS = ("local", "ray")
 
 #: Called after each finished run with (record, done, total, failed).
 Progress = Callable[[dict[str, Any], int, int, int], None]
+#: Called once the runs are checked, before any starts, with (total, already complete).
+Plan = Callable[[int, int], None]
 
 
 @dataclass
@@ -70,28 +72,45 @@ def run_sweep(sweep: Sweep | Sequence[Run], out: str | os.PathLike[str],
               backend: str | Any = "local", *, workers: int | None = None,
               threads: int | None = None, address: str | None = None,
               retry_failed: bool = False, progress: Progress | None = None,
-              index_every: float = 1.0) -> SweepResult:
+              on_plan: Plan | None = None, index_every: float = 1.0) -> SweepResult:
     """Run every run of ``sweep`` not already complete in ``out``; see docs/sweeps.md.
 
     ``backend``: ``"local"`` (``workers`` processes x ``threads`` rayon threads, default the
     available cores split evenly), ``"ray"`` (``address``: None starts a local Ray, ``"auto"``
     joins a running one; ``threads`` CPUs per task), or a backend object. ``retry_failed``:
     run ``diverged`` and ``error`` runs again too (``timeout`` and ``crashed`` always are).
+    ``on_plan(total, complete)`` is called once every run is checked, before any starts;
+    ``progress(record, done, total, failed)`` after each run. Only the runs' ids and
+    parameters are kept: each run's scene is built again when it is sent (with ``scene_fn``,
+    that calls the function a second time, and it must return the same scene).
     """
     start = time.perf_counter()
-    runs = sweep.expand() if isinstance(sweep, Sweep) else list(sweep)
+    runs: Sequence[Keyed]
+    if isinstance(sweep, Sweep):
+        # Every run is built and checked before any starts, but only its id and parameters
+        # are kept: the scenes are built again one at a time as the backend takes them.
+        runs = []
+        for run in sweep.iter_runs():
+            if not runs and getattr(backend, "name", backend) == "local":
+                check_picklable([run])
+            runs.append(RunKey(run.index, run.run_id, run.params))
+    else:
+        given = list(sweep)
+        if getattr(backend, "name", backend) == "local":
+            check_picklable(given)
+        runs = given
     if not runs:
         raise SweepError("the sweep has no runs")
-    if getattr(backend, "name", backend) == "local":
-        check_picklable(runs)
     store = Store(out)
     with store.lock():
         store.clean()
         if isinstance(sweep, Sweep):
             store.write_description(sweep.to_dict())
         records = store.completed(runs, retry_failed=retry_failed)
-        todo = [run for run in runs if run.run_id not in records]
+        todo = _Todo(sweep, [run for run in runs if run.run_id not in records])
         skipped = len(runs) - len(todo)
+        if on_plan is not None:
+            on_plan(len(runs), skipped)
         store.write_index(runs, records)
         engine = (make_backend(backend, workers, threads, address) if isinstance(backend, str)
                   else backend)
@@ -132,3 +151,30 @@ def _check_threads(record: dict[str, Any], engine: Any) -> None:
         warnings.warn(f"a sweep worker has {got} rayon thread(s), not the {wanted} it asked for "
                       "(RAYON_NUM_THREADS was read before it was set?)", RuntimeWarning,
                       stacklevel=3)
+
+
+class _Todo:
+    """The runs still to do, in order: a sized iterable that builds each :class:`Run` (its
+    scene) only when a backend takes it."""
+
+    def __init__(self, sweep: Sweep | Sequence[Run], todo: Sequence[Keyed]) -> None:
+        self.sweep, self.todo = sweep, todo
+
+    def __len__(self) -> int:
+        return len(self.todo)
+
+    def __iter__(self) -> Iterator[Run]:
+        if not isinstance(self.sweep, Sweep):
+            yield from self.todo  # type: ignore[misc]
+            return
+        wanted = {p.run_id: p for p in self.todo}
+        left = len(wanted)
+        for run in self.sweep.iter_runs() if left else ():
+            if run.run_id in wanted:
+                yield run
+                left -= 1
+                if not left:
+                    return
+        if left:  # a scene function that gives another scene the second time
+            raise SweepError(f"{left} run(s) were not the same when built again: scene_fn must "
+                             "return the same scene for the same parameters")

@@ -18,12 +18,11 @@ import os
 import signal
 import sys
 import time
-from collections import deque
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator
 from multiprocessing.connection import Connection, wait
 from typing import Any
 
-from .runner import RunResult, execute, rayon_threads
+from .runner import Pending, RunResult, Runs, execute, rayon_threads
 from .spec import Run, SweepError
 
 
@@ -117,11 +116,11 @@ class LocalBackend:
     def describe(self) -> str:
         return f"local: {self.workers} worker(s) x {self.threads} thread(s)"
 
-    def run(self, runs: Sequence[Run]) -> Iterator[tuple[Run, RunResult]]:
+    def run(self, runs: Runs) -> Iterator[tuple[Run, RunResult]]:
         """Run everything, yielding each run with its result as it finishes."""
         ctx = mp.get_context("spawn")
         self.startup_s = None
-        pending = deque(runs)
+        pending = Pending(runs)
         start = time.monotonic()
         pool = [_Worker(ctx, self.threads) for _ in range(min(self.workers, len(runs)))]
 

@@ -18,11 +18,10 @@ worker dies is recorded as ``crashed`` and runs again when the sweep is resumed.
 from __future__ import annotations
 
 import time
-from collections import deque
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator
 from typing import Any
 
-from .runner import RunResult, execute
+from .runner import Pending, RunResult, Runs, execute
 from .spec import Run, SweepError
 
 STARTED = "started"
@@ -86,9 +85,9 @@ class RayBackend:
     def describe(self) -> str:
         return f"ray: {self.slots} task(s) at a time x {self.threads} thread(s)"
 
-    def run(self, runs: Sequence[Run]) -> Iterator[tuple[Run, RunResult]]:
+    def run(self, runs: Runs) -> Iterator[tuple[Run, RunResult]]:
         ray = self._ray
-        pending = deque(runs)
+        pending = Pending(runs)
         inflight: dict[Any, _Task] = {}  # the task's ObjectRefGenerator: its state
         try:
             while pending or inflight:
@@ -132,7 +131,7 @@ class RayBackend:
         del inflight[gen]
         return task.run, value
 
-    def _submit(self, pending: deque[Run], inflight: dict[Any, _Task]) -> None:
+    def _submit(self, pending: Pending, inflight: dict[Any, _Task]) -> None:
         while pending and len(inflight) < self.slots:
             run = pending.popleft()
             inflight[self._task.remote(run, self.threads)] = _Task(run)

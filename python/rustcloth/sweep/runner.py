@@ -9,8 +9,9 @@ import os
 import time
 import traceback
 import warnings
+from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -45,6 +46,30 @@ class RunResult:
 
 class _TimeLimit(Exception):
     pass
+
+
+class Runs(Protocol):
+    """What a backend's ``run`` takes: runs it can count and take in order (a list, or the
+    driver's lazy list that builds each run's scene when it is taken)."""
+
+    def __len__(self) -> int: ...
+    def __iter__(self) -> Iterator[Run]: ...
+
+
+class Pending:
+    """The runs a backend has yet to send, taken from ``runs`` one at a time."""
+
+    def __init__(self, runs: Runs) -> None:
+        self._left = len(runs)
+        self._runs = iter(runs)
+
+    def __len__(self) -> int:
+        return self._left
+
+    def popleft(self) -> Run:
+        run = next(self._runs)
+        self._left -= 1
+        return run
 
 
 def _threads_now() -> int | None:

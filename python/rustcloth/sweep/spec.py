@@ -18,18 +18,23 @@ import json
 import math
 import os
 import pickle
+import stat
 import sys
 import tomllib
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from .._limits import MAX_STEPS
 from ..scene import Scene, load_scene
 
 #: Version of the run format; part of every run id, so a change of format reruns everything.
 FORMAT = 1
+
+#: The largest sweep file read (a description of a million runs is far smaller).
+MAX_FILE_BYTES = 16 * 2**20
 
 #: npz keys the recorder writes itself; a user function may not take one of these names.
 RESERVED = frozenset(
@@ -49,8 +54,9 @@ class SweepError(ValueError):
 
 class FunctionRef:
     """A function named by ``"package.module:name"`` or ``"path/file.py:name"``, imported where
-    it is called. It pickles as its name, so a worker (another process, another machine)
-    imports it itself; a file path is made absolute when the reference is made."""
+    it is first called or resolved (never when the reference is made). It pickles as its name,
+    so a worker (another process, another machine) imports it itself; a file path is made
+    absolute when the reference is made."""
 
     __slots__ = ("spec", "_fn")
 
@@ -100,14 +106,45 @@ class FunctionRef:
 
 
 def _function(value: Any, what: str, base_dir: str | None) -> Callable[..., Any]:
-    """A callable, or a FunctionRef for a string; resolved now so a typo fails early."""
+    """A callable, or a FunctionRef for a string (not imported yet: see :func:`_resolved`)."""
     if isinstance(value, str):
-        ref = FunctionRef(value, base_dir)
-        ref.resolve()
-        return ref
+        return FunctionRef(value, base_dir)
     if not callable(value):
         raise SweepError(f"{what} must be a function or 'module:name', got {type(value).__name__}")
     return value  # type: ignore[no-any-return]
+
+
+def _resolved(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """``fn``, imported now if it is a reference, so that a typo fails before any run."""
+    if isinstance(fn, FunctionRef):
+        fn.resolve()
+    return fn
+
+
+def _check_file_functions(data: Mapping[str, Any], base_dir: str,
+                          modules: Collection[str]) -> None:
+    """A sweep file is code: the functions it names run in this process. Allow only ``.py``
+    files in the file's own folder (or below it) and modules the caller named in ``modules``,
+    so that a file from elsewhere cannot reach ``os:system`` or a file of its choosing."""
+    record, filters = data.get("record"), data.get("filters")
+    named = [("scene_fn", data.get("scene_fn"))]
+    if isinstance(record, Mapping) and isinstance(record.get("functions"), Mapping):
+        named += [(f"record.functions.{k}", v) for k, v in record["functions"].items()]
+    if isinstance(filters, Mapping):
+        named.append(("filters.reject", filters.get("reject")))
+    home = os.path.realpath(base_dir)
+    for what, spec in named:
+        if not isinstance(spec, str):
+            continue
+        module = spec.rpartition(":")[0]
+        if module.endswith(".py"):
+            path = os.path.realpath(os.path.join(home, module))
+            if os.path.commonpath([path, home]) != home:
+                raise SweepError(f"{what} = {spec!r}: a sweep file may load .py files only from "
+                                 f"its own folder, {home}")
+        elif module not in modules:
+            raise SweepError(f"{what} = {spec!r}: a sweep file imports a module only when the "
+                             f"command names it (rustcloth sweep --module {module})")
 
 
 def _fingerprint(fn: Callable[..., Any]) -> str:
@@ -314,16 +351,33 @@ class Sweep:
         return cls(**values, record=record, filters=filters, base_dir=base_dir)
 
     @classmethod
-    def from_toml(cls, path: str | os.PathLike[str]) -> Sweep:
-        """A sweep from ``sweep.toml``; file names in it are relative to its folder."""
+    def from_toml(cls, path: str | os.PathLike[str], modules: Collection[str] = ()) -> Sweep:
+        """A sweep from ``sweep.toml``; file names in it are relative to its folder.
+
+        A sweep file is code: its functions (``scene_fn``, ``record.functions``,
+        ``filters.reject``) run in this process. They may name ``.py`` files in the file's own
+        folder, and modules only if listed in ``modules``; nothing is imported here (only when
+        the sweep is expanded)."""
         try:
             with open(path, "rb") as f:
-                data = tomllib.load(f)
+                # A device (/dev/zero, /dev/full) reads forever: take regular files only, and
+                # no more of one than a description can sensibly be.
+                if not stat.S_ISREG(os.fstat(f.fileno()).st_mode):
+                    raise SweepError(f"{os.fspath(path)!r} is not a regular file")
+                text = f.read(MAX_FILE_BYTES + 1)
+            if len(text) > MAX_FILE_BYTES:
+                raise SweepError(f"{os.fspath(path)!r} is over {MAX_FILE_BYTES:,} bytes; is it "
+                                 "a sweep description?")
+            data = tomllib.loads(text.decode("utf-8"))
         except OSError as err:
             raise SweepError(f"cannot read {os.fspath(path)!r}: {err.strerror}") from None
-        except tomllib.TOMLDecodeError as err:
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as err:
             raise SweepError(f"{os.fspath(path)}: {err}") from None
-        return cls.from_dict(data, base_dir=os.path.dirname(os.path.abspath(path)))
+        except RecursionError:
+            raise SweepError(f"{os.fspath(path)}: nested too deeply to read") from None
+        base_dir = os.path.dirname(os.path.abspath(path))
+        _check_file_functions(data, base_dir, modules)
+        return cls.from_dict(data, base_dir=base_dir)
 
     # -- expansion ---------------------------------------------------------------------------
 
@@ -372,29 +426,24 @@ class Sweep:
 
     def expand(self) -> list[Run]:
         """Every run, each scene built and validated: raises :class:`SweepError` (or the scene's
-        own ``ParameterError``/``ParameterTypeError``, naming the key) before any run starts."""
-        record = _check_record(self.record)
-        filters = _check_filters(self.filters)
-        if (self.base is None) == (self.scene_fn is None):
-            raise SweepError("give exactly one of base (a scene) and scene_fn (a function)")
-        if (self.seconds is None) == (self.steps is None):
-            raise SweepError("give exactly one of seconds and steps (how long each run lasts)")
-        if self.seconds is not None and not _positive(self.seconds):
-            raise SweepError(f"seconds must be a positive number, got {self.seconds!r}")
-        if self.steps is not None and not (_is_int(self.steps) and self.steps >= 1):
-            raise SweepError(f"steps must be a positive integer, got {self.steps!r}")
-        if self.time_limit is not None and not _positive(self.time_limit):
-            raise SweepError(f"time_limit must be a positive number of seconds, got "
-                             f"{self.time_limit!r}")
-        if filters.max_stretch is not None and not record.max_stretch:
-            raise SweepError("filters.max_stretch needs record.max_stretch = true")
-        points = self.points()
+        own ``ParameterError``/``ParameterTypeError``, naming the key) before any run starts.
+        It holds every run's scene at once: :meth:`iter_runs` makes them one at a time."""
+        return list(self.iter_runs())
+
+    def iter_runs(self) -> Iterator[Run]:
+        """The runs of :meth:`expand`, built one at a time as they are taken (a large sweep
+        never holds every scene). The description is checked, and its functions imported, when
+        the first run is taken; a run's own scene when it is reached."""
+        record, filters = self._check()
+        scene_fn = None if self.scene_fn is None else _resolved(
+            _function(self.scene_fn, "scene_fn", self.base_dir))
+        record = dataclasses.replace(record, functions={
+            k: _resolved(f) for k, f in record.functions.items()})
+        if filters.reject is not None:
+            filters = dataclasses.replace(filters, reject=_resolved(filters.reject))
         base = None if self.base is None else self._base_scene().to_dict()
-        scene_fn = (None if self.scene_fn is None
-                    else _function(self.scene_fn, "scene_fn", self.base_dir))
-        runs = []
         seen: dict[str, int] = {}
-        for index, params in enumerate(points):
+        for index, params in enumerate(self.points()):
             if scene_fn is not None:
                 scene = scene_fn(**params)
                 if not isinstance(scene, Scene):
@@ -404,20 +453,60 @@ class Sweep:
                 data = scene.to_dict()
             else:
                 assert base is not None
-                try:
-                    data = Scene.from_dict(apply_overrides(base, params)).to_dict()
-                except (ValueError, TypeError) as err:
-                    raise type(err)(f"run {index} ({_show(params)}): {err}") from None
-            steps = self.steps if self.steps is not None else max(
-                1, round(self.seconds / data["dt"]))
+                data = _overridden(base, index, params)
+            steps = self._steps(index, data["dt"])
             run_id = _run_id(params, data, steps, record, filters)
             if run_id in seen:
                 raise SweepError(f"runs {seen[run_id]} and {index} are the same run "
                                  f"({_show(params)})")
             seen[run_id] = index
-            runs.append(Run(index, run_id, params, data, int(steps), record, filters,
-                            self.time_limit))
-        return runs
+            yield Run(index, run_id, params, data, steps, record, filters, self.time_limit)
+
+    def preview(self) -> Iterator[Planned]:
+        """What ``--dry-run`` lists, importing nothing the description names: each run's index
+        and parameters, and, with ``base``, its run id and steps (with ``scene_fn`` those need
+        the function's scene, so they are None)."""
+        record, filters = self._check()
+        if self.scene_fn is not None:
+            for index, params in enumerate(self.points()):
+                yield Planned(index, None, params, self.steps)
+            return
+        base = self._base_scene().to_dict()
+        for index, params in enumerate(self.points()):
+            data = _overridden(base, index, params)
+            steps = self._steps(index, data["dt"])
+            yield Planned(index, _run_id(params, data, steps, record, filters), params, steps)
+
+    def _check(self) -> tuple[Record, Filters]:
+        """The checks of the description that need no scene and import nothing."""
+        record = _check_record(self.record)
+        filters = _check_filters(self.filters)
+        if (self.base is None) == (self.scene_fn is None):
+            raise SweepError("give exactly one of base (a scene) and scene_fn (a function)")
+        if (self.seconds is None) == (self.steps is None):
+            raise SweepError("give exactly one of seconds and steps (how long each run lasts)")
+        if self.seconds is not None and not _positive(self.seconds):
+            raise SweepError(f"seconds must be a positive number, got {self.seconds!r}")
+        if self.steps is not None and not (_is_int(self.steps) and 1 <= self.steps <= MAX_STEPS):
+            raise SweepError(f"steps must be a whole number from 1 to {MAX_STEPS:,}, got "
+                             f"{self.steps!r}")
+        if self.time_limit is not None and not _positive(self.time_limit):
+            raise SweepError(f"time_limit must be a positive number of seconds, got "
+                             f"{self.time_limit!r}")
+        if filters.max_stretch is not None and not record.max_stretch:
+            raise SweepError("filters.max_stretch needs record.max_stretch = true")
+        return record, filters
+
+    def _steps(self, index: int, dt: float) -> int:
+        """Run ``index``'s step count: ``steps``, or ``seconds`` in whole steps of its dt."""
+        if self.steps is not None:
+            return int(self.steps)
+        assert self.seconds is not None
+        wanted = self.seconds / dt
+        if not wanted <= MAX_STEPS:
+            raise SweepError(f"seconds = {self.seconds!r} is more than {MAX_STEPS:,} steps of "
+                             f"run {index}'s dt = {dt:g} s")
+        return max(1, round(wanted))
 
     def _base_scene(self) -> Scene:
         base = self.base
@@ -453,6 +542,25 @@ class Sweep:
             "record": self.record.fingerprint(),
             "filters": self.filters.fingerprint(),
         }
+
+
+@dataclass(frozen=True, slots=True)
+class Planned:
+    """A run as :meth:`Sweep.preview` lists it (``run_id`` and ``steps`` None where only the
+    scene function could tell)."""
+
+    index: int
+    run_id: str | None
+    params: dict[str, Any]
+    steps: int | None
+
+
+def _overridden(base: dict[str, Any], index: int, params: Mapping[str, Any]) -> dict[str, Any]:
+    """Run ``index``'s scene: the base with its overrides, validated (an error names the run)."""
+    try:
+        return Scene.from_dict(apply_overrides(base, params)).to_dict()
+    except (ValueError, TypeError) as err:
+        raise type(err)(f"run {index} ({_show(params)}): {err}") from None
 
 
 def _show(params: Mapping[str, Any]) -> str:

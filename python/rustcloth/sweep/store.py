@@ -18,7 +18,8 @@ import os
 import tempfile
 import time
 from collections.abc import Iterable, Sequence
-from typing import IO, Any
+from dataclasses import dataclass
+from typing import IO, Any, Protocol
 
 import numpy as np
 
@@ -29,6 +30,27 @@ RUNS = "runs"
 INDEX = "index.csv"
 #: Columns of the index after the parameters.
 COLUMNS = ("status", "reason", "wall_s", "steps", "peak_stretch", "energy", "threads", "file")
+
+
+class Keyed(Protocol):
+    """What the store needs of a run to find its files and list it: a :class:`Run`, or a
+    :class:`RunKey` where the run's scene need not be kept."""
+
+    @property
+    def index(self) -> int: ...
+    @property
+    def run_id(self) -> str: ...
+    @property
+    def params(self) -> dict[str, Any]: ...
+
+
+@dataclass(frozen=True, slots=True)
+class RunKey:
+    """A run without its scene."""
+
+    index: int
+    run_id: str
+    params: dict[str, Any]
 
 
 def _atomic_write(path: str, write: Any, binary: bool, sync: bool = False) -> None:
@@ -109,7 +131,7 @@ class Store:
             return None
         return record
 
-    def completed(self, runs: Sequence[Run],
+    def completed(self, runs: Sequence[Keyed],
                   retry_failed: bool = False) -> dict[str, dict[str, Any]]:
         """Records of the runs that need not run again: those that ended ``ok`` or
         ``filtered``, and (unless ``retry_failed``) ``diverged`` or ``error``."""
@@ -148,7 +170,7 @@ class Store:
                       lambda f: json.dump(record, f, indent=1, sort_keys=True), binary=False)
         return record
 
-    def write_index(self, runs: Sequence[Run], records: dict[str, dict[str, Any]],
+    def write_index(self, runs: Sequence[Keyed], records: dict[str, dict[str, Any]],
                     every: float = 0.0) -> None:
         """Rewrite ``index.csv``: one row per run in sweep order, with its parameters and
         its status (``pending`` for a run without a record). With ``every``, only if the last

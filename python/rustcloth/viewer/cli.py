@@ -1,6 +1,12 @@
 """The command lines of the desktop demo and of headless rendering: :func:`main_demo` and
-:func:`main_render`, each with its own argparse parser (the ``rustcloth`` dispatcher calls
-them with the arguments after the command's name)."""
+:func:`main_render` (the ``rustcloth`` dispatcher calls them with the arguments after the
+command's name), with their parsers :func:`demo_parser` and :func:`render_parser`.
+
+This module imports no optional extra when it loads (OpenGL, glfw, Pillow come in after the
+arguments are parsed, each checked first), so ``--help`` works before the viewer extra is
+installed; ``rustcloth.render`` and ``rustcloth.viewer`` load their OpenGL modules lazily for
+the same reason.
+"""
 
 from __future__ import annotations
 
@@ -12,13 +18,15 @@ from pathlib import Path
 from typing import Any
 
 from .. import Scene, load_scene, scenes
-from ..errors import RustclothError
+from .._cli import USER_ERRORS, Parser, describe, guarded, positive, positive_int, writable_folder
+from .._extras import require
 from ..render.constants import VIEWS
-from ..render.context import GLUnavailable
 from ..render.lights import PRESET_NAMES
 from .script import ScriptPlayer, default_script
 
-Formatter = argparse.ArgumentDefaultsHelpFormatter
+#: Modules of the viewer extra each command cannot start without.
+DEMO_NEEDS = ("moderngl", "glfw", "PIL")
+RENDER_NEEDS = ("moderngl", "PIL", "imageio")
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -29,26 +37,6 @@ def _size(text: str) -> tuple[int, int]:
     if not (16 <= w <= 8192 and 16 <= h <= 8192):
         raise argparse.ArgumentTypeError(f"must be 16..8192 pixels each way, got {text!r}")
     return w, h
-
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a whole number, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
-    return value
-
-
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number, got {text!r}") from None
-    if not 0.0 < value < 1e4:
-        raise argparse.ArgumentTypeError(f"must be above 0 (and sensible), got {text!r}")
-    return value
 
 
 def _scale(text: str) -> float | None:
@@ -67,8 +55,8 @@ def _scene(parser: argparse.ArgumentParser, name: str) -> Scene:
     """The scene ``name`` (built-in or a TOML path), or a one-line error (exit status 2)."""
     try:
         return load_scene(name)
-    except (RustclothError, OSError, ValueError) as err:
-        parser.error(f"scene {name!r}: {str(err).strip().splitlines()[0]}")
+    except USER_ERRORS as err:
+        parser.error(f"scene {name!r}: {describe(err)}")
 
 
 def _script(parser: argparse.ArgumentParser, path: Path | None) -> list[dict[str, Any]] | None:
@@ -78,7 +66,7 @@ def _script(parser: argparse.ArgumentParser, path: Path | None) -> list[dict[str
         events: list[dict[str, Any]] = json.loads(path.read_text(encoding="utf-8"))
         ScriptPlayer(events)
     except (OSError, ValueError) as err:
-        parser.error(f"--script {path}: {str(err).strip().splitlines()[0]}")
+        parser.error(f"--script {path}: {describe(err)}")
     return events
 
 
@@ -94,15 +82,14 @@ def _notice(text: str) -> None:
 
 
 # -- the desktop demo ------------------------------------------------------------------------
-def main_demo(argv: list[str]) -> int:
-    """``rustcloth demo``: the glfw window, or headless frames when there is no display."""
-    parser = argparse.ArgumentParser(prog="rustcloth demo", formatter_class=Formatter,
-                                     description="the interactive demo in a window")
+def demo_parser() -> argparse.ArgumentParser:
+    """The parser of ``rustcloth demo``."""
+    parser = Parser(prog="rustcloth demo", description="the interactive demo in a window")
     parser.add_argument("scene", nargs="?", default="drape",
                         help=f"a built-in scene ({', '.join(scenes())}) or a scene TOML file")
-    parser.add_argument("--size", type=_size, default=(1280, 720), help="window size, WxH")
-    parser.add_argument("--frames", type=_positive_int, default=None,
-                        help="quit after this many frames (None: when the window closes)")
+    parser.add_argument("--size", type=_size, default="1280x720", help="window size, WxH")
+    parser.add_argument("--frames", type=positive_int, default=None,
+                        help="quit after this many frames (default: when the window closes)")
     parser.add_argument("--script", type=Path, default=None,
                         help="JSON list of scripted events to replay (docs/rendering.md)")
     parser.add_argument("--out", type=Path, default=Path("out/demo"),
@@ -111,9 +98,21 @@ def main_demo(argv: list[str]) -> int:
                         help="share of the window's resolution the 3D passes draw, each way "
                              "(auto: lowered while a frame takes over 40 ms to render)")
     _add_look(parser)
+    return parser
+
+
+def main_demo(argv: list[str]) -> int:
+    """``rustcloth demo``: the glfw window, or headless frames when there is no display."""
+    return guarded("rustcloth demo", lambda: _demo(argv))
+
+
+def _demo(argv: list[str]) -> int:
+    parser = demo_parser()
     args = parser.parse_args(argv)
+    require("rustcloth demo", *DEMO_NEEDS)
     _scene(parser, args.scene)
     script = _script(parser, args.script)
+    from ..render.context import GLUnavailable
     from .window import Demo, DisplayUnavailable
 
     try:
@@ -147,25 +146,21 @@ def main_demo(argv: list[str]) -> int:
 
 
 # -- headless --------------------------------------------------------------------------------
-def main_render(argv: list[str]) -> int:
-    """``rustcloth render``: frames offscreen through EGL, as PNGs and optionally a GIF."""
-    from .. import Simulation
-    from .headless import write_outputs
-
-    parser = argparse.ArgumentParser(prog="rustcloth render", formatter_class=Formatter,
-                                     description="render a scene offscreen through EGL")
+def render_parser() -> argparse.ArgumentParser:
+    """The parser of ``rustcloth render``."""
+    parser = Parser(prog="rustcloth render", description="render a scene offscreen through EGL")
     parser.add_argument("scene", help=f"a built-in scene ({', '.join(scenes())}) or a scene "
                                       "TOML file")
-    parser.add_argument("--frames", type=_positive_int, default=120,
+    parser.add_argument("--frames", type=positive_int, default=120,
                         help="frames to render (the first at t = 0)")
-    parser.add_argument("--fps", type=_positive_float, default=30.0,
+    parser.add_argument("--fps", type=positive, default=30.0,
                         help="frames per simulated second")
     parser.add_argument("--out", type=Path, default=None,
                         help="output directory (default: out/SCENE)")
-    parser.add_argument("--size", type=_size, default=(640, 480), help="image size, WxH")
+    parser.add_argument("--size", type=_size, default="640x480", help="image size, WxH")
     parser.add_argument("--gif", action="store_true", help="also write animation.gif")
     parser.add_argument("--mp4", action="store_true",
-                        help="also write animation.mp4 (needs the imageio-ffmpeg package)")
+                        help="also write animation.mp4 (needs the video extra)")
     parser.add_argument("--script", type=Path, default=None,
                         help="JSON list of scripted events to replay (docs/rendering.md)")
     parser.add_argument("--demo-script", action="store_true",
@@ -174,11 +169,30 @@ def main_render(argv: list[str]) -> int:
     parser.add_argument("--overlay", action="store_true",
                         help="draw the status text and the debug view's legend")
     _add_look(parser)
+    return parser
+
+
+def main_render(argv: list[str]) -> int:
+    """``rustcloth render``: frames offscreen through EGL, as PNGs and optionally a GIF."""
+    return guarded("rustcloth render", lambda: _render(argv))
+
+
+def _render(argv: list[str]) -> int:
+    parser = render_parser()
     args = parser.parse_args(argv)
     if args.script is not None and args.demo_script:
         parser.error("--script and --demo-script: choose one")
+    out = args.out or Path("out") / Path(args.scene).stem
+    writable_folder(out)
+    require("rustcloth render", *RENDER_NEEDS)
+    if args.mp4:
+        require("rustcloth render --mp4", "imageio_ffmpeg")
     scene = _scene(parser, args.scene)
     script = _script(parser, args.script)
+    from .. import Simulation
+    from ..render.context import GLUnavailable
+    from .headless import write_outputs
+
     sim = Simulation(scene)
     covered = (args.frames - 1) / args.fps
     if args.demo_script:
@@ -188,7 +202,6 @@ def main_render(argv: list[str]) -> int:
         print(f"warning: the script runs to t = {ScriptPlayer(script).end:g} s but "
               f"{args.frames} frames at {args.fps:g} fps end at t = {covered:.3g} s; "
               "what comes later never happens", file=sys.stderr)
-    out = args.out or Path("out") / Path(args.scene).stem
     try:
         written, stats = write_outputs(
             sim, out, args.size, args.frames, args.fps, script, gif=args.gif, mp4=args.mp4,

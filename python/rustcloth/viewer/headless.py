@@ -9,13 +9,14 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any
 
 import moderngl
 import numpy as np
 import numpy.typing as npt
 from PIL import Image
 
+from .._cli import progress as progress_bar
 from ..render.context import create_standalone_context
 from .loop import Viewer
 
@@ -34,19 +35,6 @@ class RenderStats:
         return (f"{self.frames} frames: physics {1e3 * self.physics_s / n:.2f} ms/frame "
                 f"({self.steps} steps), rendering {1e3 * self.render_s / n:.2f} ms/frame "
                 "(incl. read-back)")
-
-
-def _progress(done: int, total: int, stream: TextIO | None = None) -> None:
-    """A bar redrawn in place on a terminal; a line per tenth of the way in a log or pipe."""
-    out = sys.stdout if stream is None else stream
-    width = 30
-    filled = width * done // max(total, 1)
-    bar = f"[{'#' * filled}{'.' * (width - filled)}] {done}/{total} frames"
-    if out.isatty():
-        out.write(f"\r{bar}" + ("\n" if done == total else ""))
-    elif done == total or (10 * done) // total != (10 * (done - 1)) // total:
-        out.write(bar + "\n")
-    out.flush()
 
 
 def render_frames(
@@ -72,6 +60,7 @@ def render_frames(
         physics = render = 0.0
         steps = 0
         image = np.empty((h, w, 3), dtype=np.uint8)
+        bar = progress_bar(frames, "frame") if progress else None
         for k in range(frames):
             t0 = time.perf_counter()
             viewer.frame(fbo, 0.0 if k == 0 else 1.0 / fps)
@@ -85,8 +74,10 @@ def render_frames(
                 sink(k, frame)
             else:
                 out.append(frame)
-            if progress:
-                _progress(k + 1, frames)
+            if bar is not None:
+                bar.update()
+        if bar is not None:
+            bar.close()
         err = ctx.error
         if err != "GL_NO_ERROR":
             raise RuntimeError(f"OpenGL error while rendering: {err}")
