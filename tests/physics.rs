@@ -211,6 +211,7 @@ fn fast_particles_never_end_a_step_inside_the_floor_or_a_sphere() {
     for speed in [10.0f32, 100.0, 700.0] {
         let mut sim = Simulation::new(scene.clone()).unwrap();
         let n = sim.grid().len();
+        let start = sim.positions().clone();
         sim.set_velocities(&Vec3s::from_fn(n, |_| Vec3::new(0.0, -speed, 0.0)))
             .unwrap();
         for _ in 0..40 {
@@ -218,10 +219,11 @@ fn fast_particles_never_end_a_step_inside_the_floor_or_a_sphere() {
             assert_outside_colliders(&sim, 0.002, Some((center, 0.101)));
         }
         // At 700 m/s a particle crosses the 0.2 m sphere in 0.3 ms, well inside one step: the
-        // ones above the sphere must still be above it, not through it.
+        // ones that fell onto its top must still be above it, not through it. (Particles that
+        // hit it nearer its rim slide round it, and the cloth can pull them in underneath.)
         for p in 0..n {
-            let x = position(&sim, p);
-            if (x.x - center.x).hypot(x.z - center.z) < 0.05 {
+            let (x, x0) = (position(&sim, p), start.get(p));
+            if (x0.x - center.x).hypot(x0.z - center.z) < 0.05 {
                 assert!(
                     x.y > center.y,
                     "speed {speed}: particle {p} tunnelled to {x}"
