@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from .. import _core
 from .._limits import MAX_STEPS
 from ..scene import Scene, load_scene
 
@@ -230,16 +231,20 @@ class Run:
     time_limit: float | None = None
 
 
-def _plain(value: Any, what: str) -> Any:
-    """A parameter value as JSON data (numpy scalars and arrays become numbers and lists)."""
+def _plain(value: Any, what: str, depth: int = 0) -> Any:
+    """A parameter value as JSON data (numpy scalars and arrays become numbers and lists).
+    Nested no deeper than a scene may be (``_core.MAX_NESTING``): deeper input would exhaust
+    the recursion here, and no scene could take it."""
+    if depth > _core.MAX_NESTING:
+        raise SweepError(f"{what}: lists and tables nest at most {_core.MAX_NESTING} deep")
     if isinstance(value, np.ndarray):
         return value.tolist()
     if isinstance(value, np.generic):
         return value.item()
     if isinstance(value, Mapping):
-        return {str(k): _plain(v, what) for k, v in value.items()}
+        return {str(k): _plain(v, what, depth + 1) for k, v in value.items()}
     if isinstance(value, list | tuple):
-        return [_plain(v, what) for v in value]
+        return [_plain(v, what, depth + 1) for v in value]
     if value is None or isinstance(value, bool | int | float | str):
         if isinstance(value, float) and not math.isfinite(value):
             raise SweepError(f"{what}: {value!r} is not a finite number")
