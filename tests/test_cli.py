@@ -337,3 +337,17 @@ def test_user_errors_from_a_command_are_one_line(capsys, fake_sweep):
         code, out, err = run_cli(capsys, "sweep")
         assert code == 2 and out == ""
         assert_one_line_error(err, "rustcloth sweep: error: ")
+
+
+@pytest.mark.parametrize("module", ["trimesh", "PIL"])
+def test_run_export_without_an_export_module_fails_before_running(capsys, monkeypatch,
+                                                                   tmp_path, module):
+    # With only trimesh, `run --export x.glb` ran the whole simulation, then printed a
+    # traceback (trimesh imports Pillow only when it writes) and wrote nothing.
+    ran = []
+    monkeypatch.setattr(cli, "Simulation", lambda *a: ran.append(a))
+    monkeypatch.setitem(sys.modules, module, None)
+    code, out, err = run_cli(capsys, "run", "hanging", "--seconds", "0.01",
+                             "--export", str(tmp_path / "x.glb"))
+    assert code == 2 and ran == [] and not (tmp_path / "x.glb").exists()
+    assert_one_line_error(err, "rustcloth run", "pip install 'rustcloth[export]'")

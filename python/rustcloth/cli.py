@@ -22,7 +22,6 @@ from pathlib import Path
 
 from . import INTEGRATORS, __version__, export, load_scene, scenes
 from ._cli import USER_ERRORS, Parser, describe, fail, guarded, positive, progress, writable_folder
-from ._extras import require
 from ._limits import MAX_STEPS
 from .errors import SimulationDiverged, StabilityWarning
 from .simulation import Simulation
@@ -111,7 +110,7 @@ def _plan_export(path: Path | None) -> str | None:
         return None
     suffix = path.suffix.lower()
     if suffix in export.USD_FORMATS:
-        require("--export to USD", "pxr")
+        export.check_required(path)
         mode = "run"
     elif suffix not in export.MESH_FORMATS:
         raise UsageError(f"--export {path}: the suffix must be one of "
@@ -119,7 +118,8 @@ def _plan_export(path: Path | None) -> str | None:
     elif export.is_sequence(path) and suffix != ".obj":
         raise UsageError(f"--export {path}: a sequence (####) is written as .obj only")
     else:
-        require(f"--export to {suffix}", "trimesh")
+        # Everything writing it needs (trimesh, and Pillow, which trimesh loads only then).
+        export.check_required(path)
         mode = "run" if export.is_sequence(path) else "frame"
     writable_folder(path.parent)
     return mode
