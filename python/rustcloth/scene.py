@@ -10,6 +10,7 @@ from __future__ import annotations
 import copy
 import math
 import os
+import stat
 import tomllib
 import warnings
 from collections.abc import Mapping
@@ -134,8 +135,8 @@ class Scene:
         """A scene from a TOML file. A mesh collider's ``path`` is taken from the file's
         folder."""
         _check_path(path, "path")
-        with open(path, encoding="utf-8") as f:
-            return cls._from_toml_text(f.read(), os.path.dirname(os.path.abspath(path)))
+        return cls._from_toml_text(_read_text(path, "path"),
+                                   os.path.dirname(os.path.abspath(path)))
 
     @classmethod
     def from_toml_str(cls, text: str) -> Scene:
@@ -360,6 +361,30 @@ def _check_path(path: object, parameter: str) -> None:
             f"{parameter}: must be a str or os.PathLike, got {type(path).__name__} {path!r}",
             parameter,
         )
+
+
+def _read_text(path: str | os.PathLike[str], parameter: str) -> str:
+    """The UTF-8 text of the regular file ``path``. An error names ``parameter``: an
+    ``OSError`` of the same kind for a file that cannot be opened, a ``ParameterError`` for one
+    that is not a regular file (a folder; a device such as /dev/zero would be read for ever)
+    or not UTF-8."""
+    name = os.fspath(path)
+    try:
+        with open(path, "rb") as f:
+            if not stat.S_ISREG(os.fstat(f.fileno()).st_mode):
+                raise ParameterError(f"{parameter}: {name!r} is not a regular file", parameter)
+            data = f.read()
+    except OSError as err:
+        if isinstance(err, IsADirectoryError):
+            raise ParameterError(f"{parameter}: {name!r} is a folder, not a file",
+                                 parameter) from None
+        raise type(err)(err.errno, f"{parameter}: {err.strerror}", name) from None
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise ParameterError(
+            f"{parameter}: {name!r} is not UTF-8 text (byte {err.start}: {err.reason})", parameter
+        ) from None
 
 
 def load_scene(name: str | os.PathLike[str]) -> Scene:

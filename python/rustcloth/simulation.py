@@ -135,6 +135,16 @@ def _as_scene(scene: Scene | Mapping[str, Any] | str | None) -> Scene:
     )
 
 
+def _array(values: npt.ArrayLike, parameter: str) -> np.ndarray:
+    """``values`` as a numpy array; ragged nesting (which numpy refuses with its own
+    ``ValueError``) is named as ``parameter``."""
+    try:
+        return np.asarray(values)
+    except ValueError as err:
+        raise ParameterError(f"{parameter}: must be a rectangular array: {err}",
+                             parameter) from None
+
+
 def _as_state(state: Mapping[str, Any]) -> dict[str, Any]:
     if not isinstance(state, Mapping):
         raise ParameterTypeError(
@@ -325,7 +335,7 @@ class Simulation:
         :class:`~rustcloth.drivers.TwistDriver`) instead of one per particle. Every index and
         target is checked first, and a bad one, named ``indices[k]`` or ``targets[k]``, pins
         nothing. A repeated index takes its last target."""
-        array = np.asarray(indices)
+        array = _array(indices, "indices")
         if array.ndim != 1:
             raise ParameterError(
                 f"indices: must be 1-D, got shape {array.shape}", "indices"
@@ -341,7 +351,7 @@ class Simulation:
                 "indices",
                 int(np.iinfo(np.int64).max),
             )
-        rows = None if targets is None else np.asarray(targets)
+        rows = None if targets is None else _array(targets, "targets")
         self._core.pin_many(np.ascontiguousarray(array, np.int64), rows)
 
     def unpin(self, index: int) -> None:
