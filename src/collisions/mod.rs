@@ -8,11 +8,13 @@
 
 mod floor;
 mod mesh;
+mod predict;
 mod shape;
 
 use glam::Vec3;
 
 pub use floor::Floor;
+pub use predict::PredictedContacts;
 pub use shape::{Pose, PoseKey, Shapes, ROTATION_TOLERANCE};
 
 use crate::particles::Particles;

@@ -8,6 +8,7 @@ use rayon::prelude::*;
 
 use super::solver::{Preconditioner, SolverSettings, SolverStats};
 use super::{par_update, FiniteCheck, StepContext};
+use crate::collisions::PredictedContacts;
 use crate::forces::Force;
 use crate::grid::SpringKind;
 use crate::linear::reduce::{dot3, partials, REDUCE_CHUNK};
@@ -148,6 +149,9 @@ impl ImplicitEuler {
             }
         }
         assemble_diagonal_and_rhs(work, h, drag, ctx);
+        if let Some(contacts) = ctx.contacts.filter(|c| c.count > 0) {
+            hold_contacts(work, h, contacts, ctx);
+        }
         filter_couplings(work, ctx);
 
         let settings = self.settings;
@@ -346,6 +350,50 @@ fn assemble_diagonal_and_rhs(work: &mut Work, h: f32, drag: f32, ctx: &StepConte
             });
         });
     *work.matrix.slot_mut(0) = diag;
+}
+
+/// How much stiffer than its own inertia (`m / h^2`) the penalty holding a contact is. The
+/// predicted penetration left after the solve is `1 / (1 + CONTACT_STIFFNESS)` of the free
+/// motion's; larger also holds, but worsens the matrix's condition for nothing the collider
+/// pass after the step does not already correct.
+const CONTACT_STIFFNESS: f32 = 1000.0;
+
+/// Holds each predicted contact on its plane inside the solve: a stiff spring along the normal
+/// `n` pulling the particle's end position onto the plane, `f = -k_c n (n . x' - offset)` with
+/// `k_c = CONTACT_STIFFNESS m / h^2`, taken implicitly like every force here:
+/// `A += h^2 k_c n n^T`, `b -= h k_c n (n . x - offset + h n . v)`. Held (pinned, cut)
+/// particles have no contact.
+fn hold_contacts(work: &mut Work, h: f32, contacts: &PredictedContacts, ctx: &StepContext) {
+    let (mass, w, cur) = (&ctx.particles.mass, &ctx.particles.inv_mass, ctx.current);
+    let Work { matrix, rhs, .. } = work;
+    let mut diag = std::mem::take(matrix.slot_mut(0));
+    par_chunks6(&mut diag, ctx.chunk)
+        .zip(rhs.par_chunks_mut(ctx.chunk))
+        .enumerate()
+        .for_each(|(ci, (mut d, mut b))| {
+            for i in 0..b.len() {
+                let p = ci * ctx.chunk + i;
+                let n = contacts.normal.get(p);
+                if n == glam::Vec3::ZERO || w[p] == 0.0 {
+                    continue;
+                }
+                let s = CONTACT_STIFFNESS * mass[p];
+                let block = [
+                    n.x * n.x,
+                    n.y * n.y,
+                    n.z * n.z,
+                    n.x * n.y,
+                    n.x * n.z,
+                    n.y * n.z,
+                ];
+                for (column, v) in d.iter_mut().zip(block) {
+                    column[i] += s * v;
+                }
+                let gap = n.dot(cur.pos.get(p)) - contacts.offset[p] + h * n.dot(cur.vel.get(p));
+                b.set(i, b.get(i) - (s / h) * gap * n);
+            }
+        });
+    *matrix.slot_mut(0) = diag;
 }
 
 /// Zeroes the coupling blocks of every spring with a held end: the filtered matrix.

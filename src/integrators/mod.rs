@@ -23,6 +23,7 @@ pub use rk4::Rk4;
 pub use solver::{Preconditioner, SolverSettings, SolverStats};
 pub use verlet::Verlet;
 
+use crate::collisions::PredictedContacts;
 use crate::error::{Error, Result};
 use crate::forces::{ForceModel, StateRef};
 use crate::grid::Grid;
@@ -103,6 +104,17 @@ impl IntegratorKind {
         }
     }
 
+    /// Whether it holds the contacts a step is predicted to make inside its solve
+    /// ([`StepContext::contacts`]): implicit Euler, whose display-frame steps are long enough
+    /// that projecting its result out of a collider afterwards crushes springs. Projective
+    /// dynamics takes such steps too, but its prefactored matrix cannot take a contact set that
+    /// changes every step; projecting its iterates onto the contact planes (with or without
+    /// Chebyshev acceleration) converged too slowly to help, so it is still handled after the
+    /// fact.
+    pub fn holds_contacts(self) -> bool {
+        matches!(self, IntegratorKind::ImplicitEuler)
+    }
+
     /// The largest substep `h` (s) at which this integrator stays stable on a mode of angular
     /// frequency `omega` (rad/s, `omega2 = omega^2`) damped at a rate between `gamma_lo` and
     /// `gamma_hi` (1/s), or None when any is (the implicit solvers). For the damped oscillator
@@ -170,6 +182,10 @@ pub struct StepContext<'a> {
     /// Particles per parallel work item.
     pub chunk: usize,
     pub profile: &'a mut Profile,
+    /// The contacts the substep is predicted to make, for a solver that holds them inside its
+    /// solve ([`IntegratorKind::holds_contacts`]); `None` without colliders and for the others,
+    /// whose contacts the collider passes handle after the fact.
+    pub contacts: Option<&'a PredictedContacts>,
 }
 
 impl StepContext<'_> {

@@ -17,7 +17,7 @@ use std::time::{Duration, Instant};
 
 pub use watchdog::WatchdogStats;
 
-use crate::collisions::Shapes;
+use crate::collisions::{PredictedContacts, Shapes};
 use crate::error::{Error, Result, Trouble};
 use crate::forces::StateRef;
 use crate::integrators::{History, Integrator, IntegratorKind, SolverStats, StepContext};
@@ -61,6 +61,9 @@ pub struct Stepper {
     profile: Profile,
     /// What the last panic caught in a step said (see [`Error::Internal`]).
     panic_message: Option<String>,
+    /// With colliders: the contacts an implicit solver holds inside its solve (made here, for
+    /// any integrator, since the integrator can change between steps).
+    contacts: Option<PredictedContacts>,
 }
 
 impl Stepper {
@@ -74,6 +77,7 @@ impl Stepper {
         // or holds at more substeps, and a retry keeps its own start too. Made here, so that a
         // step never allocates, retried or not.
         let retries = watchdog.retries();
+        let contacts = (!pipeline.colliders.is_empty()).then(|| PredictedContacts::new(n));
         if retries {
             watchdog.retry_start = Some(Kinematics::zeros(n));
         }
@@ -87,6 +91,7 @@ impl Stepper {
             watchdog,
             profile: Profile::default(),
             panic_message: None,
+            contacts,
         }
     }
 
@@ -300,6 +305,17 @@ impl Stepper {
     ) -> std::result::Result<(), Failure> {
         let chunk = chunk_len(model.grid.len());
         let pipeline = &mut self.pipeline;
+        let contacts = match &mut self.contacts {
+            Some(contacts) if pipeline.integrator.kind().holds_contacts() => {
+                let t = Instant::now();
+                let g = glam::DVec3::from(model.scene.gravity).as_vec3();
+                let (kin, particles) = (&state.kin, &model.particles);
+                contacts.find(&pipeline.colliders, kin, particles, g, (h, time), chunk);
+                self.profile.add(PredictedContacts::NAME, t.elapsed());
+                Some(&*contacts)
+            }
+            _ => None,
+        };
         let started = Instant::now();
         let forces_before = self.profile.force_time;
         pipeline.forces.arm_stretch_watch();
@@ -313,8 +329,12 @@ impl Stepper {
             force: &mut self.force,
             chunk,
             profile: &mut self.profile,
+            contacts,
         };
         let finite = pipeline.integrator.step(h, &mut ctx);
+        if let Some(contacts) = contacts.filter(|c| c.count > 0) {
+            contacts.apply_friction(&mut self.scratch, h, chunk);
+        }
         let own_time = started
             .elapsed()
             .saturating_sub(self.profile.force_time - forces_before);
@@ -455,6 +475,10 @@ impl Stepper {
             + self.watchdog.heap_bytes()
             + self.force.heap_bytes()
             + self.pipeline.heap_bytes()
+            + self
+                .contacts
+                .as_ref()
+                .map_or(0, PredictedContacts::heap_bytes)
     }
 
     // ----- saving and restoring -------------------------------------------------------------
