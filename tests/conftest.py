@@ -153,7 +153,18 @@ INPUT_COUNTS: collections.Counter[str] = collections.Counter()
 ``rejected`` cleanly, ``accepted``, and ``known_defect`` pairs skipped."""
 
 
+HOSTILE_COUNTS: collections.Counter[str] = collections.Counter()
+"""What the hostile-input tests (test_hostile_input.py) fed the entry points in a subprocess:
+values ``tried``, ``refused`` by name, ``accepted``."""
+
+
 def pytest_terminal_summary(terminalreporter: Any) -> None:
+    if HOSTILE_COUNTS["tried"]:
+        c = HOSTILE_COUNTS
+        terminalreporter.write_line(
+            f"hostile-input tests: {c['tried']} values tried in a subprocess, {c['refused']} "
+            f"refused by name, {c['accepted']} accepted, {c['wrong']} wrong"
+        )
     if INPUT_COUNTS["tried"]:
         c = INPUT_COUNTS
         terminalreporter.write_line(

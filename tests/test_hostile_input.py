@@ -27,6 +27,7 @@ import time
 import numpy as np
 import pytest
 import rustcloth
+from conftest import HOSTILE_COUNTS
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from rustcloth.errors import ParameterError
@@ -50,6 +51,9 @@ def run_worker(cases: list[list[object]]) -> list[str]:
     )
     lines = [line.split(" ", 1) for line in done.stdout.splitlines()]
     outcomes = {int(i): rest for i, rest in lines if rest != "started"}
+    for outcome in outcomes.values():
+        HOSTILE_COUNTS["tried"] += 1
+        HOSTILE_COUNTS[outcome.split(" ", 1)[0].lower()] += 1
     if done.returncode != 0:
         running = max((int(i) for i, _ in lines), default=-1)
         case = cases[running] if running >= 0 else None

@@ -361,8 +361,8 @@ const CONTACT_STIFFNESS: f32 = 1000.0;
 /// Holds each predicted contact on its plane inside the solve: a stiff spring along the normal
 /// `n` pulling the particle's end position onto the plane, `f = -k_c n (n . x' - offset)` with
 /// `k_c = CONTACT_STIFFNESS m / h^2`, taken implicitly like every force here:
-/// `A += h^2 k_c n n^T`, `b -= h k_c n (n . x - offset + h n . v)`. Held (pinned, cut)
-/// particles have no contact.
+/// `A += h^2 k_c n n^T`, `b -= h k_c n (max(n . x - offset, 0) + h n . v)`. Held (pinned,
+/// cut) particles have no contact.
 fn hold_contacts(work: &mut Work, h: f32, contacts: &PredictedContacts, ctx: &StepContext) {
     let (mass, w, cur) = (&ctx.particles.mass, &ctx.particles.inv_mass, ctx.current);
     let Work { matrix, rhs, .. } = work;
@@ -389,7 +389,12 @@ fn hold_contacts(work: &mut Work, h: f32, contacts: &PredictedContacts, ctx: &St
                 for (column, v) in d.iter_mut().zip(block) {
                     column[i] += s * v;
                 }
-                let gap = n.dot(cur.pos.get(p)) - contacts.offset[p] + h * n.dot(cur.vel.get(p));
+                // A particle that starts behind the plane (inside a collider) is held where it
+                // is along n, not pulled onto the plane within the step: that would turn the
+                // depth into speed. The collider pass after the step puts it out, as it puts
+                // out any particle, without velocity.
+                let ahead = (n.dot(cur.pos.get(p)) - contacts.offset[p]).max(0.0);
+                let gap = ahead + h * n.dot(cur.vel.get(p));
                 b.set(i, b.get(i) - (s / h) * gap * n);
             }
         });
