@@ -24,6 +24,7 @@ import copyreg
 import json
 import math
 import pickle
+import struct
 import sys
 import warnings
 from typing import Any
@@ -96,22 +97,42 @@ def _set(state: dict[str, Any], key: str, value: Any) -> None:
     state[parts[-1]] = value
 
 
-def _crafted_pickle(state: dict[str, Any]) -> bytes:
+SENTINEL = "hostile-worker-sentinel"
+
+
+def _crafted_pickle(state: dict[str, Any], recipe: list[Any]) -> bytes:
     """A pickle that makes ``pickle.loads`` call ``Simulation.__setstate__(state)``, as a
-    pickle written by a hostile hand would."""
+    pickle written by a hostile hand would. Deep nesting is written as opcodes (Python's own
+    pickler recurses per level, and on 3.13 stops near 10 000 whatever the recursion limit):
+    the value at the sentinel is replaced by the recipe's bytes, which the unpickler reads
+    without recursing."""
 
     class Crafted:
         def __reduce__(self) -> Any:
             return (copyreg._reconstructor, (rustcloth.Simulation, object, None), state)
 
-    # The pickler recurses per level too: give it room for the deepest value written here
-    # (the loader is what is under test).
-    limit = sys.getrecursionlimit()
-    sys.setrecursionlimit(max(limit, 25_000))
-    try:
-        return pickle.dumps(Crafted())
-    finally:
-        sys.setrecursionlimit(limit)
+    # Protocol 2: no frames, whose lengths the replacement would break.
+    data = pickle.dumps(Crafted(), protocol=2)
+    if recipe[0] not in ("nest", "table"):
+        return data
+    marker = _opcodes(SENTINEL)
+    assert data.count(marker) == 1
+    depth = recipe[1]
+    if recipe[0] == "nest":
+        deep = b"]" * depth + _opcodes(recipe[2]) + b"a" * depth  # EMPTY_LIST ... APPEND
+    else:
+        deep = (b"}" + _opcodes("a")) * depth + b"}" + b"s" * depth  # EMPTY_DICT ... SETITEM
+    return data.replace(marker, deep)
+
+
+def _opcodes(value: str | float | bool) -> bytes:
+    """The pickle opcodes that push `value`, without the memo entry the pickler would add."""
+    if isinstance(value, bool):
+        return b"\x88" if value else b"\x89"  # NEWTRUE, NEWFALSE
+    if isinstance(value, str):
+        text = value.encode()
+        return b"X" + struct.pack("<I", len(text)) + text  # BINUNICODE
+    return b"G" + struct.pack(">d", float(value))  # BINFLOAT
 
 
 def run_case(entry: str, key: str, recipe: list[Any]) -> str:
@@ -135,7 +156,9 @@ def run_case(entry: str, key: str, recipe: list[Any]) -> str:
             if entry == "set_state":
                 sim.set_state(state)
             else:
-                pickle.loads(_crafted_pickle(state))
+                if recipe[0] in ("nest", "table"):
+                    _set(state, key, SENTINEL)
+                pickle.loads(_crafted_pickle(state, recipe))
         elif entry == "sweep":
             from rustcloth.sweep import Sweep
 
