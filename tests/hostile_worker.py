@@ -23,6 +23,7 @@ from __future__ import annotations
 import copyreg
 import json
 import math
+import os
 import pickle
 import struct
 import sys
@@ -30,8 +31,12 @@ import warnings
 from typing import Any
 
 import numpy as np
-import rustcloth
-from rustcloth.errors import RustclothError, StabilityWarning
+
+sys.path.insert(0, os.path.dirname(__file__))
+
+import rustcloth  # noqa: E402
+from conftest import state_differences  # noqa: E402
+from rustcloth.errors import RustclothError, StabilityWarning  # noqa: E402
 
 
 def build(recipe: list[Any]) -> Any:
@@ -171,9 +176,9 @@ def run_case(entry: str, key: str, recipe: list[Any]) -> str:
     except RustclothError as err:
         parameter = getattr(err, "parameter", None)
         if sim is not None and before is not None:
-            changed = _differs(sim.get_state(), before)
+            changed = state_differences(sim.get_state(), before)
             if changed:
-                return f"WRONG {type(err).__name__} changed {changed}"
+                return f"WRONG {type(err).__name__} changed {changed[0]}"
         if parameter is None and entry != "sweep":
             return f"WRONG {type(err).__name__} without a parameter: {str(err)[:120]}"
         return f"refused {type(err).__name__} {parameter}"
@@ -185,30 +190,6 @@ def run_case(entry: str, key: str, recipe: list[Any]) -> str:
     except Exception as err:
         return f"WRONG {type(err).__name__}: {str(err)[:120]}"
     return "accepted"
-
-
-def _differs(a: Any, b: Any, path: str = "state") -> str | None:
-    if isinstance(a, dict) and isinstance(b, dict):
-        for k in a.keys() | b.keys():
-            d = _differs(a.get(k), b.get(k), f"{path}.{k}")
-            if d:
-                return d
-        return None
-    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
-        same = (
-            isinstance(a, np.ndarray) and isinstance(b, np.ndarray)
-            and a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
-        )
-        return None if same else path
-    if isinstance(a, list | tuple) and isinstance(b, list | tuple):
-        if len(a) != len(b):
-            return path
-        for i, (x, y) in enumerate(zip(a, b, strict=True)):
-            d = _differs(x, y, f"{path}[{i}]")
-            if d:
-                return d
-        return None
-    return None if repr(a) == repr(b) else path
 
 
 def main() -> None:
