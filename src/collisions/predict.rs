@@ -63,7 +63,6 @@ impl PredictedContacts {
 
     /// Finds the contacts of a substep of length `h` ending at `time` (s) from `current`,
     /// under the constant acceleration `g` (m/s^2), against `colliders`.
-    #[allow(clippy::too_many_arguments)]
     pub fn find(
         &mut self,
         colliders: &[Collider],
@@ -73,32 +72,29 @@ impl PredictedContacts {
         (h, time): (f32, f64),
         chunk: usize,
     ) {
-        let n = current.pos.len();
-        for p in 0..n {
+        // Where each particle would be moving freely; the colliders only move dynamic ones.
+        let free = |p: usize| {
             let (x, v) = (current.pos.get(p), current.vel.get(p));
-            let free = if particles.is_dynamic(p) {
-                x + h * v + h * h * g
-            } else {
-                x
-            };
-            self.predicted.pos.set(p, free);
-            self.predicted.vel.set(p, v + h * g);
+            (x + h * v + h * h * g, v + h * g)
+        };
+        for p in 0..current.pos.len() {
+            let (x, v) = free(p);
+            self.predicted.pos.set(p, x);
+            self.predicted.vel.set(p, v);
         }
         for collider in colliders {
             collider.resolve(current, &mut self.predicted, particles, chunk, h, time);
         }
         let mut count = 0;
-        for p in 0..n {
-            let (x, v) = (current.pos.get(p), current.vel.get(p));
-            let free = x + h * v + h * h * g;
+        for p in 0..current.pos.len() {
+            let (x, v) = free(p);
             let at = self.predicted.pos.get(p);
-            let correction = at - free;
-            let normal = if particles.is_dynamic(p) && at.is_finite() {
-                correction.normalize_or_zero()
+            let normal = if at.is_finite() {
+                (at - x).normalize_or_zero()
             } else {
                 Vec3::ZERO
             };
-            let dv = self.predicted.vel.get(p) - (v + h * g);
+            let dv = self.predicted.vel.get(p) - v;
             self.normal.set(p, normal);
             self.offset[p] = normal.dot(at);
             self.friction.set(p, dv - dv.dot(normal) * normal);
