@@ -190,7 +190,7 @@ fn rays_from_any(rays: &Bound<'_, PyAny>) -> PyResult<Vec<(glam::Vec3, glam::Vec
         }
     }
     if let Ok(array) = rays.extract::<PyReadonlyArray3<'_, f32>>() {
-        if let Some(rays) = rays_from_array(array.as_array().mapv(f64::from).view()) {
+        if let Some(rays) = rays_from_array(array.as_array()) {
             return Ok(rays);
         }
     }
@@ -206,16 +206,22 @@ fn rays_from_any(rays: &Bound<'_, PyAny>) -> PyResult<Vec<(glam::Vec3, glam::Vec
         .collect()
 }
 
-/// The `(origin, direction)` pairs of an `(M, 2, 3)` array; `None` for any other shape, which
-/// the item-by-item reading names.
-fn rays_from_array(array: ArrayView3<'_, f64>) -> Option<Vec<(glam::Vec3, glam::Vec3)>> {
+/// The `(origin, direction)` pairs of an `(M, 2, 3)` float32 or float64 array (read in f64, so
+/// that a float64 value beyond float32's range becomes infinite and is refused by name); `None`
+/// for any other shape, which the item-by-item reading names.
+fn rays_from_array<T: Copy + Into<f64>>(
+    array: ArrayView3<'_, T>,
+) -> Option<Vec<(glam::Vec3, glam::Vec3)>> {
     if array.shape()[1..] != [2, 3] {
         return None;
     }
     let rays = array
         .outer_iter()
         .map(|ray| {
-            let v = |i: usize| glam::DVec3::new(ray[[i, 0]], ray[[i, 1]], ray[[i, 2]]).as_vec3();
+            let v = |i: usize| {
+                let c = |j: usize| ray[[i, j]].into();
+                glam::DVec3::new(c(0), c(1), c(2)).as_vec3()
+            };
             (v(0), v(1))
         })
         .collect();
