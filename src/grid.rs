@@ -23,6 +23,9 @@ pub enum SpringKind {
     BendJ,
 }
 
+/// One spring: its kind and its anchor particle (the slot it is stored in).
+pub type SpringSlot = (SpringKind, usize);
+
 impl SpringKind {
     pub const ALL: [SpringKind; 6] = [
         SpringKind::StructuralI,

@@ -31,6 +31,7 @@ pub mod particles;
 pub mod picking;
 pub mod pins;
 pub mod profile;
+pub mod ray;
 pub mod render_mesh;
 pub mod scene;
 pub mod self_collision;
