@@ -30,8 +30,8 @@ impl Ray {
             ));
         }
         // Normalised in f64: in float32 the squared length of a direction shorter than about
-        // 1e-19 or longer than 1.8e19 underflows or overflows, and picks along it went wrong
-        // (a 3e-23 m direction measured distances 25 % long) or were refused.
+        // 1e-19 or longer than 1.8e19 underflows or overflows: picks along it would measure
+        // distances wrong (by 25 % for a 3e-23 m direction) or be refused.
         let dir = direction
             .is_finite()
             .then(|| direction.as_dvec3().try_normalize())

@@ -18,8 +18,8 @@
 //! for that rounding, no farther than the hit's *reach* (its distance plus a relative
 //! allowance). Every box the searches test contains the widened boxes of its triangles, so a
 //! box that starts beyond the best hit's reach holds no better hit, by construction rather
-//! than by an estimate of the rounding. (Before that rule a ray from 10 km away disagreed with
-//! the brute force in about 3 % of picks; tests/fuzz.rs.)
+//! than by an estimate of the rounding. Without that rule a ray from 10 km away disagrees with
+//! the brute force in a few percent of picks (tests/fuzz.rs checks it does not).
 
 use std::cmp::Ordering;
 

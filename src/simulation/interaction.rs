@@ -140,7 +140,6 @@ impl Simulation {
         Ok(self.cut_along(&ray, false))
     }
 
-    /// The seed's stroke cut (see [`Simulation::sever_stroke`] for one that keeps the mass).
     /// Cuts, ray after ray, the particle each ray of a mouse stroke picks (a later ray sees
     /// the cloth without the particles cut before it); returns the particles cut, in order.
     /// Every ray is checked before anything is cut, so bad input changes nothing. Sample the

@@ -423,8 +423,8 @@ impl Simulation {
     }
 
     /// Removes particle `index` and every spring touching it from the cloth; its triangles
-    /// leave the mesh. Cutting a particle twice does nothing the second time. The seed's cut,
-    /// kept as it was: the particle's mass leaves the cloth. [`Simulation::sever_stroke`] cuts
+    /// leave the mesh. Cutting a particle twice does nothing the second time. The particle's
+    /// mass leaves the cloth. [`Simulation::sever_stroke`] cuts
     /// without removing anything.
     pub fn cut(&mut self, index: i64) -> Result<()> {
         let p = self.check_index("index", index)?;
