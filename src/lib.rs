@@ -3,8 +3,8 @@
 //! A cloth is an `nx` x `ny` grid of particles joined by structural, shear and bending springs
 //! (the 12-neighbour stencil), pushed by gravity and air drag, stepped with a fixed time step
 //! by one of six integrators. It drapes on colliders of any shape (a floor, spheres, boxes,
-//! capsules, cylinders, planes, triangle meshes, moving or still), can be kept from passing through itself, and
-//! can be grabbed, dragged, cut and torn. A [`Scene`] describes it; a [`Simulation`] runs it.
+//! capsules, cylinders, planes, triangle meshes, moving or still), can be kept from passing
+//! through itself, and can be grabbed, dragged, cut and torn. A [`Scene`] describes it; a [`Simulation`] runs it.
 //!
 //! One step runs the scene's passes in order: `src/stepper/mod.rs` (`Stepper::step` and
 //! `Stepper::substep`) is the place to start reading.
