@@ -8,7 +8,7 @@ use super::Simulation;
 use crate::error::{Error, Result};
 use crate::interaction::Grab;
 use crate::picking::STROKE_TREE_MIN_RAYS;
-use crate::picking::{BvhStats, ParticleHit, PickStrategy, Picker, TriangleHit};
+use crate::picking::{BvhStats, ParticleHit, PickStrategy, Picker, Queries, TriangleHit};
 use crate::ray::Ray;
 
 impl Simulation {
@@ -47,7 +47,8 @@ impl Simulation {
 
     /// [`Simulation::pick`] with the full hit (including the distance from the ray).
     pub fn pick_hit(&mut self, ray: &Ray) -> Option<ParticleHit> {
-        self.picker.particle(&self.model, &self.state, ray, false)
+        self.picker
+            .particle(&self.model, &self.state, ray, Queries::One)
     }
 
     /// The live triangle (an entry of [`Simulation::triangles`]) the ray hits first, as
@@ -137,7 +138,7 @@ impl Simulation {
     /// ray hits nothing.
     pub fn cut_ray(&mut self, origin: Vec3, direction: Vec3) -> Result<Option<usize>> {
         let ray = Ray::new(origin, direction)?;
-        Ok(self.cut_along(&ray, false))
+        Ok(self.cut_along(&ray, Queries::One))
     }
 
     /// Cuts, ray after ray, the particle each ray of a mouse stroke picks (a later ray sees
@@ -146,10 +147,14 @@ impl Simulation {
     /// stroke densely enough (about one ray per grid spacing on screen) to leave no gaps.
     pub fn cut_stroke(&mut self, rays: &[(Vec3, Vec3)]) -> Result<Vec<usize>> {
         let rays = checked_rays(rays)?;
-        let many = rays.len() >= STROKE_TREE_MIN_RAYS;
+        let queries = if rays.len() >= STROKE_TREE_MIN_RAYS {
+            Queries::Many
+        } else {
+            Queries::One
+        };
         Ok(rays
             .iter()
-            .filter_map(|ray| self.cut_along(ray, many))
+            .filter_map(|ray| self.cut_along(ray, queries))
             .collect())
     }
 
@@ -216,10 +221,10 @@ impl Simulation {
 
     /// Cuts the particle `ray` picks, removing its leaves from the picking trees that were up
     /// to date: a cut moves nothing, so they stay valid without a refit.
-    fn cut_along(&mut self, ray: &Ray, many: bool) -> Option<usize> {
+    fn cut_along(&mut self, ray: &Ray, queries: Queries) -> Option<usize> {
         let p = self
             .picker
-            .particle(&self.model, &self.state, ray, many)?
+            .particle(&self.model, &self.state, ray, queries)?
             .index;
         let before = Picker::versions(&self.model, &self.state);
         self.cut_live(p);

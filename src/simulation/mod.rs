@@ -292,7 +292,7 @@ impl Simulation {
     pub fn set_positions(&mut self, pos: &Vec3s) -> Result<()> {
         self.check_state_array("positions", pos)?;
         self.state.kin.pos.copy_from(pos);
-        self.state_set(true);
+        self.motion_changed();
         Ok(())
     }
 
@@ -306,7 +306,7 @@ impl Simulation {
                 self.state.kin.vel.set(p, Vec3::ZERO);
             }
         }
-        self.state_set(true);
+        self.motion_changed();
         Ok(())
     }
 
@@ -334,11 +334,17 @@ impl Simulation {
     }
 
     /// Something other than a step changed the state: caches are stale, and the watchdog must
-    /// not blame the last step for it; with `history`, positions or velocities changed, which
-    /// an integrator with history must forget.
-    fn state_set(&mut self, history: bool) {
+    /// not blame the last step for it.
+    fn state_changed(&mut self) {
         self.state.version += 1;
-        self.stepper.state_set(history);
+        self.stepper.state_replaced();
+    }
+
+    /// Something other than a step set positions or velocities: as
+    /// [`Simulation::state_changed`], and an integrator with history forgets it.
+    fn motion_changed(&mut self) {
+        self.state.version += 1;
+        self.stepper.motion_replaced();
     }
 
     /// Pins particle `index`: it stops and integration no longer moves it. With a `target`
@@ -408,7 +414,7 @@ impl Simulation {
             None => {
                 self.state.targets.remove(p);
                 self.state.kin.vel.set(p, Vec3::ZERO);
-                self.state_set(false);
+                self.state_changed();
             }
         }
     }
@@ -438,7 +444,7 @@ impl Simulation {
         self.model.cut(p);
         self.state.targets.remove(p);
         self.state.kin.vel.set(p, Vec3::ZERO);
-        self.state_set(false);
+        self.state_changed();
     }
 
     /// Switches the integrator at run time; the state carries over.

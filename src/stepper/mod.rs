@@ -358,14 +358,18 @@ impl Stepper {
         self.pipeline.integrator.reset_history();
     }
 
-    /// Something other than a step changed the state (`history`: positions or velocities, which
-    /// an integrator with history must forget): the watchdog must not blame (and undo) the last
-    /// step for trouble in this state, nor judge it at the end of a call that takes no step.
-    pub fn state_set(&mut self, history: bool) {
+    /// Something other than a step changed the state: the watchdog must not blame (and undo)
+    /// the last step for trouble in this state, nor judge it at the end of a call that takes no
+    /// step.
+    pub fn state_replaced(&mut self) {
         self.watchdog.state_replaced();
-        if history {
-            self.pipeline.integrator.reset_history();
-        }
+    }
+
+    /// Something other than a step set positions or velocities: as [`Stepper::state_replaced`],
+    /// and an integrator with history forgets it.
+    pub fn motion_replaced(&mut self) {
+        self.watchdog.state_replaced();
+        self.pipeline.integrator.reset_history();
     }
 
     /// The passes a step runs, in order.
@@ -418,7 +422,7 @@ impl Stepper {
     /// watchdog's claim on the last step, since the state may no longer be the one it judged.
     pub fn after_panic(&mut self) {
         self.pipeline.forces.reset_after_panic();
-        self.state_set(false);
+        self.state_replaced();
     }
 
     pub fn heap_bytes(&self) -> usize {
