@@ -48,6 +48,7 @@ pub mod state;
 pub mod stepper;
 pub mod strain_limit;
 pub mod tearing;
+pub mod wind;
 
 #[cfg(feature = "python")]
 mod python;

@@ -14,7 +14,7 @@ def test_defaults_are_filled_in_and_documented_keys_exist():
         "integrator", "dt", "substeps", "gravity", "air_drag", "cloth", "floor", "spheres",
         "cg_tolerance", "cg_max_iterations", "preconditioner", "pd_iterations", "pd_tolerance",
         "pd_chebyshev_rho", "watchdog", "strain_limit", "self_collision", "tearing",
-        "colliders",
+        "colliders", "wind",
     }
     assert d["preconditioner"] == "multigrid" and d["pd_iterations"] == 20
     assert set(d["cloth"]) >= {
@@ -22,7 +22,7 @@ def test_defaults_are_filled_in_and_documented_keys_exist():
         "damping", "pins",
     }
     assert d["floor"] is None and d["spheres"] == [] and d["colliders"] == []
-    assert d["strain_limit"] is None and d["tearing"] is None
+    assert d["strain_limit"] is None and d["tearing"] is None and d["wind"] is None
     assert d["watchdog"] == {
         "max_stretch": None, "on_trouble": "raise", "max_substeps": 64, "hold_steps": 100,
     }

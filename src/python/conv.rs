@@ -32,7 +32,7 @@ pub fn scene_to_dict<'py>(py: Python<'py>, scene: &Scene) -> PyResult<Bound<'py,
     let dict = from_toml(py, &value)?;
     // TOML has no null: spell out absent optional keys as None, as users write them.
     let dict = dict.cast_into::<PyDict>()?;
-    for key in ["floor", "strain_limit", "self_collision", "tearing"] {
+    for key in ["floor", "strain_limit", "self_collision", "tearing", "wind"] {
         if !dict.contains(key)? {
             dict.set_item(key, py.None())?;
         }

@@ -208,6 +208,7 @@ impl Stepper {
         if passes.forces.overstretched() {
             return Err(self.overstretched_start(model, &state.kin, substeps));
         }
+        finite &= passes.blow_wind(&mut s);
         finite &= passes.pin_targets(&mut s);
         finite &= passes.limit_strain(&mut s);
         finite &= passes.collide(&mut s);

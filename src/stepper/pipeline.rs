@@ -7,10 +7,12 @@
 //! 2. the integrator, evaluating the forces (gravity, air drag, each spring family) as often
 //!    as its scheme needs and writing the end-of-substep state into a second buffer; friction
 //!    of the predicted contacts;
-//! 3. kinematic pins (while the user drags a pinned particle);
-//! 4. strain limiting (when the scene asks for it, `src/strain_limit/`);
-//! 5. colliders (the `[[spheres]]`, then the `[[colliders]]` of any shape, then the floor);
-//! 6. self-collision (when the scene asks for it, `src/self_collision/`), last, so that its
+//! 3. wind (when the scene asks for it, `src/wind.rs`): a change of velocity after the
+//!    integrator, the same for every integrator;
+//! 4. kinematic pins (while the user drags a pinned particle);
+//! 5. strain limiting (when the scene asks for it, `src/strain_limit/`);
+//! 6. colliders (the `[[spheres]]`, then the `[[colliders]]` of any shape, then the floor);
+//! 7. self-collision (when the scene asks for it, `src/self_collision/`), last, so that its
 //!    guarantee covers everything the passes before it did. It only shortens a particle's
 //!    motion along its path from the substep's start, so the floor (a half-space, which holds
 //!    both ends of that path) stays satisfied.
@@ -40,6 +42,7 @@ use crate::soa::Vec3s;
 use crate::state::{Kinematics, State};
 use crate::strain_limit::StrainLimit;
 use crate::tearing::Tearing;
+use crate::wind::Wind;
 
 /// The passes of a step.
 pub(super) struct Pipeline {
@@ -52,6 +55,8 @@ pub(super) struct Pipeline {
     pub self_collision: Option<SelfCollision>,
     /// Only when the scene asks for tearing; runs after each whole step.
     pub tearing: Option<Tearing>,
+    /// Only when the scene asks for wind.
+    pub wind: Option<Wind>,
     /// With colliders: the contacts an implicit solver holds inside its solve (made for any
     /// integrator, since the integrator can change between steps).
     pub contacts: Option<PredictedContacts>,
@@ -115,6 +120,7 @@ impl Pipeline {
                 .tearing
                 .as_ref()
                 .map(|t| Tearing::new(t.max_strain as f32, t.max_per_step)),
+            wind: scene.wind.as_ref().map(|w| Wind::new(w, particles)),
         }
     }
 
@@ -122,6 +128,9 @@ impl Pipeline {
     pub fn effects(&self, state: &State) -> Vec<&'static str> {
         let mut out: Vec<&'static str> = self.forces.forces().iter().map(Force::name).collect();
         out.push(self.integrator.name());
+        if self.wind.is_some() {
+            out.push(Wind::NAME);
+        }
         if !state.targets.is_empty() {
             out.push(KinematicPins::NAME);
         }
@@ -187,6 +196,18 @@ impl Pipeline {
             .elapsed()
             .saturating_sub(s.profile.force_time - forces_before);
         s.profile.add(self.integrator.name(), own_time);
+        finite
+    }
+
+    /// Pushes the cloth with the wind's drag and lift.
+    pub fn blow_wind(&mut self, s: &mut Substep) -> bool {
+        let Some(wind) = &mut self.wind else {
+            return true;
+        };
+        let t = Instant::now();
+        let start = s.time - s.h as f64;
+        let finite = wind.apply(s.model, &s.state.kin, s.next, s.h, start);
+        s.profile.add(Wind::NAME, t.elapsed());
         finite
     }
 
@@ -278,6 +299,7 @@ impl Pipeline {
                 .as_ref()
                 .map_or(0, SelfCollision::heap_bytes)
             + self.tearing.as_ref().map_or(0, Tearing::heap_bytes)
+            + self.wind.as_ref().map_or(0, Wind::heap_bytes)
             + self
                 .colliders
                 .iter()
