@@ -10,8 +10,8 @@ springs: a cloth swinging down from two pinned corners, and a free sheet kicked 
 vibration (no gravity), each in two regimes: *damped* (spring damping and air drag, forces that
 depend on velocity) and *conservative* (neither). The error is the RMS particle distance at a
 fixed time from a float64 reference that is none of the integrators under test: the same model
-in numpy (``study/model.py``), integrated by adaptive Dormand-Prince 5(4) to a local error of
-1e-11. rustcloth steps in float32, so errors below a floor of about 1e-6 m are round-off; each
+in numpy (``rustcloth.reference``), integrated by adaptive Dormand-Prince 5(4) to a local error
+of 1e-11. rustcloth steps in float32, so errors below a floor of about 1e-6 m are round-off; each
 integrator's order is the slope of log error against log dt at the fine end of its clean
 stretch above three times that floor.
 

@@ -14,7 +14,7 @@ import numpy as np
 
 from .. import Scene, Simulation
 from ..errors import SimulationDiverged
-from .model import Cloth
+from ..reference import ReferenceCloth
 
 Start = Callable[[Simulation], None]
 """Puts a fresh simulation into a case's starting state (a kick, a swing)."""
@@ -122,10 +122,10 @@ def reference(case_scene: Scene, seconds: float, start: Start | None = None) -> 
     rest = sim.positions
     if start:
         start(sim)
-    cloth = Cloth(case_scene.to_dict(), sim.positions, sim.velocities, sim.masses, sim.pinned,
-                  rest=rest)
-    cloth.advance(seconds)
-    return cloth.x
+    cloth = ReferenceCloth(case_scene.to_dict(), positions=sim.positions,
+                           velocities=sim.velocities, masses=sim.masses, rest=rest)
+    cloth.integrate(seconds)
+    return cloth.positions
 
 
 def rms(a: np.ndarray, b: np.ndarray) -> float:
