@@ -37,7 +37,8 @@ def test_without_matplotlib_the_study_names_the_extra_and_exits_2(monkeypatch, c
 
 
 def test_the_study_writes_under_out_unless_told(monkeypatch, tmp_path):
-    # `rustcloth accuracy` wrote its report into ./docs of whatever folder the user stood in.
+    # Without --out the report goes under ./out, never into the docs of whatever checkout the
+    # user stands in.
     monkeypatch.chdir(tmp_path)
     monkeypatch.setitem(sys.modules, "matplotlib", None)  # stop before the study itself
     assert accuracy.main(["--quick"]) == 2
@@ -45,7 +46,8 @@ def test_the_study_writes_under_out_unless_told(monkeypatch, tmp_path):
 
 
 def test_an_unusable_out_folder_is_one_line_before_the_study(capsys):
-    # `accuracy --out /dev/full/x` ended in a NotADirectoryError traceback.
+    # A folder that cannot be made is a one-line error before minutes of study, not a
+    # traceback after them.
     assert accuracy.main(["--quick", "--out", "/dev/full/x"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("rustcloth accuracy: error: Not a directory: '/dev/full/x'")

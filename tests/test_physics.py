@@ -145,8 +145,8 @@ def digest_with(env: dict[str, str], integrator: str = "symplectic_euler") -> tu
 def test_state_is_bitwise_identical_across_vector_instruction_sets(integrator):
     # The hot loops are compiled for SSE2, AVX2 and AVX-512 and chosen at run time; none
     # reorders arithmetic, so all give the same bits. Each run reports the instruction set it
-    # used: the one asked for, or the CPU's widest where it lacks that one (issue 11: the test
-    # never checked that the request took effect, so it could have compared one set thrice).
+    # used: the one asked for, or the CPU's widest where it lacks that one, checked so that
+    # the test cannot compare one set three times.
     best = digest_with({})[1]
     runs = {isa: digest_with({"RUSTCLOTH_SIMD": isa}, integrator) for isa in ISAS}
     for isa, (_, used, _) in runs.items():
