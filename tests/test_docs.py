@@ -17,7 +17,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 PUBLIC_MODULES = ["rustcloth", "rustcloth.scene", "rustcloth.simulation", "rustcloth.export",
                   "rustcloth.settings", "rustcloth.sweep", "rustcloth.drivers",
-                  "rustcloth.errors"]
+                  "rustcloth.errors", "rustcloth.reference"]
 
 
 @pytest.mark.parametrize("name", PUBLIC_MODULES)
