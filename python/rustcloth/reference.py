@@ -7,8 +7,8 @@ The model:
 
 * an ``nx`` x ``ny`` grid of particles, particle ``(i, j)`` at row ``j * nx + i``, laid out over
   the scene's ``size`` in its ``plane`` around its ``center``, each of mass ``particle_mass``
-  (or ``mass / (nx ny)``). A pinned particle has inverse mass 0 and starts at rest, so that no
-  force and no integrator moves it.
+  (or ``mass / (nx ny)``, 1 g if neither is given). A pinned particle has inverse mass 0 and
+  starts at rest, so that no force and no integrator moves it.
 * springs from every particle to its 12 neighbours: structural ``(i + 1, j)``, ``(i, j + 1)``;
   shear ``(i + 1, j + 1)``, ``(i - 1, j + 1)``; bend ``(i + 2, j)``, ``(i, j + 2)``. A family of
   stiffness 0 is absent. Rest lengths are the starting distances.
@@ -71,6 +71,10 @@ DIRECTIONS = (
     ((2, 0), "k_bend"),
     ((0, 2), "k_bend"),
 )
+
+#: A particle's mass in kg where the scene gives neither ``particle_mass`` nor ``mass``, as in
+#: rustcloth's scenes.
+DEFAULT_PARTICLE_MASS = 1e-3
 
 # Scene keys of effects the model leaves out; a scene that sets any is refused.
 UNMODELLED = ("floor", "spheres", "colliders", "self_collision", "tearing", "strain_limit")
@@ -153,7 +157,10 @@ class ReferenceCloth:
 
         if masses is None:
             m = cloth.get("particle_mass")
-            masses = np.full(nx * ny, m if m is not None else cloth["mass"] / (nx * ny))
+            if m is None:
+                total = cloth.get("mass")
+                m = DEFAULT_PARTICLE_MASS if total is None else total / (nx * ny)
+            masses = np.full(nx * ny, m)
         self.mass = np.asarray(masses, self.dtype).reshape(ny, nx)
         self.pinned = np.zeros(nx * ny, bool)
         self.pinned[pin_indices(cloth["pins"], nx, ny)] = True
