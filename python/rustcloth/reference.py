@@ -232,6 +232,10 @@ class ReferenceCloth:
             f[s.b] -= pull
         return f
 
+    def force_rows(self, positions: npt.ArrayLike, velocities: npt.ArrayLike) -> Array:
+        """:meth:`forces` at ``(N, 3)`` positions and velocities, as ``(N, 3)`` rows."""
+        return self._rows(self.forces(self._grid(positions), self._grid(velocities)))
+
     def acceleration(self, x: Array, v: Array) -> Array:
         """``f / m``, 0 for pinned particles."""
         return self.forces(x, v) * self.inv_mass
@@ -311,9 +315,6 @@ class ReferenceCloth:
             yield from zip(index[s.a][0].ravel(), index[s.b][0].ravel(),
                            np.full(s.rest.size, float(s.k)), s.rest.ravel(), strict=True)
 
-    def _row_forces(self, x: Array, v: Array) -> Array:
-        return self._rows(self.forces(self._grid(x), self._grid(v)))
-
     def _implicit_dv(self, x: Array, v: Array) -> Array:
         """Linearised backward Euler: solve ``(M - h df/dv - h^2 df/dx) dv = h (f + h df/dx
         v)`` densely, pinned particles removed, with the compressed-spring fix
@@ -335,7 +336,7 @@ class ReferenceCloth:
         damping += float(self.air_drag) * np.eye(3 * n)
         mass = np.repeat(self.mass.ravel(), 3)
         matrix = np.diag(mass) + h * damping + h * h * stiffness
-        rhs = h * (self._row_forces(x, v).ravel() - h * stiffness @ v.ravel())
+        rhs = h * (self.force_rows(x, v).ravel() - h * stiffness @ v.ravel())
         free = np.repeat(~self.pinned, 3)
         dv = np.zeros(3 * n)
         dv[free] = np.linalg.solve(matrix[np.ix_(free, free)], rhs[free])
@@ -352,7 +353,7 @@ class ReferenceCloth:
         x = x0 + h * v0
         for _ in range(50):
             v = (x - x0) / h
-            residual = mass * (x - x0 - h * v0).ravel() / h**2 - self._row_forces(x, v).ravel()
+            residual = mass * (x - x0 - h * v0).ravel() / h**2 - self.force_rows(x, v).ravel()
             if np.abs(residual[free]).max() < 1e-12 * max(1.0, np.abs(mass).max() / h**2):
                 break
             # -df/dx (exact, compressed springs included) and -df/dv.
