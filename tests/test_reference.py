@@ -62,5 +62,5 @@ def test_float32_steps_follow_float64_steps():
 
 
 def test_effects_it_does_not_model_are_refused():
-    with pytest.raises(ValueError, match="no floor"):
+    with pytest.raises(ValueError, match="sets floor"):
         ReferenceCloth({**scene(), "floor": {"height": 0.0}})

@@ -147,7 +147,7 @@ class ReferenceCloth:
                  rest: npt.ArrayLike | None = None) -> None:
         for key in UNMODELLED:
             if scene.get(key):
-                raise ValueError(f"the reference model has no {key}; the scene sets {key}")
+                raise ValueError(f"the scene sets {key}, which the reference model leaves out")
         cloth = scene["cloth"]
         self.nx, self.ny = nx, ny = int(cloth["nx"]), int(cloth["ny"])
         self.dtype = np.dtype(dtype)
