@@ -78,9 +78,9 @@ def test_numpy_values_are_accepted():
     assert scene.dt == pytest.approx(0.002)
 
 
-def test_issue_13_from_toml_str_of_something_not_text_names_the_parameter():
-    # The mesh colliders' path pre-read parsed the text with tomllib before the core saw it,
-    # and tomllib raised AttributeError on None instead of the core's ParameterTypeError.
+def test_from_toml_str_of_something_not_text_names_the_parameter():
+    # The text is read for mesh collider paths before the core sees it: that reading must
+    # refuse what is not text as the core does, with ParameterTypeError naming it.
     for value in (None, 3, b"dt = 0.01"):
         with pytest.raises(ParameterTypeError, match="text"):
             Scene.from_toml_str(value)  # type: ignore[arg-type]
