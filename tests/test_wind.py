@@ -28,7 +28,7 @@ def test_wind_deflects_a_hanging_cloth_downwind_and_its_absence_changes_nothing(
     assert abs(still.positions[:, 2]).max() < 1e-6
     assert windy.positions[:, 2].mean() > 0.02
     assert windy.scene.wind is not None and windy.scene.wind["drag"] == pytest.approx(1.2)
-    assert "wind" in windy.profile()
+    assert "wind" in windy.profile().passes
 
 
 def test_the_flag_scene_blows_and_round_trips():
