@@ -9,13 +9,13 @@ use crate::error::{Error, Result};
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case", try_from = "String")]
 pub enum Preconditioner {
-    /// The inverse of the matrix's diagonal: cheapest per iteration, most iterations (the
-    /// solver before issue 14).
+    /// The inverse of the matrix's diagonal: cheapest per iteration, most iterations.
     Jacobi,
-    /// The inverse of each particle's 3 x 3 diagonal block: 30 to 40 % fewer iterations than
-    /// Jacobi on cloth for almost the same cost.
+    /// The inverse of each particle's 3 x 3 diagonal block: a spring couples a particle's
+    /// three components, which the scalar diagonal ignores, so fewer iterations than Jacobi
+    /// for almost the same cost.
     BlockJacobi,
-    /// One geometric multigrid V-cycle (`src/linear/multigrid.rs`): iteration counts that barely
+    /// One geometric multigrid V-cycle (`src/linear/multigrid/`): iteration counts that barely
     /// grow with stiffness or resolution, for a setup of about five matrix-vector products and
     /// an apply of about four. The default.
     Multigrid,
