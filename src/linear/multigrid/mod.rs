@@ -14,9 +14,9 @@
 //! **Cycle.** One V-cycle with one damped block-Jacobi sweep (`x += omega D^-1 (b - A x)`,
 //! `omega = 0.7`) before and after the coarse correction. Pre- and post-smoother are the same
 //! symmetric operator, so the cycle is a symmetric positive definite preconditioner and CG may
-//! use it. The smoother removes the error that varies from node to node, the coarse levels the
-//! smooth error that block Jacobi alone would take a number of iterations growing with the grid's
-//! size and the springs' stiffness to remove; so CG's iteration count barely grows with either.
+//! use it. The smoother damps the error that varies from node to node; the coarse levels remove
+//! the smooth error, which block Jacobi alone needs the more iterations for the larger the grid
+//! and the stiffer the springs. So CG's iteration count barely grows with either.
 //!
 //! Every pass is parallel over fixed chunks of nodes and writes only its own chunk, so the
 //! result is bitwise the same for any number of threads.
