@@ -39,7 +39,7 @@ use crate::springs::{anchored_run, neighbour_runs};
 ///
 /// **State between steps.** None: the solve starts from `dv = 0`, the matrix and the multigrid
 /// hierarchy are rebuilt from the step's own state. A refused step therefore needs no rollback
-/// here, and [`Integrator::reset_history`] has nothing to do.
+/// here, and [`super::Integrator::reset_history`] has nothing to do.
 ///
 /// Unconditionally stable and first order: it damps, strongly at large steps. Cost per step:
 /// one force evaluation, one assembly of the matrix, the preconditioner's setup, and per CG

@@ -51,7 +51,7 @@
 //! **State between steps.** Only the factorisation of `Q`, a cache keyed on everything it is
 //! built from (step, masses, held particles, live springs, stiffness, damping, drag) and rebuilt
 //! when any of them changes: a refused step needs no rollback, and
-//! [`Integrator::reset_history`] has nothing to do.
+//! [`super::Integrator::reset_history`] has nothing to do.
 //!
 //! **Cost.** Per iteration one pass over the springs and two triangular solves with three
 //! right-hand sides; a change of pins, cuts, masses or step refactors `Q`
