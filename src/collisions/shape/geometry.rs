@@ -30,6 +30,7 @@ pub(super) struct MeshShape {
     grid: MeshGrid,
 }
 
+/// A collider's shape in its own frame.
 pub(super) enum Geometry {
     Ball(Ball),
     Cuboid(Cuboid),
@@ -65,9 +66,7 @@ impl Geometry {
             ShapeKind::Mesh => mesh_geometry(s),
         }
     }
-}
 
-impl Geometry {
     /// Bytes a mesh holds on the heap (its triangles, parry's tree, normals and topology, and
     /// the grid); nothing for the other shapes.
     pub(super) fn heap_bytes(&self) -> usize {
