@@ -1,6 +1,6 @@
-//! Time integrators: the closed set a scene chooses from ([`IntegratorKind`], with each one's
-//! name and stability limit) and the running scheme with whatever it keeps between steps
-//! ([`Integrator`]); each scheme's update is in its own file.
+//! Time integrators: the running scheme with whatever it keeps between steps ([`Integrator`]),
+//! built from the [`IntegratorKind`] a scene names (`src/scene/solvers.rs`, with each one's name
+//! and stability limit); each scheme's update is in its own file.
 //!
 //! An integrator reads the state at the start of the step (`current`) and writes the state at
 //! its end into a second buffer (`next`). The stepper swaps the two only when the step came out
@@ -15,8 +15,8 @@ mod symplectic_euler;
 mod verlet;
 
 use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
 
+pub use crate::scene::IntegratorKind;
 pub use implicit_euler::ImplicitEuler;
 pub use projective_dynamics::ProjectiveDynamics;
 pub use rk4::Rk4;
@@ -24,7 +24,6 @@ pub use solver::{Preconditioner, SolverSettings, SolverStats};
 pub use verlet::Verlet;
 
 use crate::collisions::PredictedContacts;
-use crate::error::{Error, Result};
 use crate::forces::{ForceModel, StateRef};
 use crate::grid::Grid;
 use crate::particles::Particles;
@@ -32,142 +31,6 @@ use crate::profile::Profile;
 use crate::soa::{Vec3SliceMut, Vec3s};
 use crate::springs::Springs;
 use crate::state::Kinematics;
-
-/// The time integrators a scene can name.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case", try_from = "String")]
-pub enum IntegratorKind {
-    ExplicitEuler,
-    SymplecticEuler,
-    Verlet,
-    Rk4,
-    ImplicitEuler,
-    ProjectiveDynamics,
-}
-
-impl IntegratorKind {
-    pub const ALL: [IntegratorKind; 6] = [
-        IntegratorKind::ExplicitEuler,
-        IntegratorKind::SymplecticEuler,
-        IntegratorKind::Verlet,
-        IntegratorKind::Rk4,
-        IntegratorKind::ImplicitEuler,
-        IntegratorKind::ProjectiveDynamics,
-    ];
-
-    /// Its name in scenes, `effects` and `profile()`.
-    pub fn name(self) -> &'static str {
-        match self {
-            IntegratorKind::ExplicitEuler => "explicit_euler",
-            IntegratorKind::SymplecticEuler => "symplectic_euler",
-            IntegratorKind::Verlet => "verlet",
-            IntegratorKind::Rk4 => "rk4",
-            IntegratorKind::ImplicitEuler => "implicit_euler",
-            IntegratorKind::ProjectiveDynamics => "projective_dynamics",
-        }
-    }
-
-    /// Every name, in [`IntegratorKind::ALL`] order.
-    pub fn names() -> Vec<&'static str> {
-        Self::ALL.iter().map(|k| k.name()).collect()
-    }
-
-    /// The integrator called `name`; the error names `parameter`.
-    pub fn by_name(name: &str, parameter: &str) -> Result<IntegratorKind> {
-        Self::ALL
-            .into_iter()
-            .find(|k| k.name() == name)
-            .ok_or_else(|| {
-                Error::value(
-                    parameter,
-                    format!(
-                        "unknown integrator {name:?}; valid ones are {:?}",
-                        Self::names()
-                    ),
-                )
-            })
-    }
-
-    /// A fresh integrator of this kind.
-    pub fn build(self, solver: SolverSettings) -> Integrator {
-        match self {
-            IntegratorKind::ExplicitEuler => Integrator::ExplicitEuler,
-            IntegratorKind::SymplecticEuler => Integrator::SymplecticEuler,
-            IntegratorKind::Verlet => Integrator::Verlet(Verlet::default()),
-            IntegratorKind::Rk4 => Integrator::Rk4(Box::default()),
-            IntegratorKind::ImplicitEuler => {
-                Integrator::ImplicitEuler(Box::new(ImplicitEuler::new(solver)))
-            }
-            IntegratorKind::ProjectiveDynamics => {
-                Integrator::ProjectiveDynamics(Box::new(ProjectiveDynamics::new(solver)))
-            }
-        }
-    }
-
-    /// Whether it holds the contacts a step is predicted to make inside its solve
-    /// ([`StepContext::contacts`]): implicit Euler, whose display-frame steps are long enough
-    /// that projecting its result out of a collider afterwards crushes springs. Projective
-    /// dynamics takes such steps too, but its prefactored matrix cannot take a contact set that
-    /// changes every step; projecting its iterates onto the contact planes (with or without
-    /// Chebyshev acceleration) converged too slowly to help, so it is still handled after the
-    /// fact.
-    pub fn holds_contacts(self) -> bool {
-        matches!(self, IntegratorKind::ImplicitEuler)
-    }
-
-    /// The largest substep `h` (s) at which this integrator stays stable on a mode of angular
-    /// frequency `omega` (rad/s, `omega2 = omega^2`) damped at a rate between `gamma_lo` and
-    /// `gamma_hi` (1/s), or None when any is (the implicit solvers). For the damped oscillator
-    /// `x'' = -omega^2 x - gamma x'`:
-    ///
-    /// - symplectic Euler and Verlet need `h^2 omega^2 + 2 h gamma < 4` (Jury's test on the step
-    ///   matrix; `h omega < 2` undamped);
-    /// - RK4 needs `h |lambda| < 2 sqrt 2` where the mode oscillates (`lambda` the mode's
-    ///   eigenvalue, `|lambda| = omega`) and `< 2.785` on the real axis where it is overdamped;
-    /// - explicit Euler grows every undamped mode: it needs `h < gamma / omega^2` (with the
-    ///   smaller `gamma`, the safe side) and, overdamped, `h |lambda| < 2`.
-    pub fn stable_substep(self, omega2: f64, gamma_hi: f64, gamma_lo: f64) -> Option<f64> {
-        let omega = omega2.sqrt();
-        // The magnitude of the mode's fastest eigenvalue when overdamped (real), else None.
-        let overdamped = |gamma: f64| {
-            let d = gamma * gamma / 4.0 - omega2;
-            (d > 0.0).then(|| gamma / 2.0 + d.sqrt())
-        };
-        match self {
-            // Both solve backward Euler implicitly; neither has a step limit.
-            IntegratorKind::ImplicitEuler | IntegratorKind::ProjectiveDynamics => None,
-            IntegratorKind::Rk4 => Some(match overdamped(gamma_hi) {
-                Some(lambda) => 2.785 / lambda,
-                None => 2.0 * std::f64::consts::SQRT_2 / omega,
-            }),
-            IntegratorKind::ExplicitEuler => {
-                let growth = gamma_lo / omega2;
-                Some(overdamped(gamma_hi).map_or(growth, |lambda| growth.min(2.0 / lambda)))
-            }
-            IntegratorKind::SymplecticEuler | IntegratorKind::Verlet => {
-                Some((-gamma_hi + (gamma_hi * gamma_hi + 4.0 * omega2).sqrt()) / omega2)
-            }
-        }
-    }
-}
-
-/// Read from a name only: serde would also take a one-key table for an enum.
-impl TryFrom<String> for IntegratorKind {
-    type Error = String;
-
-    fn try_from(name: String) -> std::result::Result<Self, String> {
-        IntegratorKind::by_name(&name, "integrator").map_err(|e| match e {
-            Error::InvalidValue { message, .. } => message,
-            other => other.to_string(),
-        })
-    }
-}
-
-impl std::fmt::Display for IntegratorKind {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
 
 /// Everything a step reads and writes.
 pub struct StepContext<'a> {
@@ -221,6 +84,22 @@ pub enum Integrator {
 }
 
 impl Integrator {
+    /// A fresh integrator of `kind`, with the implicit solvers' `solver` settings.
+    pub fn new(kind: IntegratorKind, solver: SolverSettings) -> Integrator {
+        match kind {
+            IntegratorKind::ExplicitEuler => Integrator::ExplicitEuler,
+            IntegratorKind::SymplecticEuler => Integrator::SymplecticEuler,
+            IntegratorKind::Verlet => Integrator::Verlet(Verlet::default()),
+            IntegratorKind::Rk4 => Integrator::Rk4(Box::default()),
+            IntegratorKind::ImplicitEuler => {
+                Integrator::ImplicitEuler(Box::new(ImplicitEuler::new(solver)))
+            }
+            IntegratorKind::ProjectiveDynamics => {
+                Integrator::ProjectiveDynamics(Box::new(ProjectiveDynamics::new(solver)))
+            }
+        }
+    }
+
     pub fn kind(&self) -> IntegratorKind {
         match self {
             Integrator::ExplicitEuler => IntegratorKind::ExplicitEuler,

@@ -8,6 +8,7 @@
 
 mod mesh;
 mod pins;
+mod solvers;
 mod specs;
 mod stability;
 mod validate;
@@ -16,6 +17,7 @@ use serde::{Deserialize, Serialize};
 
 pub use mesh::{is_closed, merged_indices};
 pub use pins::PIN_GROUPS;
+pub use solvers::{IntegratorKind, Preconditioner, SolverSettings};
 pub use specs::{
     ClothSpec, ColliderSpec, FloorSpec, OnTrouble, PinSpec, Plane, SelfCollisionSpec, ShapeKind,
     SphereSpec, StrainLimitSpec, TearingSpec, WatchdogSpec, WindSpec,
@@ -27,7 +29,6 @@ pub use validate::{MAX_COLLIDER_VALUE, MAX_ITERATIONS, MAX_PARTICLES, MIN_SUBSTE
 
 use crate::error::{Error, Result};
 use crate::grid::Grid;
-use crate::integrators::{IntegratorKind, Preconditioner, SolverSettings};
 
 /// A whole scene. Field defaults are those of [`Scene::default`].
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -1,8 +1,8 @@
 //! The stability estimate: the largest step each integrator takes on a scene's cloth without
 //! blowing up, from the cloth's stiffest mode.
 
+use super::IntegratorKind;
 use super::Scene;
-use crate::integrators::IntegratorKind;
 
 /// The largest substep `h` (s) at which `integrator` stays stable on the scene's cloth with
 /// particles of mass `m` (kg), or None when any is (implicit Euler, or no springs).

@@ -336,7 +336,8 @@ impl Stepper {
 
     /// Switches the integrator; the state carries over (a fresh integrator has no history).
     pub fn set_integrator(&mut self, model: &Model) {
-        self.pipeline.integrator = model.scene.integrator.build(model.scene.solver_settings());
+        self.pipeline.integrator =
+            Integrator::new(model.scene.integrator, model.scene.solver_settings());
     }
 
     /// After a change of the substeps: history restarts, and a step keeps its start.

@@ -105,7 +105,7 @@ impl Pipeline {
         let colliders = colliders_of(scene);
         Pipeline {
             forces: ForceModel::new(forces_of(scene)),
-            integrator: scene.integrator.build(scene.solver_settings()),
+            integrator: Integrator::new(scene.integrator, scene.solver_settings()),
             strain_limit: scene
                 .strain_limit
                 .as_ref()
