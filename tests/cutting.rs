@@ -171,7 +171,7 @@ fn triangle_picking_sees_the_mesh_after_a_cut() {
         let y = 0.95 + 1.1 * (k / 10) as f32 / 5.0;
         let ray = Ray::new(Vec3::new(x, y, 2.0), Vec3::NEG_Z).unwrap();
         let want = pick_triangle_brute_force(&ray, sim.positions(), &triangles);
-        let got = sim.pick_triangle_hit(&ray);
+        let got = sim.pick_triangle(ray.origin, ray.dir).unwrap();
         assert_eq!(
             got.map(|h| h.index),
             want.map(|h| h.index),

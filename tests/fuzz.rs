@@ -28,7 +28,7 @@ use proptest::prelude::*;
 use proptest::sample::select;
 use proptest::test_runner::{Config, FileFailurePersistence, RngAlgorithm, RngSeed};
 use rustcloth::picking::PickStrategy;
-use rustcloth::picking::{pick_particle_brute_force, pick_triangle_brute_force, Ray};
+use rustcloth::picking::{pick_particle_brute_force, pick_triangle_brute_force, Ray, TriangleHit};
 use rustcloth::scene::{
     ClothSpec, FloorSpec, OnTrouble, PinSpec, Plane, SphereSpec, StrainLimitSpec, WatchdogSpec,
     MAX_COLLIDER_VALUE, MAX_PARTICLES, PIN_GROUPS,
@@ -1153,7 +1153,7 @@ fn apply(
             let outcome = sim.pick(origin, direction);
             ensure_kept(sim, &before, what, &outcome)?;
             if let Ok(hit) = outcome {
-                let hit = hit.map(|(p, d)| (p, d.to_bits()));
+                let hit = hit.map(|h| (h.index, h.distance.to_bits()));
                 let want = expected.map(|h| (h.index, h.distance.to_bits()));
                 prop_assert_eq!(hit, want, "{}: pick disagrees with the brute force", what);
             }
@@ -1168,12 +1168,17 @@ fn apply(
             let outcome = sim.pick_triangle(origin, direction);
             ensure_kept(sim, &before, what, &outcome)?;
             if let Ok(hit) = outcome {
-                if let Some((t, d, w)) = hit {
+                if let Some(TriangleHit {
+                    index: t,
+                    distance: d,
+                    barycentric: w,
+                }) = hit
+                {
                     prop_assert!(t < triangles.len(), "{what}: triangle {t}");
                     prop_assert!(d.is_finite() && d >= 0.0, "{what}: distance {d}");
                     prop_assert!(w.iter().all(|x| x.is_finite()), "{what}: weights {w:?}");
                 }
-                let hit = hit.map(|(t, d, _)| (t, d.to_bits()));
+                let hit = hit.map(|h| (h.index, h.distance.to_bits()));
                 let want = expected.map(|h| (h.index, h.distance.to_bits()));
                 prop_assert_eq!(hit, want, "{}: pick_triangle disagrees", what);
             }
@@ -1563,7 +1568,7 @@ fn a_pick_from_far_away_agrees_with_brute_force() {
                 let got = sim
                     .pick_triangle(at + from, -from)
                     .unwrap()
-                    .map(|(t, d, _)| (t, d.to_bits()));
+                    .map(|h| (h.index, h.distance.to_bits()));
                 assert_eq!(got, want, "{strategy:?}, {distance} m, ray {k}");
             }
         }

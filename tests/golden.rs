@@ -152,7 +152,7 @@ fn cases() -> Vec<Case> {
                 let mut outcome = sim.step(50);
                 // Grab what a ray from the front hits, drag it, let go, cut a stroke.
                 let hit = sim.pick(Vec3::new(0.05, 3.0, 0.1), Vec3::NEG_Y).unwrap();
-                let (p, _) = hit.expect("the ray hits the cloth");
+                let p = hit.expect("the ray hits the cloth").index;
                 sim.grab(p as i64).unwrap();
                 for k in 0..20 {
                     sim.drag_to(Vec3::new(0.05 + 0.01 * k as f32, 1.2, 0.3))

@@ -90,7 +90,7 @@ fn check_against_brute_force(rng: &mut Rng, sim: &mut Simulation, rays: usize) -
     let mut hits = 0;
     for _ in 0..rays {
         let ray = random_ray(rng, sim);
-        let bvh = sim.pick_hit(&ray);
+        let bvh = sim.pick(ray.origin, ray.dir).unwrap();
         let brute = pick_particle_brute_force(
             &ray,
             sim.positions(),
@@ -103,7 +103,7 @@ fn check_against_brute_force(rng: &mut Rng, sim: &mut Simulation, rays: usize) -
         assert_eq!(scan, brute, "particle scan, ray {ray:?}");
         hits += bvh.is_some() as usize;
 
-        let bvh = sim.pick_triangle_hit(&ray);
+        let bvh = sim.pick_triangle(ray.origin, ray.dir).unwrap();
         let tris = sim.triangles().to_vec();
         let brute = pick_triangle_brute_force(&ray, sim.positions(), &tris);
         assert_eq!(bvh, brute, "triangles, ray {ray:?}");
@@ -182,7 +182,7 @@ fn trees_are_built_on_the_first_query_refitted_after_moving_and_untouched_by_ste
     );
     let down = Vec3::NEG_Z;
     let origin = position(&sim, 100) + Vec3::Z;
-    assert_eq!(sim.pick(origin, down).unwrap().map(|h| h.0), Some(100));
+    assert_eq!(sim.pick(origin, down).unwrap().map(|h| h.index), Some(100));
     assert_eq!(sim.bvh_stats().particle_builds, 1);
     assert_eq!(
         sim.bvh_stats().triangle_builds,
@@ -195,7 +195,7 @@ fn trees_are_built_on_the_first_query_refitted_after_moving_and_untouched_by_ste
     sim.step(50).unwrap();
     assert_eq!(sim.bvh_stats(), before, "a step does no BVH work");
     let origin = position(&sim, 100) + Vec3::Z;
-    assert_eq!(sim.pick(origin, down).unwrap().map(|h| h.0), Some(100));
+    assert_eq!(sim.pick(origin, down).unwrap().map(|h| h.index), Some(100));
     let stats = sim.bvh_stats();
     assert_eq!((stats.particle_builds, stats.particle_refits), (1, 1));
     // A cut through the trees removes leaves and needs no refit.
@@ -218,7 +218,7 @@ fn auto_scans_for_one_query_per_state_and_uses_the_tree_for_more() {
     assert_eq!(sim.pick_strategy(), PickStrategy::Auto);
     let down = Vec3::NEG_Z;
     let at = |sim: &Simulation| position(sim, 100) + Vec3::Z;
-    let pick = |sim: &mut Simulation| sim.pick(at(sim), down).unwrap().map(|h| h.0);
+    let pick = |sim: &mut Simulation| sim.pick(at(sim), down).unwrap().map(|h| h.index);
     assert_eq!(pick(&mut sim), Some(100));
     let s = sim.bvh_stats();
     assert_eq!(
@@ -293,7 +293,7 @@ fn a_changed_pick_radius_refits_and_is_used() {
     let origin = p + Vec3::new(0.1, 1.0, 0.0);
     assert_eq!(sim.pick_radius(), 0.125);
     assert_eq!(
-        sim.pick(origin, Vec3::NEG_Y).unwrap().map(|h| h.0),
+        sim.pick(origin, Vec3::NEG_Y).unwrap().map(|h| h.index),
         Some(12)
     );
     sim.set_pick_radius(0.05).unwrap();
@@ -309,9 +309,9 @@ fn ties_along_the_ray_go_to_the_particle_nearer_the_ray() {
     sim.set_pick_radius(0.6).unwrap();
     for p in [0, 6, 12, 18, 24] {
         let origin = position(&sim, p) + Vec3::new(0.01, 3.0, -0.02);
-        let (hit, distance) = sim.pick(origin, Vec3::NEG_Y).unwrap().unwrap();
-        assert_eq!(hit, p);
-        assert!((distance - 2.4).abs() < 1e-5);
+        let hit = sim.pick(origin, Vec3::NEG_Y).unwrap().unwrap();
+        assert_eq!(hit.index, p);
+        assert!((hit.distance - 2.4).abs() < 1e-5);
     }
 }
 
@@ -460,8 +460,8 @@ fn topology_stays_consistent_after_any_sequence_of_cuts() {
                 3 => sim.step(5).unwrap(),
                 _ => {
                     let ray = random_ray(&mut rng, &sim);
-                    if let Some((p, _)) = sim.pick(ray.origin, ray.dir).unwrap() {
-                        assert!(sim.particles().alive[p]);
+                    if let Some(hit) = sim.pick(ray.origin, ray.dir).unwrap() {
+                        assert!(sim.particles().alive[hit.index]);
                     }
                 }
             }
@@ -622,13 +622,16 @@ fn the_first_query_works_with_one_or_two_live_particles_of_high_index() {
         }
         for &p in &keep {
             let origin = position(&sim, p) + Vec3::Y;
-            assert_eq!(sim.pick(origin, Vec3::NEG_Y).unwrap().map(|h| h.0), Some(p));
+            assert_eq!(
+                sim.pick(origin, Vec3::NEG_Y).unwrap().map(|h| h.index),
+                Some(p)
+            );
         }
         assert_eq!(sim.pick_triangle(Vec3::Y, Vec3::NEG_Y).unwrap(), None);
         sim.cut(keep[0] as i64).unwrap();
         let origin = position(&sim, keep[0]) + Vec3::Y;
         assert_ne!(
-            sim.pick(origin, Vec3::NEG_Y).unwrap().map(|h| h.0),
+            sim.pick(origin, Vec3::NEG_Y).unwrap().map(|h| h.index),
             Some(keep[0])
         );
     }

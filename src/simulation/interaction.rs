@@ -36,38 +36,23 @@ impl Simulation {
         self.picker.stats()
     }
 
-    /// The live particle whose box the ray `origin + t direction` (t >= 0) enters first, as
-    /// `(index, distance along the ray in m)`; ties go to the particle nearer the ray. `None`
-    /// if the ray misses every particle. Errors (changing nothing) on a non-finite origin or
-    /// a zero or non-finite direction.
-    pub fn pick(&mut self, origin: Vec3, direction: Vec3) -> Result<Option<(usize, f32)>> {
-        let ray = Ray::new(origin, direction)?;
-        Ok(self.pick_hit(&ray).map(|h| (h.index, h.distance)))
-    }
-
-    /// [`Simulation::pick`] with the full hit (including the distance from the ray).
-    pub fn pick_hit(&mut self, ray: &Ray) -> Option<ParticleHit> {
-        self.picker
-            .particle(&self.model, &self.state, ray, Queries::One)
-    }
-
-    /// The live triangle (an entry of [`Simulation::triangles`]) the ray hits first, as
-    /// `(triangle index, distance in m, barycentric weights of its three vertices)`.
-    pub fn pick_triangle(
-        &mut self,
-        origin: Vec3,
-        direction: Vec3,
-    ) -> Result<Option<(usize, f32, [f32; 3])>> {
+    /// The live particle whose box the ray `origin + t direction` (t >= 0) enters first: its
+    /// index, the distance along the ray (m) and the distance from the ray; ties go to the
+    /// particle nearer the ray. `None` if the ray misses every particle. Errors (changing
+    /// nothing) on a non-finite origin or a zero or non-finite direction.
+    pub fn pick(&mut self, origin: Vec3, direction: Vec3) -> Result<Option<ParticleHit>> {
         let ray = Ray::new(origin, direction)?;
         Ok(self
-            .pick_triangle_hit(&ray)
-            .map(|h| (h.index, h.distance, h.barycentric)))
+            .picker
+            .particle(&self.model, &self.state, &ray, Queries::One))
     }
 
-    /// [`Simulation::pick_triangle`] as a [`TriangleHit`] whose `index` is the position in
-    /// [`Simulation::triangles`].
-    pub fn pick_triangle_hit(&mut self, ray: &Ray) -> Option<TriangleHit> {
-        self.picker.triangle(&self.model, &self.state, ray)
+    /// The live triangle the ray hits first: its position in [`Simulation::triangles`], the
+    /// distance along the ray (m) and the barycentric weights of its three vertices. Errors as
+    /// [`Simulation::pick`].
+    pub fn pick_triangle(&mut self, origin: Vec3, direction: Vec3) -> Result<Option<TriangleHit>> {
+        let ray = Ray::new(origin, direction)?;
+        Ok(self.picker.triangle(&self.model, &self.state, &ray))
     }
 
     // ----- dragging and cutting -------------------------------------------------------------
