@@ -27,19 +27,30 @@ use crate::stepper::{Stepper, WatchdogStats, MAX_ADVANCE_STEPS};
 pub type GrabRecord = (usize, bool, Option<Vec3>);
 
 /// Everything `Simulation::restore` needs to continue a run bit for bit.
-#[derive(Clone, Debug, PartialEq)]
+///
+/// Serde covers the plain values only: the scene has its own validated format, and the
+/// per-particle arrays are the bulk of a snapshot, which a binding sends as arrays of its own
+/// (numpy) rather than as one serde value per element.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Snapshot {
     /// The scene, with the run-time settings (integrator, dt, substeps) as they are now.
+    #[serde(skip)]
     pub scene: Scene,
     /// Positions in m and velocities in m/s, one per particle.
+    #[serde(skip)]
     pub positions: Vec3s,
+    #[serde(skip)]
     pub velocities: Vec3s,
     /// Masses in kg.
+    #[serde(skip)]
     pub masses: Vec<f32>,
+    #[serde(skip)]
     pub pinned: Vec<bool>,
+    #[serde(skip)]
     pub alive: Vec<bool>,
     /// Per spring kind (in [`crate::grid::SpringKind::ALL`] order), whether the spring anchored at each
     /// particle is live.
+    #[serde(skip)]
     pub springs: [Vec<bool>; 6],
     /// Kinematic pins: `(particle, target in m)`, in the order they were set.
     pub targets: Vec<(usize, Vec3)>,
@@ -61,10 +72,12 @@ pub struct Snapshot {
 }
 
 /// The watchdog's memory between steps.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct WatchdogSnapshot {
     /// The start of the last step and the integrator's history then, while that step can
-    /// still be undone (only with a stretch limit).
+    /// still be undone (only with a stretch limit). Per-particle arrays: outside serde, as in
+    /// [`Snapshot`].
+    #[serde(skip)]
     pub previous: Option<(Vec3s, Vec3s, History)>,
     /// The newest state has not been judged against the stretch limit yet.
     pub unjudged: bool,

@@ -28,10 +28,11 @@ pub fn scene_from_dict(obj: &Bound<'_, PyAny>) -> PyResult<Scene> {
 
 /// A scene as a dict with every key spelled out, absent optional tables as `None`.
 pub fn scene_to_dict<'py>(py: Python<'py>, scene: &Scene) -> PyResult<Bound<'py, PyAny>> {
+    // Through a TOML value, whose arrays become lists where serde's tuples (`[f32; 3]`) would
+    // become Python tuples. TOML has no null: absent optional keys are spelled out as None
+    // below, as users write them.
     let value = toml::Value::try_from(scene).expect("a scene always serialises");
-    let dict = from_toml(py, &value)?;
-    // TOML has no null: spell out absent optional keys as None, as users write them.
-    let dict = dict.cast_into::<PyDict>()?;
+    let dict = pythonize::pythonize(py, &value)?.cast_into::<PyDict>()?;
     for key in ["floor", "strain_limit", "self_collision", "tearing"] {
         if !dict.contains(key)? {
             dict.set_item(key, py.None())?;
@@ -104,31 +105,6 @@ pub fn to_toml(obj: &Bound<'_, PyAny>, path: &str, depth: usize) -> PyResult<tom
             format!("unsupported value of type {kind}: {obj}"),
         ))
     }
-}
-
-/// A TOML value as plain Python objects.
-pub fn from_toml<'py>(py: Python<'py>, value: &toml::Value) -> PyResult<Bound<'py, PyAny>> {
-    Ok(match value {
-        toml::Value::Table(table) => {
-            let dict = PyDict::new(py);
-            for (k, v) in table {
-                dict.set_item(k, from_toml(py, v)?)?;
-            }
-            dict.into_any()
-        }
-        toml::Value::Array(items) => {
-            let list = PyList::empty(py);
-            for v in items {
-                list.append(from_toml(py, v)?)?;
-            }
-            list.into_any()
-        }
-        toml::Value::String(s) => PyString::new(py, s).into_any(),
-        toml::Value::Integer(i) => i.into_pyobject(py)?.into_any(),
-        toml::Value::Float(f) => PyFloat::new(py, *f).into_any(),
-        toml::Value::Boolean(b) => PyBool::new(py, *b).to_owned().into_any(),
-        toml::Value::Datetime(d) => PyString::new(py, &d.to_string()).into_any(),
-    })
 }
 
 /// An `(n, 3)` float32 or float64 numpy array as SoA vectors.

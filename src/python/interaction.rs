@@ -154,20 +154,9 @@ impl PySimulation {
     }
 
     /// Work done on the picking trees so far.
-    fn bvh_stats(&self, py: Python<'_>) -> PyResult<std::collections::HashMap<&'static str, u64>> {
-        let s = self.with(py, |h| Ok(h.sim.bvh_stats()))?;
-        Ok([
-            ("particle_scans", s.particle_scans),
-            ("particle_builds", s.particle_builds),
-            ("particle_refits", s.particle_refits),
-            ("particle_removals", s.particle_removals),
-            ("triangle_scans", s.triangle_scans),
-            ("triangle_builds", s.triangle_builds),
-            ("triangle_refits", s.triangle_refits),
-            ("triangle_removals", s.triangle_removals),
-        ]
-        .into_iter()
-        .collect())
+    fn bvh_stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let stats = self.with(py, |h| Ok(h.sim.bvh_stats()))?;
+        Ok(pythonize::pythonize(py, &stats)?)
     }
 }
 

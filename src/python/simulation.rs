@@ -3,16 +3,20 @@
 //! (shared.rs); stepping runs detached from the interpreter and checks for Ctrl-C between
 //! steps. The documented public API is `rustcloth.Simulation`, which wraps this class.
 
-use numpy::{PyArray1, PyArray2, PyReadonlyArray1};
+use numpy::{
+    PyArray1, PyArray2, PyArrayDescrMethods, PyReadonlyArray1, PyUntypedArray,
+    PyUntypedArrayMethods,
+};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
+use pythonize::pythonize;
 
 use super::conv::{
     count_from_any, f64s_from_array, float_from_any, index_from_any, int_from_any, interleaved,
     read_only, rows_to_array, scene_from_dict, scene_to_dict, str_from_any, vec3_from_any,
     vec3s_from_array, vec3s_to_array,
 };
-use super::errors::{type_error, IntoPyResult};
+use super::errors::{type_error, value_error, IntoPyResult, ParticleIndexError};
 use super::shared::{Held, Shared};
 use super::state;
 use crate::{Error, IntegratorKind, Simulation};
@@ -263,8 +267,8 @@ impl PySimulation {
         self.with(py, |h| h.sim.pin(index, target).py())
     }
 
-    /// Pins many particles in one call; `indices` a 1-D int64 array (the Python wrapper
-    /// coerces), `targets` None or an `(len(indices), 3)` float array.
+    /// Pins many particles in one call; `indices` a 1-D integer array, `targets` None or an
+    /// `(len(indices), 3)` float array.
     #[pyo3(signature = (indices, targets = None))]
     fn pin_many(
         &self,
@@ -272,15 +276,8 @@ impl PySimulation {
         indices: &Bound<'_, PyAny>,
         targets: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
-        let indices: Vec<i64> = match indices.extract::<PyReadonlyArray1<'_, i64>>() {
-            Ok(a) => a.as_array().to_vec(),
-            Err(_) => {
-                return Err(type_error(
-                    "indices",
-                    "must be a 1-D int64 numpy array".into(),
-                ))
-            }
-        };
+        let n = self.with(py, |h| Ok(h.sim.grid().len()))?;
+        let indices = indices_from_array(indices, n)?;
         let targets = match targets {
             Some(t) if !t.is_none() => Some(vec3s_from_array(t, "targets", indices.len())?),
             _ => None,
@@ -329,7 +326,10 @@ impl PySimulation {
         let constructor = py
             .import("rustcloth._core")?
             .getattr("simulation_from_state")?;
-        Ok((constructor, state::reduce_args(py, &snapshot)?))
+        Ok((
+            constructor,
+            PyTuple::new(py, [state::to_dict(py, &snapshot)?])?,
+        ))
     }
 
     /// Makes the next force evaluation panic inside its parallel sweep: a stand-in for a bug,
@@ -436,22 +436,9 @@ impl PySimulation {
     /// Statistics of the implicit solver (`solves`, `iterations`, `last_iterations`,
     /// `last_residual`, `not_converged`, `worst_residual`, `most_iterations`, `factorizations`,
     /// `setup_seconds`, `solve_seconds`), or None for integrators that solve nothing.
-    fn solver_stats<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
-        let Some(stats) = self.with(py, |h| Ok(h.sim.solver_stats()))? else {
-            return Ok(None);
-        };
-        let dict = PyDict::new(py);
-        dict.set_item("solves", stats.solves)?;
-        dict.set_item("iterations", stats.iterations)?;
-        dict.set_item("last_iterations", stats.last_iterations)?;
-        dict.set_item("last_residual", stats.last_residual)?;
-        dict.set_item("not_converged", stats.not_converged)?;
-        dict.set_item("worst_residual", stats.worst_residual)?;
-        dict.set_item("most_iterations", stats.most_iterations)?;
-        dict.set_item("factorizations", stats.factorizations)?;
-        dict.set_item("setup_seconds", stats.setup_seconds)?;
-        dict.set_item("solve_seconds", stats.solve_seconds)?;
-        Ok(Some(dict))
+    fn solver_stats<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        let stats = self.with(py, |h| Ok(h.sim.solver_stats()))?;
+        Ok(stats.map(|s| pythonize(py, &s)).transpose()?)
     }
 
     /// The largest stable `dt` (s) now, or None when any `dt` is.
@@ -460,33 +447,14 @@ impl PySimulation {
     }
 
     /// What the watchdog caught and retried since the start.
-    fn watchdog_stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+    fn watchdog_stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let stats = self.with(py, |h| Ok(h.sim.watchdog_stats()))?;
-        let out = PyDict::new(py);
-        out.set_item("caught", stats.caught)?;
-        out.set_item("retried", stats.retried)?;
-        out.set_item("retry_substeps", stats.retry_substeps)?;
-        out.set_item("max_substeps_used", stats.max_substeps_used)?;
-        out.set_item("held_steps", stats.held_steps)?;
-        Ok(out)
+        Ok(pythonize(py, &stats)?)
     }
 
-    fn self_collision_stats<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
-        let Some(stats) = self.with(py, |h| Ok(h.sim.self_collision_stats()))? else {
-            return Ok(None);
-        };
-        let out = PyDict::new(py);
-        out.set_item("substeps", stats.substeps)?;
-        out.set_item("pairs", stats.pairs)?;
-        out.set_item("rebuilds", stats.rebuilds)?;
-        out.set_item("swept_substeps", stats.swept_substeps)?;
-        out.set_item("redone", stats.redone)?;
-        out.set_item("contacts", stats.contacts)?;
-        out.set_item("capped", stats.capped)?;
-        out.set_item("stopped", stats.stopped)?;
-        out.set_item("max_cap_rounds", stats.max_cap_rounds)?;
-        out.set_item("min_distance", stats.min_distance)?;
-        Ok(Some(out))
+    fn self_collision_stats<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        let stats = self.with(py, |h| Ok(h.sim.self_collision_stats()))?;
+        Ok(stats.map(|s| pythonize(py, &s)).transpose()?)
     }
 
     fn memory_bytes(&self, py: Python<'_>) -> PyResult<usize> {
@@ -517,6 +485,38 @@ impl PySimulation {
     fn num_particles(&self, py: Python<'_>) -> PyResult<usize> {
         self.with(py, |h| Ok(h.sim.grid().len()))
     }
+}
+
+/// `pin_many`'s indices: a 1-D numpy array of integers (of any dtype when empty), as i64. The
+/// core checks each against the particles.
+fn indices_from_array(obj: &Bound<'_, PyAny>, n: usize) -> PyResult<Vec<i64>> {
+    let array = obj
+        .cast::<PyUntypedArray>()
+        .map_err(|_| type_error("indices", format!("must be a numpy array, got {obj}")))?;
+    if array.ndim() != 1 {
+        let shape = obj.getattr("shape")?;
+        return Err(value_error(
+            "indices",
+            format!("must be 1-D, got shape {shape}"),
+        ));
+    }
+    let (dtype, empty) = (array.dtype(), array.len() == 0);
+    if !empty && !matches!(dtype.kind(), b'i' | b'u') {
+        let message = format!("must hold integers, got dtype {dtype}");
+        return Err(type_error("indices", message));
+    }
+    if !empty && dtype.kind() == b'u' {
+        let largest: u64 = obj.call_method0("max")?.extract()?;
+        if i64::try_from(largest).is_err() {
+            let message = format!("indices: index {largest} is out of range for {n} particles");
+            return Err(ParticleIndexError::new_err((message, "indices", i64::MAX)));
+        }
+    }
+    let int64 = obj.call_method1("astype", ("int64",))?;
+    Ok(int64
+        .extract::<PyReadonlyArray1<'_, i64>>()?
+        .as_array()
+        .to_vec())
 }
 
 fn read_only_1d<T: numpy::Element>(

@@ -33,7 +33,7 @@ use crate::springs::{neighbour_runs, overstretched, Springs};
 use crate::state::Kinematics;
 
 /// What the watchdog did since the simulation was built.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct WatchdogStats {
     /// Steps that went wrong, whether then saved by a retry or raised.
     pub caught: u64,
