@@ -5,12 +5,11 @@ use numpy::ndarray::ArrayView3;
 use numpy::PyReadonlyArray3;
 use pyo3::prelude::*;
 
-use super::conv::{
-    direction_from_any, float_from_any, index_from_any, str_from_any, vec3_from_any,
-};
+use super::conv::{direction_from_any, float_from_any, str_from_any, vec3_from_any, Plain};
 use super::errors::{type_error, value_error, IntoPyResult};
-use super::simulation::{stepping, PySimulation};
+use super::simulation::{reads, stepping, PySimulation};
 use crate::picking::PickStrategy;
+use crate::Simulation;
 
 /// `(origin, direction)` of ray `k` of a stroke: any pair of length-3 sequences, or a
 /// `(2, 3)` array.
@@ -67,22 +66,13 @@ impl PySimulation {
         Ok(hit.map(|(t, d, [a, b, c])| (t, d, (a, b, c))))
     }
 
-    /// Half-size in m of each particle's pick box; defaults to half the smaller grid spacing.
-    #[getter]
-    fn pick_radius(&self, py: Python<'_>) -> PyResult<f32> {
-        self.with(py, |h| Ok(h.sim.pick_radius()))
-    }
-
     #[setter]
     fn set_pick_radius(&self, py: Python<'_>, radius: &Bound<'_, PyAny>) -> PyResult<()> {
-        let radius = float_from_any(radius, "pick_radius")?;
-        self.with(py, |h| h.sim.set_pick_radius(radius).py())
-    }
-
-    /// ``"auto"``, ``"bvh"`` or ``"scan"``: how queries find what a ray hits.
-    #[getter]
-    fn pick_strategy(&self, py: Python<'_>) -> PyResult<&'static str> {
-        self.with(py, |h| Ok(h.sim.pick_strategy().name()))
+        self.call(
+            py,
+            float_from_any(radius, "pick_radius"),
+            Simulation::set_pick_radius,
+        )
     }
 
     #[setter]
@@ -97,14 +87,12 @@ impl PySimulation {
     /// Grabs particle ``index``: a kinematic pin at its current position that ``drag_to``
     /// moves.
     fn grab(&self, py: Python<'_>, index: &Bound<'_, PyAny>) -> PyResult<()> {
-        let index = index_from_any(index, "index", self.num_particles_now(py)?)?;
-        self.with(py, |h| h.sim.grab(index).py())
+        self.call(py, self.index(py, index), Simulation::grab)
     }
 
     /// Moves the grabbed particle's target to ``target`` (3 numbers, m).
     fn drag_to(&self, py: Python<'_>, target: &Bound<'_, PyAny>) -> PyResult<()> {
-        let target = vec3_from_any(target, "target")?;
-        self.with(py, |h| h.sim.drag_to(target).py())
+        self.call(py, vec3_from_any(target, "target"), Simulation::drag_to)
     }
 
     /// Lets go of the grabbed particle, restoring the pin state it had before the grab.
@@ -113,11 +101,6 @@ impl PySimulation {
             h.sim.release();
             Ok(())
         })
-    }
-
-    /// The index of the grabbed particle, or ``None``.
-    fn grabbed(&self, py: Python<'_>) -> PyResult<Option<usize>> {
-        self.with(py, |h| Ok(h.sim.grabbed()))
     }
 
     /// Cuts the particle ``pick(origin, direction)`` finds; returns its index or ``None``.
@@ -152,12 +135,17 @@ impl PySimulation {
     fn pieces(&self, py: Python<'_>) -> PyResult<usize> {
         self.with(py, |h| Ok(py.detach(|| h.sim.pieces())))
     }
+}
 
+reads! {
+    /// Half-size in m of each particle's pick box; defaults to half the smaller grid spacing.
+    #[getter] fn pick_radius -> f32 = |h| h.sim.pick_radius();
+    /// ``"auto"``, ``"bvh"`` or ``"scan"``: how queries find what a ray hits.
+    #[getter] fn pick_strategy -> &'static str = |h| h.sim.pick_strategy().name();
+    /// The index of the grabbed particle, or ``None``.
+    fn grabbed -> Option<usize> = |h| h.sim.grabbed();
     /// Work done on the picking trees so far.
-    fn bvh_stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let stats = self.with(py, |h| Ok(h.sim.bvh_stats()))?;
-        Ok(pythonize::pythonize(py, &stats)?)
-    }
+    fn bvh_stats -> Plain<crate::picking::BvhStats> = |h| Plain(h.sim.bvh_stats());
 }
 
 /// A stroke: a sequence of ``(origin, direction)`` pairs, each named ``rays[k]`` in errors.
@@ -215,10 +203,4 @@ fn rays_from_array<T: Copy + Into<f64>>(
         })
         .collect();
     Some(rays)
-}
-
-impl PySimulation {
-    fn num_particles_now(&self, py: Python<'_>) -> PyResult<usize> {
-        self.with(py, |h| Ok(h.sim.grid().len()))
-    }
 }

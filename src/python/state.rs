@@ -9,12 +9,12 @@
 use numpy::{PyArray1, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList};
+use pyo3::types::{PyBool, PyDict, PyList, PyTuple};
 use pythonize::{pythonize, Depythonizer};
 use serde::Deserialize;
 
 use super::conv::{
-    count_from_any, interleaved, scene_from_dict, scene_to_dict, vec3s_from_array, vec3s_to_array,
+    count_from_any, is_bool, scene_from_dict, scene_to_dict, vec3s_from_array, Rows,
 };
 use super::errors::{type_error, value_error};
 use crate::snapshot::Snapshot;
@@ -23,48 +23,84 @@ use crate::soa::Vec3s;
 /// The layout of the dict; a state of another layout is refused rather than guessed at.
 const VERSION: u64 = 3;
 
-pub fn to_dict<'py>(py: Python<'py>, s: &Snapshot) -> PyResult<Bound<'py, PyDict>> {
-    let d = pythonize(py, s)?.cast_into::<PyDict>()?;
-    d.set_item("version", VERSION)?;
-    d.set_item("scene", scene_to_dict(py, &s.scene)?)?;
-    d.set_item("positions", vec3s_to_array(py, interleaved(&s.positions))?)?;
-    d.set_item(
-        "velocities",
-        vec3s_to_array(py, interleaved(&s.velocities))?,
-    )?;
-    d.set_item("masses", PyArray1::from_slice(py, &s.masses))?;
-    d.set_item("pinned", PyArray1::from_slice(py, &s.pinned))?;
-    d.set_item("alive", PyArray1::from_slice(py, &s.alive))?;
-    let springs = s.springs.iter().map(|f| PyArray1::from_slice(py, f));
-    d.set_item("springs", PyList::new(py, springs)?)?;
-    let previous = match &s.watchdog.previous {
-        Some((pos, vel, history)) => Some((
-            vec3s_to_array(py, interleaved(pos))?,
-            vec3s_to_array(py, interleaved(vel))?,
-            pythonize(py, history)?,
-        )),
-        None => None,
-    };
-    d.get_item("watchdog")?
-        .expect("serialised with the snapshot")
-        .set_item("previous", previous)?;
-    Ok(d)
+/// A snapshot on its way to Python as a dict.
+pub struct State(pub Snapshot);
+
+impl<'py> IntoPyObject<'py> for State {
+    type Target = PyDict;
+    type Output = Bound<'py, PyDict>;
+    type Error = PyErr;
+
+    fn into_pyobject(self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let s = &self.0;
+        let d = pythonize(py, s)?.cast_into::<PyDict>()?;
+        d.set_item("version", VERSION)?;
+        d.set_item("scene", scene_to_dict(py, &s.scene)?)?;
+        d.set_item("positions", Rows::vec3s(&s.positions))?;
+        d.set_item("velocities", Rows::vec3s(&s.velocities))?;
+        d.set_item("masses", PyArray1::from_slice(py, &s.masses))?;
+        d.set_item("pinned", PyArray1::from_slice(py, &s.pinned))?;
+        d.set_item("alive", PyArray1::from_slice(py, &s.alive))?;
+        let springs = s.springs.iter().map(|f| PyArray1::from_slice(py, f));
+        d.set_item("springs", PyList::new(py, springs)?)?;
+        let previous = match &s.watchdog.previous {
+            Some((pos, vel, history)) => {
+                Some((Rows::vec3s(pos), Rows::vec3s(vel), pythonize(py, history)?))
+            }
+            None => None,
+        };
+        d.get_item("watchdog")?
+            .expect("serialised with the snapshot")
+            .set_item("previous", previous)?;
+        Ok(d)
+    }
 }
 
 /// `T` from a Python value, errors named `name` and the path below it (`state.targets[0]`).
-fn deserialize<'de, T: Deserialize<'de>>(obj: &'de Bound<'_, PyAny>, name: &str) -> PyResult<T> {
-    serde_path_to_error::deserialize(&mut Depythonizer::from_object(obj)).map_err(|e| {
-        let name = match e.path().to_string().as_str() {
-            "." => name.to_string(),
-            path => format!("{name}.{path}").replace(".[", "["),
-        };
-        let err = PyErr::from(e.into_inner());
-        let message = err.value(obj.py()).to_string();
-        match err.is_instance_of::<PyTypeError>(obj.py()) {
-            true => type_error(&name, message),
-            false => value_error(&name, message),
+fn deserialize<'de, T>(obj: &'de Bound<'_, PyAny>, name: &str) -> PyResult<T>
+where
+    T: Deserialize<'de> + serde::Serialize,
+{
+    let value =
+        serde_path_to_error::deserialize(&mut Depythonizer::from_object(obj)).map_err(|e| {
+            let name = match e.path().to_string().as_str() {
+                "." => name.to_string(),
+                path => format!("{name}.{path}").replace(".[", "["),
+            };
+            let err = PyErr::from(e.into_inner());
+            let message = err.value(obj.py()).to_string();
+            match err.is_instance_of::<PyTypeError>(obj.py()) {
+                true => type_error(&name, message),
+                false => value_error(&name, message),
+            }
+        })?;
+    check_bools(obj, &pythonize(obj.py(), &value)?, name)?;
+    Ok(value)
+}
+
+/// Refuses what pythonize reads and the strict readers do not: a bool where a number goes
+/// (`True` as 1), anything but a bool where a bool goes (pythonize takes any value's truth).
+/// `read` is what was read, back as Python values: its shape leads the walk.
+fn check_bools(input: &Bound<'_, PyAny>, read: &Bound<'_, PyAny>, name: &str) -> PyResult<()> {
+    if let Ok(read) = read.cast::<PyDict>() {
+        for (key, value) in read.iter() {
+            if let Ok(item) = input.get_item(&key) {
+                check_bools(&item, &value, &format!("{name}.{key}"))?;
+            }
         }
-    })
+    } else if read.is_instance_of::<PyList>() || read.is_instance_of::<PyTuple>() {
+        for (k, value) in read.try_iter()?.enumerate() {
+            check_bools(&input.get_item(k)?, &value?, &format!("{name}[{k}]"))?;
+        }
+    } else if read.is_instance_of::<PyBool>() && !is_bool(input) {
+        return Err(type_error(name, format!("must be a bool, got {input}")));
+    } else if !read.is_instance_of::<PyBool>() && is_bool(input) {
+        return Err(type_error(
+            name,
+            format!("must be a number, got bool {input}"),
+        ));
+    }
+    Ok(())
 }
 
 /// Item `key` of a mapping, named `name` when missing.
