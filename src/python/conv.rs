@@ -294,7 +294,7 @@ pub fn float_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<f64> {
     if is_bool(obj) {
         return Err(type_error(
             name,
-            format!("must be a number, got bool {}", repr(obj)),
+            format!("must be a number, got {}", got(obj)),
         ));
     }
     // Complex numbers convert to float by dropping their imaginary part (numpy's do, with only
@@ -307,24 +307,14 @@ pub fn float_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<f64> {
     {
         return Err(type_error(
             name,
-            format!(
-                "must be a real number, got {} {}",
-                type_name(obj),
-                repr(obj)
-            ),
+            format!("must be a real number, got {}", got(obj)),
         ));
     }
-    match obj.extract::<f64>() {
-        Ok(x) => Ok(x),
-        Err(e) if e.is_instance_of::<PyOverflowError>(obj.py()) => Err(value_error(
-            name,
-            format!("{} is too large for a float", repr(obj)),
-        )),
-        Err(_) => Err(type_error(
-            name,
-            format!("must be a number, got {} {}", type_name(obj), repr(obj)),
-        )),
-    }
+    obj.extract::<f64>()
+        .map_err(|e| match e.is_instance_of::<PyOverflowError>(obj.py()) {
+            true => value_error(name, format!("{} is too large for a float", repr(obj))),
+            false => type_error(name, format!("must be a number, got {}", got(obj))),
+        })
 }
 
 /// A whole number: a Python `int` or a numpy integer, never a `bool` or a float (not even
@@ -334,19 +324,14 @@ pub fn int_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<i64> {
     if is_bool(obj) {
         return Err(type_error(
             name,
-            format!("must be an integer, got bool {}", repr(obj)),
+            format!("must be an integer, got {}", got(obj)),
         ));
     }
-    match obj.extract::<i64>() {
-        Ok(i) => Ok(i),
-        Err(e) if e.is_instance_of::<PyOverflowError>(obj.py()) => {
-            Err(value_error(name, format!("{} is out of range", repr(obj))))
-        }
-        Err(_) => Err(type_error(
-            name,
-            format!("must be an integer, got {} {}", type_name(obj), repr(obj)),
-        )),
-    }
+    obj.extract::<i64>()
+        .map_err(|e| match e.is_instance_of::<PyOverflowError>(obj.py()) {
+            true => value_error(name, format!("{} is out of range", repr(obj))),
+            false => type_error(name, format!("must be an integer, got {}", got(obj))),
+        })
 }
 
 /// A count of steps: an integer `>= 0`.
@@ -357,12 +342,9 @@ pub fn count_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<u64> {
 
 /// A string: a Python `str` only.
 pub fn str_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<String> {
-    obj.cast::<PyString>().map(|s| s.to_string()).map_err(|_| {
-        type_error(
-            name,
-            format!("must be a string, got {} {}", type_name(obj), repr(obj)),
-        )
-    })
+    let text = obj.cast::<PyString>();
+    text.map(|s| s.to_string())
+        .map_err(|_| type_error(name, format!("must be a string, got {}", got(obj))))
 }
 
 /// The numpy dtype kind (`'f'`, `'b'`, `'c'`, ...) of a numpy scalar or array, else None.
@@ -392,6 +374,15 @@ fn repr(obj: &Bound<'_, PyAny>) -> String {
     }
 }
 
+/// `obj`'s type and value for messages: `bool True`, `str 'x'`.
+fn got(obj: &Bound<'_, PyAny>) -> String {
+    let kind = match is_bool(obj) {
+        true => "bool".to_string(),
+        false => type_name(obj),
+    };
+    format!("{kind} {}", repr(obj))
+}
+
 /// A particle index: any Python integer (`bool` excluded); one too large for 64 bits is out of
 /// range like any other.
 pub fn index_from_any(obj: &Bound<'_, PyAny>, name: &str, len: usize) -> PyResult<i64> {
@@ -401,29 +392,22 @@ pub fn index_from_any(obj: &Bound<'_, PyAny>, name: &str, len: usize) -> PyResul
             format!("must be an integer index, got {obj}"),
         ));
     }
-    match obj.extract::<i64>() {
-        Ok(i) => Ok(i),
-        Err(e) if e.is_instance_of::<PyOverflowError>(obj.py()) => {
-            Err(to_py(Error::IndexOutOfRange {
+    obj.extract::<i64>()
+        .map_err(|e| match e.is_instance_of::<PyOverflowError>(obj.py()) {
+            true => to_py(Error::IndexOutOfRange {
                 name: name.into(),
                 index: i64::MAX,
                 len,
-            }))
-        }
-        Err(_) => {
-            let kind = type_name(obj);
-            Err(type_error(
+            }),
+            false => type_error(
                 name,
-                format!("must be an integer index, got {kind} {obj}"),
-            ))
-        }
-    }
+                format!("must be an integer index, got {} {obj}", type_name(obj)),
+            ),
+        })
 }
 
 /// The Python type name of `obj`, for messages.
 fn type_name(obj: &Bound<'_, PyAny>) -> String {
-    obj.get_type()
-        .name()
-        .map(|n| n.to_string())
-        .unwrap_or_default()
+    let name = obj.get_type().name();
+    name.map(|n| n.to_string()).unwrap_or_default()
 }

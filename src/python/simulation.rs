@@ -56,42 +56,6 @@ fn not_converged_warning(held: &mut Held) -> Option<String> {
     ))
 }
 
-/// Gives `message` as a `RuntimeWarning`, outside the lock (a warning filter may call back).
-fn warn(py: Python<'_>, message: Option<String>) -> PyResult<()> {
-    let Some(message) = message else {
-        return Ok(());
-    };
-    let message = std::ffi::CString::new(message).expect("no NUL in the message");
-    let category = py.get_type::<pyo3::exceptions::PyRuntimeWarning>();
-    PyErr::warn(py, category.as_any(), &message, 1)
-}
-
-/// Runs a stepping call detached from the interpreter, asking Python between steps whether a
-/// signal (Ctrl-C) arrived; an interrupt comes back as the `KeyboardInterrupt` Python raised.
-pub(super) fn stepping<R: Send>(
-    py: Python<'_>,
-    held: &mut Held,
-    call: impl FnOnce(&mut Simulation, &mut dyn FnMut() -> bool) -> crate::Result<R> + Send,
-) -> (PyResult<R>, Option<String>) {
-    let mut signal: Option<PyErr> = None;
-    let outcome = py.detach(|| {
-        let mut interrupted = || match Python::attach(|py| py.check_signals()) {
-            Ok(()) => false,
-            Err(err) => {
-                signal = Some(err);
-                true
-            }
-        };
-        call(&mut held.sim, &mut interrupted)
-    });
-    let warning = not_converged_warning(held);
-    let outcome = match outcome {
-        Err(Error::Interrupted { .. }) if signal.is_some() => Err(signal.take().unwrap()),
-        other => other.py(),
-    };
-    (outcome, warning)
-}
-
 /// A simulation continuing a state from `Simulation.get_state()` (what unpickling calls).
 #[pyfunction]
 pub(crate) fn simulation_from_state(state: &Bound<'_, PyAny>) -> PyResult<PySimulation> {
@@ -111,15 +75,51 @@ impl PySimulation {
         self.shared.with(py, f)
     }
 
-    /// Runs `call` on the simulation under its lock, once its argument converted.
-    pub(crate) fn call<A, R>(
+    /// Runs `call` on the simulation under its lock, once its argument converted, detached
+    /// from the interpreter (other Python threads run meanwhile).
+    pub(crate) fn call<A: Send, R: Send>(
         &self,
         py: Python<'_>,
         arg: PyResult<A>,
-        call: impl FnOnce(&mut Simulation, A) -> crate::Result<R>,
+        call: impl FnOnce(&mut Simulation, A) -> crate::Result<R> + Send,
     ) -> PyResult<R> {
         let arg = arg?;
-        self.with(py, |h| call(&mut h.sim, arg).py())
+        self.with(py, |h| py.detach(|| call(&mut h.sim, arg)).py())
+    }
+
+    /// Runs a stepping call as [`Self::call`] runs one, asking Python between steps whether a
+    /// signal (Ctrl-C) arrived: an interrupt comes back as the `KeyboardInterrupt` Python
+    /// raised. The warning about an unconverged solve, when due, is given once the lock is
+    /// released (a warning filter may call back).
+    pub(crate) fn stepping<R: Send>(
+        &self,
+        py: Python<'_>,
+        call: impl FnOnce(&mut Simulation, &mut dyn FnMut() -> bool) -> crate::Result<R> + Send,
+    ) -> PyResult<R> {
+        let (outcome, warning) = self.with(py, |held| {
+            let mut signal: Option<PyErr> = None;
+            let outcome = py.detach(|| {
+                let mut interrupted = || match Python::attach(|py| py.check_signals()) {
+                    Ok(()) => false,
+                    Err(err) => {
+                        signal = Some(err);
+                        true
+                    }
+                };
+                call(&mut held.sim, &mut interrupted)
+            });
+            let outcome = match outcome {
+                Err(Error::Interrupted { .. }) if signal.is_some() => Err(signal.unwrap()),
+                other => other.py(),
+            };
+            Ok((outcome, not_converged_warning(held)))
+        })?;
+        if let Some(message) = warning {
+            let message = std::ffi::CString::new(message).expect("no NUL in the message");
+            let category = py.get_type::<pyo3::exceptions::PyRuntimeWarning>();
+            PyErr::warn(py, category.as_any(), &message, 1)?;
+        }
+        outcome
     }
 
     /// A particle index, checked against the particles.
@@ -219,24 +219,14 @@ impl PySimulation {
         })
     }
 
-    /// Advances exactly `n` steps of `dt`.
     fn step(&self, py: Python<'_>, n: &Bound<'_, PyAny>) -> PyResult<()> {
         let n = count_from_any(n, "n")?;
-        let (outcome, warning) = self.with(py, |h| {
-            Ok(stepping(py, h, |sim, stop| sim.step_with(n, stop)))
-        })?;
-        warn(py, warning)?;
-        outcome
+        self.stepping(py, |sim, stop| sim.step_with(n, stop))
     }
 
-    /// Adds `seconds` of requested time and runs the whole steps it covers; returns them.
     fn advance(&self, py: Python<'_>, seconds: &Bound<'_, PyAny>) -> PyResult<u64> {
         let seconds = float_from_any(seconds, "seconds")?;
-        let (outcome, warning) = self.with(py, |h| {
-            Ok(stepping(py, h, |sim, stop| sim.advance_with(seconds, stop)))
-        })?;
-        warn(py, warning)?;
-        outcome
+        self.stepping(py, |sim, stop| sim.advance_with(seconds, stop))
     }
 
     fn set_positions(&self, py: Python<'_>, positions: &Bound<'_, PyAny>) -> PyResult<()> {
