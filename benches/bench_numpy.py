@@ -4,8 +4,9 @@
 
 Both step the same scene (symplectic Euler, the 12-neighbour springs, gravity, damping, two
 pinned corners) on the same machine, interleaved, so the ratio holds even on a noisy machine.
-numpy is vectorised by grid slicing (``benches/numpy_cloth.py``): no Python loop over particles
-or springs. Also reports rustcloth's memory per particle and the cost of each optional effect.
+numpy is rustcloth's reference model (``rustcloth.reference``) in float32, vectorised by grid
+slicing: no Python loop over particles or springs. Also reports rustcloth's memory per particle
+and the cost of each optional effect.
 """
 
 from __future__ import annotations
@@ -14,17 +15,13 @@ import argparse
 import os
 import platform
 import statistics
-import sys
 import time
-from pathlib import Path
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # idle BLAS threads would steal the cores
 
 import numpy as np  # noqa: E402
 import rustcloth  # noqa: E402
-
-sys.path.insert(0, str(Path(__file__).parent))
-from numpy_cloth import NumpyCloth  # noqa: E402
+from rustcloth.reference import ReferenceCloth  # noqa: E402
 
 
 def scene(n: int, **changes) -> rustcloth.Scene:
@@ -64,11 +61,11 @@ def main() -> None:
     for n in args.sizes:
         sc = scene(n)
         sim = rustcloth.Simulation(sc)
-        ref = NumpyCloth.from_scene(sc.to_dict())
+        ref = ReferenceCloth(sc.to_dict(), dtype=np.float32)
         ours = steps_per_second(sim.step, args.seconds)
         theirs = steps_per_second(ref.step, args.seconds)
         # Same model: both trajectories agree after the timed runs are replayed from rest.
-        a, b = rustcloth.Simulation(sc), NumpyCloth.from_scene(sc.to_dict())
+        a, b = rustcloth.Simulation(sc), ReferenceCloth(sc.to_dict(), dtype=np.float32)
         a.step(100)
         b.step(100)
         gap = float(np.abs(a.positions - b.positions).max())

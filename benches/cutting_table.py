@@ -1,4 +1,4 @@
-"""Cost of cutting (issue 15) at 128 x 128 and 512 x 512: one stroke segment, one tear, the
+"""Cost of cutting at 128 x 128 and 512 x 512: one stroke segment, one tear, the
 drawn mesh's rebuild after a cut and its per-frame positions, and the step after many cuts
 against an uncut cloth. Writes the table into docs/cutting.md between its markers.
 

@@ -19,13 +19,10 @@
 
 use glam::DVec3;
 
-use crate::grid::{cell_triangle, triangle_alive, Grid, SpringKind};
-use crate::picking::ray::Ray;
+use crate::grid::{cell_triangle, triangle_alive, Grid, SpringKind, SpringSlot};
+use crate::ray::Ray;
 use crate::soa::Vec3s;
 use crate::springs::Springs;
-
-/// A severed spring: its kind and its anchor particle (the slot it is stored in).
-pub type SpringSlot = (SpringKind, usize);
 
 /// A severed spring and where the stroke crossed it: `t` in `[0, 1]` along its segment from
 /// the anchor.

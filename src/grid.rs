@@ -23,6 +23,9 @@ pub enum SpringKind {
     BendJ,
 }
 
+/// One spring: its kind and its anchor particle (the slot it is stored in).
+pub type SpringSlot = (SpringKind, usize);
+
 impl SpringKind {
     pub const ALL: [SpringKind; 6] = [
         SpringKind::StructuralI,
@@ -177,8 +180,8 @@ impl Grid {
     }
 }
 
-/// Whether every corner of triangle `id` is alive: the seed's rule, where only removing a
-/// particle takes triangles away. [`crate::model::Model::triangle_drawn`] adds severed springs.
+/// Whether every corner of triangle `id` is alive: removing a particle takes its triangles
+/// away. [`crate::model::Model::triangle_drawn`] adds severed springs.
 pub fn triangle_alive(grid: Grid, alive: &[bool], id: usize) -> bool {
     cell_triangle(grid, id).iter().all(|&q| alive[q])
 }

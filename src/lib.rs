@@ -2,8 +2,12 @@
 //!
 //! A cloth is an `nx` x `ny` grid of particles joined by structural, shear and bending springs
 //! (the 12-neighbour stencil), pushed by gravity and air drag, stepped with a fixed time step
-//! by one of several integrators, and kept out of a floor and spheres. A [`Scene`] describes
-//! it; a [`Simulation`] runs it.
+//! by one of six integrators. It drapes on colliders of any shape (a floor, spheres, boxes,
+//! capsules, cylinders, planes, triangle meshes, moving or still), can be kept from passing
+//! through itself, and can be grabbed, dragged, cut and torn. A [`Scene`] describes it; a [`Simulation`] runs it.
+//!
+//! One step runs the scene's passes in order: `src/stepper/mod.rs` (`Stepper::step` and
+//! `Stepper::substep`) is the place to start reading.
 //!
 //! ```
 //! use rustcloth::{Scene, Simulation};
@@ -31,6 +35,7 @@ pub mod particles;
 pub mod picking;
 pub mod pins;
 pub mod profile;
+pub mod ray;
 pub mod render_mesh;
 pub mod scene;
 pub mod self_collision;
@@ -43,6 +48,7 @@ pub mod state;
 pub mod stepper;
 pub mod strain_limit;
 pub mod tearing;
+pub mod wind;
 
 #[cfg(feature = "python")]
 mod python;

@@ -6,9 +6,8 @@ use glam::{DVec3, Vec3};
 
 use std::collections::HashMap;
 
-use crate::cutting::SpringSlot;
 use crate::error::{check_scalar, Bound, Error, Result};
-use crate::grid::Grid;
+use crate::grid::{Grid, SpringSlot};
 use crate::scene::{Plane, Scene};
 use crate::soa::Vec3s;
 use crate::springs::Springs;

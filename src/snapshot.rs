@@ -20,7 +20,8 @@ use crate::picking::{PickStrategy, Picker};
 use crate::scene::Scene;
 use crate::soa::Vec3s;
 use crate::state::{Clock, State};
-use crate::stepper::{Stepper, WatchdogStats, MAX_ADVANCE_STEPS};
+pub use crate::stepper::WatchdogSnapshot;
+use crate::stepper::{Stepper, MAX_ADVANCE_STEPS};
 
 /// What a grab remembers: the particle, whether it was pinned before, and the kinematic target
 /// it had.
@@ -69,22 +70,6 @@ pub struct Snapshot {
     pub collider_keys: Vec<Option<PoseKey>>,
     pub state_version: u64,
     pub topology_version: u64,
-}
-
-/// The watchdog's memory between steps.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct WatchdogSnapshot {
-    /// The start of the last step and the integrator's history then, while that step can
-    /// still be undone (only with a stretch limit). Per-particle arrays: outside serde, as in
-    /// [`Snapshot`].
-    #[serde(skip)]
-    pub previous: Option<(Vec3s, Vec3s, History)>,
-    /// The newest state has not been judged against the stretch limit yet.
-    pub unjudged: bool,
-    pub last_substeps: u32,
-    /// After a rescue: `(substeps, until)`.
-    pub hold: Option<(u32, u64)>,
-    pub stats: WatchdogStats,
 }
 
 impl Snapshot {
@@ -228,7 +213,7 @@ impl Snapshot {
                 ),
             ));
         }
-        stepper.restore_watchdog(self.watchdog, n, self.steps, model.scene.substeps)?;
+        stepper.restore_watchdog(self.watchdog, model, self.steps)?;
         let colliders = model.scene.colliders.len();
         if self.collider_keys.len() != colliders {
             return Err(Error::value(

@@ -15,7 +15,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-sys.path.insert(0, os.path.dirname(__file__))  # so tests can import reference.py
+# So that tests import the helpers beside them (conftest, sweep_helpers) by name, also from the
+# copy of the suite that scripts/test-wheel.sh runs.
+sys.path.insert(0, os.path.dirname(__file__))
 
 import rustcloth  # noqa: E402
 

@@ -19,9 +19,9 @@ sys.path.insert(0, os.path.dirname(__file__))
 import rustcloth  # noqa: E402
 from conftest import full_digest, small_scene  # noqa: E402
 
-# The grids of issue 11 item 1 (1025 x 2 and 2049 x 2 panicked on every step; 1500 x 64 only at
-# 16 threads), very wide and very tall grids on both sides of the 2,048-particle chunk and its
-# multiples, and a seeded sample of other shapes.
+# Grids where the force pass's chunks meet the rows unevenly (1025 x 2, 2049 x 2, and 1500 x 64,
+# which splits differently at 16 threads), very wide and very tall grids on both sides of the
+# 2,048-particle chunk and its multiples, and a seeded sample of other shapes.
 EDGE_SHAPES = [
     (1025, 2), (2049, 2), (1500, 64), (2, 1025), (2, 2049), (4097, 2), (2, 4097),
     (2048, 2), (1024, 2), (2047, 3), (3, 2047), (683, 3), (64, 64), (129, 127),

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 import rustcloth
 from rustcloth import INTEGRATORS, accuracy
+from rustcloth.reference import ReferenceCloth
 from rustcloth.study import accuracy as study
-from rustcloth.study.model import Cloth
 
 
 def test_quick_study_writes_tables_and_a_plot(tmp_path):
@@ -37,7 +37,8 @@ def test_without_matplotlib_the_study_names_the_extra_and_exits_2(monkeypatch, c
 
 
 def test_the_study_writes_under_out_unless_told(monkeypatch, tmp_path):
-    # `rustcloth accuracy` wrote its report into ./docs of whatever folder the user stood in.
+    # Without --out the report goes under ./out, never into the docs of whatever checkout the
+    # user stands in.
     monkeypatch.chdir(tmp_path)
     monkeypatch.setitem(sys.modules, "matplotlib", None)  # stop before the study itself
     assert accuracy.main(["--quick"]) == 2
@@ -45,7 +46,8 @@ def test_the_study_writes_under_out_unless_told(monkeypatch, tmp_path):
 
 
 def test_an_unusable_out_folder_is_one_line_before_the_study(capsys):
-    # `accuracy --out /dev/full/x` ended in a NotADirectoryError traceback.
+    # A folder that cannot be made is a one-line error before minutes of study, not a
+    # traceback after them.
     assert accuracy.main(["--quick", "--out", "/dev/full/x"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("rustcloth accuracy: error: Not a directory: '/dev/full/x'")
@@ -74,10 +76,11 @@ def test_the_float64_reference_falls_freely_and_swings_like_the_solver():
     case = study.Case("stretched", False, 6, 0.1)
     scene = case.scene("rk4", 1e-3).replace(gravity=[0.0, -9.81, 0.0])
     sim = rustcloth.Simulation(scene)
-    cloth = Cloth(scene.to_dict(), sim.positions, sim.velocities, sim.masses, sim.pinned)
-    cloth.advance(0.3)
+    cloth = ReferenceCloth(scene.to_dict(), positions=sim.positions, velocities=sim.velocities,
+                           masses=sim.masses)
+    cloth.integrate(0.3)
     expected = sim.positions.astype(float) + np.array([0.0, -9.81 * 0.09 / 2, 0.0])
-    np.testing.assert_allclose(cloth.x, expected, atol=1e-9)
+    np.testing.assert_allclose(cloth.positions, expected, atol=1e-9)
     # With springs: RK4 in float32 at a fine step lands within round-off of it.
     hanging = study.Case("hanging", True, 8, 0.1)
     ref = study.reference(hanging.scene("rk4", 1e-4), 0.1)

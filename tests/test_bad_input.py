@@ -81,8 +81,7 @@ def stepped():
 def unchanged_after(sim, action, exception, text):
     # The whole get_state() (dt, substeps, integrator, masses, pins, targets, the advance
     # remainder, the clock, the watchdog's memory, the cache versions...), not only positions
-    # and velocities: issue 11 found the old check blind to dt, substeps, masses and the
-    # accumulator.
+    # and velocities: a bad call may change any of them.
     state, before = sim.get_state(), (full_digest(sim), sim.effects)
     with pytest.raises(exception) as info:
         action(sim)
@@ -125,7 +124,7 @@ BAD_CALLS = [
     (lambda s: setattr(s, "substeps", 0), ValueError, "substeps"),
     (lambda s: setattr(s, "dt", -1.0), ValueError, "dt"),
     (lambda s: setattr(s, "dt", math.inf), ValueError, "dt"),
-    # Calls that would change what the old check did not look at: dt, substeps, the
+    # Calls that would change state beyond positions and velocities: dt, substeps, the
     # integrator, masses, the advance remainder, pins, the grab, the pick settings.
     (lambda s: setattr(s, "dt", 1e-12), ValueError, "dt"),
     (lambda s: setattr(s, "dt", 5e-324), ValueError, "dt"),

@@ -1,4 +1,4 @@
-"""Cuts that sever springs along a stroke and tearing, from Python (issue 15). The physics is
+"""Cuts that sever springs along a stroke and tearing, from Python. The physics is
 tested in tests/cutting.rs and tests/tearing.rs; this checks the binding, its errors and the
 viewer's cut gesture."""
 

@@ -140,9 +140,9 @@ def test_export_without_trimesh_names_the_extra(tmp_path, monkeypatch):
 
 @pytest.mark.parametrize("suffix", [".obj", ".ply", ".glb"])
 def test_export_without_pillow_names_the_export_extra(tmp_path, monkeypatch, trimesh, suffix):
-    # trimesh imports Pillow only when it meets UVs: without it an OBJ lost its vt lines
-    # silently and a .glb raised a bare ModuleNotFoundError for PIL. Now Pillow is part of the
-    # export extra, and export checks for it before writing anything.
+    # trimesh imports Pillow only when it meets UVs: without it an OBJ loses its vt lines
+    # silently and a .glb fails with a bare ModuleNotFoundError for PIL. So export checks for
+    # Pillow, part of the export extra, before writing anything.
     monkeypatch.setitem(sys.modules, "PIL", None)
     sim = rustcloth.Simulation(small_scene())
     with pytest.raises(MissingExtra, match=r"'PIL'.*pip install 'rustcloth\[export\]'") as err:

@@ -96,9 +96,9 @@ def test_hostile_values_are_accepted_or_refused_by_name_never_a_crash(cases):
 
 
 def test_every_entry_point_refuses_nesting_ten_thousand_deep_by_name():
-    # The crash: a state whose scene.gravity was a list nested 10,000 deep ended the process
-    # with SIGSEGV (the dict-to-TOML conversion recursed per level); 3,000 deep gave a bare
-    # RecursionError from the scene constructors. Now one bound, where input enters.
+    # Every conversion of nested input recurses per level: without one bound where input
+    # enters, 10,000 levels overflow the native stack (SIGSEGV) and 3,000 Python's
+    # (a bare RecursionError).
     deep = ["nest", 10_000, 0.0]
     cases = [[entry, "gravity", deep] for entry in SCENE_ENTRIES]
     cases += [["set_state", "scene.gravity", deep], ["pickle", "scene.gravity", deep],
@@ -141,7 +141,8 @@ def _stepped() -> rustcloth.Simulation:
 
 
 def test_a_crafted_watchdog_hold_is_refused_and_step_returns():
-    # A hold of 2^31 substeps until step 1e18 was taken, and step(1) then never returned.
+    # A saved state is input too: a hold of 2^31 substeps until step 1e18 would make step(1)
+    # run for ever.
     sim = _stepped()
     before = pickle.dumps(sim.get_state())
     for hold in [(2**31, 10**18), (2, 10**18), (2**31, 7), (0, 7)]:
@@ -179,8 +180,8 @@ def _long_stroke(rays: int) -> np.ndarray:
 
 
 def test_ctrl_c_during_a_long_sever_stroke_severs_nothing():
-    # Ctrl-C two seconds into a 3-million-ray stroke was printed as "Exception ignored" and
-    # lost; the call finished 20 s later and severed springs.
+    # A long stroke checks for signals: Ctrl-C interrupts it, and the springs are severed only
+    # if the whole stroke ran, never half of it.
     sim = rustcloth.Simulation("hanging")
     before = pickle.dumps(sim.get_state())
     stroke = _long_stroke(2_000_000)
@@ -201,7 +202,7 @@ def test_ctrl_c_during_a_long_sever_stroke_severs_nothing():
 
 
 def test_memory_bytes_counts_what_a_mesh_collider_holds():
-    # 0.26 MiB was reported with a 500k-triangle mesh collider while the process held 450 MiB.
+    # A mesh collider's triangles and trees are most of the memory a scene with one holds.
     sheet = _sheet(100)
     scene = rustcloth.load_scene("hanging")
     bare = rustcloth.Simulation(scene).memory_bytes()
@@ -224,8 +225,8 @@ def _sheet(n: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def test_reading_a_scene_file_that_is_no_text_file_names_the_path(tmp_path):
-    # A folder, a missing file and a non-UTF-8 file raised Python's own exceptions without the
-    # parameter; a device would have been read for ever.
+    # A folder, a missing file, a non-UTF-8 file and a device (which would be read for ever) are
+    # the package's errors naming the path, not Python's own.
     bad = tmp_path / "latin1.toml"
     bad.write_bytes("dt = 0.001 # caf\xe9".encode("latin-1"))
     for path, kind, words in [(tmp_path, ParameterError, "is a folder"),

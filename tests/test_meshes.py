@@ -13,9 +13,9 @@ TRIANGLE = "v 0 0 0\nv 1 0 0\nv 0 1 0\n"
 
 
 def test_a_repeated_corner_names_the_file_and_the_triangle(tmp_path):
-    # An OBJ whose second face repeats a corner was refused as "colliders[0].vertices: must
-    # hold at least 3 vertices, got 2": trimesh dropped the vertex no face used any more, and
-    # the message named neither the file nor the triangle.
+    # A face that repeats a corner is refused by name, the file's and the triangle's: left to
+    # trimesh, the vertex no face uses any more would be dropped and the error would be about
+    # a vertex count, far from the cause.
     path = tmp_path / "body.obj"
     path.write_text(TRIANGLE + "f 1 2 3\nf 1 2 2\n")
     with pytest.raises(rustcloth.ParameterError) as info:

@@ -1,12 +1,10 @@
-"""Issue 11, item 2: simulations and scenes cross process boundaries.
+"""Simulations and scenes cross process boundaries: a sweep sends both to its workers.
 
-The story: ``Scene`` could be neither copied nor pickled (``RecursionError`` from
-``__getattr__``), and a ``multiprocessing.Pool`` given a scene hung for good, its worker dead
-unpickling it; a ``Simulation`` could not be pickled at all. The sweep needs both to travel.
-Now ``pickle``, ``copy.copy`` and ``copy.deepcopy`` give an independent simulation that
-continues bit for bit, whatever it holds: any integrator (Verlet's start-up history), cuts,
-kinematic pins, a grab being dragged, the watchdog's held substeps, the ``advance``
-remainder."""
+``pickle``, ``copy.copy`` and ``copy.deepcopy`` give an independent simulation that continues
+bit for bit, whatever it holds: any integrator (Verlet's start-up history), cuts, kinematic
+pins, a grab being dragged, the watchdog's held substeps, the ``advance`` remainder. A scene
+copies and pickles too, and a ``multiprocessing.Pool`` takes it: a worker that died unpickling
+one would leave the pool waiting for good."""
 
 from __future__ import annotations
 
@@ -97,7 +95,7 @@ def _go_on(sim: Simulation) -> None:
 
 @pytest.mark.parametrize("how", list(COPIES))
 @pytest.mark.parametrize(("make", "integrator"), CASES)
-def test_issue_11_item_2_a_copy_continues_bit_for_bit(make, integrator, how):
+def test_a_copy_continues_bit_for_bit(make, integrator, how):
     sim = make(integrator)
     clone = COPIES[how](sim)
     assert type(clone) is Simulation
@@ -140,7 +138,7 @@ def _continue_in_worker(sim: Simulation, scene: Scene) -> tuple[str, str, int]:
     return full_digest(sim), full_digest(fresh), scene.cloth["nx"]
 
 
-def test_issue_11_item_2_a_spawn_pool_takes_simulations_and_scenes():
+def test_a_spawn_pool_takes_simulations_and_scenes():
     # The worker unpickles both (a fresh interpreter: nothing shared with this one), steps
     # them, and sends back digests equal to the parent's doing the same.
     sim = rich("rk4")

@@ -1,15 +1,13 @@
-"""Issue 11, items 8 and 9: hidden state.
+"""Hidden state: what a caller cannot see must not change what happens next.
 
-Item 8's story: a cut particle still took part: its springs were evaluated and masked, so
-moving a dead particle far away made the live cloth diverge (a live particle was blamed) or,
-with implicit Euler, silently changed it. Dead means absent from every computation: here a cut
-particle sent to 1e30 m leaves the live cloth bitwise as in a twin whose dead particle stayed
-put, for every integrator with every optional pass.
+A cut particle is absent from every computation: one sent to 1e30 m leaves the live cloth
+bitwise as in a twin whose dead particle stayed put, for every integrator with every optional
+pass. Evaluating and masking its springs instead would let a far-away dead particle make the
+live cloth diverge, or change it silently under implicit Euler.
 
-Item 9's story: a refused Verlet step changed hidden state (its start-up flag was not rolled
-back), so two simulations that looked identical diverged after the same calls. A simulation
-whose step is refused now continues bitwise like a twin that never tried the step, for every
-integrator."""
+A refused step leaves no trace: the simulation continues bitwise like a twin that never tried
+the step, for every integrator (Verlet's start-up flag included), so two simulations that look
+identical stay identical after the same calls."""
 
 from __future__ import annotations
 
@@ -63,7 +61,7 @@ def _masked(sim: Simulation, rows) -> dict:
 
 @pytest.mark.parametrize("far", [1e30, -1e30])
 @pytest.mark.parametrize("integrator", rustcloth.INTEGRATORS)
-def test_issue_11_item_8_a_dead_particle_far_away_changes_nothing(integrator, far):
+def test_a_dead_particle_far_away_changes_nothing(integrator, far):
     sims = [_quiet(every_pass(integrator)) for _ in range(2)]
     for sim in sims:
         sim.step(150)  # on the sphere, in contact, strain limit active
@@ -115,7 +113,7 @@ def _hidden_differences(sim: Simulation, twin: Simulation) -> list[str]:
 
 @pytest.mark.parametrize("n", [1, 3])
 @pytest.mark.parametrize("integrator", rustcloth.INTEGRATORS)
-def test_issue_11_item_9_a_refused_step_leaves_no_trace(integrator, n):
+def test_a_refused_step_leaves_no_trace(integrator, n):
     _refused_step_leaves_no_trace(integrator, n, "raise")
 
 
@@ -124,7 +122,7 @@ def test_issue_11_item_9_a_refused_step_leaves_no_trace(integrator, n):
     [pytest.param(name, marks=[])
      for name in rustcloth.INTEGRATORS],
 )
-def test_issue_11_item_9_a_step_refused_after_its_retries_leaves_no_trace(integrator):
+def test_a_step_refused_after_its_retries_leaves_no_trace(integrator):
     _refused_step_leaves_no_trace(integrator, 1, "substep")
 
 
@@ -153,7 +151,7 @@ def _refused_step_leaves_no_trace(integrator: str, n: int, on_trouble: str) -> N
 
 
 @pytest.mark.parametrize("integrator", rustcloth.INTEGRATORS)
-def test_issue_11_item_9_a_refused_advance_owes_its_time(integrator):
+def test_a_refused_advance_owes_its_time(integrator):
     # The same through advance: the refused call's time stays owed; dragged back, the next
     # advance(0) takes exactly the steps the twin's advance takes.
     sim, twin = _quiet(_refusing(integrator)), _quiet(_refusing(integrator))
@@ -176,7 +174,7 @@ def test_issue_11_item_9_a_refused_advance_owes_its_time(integrator):
     far=st.floats(1e3, 1e37) | st.floats(-1e37, -1e3),
     axis=st.sampled_from([0, 1, 2, None]),
 )
-def test_issue_11_item_8_property_dead_particles_anywhere(integrator, cut, far, axis):
+def test_dead_particles_anywhere_change_nothing(integrator, cut, far, axis):
     # Any set of cut particles, sent anywhere along one axis or all three: the live cloth
     # evolves bitwise as in a twin whose dead particles stayed where they were.
     sims = [_quiet(every_pass(integrator)) for _ in range(2)]

@@ -1,13 +1,12 @@
-"""Issue 11, items 6 and 7: energy at contacts, and ``energy()`` itself.
+"""Energy at contacts, and ``energy()`` itself.
 
-Item 6's story: a resting 128 x 128 cloth intersecting a sphere with ``[strain_limit]`` gained
-342 J in 2 ms, with speeds up to 71 m/s, against 0.13 J of kinetic energy without it: the
-limit's position-only correction was being turned into velocity. Contact and limit corrections
-must not inject energy.
+Contact and strain-limit corrections move positions only; turned into velocity they would pump
+energy into a cloth resting against a sphere (hundreds of joules in milliseconds, at a
+128 x 128 cloth with ``[strain_limit]``). So energy must not rise at contacts.
 
-Item 7's story: ``energy()`` was not bitwise deterministic across thread counts, or even across
-two calls (an adaptive parallel reduction), and returned ``inf`` for finite states with large
-velocities (a float32 square overflowed). Reductions are now over fixed chunks, in float64."""
+``energy()`` is a reduction over fixed chunks in float64: bitwise the same on every call and
+at every thread count, and finite for every finite state (a float32 square of a large velocity
+would overflow to ``inf``)."""
 
 from __future__ import annotations
 
@@ -63,7 +62,8 @@ def with_every_pass(scene: Scene, integrator: str) -> Scene:
 #    6e-8 m, so the sum of the potential energies is known to about m g 1e-7 (1e-7 of the
 #    scale); symplectic Euler's and Verlet's bounded energy oscillation at these steps is
 #    smaller still. Measured rises: none (every sample at or below the running minimum to
-#    within 2e-7 of the scale). The reported bug injected 342 J, 20 to 70 times the scale.
+#    within 2e-7 of the scale). A correction turned into velocity injects hundreds of joules,
+#    20 to 70 times the scale.
 #  - 1e-5 for explicit Euler with damping, whose undamped error grows like (1 + (omega h)^2)
 #    per step before the damping takes it back out; measured at most 1.1e-6.
 TOLERANCE = {"explicit_euler": 1e-5}
@@ -72,7 +72,7 @@ STABLE = 1e-6
 
 @pytest.mark.parametrize("integrator", rustcloth.INTEGRATORS)
 @pytest.mark.parametrize("name", list(SCENES))
-def test_issue_11_item_6_energy_never_rises_at_contacts(name, integrator):
+def test_energy_never_rises_at_contacts(name, integrator):
     with warnings.catch_warnings():
         warnings.simplefilter("error", rustcloth.StabilityWarning)
         sim = Simulation(with_every_pass(SCENES[name], integrator))
@@ -125,13 +125,14 @@ def _intersecting(strain_limit: dict | None, integrator: str = "symplectic_euler
 
 
 @pytest.mark.parametrize("integrator", ["symplectic_euler", "verlet", "rk4", "implicit_euler"])
-def test_issue_11_item_6_strain_limit_does_not_pump_energy_at_a_sphere(integrator):
+def test_strain_limit_does_not_pump_energy_at_a_sphere(integrator):
     # The sphere pushes the particles inside it to its surface, which stretches the springs:
     # about 318 J of elastic energy with or without the limit, a position change that the
     # contact does not turn into speed (0.13 J of kinetic energy). The limit may move which
     # particles carry that stretch, a small change (0.14 % measured; 1 % allowed), but it must
     # not turn its corrections into velocity: kinetic energy and top speed as without it (5 %
-    # and 10 % allowed; the bug gave 2,600 times the kinetic energy and 71 m/s).
+    # and 10 % allowed; a correction turned into velocity gives thousands of times the kinetic
+    # energy).
     results = {}
     for label, limit in (("without", None), ("with", {"max_strain": 0.1, "iterations": 4})):
         sim = Simulation(_intersecting(limit, integrator))
@@ -146,7 +147,7 @@ def test_issue_11_item_6_strain_limit_does_not_pump_energy_at_a_sphere(integrato
     assert speed1 <= 1.1 * speed0 and speed1 < 5.0, results
 
 
-def test_issue_11_item_7_energy_is_bitwise_the_same_on_every_call():
+def test_energy_is_bitwise_the_same_on_every_call():
     sim = Simulation(small_scene(cloth={"nx": 300, "ny": 200}))  # 15 fixed chunks
     sim.step(5)
     rng = np.random.default_rng(3)
@@ -156,7 +157,7 @@ def test_issue_11_item_7_energy_is_bitwise_the_same_on_every_call():
         assert [x.hex() for x in sim.energy()] == first
 
 
-def test_issue_11_item_7_energy_is_bitwise_the_same_at_every_thread_count():
+def test_energy_is_bitwise_the_same_at_every_thread_count():
     # The worker (tests/reliability_worker.py) computes energies of many-chunk states at 1, 2
     # and 7 threads in subprocesses; the bits agree with each other and with this process.
     runs = [worker_run(t)["energies"] for t in (1, 2, 7)]
@@ -169,7 +170,7 @@ def test_issue_11_item_7_energy_is_bitwise_the_same_at_every_thread_count():
     assert [float(x).hex() for x in sim.energy()] == runs[0]["random_velocities"]
 
 
-def test_issue_11_item_7_energy_is_finite_for_huge_finite_velocities():
+def test_energy_is_finite_for_huge_finite_velocities():
     # 1e20 m/s squared is 1e40, past float32's 3.4e38: the square is taken in float64.
     sim = Simulation(small_scene())
     v = np.full((sim.num_particles, 3), 1e20, np.float32)

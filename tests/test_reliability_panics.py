@@ -1,14 +1,13 @@
-"""Issue 11, item 1: no Rust panic reaches Python, on any grid shape at any thread count.
+"""No Rust panic reaches Python, on any grid shape at any thread count.
 
-The story: a 1025 x 2 cloth validated, then every ``step()`` raised pyo3's ``PanicException``
-(a range end index out of range in the force pass); any ``nx >= 2049`` panicked, and 1500 x 64
-panicked only at high thread counts, so a scene that ran on a 2-core machine crashed on a
-16-core one. ``PanicException`` is a ``BaseException``: ``except Exception`` missed it. The
-cause is fixed, and a last-resort guard turns any panic into ``InternalError`` with the state
-put back. These tests step the reported shapes and a sample of very wide and very tall ones at
-1, 2, 7 and 16 threads (in subprocesses: rayon's pool is global), and drive both panic guards
-with the test hooks ``_inject_panic`` (the next force evaluation panics on a rayon worker) and
-``_panic_now`` (a panic under the binding's lock)."""
+A panic reaches Python as pyo3's ``PanicException``, a ``BaseException`` that ``except
+Exception`` misses, and the chunking of the force pass depends on the thread count, so a shape
+that steps on 2 cores can fail on 16. These tests step very wide and very tall grids on both
+sides of the 2,048-particle chunk and a seeded sample at 1, 2, 7 and 16 threads (in
+subprocesses: rayon's pool is global), and drive both panic guards, which turn any panic into
+``InternalError`` with the state put back, through the test hooks ``_inject_panic`` (the next
+force evaluation panics on a rayon worker) and ``_panic_now`` (a panic under the binding's
+lock)."""
 
 from __future__ import annotations
 
@@ -26,9 +25,9 @@ THREAD_COUNTS = (1, 2, 7, 16)
 
 
 @pytest.mark.parametrize(("nx", "ny"), [(1025, 2), (2049, 2), (2, 2049), (4097, 2)])
-def test_issue_11_item_1_wide_cloths_panicked_on_every_step(nx, ny):
-    # A 1025 x 2 cloth validated, then every step panicked in the force pass; so did any
-    # nx >= 2049. They step now, and stay finite and bounded.
+def test_wide_cloths_step_and_stay_bounded(nx, ny):
+    # Rows longer than a chunk of the force pass (1025 x 2, nx >= 2049) step, finite and
+    # bounded.
     sim = Simulation(shape_scene(nx, ny))
     sim.step(20)
     x = sim.positions
@@ -36,9 +35,9 @@ def test_issue_11_item_1_wide_cloths_panicked_on_every_step(nx, ny):
     assert sim.steps == 20
 
 
-def test_issue_11_item_1_grid_shapes_step_alike_at_every_thread_count():
-    # 1500 x 64 panicked only at 16 threads. Every shape of the worker's list (the reported
-    # ones, wide and tall grids on both sides of the 2,048-particle chunk, and a seeded sample)
+def test_grid_shapes_step_alike_at_every_thread_count():
+    # Every shape of the worker's list (wide and tall grids on both sides of the
+    # 2,048-particle chunk, 1500 x 64, and a seeded sample)
     # steps at 1, 2, 7 and 16 threads to the bitwise same state: nothing depends on how the
     # pool splits the work.
     runs = {t: worker_run(t) for t in THREAD_COUNTS}
@@ -113,7 +112,7 @@ def _panicking_step(sim: Simulation) -> None:
         {}
     ),
 )
-def test_issue_11_item_1_a_panic_in_a_step_leaves_the_state_exactly_as_it_was(scene, before):
+def test_a_panic_in_a_step_leaves_the_state_exactly_as_it_was(scene, before):
     # A panic on a rayon worker inside the force pass: caught, the step rolled back, reported
     # as InternalError, an ordinary Exception; get_state() is bit for bit what it was (the two
     # cache-version counters aside: they count up so that caches rebuild).
@@ -131,7 +130,7 @@ def test_issue_11_item_1_a_panic_in_a_step_leaves_the_state_exactly_as_it_was(sc
 @pytest.mark.parametrize(
     ("scene", "before"), _scenes({})
 )
-def test_issue_11_item_1_after_a_panic_it_steps_like_a_twin_that_never_panicked(scene, before):
+def test_after_a_panic_it_steps_like_a_twin_that_never_panicked(scene, before):
     # With one substep, several, every optional pass and the watchdog's substep retries: after
     # the InternalError the simulation goes on bit for bit as a twin that never panicked.
     sim, twin = _make(scene), _make(scene)
@@ -148,7 +147,7 @@ def test_issue_11_item_1_after_a_panic_it_steps_like_a_twin_that_never_panicked(
         assert twin.watchdog_stats()["retried"] >= 1  # the retry path did run
 
 
-def test_issue_11_item_1_a_panic_during_advance_keeps_the_time_owed():
+def test_a_panic_during_advance_keeps_the_time_owed():
     sim, twin = Simulation(small_scene()), Simulation(small_scene())
     sim.advance(0.0105)
     twin.advance(0.0105)
@@ -160,7 +159,7 @@ def test_issue_11_item_1_a_panic_during_advance_keeps_the_time_owed():
     assert full_digest(sim, versions=False) == full_digest(twin, versions=False)
 
 
-def test_issue_11_item_1_the_last_resort_guard_under_the_lock():
+def test_the_last_resort_guard_under_the_lock():
     # A panic anywhere under the binding's lock (not in a step) is InternalError too, and the
     # simulation stays usable and keeps its state.
     sim, twin = Simulation(small_scene()), Simulation(small_scene())

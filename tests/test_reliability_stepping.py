@@ -1,13 +1,12 @@
-"""Issue 11, items 3 and 5: the clock, Ctrl-C, and what a step count may be.
+"""The clock, Ctrl-C, and what a step count may be.
 
-Item 3's story: ``sim.time`` was recomputed as ``steps * dt``, so setting ``dt`` at run time
-rewrote the past (one simulated second became 0.1 s). Time is accumulated now.
+``sim.time`` is accumulated step by step, so that changing ``dt`` at run time changes the
+future and not the past (``steps * dt`` would rewrite it).
 
-Item 5's story: Ctrl-C did not interrupt a long ``step(n)`` or ``advance``, and ``step(2**40)``
-was uncapped and never returned. Stepping now asks Python for signals every ~20 ms and raises
-``KeyboardInterrupt`` with the state at a step boundary; ``advance`` then drops the rest of its
-request. Counts are integers ``>= 0`` that fit 64 bits; anything else is the package's own
-error naming ``n``."""
+Stepping asks Python for signals every ~20 ms: Ctrl-C interrupts a long ``step(n)`` or
+``advance`` with ``KeyboardInterrupt`` and the state at a step boundary, and ``advance`` then
+drops the rest of its request. Counts are integers ``>= 0`` that fit 64 bits; anything else is
+the package's own error naming ``n``."""
 
 from __future__ import annotations
 
@@ -23,7 +22,7 @@ from conftest import full_digest, small_scene
 from rustcloth import ParameterError, ParameterTypeError, Simulation
 
 
-def test_issue_11_item_3_changing_dt_does_not_rewrite_the_past():
+def test_changing_dt_does_not_rewrite_the_past():
     sim = Simulation(small_scene())
     sim.step(1000)
     assert sim.time == 1.0
@@ -39,7 +38,7 @@ def test_issue_11_item_3_changing_dt_does_not_rewrite_the_past():
     assert Simulation.from_state(sim.get_state()).time == sim.time
 
 
-def test_issue_11_item_3_the_clock_is_exact_while_dt_is_fixed():
+def test_the_clock_is_exact_while_dt_is_fixed():
     sim = Simulation(small_scene(dt=0.0001))
     sim.step(12345)
     assert sim.time == 12345 * 0.0001
@@ -80,7 +79,7 @@ def _interrupted(call) -> float:
     return raised_at - ctrl_c.sent_at
 
 
-def test_issue_11_item_5_ctrl_c_interrupts_a_long_step_at_a_step_boundary():
+def test_ctrl_c_interrupts_a_long_step_at_a_step_boundary():
     sim = Simulation(small_scene())
     latency = _interrupted(lambda: sim.step(2**31))
     assert latency < 5.0  # generous: the check runs every ~20 ms
@@ -94,7 +93,7 @@ def test_issue_11_item_5_ctrl_c_interrupts_a_long_step_at_a_step_boundary():
     assert full_digest(sim) == full_digest(twin)
 
 
-def test_issue_11_item_5_ctrl_c_interrupts_advance_and_drops_the_rest():
+def test_ctrl_c_interrupts_advance_and_drops_the_rest():
     sim = Simulation(small_scene())
     latency = _interrupted(lambda: sim.advance(1e6))
     assert latency < 5.0
@@ -109,7 +108,7 @@ def test_issue_11_item_5_ctrl_c_interrupts_advance_and_drops_the_rest():
     assert sim.steps == taken
 
 
-def test_issue_11_item_5_ctrl_c_with_held_substeps_keeps_a_step_boundary():
+def test_ctrl_c_with_held_substeps_keeps_a_step_boundary():
     # Springs too stiff for the step: the watchdog retries an early step with more substeps and
     # holds them for the rest of the run. An interrupt still lands between whole steps, and
     # the watchdog's memory is that of a twin stepped as far.
@@ -145,7 +144,7 @@ BAD_COUNTS = [
 
 
 @pytest.mark.parametrize(("n", "builtin", "exception"), BAD_COUNTS, ids=repr)
-def test_issue_11_item_5_bad_step_counts_are_refused_naming_n(n, builtin, exception):
+def test_bad_step_counts_are_refused_naming_n(n, builtin, exception):
     sim = Simulation(small_scene())
     sim.step(3)
     before = full_digest(sim)
@@ -156,7 +155,7 @@ def test_issue_11_item_5_bad_step_counts_are_refused_naming_n(n, builtin, except
     assert full_digest(sim) == before
 
 
-def test_issue_11_item_10_step_none_is_refused():
+def test_step_none_is_refused():
     sim = Simulation(small_scene())
     before = full_digest(sim)
     with pytest.raises(ParameterTypeError, match="^n: "):

@@ -1,12 +1,10 @@
-"""Issue 11, item 4: one simulation, several threads.
+"""One simulation, several threads.
 
-The story: while one thread stepped (GIL released), every call from another thread raised
-``RuntimeError: Already mutably borrowed``, and a reader was starved (zero successful reads
-of ``positions`` in 8 s). The model now: every call takes a fair lock for its whole length;
-calls from other threads wait their turn (without the GIL) and see the state at a call
-boundary; a call from the thread already inside a call (a signal handler during ``step``)
-raises ``SimulationBusy`` instead of deadlocking. These tests check what a reader sees, that
-it is not starved (a count, not a time), and the signal handler."""
+Every call takes a fair lock for its whole length: calls from other threads wait their turn
+(without the GIL) and see the state at a call boundary, and a reader is not starved by a thread
+that steps; a call from the thread already inside a call (a signal handler during ``step``)
+raises ``SimulationBusy`` instead of deadlocking. These tests check what a reader sees, that it
+is not starved (a count, not a time), and the signal handler."""
 
 from __future__ import annotations
 
@@ -88,7 +86,7 @@ def _twin_states(scene, call, calls: int) -> tuple[dict[bytes, int], dict[str, i
     return positions, full
 
 
-def test_issue_11_item_4_a_reader_is_not_starved_by_a_stepping_thread():
+def test_a_reader_is_not_starved_by_a_stepping_thread():
     scene = small_scene(cloth={"nx": 24, "ny": 24})
 
     def call(s: Simulation) -> None:
@@ -98,7 +96,7 @@ def test_issue_11_item_4_a_reader_is_not_starved_by_a_stepping_thread():
     _race(Simulation(scene), call, calls, *_twin_states(scene, call, calls))
 
 
-def test_issue_11_item_4_reads_during_advance_see_whole_frames():
+def test_reads_during_advance_see_whole_frames():
     # A reader never sees the middle of an advance call: each read is the state after a
     # whole number of frames.
     scene = small_scene(cloth={"nx": 24, "ny": 24})
@@ -110,7 +108,7 @@ def test_issue_11_item_4_reads_during_advance_see_whole_frames():
     _race(Simulation(scene), call, frames, *_twin_states(scene, call, frames))
 
 
-def test_issue_11_item_4_a_signal_handler_touching_the_simulation_gets_simulation_busy():
+def test_a_signal_handler_touching_the_simulation_gets_simulation_busy():
     # SIGALRM arrives while the main thread is inside step(); its handler runs on that same
     # thread, between steps, and reads the simulation: the lock is the thread's own, so the
     # read raises SimulationBusy (waiting would deadlock), and the exception ends the step at

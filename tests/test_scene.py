@@ -14,7 +14,7 @@ def test_defaults_are_filled_in_and_documented_keys_exist():
         "integrator", "dt", "substeps", "gravity", "air_drag", "cloth", "floor", "spheres",
         "cg_tolerance", "cg_max_iterations", "preconditioner", "pd_iterations", "pd_tolerance",
         "pd_chebyshev_rho", "watchdog", "strain_limit", "self_collision", "tearing",
-        "colliders",
+        "colliders", "wind",
     }
     assert d["preconditioner"] == "multigrid" and d["pd_iterations"] == 20
     assert set(d["cloth"]) >= {
@@ -22,7 +22,7 @@ def test_defaults_are_filled_in_and_documented_keys_exist():
         "damping", "pins",
     }
     assert d["floor"] is None and d["spheres"] == [] and d["colliders"] == []
-    assert d["strain_limit"] is None and d["tearing"] is None
+    assert d["strain_limit"] is None and d["tearing"] is None and d["wind"] is None
     assert d["watchdog"] == {
         "max_stretch": None, "on_trouble": "raise", "max_substeps": 64, "hold_steps": 100,
     }
@@ -78,9 +78,9 @@ def test_numpy_values_are_accepted():
     assert scene.dt == pytest.approx(0.002)
 
 
-def test_issue_13_from_toml_str_of_something_not_text_names_the_parameter():
-    # The mesh colliders' path pre-read parsed the text with tomllib before the core saw it,
-    # and tomllib raised AttributeError on None instead of the core's ParameterTypeError.
+def test_from_toml_str_of_something_not_text_names_the_parameter():
+    # The text is read for mesh collider paths before the core sees it: that reading must
+    # refuse what is not text as the core does, with ParameterTypeError naming it.
     for value in (None, 3, b"dt = 0.01"):
         with pytest.raises(ParameterTypeError, match="text"):
             Scene.from_toml_str(value)  # type: ignore[arg-type]

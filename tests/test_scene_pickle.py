@@ -14,10 +14,10 @@ def _nx(scene: Scene) -> int:
     return int(scene.cloth["nx"])
 
 
-def test_issue_11_scene_pickle_recursion_error():
-    # Scene.__getattr__ answered every name from `_data`, also `_data` itself, which is unset
-    # while pickle and copy rebuild the object: RecursionError, and a multiprocessing.Pool
-    # given a scene hung for good because its worker died unpickling it.
+def test_a_scene_survives_pickle_and_copy():
+    # pickle and copy rebuild a Scene before its `_data` is set, so Scene.__getattr__ must not
+    # answer `_data` from `_data` (a RecursionError, and a multiprocessing.Pool whose worker
+    # died unpickling the scene would wait for good).
     scene = rustcloth.load_scene("drape").replace(dt=0.0005)
     for clone in (pickle.loads(pickle.dumps(scene)), copy.copy(scene), copy.deepcopy(scene)):
         assert clone == scene

@@ -34,10 +34,10 @@ def test_particle_index_is_j_times_nx_plus_i(sim):
     assert sim.pinned[(sim.ny - 1) * nx] and sim.pinned[sim.ny * nx - 1]
 
 
-def test_issue_16_writes_to_positions_were_silently_lost(sim):
-    # sim.positions was a writable copy: writing to it looked like moving the cloth and did
-    # nothing. Reads are read-only copies now, so the write raises; a copy of the copy may be
-    # changed and given back through set_positions.
+def test_state_arrays_are_read_only_copies(sim):
+    # Writing into a writable copy would look like moving the cloth and do nothing: reads are
+    # read-only copies, so the write raises; a copy of the copy may be changed and given back
+    # through set_positions.
     for array in (sim.positions, sim.velocities, sim.normals, sim.masses, sim.pinned,
                   sim.alive, sim.triangles, sim.spring_strain()):
         with pytest.raises(ValueError, match="read-only"):
@@ -143,8 +143,8 @@ def test_runtime_settings_and_reset(sim):
     version = sim.topology_version
     sim.reset()
     assert sim.steps == 0 and sim.integrator == "explicit_euler"
-    # Regression (renderer report): reset set the version back to 0, so a cache stamped with
-    # an old version could match again. Versions only ever grow.
+    # Versions only ever grow, reset included: a version set back could match a cache stamped
+    # with an earlier one again.
     assert sim.topology_version > version
     np.testing.assert_array_equal(sim.positions, Simulation(small_scene()).positions)
 
@@ -182,9 +182,9 @@ def _increments_inside(call) -> tuple[int, float]:
 
 
 def test_stepping_releases_the_gil():
-    # Issue 11's test hole: the old version counted increments from before the step started,
-    # so a step that held the GIL for 0.8 s still passed. Here the increments must fall
-    # *during* the step, in its middle: a Python thread runs while another thread steps.
+    # The increments must fall *during* the step, in its middle: counted from before the step
+    # started, they would let a step that holds the GIL pass. A Python thread runs while
+    # another thread steps.
     sim = Simulation(small_scene(cloth={"nx": 128, "ny": 128}))
     # The step must last long enough for the margins to mean anything, however fast the machine:
     # twice the steps until it does.

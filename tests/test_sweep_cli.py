@@ -115,7 +115,8 @@ def test_help_says_a_sweep_file_is_code(capsys):
 # -- errors in one line -------------------------------------------------------------------------
 @pytest.mark.parametrize("out", ["{file}", "/dev/full", "{file}/below"])
 def test_an_unusable_out_folder_is_one_line(sweep_file, tmp_path, capsys, out):
-    # `--out` naming a file (or /dev/full) ended in a NotADirectoryError traceback.
+    # `--out` naming a file (or /dev/full) is a one-line error, not a NotADirectoryError
+    # traceback.
     afile = tmp_path / "afile"
     afile.write_text("")
     for progress in ("none", "plain"):
@@ -131,8 +132,8 @@ def test_an_unusable_out_folder_is_one_line(sweep_file, tmp_path, capsys, out):
     ("x = " + "[" * 5000 + "]" * 5000 + "\n", "nested too deeply"),
 ])
 def test_a_run_too_long_or_a_file_too_deep_is_one_line(tmp_path, capsys, text, needle):
-    # `seconds = 1e308` ended in "OverflowError: cannot convert float infinity to integer",
-    # a TOML nested thousands deep in a RecursionError; `steps = 2**70` was listed as a run.
+    # A step count too large for a run (`seconds = 1e308`, `steps = 2**70`) or a TOML nested
+    # thousands deep is refused in one line, by --dry-run too, before anything is listed.
     (tmp_path / "sweep.toml").write_text(text)
     for extra in ([], ["--dry-run"]):
         code = main([str(tmp_path / "sweep.toml"), "--out", str(tmp_path / "out"), *extra])
@@ -141,7 +142,7 @@ def test_a_run_too_long_or_a_file_too_deep_is_one_line(tmp_path, capsys, text, n
 
 
 def test_sweep_errors_exit_2_from_the_shell(sweep_file, tmp_path):
-    # From the shell, `--out` naming a file was a traceback and exit status 1.
+    # From the shell too: one line and exit status 2, not a traceback and 1.
     (tmp_path / "afile").write_text("")
     proc = subprocess.run([sys.executable, "-m", "rustcloth", "sweep", str(sweep_file),
                            "--out", str(tmp_path / "afile")], capture_output=True, text=True,

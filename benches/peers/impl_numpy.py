@@ -1,4 +1,4 @@
-"""numpy peer: benches/numpy_cloth.py (vectorised grid slicing, float32, one thread)."""
+"""numpy peer: rustcloth.reference in float32 (vectorised grid slicing, one thread)."""
 
 from __future__ import annotations
 
@@ -7,20 +7,19 @@ import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
-sys.path.insert(0, os.path.dirname(HERE))
 
 import numpy as np  # noqa: E402
 from common import measure, parse_args, scene_dict  # noqa: E402
-from numpy_cloth import NumpyCloth  # noqa: E402
+from rustcloth.reference import ReferenceCloth  # noqa: E402
 
 
 def main() -> None:
     args = parse_args()
     if args.colliders:
-        raise SystemExit("numpy_cloth has no colliders")
+        raise SystemExit("the reference model has no colliders")
     measure(
         args,
-        build=lambda: NumpyCloth.from_scene(scene_dict(args.n)),
+        build=lambda: ReferenceCloth(scene_dict(args.n), dtype=np.float32),
         step=lambda sim, k: sim.step(k),
         positions=lambda sim: sim.positions,
         info={"version": np.__version__},

@@ -83,7 +83,7 @@ def implementations(rust_python: str) -> list[Impl]:
             python=rust_python,
             gather=False,
         ),
-        Impl("numpy", "numpy (numpy_cloth.py)", "impl_numpy.py", 1, gather=False),
+        Impl("numpy", "numpy (rustcloth.reference)", "impl_numpy.py", 1, gather=False),
         Impl("taichi-1", "Taichi gather", "impl_taichi.py", 1),
         Impl("taichi-2", "Taichi gather", "impl_taichi.py", 2),
         Impl(
@@ -736,8 +736,8 @@ def main() -> None:
         "Written by `benches/peers/run.py` (`make bench-peers`); do not edit by hand.",
         "",
         "rustcloth against the same mass-spring cloth written with numpy "
-        "(`benches/numpy_cloth.py`), Taichi (CPU) and NVIDIA newton (`SolverSemiImplicit`, "
-        "Warp CPU device).",
+        "(`rustcloth.reference`, in float32), Taichi (CPU) and NVIDIA newton "
+        "(`SolverSemiImplicit`, Warp CPU device).",
         "",
         "## Scene",
         "",

@@ -240,8 +240,8 @@ def _main(argv: list[str]) -> int:
         return 0
     try:
         return run_headless(args.scene, args.seconds, args.integrator, args.export, args.fps)
-    except UsageError as err:
-        return fail("rustcloth run", str(err))
+    except UsageError as err:  # a command-line value, as argparse words its own errors
+        return fail("rustcloth run", f"{err} (see rustcloth run --help)")
     except USER_ERRORS as err:  # about the scene or the export, which the line names
         return fail("rustcloth run", f"{args.scene}: {describe(err)}")
 

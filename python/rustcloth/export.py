@@ -22,7 +22,6 @@ import importlib.util
 import math
 import os
 import re
-from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
 from typing import TYPE_CHECKING, Any
@@ -31,9 +30,18 @@ import numpy as np
 import numpy.typing as npt
 
 from ._extras import MissingExtra
+from .mesh import Mesh, grid_uvs
 
 if TYPE_CHECKING:
     from .simulation import Simulation
+
+# Mesh and grid_uvs are defined in rustcloth.mesh, where rustcloth.simulation takes them from
+# without importing this module; they are part of this module's API too.
+__all__ = [
+    "MESH_FORMATS", "USD_FORMATS", "Mesh", "ObjSequenceRecorder", "Recorder", "UsdRecorder",
+    "check_required", "export", "grid_uvs", "is_sequence", "recorder", "required_modules",
+    "to_mesh",
+]
 
 #: Single-frame formats :func:`export` writes, by file suffix.
 MESH_FORMATS = (".obj", ".ply", ".glb")
@@ -88,40 +96,10 @@ def _importable(module: str) -> bool:
         return False
 
 
-@dataclass(frozen=True)
-class Mesh:
-    """One frame of the cloth as numpy arrays. ``V`` vertices (the ``N`` particles, then the
-    cut vertices), ``T`` drawn triangles."""
-
-    vertices: npt.NDArray[np.float32]
-    """``(V, 3)`` float32 positions in m."""
-    triangles: npt.NDArray[np.uint32]
-    """``(T, 3)`` uint32 vertex indices of the drawn triangles, counter-clockwise seen from the
-    side the normals point to."""
-    normals: npt.NDArray[np.float32]
-    """``(V, 3)`` float32 unit vertex normals."""
-    uvs: npt.NDArray[np.float32]
-    """``(V, 2)`` float32 texture coordinates: particle ``(i, j)`` at ``(i / (nx - 1),
-    j / (ny - 1))``, a cut vertex where its edge was crossed."""
-
-
-def grid_uvs(nx: int, ny: int) -> npt.NDArray[np.float32]:
-    """``(nx * ny, 2)`` float32 texture coordinates of an ``nx`` x ``ny`` grid: row
-    ``j * nx + i`` holds ``(i / (nx - 1), j / (ny - 1))``."""
-    u, v = np.meshgrid(np.arange(nx) / (nx - 1), np.arange(ny) / (ny - 1))
-    return np.column_stack([u.ravel(), v.ravel()]).astype(np.float32)
-
-
 def to_mesh(sim: Simulation) -> Mesh:
     """The simulation's current frame: the drawn mesh's positions, triangles, vertex normals
     and texture coordinates (:meth:`rustcloth.Simulation.render_mesh`)."""
-    drawn = sim.render_mesh()
-    return Mesh(
-        vertices=np.ascontiguousarray(drawn.positions, dtype=np.float32),
-        triangles=np.ascontiguousarray(drawn.triangles, dtype=np.uint32),
-        normals=np.ascontiguousarray(drawn.normals, dtype=np.float32),
-        uvs=np.ascontiguousarray(drawn.uvs, dtype=np.float32),
-    )
+    return sim.to_mesh()
 
 
 def _trimesh() -> Any:

@@ -36,6 +36,7 @@ if TYPE_CHECKING:
         StrainLimitSettings,
         TearingSettings,
         WatchdogSettings,
+        WindSettings,
     )
 
 
@@ -101,6 +102,7 @@ class Scene:
         strain_limit: StrainLimitSettings | None
         self_collision: SelfCollisionSettings | None
         tearing: TearingSettings | None
+        wind: WindSettings | None
         preconditioner: PreconditionerName
         cg_tolerance: float
         cg_max_iterations: int

@@ -95,5 +95,19 @@ class TearingSettings(TypedDict):
     max_per_step: int
 
 
+class WindSettings(TypedDict):
+    """``scene.wind`` (None: no pass): air in m/s with gusts and turbulence (src/wind.rs)."""
+
+    velocity: list[float]
+    gust: float
+    gust_period: float
+    turbulence: float
+    turbulence_scale: float
+    seed: int
+    drag: float
+    lift: float
+    air_density: float
+
+
 ColliderSettings: TypeAlias = dict[str, Any]
 """One of ``scene.colliders``: ``shape`` and the keys of that shape (docs/colliders.md)."""

@@ -18,13 +18,12 @@ import numpy.typing as npt
 
 from . import _core
 from .errors import ParameterError, ParameterTypeError, StabilityWarning
+from .mesh import Mesh
 from .scene import Scene, load_scene
 from .settings import IntegratorName
 
 if TYPE_CHECKING:
     from pathlib import Path
-
-    from .export import Mesh
 
 PickStrategyName: TypeAlias = Literal["auto", "bvh", "scan"]
 """How ray queries find what they hit; all three give the same answers."""
@@ -650,13 +649,11 @@ class Simulation:
 
     def to_mesh(self) -> Mesh:
         """The current frame's drawn mesh (:meth:`render_mesh`) as a
-        :class:`rustcloth.export.Mesh`: ``vertices`` ``(V, 3)`` float32 in m (vertex ``p < N``
+        :class:`rustcloth.mesh.Mesh`: ``vertices`` ``(V, 3)`` float32 in m (vertex ``p < N``
         is particle ``p``; cut particles stay, used by no triangle; the cut vertices follow),
         ``triangles`` ``(T, 3)`` uint32, ``normals`` ``(V, 3)`` float32 unit vectors and
         ``uvs`` ``(V, 2)`` float32, particle ``(i, j)`` at ``(i / (nx - 1), j / (ny - 1))``."""
-        from .export import to_mesh
-
-        return to_mesh(self)
+        return Mesh.from_arrays(*self.render_mesh()[:4])
 
     def export(self, path: str | os.PathLike[str]) -> Path:
         """Write the current frame to ``path`` (a ``str`` or ``os.PathLike``) as ``.obj``,
@@ -664,6 +661,8 @@ class Simulation:
         (``pip install 'rustcloth[export]'``; ``ImportError`` naming the extra otherwise).
         ``ValueError`` for another suffix. Returns the ``pathlib.Path`` written. A whole run:
         :func:`rustcloth.export.recorder`."""
+        # Called, not imported at the top: rustcloth.export takes a Simulation, and the
+        # dependency runs one way, from the writers to the simulation.
         from .export import export
 
         return export(self, path)

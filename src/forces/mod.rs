@@ -1,4 +1,4 @@
-//! Forces: the closed set of effects that push on particles ([`Force`]), and the
+//! Forces: the closed set of pushes on particles ([`Force`]), and the
 //! [`ForceModel`] that holds those a scene asked for and evaluates them all in one parallel
 //! sweep.
 //!

@@ -42,6 +42,14 @@ use crate::error::{Error, Result};
 use crate::model::Model;
 use crate::state::State;
 
+/// How many particle queries a caller makes on one state: with many (a cut stroke), building
+/// the particle tree pays off at once under [`PickStrategy::Auto`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Queries {
+    One,
+    Many,
+}
+
 /// Under [`PickStrategy::Auto`], a cut stroke of at least this many rays refits the particle
 /// tree and queries it; a shorter one scans for each ray. A refit costs a few scans
 /// (docs/picking.md), a tree query almost nothing.
@@ -174,17 +182,16 @@ impl Picker {
         self.stats
     }
 
-    /// The live particle whose box the ray enters first. `many`: more queries on this state
-    /// follow (a cut stroke), so the tree pays off.
+    /// The live particle whose box the ray enters first, one of `queries` on this state.
     pub fn particle(
         &mut self,
         model: &Model,
         state: &State,
         ray: &Ray,
-        many: bool,
+        queries: Queries,
     ) -> Option<ParticleHit> {
         let radius = self.radius(model);
-        if !self.use_particle_tree(model, state, many) {
+        if !self.use_particle_tree(model, state, queries) {
             self.stats.particle_scans += 1;
             return pick_particle_scan(ray, &state.kin.pos, &model.particles.alive, radius);
         }
@@ -250,7 +257,7 @@ impl Picker {
                 .map_or(0, |(_, rank)| rank.capacity() * size_of::<u32>())
     }
 
-    fn use_particle_tree(&mut self, model: &Model, state: &State, many: bool) -> bool {
+    fn use_particle_tree(&mut self, model: &Model, state: &State, queries: Queries) -> bool {
         let now = versions(model, state);
         let radius = self.radius(model);
         match self.strategy {
@@ -263,7 +270,7 @@ impl Picker {
                     .is_some_and(|c| c.versions == now && c.tree.radius() == radius);
                 let again = self.particle_scanned_at == Some(now);
                 self.particle_scanned_at = Some(now);
-                synced || again || many
+                synced || again || queries == Queries::Many
             }
         }
     }

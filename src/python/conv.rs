@@ -33,7 +33,7 @@ pub fn scene_to_dict<'py>(py: Python<'py>, scene: &Scene) -> PyResult<Bound<'py,
     // below, as users write them.
     let value = toml::Value::try_from(scene).expect("a scene always serialises");
     let dict = pythonize::pythonize(py, &value)?.cast_into::<PyDict>()?;
-    for key in ["floor", "strain_limit", "self_collision", "tearing"] {
+    for key in ["floor", "strain_limit", "self_collision", "tearing", "wind"] {
         if !dict.contains(key)? {
             dict.set_item(key, py.None())?;
         }

@@ -18,7 +18,7 @@ pub use mesh::{is_closed, merged_indices};
 pub use pins::PIN_GROUPS;
 pub use specs::{
     ClothSpec, ColliderSpec, FloorSpec, OnTrouble, PinSpec, Plane, SelfCollisionSpec, ShapeKind,
-    SphereSpec, StrainLimitSpec, TearingSpec, WatchdogSpec,
+    SphereSpec, StrainLimitSpec, TearingSpec, WatchdogSpec, WindSpec,
 };
 pub use stability::stable_substep;
 pub(crate) use validate::check_substep;
@@ -89,6 +89,9 @@ pub struct Scene {
     /// Springs break past a strain, after each step; absent means none (no pass).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub tearing: Option<TearingSpec>,
+    /// Wind pushing on the cloth after each integration; absent means none (no pass).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub wind: Option<WindSpec>,
 }
 
 impl Default for Scene {
@@ -113,6 +116,7 @@ impl Default for Scene {
             strain_limit: None,
             self_collision: None,
             tearing: None,
+            wind: None,
         }
     }
 }
@@ -127,6 +131,7 @@ const BUILTIN: &[(&str, &str)] = &[
     ("fold", include_str!("../../scenes/fold.toml")),
     ("pile", include_str!("../../scenes/pile.toml")),
     ("tear", include_str!("../../scenes/tear.toml")),
+    ("flag", include_str!("../../scenes/flag.toml")),
     ("drape_box", include_str!("../../scenes/drape_box.toml")),
     ("tablecloth", include_str!("../../scenes/tablecloth.toml")),
     ("mannequin", include_str!("../../scenes/mannequin.toml")),

@@ -86,6 +86,9 @@ impl Scene {
             check_scalar("strain_limit.max_strain", limit.max_strain, Bound::Positive)?;
             check_iterations("strain_limit.iterations", limit.iterations)?;
         }
+        if let Some(wind) = &self.wind {
+            wind.validate()?;
+        }
         if let Some(sc) = &self.self_collision {
             check_scalar("self_collision.thickness", sc.thickness, Bound::Positive)?;
             let c = &self.cloth;
@@ -358,6 +361,7 @@ pub(super) fn require_tables(scene: &toml::Value) -> Result<()> {
         "strain_limit",
         "self_collision",
         "tearing",
+        "wind",
     ] {
         match scene.get(key) {
             Some(value) if !value.is_table() => return Err(not_a_table(key.into(), value)),
@@ -393,3 +397,63 @@ pub(crate) fn check_substep(name: &str, dt: f64, substeps: u32) -> Result<()> {
 
 /// The shortest substep `dt / substeps` in s.
 pub const MIN_SUBSTEP: f64 = 1e-9;
+
+impl super::specs::WindSpec {
+    fn validate(&self) -> Result<()> {
+        check_vector("wind.velocity", &self.velocity, Bound::Any)?;
+        // Far beyond any wind, and it keeps |u|^2 in the force within float32.
+        let speed = self.velocity.iter().map(|v| v * v).sum::<f64>().sqrt();
+        if speed > MAX_WIND_SPEED {
+            return Err(Error::value(
+                "wind.velocity",
+                format!("must be at most {MAX_WIND_SPEED} m/s, got {speed} m/s"),
+            ));
+        }
+        check_scalar("wind.gust", self.gust, Bound::NonNegative)?;
+        if self.gust > 1.0 {
+            return Err(Error::value(
+                "wind.gust",
+                format!("must be a fraction in [0, 1], got {}", self.gust),
+            ));
+        }
+        check_scalar("wind.gust_period", self.gust_period, Bound::Positive)?;
+        check_scalar("wind.turbulence", self.turbulence, Bound::NonNegative)?;
+        if self.turbulence > MAX_WIND_SPEED {
+            return Err(Error::value(
+                "wind.turbulence",
+                format!(
+                    "must be at most {MAX_WIND_SPEED} m/s, got {}",
+                    self.turbulence
+                ),
+            ));
+        }
+        check_scalar(
+            "wind.turbulence_scale",
+            self.turbulence_scale,
+            Bound::Positive,
+        )?;
+        check_scalar("wind.drag", self.drag, Bound::NonNegative)?;
+        check_scalar("wind.lift", self.lift, Bound::NonNegative)?;
+        check_scalar("wind.air_density", self.air_density, Bound::Positive)?;
+        for (name, value) in [
+            ("wind.drag", self.drag),
+            ("wind.lift", self.lift),
+            ("wind.air_density", self.air_density),
+        ] {
+            if value > MAX_AERO_VALUE {
+                return Err(Error::value(
+                    name,
+                    format!("must be at most {MAX_AERO_VALUE}, got {value}"),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Fastest wind or turbulence in m/s: ten times the strongest gust ever measured.
+pub const MAX_WIND_SPEED: f64 = 1000.0;
+
+/// Largest drag or lift coefficient and air density: far beyond any cloth in any gas, and it
+/// keeps the force's float32 product finite.
+const MAX_AERO_VALUE: f64 = 1e6;

@@ -1,12 +1,13 @@
 //! The stepper: the compiled passes, the scratch buffers and the watchdog, and the loop that
 //! advances a [`State`] of a [`Model`] by whole steps.
 //!
-//! One step of `dt` is `substeps` substeps of `h = dt / substeps`, each running the passes of
-//! `pipeline.rs`. The integrator writes into a scratch buffer, swapped with the state only when
-//! the result is finite and within the watchdog's limits, so a step that goes wrong leaves the
-//! previous state in place; what then happens (a retry, a rollback, an error) is in
-//! `recovery.rs`, the watchdog's memory in `watchdog.rs`. A step allocates nothing, except in the
-//! self-collision pass (its candidate lists are built afresh each substep).
+//! One step of `dt` ([`Stepper::step`]) is `substeps` substeps of `h = dt / substeps`, each
+//! running the passes of `pipeline.rs` in the order [`Stepper::substep`] calls them. The passes
+//! write into a scratch buffer, swapped with the state only when the result is finite and
+//! within the watchdog's limits, so a step that goes wrong leaves the previous state in place;
+//! what then happens (a retry, a rollback, an error) is in `recovery.rs`, the watchdog's memory
+//! in `watchdog.rs`. A step allocates nothing, except in the self-collision pass (its candidate
+//! lists are built afresh each substep).
 
 mod pipeline;
 mod recovery;
@@ -15,21 +16,20 @@ mod watchdog;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::time::{Duration, Instant};
 
-pub use watchdog::WatchdogStats;
+pub use watchdog::{WatchdogSnapshot, WatchdogStats};
 
-use crate::collisions::{PredictedContacts, Shapes};
+use crate::collisions::Shapes;
 use crate::error::{Error, Result, Trouble};
 use crate::forces::StateRef;
-use crate::integrators::{History, Integrator, IntegratorKind, SolverStats, StepContext};
+use crate::integrators::{History, Integrator, IntegratorKind, SolverStats};
 use crate::model::Model;
 use crate::parallel::{chunk_len, on_pool};
 use crate::profile::Profile;
 use crate::self_collision::SelfCollisionStats;
 use crate::soa::Vec3s;
 use crate::state::{Kinematics, State};
-use crate::tearing::Tearing;
-use pipeline::Pipeline;
-use watchdog::{Failure, Watchdog};
+use pipeline::{Pipeline, Substep};
+use watchdog::{Failure, HoldMark, Watchdog};
 
 /// Requested time within this fraction of a step of the next step boundary counts as reaching
 /// it, so that `advance` sums of frame times (1/60 s sixty times) land on the same whole number
@@ -53,45 +53,36 @@ pub struct Stepper {
     /// Copy of the state at the start of a step, kept with several substeps (or retries).
     step_start: Option<Kinematics>,
     /// The integrator's history when the current step started, for a failed step to restore.
-    step_start_history: History,
-    /// The watchdog's hold and held-step count then, likewise.
-    step_start_hold: (Option<(u32, u64)>, u64),
+    start_history: History,
+    /// The watchdog's hold then, likewise.
+    start_hold: HoldMark,
     force: Vec3s,
     watchdog: Watchdog,
     profile: Profile,
     /// What the last panic caught in a step said (see [`Error::Internal`]).
     panic_message: Option<String>,
-    /// With colliders: the contacts an implicit solver holds inside its solve (made here, for
-    /// any integrator, since the integrator can change between steps).
-    contacts: Option<PredictedContacts>,
 }
 
 impl Stepper {
     pub fn new(model: &Model) -> Stepper {
         let scene = &model.scene;
         let n = model.grid.len();
-        let mut pipeline = Pipeline::compile(scene);
-        let mut watchdog = Watchdog::new(&scene.watchdog, n);
+        let mut pipeline = Pipeline::compile(scene, n);
+        let watchdog = Watchdog::new(&scene.watchdog, n);
         pipeline.forces.set_stretch_limit(watchdog.stretch_limit());
         // A step with several substeps keeps its start; so may any step the watchdog retries
-        // or holds at more substeps, and a retry keeps its own start too. Made here, so that a
-        // step never allocates, retried or not.
-        let retries = watchdog.retries();
-        let contacts = (!pipeline.colliders.is_empty()).then(|| PredictedContacts::new(n));
-        if retries {
-            watchdog.retry_start = Some(Kinematics::zeros(n));
-        }
+        // or holds at more substeps. Made here, so that a step never allocates, retried or not.
+        let keeps_start = scene.substeps > 1 || watchdog.retries();
         Stepper {
             pipeline,
             scratch: Kinematics::zeros(n),
-            step_start: (scene.substeps > 1 || retries).then(|| Kinematics::zeros(n)),
-            step_start_history: History::default(),
-            step_start_hold: (None, 0),
+            step_start: keeps_start.then(|| Kinematics::zeros(n)),
+            start_history: History::default(),
+            start_hold: HoldMark::default(),
             force: Vec3s::zeros(n),
             watchdog,
             profile: Profile::default(),
             panic_message: None,
-            contacts,
         }
     }
 
@@ -109,7 +100,17 @@ impl Stepper {
     ) -> Result<()> {
         let mut done = 0;
         while done < n {
-            done += self.run_slice(model, state, n - done)?;
+            // Whole steps on the thread pool for up to INTERRUPT_SLICE of wall time.
+            let until = Instant::now() + INTERRUPT_SLICE;
+            on_pool(|| -> Result<()> {
+                loop {
+                    self.step(model, state)?;
+                    done += 1;
+                    if done == n || Instant::now() >= until {
+                        return Ok(());
+                    }
+                }
+            })?;
             if done < n && interrupted() {
                 self.judge_newest_state(model, state)?;
                 return Err(Error::Interrupted { steps: done });
@@ -163,94 +164,92 @@ impl Stepper {
         outcome.map(|()| n)
     }
 
-    /// Up to `n` steps, stopping after the first step that ends past [`INTERRUPT_SLICE`] of
-    /// wall time; returns the steps taken.
-    fn run_slice(&mut self, model: &mut Model, state: &mut State, n: u64) -> Result<u64> {
-        let until = Instant::now() + INTERRUPT_SLICE;
-        on_pool(|| {
-            let mut taken = 0;
-            while taken < n {
-                self.step_once(model, state)?;
-                taken += 1;
-                if Instant::now() >= until {
-                    break;
-                }
-            }
-            Ok(taken)
-        })
-    }
-
-    /// One step of `dt`, with the watchdog's recovery when it goes wrong.
-    fn step_once(&mut self, model: &mut Model, state: &mut State) -> Result<()> {
+    /// One step of `dt`. A step the watchdog finds wrong is put right by `recover` (a retry
+    /// with more substeps, or an error); trouble found one step late rolls the previous step
+    /// back too, and the loop then runs this one again.
+    fn step(&mut self, model: &mut Model, state: &mut State) -> Result<()> {
         let started = Instant::now();
         let target = state.clock.steps + 1;
-        // Recovering from trouble found one step late reruns the previous step, moving `steps`
-        // back by one; the loop then runs this step again.
         while state.clock.steps < target {
-            if let Err(failure) = self.attempt_step(model, state) {
-                self.recover(model, state, failure)?;
+            let substeps = self.begin_step(model, state);
+            match self.run_substeps(model, state, substeps) {
+                Ok(()) => self.end_step(state, substeps),
+                Err(failure) => self.recover(model, state, failure)?,
             }
         }
-        // On the accepted end-of-step positions. A tear is not undone by a later rollback: the
-        // watchdog restores states, not springs (a rerun step sees the cloth as torn).
-        if let Some(tearing) = &mut self.pipeline.tearing {
-            let t = Instant::now();
-            tearing.apply(model, &state.kin.pos);
-            self.profile.add(Tearing::NAME, t.elapsed());
-        }
+        // Not undone by a later rollback: the watchdog restores states, not springs.
+        self.pipeline.tear(model, state, &mut self.profile);
         self.profile.total += started.elapsed();
         Ok(())
     }
 
-    /// Substeps for the next step: the scene's, or more while the watchdog holds a rescued
-    /// step's count.
-    fn step_substeps(&mut self, model: &Model, state: &State) -> u32 {
-        match self.watchdog.hold {
-            Some((substeps, until)) if state.clock.steps + 1 < until => {
-                self.watchdog.stats.held_steps += 1;
-                substeps
-            }
-            Some(_) => {
-                self.watchdog.hold = None;
-                self.pipeline.integrator.reset_history(); // the substep length changes
-                model.scene.substeps
-            }
-            None => model.scene.substeps,
-        }
-    }
-
-    /// One step. On failure nothing of the failed substep is kept: the state is where that
-    /// substep started, and with several substeps the step's start is in `step_start`.
-    fn attempt_step(
+    /// One substep of length `h`, one of `substeps`, ending at `time`: the scene's passes in
+    /// order. On success its result becomes the state; on failure the state is untouched.
+    /// Trouble in the state the substep starts from (a spring over the watchdog's limit) is
+    /// reported with `in_start_state`.
+    fn substep(
         &mut self,
         model: &Model,
         state: &mut State,
+        h: f32,
+        time: f64,
+        substeps: u32,
     ) -> std::result::Result<(), Failure> {
-        // What a failed attempt restores: the integrator's history and the watchdog's hold as
-        // they were before the attempt looked at them.
-        self.step_start_history = self.pipeline.integrator.history();
-        self.step_start_hold = (self.watchdog.hold, self.watchdog.stats.held_steps);
-        let substeps = self.step_substeps(model, state);
+        let mut s = Substep::new(
+            model,
+            state,
+            &mut self.scratch,
+            (h, time),
+            &mut self.profile,
+        );
+        let passes = &mut self.pipeline;
+        passes.predict_contacts(&mut s);
+        let mut finite = passes.integrate(&mut s, &mut self.force);
+        if passes.forces.overstretched() {
+            return Err(self.overstretched_start(model, &state.kin, substeps));
+        }
+        finite &= passes.blow_wind(&mut s);
+        finite &= passes.pin_targets(&mut s);
+        finite &= passes.limit_strain(&mut s);
+        finite &= passes.collide(&mut s);
+        finite &= passes.separate_self_contacts(&mut s);
+        self.accept(state, finite, substeps)
+    }
+
+    /// Readies the next step and returns its substeps: the scene's, or more while the watchdog
+    /// holds a rescued step's count. Keeps what a failed attempt puts back: the state (with
+    /// several substeps), the integrator's history and the watchdog's hold, as they were before
+    /// the attempt looked at them.
+    fn begin_step(&mut self, model: &Model, state: &State) -> u32 {
+        self.start_history = self.pipeline.integrator.history();
+        self.start_hold = self.watchdog.mark();
+        let step = state.clock.steps + 1;
+        let (substeps, hold_ended) = self.watchdog.substeps_for(step, model.scene.substeps);
+        if hold_ended {
+            self.pipeline.integrator.reset_history(); // the substep length changes
+        }
         if substeps > 1 {
             let n = model.grid.len();
             self.step_start
                 .get_or_insert_with(|| Kinematics::zeros(n))
                 .copy_from(&state.kin);
         }
-        self.run_substeps(model, state, substeps)?;
-        // The step's start state is in `step_start`, or with one substep in `scratch`, which
-        // the substep's swap left holding it.
-        let history = self.step_start_history;
-        match self.step_start.as_mut().filter(|_| substeps > 1) {
-            Some(start) => self.watchdog.step_completed(start, history, substeps),
-            None => self
-                .watchdog
-                .step_completed(&mut self.scratch, history, substeps),
-        }
+        substeps
+    }
+
+    /// A step of `substeps` substeps went well: the watchdog keeps its start, the clock moves.
+    fn end_step(&mut self, state: &mut State, substeps: u32) {
+        // The step's start is in `step_start`, or with one substep in `scratch`, which the
+        // substep's swap left holding it.
+        let start = match self.step_start.as_mut().filter(|_| substeps > 1) {
+            Some(start) => start,
+            None => &mut self.scratch,
+        };
+        self.watchdog
+            .step_completed(start, self.start_history, substeps);
         state.clock.steps += 1;
         self.profile.steps += 1;
         state.version += 1;
-        Ok(())
     }
 
     /// `substeps` substeps of `dt / substeps` from the current state. Trouble in the state the
@@ -292,76 +291,31 @@ impl Stepper {
         Ok(())
     }
 
-    /// One substep of length `h`, one of `substeps`. On success its result becomes the state;
-    /// on failure the state is untouched. Trouble in the state the substep starts from (a
-    /// spring over the watchdog's limit) is reported with `in_start_state`.
-    fn substep(
+    /// The spring the force loop found beyond the watchdog's limit in the state a substep of
+    /// `substeps` started from, `kin`, as a failure of the step that made that state.
+    fn overstretched_start(&self, model: &Model, kin: &Kinematics, substeps: u32) -> Failure {
+        // The force loop and this scan run the same arithmetic, so the scan finds the spring.
+        let found = self.overstretched_in(model, kin, true, substeps);
+        debug_assert!(found.is_some(), "stretch watch and scan disagree");
+        found.unwrap_or(Failure {
+            reason: Trouble::Overstretched {
+                stretch: f32::NAN,
+                limit: self.watchdog.stretch_limit().unwrap_or(f32::NAN),
+            },
+            particle: 0,
+            in_start_state: true,
+            substeps,
+        })
+    }
+
+    /// Swaps a good substep's result into the state; a non-finite one is a failure.
+    fn accept(
         &mut self,
-        model: &Model,
         state: &mut State,
-        h: f32,
-        time: f64,
+        finite: bool,
         substeps: u32,
     ) -> std::result::Result<(), Failure> {
-        let chunk = chunk_len(model.grid.len());
-        let pipeline = &mut self.pipeline;
-        let contacts = match &mut self.contacts {
-            Some(contacts) if pipeline.integrator.kind().holds_contacts() => {
-                let t = Instant::now();
-                let g = glam::DVec3::from(model.scene.gravity).as_vec3();
-                let (kin, particles) = (&state.kin, &model.particles);
-                contacts.find(&pipeline.colliders, kin, particles, g, (h, time), chunk);
-                self.profile.add(PredictedContacts::NAME, t.elapsed());
-                Some(&*contacts)
-            }
-            _ => None,
-        };
-        let started = Instant::now();
-        let forces_before = self.profile.force_time;
-        pipeline.forces.arm_stretch_watch();
-        let mut ctx = StepContext {
-            grid: model.grid,
-            current: &state.kin,
-            next: &mut self.scratch,
-            particles: &model.particles,
-            springs: &model.springs,
-            forces: &mut pipeline.forces,
-            force: &mut self.force,
-            chunk,
-            profile: &mut self.profile,
-            contacts,
-        };
-        let finite = pipeline.integrator.step(h, &mut ctx);
-        if let Some(contacts) = contacts.filter(|c| c.count > 0) {
-            contacts.apply_friction(&mut self.scratch, h, chunk);
-        }
-        let own_time = started
-            .elapsed()
-            .saturating_sub(self.profile.force_time - forces_before);
-        self.profile.add(pipeline.integrator.name(), own_time);
-        if pipeline.forces.overstretched() {
-            // The force loop and this scan run the same arithmetic, so the scan finds the spring.
-            let found = self.overstretched_in(model, &state.kin, true, substeps);
-            debug_assert!(found.is_some(), "stretch watch and scan disagree");
-            return Err(found.unwrap_or(Failure {
-                reason: Trouble::Overstretched {
-                    stretch: f32::NAN,
-                    limit: self.watchdog.stretch_limit().unwrap_or(f32::NAN),
-                },
-                particle: 0,
-                in_start_state: true,
-                substeps,
-            }));
-        }
-        let after = pipeline.after_integration(
-            model,
-            state,
-            &mut self.scratch,
-            (h, time),
-            chunk,
-            &mut self.profile,
-        );
-        if !(finite && after) {
+        if !finite {
             return Err(Failure {
                 reason: Trouble::NonFinite,
                 particle: self.scratch.first_non_finite().unwrap_or(0),
@@ -396,7 +350,7 @@ impl Stepper {
     /// After a change of `dt`: history restarts, and the watchdog stops blaming the last step
     /// (taken with the old `dt`, it cannot be undone and retried with the new one).
     pub fn dt_changed(&mut self) {
-        self.watchdog.previous_valid = false;
+        self.watchdog.forget_last_step();
         self.pipeline.integrator.reset_history();
     }
 
@@ -405,15 +359,18 @@ impl Stepper {
         self.pipeline.integrator.reset_history();
     }
 
-    /// Something other than a step changed the state (`history`: positions or velocities, which
-    /// an integrator with history must forget): the watchdog must not blame (and undo) the last
-    /// step for trouble in this state, nor judge it at the end of a call that takes no step.
-    pub fn state_set(&mut self, history: bool) {
-        self.watchdog.previous_valid = false;
-        self.watchdog.unjudged = false;
-        if history {
-            self.pipeline.integrator.reset_history();
-        }
+    /// Something other than a step changed the state: the watchdog must not blame (and undo)
+    /// the last step for trouble in this state, nor judge it at the end of a call that takes no
+    /// step.
+    pub fn state_replaced(&mut self) {
+        self.watchdog.state_replaced();
+    }
+
+    /// Something other than a step set positions or velocities: as [`Stepper::state_replaced`],
+    /// and an integrator with history forgets it.
+    pub fn motion_replaced(&mut self) {
+        self.watchdog.state_replaced();
+        self.pipeline.integrator.reset_history();
     }
 
     /// The passes a step runs, in order.
@@ -426,7 +383,7 @@ impl Stepper {
     }
 
     pub fn watchdog_stats(&self) -> WatchdogStats {
-        self.watchdog.stats
+        self.watchdog.stats()
     }
 
     pub fn solver_stats(&self) -> Option<SolverStats> {
@@ -466,7 +423,7 @@ impl Stepper {
     /// watchdog's claim on the last step, since the state may no longer be the one it judged.
     pub fn after_panic(&mut self) {
         self.pipeline.forces.reset_after_panic();
-        self.state_set(false);
+        self.state_replaced();
     }
 
     pub fn heap_bytes(&self) -> usize {
@@ -475,10 +432,6 @@ impl Stepper {
             + self.watchdog.heap_bytes()
             + self.force.heap_bytes()
             + self.pipeline.heap_bytes()
-            + self
-                .contacts
-                .as_ref()
-                .map_or(0, PredictedContacts::heap_bytes)
     }
 
     // ----- saving and restoring -------------------------------------------------------------
@@ -490,6 +443,23 @@ impl Stepper {
 
     pub fn shapes_mut(&mut self) -> Option<&mut Shapes> {
         self.pipeline.shapes_mut()
+    }
+
+    /// The watchdog's memory, for a saved state.
+    pub fn watchdog_snapshot(&self) -> WatchdogSnapshot {
+        self.watchdog.snapshot()
+    }
+
+    /// Puts back the watchdog's memory from a saved state of `model` at step `steps`; the error
+    /// names what does not fit.
+    pub fn restore_watchdog(
+        &mut self,
+        saved: WatchdogSnapshot,
+        model: &Model,
+        steps: u64,
+    ) -> Result<()> {
+        let (n, substeps) = (model.grid.len(), model.scene.substeps);
+        self.watchdog.restore(saved, n, steps, substeps)
     }
 
     pub fn history(&self) -> History {

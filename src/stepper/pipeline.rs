@@ -1,14 +1,18 @@
 //! The passes a scene compiles into, and the ones that run after the integrator.
 //!
-//! A substep runs, in order, only the passes the scene needs:
+//! A substep runs, in order, only the passes the scene needs (`Stepper::substep` calls them):
 //!
-//! 1. forces (gravity, air drag, each spring family), evaluated by the integrator as often as
-//!    its scheme needs;
-//! 2. the integrator, writing the end-of-step state into a second buffer;
-//! 3. kinematic pins (while the user drags a pinned particle);
-//! 4. strain limiting (when the scene asks for it, `src/strain_limit/`);
-//! 5. colliders (the `[[spheres]]`, then the `[[colliders]]` of any shape, then the floor);
-//! 6. self-collision (when the scene asks for it, `src/self_collision/`), last, so that its
+//! 1. predicted contacts (with colliders, for an integrator that holds contacts inside its
+//!    solve: `src/collisions/predict.rs`);
+//! 2. the integrator, evaluating the forces (gravity, air drag, each spring family) as often
+//!    as its scheme needs and writing the end-of-substep state into a second buffer; friction
+//!    of the predicted contacts;
+//! 3. wind (when the scene asks for it, `src/wind.rs`): a change of velocity after the
+//!    integrator, the same for every integrator;
+//! 4. kinematic pins (while the user drags a pinned particle);
+//! 5. strain limiting (when the scene asks for it, `src/strain_limit/`);
+//! 6. colliders (the `[[spheres]]`, then the `[[colliders]]` of any shape, then the floor);
+//! 7. self-collision (when the scene asks for it, `src/self_collision/`), last, so that its
 //!    guarantee covers everything the passes before it did. It only shortens a particle's
 //!    motion along its path from the substep's start, so the floor (a half-space, which holds
 //!    both ends of that path) stays satisfied.
@@ -16,23 +20,29 @@
 //! and once per step, after its last substep was accepted, tearing (when the scene asks for it,
 //! `src/tearing.rs`): it changes the model (springs break), not the state, so it runs between
 //! steps rather than inside one.
+//!
+//! Each pass after the integrator returns whether what it wrote is finite; they write few
+//! values (a drag, contacts, limited springs), so checking costs next to nothing.
 
 use std::time::Instant;
 
 use glam::{DVec3, Vec3};
 
-use crate::collisions::{Collider, Floor, Shapes};
+use crate::collisions::{Collider, Floor, PredictedContacts, Shapes};
 use crate::forces::{Force, ForceModel};
 use crate::grid::Family;
-use crate::integrators::Integrator;
+use crate::integrators::{Integrator, StepContext};
 use crate::model::Model;
+use crate::parallel::chunk_len;
 use crate::pins::KinematicPins;
 use crate::profile::Profile;
 use crate::scene::{ColliderSpec, Scene, SphereSpec};
 use crate::self_collision::SelfCollision;
+use crate::soa::Vec3s;
 use crate::state::{Kinematics, State};
 use crate::strain_limit::StrainLimit;
 use crate::tearing::Tearing;
+use crate::wind::Wind;
 
 /// The passes of a step.
 pub(super) struct Pipeline {
@@ -45,10 +55,54 @@ pub(super) struct Pipeline {
     pub self_collision: Option<SelfCollision>,
     /// Only when the scene asks for tearing; runs after each whole step.
     pub tearing: Option<Tearing>,
+    /// Only when the scene asks for wind.
+    pub wind: Option<Wind>,
+    /// With colliders: the contacts an implicit solver holds inside its solve (made for any
+    /// integrator, since the integrator can change between steps).
+    pub contacts: Option<PredictedContacts>,
+}
+
+/// What the passes of one substep read and write.
+pub(super) struct Substep<'a> {
+    pub model: &'a Model,
+    /// The state the substep starts from.
+    pub state: &'a State,
+    /// Where the passes write the substep's result.
+    pub next: &'a mut Kinematics,
+    /// Length of the substep, s.
+    pub h: f32,
+    /// Time at its end, s: where moving colliders are posed.
+    pub time: f64,
+    /// Particles per parallel work item.
+    pub chunk: usize,
+    pub profile: &'a mut Profile,
+}
+
+impl<'a> Substep<'a> {
+    /// A substep of length `h` ending at `time` from `state`, writing into `next`.
+    pub fn new(
+        model: &'a Model,
+        state: &'a State,
+        next: &'a mut Kinematics,
+        (h, time): (f32, f64),
+        profile: &'a mut Profile,
+    ) -> Self {
+        let chunk = chunk_len(model.grid.len());
+        Substep {
+            model,
+            state,
+            next,
+            h,
+            time,
+            chunk,
+            profile,
+        }
+    }
 }
 
 impl Pipeline {
-    pub fn compile(scene: &Scene) -> Pipeline {
+    pub fn compile(scene: &Scene, particles: usize) -> Pipeline {
+        let colliders = colliders_of(scene);
         Pipeline {
             forces: ForceModel::new(forces_of(scene)),
             integrator: scene.integrator.build(scene.solver_settings()),
@@ -56,7 +110,8 @@ impl Pipeline {
                 .strain_limit
                 .as_ref()
                 .map(|s| StrainLimit::new(s.max_strain as f32, s.iterations)),
-            colliders: colliders_of(scene),
+            contacts: (!colliders.is_empty()).then(|| PredictedContacts::new(particles)),
+            colliders,
             self_collision: scene
                 .self_collision
                 .as_ref()
@@ -65,6 +120,7 @@ impl Pipeline {
                 .tearing
                 .as_ref()
                 .map(|t| Tearing::new(t.max_strain as f32, t.max_per_step)),
+            wind: scene.wind.as_ref().map(|w| Wind::new(w, particles)),
         }
     }
 
@@ -72,6 +128,9 @@ impl Pipeline {
     pub fn effects(&self, state: &State) -> Vec<&'static str> {
         let mut out: Vec<&'static str> = self.forces.forces().iter().map(Force::name).collect();
         out.push(self.integrator.name());
+        if self.wind.is_some() {
+            out.push(Wind::NAME);
+        }
         if !state.targets.is_empty() {
             out.push(KinematicPins::NAME);
         }
@@ -88,46 +147,130 @@ impl Pipeline {
         out
     }
 
-    /// The passes after the integrator, on `next`: kinematic pins, strain limiting,
-    /// colliders, self-collision, for a substep of length `h` ending at `time` (s; where moving
-    /// colliders are posed). Returns whether what they wrote is finite; they write few values (a drag,
-    /// contacts, limited springs), so checking costs next to nothing.
-    pub fn after_integration(
-        &mut self,
-        model: &Model,
-        state: &State,
-        next: &mut Kinematics,
-        (h, time): (f32, f64),
-        chunk: usize,
-        profile: &mut Profile,
-    ) -> bool {
+    /// Whether this substep's integrator holds the predicted contacts inside its solve.
+    fn holds_contacts(&self) -> bool {
+        self.contacts.is_some() && self.integrator.kind().holds_contacts()
+    }
+
+    /// Finds the contacts each particle's free motion would make with the colliders, for an
+    /// integrator that holds them inside its solve.
+    pub fn predict_contacts(&mut self, s: &mut Substep) {
+        if !self.holds_contacts() {
+            return;
+        }
+        let Some(contacts) = &mut self.contacts else {
+            return;
+        };
+        let t = Instant::now();
+        let g = DVec3::from(s.model.scene.gravity).as_vec3();
+        let (kin, particles) = (&s.state.kin, &s.model.particles);
+        contacts.find(&self.colliders, kin, particles, g, (s.h, s.time), s.chunk);
+        s.profile.add(PredictedContacts::NAME, t.elapsed());
+    }
+
+    /// The integrator's step into `s.next`, with the predicted contacts' friction; returns
+    /// whether every value it wrote is finite. Arms the force loop's stretch watch, read after
+    /// it by [`ForceModel::overstretched`].
+    pub fn integrate(&mut self, s: &mut Substep, force: &mut Vec3s) -> bool {
+        let started = Instant::now();
+        let forces_before = s.profile.force_time;
+        let contacts = self.contacts.as_ref().filter(|_| self.holds_contacts());
+        self.forces.arm_stretch_watch();
+        let mut ctx = StepContext {
+            grid: s.model.grid,
+            current: &s.state.kin,
+            next: s.next,
+            particles: &s.model.particles,
+            springs: &s.model.springs,
+            forces: &mut self.forces,
+            force,
+            chunk: s.chunk,
+            profile: s.profile,
+            contacts,
+        };
+        let finite = self.integrator.step(s.h, &mut ctx);
+        if let Some(contacts) = contacts.filter(|c| c.count > 0) {
+            contacts.apply_friction(s.next, s.h, s.chunk);
+        }
+        let own_time = started
+            .elapsed()
+            .saturating_sub(s.profile.force_time - forces_before);
+        s.profile.add(self.integrator.name(), own_time);
+        finite
+    }
+
+    /// Pushes the cloth with the wind's drag and lift.
+    pub fn blow_wind(&mut self, s: &mut Substep) -> bool {
+        let Some(wind) = &mut self.wind else {
+            return true;
+        };
+        let t = Instant::now();
+        let start = s.time - s.h as f64;
+        let finite = wind.apply(s.model, &s.state.kin, s.next, s.h, start);
+        s.profile.add(Wind::NAME, t.elapsed());
+        finite
+    }
+
+    /// Moves the dragged particles to their targets.
+    pub fn pin_targets(&mut self, s: &mut Substep) -> bool {
+        let targets = &s.state.targets;
+        if targets.is_empty() {
+            return true;
+        }
+        let t = Instant::now();
+        let next = &mut *s.next;
+        let finite = targets.apply(s.h, &s.state.kin.pos, &mut next.pos, &mut next.vel);
+        s.profile.add(KinematicPins::NAME, t.elapsed());
+        finite
+    }
+
+    /// Shortens the springs stretched beyond the limit. After the pins, so that the limit pulls
+    /// the cloth after a dragged particle rather than back to where it was; before the
+    /// colliders, so that contacts have the last word.
+    pub fn limit_strain(&mut self, s: &mut Substep) -> bool {
+        let Some(limit) = &mut self.strain_limit else {
+            return true;
+        };
+        let t = Instant::now();
+        let (grid, springs, particles) = (s.model.grid, &s.model.springs, &s.model.particles);
+        let finite = limit
+            .apply(grid, springs, particles, s.next, s.chunk)
+            .finite;
+        s.profile.add(StrainLimit::NAME, t.elapsed());
+        finite
+    }
+
+    /// Puts the particles outside every collider, in the scene's order.
+    pub fn collide(&mut self, s: &mut Substep) -> bool {
         let mut finite = true;
-        if !state.targets.is_empty() {
-            let t = Instant::now();
-            finite &= state
-                .targets
-                .apply(h, &state.kin.pos, &mut next.pos, &mut next.vel);
-            profile.add(KinematicPins::NAME, t.elapsed());
-        }
-        // After the pins, so that the limit pulls the cloth after a dragged particle rather
-        // than back to where it was; before the colliders, so that contacts have the last word.
-        if let Some(limit) = &mut self.strain_limit {
-            let t = Instant::now();
-            let (grid, springs, particles) = (model.grid, &model.springs, &model.particles);
-            finite &= limit.apply(grid, springs, particles, next, chunk).finite;
-            profile.add(StrainLimit::NAME, t.elapsed());
-        }
         for collider in &self.colliders {
             let t = Instant::now();
-            finite &= collider.resolve(&state.kin, next, &model.particles, chunk, h, time);
-            profile.add(collider.name(), t.elapsed());
-        }
-        if let Some(contact) = &mut self.self_collision {
-            let t = Instant::now();
-            finite &= contact.apply(model, &state.kin, next);
-            profile.add(SelfCollision::NAME, t.elapsed());
+            let particles = &s.model.particles;
+            finite &= collider.resolve(&s.state.kin, s.next, particles, s.chunk, s.h, s.time);
+            s.profile.add(collider.name(), t.elapsed());
         }
         finite
+    }
+
+    /// Keeps the cloth from passing through itself.
+    pub fn separate_self_contacts(&mut self, s: &mut Substep) -> bool {
+        let Some(contact) = &mut self.self_collision else {
+            return true;
+        };
+        let t = Instant::now();
+        let finite = contact.apply(s.model, &s.state.kin, s.next);
+        s.profile.add(SelfCollision::NAME, t.elapsed());
+        finite
+    }
+
+    /// Breaks the springs strained beyond the tearing limit, on the accepted end-of-step
+    /// positions.
+    pub fn tear(&mut self, model: &mut Model, state: &State, profile: &mut Profile) {
+        if let Some(tearing) = &mut self.tearing {
+            let t = Instant::now();
+            tearing.apply(model, &state.kin.pos);
+            profile.add(Tearing::NAME, t.elapsed());
+        }
     }
 
     /// The `[[colliders]]`, when the scene has any.
@@ -156,11 +299,16 @@ impl Pipeline {
                 .as_ref()
                 .map_or(0, SelfCollision::heap_bytes)
             + self.tearing.as_ref().map_or(0, Tearing::heap_bytes)
+            + self.wind.as_ref().map_or(0, Wind::heap_bytes)
             + self
                 .colliders
                 .iter()
                 .map(Collider::heap_bytes)
                 .sum::<usize>()
+            + self
+                .contacts
+                .as_ref()
+                .map_or(0, PredictedContacts::heap_bytes)
     }
 }
 

@@ -24,9 +24,10 @@
 
 use rayon::prelude::*;
 
-use crate::error::Trouble;
+use crate::error::{Error, Result, Trouble};
 use crate::grid::{Grid, SpringKind};
 use crate::integrators::History;
+use crate::model::Model;
 use crate::scene::{OnTrouble, WatchdogSpec};
 use crate::soa::Vec3s;
 use crate::springs::{neighbour_runs, overstretched, Springs};
@@ -58,28 +59,52 @@ pub(super) struct Failure {
     pub(super) substeps: u32,
 }
 
+/// The watchdog's memory between steps, for a saved state.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct WatchdogSnapshot {
+    /// The start of the last step and the integrator's history then, while that step can
+    /// still be undone (only with a stretch limit). Per-particle arrays: outside serde, as in
+    /// [`crate::snapshot::Snapshot`].
+    #[serde(skip)]
+    pub previous: Option<(Vec3s, Vec3s, History)>,
+    /// The newest state has not been judged against the stretch limit yet.
+    pub unjudged: bool,
+    pub last_substeps: u32,
+    /// After a rescue: `(substeps, until)`.
+    pub hold: Option<(u32, u64)>,
+    pub stats: WatchdogStats,
+}
+
+/// What a failed attempt at a step puts back of the watchdog: its hold as the attempt found it.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct HoldMark {
+    hold: Option<(u32, u64)>,
+    held_steps: u64,
+}
+
 pub(super) struct Watchdog {
-    pub(super) spec: WatchdogSpec,
+    spec: WatchdogSpec,
     /// The start of the last completed step, while `previous_valid`; only with `max_stretch`.
-    pub(super) previous: Option<Kinematics>,
+    previous: Option<Kinematics>,
     /// The integrator's history at the start of that step.
-    pub(super) previous_history: History,
+    previous_history: History,
     /// False after anything but a step changed the state: then the current state is the
     /// user's, and trouble found in it is not a step's fault.
-    pub(super) previous_valid: bool,
+    previous_valid: bool,
     /// The newest state came from a step and has not been checked yet.
-    pub(super) unjudged: bool,
+    unjudged: bool,
     /// Substeps the last completed step ran with.
-    pub(super) last_substeps: u32,
+    last_substeps: u32,
     /// After a rescue: `(substeps, until)`, the substeps steps before number `until` use.
-    pub(super) hold: Option<(u32, u64)>,
-    /// The start of a step being retried.
-    pub(super) retry_start: Option<Kinematics>,
-    pub(super) stats: WatchdogStats,
+    hold: Option<(u32, u64)>,
+    /// The start of a step being retried (made once, so that a retry never allocates).
+    retry_start: Option<Kinematics>,
+    stats: WatchdogStats,
 }
 
 impl Watchdog {
     pub fn new(spec: &WatchdogSpec, particles: usize) -> Self {
+        let retries = spec.on_trouble == OnTrouble::Substep;
         Watchdog {
             previous: spec.max_stretch.map(|_| Kinematics::zeros(particles)),
             previous_history: History::default(),
@@ -88,7 +113,7 @@ impl Watchdog {
             unjudged: false,
             hold: None,
             last_substeps: 1,
-            retry_start: None,
+            retry_start: retries.then(|| Kinematics::zeros(particles)),
             stats: WatchdogStats::default(),
         }
     }
@@ -98,14 +123,48 @@ impl Watchdog {
         self.spec.max_stretch.map(|r| r as f32)
     }
 
+    /// Whether a step that went wrong is retried with more substeps (else it is reported).
     pub fn retries(&self) -> bool {
         self.spec.on_trouble == OnTrouble::Substep
     }
 
+    pub fn stats(&self) -> WatchdogStats {
+        self.stats
+    }
+
+    // ----- a step's course --------------------------------------------------------------------
+
+    /// The substeps step number `step` runs with: `scene_substeps`, or more while a rescued
+    /// step's count is held; and whether a hold ended here (the substep length changes back).
+    pub fn substeps_for(&mut self, step: u64, scene_substeps: u32) -> (u32, bool) {
+        match self.hold {
+            Some((substeps, until)) if step < until => {
+                self.stats.held_steps += 1;
+                (substeps, false)
+            }
+            Some(_) => {
+                self.hold = None;
+                (scene_substeps, true)
+            }
+            None => (scene_substeps, false),
+        }
+    }
+
+    /// The hold as it is, for a failed attempt to put back ([`Watchdog::rewind`]).
+    pub fn mark(&self) -> HoldMark {
+        HoldMark {
+            hold: self.hold,
+            held_steps: self.stats.held_steps,
+        }
+    }
+
+    pub fn rewind(&mut self, mark: HoldMark) {
+        (self.hold, self.stats.held_steps) = (mark.hold, mark.held_steps);
+    }
+
     /// Records that a step starting from the state in `start` and the integrator `history`
-    /// completed with `substeps` substeps: that buffer becomes
-    /// `previous` (by a swap; `start` receives the old `previous`, which its owner overwrites
-    /// before reading it again).
+    /// completed with `substeps` substeps: that buffer becomes `previous` (by a swap; `start`
+    /// receives the old `previous`, which its owner overwrites before reading it again).
     pub fn step_completed(&mut self, start: &mut Kinematics, history: History, substeps: u32) {
         self.last_substeps = substeps;
         if let Some(previous) = &mut self.previous {
@@ -116,9 +175,192 @@ impl Watchdog {
         }
     }
 
+    /// Something other than a step set the state: trouble in it is not the last step's fault,
+    /// and a call that takes no step has nothing to judge.
+    pub fn state_replaced(&mut self) {
+        self.previous_valid = false;
+        self.unjudged = false;
+    }
+
+    /// The last step can no longer be undone and retried (it ran with another `dt`).
+    pub fn forget_last_step(&mut self) {
+        self.previous_valid = false;
+    }
+
+    /// The substeps of the last completed step when the newest state has not been judged yet;
+    /// it counts as judged from now on.
+    pub fn take_unjudged(&mut self) -> Option<u32> {
+        std::mem::take(&mut self.unjudged).then_some(self.last_substeps)
+    }
+
+    /// The state now was judged good (it was just restored).
+    pub fn judged(&mut self) {
+        self.unjudged = false;
+    }
+
+    // ----- recovering ---------------------------------------------------------------------------
+
+    pub fn count_caught(&mut self) {
+        self.stats.caught += 1;
+    }
+
+    pub fn last_substeps(&self) -> u32 {
+        self.last_substeps
+    }
+
+    /// Puts the start of the last completed step into `kin` and returns the integrator's history
+    /// then; None when that step cannot be undone (the state came from the user or the scene).
+    pub fn undo_last_step(&mut self, kin: &mut Kinematics) -> Option<History> {
+        let previous = self.previous.as_ref().filter(|_| self.previous_valid)?;
+        kin.copy_from(previous);
+        self.previous_valid = false;
+        Some(self.previous_history)
+    }
+
+    /// The substeps a step that failed with `failed` substeps is retried with, in turn: 2, 4,
+    /// ... times as many, up to `max_substeps`. Each one is counted as the retry's cost.
+    pub fn retry_substeps(&self, failed: u32) -> impl Iterator<Item = u32> {
+        let most = self.spec.max_substeps;
+        std::iter::successors(failed.checked_mul(2), |s| s.checked_mul(2))
+            .take_while(move |&s| s <= most)
+    }
+
+    pub fn count_retry_attempt(&mut self, substeps: u32) {
+        self.stats.retry_substeps += substeps as u64;
+    }
+
+    /// The buffer a retried step keeps its start in.
+    pub fn take_retry_start(&mut self, particles: usize) -> Kinematics {
+        self.retry_start
+            .take()
+            .unwrap_or_else(|| Kinematics::zeros(particles))
+    }
+
+    pub fn put_retry_start(&mut self, start: Kinematics) {
+        self.retry_start = Some(start);
+    }
+
+    /// Step number `step`, started from `start` with the integrator's `history`, was saved by
+    /// a retry with `substeps` substeps: those are held for the next `hold_steps` steps, since
+    /// what made it fail usually persists.
+    pub fn rescued(&mut self, step: u64, substeps: u32, start: &mut Kinematics, history: History) {
+        self.stats.retried += 1;
+        self.stats.max_substeps_used = self.stats.max_substeps_used.max(substeps);
+        let hold = self.spec.hold_steps as u64;
+        self.hold = (hold > 0).then_some((substeps, step + 1 + hold));
+        self.step_completed(start, history, substeps);
+    }
+
+    // ----- saving and restoring -----------------------------------------------------------------
+
+    pub fn snapshot(&self) -> WatchdogSnapshot {
+        WatchdogSnapshot {
+            previous: self
+                .previous
+                .as_ref()
+                .filter(|_| self.previous_valid)
+                .map(|k| (k.pos.clone(), k.vel.clone(), self.previous_history)),
+            unjudged: self.unjudged,
+            last_substeps: self.last_substeps,
+            hold: self.hold,
+            stats: self.stats,
+        }
+    }
+
+    /// Puts back the memory of a saved state of `n` particles at step `steps`, in a scene of
+    /// `substeps` substeps; the error names what does not fit.
+    ///
+    /// Only what such a simulation can have written is taken: a step's substeps between 1 and
+    /// the most the watchdog retries with, and a hold that ends within `hold_steps` of `steps`,
+    /// so that no crafted state makes the next step run for hours.
+    pub fn restore(
+        &mut self,
+        saved: WatchdogSnapshot,
+        n: usize,
+        steps: u64,
+        substeps: u32,
+    ) -> Result<()> {
+        let most = self.spec.max_substeps.max(substeps);
+        if !(1..=most).contains(&saved.last_substeps) {
+            return Err(Error::value(
+                "watchdog",
+                format!(
+                    "last_substeps must be an integer from 1 to {most}, got {}",
+                    saved.last_substeps
+                ),
+            ));
+        }
+        if let Some((held, until)) = saved.hold {
+            let latest = steps.saturating_add(2 + self.spec.hold_steps as u64);
+            if !(1..=most).contains(&held) || until > latest {
+                return Err(Error::value(
+                    "watchdog.hold",
+                    format!(
+                        "must be (substeps from 1 to {most}, a step no later than {latest}), \
+                         got ({held}, {until})"
+                    ),
+                ));
+            }
+        }
+        match (saved.previous, self.previous.as_mut()) {
+            (None, _) => {}
+            (Some(_), None) => {
+                return Err(Error::value(
+                    "watchdog",
+                    "a saved previous state needs a scene with watchdog.max_stretch",
+                ))
+            }
+            (Some((pos, vel, history)), Some(buffer)) => {
+                let saved = Kinematics { pos, vel };
+                if saved.pos.len() != n
+                    || saved.vel.len() != n
+                    || saved.first_non_finite().is_some()
+                {
+                    return Err(Error::value(
+                        "watchdog",
+                        format!("the previous state must hold {n} finite positions and velocities"),
+                    ));
+                }
+                buffer.copy_from(&saved);
+                self.previous_history = history;
+                self.previous_valid = true;
+            }
+        }
+        self.unjudged = saved.unjudged;
+        self.last_substeps = saved.last_substeps;
+        self.hold = saved.hold;
+        self.stats = saved.stats;
+        Ok(())
+    }
+
     pub fn heap_bytes(&self) -> usize {
         self.previous.as_ref().map_or(0, Kinematics::heap_bytes)
             + self.retry_start.as_ref().map_or(0, Kinematics::heap_bytes)
+    }
+
+    /// The first spring of `kin` beyond the stretch limit, among the spring `kinds` the force
+    /// model has, as a failure of a step of `substeps` substeps. A full pass over the springs:
+    /// for the newest state of a call, the end of a retried step and the trouble path.
+    pub fn overstretched_in(
+        &self,
+        model: &Model,
+        kin: &Kinematics,
+        kinds: &[SpringKind],
+        in_start_state: bool,
+        substeps: u32,
+    ) -> Option<Failure> {
+        let limit = self.stretch_limit()?;
+        let (grid, springs) = (model.grid, &model.springs);
+        if !any_overstretched(grid, springs, &kin.pos, kinds, limit) {
+            return None;
+        }
+        let (particle, stretch) = find_overstretched(grid, springs, &kin.pos, kinds, limit)?;
+        Some(Failure {
+            reason: Trouble::Overstretched { stretch, limit },
+            particle,
+            in_start_state,
+            substeps,
+        })
     }
 }
 
@@ -129,7 +371,7 @@ const SCAN_CHUNK: usize = 8192;
 /// the force loop as a read-only pass of its own, for the newest state of a call. Parallel and
 /// vectorised like the force loop (an integer OR of compares), since with one step per call it
 /// runs once per step.
-pub(super) fn any_overstretched(
+fn any_overstretched(
     grid: Grid,
     springs: &Springs,
     pos: &Vec3s,
@@ -167,7 +409,7 @@ fn scan(view: &crate::springs::RunView, limit: f32) -> bool {
 /// The first live spring of `kinds` longer than `limit` times its rest length, as `(anchor
 /// particle, l / L)`. The same arithmetic as the check in the force loop, so the two agree on
 /// every spring; a serial pass, run only on the trouble path.
-pub(super) fn find_overstretched(
+fn find_overstretched(
     grid: Grid,
     springs: &Springs,
     pos: &Vec3s,

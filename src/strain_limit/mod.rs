@@ -12,7 +12,7 @@
 //! every position correction into motion, also those that fight another pass: where a
 //! collider pushes a particle out of a sphere and the stretched springs around it pull it back
 //! in, `dx / h` gave the cloth tens of metres per second each step (a resting 128 x 128 cloth
-//! on a sphere gained hundreds of joules in two steps, issue #11). The inelastic correction
+//! on a sphere gains hundreds of joules in two steps). The inelastic correction
 //! cannot add kinetic energy: each spring's impulse conserves momentum and takes away only
 //! separating speed, and each particle takes the average of its springs' impulses (see
 //! [`StrainLimit::apply`]), so the pass only ever removes kinetic energy.

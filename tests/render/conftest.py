@@ -105,7 +105,7 @@ class StandInSimulation:
         return self._alive.copy()
 
     def colliders(self) -> list[dict[str, Any]]:
-        return []  # the old [[spheres]] only
+        return []  # its scene has [[spheres]] and no [[colliders]]
 
     def collider_poses(self) -> tuple[np.ndarray, np.ndarray]:
         return np.zeros((0, 3)), np.zeros((0, 4))

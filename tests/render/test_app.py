@@ -83,8 +83,8 @@ def test_demo_runs_with_scripted_grab_drag_and_cut(xdisplay: str) -> None:
     assert report["grabbed"] is not None
     assert report["miss"] < 0.05 * report["size"]
     assert np.linalg.norm(report["moved"]) > 0.2 * report["size"]
-    # The cut: springs severed along the stroke, no particle removed (issue 15: a cut keeps
-    # the mass), new topology; the grab was let go.
+    # The cut: springs severed along the stroke, no particle removed (a cut keeps the mass),
+    # new topology; the grab was let go.
     assert 0 < report["cut"] and report["alive"] == report["n"]
     assert report["topology"] > 0 and report["released"]
     assert "fps" in report["title"]

@@ -37,8 +37,8 @@ def _to_integrator(viewer: Viewer, name: str) -> None:
 
 
 def test_explicit_euler_diverges_rolls_back_and_keeps_running(ctx: Any) -> None:
-    """Regression (issue 18): pressing I four times reached explicit_euler, which diverged
-    within a second and closed the demo with exit status 2."""
+    """Cycling integrators with I reaches explicit_euler, which diverges within a second on
+    the demo's cloth: the viewer rolls back and keeps running rather than closing the demo."""
     viewer, fbo = _viewer(ctx)
     for _ in range(5):
         viewer.frame(fbo, 1 / 30)
@@ -168,8 +168,8 @@ def test_grab_uses_the_core_and_release_restores_pins(ctx: Any) -> None:
 
 
 def test_default_script_fits_the_run() -> None:
-    """Regression (issue 18): the built-in script grabbed at 2.0 s, so `render --frames 60`
-    (1.97 s at 30 fps) never showed the drag."""
+    """The built-in script ends within the run it is made for, so that a short render
+    (`render --frames 60`: 1.97 s at 30 fps) shows its drag."""
     sim = rustcloth.Simulation(rustcloth.load_scene("drape"))
     for duration in (59 / 30, 4.0, 10.0):
         script = default_script(sim.nx, sim.ny, sim.positions, 1.6, duration)

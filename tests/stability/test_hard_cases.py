@@ -1,4 +1,4 @@
-"""Hard cases stay numerically stable (issue 6). Every case runs every integrator it applies to
+"""Hard cases stay numerically stable. Every case runs every integrator it applies to
 and checks every step (``run_checked``): finite, bounded, outside the colliders, pins bitwise
 put. Where an integrator cannot hold a case, the failure must be the watchdog's report with the
 state rolled back, never a NaN. The impacts, the 10 m drag, cutting everything and the cloth

@@ -1,5 +1,5 @@
 """Long runs stay stable: a damped hanging cloth loses energy window after window and comes
-to rest (issue 6's long-run case)."""
+to rest."""
 
 from __future__ import annotations
 

@@ -10,7 +10,7 @@ import sys
 import time
 from typing import Any, TextIO
 
-from .._cli import Parser, fail, guarded, positive, positive_int, progress
+from .._cli import Parser, guarded, positive, positive_int, progress
 from .driver import BACKENDS, SweepResult, run_sweep
 from .local import available_cores
 from .runner import STATUSES
@@ -156,13 +156,14 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(argv: list[str]) -> int:
-    args = parser().parse_args(argv)
-    prog = "rustcloth sweep"
+    options = parser()
+    args = options.parse_args(argv)
+    prog = options.prog
     if args.address is not None and args.backend != "ray":
-        return fail(prog, "--address is for the ray backend")
+        options.error("--address is for the ray backend")
     if args.workers is not None and args.backend == "ray":
-        return fail(prog, "--workers is for the local backend (ray runs as many tasks as the "
-                          "cluster has CPUs for; --threads sets CPUs per task)")
+        options.error("--workers is for the local backend (ray runs as many tasks as the "
+                      "cluster has CPUs for; --threads sets CPUs per task)")
     sweep = Sweep.from_toml(args.sweep, modules=args.module)
     if args.time_limit is not None:
         sweep = dataclasses.replace(sweep, time_limit=args.time_limit)

@@ -33,9 +33,9 @@ def _size(text: str) -> tuple[int, int]:
     try:
         w, h = (int(v) for v in text.lower().split("x"))
     except ValueError:
-        raise argparse.ArgumentTypeError(f"must look like 640x480, got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"must look like 640x480, not {text!r}") from None
     if not (16 <= w <= 8192 and 16 <= h <= 8192):
-        raise argparse.ArgumentTypeError(f"must be 16..8192 pixels each way, got {text!r}")
+        raise argparse.ArgumentTypeError(f"must be 16..8192 pixels each way, not {text!r}")
     return w, h
 
 
@@ -45,9 +45,9 @@ def _scale(text: str) -> float | None:
     try:
         value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"must be 'auto' or a number, got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"must be 'auto' or a number, not {text!r}") from None
     if not 0.25 <= value <= 1.0:
-        raise argparse.ArgumentTypeError(f"must be between 0.25 and 1, got {text!r}")
+        raise argparse.ArgumentTypeError(f"must be between 0.25 and 1, not {text!r}")
     return value
 
 
@@ -84,9 +84,9 @@ def _notice(text: str) -> None:
 # -- the desktop demo ------------------------------------------------------------------------
 def demo_parser() -> argparse.ArgumentParser:
     """The parser of ``rustcloth demo``."""
-    parser = Parser(prog="rustcloth demo", description="the interactive demo in a window")
+    parser = Parser(prog="rustcloth demo", description="The interactive demo in a window.")
     parser.add_argument("scene", nargs="?", default="drape",
-                        help=f"a built-in scene ({', '.join(scenes())}) or a scene TOML file")
+                        help=f"a built-in scene ({', '.join(scenes())}) or a TOML scene file")
     parser.add_argument("--size", type=_size, default="1280x720", help="window size, WxH")
     parser.add_argument("--frames", type=positive_int, default=None,
                         help="quit after this many frames (default: when the window closes)")
@@ -121,7 +121,9 @@ def _demo(argv: list[str]) -> int:
     except DisplayUnavailable as err:
         no_display = str(err)
     except GLUnavailable as err:
-        print(err, file=sys.stderr)
+        # Exit status 1, not a usage error's 2: the machine lacks OpenGL. The message keeps its
+        # lines, the packages to install.
+        print(f"rustcloth demo: error: {err}", file=sys.stderr)
         return 1
     else:
         try:
@@ -148,9 +150,11 @@ def _demo(argv: list[str]) -> int:
 # -- headless --------------------------------------------------------------------------------
 def render_parser() -> argparse.ArgumentParser:
     """The parser of ``rustcloth render``."""
-    parser = Parser(prog="rustcloth render", description="render a scene offscreen through EGL")
-    parser.add_argument("scene", help=f"a built-in scene ({', '.join(scenes())}) or a scene "
-                                      "TOML file")
+    parser = Parser(prog="rustcloth render",
+                    description="Render a scene offscreen through EGL: PNG frames, optionally a "
+                                "GIF and an MP4.")
+    parser.add_argument("scene", help=f"a built-in scene ({', '.join(scenes())}) or a TOML "
+                                      "scene file")
     parser.add_argument("--frames", type=positive_int, default=120,
                         help="frames to render (the first at t = 0)")
     parser.add_argument("--fps", type=positive, default=30.0,
@@ -208,7 +212,7 @@ def _render(argv: list[str]) -> int:
             name=Path(args.scene).stem, view=args.view, ssao=args.ssao, lights=args.lights,
             overlay=args.overlay, on_notice=_notice)
     except GLUnavailable as err:
-        print(err, file=sys.stderr)
+        print(f"rustcloth render: error: {err}", file=sys.stderr)
         return 1
     pngs = [p for p in written if p.suffix == ".png"]
     print(f"wrote {len(pngs)} PNG frames to {out}/frame_*.png")

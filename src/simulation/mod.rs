@@ -15,8 +15,7 @@ use crate::integrators::{IntegratorKind, SolverStats};
 use crate::interaction::Grab;
 use crate::model::Model;
 use crate::particles::Particles;
-use crate::picking::STROKE_TREE_MIN_RAYS;
-use crate::picking::{BvhStats, ParticleHit, PickStrategy, Picker, Ray, TriangleHit};
+use crate::picking::Picker;
 use crate::profile::Profile;
 use crate::render_mesh::{CutVertex, RenderMesh};
 use crate::scene::{check_substep, Scene};
@@ -25,6 +24,8 @@ use crate::soa::Vec3s;
 use crate::springs::Springs;
 use crate::state::State;
 use crate::stepper::{Stepper, WatchdogStats};
+
+mod interaction;
 
 pub use crate::stepper::MAX_ADVANCE_STEPS;
 
@@ -291,7 +292,7 @@ impl Simulation {
     pub fn set_positions(&mut self, pos: &Vec3s) -> Result<()> {
         self.check_state_array("positions", pos)?;
         self.state.kin.pos.copy_from(pos);
-        self.state_set(true);
+        self.motion_changed();
         Ok(())
     }
 
@@ -305,7 +306,7 @@ impl Simulation {
                 self.state.kin.vel.set(p, Vec3::ZERO);
             }
         }
-        self.state_set(true);
+        self.motion_changed();
         Ok(())
     }
 
@@ -333,11 +334,17 @@ impl Simulation {
     }
 
     /// Something other than a step changed the state: caches are stale, and the watchdog must
-    /// not blame the last step for it; with `history`, positions or velocities changed, which
-    /// an integrator with history must forget.
-    fn state_set(&mut self, history: bool) {
+    /// not blame the last step for it.
+    fn state_changed(&mut self) {
         self.state.version += 1;
-        self.stepper.state_set(history);
+        self.stepper.state_replaced();
+    }
+
+    /// Something other than a step set positions or velocities: as
+    /// [`Simulation::state_changed`], and an integrator with history forgets it.
+    fn motion_changed(&mut self) {
+        self.state.version += 1;
+        self.stepper.motion_replaced();
     }
 
     /// Pins particle `index`: it stops and integration no longer moves it. With a `target`
@@ -407,7 +414,7 @@ impl Simulation {
             None => {
                 self.state.targets.remove(p);
                 self.state.kin.vel.set(p, Vec3::ZERO);
-                self.state_set(false);
+                self.state_changed();
             }
         }
     }
@@ -422,8 +429,8 @@ impl Simulation {
     }
 
     /// Removes particle `index` and every spring touching it from the cloth; its triangles
-    /// leave the mesh. Cutting a particle twice does nothing the second time. The seed's cut,
-    /// kept as it was: the particle's mass leaves the cloth. [`Simulation::sever_stroke`] cuts
+    /// leave the mesh. Cutting a particle twice does nothing the second time. The particle's
+    /// mass leaves the cloth. [`Simulation::sever_stroke`] cuts
     /// without removing anything.
     pub fn cut(&mut self, index: i64) -> Result<()> {
         let p = self.check_index("index", index)?;
@@ -437,7 +444,7 @@ impl Simulation {
         self.model.cut(p);
         self.state.targets.remove(p);
         self.state.kin.vel.set(p, Vec3::ZERO);
-        self.state_set(false);
+        self.state_changed();
     }
 
     /// Switches the integrator at run time; the state carries over.
@@ -518,224 +525,6 @@ impl Simulation {
         })
     }
 
-    // ----- picking --------------------------------------------------------------------------
-
-    /// Half-size in m of the box around each particle that `pick` tests the ray against.
-    pub fn pick_radius(&self) -> f32 {
-        self.picker.radius(&self.model)
-    }
-
-    /// Sets the pick radius (m, finite and > 0).
-    pub fn set_pick_radius(&mut self, radius: f64) -> Result<()> {
-        self.picker.set_radius(radius)
-    }
-
-    /// How queries are answered (see [`PickStrategy`]).
-    pub fn pick_strategy(&self) -> PickStrategy {
-        self.picker.strategy()
-    }
-
-    pub fn set_pick_strategy(&mut self, strategy: PickStrategy) {
-        self.picker.set_strategy(strategy);
-    }
-
-    /// Work done on the picking trees so far.
-    pub fn bvh_stats(&self) -> BvhStats {
-        self.picker.stats()
-    }
-
-    /// The live particle whose box the ray `origin + t direction` (t >= 0) enters first, as
-    /// `(index, distance along the ray in m)`; ties go to the particle nearer the ray. `None`
-    /// if the ray misses every particle. Errors (changing nothing) on a non-finite origin or
-    /// a zero or non-finite direction.
-    pub fn pick(&mut self, origin: Vec3, direction: Vec3) -> Result<Option<(usize, f32)>> {
-        let ray = Ray::new(origin, direction)?;
-        Ok(self.pick_hit(&ray).map(|h| (h.index, h.distance)))
-    }
-
-    /// [`Simulation::pick`] with the full hit (including the distance from the ray).
-    pub fn pick_hit(&mut self, ray: &Ray) -> Option<ParticleHit> {
-        self.picker.particle(&self.model, &self.state, ray, false)
-    }
-
-    /// The live triangle (an entry of [`Simulation::triangles`]) the ray hits first, as
-    /// `(triangle index, distance in m, barycentric weights of its three vertices)`.
-    pub fn pick_triangle(
-        &mut self,
-        origin: Vec3,
-        direction: Vec3,
-    ) -> Result<Option<(usize, f32, [f32; 3])>> {
-        let ray = Ray::new(origin, direction)?;
-        Ok(self
-            .pick_triangle_hit(&ray)
-            .map(|h| (h.index, h.distance, h.barycentric)))
-    }
-
-    /// [`Simulation::pick_triangle`] as a [`TriangleHit`] whose `index` is the position in
-    /// [`Simulation::triangles`].
-    pub fn pick_triangle_hit(&mut self, ray: &Ray) -> Option<TriangleHit> {
-        self.picker.triangle(&self.model, &self.state, ray)
-    }
-
-    // ----- dragging and cutting -------------------------------------------------------------
-
-    /// Grabs particle `index`: it becomes a kinematic pin at its current position, which
-    /// [`Simulation::drag_to`] moves. Grabbing while holding another particle releases that
-    /// one first. Errors on an index out of range or a cut particle.
-    pub fn grab(&mut self, index: i64) -> Result<()> {
-        let p = self.check_index("index", index)?;
-        if !self.model.particles.alive[p] {
-            return Err(Error::value(
-                "index",
-                format!("particle {p} was cut and cannot be grabbed"),
-            ));
-        }
-        self.release();
-        self.grab = Some(Grab::of(p, &self.model, &self.state));
-        self.pin_live(p, Some(self.state.kin.pos.get(p)));
-        Ok(())
-    }
-
-    /// Moves the grabbed particle's target to `target` (m): over the next step the particle
-    /// moves there, and the cloth follows through its springs. Without a grab (or once the
-    /// grabbed particle was cut) this does nothing. Errors on a non-finite target.
-    pub fn drag_to(&mut self, target: Vec3) -> Result<()> {
-        if !target.is_finite() {
-            return Err(Error::value(
-                "target",
-                format!("must be finite, got {:?}", target.to_array()),
-            ));
-        }
-        if let Some(p) = self.grabbed() {
-            // Pinned again in case `unpin` was called during the drag.
-            self.model.particles.set_pinned(p, true);
-            self.state.targets.set(p, target);
-        }
-        Ok(())
-    }
-
-    /// Lets go of the grabbed particle, restoring the pin state it had before the grab: a
-    /// free particle keeps the velocity of the drag; a statically pinned one stays pinned where
-    /// it is now; one that had a kinematic target gets it back. Without a grab this does
-    /// nothing.
-    pub fn release(&mut self) {
-        let Some(grab) = self.grab.take() else {
-            return;
-        };
-        let p = grab.index;
-        if !self.model.particles.alive[p] {
-            return; // cut while grabbed: the cut already removed the pin
-        }
-        if grab.was_pinned {
-            self.pin_live(p, grab.previous_target);
-        } else {
-            self.model.particles.set_pinned(p, false);
-            self.state.targets.remove(p);
-        }
-    }
-
-    /// The particle being dragged, if any (a grabbed particle that was cut is let go).
-    pub fn grabbed(&self) -> Option<usize> {
-        self.grab
-            .map(|g| g.index)
-            .filter(|&p| self.model.particles.alive[p])
-    }
-
-    /// Cuts the particle [`Simulation::pick`] finds along the ray; returns it, or `None` if the
-    /// ray hits nothing.
-    pub fn cut_ray(&mut self, origin: Vec3, direction: Vec3) -> Result<Option<usize>> {
-        let ray = Ray::new(origin, direction)?;
-        Ok(self.cut_along(&ray, false))
-    }
-
-    /// The seed's stroke cut (see [`Simulation::sever_stroke`] for one that keeps the mass).
-    /// Cuts, ray after ray, the particle each ray of a mouse stroke picks (a later ray sees
-    /// the cloth without the particles cut before it); returns the particles cut, in order.
-    /// Every ray is checked before anything is cut, so bad input changes nothing. Sample the
-    /// stroke densely enough (about one ray per grid spacing on screen) to leave no gaps.
-    pub fn cut_stroke(&mut self, rays: &[(Vec3, Vec3)]) -> Result<Vec<usize>> {
-        let rays = checked_rays(rays)?;
-        let many = rays.len() >= STROKE_TREE_MIN_RAYS;
-        Ok(rays
-            .iter()
-            .filter_map(|ray| self.cut_along(ray, many))
-            .collect())
-    }
-
-    /// Severs the cloth along a mouse stroke: every live spring whose segment crosses the
-    /// surface the rays sweep between consecutive samples (the quad from one ray to the next,
-    /// reaching through the whole cloth) is severed, and the mesh's triangles across it go.
-    /// Returns how many springs were severed. No particle is removed, so the cloth's mass is
-    /// exactly what it was, and a grabbed particle stays grabbed on whichever piece it is now.
-    ///
-    /// Every ray is checked before anything changes (an error names `rays[k].origin` or
-    /// `rays[k].direction`). Documented no-ops, returning 0 with nothing changed (not even the
-    /// topology version): fewer than two rays (a click sweeps no surface), rays that do not
-    /// move (a stroke of zero length), a stroke that misses the cloth or crosses only springs
-    /// already severed (cutting a piece that is already separate along the same line).
-    pub fn sever_stroke(&mut self, rays: &[(Vec3, Vec3)]) -> Result<usize> {
-        self.sever_stroke_with(rays, &mut || false)
-    }
-
-    /// [`Simulation::sever_stroke`], asking `interrupted` now and then while it looks for the
-    /// springs to sever (a stroke of millions of rays takes seconds); an interrupted stroke
-    /// severs nothing and returns [`Error::Interrupted`].
-    pub fn sever_stroke_with(
-        &mut self,
-        rays: &[(Vec3, Vec3)],
-        interrupted: &mut dyn FnMut() -> bool,
-    ) -> Result<usize> {
-        let rays = checked_rays(rays)?;
-        let model = &self.model;
-        let crossings = self.cutter.crossings(
-            model.grid,
-            &model.springs,
-            &model.particles.alive,
-            &self.state.kin.pos,
-            &rays,
-            interrupted,
-        );
-        match crossings {
-            Some(crossings) => Ok(self.model.sever_crossing(crossings)),
-            None => Err(Error::Interrupted { steps: 0 }),
-        }
-    }
-
-    /// The number of pieces the cloth is in: connected components of the live particles
-    /// joined by live springs (`O(n)`).
-    pub fn pieces(&self) -> usize {
-        let model = &self.model;
-        crate::cutting::pieces(model.grid, &model.springs, &model.particles.alive)
-    }
-
-    /// The piece each particle belongs to, named by the smallest particle index in it
-    /// (`u32::MAX` for a removed particle).
-    pub fn piece_labels(&self) -> Vec<u32> {
-        let model = &self.model;
-        crate::cutting::piece_labels(model.grid, &model.springs, &model.particles.alive)
-    }
-
-    /// Whether the spring of `kind` anchored at particle `anchor` is live (false for a slot
-    /// off the grid, or a spring cut, severed or torn).
-    pub fn spring_live(&self, kind: crate::grid::SpringKind, anchor: usize) -> bool {
-        self.model.springs.active[kind.index()]
-            .get(anchor)
-            .is_some_and(|&a| a != 0.0)
-    }
-
-    /// Cuts the particle `ray` picks, removing its leaves from the picking trees that were up
-    /// to date: a cut moves nothing, so they stay valid without a refit.
-    fn cut_along(&mut self, ray: &Ray, many: bool) -> Option<usize> {
-        let p = self
-            .picker
-            .particle(&self.model, &self.state, ray, many)?
-            .index;
-        let before = Picker::versions(&self.model, &self.state);
-        self.cut_live(p);
-        self.picker.after_cut(&self.model, &self.state, p, before);
-        Some(p)
-    }
-
     // ----- saving and restoring -------------------------------------------------------------
 
     /// The whole state, to save or send elsewhere; [`Simulation::restore`] continues it bit for
@@ -763,17 +552,6 @@ impl Simulation {
         sim.grab = snapshot.apply(model, state, stepper, picker)?;
         Ok(sim)
     }
-}
-
-/// The rays of a stroke, each checked and named `rays[k].origin` / `rays[k].direction`.
-fn checked_rays(rays: &[(Vec3, Vec3)]) -> Result<Vec<Ray>> {
-    rays.iter()
-        .enumerate()
-        .map(|(k, &(o, d))| {
-            let (origin, dir) = (format!("rays[{k}].origin"), format!("rays[{k}].direction"));
-            Ray::named(o, d, &origin, &dir)
-        })
-        .collect()
 }
 
 /// Total force on each particle of the current state, for tests and diagnostics.

@@ -1,0 +1,211 @@
+//! Wind (`[wind]`, src/wind.rs): drag and lift of the air on each triangle, applied after the
+//! integrator as an implicit change of velocity.
+
+mod common;
+
+use common::{state_hash, with_threads};
+use rustcloth::scene::WindSpec;
+use rustcloth::{IntegratorKind, Scene, Simulation};
+
+/// A 0.8 m x 0.8 m curtain hung along its top edge in the xy plane, 0.5 kg/m^2.
+fn curtain(wind: Option<WindSpec>) -> Scene {
+    let mut scene = Scene::from_toml_str(
+        r#"
+        dt = 0.001
+        substeps = 2
+        [cloth]
+        nx = 16
+        ny = 16
+        size = [0.8, 0.8]
+        center = [0.0, 1.0, 0.0]
+        plane = "xy"
+        mass = 0.32
+        k_structural = 300.0
+        k_shear = 60.0
+        k_bend = 5.0
+        damping = 0.02
+        pins = ["top_edge"]
+        "#,
+    )
+    .unwrap();
+    scene.wind = wind;
+    scene
+}
+
+/// A steady wind along `velocity`, without gusts or turbulence.
+fn steady(velocity: [f64; 3]) -> WindSpec {
+    WindSpec {
+        velocity,
+        gust: 0.0,
+        turbulence: 0.0,
+        ..WindSpec::default()
+    }
+}
+
+fn mean_z(sim: &Simulation) -> f64 {
+    let z = &sim.positions().z;
+    z.iter().map(|&v| v as f64).sum::<f64>() / z.len() as f64
+}
+
+#[test]
+fn wind_deflects_a_hanging_cloth_downwind_and_a_stronger_wind_more() {
+    let mut deflection = Vec::new();
+    for speed in [0.0, 2.0, 4.0] {
+        let mut sim = Simulation::new(curtain(Some(steady([0.0, 0.0, speed])))).unwrap();
+        sim.step(1500).unwrap();
+        deflection.push(mean_z(&sim));
+    }
+    let [still, breeze, wind] = deflection[..] else {
+        unreachable!()
+    };
+    assert!(still.abs() < 1e-6, "still air moved the curtain {still} m");
+    assert!(
+        breeze > 0.02,
+        "a 2 m/s breeze moved it only {breeze} m downwind"
+    );
+    // Drag grows with the square of the speed: twice the wind, well over twice the push
+    // (the deflection less, as the curtain lifts towards the flow and shows it less area).
+    assert!(wind > 1.5 * breeze, "4 m/s: {wind} m, 2 m/s: {breeze} m");
+}
+
+#[test]
+fn a_steady_wind_carries_a_free_cloth_up_to_its_speed_and_never_faster() {
+    // A horizontal cloth without springs or gravity, broadside to an upward wind: each particle
+    // must approach the wind's speed from below, at any step, under every integrator (the drag
+    // is taken implicitly).
+    for integrator in IntegratorKind::ALL {
+        for dt in [0.001, 1.0 / 60.0] {
+            let mut scene = common::bare_scene(6, 6);
+            (scene.integrator, scene.dt) = (integrator, dt);
+            let cloth = &mut scene.cloth;
+            (cloth.k_structural, cloth.k_shear, cloth.k_bend) = (0.0, 0.0, 0.0);
+            scene.wind = Some(steady([0.0, 4.0, 0.0]));
+            let mut sim = Simulation::new(scene).unwrap();
+            let mut fastest = 0.0f32;
+            for _ in 0..(3.0 / dt) as usize {
+                sim.step(1).unwrap();
+                let vy = &sim.velocities().y;
+                fastest = vy.iter().fold(fastest, |m, &v| m.max(v));
+            }
+            // Without springs the particles drift apart and tilt their triangles edge-on to
+            // the flow, which then stops pushing them: the mean, not every particle, arrives.
+            let vy = &sim.velocities().y;
+            let mean = vy.iter().sum::<f32>() / vy.len() as f32;
+            assert!(
+                fastest <= 4.0 * (1.0 + 1e-5),
+                "{integrator:?} at dt {dt}: {fastest} m/s in a 4 m/s wind"
+            );
+            assert!(
+                mean > 3.8,
+                "{integrator:?} at dt {dt}: only {mean} m/s on average after 3 s in a 4 m/s wind"
+            );
+        }
+    }
+}
+
+#[test]
+fn still_air_leaves_a_resting_cloth_bitwise_alone() {
+    // The pass runs, but a cloth at rest in air at rest feels no force.
+    let weightless = |wind| Scene {
+        gravity: [0.0; 3],
+        ..curtain(wind)
+    };
+    let mut without = Simulation::new(weightless(None)).unwrap();
+    let mut still = Simulation::new(weightless(Some(steady([0.0; 3])))).unwrap();
+    assert!(still.effects().contains(&"wind"));
+    assert!(!without.effects().contains(&"wind"));
+    without.step(50).unwrap();
+    still.step(50).unwrap();
+    assert_eq!(state_hash(&without), state_hash(&still));
+}
+
+#[test]
+fn a_flat_plate_feels_the_textbook_drag_and_lift() {
+    // A flat cloth moving uniformly through still air, for one short step: the momentum it
+    // loses is the plate's force, F = 1/2 rho A |u|^2 (C_d |cos| u_hat + C_l alpha n), with
+    // alpha the angle of attack. Broadside (alpha = 90 degrees) and at 30 degrees.
+    for degrees in [90.0f32, 30.0] {
+        let mut scene = common::bare_scene(8, 8);
+        scene.dt = 1e-5;
+        scene.wind = Some(steady([0.0; 3]));
+        let wind = scene.wind.clone().unwrap();
+        let mut sim = Simulation::new(scene).unwrap();
+        // The cloth lies in xz (normal +-y); it moves down and sideways at 2 m/s.
+        let a = degrees.to_radians();
+        let v = glam::Vec3::new(a.cos(), -a.sin(), 0.0) * 2.0;
+        let n = sim.velocities().len();
+        sim.set_velocities(&rustcloth::soa::Vec3s::from_fn(n, |_| v))
+            .unwrap();
+        let mass: f64 = sim.particles().mass.iter().map(|&m| m as f64).sum();
+        sim.step(1).unwrap();
+        let vel = sim.velocities();
+        let mean = (0..n).map(|p| vel.get(p).as_dvec3()).sum::<glam::DVec3>() / n as f64;
+        let force = (mean - v.as_dvec3()) * mass / 1e-5;
+        // The air relative to the plate, u = -v, and the plate's normal facing it.
+        let u = -v.as_dvec3();
+        let (speed, normal) = (u.length(), glam::DVec3::Y);
+        let (q, area) = (0.5 * wind.air_density * speed * speed, 1.0);
+        let alpha = (u.dot(normal) / speed).asin();
+        let expected = q
+            * area
+            * (wind.drag * (u.dot(normal) / speed).abs() * u / speed + wind.lift * alpha * normal);
+        assert!(
+            (force - expected).length() < 0.01 * expected.length(),
+            "at {degrees} degrees: force {force:?} N, a plate's {expected:?} N"
+        );
+    }
+}
+
+#[test]
+fn the_gusty_flag_is_the_same_on_one_and_two_threads() {
+    let run = |threads| {
+        with_threads(threads, || {
+            let mut sim = Simulation::new(Scene::builtin("flag").unwrap()).unwrap();
+            sim.step(300).unwrap();
+            state_hash(&sim)
+        })
+    };
+    assert_eq!(run(1), run(2));
+}
+
+#[test]
+fn the_flag_streams_out_downwind_and_keeps_moving() {
+    let mut sim = Simulation::new(Scene::builtin("flag").unwrap()).unwrap();
+    sim.step(4000).unwrap();
+    let x = &sim.positions().x;
+    let tip = x.iter().fold(f32::MIN, |m, &v| m.max(v));
+    // Hung from a pole at x = 0 with a 1.2 m fly: in a 5 m/s breeze it stands out from the
+    // pole instead of hanging down it.
+    assert!(tip > 0.8, "the flag's far edge reached only x = {tip} m");
+    // Gusts and eddies keep it moving: it never settles.
+    let speed = sim
+        .velocities()
+        .y
+        .iter()
+        .map(|v| v.abs())
+        .fold(0.0f32, f32::max);
+    assert!(
+        speed > 0.05,
+        "the flag is still: fastest vertical speed {speed} m/s"
+    );
+}
+
+#[test]
+fn bad_wind_settings_are_named() {
+    for (key, value) in [
+        ("gust", "1.5"),
+        ("gust_period", "0.0"),
+        ("turbulence", "-1.0"),
+        ("turbulence_scale", "0.0"),
+        ("drag", "-0.1"),
+        ("air_density", "0.0"),
+        ("velocity", "[1e9, 0.0, 0.0]"),
+    ] {
+        let text = format!("[cloth]\nnx = 4\nny = 4\n[wind]\n{key} = {value}\n");
+        let error = Scene::from_toml_str(&text).unwrap_err().to_string();
+        assert!(
+            error.contains(&format!("wind.{key}")),
+            "{key} = {value}: {error}"
+        );
+    }
+}
