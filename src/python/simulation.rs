@@ -5,6 +5,7 @@
 
 use numpy::{PyArrayDescrMethods, PyReadonlyArray1, PyUntypedArray, PyUntypedArrayMethods};
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 
 use super::conv::{
     count_from_any, f64s_from_array, float_from_any, index_from_any, int_from_any, scene_from_dict,
@@ -172,8 +173,6 @@ reads! {
         let uvs = crate::render_mesh::uvs(grid, cut).as_flattened().to_vec();
         (Rows(triangles, 3), Rows(uvs, 2), Rows(crate::render_mesh::sources(grid, cut), 0))
     };
-    /// The whole state as a dict of numpy arrays and plain values (see `set_state`).
-    fn get_state -> state::State = |h| state::State(h.sim.snapshot());
     /// The scene with the run-time settings as they are now.
     fn scene_dict -> SceneDict = |h| SceneDict(h.sim.scene().clone());
     #[getter] fn time -> f64 = |h| h.sim.time();
@@ -299,12 +298,18 @@ impl PySimulation {
         })
     }
 
-    fn __reduce__<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyAny>, (state::State,))> {
-        let snapshot = self.with(py, |h| Ok(h.sim.snapshot()))?;
-        let constructor = py
-            .import("rustcloth._core")?
-            .getattr("simulation_from_state")?;
-        Ok((constructor, (state::State(snapshot),)))
+    /// The whole state as a dict of numpy arrays and plain values (see `set_state`).
+    fn get_state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        state::to_dict(py, &self.with(py, |h| Ok(h.sim.snapshot()))?)
+    }
+
+    fn __reduce__<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyDict>,))> {
+        let constructor = py.import("rustcloth._core")?;
+        let constructor = constructor.getattr("simulation_from_state")?;
+        Ok((constructor, (self.get_state(py)?,)))
     }
 
     /// Makes the next force evaluation panic inside its parallel sweep: a stand-in for a bug,

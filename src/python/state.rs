@@ -23,37 +23,27 @@ use crate::soa::Vec3s;
 /// The layout of the dict; a state of another layout is refused rather than guessed at.
 const VERSION: u64 = 3;
 
-/// A snapshot on its way to Python as a dict.
-pub struct State(pub Snapshot);
-
-impl<'py> IntoPyObject<'py> for State {
-    type Target = PyDict;
-    type Output = Bound<'py, PyDict>;
-    type Error = PyErr;
-
-    fn into_pyobject(self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let s = &self.0;
-        let d = pythonize(py, s)?.cast_into::<PyDict>()?;
-        d.set_item("version", VERSION)?;
-        d.set_item("scene", scene_to_dict(py, &s.scene)?)?;
-        d.set_item("positions", Rows::vec3s(&s.positions))?;
-        d.set_item("velocities", Rows::vec3s(&s.velocities))?;
-        d.set_item("masses", PyArray1::from_slice(py, &s.masses))?;
-        d.set_item("pinned", PyArray1::from_slice(py, &s.pinned))?;
-        d.set_item("alive", PyArray1::from_slice(py, &s.alive))?;
-        let springs = s.springs.iter().map(|f| PyArray1::from_slice(py, f));
-        d.set_item("springs", PyList::new(py, springs)?)?;
-        let previous = match &s.watchdog.previous {
-            Some((pos, vel, history)) => {
-                Some((Rows::vec3s(pos), Rows::vec3s(vel), pythonize(py, history)?))
-            }
-            None => None,
-        };
-        d.get_item("watchdog")?
-            .expect("serialised with the snapshot")
-            .set_item("previous", previous)?;
-        Ok(d)
-    }
+pub fn to_dict<'py>(py: Python<'py>, s: &Snapshot) -> PyResult<Bound<'py, PyDict>> {
+    let d = pythonize(py, s)?.cast_into::<PyDict>()?;
+    d.set_item("version", VERSION)?;
+    d.set_item("scene", scene_to_dict(py, &s.scene)?)?;
+    d.set_item("positions", Rows::vec3s(&s.positions))?;
+    d.set_item("velocities", Rows::vec3s(&s.velocities))?;
+    d.set_item("masses", PyArray1::from_slice(py, &s.masses))?;
+    d.set_item("pinned", PyArray1::from_slice(py, &s.pinned))?;
+    d.set_item("alive", PyArray1::from_slice(py, &s.alive))?;
+    let springs = s.springs.iter().map(|f| PyArray1::from_slice(py, f));
+    d.set_item("springs", PyList::new(py, springs)?)?;
+    let previous = match &s.watchdog.previous {
+        Some((pos, vel, history)) => {
+            Some((Rows::vec3s(pos), Rows::vec3s(vel), pythonize(py, history)?))
+        }
+        None => None,
+    };
+    d.get_item("watchdog")?
+        .expect("serialised with the snapshot")
+        .set_item("previous", previous)?;
+    Ok(d)
 }
 
 /// `T` from a Python value, errors named `name` and the path below it (`state.targets[0]`).
