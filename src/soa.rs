@@ -113,32 +113,6 @@ impl Vec3s {
         out
     }
 
-    pub fn len(&self) -> usize {
-        self.x.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.x.is_empty()
-    }
-
-    #[inline]
-    pub fn get(&self, i: usize) -> Vec3 {
-        Vec3::new(self.x[i], self.y[i], self.z[i])
-    }
-
-    #[inline]
-    pub fn set(&mut self, i: usize, v: Vec3) {
-        self.x[i] = v.x;
-        self.y[i] = v.y;
-        self.z[i] = v.z;
-    }
-
-    pub fn fill(&mut self, v: Vec3) {
-        self.x.fill(v.x);
-        self.y.fill(v.y);
-        self.z.fill(v.z);
-    }
-
     pub fn copy_from(&mut self, other: &Vec3s) {
         self.x.copy_from_slice(&other.x);
         self.y.copy_from_slice(&other.y);
@@ -225,6 +199,15 @@ impl Vec3SliceMut<'_> {
         }
     }
 
+    /// Read-only views of these slices, for reading back what was just written.
+    pub fn as_slices(&self) -> Vec3Slice<'_> {
+        Vec3Slice {
+            x: self.x,
+            y: self.y,
+            z: self.z,
+        }
+    }
+
     /// Component `c` (0 = x, 1 = y, 2 = z).
     #[inline]
     pub fn component_mut(&mut self, c: usize) -> &mut [f32] {
@@ -234,33 +217,44 @@ impl Vec3SliceMut<'_> {
             _ => &mut *self.z,
         }
     }
-
-    pub fn len(&self) -> usize {
-        self.x.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.x.is_empty()
-    }
-
-    #[inline]
-    pub fn get(&self, i: usize) -> Vec3 {
-        Vec3::new(self.x[i], self.y[i], self.z[i])
-    }
-
-    #[inline]
-    pub fn set(&mut self, i: usize, v: Vec3) {
-        self.x[i] = v.x;
-        self.y[i] = v.y;
-        self.z[i] = v.z;
-    }
-
-    pub fn fill(&mut self, v: Vec3) {
-        self.x.fill(v.x);
-        self.y.fill(v.y);
-        self.z.fill(v.z);
-    }
 }
+
+/// The per-particle accessors of three equal-length component arrays, for the owned arrays and
+/// for views into them alike: both hold `x`, `y`, `z` that index and fill as `f32` slices.
+macro_rules! vec3_accessors {
+    ($t:ty) => {
+        impl $t {
+            pub fn len(&self) -> usize {
+                self.x.len()
+            }
+
+            pub fn is_empty(&self) -> bool {
+                self.x.is_empty()
+            }
+
+            #[inline]
+            pub fn get(&self, i: usize) -> Vec3 {
+                Vec3::new(self.x[i], self.y[i], self.z[i])
+            }
+
+            #[inline]
+            pub fn set(&mut self, i: usize, v: Vec3) {
+                self.x[i] = v.x;
+                self.y[i] = v.y;
+                self.z[i] = v.z;
+            }
+
+            pub fn fill(&mut self, v: Vec3) {
+                self.x.fill(v.x);
+                self.y.fill(v.y);
+                self.z.fill(v.z);
+            }
+        }
+    };
+}
+
+vec3_accessors!(Vec3s);
+vec3_accessors!(Vec3SliceMut<'_>);
 
 impl Vec3s {
     /// Parallel iterator over consecutive chunks of `chunk` particles (the last may be shorter).

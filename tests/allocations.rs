@@ -18,7 +18,7 @@ use std::cell::Cell;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Mutex;
 
-use common::with_threads;
+use common::{builtin_scene, with_threads};
 use glam::Vec3;
 use rustcloth::grid::Grid;
 use rustcloth::model::Particles;
@@ -80,10 +80,7 @@ fn no_integrator_allocates_while_stepping() {
                     Some(StrainLimitSpec::default()),
                 ),
             ] {
-                let mut scene = Scene::builtin("drape").unwrap();
-                scene.integrator = integrator;
-                scene.cloth.nx = 64;
-                scene.cloth.ny = 64;
+                let mut scene = builtin_scene("drape", integrator, 64, 64);
                 scene.dt = 0.0002;
                 scene.floor = Some(FloorSpec::default());
                 scene.watchdog = watchdog;
@@ -129,7 +126,7 @@ fn check_stepping(integrator: IntegratorKind, scene: Scene) {
 }
 
 #[test]
-fn issue_11_the_watchdog_retry_path_allocated() {
+fn the_watchdog_retry_path_does_not_allocate() {
     // The allocation test armed the watchdog with a limit that never tripped, so the retry
     // path was never measured; read, it allocated the retry's start state on the first retry
     // and the step's start on the first held multi-substep step. A scene that trips the limit
@@ -138,10 +135,7 @@ fn issue_11_the_watchdog_retry_path_allocated() {
     with_threads(2, || {
         rayon::broadcast(|_| WATCHED.with(|w| w.set(true)));
         for integrator in IntegratorKind::ALL {
-            let mut scene = rustcloth::Scene::builtin("hanging").unwrap();
-            scene.integrator = integrator;
-            scene.cloth.nx = 48;
-            scene.cloth.ny = 48;
+            let mut scene = builtin_scene("hanging", integrator, 48, 48);
             scene.cloth.k_structural = 20000.0;
             scene.substeps = 1;
             scene.dt = 0.002;

@@ -85,12 +85,7 @@ fn top(c: &ColliderSpec) -> f64 {
 
 /// A free 24 x 24 cloth, 0.8 m across, falling from 0.1 m above `collider`'s top.
 fn drop_onto(collider: ColliderSpec) -> Simulation {
-    let mut scene = bare_scene(24, 24);
-    scene.gravity = [0.0, -9.81, 0.0];
-    scene.cloth.size = [0.8, 0.8];
-    scene.cloth.center = [0.0, top(&collider) + 0.1, 0.0];
-    scene.colliders = vec![collider];
-    Simulation::new(scene).unwrap()
+    cloth_over(24, 0.8, top(&collider) + 0.1, vec![collider])
 }
 
 fn least_distance(sim: &Simulation, c: &ColliderSpec) -> f64 {
@@ -153,8 +148,7 @@ fn every_shape_stops_a_falling_cloth() {
 /// One free particle (a 2 x 2 grid with three particles cut) at `start`, at rest, under
 /// gravity, with `collider`.
 fn particle_on(collider: ColliderSpec, start: Vec3, v0: Vec3) -> Simulation {
-    let mut scene = bare_scene(2, 2);
-    scene.gravity = [0.0, -9.81, 0.0];
+    let mut scene = scene_under_gravity(2, 2);
     scene.colliders = vec![collider];
     lone_particle(scene, start, v0)
 }
@@ -201,18 +195,10 @@ fn a_moving_box_carries_the_cloth_resting_on_it() {
         friction: 0.8,
         ..ColliderSpec::default()
     };
-    let mut scene = bare_scene(12, 12);
-    scene.gravity = [0.0, -9.81, 0.0];
-    scene.cloth.size = [0.5, 0.5];
-    scene.cloth.center = [0.0, 0.1 + collider.thickness + 1e-4, 0.0];
-    scene.colliders = vec![collider.clone()];
-    let mut sim = Simulation::new(scene).unwrap();
+    let top = 0.1 + collider.thickness + 1e-4;
+    let mut sim = cloth_over(12, 0.5, top, vec![collider.clone()]);
     sim.step(1000).unwrap();
-    let n = sim.velocities().len();
-    let mean_vx = (0..n)
-        .map(|p| sim.velocities().get(p).x as f64)
-        .sum::<f64>()
-        / n as f64;
+    let mean_vx = mean_velocity_x(&sim);
     assert!(
         (mean_vx - v).abs() < 0.02 * v,
         "after 1 s the cloth moves at {mean_vx} m/s, the box at {v}"

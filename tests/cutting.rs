@@ -1,4 +1,4 @@
-//! Cuts that sever springs along a stroke (issue 15): the pieces separate, mass is conserved to
+//! Cuts that sever springs along a stroke: the pieces separate, mass is conserved to
 //! the bit, the mesh follows the cut, and picking, dragging, the solvers and determinism keep
 //! working across cuts.
 
@@ -14,30 +14,38 @@ use rustcloth::{IntegratorKind, Scene, Simulation};
 const G: f32 = 9.81;
 const N: u32 = 20;
 
-/// A vertical 20 x 20 cloth, 1 m square, in the xy plane centred at (0, 1.5, 0), pinned along
-/// its top row (j = ny - 1, y = 2).
-fn curtain(integrator: IntegratorKind) -> Scene {
+/// An `n` x `n` cloth, 1 m square, in `plane` centred at `center`, pinned by the named set
+/// `pins`: light (1 g a particle) and soft, as the cloth a user cuts in the demo.
+fn sheet(n: u32, plane: Plane, center: [f64; 3], pins: &str) -> Scene {
     Scene {
-        integrator,
         dt: 0.001,
         // Two substeps, as the built-in hanging scene: one is past symplectic Euler's limit.
         substeps: 2,
         gravity: [0.0, -G as f64, 0.0],
         cloth: ClothSpec {
-            nx: N,
-            ny: N,
+            nx: n,
+            ny: n,
             size: [1.0, 1.0],
-            center: [0.0, 1.5, 0.0],
-            plane: Plane::Xy,
+            center,
+            plane,
             particle_mass: Some(0.001),
             k_structural: 800.0,
             k_shear: 200.0,
             k_bend: 20.0,
             damping: 0.01,
-            pins: vec![PinSpec::Named("top_edge".into())],
+            pins: vec![PinSpec::Named(pins.into())],
             ..ClothSpec::default()
         },
         ..Scene::default()
+    }
+}
+
+/// A vertical 20 x 20 cloth, 1 m square, in the xy plane centred at (0, 1.5, 0), pinned along
+/// its top row (j = ny - 1, y = 2).
+fn curtain(integrator: IntegratorKind) -> Scene {
+    Scene {
+        integrator,
+        ..sheet(N, Plane::Xy, [0.0, 1.5, 0.0], "top_edge")
     }
 }
 
@@ -270,25 +278,8 @@ fn a_cut_during_a_drag_keeps_the_drag() {
 #[test]
 fn an_isolated_fragment_falls_lands_and_rests() {
     let mut scene = Scene {
-        dt: 0.001,
-        substeps: 2,
-        gravity: [0.0, -G as f64, 0.0],
-        cloth: ClothSpec {
-            nx: 24,
-            ny: 24,
-            size: [1.0, 1.0],
-            center: [0.0, 0.3, 0.0],
-            plane: Plane::Xz,
-            particle_mass: Some(0.001),
-            k_structural: 800.0,
-            k_shear: 200.0,
-            k_bend: 20.0,
-            damping: 0.01,
-            pins: vec![PinSpec::Named("corners".into())],
-            ..ClothSpec::default()
-        },
         floor: Some(FloorSpec::default()),
-        ..Scene::default()
+        ..sheet(24, Plane::Xz, [0.0, 0.3, 0.0], "corners")
     };
     scene.floor.as_mut().unwrap().height = 0.0;
     let mut sim = Simulation::new(scene).unwrap();
@@ -353,12 +344,12 @@ fn an_isolated_fragment_falls_lands_and_rests() {
     }
 }
 
-/// Issue 15's story: in the demo a cut that deleted particles left a thin strip, which flew
+/// In the demo a cut that deleted particles left a thin strip, which flew
 /// about a metre toward the camera and lay there. Here two cuts one grid spacing apart cut a
 /// strip off a hanging cloth; the strip falls (at g, within rounding) and nothing in the
 /// cloth moves faster than free fall allows.
 #[test]
-fn issue_15_flying_strip_falls_instead() {
+fn a_strip_cut_off_falls_instead_of_flying() {
     let mut sim = Simulation::new(curtain(IntegratorKind::SymplecticEuler)).unwrap();
     let dy = 1.0 / (N - 1) as f32;
     sim.sever_stroke(&across(cut_height(), 6)).unwrap();
@@ -528,7 +519,7 @@ fn a_severed_cloth_is_saved_and_restored_bit_for_bit() {
     assert_eq!(copy.triangles(), sim.triangles());
 }
 
-/// Self-collision keeps working across a cut (issue 15): the pieces part as without it. (That
+/// Self-collision keeps working across a cut: the pieces part as without it. (That
 /// it keeps apart exactly the drawn triangles is checked in `src/self_collision/mod.rs`.)
 #[test]
 fn self_collision_sees_the_cut_surface() {
@@ -635,11 +626,11 @@ fn cut_and_part(strokes: &[&[(Vec3, Vec3)]], steps: u64, on_stroke: f32) -> (Sim
     (sim, worst)
 }
 
-/// Issue 15: the drawn edge of a cut ran along the particles next to it (a staircase up to a
+/// The drawn edge of a cut ran along the particles next to it (a staircase up to a
 /// grid spacing from the stroke, with a gap). Now it runs through the points where the stroke
 /// crossed the springs, each side's edge with its own vertices, and goes with its piece.
 #[test]
-fn issue_15_the_drawn_edge_follows_a_straight_cut() {
+fn the_drawn_edge_follows_a_straight_cut() {
     let stroke = across(cut_height(), 2);
     let (mut sim, worst) = cut_and_part(&[&stroke], 150, 0.02);
     // The lower piece fell some 0.11 m: its edge went with it and the upper's stayed.

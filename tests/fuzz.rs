@@ -1,4 +1,4 @@
-//! Fuzzing the public Rust API (issue #6): arbitrary scenes, TOML documents, arrays and
+//! Fuzzing the public Rust API: arbitrary scenes, TOML documents, arrays and
 //! sequences of pick / cut / drag / step calls, checked for two promises of `src/error.rs`:
 //!
 //! 1. nothing panics on bad input;
@@ -1440,7 +1440,7 @@ fn operation_strategies_reach_every_outcome() {
 /// a debug build; a release build wrapped and named particles of a grid that has none). Found
 /// by `scenes_validate_or_fail_cleanly` on its first cases. An empty grid now has no pins.
 #[test]
-fn issue_pinned_indices_of_an_empty_grid() {
+fn an_empty_grid_has_no_pinned_indices() {
     for (nx, ny) in [(0, 0), (0, 5), (5, 0)] {
         let cloth = ClothSpec {
             nx,
@@ -1470,7 +1470,7 @@ fn issue_pinned_indices_of_an_empty_grid() {
 /// `operation_sequences_keep_the_state_finite_or_unchanged` with a single `step(1)`.
 /// Validation now rejects a sphere whose reach the solver cannot square.
 #[test]
-fn issue_sphere_of_radius_f32_max() {
+fn a_sphere_whose_reach_overflows_is_rejected() {
     let mut scene = Scene {
         spheres: vec![SphereSpec {
             center: [0.0; 3],
@@ -1506,7 +1506,7 @@ fn issue_sphere_of_radius_f32_max() {
 /// by `operation_sequences_keep_the_state_finite_or_unchanged` (the check after
 /// `Simulation::new`). Validation now rejects a cloth that reaches beyond f32 range.
 #[test]
-fn issue_cloth_edge_beyond_f32_range() {
+fn a_cloth_reaching_beyond_f32_range_is_rejected() {
     let mut scene = common::bare_scene(2, 2);
     scene.cloth.size = [1e38, 0.1];
     scene.cloth.center = [-(f32::MAX as f64), 0.0, 0.0];
@@ -1536,7 +1536,7 @@ fn issue_cloth_edge_beyond_f32_range() {
 /// the triangle's widened box no farther than the hit's reach, which every box the searches
 /// test contains: exact by construction.
 #[test]
-fn issue_pick_triangle_from_far_away() {
+fn a_pick_from_far_away_agrees_with_brute_force() {
     let mut seed = 0x2545_f491_4f6c_dd1du64;
     let mut next = move || {
         seed ^= seed << 13;
@@ -1580,7 +1580,7 @@ fn issue_pick_triangle_from_far_away() {
 /// `toml_documents_parse_or_fail_cleanly`, which compares the two paths. `from_toml_str` now
 /// parses into a table and takes the value path.
 #[test]
-fn issue_toml_datetime_leaked_a_private_key() {
+fn a_toml_datetime_gets_the_same_error_from_text_and_value() {
     for text in [
         "cloth = 1979-05-27",
         "dt = 1979-05-27",
@@ -1603,12 +1603,12 @@ fn issue_toml_datetime_leaked_a_private_key() {
 /// smallest subnormal and its inverse is infinite. Integration survives that (a force times
 /// an infinite inverse mass is caught as a divergence), but the strain-limit pass weights
 /// each correction by `w_a / (w_a + w_b)` = inf / inf = NaN, and the NaN left the step, whose
-/// passes after the integrator are not checked (see `issue_kinematic_pin_velocity_overflows`).
+/// passes after the integrator are not checked (see `a_pin_velocity_that_overflows_fails_the_step_cleanly`).
 /// `set_masses` already rejected such masses. Found by
 /// `operation_sequences_keep_the_state_finite_or_unchanged` (a `grab` and a step) once strain
 /// limiting reached main. Validation now applies `set_masses`'s rule to the scene's mass.
 #[test]
-fn issue_particle_mass_without_a_float32_inverse() {
+fn a_particle_mass_without_a_float32_inverse_is_rejected() {
     let mut scene = common::bare_scene(2, 3);
     scene.strain_limit = Some(StrainLimitSpec {
         max_strain: 0.01,
@@ -1646,7 +1646,7 @@ fn issue_particle_mass_without_a_float32_inverse() {
 /// finite, and `Simulation::substep` fails like a non-finite integration: rolled back and
 /// reported as `Diverged`.
 #[test]
-fn issue_kinematic_pin_velocity_overflows() {
+fn a_pin_velocity_that_overflows_fails_the_step_cleanly() {
     let mut scene = common::bare_scene(2, 2);
     scene.cloth.center = [0.0, -(f32::MAX as f64), 0.0];
     let mut sim = Simulation::new(scene).unwrap();
@@ -1675,7 +1675,7 @@ fn issue_kinematic_pin_velocity_overflows() {
 /// through `Simulation::substep` (src/simulation.rs), which does not check the colliders'
 /// output; `contact_velocity` could also avoid the overflow (normalise `v` first).
 #[test]
-fn issue_sphere_contact_velocity_overflows() {
+fn a_sphere_contact_velocity_that_overflows_fails_the_step_cleanly() {
     let mut scene = common::bare_scene(2, 2);
     scene.cloth.size = [0.1, 0.1];
     scene.dt = 2f64.powi(-29);
@@ -1724,7 +1724,7 @@ fn issue_sphere_contact_velocity_overflows() {
 /// (it can take no contact), a non-finite `t` is no hit (`!(t <= 1.0)`), and
 /// `Simulation::substep` checks what the colliders wrote.
 #[test]
-fn issue_sphere_under_the_floor_blows_up_velocities() {
+fn a_sphere_under_the_floor_leaves_the_state_finite() {
     let sphere = |y: f64| SphereSpec {
         center: [0.0, y, 0.0],
         radius: 0.05,
@@ -1810,7 +1810,7 @@ fn issue_sphere_under_the_floor_blows_up_velocities() {
 /// `max_stretch = 1.01`, `set_positions`, `advance(0.0)`). Fixed: `invalidate_state` and the
 /// recovery clear `unjudged` (a state the user set is judged when a step starts from it).
 #[test]
-fn issue_zero_step_call_reports_a_divergence() {
+fn a_call_that_takes_no_step_reports_no_divergence() {
     let mut scene = common::bare_scene(2, 3);
     scene.integrator = IntegratorKind::ExplicitEuler;
     scene.dt = 1.0 / 60.0;

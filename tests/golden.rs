@@ -11,7 +11,7 @@ mod common;
 
 use std::fmt::Write as _;
 
-use common::{bare_scene, with_threads};
+use common::{bare_scene, builtin_scene, with_threads};
 use glam::Vec3;
 use rustcloth::scene::{FloorSpec, OnTrouble, PinSpec, Plane, SphereSpec, StrainLimitSpec};
 use rustcloth::IntegratorKind;
@@ -62,10 +62,7 @@ fn digest(sim: &Simulation, outcome: &rustcloth::Result<()>) -> String {
 
 /// A 24 x 20 horizontal cloth hung by two corners, with drag.
 fn hanging(integrator: IntegratorKind) -> Scene {
-    let mut scene = Scene::builtin("hanging").unwrap();
-    scene.integrator = integrator;
-    scene.cloth.nx = 24;
-    scene.cloth.ny = 20;
+    let mut scene = builtin_scene("hanging", integrator, 24, 20);
     scene.air_drag = 0.0005;
     // Explicit Euler survives only with enough damping and a short step.
     if integrator == IntegratorKind::ExplicitEuler {
@@ -77,10 +74,7 @@ fn hanging(integrator: IntegratorKind) -> Scene {
 
 /// A cloth dropped onto a sphere that stands on the floor.
 fn drape(integrator: IntegratorKind) -> Scene {
-    let mut scene = Scene::builtin("drape").unwrap();
-    scene.integrator = integrator;
-    scene.cloth.nx = 24;
-    scene.cloth.ny = 24;
+    let mut scene = builtin_scene("drape", integrator, 24, 24);
     if integrator == IntegratorKind::ExplicitEuler {
         scene.cloth.damping = 0.05;
         scene.substeps = 4;

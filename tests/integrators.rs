@@ -51,12 +51,9 @@ fn halving_dt_divides_the_error_by_the_order_of_each_method() {
 
 /// A cloth pinned at two corners, swinging, with every dissipation switched off.
 fn undamped_swing(integrator: IntegratorKind) -> Simulation {
-    let mut scene = Scene::builtin("hanging").unwrap();
-    scene.integrator = integrator;
+    let mut scene = builtin_scene("hanging", integrator, 12, 12);
     scene.air_drag = 0.0;
     scene.cloth.damping = 0.0;
-    scene.cloth.nx = 12;
-    scene.cloth.ny = 12;
     // Soft springs: omega dt is about 0.25 for the stiffest mode, where RK4 is accurate.
     scene.cloth.k_structural = 50.0;
     scene.cloth.k_shear = 10.0;
@@ -238,12 +235,12 @@ fn the_stability_estimate_separates_stable_from_unstable_steps() {
     assert_eq!(Simulation::new(implicit).unwrap().stable_dt(), None);
 }
 
-/// Issue 6, found by the very-light-particle stability case: the estimate used to ignore spring
+/// Found by the very-light-particle stability case: the estimate used to ignore spring
 /// damping, whose rate `c / m` grows a thousandfold as particles get a thousand times lighter.
 /// A 1 mg-per-particle cloth then blew up at a third of the estimated stable step. The estimate
 /// now includes the damping of the stiffest mode; the cloth must hold at 0.9 times it.
 #[test]
-fn issue_6_light_particles_are_stable_below_the_damped_estimate() {
+fn light_particles_are_stable_below_the_damped_estimate() {
     for integrator in [
         IntegratorKind::ExplicitEuler,
         IntegratorKind::SymplecticEuler,

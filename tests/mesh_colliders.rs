@@ -29,12 +29,7 @@ fn mesh_box(half: [f64; 3]) -> ColliderSpec {
 
 /// A free 16 x 16 cloth, 0.6 m across, falling from 0.05 m above y = `top`.
 fn falling_cloth(top: f64, colliders: Vec<ColliderSpec>) -> Simulation {
-    let mut scene = bare_scene(16, 16);
-    scene.gravity = [0.0, -9.81, 0.0];
-    scene.cloth.size = [0.6, 0.6];
-    scene.cloth.center = [0.0, top + 0.05, 0.0];
-    scene.colliders = colliders;
-    Simulation::new(scene).unwrap()
+    cloth_over(16, 0.6, top + 0.05, colliders)
 }
 
 /// A closed sphere mesh of `radius` centred on the origin: `rings` bands of latitude between
@@ -155,8 +150,7 @@ fn an_open_sheet_pushes_from_its_front_only() {
         friction: 0.0,
         ..ColliderSpec::default()
     };
-    let mut scene = bare_scene(2, 2);
-    scene.gravity = [0.0, -9.81, 0.0];
+    let mut scene = scene_under_gravity(2, 2);
     scene.colliders = vec![sheet.clone()];
     let mut down = lone_particle(scene.clone(), Vec3::new(0.1, 0.5, 0.2), -20.0 * Vec3::Y);
     down.step(200).unwrap();
@@ -184,8 +178,7 @@ fn a_particle_at_300_m_s_does_not_tunnel_through_a_thin_mesh() {
             rotation,
             ..mesh_box([1.0, 0.01, 1.0])
         };
-        let mut scene = bare_scene(2, 2);
-        scene.gravity = [0.0, -9.81, 0.0];
+        let mut scene = scene_under_gravity(2, 2);
         scene.colliders = vec![collider.clone()];
         let mut sim = lone_particle(scene, Vec3::new(0.0, 1.0, 0.0), -300.0 * Vec3::Y);
         let up = glam::DQuat::from_scaled_axis(DVec3::from(rotation)) * DVec3::Y;
@@ -223,8 +216,7 @@ fn a_particle_on_a_tilted_plane_slides_iff_the_slope_beats_friction() {
                 thickness: 0.0,
                 ..ColliderSpec::default()
             };
-            let mut scene = bare_scene(2, 2);
-            scene.gravity = [0.0, -9.81, 0.0];
+            let mut scene = scene_under_gravity(2, 2);
             scene.colliders = vec![plane];
             (lone_particle(scene, Vec3::ZERO, Vec3::ZERO), Vec3::ZERO)
         },
@@ -265,12 +257,8 @@ fn carried(v: f64, steps: u64) -> Simulation {
         friction: 0.8,
         ..ColliderSpec::default()
     };
-    let mut scene = bare_scene(12, 12);
-    scene.gravity = [0.0, -9.81, 0.0];
-    scene.cloth.size = [0.5, 0.5];
-    scene.cloth.center = [0.0, 0.1 + collider.thickness + 1e-4, 0.0];
-    scene.colliders = vec![collider];
-    let mut sim = Simulation::new(scene).unwrap();
+    let top = 0.1 + collider.thickness + 1e-4;
+    let mut sim = cloth_over(12, 0.5, top, vec![collider]);
     for _ in 0..steps {
         let x = v * (sim.time() + sim.dt());
         sim.set_collider_pose(0, [x, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0])
@@ -287,11 +275,7 @@ fn a_box_moved_each_step_by_set_collider_pose_carries_the_cloth_at_its_speed() {
     // from under a cloth left behind.
     let v = 0.5;
     let sim = carried(v, 1000);
-    let n = sim.velocities().len();
-    let mean_vx = (0..n)
-        .map(|p| sim.velocities().get(p).x as f64)
-        .sum::<f64>()
-        / n as f64;
+    let mean_vx = mean_velocity_x(&sim);
     assert!(
         (mean_vx - v).abs() < 0.03 * v,
         "the cloth moves at {mean_vx} m/s, the box at {v}"

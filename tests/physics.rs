@@ -194,8 +194,7 @@ fn assert_outside_colliders(sim: &Simulation, floor: f32, sphere: Option<(Vec3, 
 #[test]
 fn fast_particles_never_end_a_step_inside_the_floor_or_a_sphere() {
     let center = Vec3::new(0.0, 0.3, 0.0);
-    let mut scene = bare_scene(24, 24);
-    scene.gravity = [0.0, -9.81, 0.0];
+    let mut scene = scene_under_gravity(24, 24);
     scene.cloth.center = [0.0, 1.0, 0.0];
     scene.floor = Some(FloorSpec {
         height: 0.0,
@@ -285,8 +284,7 @@ fn only_requested_effects_run() {
 /// One free particle (a 2 x 2 grid with three particles cut) at `start` with velocity `v0`,
 /// under gravity, on the floor (`floor`) or a sphere (`sphere`), each with `friction`.
 fn slider(start: Vec3, v0: Vec3, floor: Option<f64>, sphere: Option<(Vec3, f64)>) -> Simulation {
-    let mut scene = bare_scene(2, 2);
-    scene.gravity = [0.0, -9.81, 0.0];
+    let mut scene = scene_under_gravity(2, 2);
     if let Some(friction) = floor {
         scene.floor = Some(FloorSpec {
             height: 0.0,
@@ -320,7 +318,7 @@ fn slide(sim: &mut Simulation) -> (f64, f64) {
 }
 
 #[test]
-fn issue_11_a_sliding_particle_decelerates_at_mu_g_on_the_floor() {
+fn a_sliding_particle_decelerates_at_mu_g_on_the_floor() {
     // Nothing tested the floor's friction coefficient: halving it broke no test. A particle
     // sliding at v0 on a level floor loses mu g of speed per second (Coulomb friction with the
     // normal force m g), so it stops after v0 / (mu g) and v0^2 / (2 mu g). One step of dt of

@@ -2,7 +2,7 @@
 
 mod common;
 
-use common::{bare_scene, position, state_hash};
+use common::{bare_scene, position, scene_under_gravity, state_hash};
 use glam::Vec3;
 use rustcloth::grid::SpringKind;
 use rustcloth::picking::{
@@ -43,8 +43,7 @@ impl Rng {
 /// A vertical cloth in the xy plane hanging from its top corners (row `ny - 1`), gravity -y,
 /// no air drag: the centre of mass of a piece with no pin accelerates at exactly g.
 fn hanging_scene(nx: u32, ny: u32) -> Scene {
-    let mut scene = bare_scene(nx, ny);
-    scene.gravity = [0.0, -9.81, 0.0];
+    let mut scene = scene_under_gravity(nx, ny);
     scene.dt = 0.001;
     scene.cloth.plane = Plane::Xy;
     scene.cloth.center = [0.0, 1.0, 0.0];
@@ -615,7 +614,7 @@ fn bad_input_is_refused_naming_the_parameter_and_changes_nothing() {
 /// leaves, and panicked ("key not present") when the first query came after cuts had left one
 /// or two particles with other indices (found by the hypothesis test in test_picking.py).
 #[test]
-fn issue_first_query_with_one_or_two_live_particles_of_high_index() {
+fn the_first_query_works_with_one_or_two_live_particles_of_high_index() {
     for keep in [vec![5], vec![3, 5], vec![0, 5], vec![5, 1]] {
         let mut sim = Simulation::new(bare_scene(3, 2)).unwrap();
         for p in (0..6).filter(|p| !keep.contains(p)) {
@@ -636,7 +635,7 @@ fn issue_first_query_with_one_or_two_live_particles_of_high_index() {
 }
 
 #[test]
-fn issue_11_memory_bytes_left_out_the_picking_trees() {
+fn memory_bytes_counts_the_picking_trees() {
     // memory_bytes() counted state, springs and scratch but not the picking trees, which a
     // 512 x 512 cloth's first pick builds at 94 MB. Both trees must show up once built.
     let mut sim = Simulation::new(hanging_scene(64, 64)).unwrap();

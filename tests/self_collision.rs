@@ -11,7 +11,7 @@
 
 mod common;
 
-use common::{bare_scene, state_hash, with_threads};
+use common::{bare_scene, builtin_scene, scene_under_gravity, state_hash, with_threads};
 use glam::{DVec3, Vec3};
 use rustcloth::scene::SelfCollisionSpec;
 use rustcloth::soa::Vec3s;
@@ -178,12 +178,9 @@ fn run_checked(scene: Scene, steps: u64, every: u64) -> (Simulation, Vec<usize>)
     (sim, found)
 }
 
-fn small(name: &str, n: u32, integrator: IntegratorKind) -> Scene {
-    let mut scene = Scene::builtin(name).unwrap();
-    scene.cloth.nx = n;
-    scene.cloth.ny = n;
-    scene.integrator = integrator;
-    scene
+/// The built-in pile at `n x n`, stepped with symplectic Euler.
+fn pile(n: u32) -> Scene {
+    builtin_scene("pile", IntegratorKind::SymplecticEuler, n, n)
 }
 
 /// The integrators the pass is tested with (every one runs the passes after integration the
@@ -202,7 +199,7 @@ const INTEGRATORS: [IntegratorKind; 6] = [
 /// itself).
 fn never_intersects_with_any_integrator(name: &str, n: u32) {
     for integrator in INTEGRATORS {
-        let (sim, found) = run_checked(small(name, n, integrator), 900, 10);
+        let (sim, found) = run_checked(builtin_scene(name, integrator, n, n), 900, 10);
         assert!(
             found.iter().all(|&k| k == 0),
             "{name}, {integrator:?}: intersections {found:?}"
@@ -218,7 +215,7 @@ fn never_intersects_with_any_integrator(name: &str, n: u32) {
 /// list is built afresh) would step differently from the one it was saved from.
 #[test]
 fn a_restored_pile_in_contact_steps_as_the_original() {
-    let mut a = Simulation::new(small("pile", 20, IntegratorKind::SymplecticEuler)).unwrap();
+    let mut a = Simulation::new(pile(20)).unwrap();
     a.step(450).unwrap();
     let mut b = Simulation::restore(a.snapshot()).unwrap();
     a.step(250).unwrap();
@@ -246,7 +243,7 @@ fn fold_never_intersects_with_any_integrator() {
 
 #[test]
 fn pile_intersects_without_the_pass() {
-    let mut scene = small("pile", 20, IntegratorKind::SymplecticEuler);
+    let mut scene = pile(20);
     scene.self_collision = None;
     let (_, found) = run_checked(scene, 900, 30);
     assert!(found.iter().any(|&k| k > 0), "{found:?}");
@@ -360,8 +357,7 @@ fn a_free_cloth_colliding_with_itself_keeps_its_momentum() {
 fn the_result_is_the_same_for_any_thread_count() {
     let run = |threads| {
         with_threads(threads, || {
-            let mut sim =
-                Simulation::new(small("pile", 16, IntegratorKind::SymplecticEuler)).unwrap();
+            let mut sim = Simulation::new(pile(16)).unwrap();
             sim.step(800).unwrap();
             (
                 state_hash(&sim),
@@ -395,11 +391,11 @@ fn bad_values_name_the_parameter() {
 
 #[test]
 fn the_pass_is_listed_and_timed_only_when_asked_for() {
-    let mut sim = Simulation::new(small("pile", 8, IntegratorKind::SymplecticEuler)).unwrap();
+    let mut sim = Simulation::new(pile(8)).unwrap();
     assert_eq!(sim.effects().last(), Some(&"self_collision"));
     sim.step(3).unwrap();
     assert_eq!(sim.profile().get("self_collision").unwrap().calls, 6);
-    let mut scene = small("pile", 8, IntegratorKind::SymplecticEuler);
+    let mut scene = pile(8);
     scene.self_collision = None;
     let sim = Simulation::new(scene).unwrap();
     assert!(!sim.effects().contains(&"self_collision"));
@@ -408,7 +404,7 @@ fn the_pass_is_listed_and_timed_only_when_asked_for() {
 
 #[test]
 fn cutting_keeps_the_pass_working() {
-    let mut sim = Simulation::new(small("pile", 16, IntegratorKind::SymplecticEuler)).unwrap();
+    let mut sim = Simulation::new(pile(16)).unwrap();
     sim.step(100).unwrap();
     for p in [40, 41, 42, 57, 120] {
         sim.cut(p).unwrap();
@@ -425,7 +421,7 @@ fn cutting_keeps_the_pass_working() {
 #[test]
 fn self_collision_holds_through_the_watchdogs_substep_retries() {
     let run = || {
-        let mut scene = small("pile", 16, IntegratorKind::SymplecticEuler);
+        let mut scene = pile(16);
         // Far too stiff for symplectic Euler at 1 ms (as in tests/watchdog.rs): steps fail the
         // stretch limit and are retried with more substeps while the cloth crumples.
         scene.cloth.k_structural = 5000.0;
@@ -461,8 +457,7 @@ fn a_layer_sliding_on_a_pinned_one(
     v0: f32,
 ) -> (Simulation, Vec<usize>) {
     let (nx, ny) = (30, 12);
-    let mut scene = bare_scene(nx, ny);
-    scene.gravity = [0.0, -9.81, 0.0];
+    let mut scene = scene_under_gravity(nx, ny);
     scene.cloth.size = [1.0, 0.4];
     scene.cloth.damping = 0.0;
     scene.self_collision = Some(SelfCollisionSpec {
@@ -578,8 +573,7 @@ fn a_sheet_across_the_edge_of_another(
     gap: f32,
 ) -> (Simulation, Vec<usize>, Vec<usize>) {
     let (nx, ny, d) = (17usize, 8usize, 0.04f32);
-    let mut scene = bare_scene(nx as u32, ny as u32);
-    scene.gravity = [0.0, -9.81, 0.0];
+    let mut scene = scene_under_gravity(nx as u32, ny as u32);
     scene.cloth.size = [d as f64 * (nx - 1) as f64, d as f64 * (ny - 1) as f64];
     scene.self_collision = Some(SelfCollisionSpec {
         thickness,

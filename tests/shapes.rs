@@ -1,4 +1,4 @@
-//! Grid shapes x thread counts (issue #11, item 1): every integrator with every optional pass
+//! Grid shapes x thread counts: every integrator with every optional pass
 //! steps any valid grid on any number of threads without a panic, and bitwise the same as on
 //! one thread.
 //!
@@ -11,10 +11,9 @@
 
 mod common;
 
-use common::{proptest_config, state_hash, with_threads};
+use common::{every_pass_scene, proptest_config, state_hash, with_threads, Passes};
 use glam::Vec3;
 use proptest::prelude::*;
-use rustcloth::scene::{FloorSpec, PinSpec, Plane, SphereSpec, StrainLimitSpec};
 use rustcloth::IntegratorKind;
 use rustcloth::{Scene, Simulation};
 
@@ -25,30 +24,14 @@ const THREADS: [usize; 4] = [1, 2, 7, 16];
 /// A vertical cloth of `nx` x `ny` with every optional pass the scene can ask for: drag, a
 /// floor and a sphere it touches, strain limiting, the watchdog's stretch check.
 fn scene(nx: u32, ny: u32, integrator: IntegratorKind) -> Scene {
-    let mut scene = Scene {
-        integrator,
-        air_drag: 0.001,
-        floor: Some(FloorSpec {
-            height: 0.6,
-            ..FloorSpec::default()
-        }),
-        spheres: vec![SphereSpec {
-            center: [0.0, 1.0, 0.0],
-            radius: 0.2,
-            ..SphereSpec::default()
-        }],
-        strain_limit: Some(StrainLimitSpec::default()),
-        ..Scene::default()
+    let passes = Passes {
+        floor: 0.6,
+        sphere: ([0.0, 1.0, 0.0], 0.2),
+        pins: "top_corners",
+        max_stretch: 10.0,
     };
-    scene.cloth.nx = nx;
-    scene.cloth.ny = ny;
-    scene.cloth.plane = Plane::Xy;
+    let mut scene = every_pass_scene(nx, ny, integrator, passes);
     scene.cloth.size = [2.0, 0.8];
-    scene.cloth.pins = vec![PinSpec::Named("top_corners".into())];
-    scene.watchdog.max_stretch = Some(10.0);
-    if integrator == IntegratorKind::ExplicitEuler {
-        scene.cloth.damping = 0.05;
-    }
     scene
 }
 
@@ -91,7 +74,7 @@ fn check_shape(nx: u32, ny: u32) -> Result<(), TestCaseError> {
 }
 
 #[test]
-fn issue_11_wide_grids_panicked_in_the_force_pass() {
+fn wide_grids_step_through_the_force_pass() {
     // A 1025 x 2 cloth validated, then every step panicked: its bending springs' offset
     // (2 nx = 2050) passed the end of the first 2,048-particle chunk, and the fused force pass
     // took the part of the chunk before that offset as an edge region reaching past the chunk.

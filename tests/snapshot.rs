@@ -1,21 +1,18 @@
-//! A snapshot continues bit for bit (issues #11 and #16: simulations cross process
+//! A snapshot continues bit for bit (simulations cross process
 //! boundaries): a run saved and restored at any point goes on exactly as the original, with
 //! every integrator, substeps, the watchdog's retries and hold, strain limiting, kinematic
 //! pins, a grab, cuts and `advance`'s remainder.
 
 mod common;
 
-use common::state_hash;
+use common::{builtin_scene, state_hash};
 use glam::Vec3;
 use rustcloth::scene::{FloorSpec, OnTrouble, SphereSpec, StrainLimitSpec};
 use rustcloth::IntegratorKind;
 use rustcloth::{Error, Scene, Simulation};
 
 fn busy_scene(integrator: IntegratorKind) -> Scene {
-    let mut scene = Scene::builtin("hanging").unwrap();
-    scene.integrator = integrator;
-    scene.cloth.nx = 20;
-    scene.cloth.ny = 16;
+    let mut scene = builtin_scene("hanging", integrator, 20, 16);
     scene.cloth.k_structural = 20000.0;
     scene.dt = 1.0 / 200.0;
     scene.substeps = 2;

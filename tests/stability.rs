@@ -7,7 +7,7 @@ mod common;
 
 use common::*;
 use glam::Vec3;
-use rustcloth::scene::{FloorSpec, PinSpec, SphereSpec};
+use rustcloth::scene::{FloorSpec, SphereSpec};
 use rustcloth::soa::Vec3s;
 use rustcloth::IntegratorKind;
 use rustcloth::{Error, Scene, Simulation};
@@ -89,11 +89,8 @@ fn run_dragging(
 }
 
 fn drape(integrator: IntegratorKind, n: u32) -> Scene {
-    let mut scene = Scene::builtin("drape").unwrap();
+    let mut scene = hung_drape(n);
     scene.integrator = integrator;
-    scene.cloth.nx = n;
-    scene.cloth.ny = n;
-    scene.cloth.pins = vec![PinSpec::Named("top_corners".into())];
     if integrator == IntegratorKind::ExplicitEuler {
         scene.substeps = 32;
     }
@@ -224,12 +221,12 @@ fn very_light_particles_with_implicit_euler_at_a_frame_step() {
     run(&mut sim, 120, 50.0, "light implicit").unwrap();
 }
 
-/// Issue 6, found by the random-scene property test: a ball sunk into the floor, and cloth
+/// Found by the random-scene property test: a ball sunk into the floor, and cloth
 /// particles caught in the crease between them. The sphere pass pushed such a particle out
 /// radially, to a point under the floor; the floor pass then lifted it straight back into the
 /// ball, where it stayed. The sphere now pushes such points up its surface to the floor level.
 #[test]
-fn issue_6_cloth_in_the_crease_between_a_ball_and_the_floor_stays_outside_both() {
+fn cloth_in_the_crease_between_a_ball_and_the_floor_stays_outside_both() {
     for integrator in IntegratorKind::ALL {
         let mut scene = drape(integrator, 24);
         scene.cloth.pins = vec![];
@@ -249,13 +246,13 @@ fn issue_6_cloth_in_the_crease_between_a_ball_and_the_floor_stays_outside_both()
     }
 }
 
-/// Issue 6, found by the random-scene property test: a particle that entered a sphere was put
+/// Found by the random-scene property test: a particle that entered a sphere was put
 /// back at the point where its path entered, dropping the step's motion along the surface from
 /// its position while its velocity kept it. A cloth resting on a sphere then gained energy
 /// every step, until particles left at hundreds of m/s (symplectic Euler and Verlet; finite
 /// throughout). Such a particle now goes to the surface point nearest its end point.
 #[test]
-fn issue_6_a_cloth_resting_on_a_sphere_gains_no_energy() {
+fn a_cloth_resting_on_a_sphere_gains_no_energy() {
     for integrator in [IntegratorKind::SymplecticEuler, IntegratorKind::Verlet] {
         let mut scene = drape(integrator, 16);
         scene.cloth.pins = vec![];

@@ -8,11 +8,8 @@ use rustcloth::IntegratorKind;
 use rustcloth::{Error, Scene, Simulation};
 
 fn busy_scene(n: u32) -> Scene {
-    let mut scene = Scene::builtin("drape").unwrap();
-    scene.cloth.nx = n;
-    scene.cloth.ny = n;
+    let mut scene = hung_drape(n);
     scene.air_drag = 0.001;
-    scene.cloth.pins = vec![rustcloth::scene::PinSpec::Named("top_corners".into())];
     scene
 }
 

@@ -1,4 +1,4 @@
-//! The implicit solvers on stiff cloth at a display frame's step (issue 14): each converges,
+//! The implicit solvers on stiff cloth at a display frame's step: each converges,
 //! the preconditioner changes the answer only within the tolerance, both are deterministic for
 //! any number of threads, cut particles take no part, and no state survives between steps.
 
@@ -194,13 +194,13 @@ fn the_implicit_solvers_are_the_same_for_any_number_of_threads() {
     }
 }
 
-/// Issue 14, item (a): a cut particle must take no part in any computation. Before the fix its
+/// A cut particle must take no part in any computation. Before the fix its
 /// springs were evaluated and multiplied by zero: moved far away (which `set_positions`
 /// allows, the position being finite), a spring's length overflowed to infinity and `0 * inf`
 /// put NaN into its live neighbour's force and into implicit Euler's matrix, whose solve then
 /// silently stopped at its first iteration.
 #[test]
-fn issue_14_a_cut_particle_far_away_changes_nothing() {
+fn a_cut_particle_far_away_changes_nothing() {
     for integrator in IntegratorKind::ALL {
         let mut scene = stiff_drape(12, integrator);
         scene.dt = 1e-4;
@@ -229,7 +229,7 @@ fn issue_14_a_cut_particle_far_away_changes_nothing() {
     }
 }
 
-/// Issue 14, item (b): the state an integrator keeps between steps must be rolled back when a
+/// The state an integrator keeps between steps must be rolled back when a
 /// step is refused. Neither implicit solver keeps any (no warm start; the multigrid hierarchy is
 /// rebuilt each step; projective dynamics' factorisation is a cache keyed on what it is built
 /// from): a simulation put into a state by any history steps on exactly like a fresh one

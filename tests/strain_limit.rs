@@ -301,7 +301,7 @@ fn kinetic(state: &Kinematics, mass: &[f32]) -> f64 {
 }
 
 #[test]
-fn issue_11_strain_limiting_pumped_energy_at_contacts() {
+fn strain_limiting_adds_no_energy_at_contacts() {
     // Provot's velocity correction, dv = dx / h, turned every position correction into motion:
     // where a sphere pushed particles out and their stretched springs pulled them back, a
     // resting 128 x 128 cloth gained 342 J in 2 ms. The correction is now inelastic along each

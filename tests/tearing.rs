@@ -1,4 +1,4 @@
-//! Tearing (issue 15): springs past `tearing.max_strain` break after a step, the most strained
+//! Tearing: springs past `tearing.max_strain` break after a step, the most strained
 //! first and at most `max_per_step`; a corner dragged far enough rips off; the pass is absent
 //! without `[tearing]`, and a tear is the same for any number of threads.
 

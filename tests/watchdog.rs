@@ -13,8 +13,7 @@ use rustcloth::{Error, Scene, Simulation, Trouble};
 /// A hanging cloth whose springs are far too stiff for symplectic Euler at `dt` = 1 ms:
 /// `h omega` = 4.5, where 2 is the stability limit. Four substeps hold it.
 fn stiff_scene(watchdog: WatchdogSpec) -> Scene {
-    let mut scene = bare_scene(16, 16);
-    scene.gravity = [0.0, -9.81, 0.0];
+    let mut scene = scene_under_gravity(16, 16);
     scene.cloth.k_structural = 5000.0;
     scene.cloth.pins = vec![PinSpec::Named("top_corners".into())];
     scene.watchdog = watchdog;
@@ -143,8 +142,7 @@ fn retries_give_up_at_max_substeps_and_restore_the_state() {
 #[test]
 fn a_limit_never_reached_changes_nothing() {
     // The check sits in the force loop: it must not change a single bit of the result.
-    let mut calm = bare_scene(24, 24);
-    calm.gravity = [0.0, -9.81, 0.0];
+    let mut calm = scene_under_gravity(24, 24);
     calm.cloth.pins = vec![PinSpec::Named("top_corners".into())];
     let mut plain = Simulation::new(calm.clone()).unwrap();
     calm.watchdog = limit(3.0, OnTrouble::Raise);

@@ -3,8 +3,8 @@
 //! Contact asks every particle near a mesh for the surface point nearest it within a short
 //! distance: the collider's thickness plus the particle's travel over the substep, a few mm for
 //! cloth at rest on it. Parry's `TriMesh` answers through its BVH, a walk from the root of about
-//! 15 levels for a 20k-triangle body, and that walk was half the collider pass's time (perf). The
-//! grid answers the same question from one cell: each cell lists every triangle whose bounding
+//! 15 levels for a 20k-triangle body, repeated for every near particle in every substep, where
+//! the question is local and asks for no walk at all. The grid answers the same question from one cell: each cell lists every triangle whose bounding
 //! box comes within `reach` of the cell, so a query of at most `reach` from a point in the cell
 //! has every triangle that can answer it in that list, and the answer is exact, not a
 //! neighbourhood guess.

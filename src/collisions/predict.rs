@@ -4,9 +4,9 @@
 //! An implicit step at a display-frame length moves a falling particle centimetres past a
 //! surface. Projecting it back afterwards, as the collider passes do, is right for an explicit
 //! substep, but after an implicit solve it undoes a motion the solve had balanced its springs
-//! against: rows of a cloth landing edge first were put back on the floor on top of each
-//! other, with their springs crushed, and the dropped `pile` rose from 6.5 J to 30 J, nearly
-//! all of it elastic. So before the solve, the collider passes are run on the free motion
+//! against: rows of a cloth landing edge first would be put back on the floor on top of each
+//! other, with their springs crushed, and the energy stored in those springs would come back as
+//! motion. So before the solve, the collider passes are run on the free motion
 //! `x + h v + h^2 g` of every particle; a particle they move is a contact, with the plane
 //! through the point they put it on, normal to the correction. The solver keeps such a
 //! particle on the plane as part of the solve (`ImplicitEuler`: a stiff penalty along the

@@ -1,20 +1,20 @@
 //! Backward Euler, linearised once per step (Baraff and Witkin, "Large steps in cloth
-//! simulation", SIGGRAPH 1998), solved by a preconditioned conjugate gradient on the assembled
-//! block matrix (`src/linear/`).
+//! simulation", SIGGRAPH 1998), solved by a preconditioned conjugate gradient
+//! (`src/linear/cg.rs`) on the assembled block matrix.
 
 use std::time::Instant;
 
 use rayon::prelude::*;
 
-use super::solver::{Preconditioner, SolverSettings, SolverStats};
+use super::solver::{kind_slot, live_or_zero, Preconditioner, SolverSettings, SolverStats};
 use super::{par_update, FiniteCheck, StepContext};
 use crate::collisions::PredictedContacts;
 use crate::forces::Force;
 use crate::grid::SpringKind;
-use crate::linear::reduce::{dot3, partials, REDUCE_CHUNK};
-use crate::linear::stencil::{par_chunks6, set_product, slot_of, SlotArrays};
+use crate::linear::cg::{diagonal_blocks, ConjugateGradient};
+use crate::linear::stencil::{par_chunks6, SlotArrays};
 use crate::linear::{BlockStencil, Multigrid};
-use crate::soa::{Floats, Vec3SliceMut, Vec3s};
+use crate::soa::{Floats, Vec3s};
 use crate::springs::{anchored_run, neighbour_runs};
 
 /// Backward Euler: find `dv` with
@@ -39,7 +39,7 @@ use crate::springs::{anchored_run, neighbour_runs};
 ///
 /// **State between steps.** None: the solve starts from `dv = 0`, the matrix and the multigrid
 /// hierarchy are rebuilt from the step's own state. A refused step therefore needs no rollback
-/// here, and [`Integrator::reset_history`] has nothing to do.
+/// here, and [`super::Integrator::reset_history`] has nothing to do.
 ///
 /// Unconditionally stable and first order: it damps, strongly at large steps. Cost per step:
 /// one force evaluation, one assembly of the matrix, the preconditioner's setup, and per CG
@@ -52,7 +52,8 @@ pub struct ImplicitEuler {
     work: Option<Work>,
 }
 
-/// The matrix `A = M + h drag I + sum_s C_s` (filtered), per-spring data and the CG vectors.
+/// The matrix `A = M + h drag I + sum_s C_s` (filtered), per-spring data and the solver's
+/// vectors.
 struct Work {
     matrix: BlockStencil,
     /// Which spring kinds take part, with the matrix slot of each.
@@ -65,11 +66,7 @@ struct Work {
     multigrid: Multigrid,
     rhs: Vec3s,
     dv: Vec3s,
-    r: Vec3s,
-    z: Vec3s,
-    p: Vec3s,
-    q: Vec3s,
-    partials: Vec<f64>,
+    cg: ConjugateGradient,
 }
 
 impl Work {
@@ -87,11 +84,7 @@ impl Work {
             multigrid: Multigrid::new(),
             rhs: Vec3s::zeros(n),
             dv: Vec3s::zeros(n),
-            r: Vec3s::zeros(n),
-            z: Vec3s::zeros(n),
-            p: Vec3s::zeros(n),
-            q: Vec3s::zeros(n),
-            partials: partials(n),
+            cg: ConjugateGradient::new(n),
         }
     }
 }
@@ -105,15 +98,6 @@ impl ImplicitEuler {
             work: None,
         }
     }
-}
-
-/// The matrix slot of a spring kind's block `A[anchor, partner]`.
-fn kind_slot(kind: SpringKind) -> usize {
-    let (di, dj) = kind.step();
-    slot_of(di as i32, dj as i32)
-        .filter(|&(_, transposed)| !transposed)
-        .expect("every spring kind is an upper-half offset")
-        .0
 }
 
 impl ImplicitEuler {
@@ -175,7 +159,29 @@ impl ImplicitEuler {
         }
         let solving = Instant::now();
         self.stats.setup_seconds += (solving - started).as_secs_f64();
-        let (iterations, residual) = conjugate_gradient(work, settings, ctx.chunk);
+        let Work {
+            matrix,
+            jacobi,
+            multigrid,
+            rhs,
+            dv,
+            cg,
+            ..
+        } = work;
+        let (matrix, chunk) = (&*matrix, ctx.chunk);
+        let (iterations, residual) = cg.solve(
+            matrix,
+            rhs,
+            dv,
+            settings.tolerance as f64,
+            settings.max_iterations,
+            |r, z| match settings.preconditioner {
+                Preconditioner::Multigrid => multigrid.apply(matrix, r, z, chunk),
+                Preconditioner::Jacobi | Preconditioner::BlockJacobi => {
+                    diagonal_blocks(jacobi, r, z)
+                }
+            },
+        );
         self.stats.solve_seconds += solving.elapsed().as_secs_f64();
         self.stats
             .record(iterations, residual, settings.tolerance as f64);
@@ -200,17 +206,6 @@ impl ImplicitEuler {
             }
             check
         })
-    }
-}
-
-/// `x` where `live`, else zero: a select, so that an infinite or NaN `x` computed from a dead
-/// spring (a cut particle far away) cannot leak through as `0 * inf`.
-#[inline(always)]
-fn live_or_zero(live: bool, x: f32) -> f32 {
-    if live {
-        x
-    } else {
-        0.0
     }
 }
 
@@ -423,163 +418,5 @@ fn filter_couplings(work: &mut Work, ctx: &StepContext) {
                     }
                 })
             });
-    }
-}
-
-/// Preconditioned CG for `A dv = b` from `dv = 0`; returns the iterations and the final
-/// relative residual `|r| / |b|`. Partial sums are over fixed chunks and added in order, so the
-/// solve is bitwise the same for any number of threads.
-fn conjugate_gradient(work: &mut Work, settings: SolverSettings, chunk: usize) -> (u32, f64) {
-    work.dv.fill(glam::Vec3::ZERO);
-    work.r.copy_from(&work.rhs);
-    let b_dot_b = crate::linear::reduce::par_dot(&work.rhs, &work.rhs, &mut work.partials);
-    let b_norm = b_dot_b.sqrt();
-    if !(b_norm > 0.0 && b_norm.is_finite()) {
-        // Nothing to solve (every particle held, or no force), or a non-finite right-hand
-        // side, which the step's finite check then reports.
-        return (0, if b_norm == 0.0 { 0.0 } else { f64::NAN });
-    }
-    let mut rz = precondition(work, settings.preconditioner, chunk);
-    work.p.copy_from(&work.z);
-    let mut residual = 1.0;
-    let mut iterations = 0;
-    while residual > settings.tolerance as f64 && iterations < settings.max_iterations {
-        let pq = product(work);
-        if pq <= 0.0 || !pq.is_finite() {
-            break; // breakdown: the matrix is not positive definite along p
-        }
-        let r_dot_r = advance_solution(work, (rz / pq) as f32);
-        iterations += 1;
-        residual = r_dot_r.sqrt() / b_norm;
-        if residual <= settings.tolerance as f64 {
-            break;
-        }
-        let rz_new = precondition(work, settings.preconditioner, chunk);
-        next_direction(work, (rz_new / rz) as f32);
-        rz = rz_new;
-    }
-    if iterations == 0 {
-        // The first direction was already a breakdown; keep dv = 0.
-        residual = 1.0;
-    }
-    (iterations, residual)
-}
-
-/// `z = M^-1 r`, returning `r . z`.
-fn precondition(work: &mut Work, preconditioner: Preconditioner, chunk: usize) -> f64 {
-    let Work {
-        matrix,
-        jacobi,
-        multigrid,
-        r,
-        z,
-        partials,
-        ..
-    } = work;
-    match preconditioner {
-        Preconditioner::Multigrid => multigrid.apply(matrix, r, z, chunk),
-        Preconditioner::Jacobi | Preconditioner::BlockJacobi => z
-            .par_chunks_mut(REDUCE_CHUNK)
-            .enumerate()
-            .for_each(|(c, mut z)| {
-                let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + z.len();
-                let d: [&[f32]; 6] = std::array::from_fn(|k| &jacobi[k][range.clone()]);
-                crate::simd::dispatch!(set_product(d, r.slices(range.clone()), &mut z));
-            }),
-    }
-    crate::linear::reduce::par_dot(r, z, partials)
-}
-
-/// `q = A p`, returning `p . q`.
-fn product(work: &mut Work) -> f64 {
-    let Work {
-        matrix,
-        p,
-        q,
-        partials,
-        ..
-    } = work;
-    let (matrix, p) = (&*matrix, &*p);
-    q.par_chunks_mut(REDUCE_CHUNK)
-        .zip(partials.par_iter_mut())
-        .enumerate()
-        .for_each(|(c, (mut q, partial))| {
-            let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + q.len();
-            *partial = crate::simd::dispatch!({
-                matrix.apply_range(p, range.clone(), &mut q);
-                dot3(p.slices(range.clone()), q.slices_at_start())
-            });
-        });
-    partials.iter().sum()
-}
-
-/// `dv += step p, r -= step q`; returns `r . r`.
-fn advance_solution(work: &mut Work, step: f32) -> f64 {
-    let Work {
-        dv,
-        r,
-        p,
-        q,
-        partials,
-        ..
-    } = work;
-    let (p, q) = (&*p, &*q);
-    dv.par_chunks_mut(REDUCE_CHUNK)
-        .zip(r.par_chunks_mut(REDUCE_CHUNK))
-        .zip(partials.par_iter_mut())
-        .enumerate()
-        .for_each(|(c, ((dv, r), partial))| {
-            let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + dv.len();
-            *partial = crate::simd::dispatch!({
-                let (p, q) = (p.slices(range.clone()), q.slices(range.clone()));
-                let mut sum = 0.0;
-                for (dv, r, p, q) in [
-                    (dv.x, &mut *r.x, p.x, q.x),
-                    (dv.y, &mut *r.y, p.y, q.y),
-                    (dv.z, &mut *r.z, p.z, q.z),
-                ] {
-                    for i in 0..dv.len() {
-                        dv[i] += step * p[i];
-                        r[i] -= step * q[i];
-                    }
-                    sum += crate::linear::reduce::dot(r, r);
-                }
-                sum
-            });
-        });
-    partials.iter().sum()
-}
-
-/// `p = z + beta p`.
-fn next_direction(work: &mut Work, beta: f32) {
-    let Work { p, z, .. } = work;
-    let z = &*z;
-    p.par_chunks_mut(REDUCE_CHUNK)
-        .enumerate()
-        .for_each(|(c, p)| {
-            let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + p.len();
-            let z = z.slices(range);
-            crate::simd::dispatch!({
-                for (p, z) in [(p.x, z.x), (p.y, z.y), (p.z, z.z)] {
-                    for (p, z) in p.iter_mut().zip(z) {
-                        *p = z + beta * *p;
-                    }
-                }
-            })
-        });
-}
-
-/// Read-only view of a chunk's own output, for a dot product after writing it.
-trait AsSlices {
-    fn slices_at_start(&self) -> crate::soa::Vec3Slice<'_>;
-}
-
-impl AsSlices for Vec3SliceMut<'_> {
-    fn slices_at_start(&self) -> crate::soa::Vec3Slice<'_> {
-        crate::soa::Vec3Slice {
-            x: self.x,
-            y: self.y,
-            z: self.z,
-        }
     }
 }

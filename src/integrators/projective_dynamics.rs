@@ -34,8 +34,8 @@
 //! `x_{k+1} = x_k - Q^-1 g(x_k)`: the same iteration, computed from `g`, which is summed from the
 //! forces themselves (inertia, drag, `k (l - L) u + (c/h) (u . (d - d_n)) u` per spring). Formed
 //! as `rhs` instead, the net force is the small difference of `m/h^2 y` and the spring terms, and
-//! float32 loses it as `h` shrinks: at `h = 1/15360 s` on a 16 x 16 sheet the step was wrong by
-//! 5 cm after 0.1 s. (Projective dynamics is thereby a quasi-Newton method with the constant
+//! float32 loses it as `h` shrinks, until at small substeps the step is dominated by rounding.
+//! (Projective dynamics is thereby a quasi-Newton method with the constant
 //! Hessian approximation `Q`, as Liu, Bouaziz and Kavan note in "Quasi-Newton methods for
 //! real-time simulation of hyperelastic materials", 2017.)
 //!
@@ -51,7 +51,7 @@
 //! **State between steps.** Only the factorisation of `Q`, a cache keyed on everything it is
 //! built from (step, masses, held particles, live springs, stiffness, damping, drag) and rebuilt
 //! when any of them changes: a refused step needs no rollback, and
-//! [`Integrator::reset_history`] has nothing to do.
+//! [`super::Integrator::reset_history`] has nothing to do.
 //!
 //! **Cost.** Per iteration one pass over the springs and two triangular solves with three
 //! right-hand sides; a change of pins, cuts, masses or step refactors `Q`
@@ -66,12 +66,11 @@ use std::time::Instant;
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::solver::{SolverSettings, SolverStats};
+use super::solver::{kind_slot, live_or_zero, SolverSettings, SolverStats};
 use super::{par_update, FiniteCheck, StepContext};
 use crate::forces::Force;
 use crate::grid::SpringKind;
 use crate::linear::reduce::{dot3, partials, REDUCE_CHUNK};
-use crate::linear::stencil::slot_of;
 use crate::linear::{GridCholesky, ScalarStencil};
 use crate::soa::Vec3s;
 use crate::springs::{anchored_run, neighbour_runs};
@@ -175,16 +174,6 @@ impl ProjectiveDynamics {
             kinds: Vec::new(),
             work: None,
         }
-    }
-}
-
-/// `x` where `live`, else zero (a select: `0 * inf` would be NaN).
-#[inline(always)]
-fn live_or_zero(live: bool, x: f32) -> f32 {
-    if live {
-        x
-    } else {
-        0.0
     }
 }
 
@@ -320,14 +309,6 @@ impl ProjectiveDynamics {
             check
         })
     }
-}
-
-/// The matrix slot of a spring kind's coupling.
-fn kind_slot(kind: SpringKind) -> usize {
-    let (di, dj) = kind.step();
-    slot_of(di as i32, dj as i32)
-        .expect("every spring kind is in the stencil")
-        .0
 }
 
 /// Builds `Q` and factors it over the free particles.
@@ -479,11 +460,7 @@ fn local_step(work: &mut Work, h: f32, drag: f32, ctx: &StepContext) -> f64 {
                     g.y[i] = live_or_zero(free, g.y[i]);
                     g.z[i] = live_or_zero(free, g.z[i]);
                 }
-                let gs = crate::soa::Vec3Slice {
-                    x: &*g.x,
-                    y: &*g.y,
-                    z: &*g.z,
-                };
+                let gs = g.as_slices();
                 dot3(gs, gs)
             });
         });

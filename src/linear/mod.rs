@@ -1,18 +1,20 @@
 //! Linear algebra for the implicit solvers, independent of [`crate::Simulation`]: symmetric
-//! 3 x 3 block matrices on the cloth's grid stencil, the preconditioners that act on them
-//! (block Jacobi, geometric multigrid), a sparse Cholesky factorisation with a nested-dissection
-//! ordering for grids, and the fixed-chunk reductions that keep every result bitwise the same for
-//! any number of threads.
+//! 3 x 3 block matrices on the cloth's grid stencil, the conjugate gradient that solves them, the
+//! preconditioners that act on them (block Jacobi, geometric multigrid), a sparse Cholesky
+//! factorisation with a nested-dissection ordering for grids, and the fixed-chunk reductions
+//! that keep every result bitwise the same for any number of threads.
 //!
 //! Everything here works on grids of `nx` x `ny` nodes indexed `p = j * nx + i`, the particle
 //! numbering of [`crate::grid::Grid`], and on per-node 3-vectors stored as [`crate::soa::Vec3s`].
 
+pub mod cg;
 pub mod cholesky;
 pub mod dense;
 pub mod multigrid;
 pub mod reduce;
 pub mod stencil;
 
+pub use cg::ConjugateGradient;
 pub use cholesky::{GridCholesky, ScalarStencil};
 pub use multigrid::Multigrid;
 pub use stencil::{BlockStencil, Sym3, OFFSETS, SLOTS};

@@ -17,47 +17,21 @@
 //!    - *the swept search*, otherwise: every pair whose boxes, swept from `x0` to `x1` and
 //!      grown by `thickness / 2`, overlap and whose distance at `x0` is below `thickness`
 //!      plus how far its vertices may end from where they start (`|x1 - x0| + thickness / 2`
-//!      each: see the cap).
+//!      each: see the capsule).
 //!
 //!    Either way the pairs looked at, and their order, are a function of the substep, so a
 //!    restored state steps exactly as the one it was saved from.
-//! 1. **Repulsion** (soft, what keeps the gap). For each pair (a vertex and a triangle without
-//!    it, or two edges with no shared vertex), the closest points at `x0` (`geometry.rs`) give weights `c_i` with `sum c_i = 0` and a
-//!    unit normal `n`, and the gap `g = (sum c_i x_i) . n`. `iterations` Gauss-Seidel sweeps
-//!    in pair order push every pair with `g < thickness` apart along `n`, shared by inverse
-//!    mass, `dx_i = w_i c_i (thickness - g) n / sum_j w_j c_j^2`. Then, in as many sweeps, each
-//!    such pair loses its approaching normal velocity (an inelastic impulse of the same shape)
-//!    and, in the first sweep, by Coulomb friction up to `friction` times that of its
-//!    tangential relative velocity. Every correction is applied to both sides with weights
-//!    summing to zero, so momentum is conserved.
+//! 1. **Repulsion** (soft, what keeps the gap; `repulsion.rs`): Gauss-Seidel sweeps push every
+//!    pair closer than `thickness` apart along the normal between their closest points at
+//!    `x0`, then take away their approaching relative velocity, with Coulomb friction.
+//! 2. **The cap** (hard, what makes the guarantee; `cap.rs`): scales the displacement of the
+//!    vertices of every pair whose relative motion could close its distance at `x0` toward
+//!    `x0`, until none can.
 //!
-//! 2. **The cap** (hard, what makes the guarantee). The distance between a vertex and a
-//!    triangle, or between two edges, is 1-Lipschitz in the relative position of the two
-//!    primitives: along the straight motion `x0 + t dx`, `t` in `[0, 1]`, it is at least
-//!    `d0 - t m` with `d0` its value at `x0` and `m = max |dx_i - dx_j|` over vertices `i` of one
-//!    primitive and `j` of the other. So a pair with `m < d0` cannot touch during the substep.
-//!    Sliding and separating motion count in `m` too, so a second bound is used beside it: the
-//!    plane through the closest points at `x0`, normal `n`, separates the two primitives
-//!    (both are convex), `(x_i - x_j) . n >= d0` for all such `i, j`; each of these is linear
-//!    in `t`, so if all are positive at the end of the substep the plane separates them all
-//!    along. A pair is safe when `m <= APPROACH d0 - eps` or every
-//!    `(x_i - x_j) . n >= (1 - APPROACH) d0 + eps` at the end.
-//!    The cap scales the displacement of the vertices of every pair safe by neither bound
-//!    toward `x0` (`dx_i -> s_i dx_i`), for a few rounds in proportion,
-//!    then by stopping them (`s = 0`), until no pair is left: it ends because each round stops
-//!    at least one more vertex, and a pair whose vertices all stand still has `m = 0`. Each
-//!    vertex is also kept within `thickness / 2` of its straight path from `x0` to `x1` (a
-//!    capsule, inside its grown swept box), so a pair the swept search did not look at stays
-//!    apart: either their boxes are disjoint, or they were farther at `x0` than their
-//!    capsules reach. A capsule rather than the box because its reach from `x0` is
-//!    `|x1 - x0| + thickness / 2`, against `|x1 - x0| + sqrt(3) thickness / 2` to the box's
-//!    corner: in a layered cloth the pairs within reach grow with its square, so the capsule
-//!    looks at about half as many. A pair the list leaves out is farther than `needed` at `x0`, and
-//!    no vertex strayed more than `r + PUSH thickness` (checked at the end), so it stays
-//!    `thickness` apart. Capped vertices get their velocity scaled by `s` too.
-//!    With no triangle pair in contact at the start, none touches at any time of any substep:
-//!    two triangles sharing no vertex can only start to intersect through a vertex touching a
-//!    face or an edge touching an edge.
+//! **The capsule** (`capsule.rs`). Each vertex is also kept within `thickness / 2` of its
+//! straight path from `x0` to `x1`, so the pairs neither way of finding them looks at stay
+//! apart, and with no triangle pair in contact at the start none touches at any time of any
+//! substep.
 //!
 //! A list build and a swept search allocate (per parallel task), and so do the parallel
 //! filters of the repulsion and the cap when there are pairs; a substep with no pair on a kept
@@ -65,14 +39,17 @@
 //! updates are sequential in pair order, so the result is bitwise the same for any thread
 //! count.
 
+mod cap;
+mod capsule;
 mod geometry;
 mod hash;
 mod list;
 mod pair;
+mod repulsion;
 mod search;
 mod topology;
 
-use glam::{DVec3, Vec3};
+use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::model::Model;
@@ -80,19 +57,9 @@ use crate::soa::Vec3s;
 use crate::state::Kinematics;
 use hash::Aabb;
 use list::{PairList, Spread};
-use pair::{inverse_mass, Pair};
+use pair::Pair;
 use search::Broad;
 use topology::Topology;
-
-/// Fraction of a pair's distance at the start of a substep that its relative motion may close
-/// within it. Close to 1 so that the cap seldom acts (the repulsion keeps pairs at
-/// `thickness`, and only a relative motion of 0.9 `thickness` per substep reaches the cap);
-/// below 1 so that a pair keeps a tenth of its distance, far above float32 round-off.
-const APPROACH: f64 = 0.9;
-
-/// Rounds of proportional scaling before the cap stops the vertices of the pairs still too
-/// fast. More rounds keep more motion in a tangle of contacts, at one pass over the pairs each.
-const SCALE_ROUNDS: u32 = 8;
 
 /// How far, as a fraction of `thickness`, the repulsion and the cap may move a vertex away from
 /// the cloth's common motion within a substep before the substep is redone with the swept
@@ -283,50 +250,6 @@ impl SelfCollision {
         finite
     }
 
-    /// Each vertex's box, swept from `x0` to `x1` and grown by `thickness / 2 + eps`, what the
-    /// swept search overlaps; and its path's end `x1`, for the capsule the pass keeps it in.
-    fn sweep_boxes(&mut self, x0: &Vec3s, x1: &Vec3s, eps: f32) {
-        self.path_radius = 0.5 * self.thickness + eps;
-        let grow = Vec3::splat(self.path_radius);
-        self.vertex_boxes.resize(x0.len(), Aabb::EMPTY);
-        self.path_ends.resize(x0.len(), Vec3::ZERO);
-        self.vertex_boxes
-            .par_iter_mut()
-            .zip(self.path_ends.par_iter_mut())
-            .enumerate()
-            .for_each(|(v, (b, end))| {
-                let (a, c) = (x0.get(v), x1.get(v));
-                *b = Aabb {
-                    min: a.min(c) - grow,
-                    max: a.max(c) + grow,
-                };
-                *end = c;
-            });
-    }
-
-    /// `p` moved into vertex `v`'s capsule: the points within `path_radius` of its path from
-    /// `x0` to `x1`, and (against round-off) inside its box.
-    #[inline]
-    fn kept_on_path(&self, v: usize, x0: &Vec3s, p: Vec3) -> Vec3 {
-        let (a, d) = (x0.get(v), self.path_ends[v] - x0.get(v));
-        let len2 = d.length_squared();
-        let t = if len2 > 0.0 {
-            ((p - a).dot(d) / len2).clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
-        let on_path = a + t * d;
-        let off = p - on_path;
-        let r = self.path_radius;
-        let p = if off.length_squared() > r * r {
-            on_path + off * (r / off.length())
-        } else {
-            p
-        };
-        let b = &self.vertex_boxes[v];
-        p.clamp(b.min, b.max)
-    }
-
     /// Lists every pair closer than `reach` at `x0`.
     fn rebuild_list(&mut self, x0: &Vec3s, reach: f64, eps: f32) {
         let grow = Vec3::splat(0.5 * reach as f32 + eps);
@@ -441,154 +364,6 @@ impl SelfCollision {
         finite
     }
 
-    /// The repulsion sweeps and the inelastic, frictional velocity impulses; returns whether
-    /// the velocities it wrote are finite.
-    ///
-    /// Gauss-Seidel in pair order: each pair is corrected with the positions its predecessors
-    /// left, so a vertex in many contacts is not under-corrected as a Jacobi average would (a
-    /// vertex lying on a layer touches a dozen triangles and edges). Sequential, so the same for
-    /// any thread count; each correction keeps momentum on its own.
-    fn repel(&mut self, next: &mut Kinematics, inv_mass: &[f32]) -> bool {
-        let thickness = self.thickness as f64;
-        self.near.clear();
-        // Pairs beyond twice the gap are out of the sweeps' reach (each moves a vertex by at
-        // most the gap's shortfall). An ordered parallel filter: the same for any thread count.
-        let pos = &next.pos;
-        self.near.par_extend(
-            self.pairs
-                .par_iter()
-                .enumerate()
-                .with_min_len(1024)
-                .filter(|(_, pair)| pair.n != DVec3::ZERO && pair.gap(pos) < 2.0 * thickness)
-                .map(|(k, _)| (k as u32, false)),
-        );
-        for sweep in 0..self.iterations {
-            let mut any = false;
-            for slot in &mut self.near {
-                let pair = &self.pairs[slot.0 as usize];
-                let g = pair.gap(&next.pos);
-                if g >= thickness {
-                    continue;
-                }
-                any = true;
-                if sweep == 0 {
-                    self.stats.contacts += 1;
-                }
-                slot.1 = true;
-                if let Some(w) = inverse_mass(pair, inv_mass) {
-                    let lambda = (thickness - g) / w;
-                    for k in 0..4 {
-                        let v = pair.verts[k] as usize;
-                        let dx = inv_mass[v] as f64 * pair.c[k] * lambda * pair.n;
-                        if dx != DVec3::ZERO {
-                            next.pos.set(v, (next.pos.get(v).as_dvec3() + dx).as_vec3());
-                        }
-                    }
-                }
-            }
-            if !any {
-                break;
-            }
-        }
-        let mut finite = true;
-        let mu = self.friction as f64;
-        for sweep in 0..self.iterations {
-            for &(k, touched) in &self.near {
-                if !touched {
-                    continue;
-                }
-                let pair = &self.pairs[k as usize];
-                let Some(w) = inverse_mass(pair, inv_mass) else {
-                    continue;
-                };
-                let mut rel = DVec3::ZERO;
-                for k in 0..4 {
-                    rel += pair.c[k] * next.vel.get(pair.verts[k] as usize).as_dvec3();
-                }
-                let vn = rel.dot(pair.n);
-                if vn >= 0.0 {
-                    continue; // already separating
-                }
-                // Relative velocity change: -vn along n, and (in the first sweep) up to
-                // mu |vn| against the sliding.
-                let mut dv = -vn * pair.n;
-                let tangential = rel - vn * pair.n;
-                let speed = tangential.length();
-                if sweep == 0 && speed > 0.0 {
-                    dv -= tangential * (mu * -vn / speed).min(1.0);
-                }
-                for k in 0..4 {
-                    let v = pair.verts[k] as usize;
-                    let du = inv_mass[v] as f64 * pair.c[k] / w * dv;
-                    if du != DVec3::ZERO {
-                        let u = (next.vel.get(v).as_dvec3() + du).as_vec3();
-                        next.vel.set(v, u);
-                        finite &= u.is_finite();
-                    }
-                }
-            }
-        }
-        finite
-    }
-
-    /// The cap (see the module's comment): scales displacements from `x0` until every pair's
-    /// relative motion is below `APPROACH` of its distance at `x0`, less `eps`.
-    fn cap(&mut self, x0: &Vec3s, next: &mut Kinematics, eps: f64) {
-        let n = x0.len();
-        self.scale.clear();
-        self.scale.resize(n, 1.0);
-        self.scale_next.clear();
-        self.scale_next.resize(n, 1.0);
-        let mut rounds = 0;
-        loop {
-            // Each pair's factor depends only on the scales of the round before (a Jacobi
-            // round), so the pairs are checked in parallel; taking the least factor per vertex
-            // is exact whatever the order.
-            let (s, pos) = (&self.scale, &next.pos);
-            let violations: Vec<(u32, f64)> = self
-                .pairs
-                .par_iter()
-                .enumerate()
-                .with_min_len(1024)
-                .filter_map(|(k, pair)| {
-                    cap_factor(pair, s, x0, pos, eps, rounds).map(|f| (k as u32, f))
-                })
-                .collect();
-            let violated = !violations.is_empty();
-            for (k, f) in violations {
-                for &v in &self.pairs[k as usize].verts {
-                    let v = v as usize;
-                    self.scale_next[v] = self.scale_next[v].min(self.scale[v] * f);
-                }
-            }
-            if !violated {
-                break;
-            }
-            rounds += 1;
-            self.scale.copy_from_slice(&self.scale_next);
-        }
-        self.stats.max_cap_rounds = self.stats.max_cap_rounds.max(rounds);
-        if rounds == 0 {
-            return;
-        }
-        for &v in &self.topology.vertices {
-            let v = v as usize;
-            let s = self.scale[v];
-            if s < 1.0 {
-                let a = x0.get(v);
-                let d = next.pos.get(v) - a;
-                if d == Vec3::ZERO {
-                    continue;
-                }
-                // Toward `x0` stays in the (convex) capsule; kept there against round-off.
-                next.pos.set(v, self.kept_on_path(v, x0, a + d * s as f32));
-                next.vel.set(v, next.vel.get(v) * s as f32);
-                self.stats.capped += 1;
-                self.stats.stopped += (s == 0.0) as u64;
-            }
-        }
-    }
-
     pub fn heap_bytes(&self) -> usize {
         self.topology.heap_bytes()
             + (self.vertex_boxes.capacity() + self.search_boxes.capacity()) * size_of::<Aabb>()
@@ -601,50 +376,6 @@ impl SelfCollision {
             + self.near.capacity() * 8
             + (self.scale.capacity() + self.scale_next.capacity()) * 8
     }
-}
-
-/// The factor the cap scales a pair's vertices' displacements by in round `round`, given the
-/// scales `s` so far, or None when the pair is safe by either bound (see the module's comment).
-#[inline]
-fn cap_factor(pair: &Pair, s: &[f64], x0: &Vec3s, x: &Vec3s, eps: f64, round: u32) -> Option<f64> {
-    let disp = |v: usize| x.get(v).as_dvec3() - x0.get(v).as_dvec3();
-    let start = |v: usize| x0.get(v).as_dvec3();
-    // The Lipschitz bound's relative motion `m`, and for the plane bound the least gap along
-    // `n` at the end and the most approach along it.
-    let (mut m, mut gap_end, mut approach) = (0.0f64, f64::INFINITY, 0.0f64);
-    let mut slack_start = f64::INFINITY;
-    for i in 0..pair.split {
-        let a = pair.verts[i] as usize;
-        let da = s[a] * disp(a);
-        for j in pair.split..4 {
-            let b = pair.verts[j] as usize;
-            let rel = da - s[b] * disp(b);
-            m = m.max(rel.length());
-            let base = (start(a) - start(b)).dot(pair.n);
-            gap_end = gap_end.min(base + rel.dot(pair.n));
-            approach = approach.max(-rel.dot(pair.n));
-            slack_start = slack_start.min(base);
-        }
-    }
-    let allowed = (APPROACH * pair.d0 - eps).max(0.0);
-    let keep = (1.0 - APPROACH) * pair.d0 + eps;
-    // Safe by either bound: relative motion below the distance, or the plane through the
-    // closest points at the start separating the two at the end (and so, by linearity, all
-    // along).
-    if m <= allowed || gap_end >= keep {
-        return None;
-    }
-    Some(if round < SCALE_ROUNDS {
-        let lip = if m > 0.0 { allowed / m } else { 1.0 };
-        let plane = if approach > 0.0 {
-            ((slack_start - keep) / approach).max(0.0)
-        } else {
-            1.0
-        };
-        0.99 * lip.max(plane).min(1.0)
-    } else {
-        0.0
-    })
 }
 
 /// What one pass over the mesh's vertices finds of a substep.
@@ -695,149 +426,11 @@ impl Survey {
 mod tests {
     use super::*;
 
-    /// The cap alone on the motion from `x0` to `x1` of the mesh `triangles`, as `apply` runs
-    /// it after the repulsion: the swept search's pairs, then `cap`. Returns where the vertices
-    /// end and the pass's statistics. The repulsion is left out on purpose: it keeps pairs at
-    /// `thickness` on its own and would hide what the cap guarantees.
-    fn cap_only(
-        triangles: Vec<[u32; 3]>,
-        x0: &Vec3s,
-        x1: &Vec3s,
-        thickness: f32,
-    ) -> (Vec3s, SelfCollisionStats) {
-        let n = x0.len();
-        let mut pass = SelfCollision::new(thickness, 0.0, 1);
-        pass.topology.rebuild(0, n, triangles);
-        // The round-off margin `apply` would use.
-        let survey = Survey::of(&pass.topology.vertices, x0, x1, None).unwrap();
-        let eps = 1e-6 * (1.0 + survey.reach);
-        pass.sweep_boxes(x0, x1, eps as f32);
-        pass.swept_pairs(x0, eps);
-        assert!(!pass.pairs.is_empty(), "nothing for the cap to look at");
-        let mut next = Kinematics {
-            pos: Vec3s::from_fn(n, |v| x1.get(v)),
-            vel: Vec3s::zeros(n),
-        };
-        pass.cap(x0, &mut next, eps);
-        (next.pos, pass.stats)
-    }
-
-    /// A horizontal triangle of 1 cm legs at height `y` (m), its vertices `first..first + 3`.
-    fn flat_triangle(first: u32, y: f32) -> ([u32; 3], [Vec3; 3]) {
-        let corners = [
-            Vec3::new(0.0, y, 0.0),
-            Vec3::new(0.01, y, 0.0),
-            Vec3::new(0.0, y, 0.01),
-        ];
-        ([first, first + 1, first + 2], corners)
-    }
-
-    /// A vertex 1 mm above a still triangle, moved 3 mm down within one substep, through it.
-    /// The cap lets a pair close at most `APPROACH` of its starting distance, so the vertex
-    /// must stop at least `(1 - APPROACH) 1 mm = 0.1 mm` above the triangle's plane (0.109 mm:
-    /// the proportional round scales by 0.99 of the bound). A cap that let the pair close all
-    /// of its distance would leave it a round-off margin from touching.
+    /// A pass that built its mesh from the live particles alone would keep the triangles a
+    /// severed stroke runs through as a surface stretched across the gap, and push cloth off
+    /// a surface nobody sees. It must keep apart exactly the drawn triangles.
     #[test]
-    fn the_cap_stops_a_vertex_a_tenth_of_its_distance_above_a_triangle() {
-        let (below, corners) = flat_triangle(0, 0.0);
-        // The vertex (3) is the corner of a triangle whose other corners stand still 5 cm up.
-        let start = [
-            corners[0],
-            corners[1],
-            corners[2],
-            Vec3::new(0.002, 0.001, 0.002),
-            Vec3::new(0.002, 0.05, 0.03),
-            Vec3::new(0.03, 0.05, 0.002),
-        ];
-        let x0 = Vec3s::from_fn(6, |v| start[v]);
-        let x1 = Vec3s::from_fn(6, |v| {
-            start[v] - (v == 3) as u8 as f32 * Vec3::new(0.0, 0.003, 0.0)
-        });
-        let (end, stats) = cap_only(vec![below, [3, 4, 5]], &x0, &x1, 0.0005);
-        let height = end.get(3).y;
-        assert!(
-            height >= 1e-4,
-            "the vertex ended {height} m above the triangle: {stats:?}"
-        );
-        // It did move down, most of the way the bound allows (not stopped dead).
-        assert!(
-            height < 2e-4,
-            "the vertex ended {height} m above the triangle"
-        );
-        assert_eq!((0..3).map(|v| end.get(v)).collect::<Vec<_>>(), corners);
-    }
-
-    /// 41 triangles stacked 1 mm apart, the bottom one still and the 40 above it all moved
-    /// 10 mm down within one substep. Each pair may close at most 0.9 of its distance, and the
-    /// proportional rounds, one Jacobi sweep each, settle the stack from the bottom up a few
-    /// layers per round: `SCALE_ROUNDS` rounds are not enough, and the stopping round (`s = 0`
-    /// for every vertex still in a fast pair) is what keeps the upper layers from passing
-    /// through the ones the earlier rounds slowed. Every layer must end at least a tenth of
-    /// their 1 mm above the one below.
-    #[test]
-    fn the_cap_keeps_every_layer_of_a_falling_stack_above_the_one_below() {
-        let layers = 41;
-        let (mut triangles, mut start) = (Vec::new(), Vec::new());
-        for k in 0..layers {
-            let (t, corners) = flat_triangle(3 * k, 0.001 * k as f32);
-            triangles.push(t);
-            start.extend(corners);
-        }
-        let x0 = Vec3s::from_fn(start.len(), |v| start[v]);
-        let drop = Vec3::new(0.0, 0.01, 0.0);
-        let x1 = Vec3s::from_fn(start.len(), |v| start[v] - (v >= 3) as u8 as f32 * drop);
-        let (end, stats) = cap_only(triangles, &x0, &x1, 0.0005);
-        for k in 1..layers as usize {
-            for corner in 0..3 {
-                let (v, below) = (3 * k + corner, 3 * (k - 1) + corner);
-                let gap = end.get(v).y - end.get(below).y;
-                assert!(gap >= 1e-4, "layer {k} ends {gap} m above layer {}", k - 1);
-            }
-        }
-        // What the test is for: the proportional rounds were not enough.
-        assert!(
-            stats.max_cap_rounds > SCALE_ROUNDS && stats.stopped > 0,
-            "the stack did not reach the stopping round: {stats:?}"
-        );
-    }
-
-    /// The capsule a vertex is kept in: a point within `path_radius` of the straight path
-    /// from `x0` to `x1` stays where it is; one farther is brought onto the capsule, so that
-    /// it ends no farther from `x0` than `|x1 - x0| + path_radius`, the reach the swept
-    /// search's filter counts on.
-    #[test]
-    fn a_vertex_is_kept_within_its_capsule_and_box() {
-        let x0 = Vec3s::from_fn(1, |_| Vec3::new(1.0, 2.0, 3.0));
-        let x1 = Vec3s::from_fn(1, |_| Vec3::new(1.01, 2.0, 3.0));
-        let mut pass = SelfCollision::new(0.004, 0.0, 1);
-        pass.sweep_boxes(&x0, &x1, 1e-7);
-        let r = pass.path_radius;
-        let (a, c) = (x0.get(0), x1.get(0));
-        let inside = Vec3::new(1.005, 2.0015, 3.0);
-        assert_eq!(pass.kept_on_path(0, &x0, inside), inside);
-        // A box corner is inside the box but outside the capsule: sqrt(2) r off the path.
-        let corner = Vec3::new(1.005, 2.0 + r, 3.0 + r);
-        let kept = pass.kept_on_path(0, &x0, corner);
-        // Up to round-off of coordinates near 3 (the pass's `eps` allows for 1e-6 per unit).
-        let round_off = 1e-6;
-        let off_path = (kept - Vec3::new(kept.x, 2.0, 3.0)).length();
-        assert!(off_path <= r + round_off, "{off_path} > {r}");
-        assert!((kept.x - 1.005).abs() < 1e-6);
-        // Far beyond the end: onto the end's cap, at most |x1 - x0| + r from the start.
-        for far in [Vec3::new(2.0, 2.5, 3.0), Vec3::new(0.0, 1.0, 4.0)] {
-            let kept = pass.kept_on_path(0, &x0, far);
-            let reach = (c - a).length() + r;
-            assert!((kept - a).length() <= reach + round_off, "{kept}");
-            let b = pass.vertex_boxes[0];
-            assert_eq!(kept.clamp(b.min, b.max), kept);
-        }
-    }
-
-    /// Before the cutting and contact branches met, the pass rebuilt its mesh from the live
-    /// particles alone, so the triangles a severed stroke runs through stayed in it as a
-    /// surface stretched across the gap. It must keep apart exactly the drawn triangles.
-    #[test]
-    fn issue_15_the_mesh_it_keeps_apart_is_the_drawn_one_after_a_cut() {
+    fn the_mesh_it_keeps_apart_is_the_drawn_one_after_a_cut() {
         let scene = crate::Scene::builtin("hanging").unwrap();
         let (mut model, pos) = Model::new(scene).unwrap();
         let n = model.grid.len();

@@ -4,7 +4,9 @@
 use std::hash::{Hash, Hasher};
 
 use glam::Vec3;
-use rustcloth::scene::{ClothSpec, Plane};
+use rustcloth::scene::{
+    ClothSpec, ColliderSpec, FloorSpec, PinSpec, Plane, SphereSpec, StrainLimitSpec,
+};
 use rustcloth::soa::Vec3s;
 use rustcloth::IntegratorKind;
 use rustcloth::{Scene, Simulation};
@@ -21,6 +23,94 @@ pub fn bare_scene(nx: u32, ny: u32) -> Scene {
         },
         ..Scene::default()
     }
+}
+
+/// [`bare_scene`] under gravity (9.81 m/s^2 along -y).
+pub fn scene_under_gravity(nx: u32, ny: u32) -> Scene {
+    let mut scene = bare_scene(nx, ny);
+    scene.gravity = [0.0, -9.81, 0.0];
+    scene
+}
+
+/// The built-in scene `name` with `integrator`, on an `nx` x `ny` grid.
+pub fn builtin_scene(name: &str, integrator: IntegratorKind, nx: u32, ny: u32) -> Scene {
+    let mut scene = Scene::builtin(name).unwrap();
+    scene.integrator = integrator;
+    scene.cloth.nx = nx;
+    scene.cloth.ny = ny;
+    scene
+}
+
+/// The built-in drape (with its own integrator) on an `n` x `n` grid, hung by the two corners
+/// of its top edge instead of falling free.
+pub fn hung_drape(n: u32) -> Scene {
+    let mut scene = Scene::builtin("drape").unwrap();
+    scene.cloth.nx = n;
+    scene.cloth.ny = n;
+    scene.cloth.pins = vec![PinSpec::Named("top_corners".into())];
+    scene
+}
+
+/// Where the optional passes of [`every_pass_scene`] act.
+pub struct Passes {
+    /// The floor's height (m).
+    pub floor: f64,
+    /// The sphere's centre (m) and radius (m).
+    pub sphere: ([f64; 3], f64),
+    /// The named pin set.
+    pub pins: &'static str,
+    /// The watchdog's `max_stretch`.
+    pub max_stretch: f64,
+}
+
+/// A vertical cloth of `nx` x `ny` in the xy plane with every optional pass the scene can ask
+/// for: drag, a floor and a sphere it touches, strain limiting, the watchdog's stretch check.
+/// Explicit Euler gets the damping it needs to survive.
+pub fn every_pass_scene(nx: u32, ny: u32, integrator: IntegratorKind, passes: Passes) -> Scene {
+    let (center, radius) = passes.sphere;
+    let mut scene = Scene {
+        integrator,
+        air_drag: 0.001,
+        floor: Some(FloorSpec {
+            height: passes.floor,
+            ..FloorSpec::default()
+        }),
+        spheres: vec![SphereSpec {
+            center,
+            radius,
+            ..SphereSpec::default()
+        }],
+        strain_limit: Some(StrainLimitSpec::default()),
+        ..Scene::default()
+    };
+    scene.cloth.nx = nx;
+    scene.cloth.ny = ny;
+    scene.cloth.plane = Plane::Xy;
+    scene.cloth.pins = vec![PinSpec::Named(passes.pins.into())];
+    scene.watchdog.max_stretch = Some(passes.max_stretch);
+    if integrator == IntegratorKind::ExplicitEuler {
+        scene.cloth.damping = 0.05;
+    }
+    scene
+}
+
+/// A free, level `n` x `n` cloth `size` m across, under gravity, starting at height `y` (m)
+/// above `colliders`.
+pub fn cloth_over(n: u32, size: f64, y: f64, colliders: Vec<ColliderSpec>) -> Simulation {
+    let mut scene = scene_under_gravity(n, n);
+    scene.cloth.size = [size, size];
+    scene.cloth.center = [0.0, y, 0.0];
+    scene.colliders = colliders;
+    Simulation::new(scene).unwrap()
+}
+
+/// The mean x velocity of the cloth (m/s), summed in f64.
+pub fn mean_velocity_x(sim: &Simulation) -> f64 {
+    let n = sim.velocities().len();
+    (0..n)
+        .map(|p| sim.velocities().get(p).x as f64)
+        .sum::<f64>()
+        / n as f64
 }
 
 /// `scene`'s 2 x 2 cloth with three particles cut: one free particle (index 0) at `start`

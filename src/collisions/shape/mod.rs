@@ -9,9 +9,10 @@
 //! velocity there (`v + w x r`) loses the inward part and is slowed by Coulomb friction, so a
 //! moving shape carries cloth that sticks to it. The position takes the same tangential change
 //! as the velocity, times the substep (`x1 = x0 + h v1` with the velocity after friction):
-//! otherwise the nearest-point projection keeps the slide of a particle that static friction
-//! stopped, and cloth crept down every slope at `g h sin(angle)` per substep. Work is per particle and independent, so the
-//! result is the same for any thread count, and a step allocates nothing.
+//! otherwise the nearest-point projection would keep the slide of a particle that static
+//! friction stopped, and cloth would creep down every slope at `g h sin(angle)` per substep.
+//! Work is per particle and independent, so the result is the same for any thread count, and a
+//! step allocates nothing.
 //!
 //! Swept, as the spheres are: the particle's path over the substep is taken into the shape's
 //! frame at its start and its end (`x0` posed at the substep's start, `x1` at its end: the
@@ -21,246 +22,27 @@
 //! instead: a fast particle or a fast shape neither tunnels nor pushes cloth through. A turning
 //! shape's path is linearised over the substep, exact while `|angular_velocity| h` is small.
 //!
-//! A mesh asks the same two questions: the nearest point within `thickness` plus the particle's
-//! path length over the substep (a particle further than that from the surface cannot have
-//! touched it, so the query stays local however large the mesh), answered from a uniform grid
-//! over the triangles when it is short (`super::mesh`, exact) and by parry's `TriMesh` BVH when
-//! not; and a ray cast through the BVH that ignores back faces, for the entry point. A closed
-//! mesh tells inside from outside by the angle-weighted pseudo-normals
-//! (`TriMeshFlags::ORIENTED`); an open one is a one-sided sheet: only the side its triangles
-//! face pushes, a particle that crosses it from the front within a substep is stopped where it
-//! crossed, one behind it within `thickness` is put `thickness` in front, and one further behind
-//! is free.
-//!
-//! A pose set between steps ([`Shapes::set_pose`]) is reached over the next step, at the
-//! constant velocity and turn rate that take the shape from where it was to where it was put
-//! (a [`PoseKey`]); friction acts on the velocity relative to that motion, so cloth resting on
-//! a collider moved every step is carried along. After that step the shape rests at the pose.
+//! A mesh (`geometry.rs`) answers the same two questions locally, from a grid over its triangles
+//! or parry's BVH; a closed one is a solid, an open one a one-sided sheet. A pose set between
+//! steps (`pose.rs`) is reached over the next step at constant velocity and turn rate.
+
+mod geometry;
+mod pose;
 
 use glam::{DQuat, DVec3, Quat, Vec3};
-use parry3d::query::{PointQuery, PointQueryWithLocation, Ray, RayCast, RayCullingMode};
-use parry3d::shape::{
-    Ball, Capsule, Cuboid, Cylinder, HalfSpace, TopoFace, TopoHalfEdge, TopoVertex, TriMesh,
-    TriMeshFlags,
-};
 
 use super::contact_velocity;
-use super::mesh::{MeshGrid, Nearest};
-use crate::error::{Error, Result};
 use crate::particles::Particles;
-use crate::scene::{is_closed, ColliderSpec, ShapeKind, MAX_COLLIDER_VALUE};
+use crate::scene::{ColliderSpec, ShapeKind};
 use crate::state::Kinematics;
+use geometry::{Geometry, Projection};
+pub use pose::{Pose, PoseKey, ROTATION_TOLERANCE};
 
 /// The scene's `[[colliders]]`, in order; a later one has the last word where two overlap.
 pub struct Shapes {
     shapes: Vec<ShapeCollider>,
     /// Per collider, the pose set between steps, if any (then its scripted motion is over).
     keys: Vec<Option<PoseKey>>,
-}
-
-/// Where a collider's frame is: its origin (m) and orientation (a unit quaternion).
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct Pose {
-    pub position: DVec3,
-    pub rotation: DQuat,
-}
-
-/// A pose set between steps: the collider goes from `from` at time `start` to `to` at `end`
-/// (s; the end of the step after the call) at constant velocity and turn rate, and rests at
-/// `to` after that.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct PoseKey {
-    pub from: Pose,
-    pub to: Pose,
-    pub start: f64,
-    pub end: f64,
-}
-
-/// How far from 1 the norm of a quaternion given as a rotation may be (it is normalised).
-pub const ROTATION_TOLERANCE: f64 = 1e-3;
-
-impl Pose {
-    /// A pose from a position (m, finite, within [`MAX_COLLIDER_VALUE`]) and a unit quaternion
-    /// `[x, y, z, w]` (norm within [`ROTATION_TOLERANCE`] of 1; normalised), each named in the
-    /// error on bad input.
-    pub fn checked(names: (&str, &str), position: [f64; 3], rotation: [f64; 4]) -> Result<Pose> {
-        let (pos_name, rot_name) = names;
-        if let Some(x) = position
-            .iter()
-            .find(|x| !(x.is_finite() && x.abs() <= MAX_COLLIDER_VALUE))
-        {
-            return Err(Error::value(
-                pos_name,
-                format!(
-                    "must be finite numbers of at most {MAX_COLLIDER_VALUE:e} m, got {x} in \
-                     {position:?}"
-                ),
-            ));
-        }
-        let q = DQuat::from_array(rotation);
-        let norm = q.length();
-        if !(q.is_finite() && (norm - 1.0).abs() <= ROTATION_TOLERANCE) {
-            return Err(Error::value(
-                rot_name,
-                format!(
-                    "must be a unit quaternion [x, y, z, w] (norm within {ROTATION_TOLERANCE} \
-                     of 1), got {rotation:?} of norm {norm}"
-                ),
-            ));
-        }
-        Ok(Pose {
-            position: DVec3::from(position),
-            rotation: q / norm,
-        })
-    }
-}
-
-impl PoseKey {
-    /// The pose, velocity (m/s) and angular velocity (rad/s) at `time`.
-    fn at(&self, time: f64) -> (Pose, DVec3, DVec3) {
-        let span = self.end - self.start;
-        let f = (time - self.start) / span;
-        // The step's last substep ends at `end` up to rounding in the clock's sums.
-        if f > 1.0 + 1e-9 {
-            return (self.to, DVec3::ZERO, DVec3::ZERO);
-        }
-        let velocity = (self.to.position - self.from.position) / span;
-        let mut turn = self.to.rotation * self.from.rotation.inverse();
-        if turn.w < 0.0 {
-            turn = -turn; // the short way round
-        }
-        let angular_velocity = turn.to_scaled_axis() / span;
-        let pose = if f >= 1.0 {
-            self.to
-        } else {
-            let f = f.max(0.0);
-            Pose {
-                position: self.from.position.lerp(self.to.position, f),
-                rotation: (DQuat::from_scaled_axis(turn.to_scaled_axis() * f) * self.from.rotation)
-                    .normalize(),
-            }
-        };
-        (pose, velocity, angular_velocity)
-    }
-}
-
-/// A triangle mesh, whether it is closed (a solid) or open (a one-sided sheet), and the grid
-/// that answers its short nearest-point queries.
-struct MeshShape {
-    mesh: TriMesh,
-    closed: bool,
-    grid: MeshGrid,
-}
-
-enum Geometry {
-    Ball(Ball),
-    Cuboid(Cuboid),
-    Capsule(Capsule),
-    Cylinder(Cylinder),
-    HalfSpace(HalfSpace),
-    Mesh(Box<MeshShape>),
-}
-
-/// The surface point nearest a local point, whether the point is inside, and the normal to use
-/// where the point is on the surface (no direction to it).
-struct Projection {
-    point: Vec3,
-    inside: bool,
-    fallback: Vec3,
-}
-
-impl Geometry {
-    /// Bytes a mesh holds on the heap (its triangles, parry's tree, normals and topology, and
-    /// the grid); nothing for the other shapes.
-    fn heap_bytes(&self) -> usize {
-        let Geometry::Mesh(m) = self else {
-            return 0;
-        };
-        let mesh = &m.mesh;
-        let normals = mesh.pseudo_normals().map_or(0, |p| {
-            p.vertices_pseudo_normal.len() * size_of::<Vec3>()
-                + p.edges_pseudo_normal.len() * size_of::<[Vec3; 3]>()
-        });
-        let topology = mesh.topology().map_or(0, |t| {
-            t.vertices.len() * size_of::<TopoVertex>()
-                + t.faces.len() * size_of::<TopoFace>()
-                + t.half_edges.len() * size_of::<TopoHalfEdge>()
-        });
-        size_of_val(mesh.vertices())
-            + size_of_val(mesh.indices())
-            + mesh.bvh().heap_memory_size()
-            + normals
-            + topology
-            + m.grid.heap_bytes()
-    }
-
-    /// The nearest surface point to `local`; a mesh answers only within `max_dist` of it.
-    #[inline]
-    fn project(&self, local: Vec3, max_dist: f32) -> Option<Projection> {
-        // `solid = false`: a point inside gets the nearest boundary point, not itself. The
-        // direction from the centre is outward on every convex shape here.
-        let convex = |p: parry3d::query::PointProjection| Projection {
-            point: p.point,
-            inside: p.is_inside,
-            fallback: local.normalize_or(Vec3::Y),
-        };
-        Some(match self {
-            Geometry::Ball(s) => convex(s.project_local_point(local, false)),
-            Geometry::Cuboid(s) => convex(s.project_local_point(local, false)),
-            Geometry::Capsule(s) => convex(s.project_local_point(local, false)),
-            Geometry::Cylinder(s) => convex(s.project_local_point(local, false)),
-            Geometry::HalfSpace(s) => Projection {
-                fallback: Vec3::Y,
-                ..convex(s.project_local_point(local, false))
-            },
-            Geometry::Mesh(m) => {
-                // Either way, the projection's `subshape` is the triangle it lies on.
-                let p = match m.grid.nearest(&m.mesh, local, max_dist) {
-                    Nearest::Found(projection) => projection,
-                    Nearest::None => return None,
-                    Nearest::AskTheTree => {
-                        m.mesh
-                            .project_local_point_and_get_location_with_max_dist(
-                                local, false, max_dist,
-                            )?
-                            .0
-                    }
-                };
-                Projection {
-                    point: p.point,
-                    inside: p.is_inside,
-                    fallback: m.mesh.triangle(p.subshape).normal().unwrap_or(Vec3::Y),
-                }
-            }
-        })
-    }
-
-    /// Whether only one side pushes and the inside is no solid: an open mesh.
-    #[inline]
-    fn one_sided(&self) -> bool {
-        matches!(self, Geometry::Mesh(m) if !m.closed)
-    }
-
-    /// Where the segment `from + t d`, `t` in `[0, 1]`, first meets the solid shape, and the
-    /// outward normal there; `t = 0` when `from` is inside.
-    #[inline]
-    fn entry(&self, from: Vec3, d: Vec3) -> Option<(f32, Vec3)> {
-        let ray = Ray::new(from, d);
-        let hit = match self {
-            Geometry::Ball(s) => s.cast_local_ray_and_get_normal(&ray, 1.0, true),
-            Geometry::Cuboid(s) => s.cast_local_ray_and_get_normal(&ray, 1.0, true),
-            Geometry::Capsule(s) => s.cast_local_ray_and_get_normal(&ray, 1.0, true),
-            Geometry::Cylinder(s) => s.cast_local_ray_and_get_normal(&ray, 1.0, true),
-            Geometry::HalfSpace(s) => s.cast_local_ray_and_get_normal(&ray, 1.0, true),
-            // Front faces only: where the path entered the solid (or crossed the sheet's
-            // pushing side); leaving through a back face is no contact.
-            Geometry::Mesh(m) => {
-                m.mesh
-                    .cast_local_ray_with_culling(&ray, 1.0, RayCullingMode::IgnoreBackfaces)
-            }
-        };
-        hit.map(|h| (h.time_of_impact, h.normal))
-    }
 }
 
 struct ShapeCollider {
@@ -305,19 +87,7 @@ impl Shapes {
         let shapes: Vec<ShapeCollider> = specs
             .iter()
             .map(|s| {
-                let r = s.radius.unwrap_or(0.0) as f32;
-                let hh = s.half_height.unwrap_or(0.0) as f32;
-                let (geometry, bound) = match s.shape {
-                    ShapeKind::Sphere => (Geometry::Ball(Ball::new(r)), r),
-                    ShapeKind::Box => {
-                        let h = DVec3::from(s.half_extents.unwrap_or([0.0; 3])).as_vec3();
-                        (Geometry::Cuboid(Cuboid::new(h)), h.length())
-                    }
-                    ShapeKind::Capsule => (Geometry::Capsule(Capsule::new_y(hh, r)), hh + r),
-                    ShapeKind::Cylinder => (Geometry::Cylinder(Cylinder::new(hh, r)), hh.hypot(r)),
-                    ShapeKind::Plane => (Geometry::HalfSpace(HalfSpace::new(Vec3::Y)), 0.0),
-                    ShapeKind::Mesh => mesh_geometry(s),
-                };
+                let (geometry, bound) = Geometry::of(s);
                 let reach = match s.shape {
                     ShapeKind::Plane => f32::INFINITY,
                     _ => (bound + s.thickness as f32) * (1.0 + 1e-4) + 1e-6,
@@ -444,42 +214,6 @@ impl Shapes {
     }
 }
 
-/// How far beyond the thickness a particle may travel relative to a mesh in a substep (m) and
-/// still have its nearest-point query answered from the mesh's grid (the grid's reach is this plus
-/// twice the thickness). 2 mm is 4 m/s at a 0.5 ms substep; faster particles are answered by
-/// the BVH, exactly, only slower, and a longer reach would make every cell's list longer.
-const MESH_GRID_TRAVEL: f32 = 0.002;
-
-/// The triangle mesh of a validated `mesh` spec, and the radius of a ball about its frame's
-/// origin holding it.
-fn mesh_geometry(s: &ColliderSpec) -> (Geometry, f32) {
-    let vertices: Vec<Vec3> = s
-        .vertices
-        .iter()
-        .flatten()
-        .map(|&v| DVec3::from(v).as_vec3())
-        .collect();
-    let triangles: Vec<[u32; 3]> = s
-        .triangles
-        .iter()
-        .flatten()
-        .map(|t| t.map(|k| k as u32))
-        .collect();
-    let closed = is_closed("mesh", s.vertices.as_deref().unwrap_or(&[]), &triangles)
-        .expect("a validated mesh is wound consistently");
-    let bound = vertices.iter().map(|v| v.length()).fold(0.0, f32::max);
-    // ORIENTED: the pseudo-normals of the inside test; merged duplicates, so that a mesh with
-    // one vertex per corner has shared edges and vertices to average them over.
-    let flags = TriMeshFlags::ORIENTED | TriMeshFlags::MERGE_DUPLICATE_VERTICES;
-    let mesh =
-        TriMesh::with_flags(vertices, triangles, flags).expect("a validated mesh has triangles");
-    let grid = MeshGrid::new(&mesh, 2.0 * s.thickness as f32 + MESH_GRID_TRAVEL);
-    (
-        Geometry::Mesh(Box::new(MeshShape { mesh, closed, grid })),
-        bound,
-    )
-}
-
 impl ShapeCollider {
     /// The pose, velocity (m/s) and angular velocity (rad/s) at `time` (s): set between steps
     /// (`key`), or scripted by the scene.
@@ -565,7 +299,7 @@ impl ShapeCollider {
 
     /// For a ball, `at` (after the friction slide) back on the ball's offset surface if the
     /// slide left it inside: in float32 a slide along the tangent plane of a particle moving
-    /// fast round a ball ended it a few micrometres inside. Other shapes: `at` as it is.
+    /// fast round a ball can end it a few micrometres inside. Other shapes: `at` as it is.
     #[inline]
     fn on_ball(&self, posed: &Posed, at: Vec3) -> Vec3 {
         let Geometry::Ball(ball) = &self.geometry else {
@@ -582,8 +316,8 @@ impl ShapeCollider {
     /// The contact point `at` with outward normal `n` of a ball centred at `center`, moved up
     /// the ball's offset surface to the floor's level, in the same vertical plane, where it lies
     /// under that level. The floor pass, which runs next, would lift it straight back into the
-    /// ball: a cloth caught in the crease between a ball and the floor it stands on sank into
-    /// the ball. Other shapes, and points above the floor, are returned as they are.
+    /// ball: a cloth caught in the crease between a ball and the floor it stands on would sink
+    /// into the ball. Other shapes, and points above the floor, are returned as they are.
     #[inline]
     fn above_floor(&self, center: Vec3, n: Vec3, at: Vec3) -> (Vec3, Vec3) {
         if at.y >= self.floor {

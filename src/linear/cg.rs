@@ -1,0 +1,182 @@
+//! The preconditioned conjugate gradient on a [`BlockStencil`] system `A x = b`, `A` symmetric
+//! positive definite (Hestenes and Stiefel 1952; Shewchuk, "An introduction to the conjugate
+//! gradient method without the agonizing pain", 1994):
+//!
+//! ```text
+//! x = 0, r = b, z = M^-1 r, p = z
+//! repeat: q = A p, alpha = (r . z) / (p . q), x += alpha p, r -= alpha q,
+//!         z = M^-1 r, beta = (r . z)_new / (r . z), p = z + beta p
+//! ```
+//!
+//! until `|r| / |b|` is below the tolerance. The preconditioner `M^-1` is the caller's (block
+//! Jacobi through [`diagonal_blocks`], a multigrid V-cycle); it must be symmetric positive
+//! definite for the iteration to be CG. A direction along which `p . q` is not positive (the
+//! matrix is not positive definite there, or overflowed) ends the solve where it stands.
+//!
+//! Dot products are partial sums over fixed chunks added in order ([`super::reduce`]) and every
+//! vector update writes only its own chunk, so the iterates are bitwise the same for any number
+//! of threads.
+
+use rayon::prelude::*;
+
+use super::reduce::{dot, dot3, par_dot, partials, REDUCE_CHUNK};
+use super::stencil::{set_product, BlockStencil, SlotArrays};
+use crate::soa::Vec3s;
+
+/// The vectors of a CG solve, kept between solves so that a solve allocates nothing.
+#[derive(Clone, Debug, Default)]
+pub struct ConjugateGradient {
+    r: Vec3s,
+    z: Vec3s,
+    p: Vec3s,
+    q: Vec3s,
+    partials: Vec<f64>,
+}
+
+impl ConjugateGradient {
+    /// The workspace for systems of `n` nodes.
+    pub fn new(n: usize) -> Self {
+        ConjugateGradient {
+            r: Vec3s::zeros(n),
+            z: Vec3s::zeros(n),
+            p: Vec3s::zeros(n),
+            q: Vec3s::zeros(n),
+            partials: partials(n),
+        }
+    }
+
+    /// Solves `a x = b` from `x = 0`, with `precondition(r, z)` setting `z = M^-1 r`; stops
+    /// when the relative residual `|r| / |b|` is at most `tolerance` or after `max_iterations`.
+    /// Returns the iterations and the final relative residual: 0 for `b = 0`, NaN for a
+    /// non-finite `b` (`x` is then left zero), and 1 when the first direction already broke
+    /// down.
+    pub fn solve(
+        &mut self,
+        a: &BlockStencil,
+        b: &Vec3s,
+        x: &mut Vec3s,
+        tolerance: f64,
+        max_iterations: u32,
+        mut precondition: impl FnMut(&Vec3s, &mut Vec3s),
+    ) -> (u32, f64) {
+        x.fill(glam::Vec3::ZERO);
+        self.r.copy_from(b);
+        let b_dot_b = par_dot(b, b, &mut self.partials);
+        let b_norm = b_dot_b.sqrt();
+        if !(b_norm > 0.0 && b_norm.is_finite()) {
+            // Nothing to solve (every node held, or no load), or a non-finite right-hand side,
+            // which the caller's finite check then reports.
+            return (0, if b_norm == 0.0 { 0.0 } else { f64::NAN });
+        }
+        let mut rz = self.precondition(&mut precondition);
+        self.p.copy_from(&self.z);
+        let mut residual = 1.0;
+        let mut iterations = 0;
+        while residual > tolerance && iterations < max_iterations {
+            let pq = self.product(a);
+            if pq <= 0.0 || !pq.is_finite() {
+                break; // breakdown: the matrix is not positive definite along p
+            }
+            let r_dot_r = self.advance_solution(x, (rz / pq) as f32);
+            iterations += 1;
+            residual = r_dot_r.sqrt() / b_norm;
+            if residual <= tolerance {
+                break;
+            }
+            let rz_new = self.precondition(&mut precondition);
+            self.next_direction((rz_new / rz) as f32);
+            rz = rz_new;
+        }
+        if iterations == 0 {
+            // The first direction was already a breakdown; keep x = 0.
+            residual = 1.0;
+        }
+        (iterations, residual)
+    }
+
+    /// `z = M^-1 r`, returning `r . z`.
+    fn precondition(&mut self, precondition: &mut impl FnMut(&Vec3s, &mut Vec3s)) -> f64 {
+        precondition(&self.r, &mut self.z);
+        par_dot(&self.r, &self.z, &mut self.partials)
+    }
+
+    /// `q = A p`, returning `p . q`.
+    fn product(&mut self, a: &BlockStencil) -> f64 {
+        let ConjugateGradient { p, q, partials, .. } = self;
+        let p = &*p;
+        q.par_chunks_mut(REDUCE_CHUNK)
+            .zip(partials.par_iter_mut())
+            .enumerate()
+            .for_each(|(c, (mut q, partial))| {
+                let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + q.len();
+                *partial = crate::simd::dispatch!({
+                    a.apply_range(p, range.clone(), &mut q);
+                    dot3(p.slices(range.clone()), q.as_slices())
+                });
+            });
+        partials.iter().sum()
+    }
+
+    /// `x += step p, r -= step q`; returns `r . r`.
+    fn advance_solution(&mut self, x: &mut Vec3s, step: f32) -> f64 {
+        let ConjugateGradient {
+            r, p, q, partials, ..
+        } = self;
+        let (p, q) = (&*p, &*q);
+        x.par_chunks_mut(REDUCE_CHUNK)
+            .zip(r.par_chunks_mut(REDUCE_CHUNK))
+            .zip(partials.par_iter_mut())
+            .enumerate()
+            .for_each(|(c, ((x, r), partial))| {
+                let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + x.len();
+                *partial = crate::simd::dispatch!({
+                    let (p, q) = (p.slices(range.clone()), q.slices(range.clone()));
+                    let mut sum = 0.0;
+                    for (x, r, p, q) in [
+                        (x.x, &mut *r.x, p.x, q.x),
+                        (x.y, &mut *r.y, p.y, q.y),
+                        (x.z, &mut *r.z, p.z, q.z),
+                    ] {
+                        for i in 0..x.len() {
+                            x[i] += step * p[i];
+                            r[i] -= step * q[i];
+                        }
+                        sum += dot(r, r);
+                    }
+                    sum
+                });
+            });
+        partials.iter().sum()
+    }
+
+    /// `p = z + beta p`.
+    fn next_direction(&mut self, beta: f32) {
+        let ConjugateGradient { p, z, .. } = self;
+        let z = &*z;
+        p.par_chunks_mut(REDUCE_CHUNK)
+            .enumerate()
+            .for_each(|(c, p)| {
+                let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + p.len();
+                let z = z.slices(range);
+                crate::simd::dispatch!({
+                    for (p, z) in [(p.x, z.x), (p.y, z.y), (p.z, z.z)] {
+                        for (p, z) in p.iter_mut().zip(z) {
+                            *p = z + beta * *p;
+                        }
+                    }
+                })
+            });
+    }
+}
+
+/// `z = D r` for the block-diagonal `D` whose blocks are the six component arrays `d` (the
+/// Jacobi preconditioners' inverse diagonal).
+pub fn diagonal_blocks(d: &SlotArrays, r: &Vec3s, z: &mut Vec3s) {
+    z.par_chunks_mut(REDUCE_CHUNK)
+        .enumerate()
+        .for_each(|(c, mut z)| {
+            let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + z.len();
+            let d: [&[f32]; 6] = std::array::from_fn(|k| &d[k][range.clone()]);
+            crate::simd::dispatch!(set_product(d, r.slices(range.clone()), &mut z));
+        });
+}
