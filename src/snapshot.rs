@@ -28,19 +28,30 @@ use crate::stepper::{Stepper, MAX_ADVANCE_STEPS};
 pub type GrabRecord = (usize, bool, Option<Vec3>);
 
 /// Everything `Simulation::restore` needs to continue a run bit for bit.
-#[derive(Clone, Debug, PartialEq)]
+///
+/// Serde covers the plain values only: the scene has its own validated format, and the
+/// per-particle arrays are the bulk of a snapshot, which a binding sends as arrays of its own
+/// (numpy) rather than as one serde value per element.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Snapshot {
     /// The scene, with the run-time settings (integrator, dt, substeps) as they are now.
+    #[serde(skip)]
     pub scene: Scene,
     /// Positions in m and velocities in m/s, one per particle.
+    #[serde(skip)]
     pub positions: Vec3s,
+    #[serde(skip)]
     pub velocities: Vec3s,
     /// Masses in kg.
+    #[serde(skip)]
     pub masses: Vec<f32>,
+    #[serde(skip)]
     pub pinned: Vec<bool>,
+    #[serde(skip)]
     pub alive: Vec<bool>,
     /// Per spring kind (in [`crate::grid::SpringKind::ALL`] order), whether the spring anchored at each
     /// particle is live.
+    #[serde(skip)]
     pub springs: [Vec<bool>; 6],
     /// Kinematic pins: `(particle, target in m)`, in the order they were set.
     pub targets: Vec<(usize, Vec3)>,

@@ -17,7 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _core
-from .errors import ParameterError, ParameterTypeError, ParticleIndexError, StabilityWarning
+from .errors import ParameterError, ParameterTypeError, StabilityWarning
 from .mesh import Mesh
 from .scene import Scene, load_scene
 from .settings import IntegratorName
@@ -334,24 +334,8 @@ class Simulation:
         :class:`~rustcloth.drivers.TwistDriver`) instead of one per particle. Every index and
         target is checked first, and a bad one, named ``indices[k]`` or ``targets[k]``, pins
         nothing. A repeated index takes its last target."""
-        array = _array(indices, "indices")
-        if array.ndim != 1:
-            raise ParameterError(
-                f"indices: must be 1-D, got shape {array.shape}", "indices"
-            )
-        if array.size and array.dtype.kind not in "iu":
-            raise ParameterTypeError(
-                f"indices: must hold integers, got dtype {array.dtype}", "indices"
-            )
-        if array.dtype.kind == "u" and array.size and array.max() > np.iinfo(np.int64).max:
-            raise ParticleIndexError(
-                f"indices: index {array.max()} is out of range for {self.num_particles} "
-                "particles",
-                "indices",
-                int(np.iinfo(np.int64).max),
-            )
         rows = None if targets is None else _array(targets, "targets")
-        self._core.pin_many(np.ascontiguousarray(array, np.int64), rows)
+        self._core.pin_many(_array(indices, "indices"), rows)
 
     def unpin(self, index: int) -> None:
         """Release particle ``index``; it keeps its velocity. Does nothing if not pinned."""

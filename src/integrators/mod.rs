@@ -67,7 +67,7 @@ impl StepContext<'_> {
 }
 
 /// The state an integrator carries between steps, beyond positions and velocities.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct History {
     /// Verlet: the velocities are backward differences (its start-up step is done).
     pub primed: bool,

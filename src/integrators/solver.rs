@@ -10,7 +10,7 @@ pub use crate::scene::{Preconditioner, SolverSettings};
 /// `projective_dynamics` an iteration is a local-global iteration and the residual is the
 /// gradient norm of the step's incremental potential relative to its value at the first
 /// iterate.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct SolverStats {
     pub solves: u64,
     pub iterations: u64,

@@ -57,7 +57,8 @@ pub const STROKE_TREE_MIN_RAYS: usize = 5;
 
 /// How `pick`, `pick_triangle` and the cuts find what a ray hits. All three give the same
 /// answer; they differ in cost.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum PickStrategy {
     /// A scan for the first query on each new state of the cloth (`O(n)`, cheaper than a
     /// refit), the tree (refitted, `O(n)` once, then `O(log n)` per query) from the second
@@ -96,7 +97,7 @@ impl PickStrategy {
 }
 
 /// Counts of the work done on the picking trees, to check that they are lazy.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct BvhStats {
     /// Particle queries answered by a scan instead of the tree.
     pub particle_scans: u64,

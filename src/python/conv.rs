@@ -1,8 +1,8 @@
 //! Conversions between Python objects and core types. Every failure names the parameter.
 
 use numpy::{
-    PyArray1, PyArray2, PyArrayDescrMethods, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2,
-    PyUntypedArray, PyUntypedArrayMethods,
+    PyArray1, PyArrayDescrMethods, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArray,
+    PyUntypedArrayMethods,
 };
 use pyo3::exceptions::PyOverflowError;
 use pyo3::prelude::*;
@@ -28,10 +28,11 @@ pub fn scene_from_dict(obj: &Bound<'_, PyAny>) -> PyResult<Scene> {
 
 /// A scene as a dict with every key spelled out, absent optional tables as `None`.
 pub fn scene_to_dict<'py>(py: Python<'py>, scene: &Scene) -> PyResult<Bound<'py, PyAny>> {
+    // Through a TOML value, whose arrays become lists where serde's tuples (`[f32; 3]`) would
+    // become Python tuples. TOML has no null: absent optional keys are spelled out as None
+    // below, as users write them.
     let value = toml::Value::try_from(scene).expect("a scene always serialises");
-    let dict = from_toml(py, &value)?;
-    // TOML has no null: spell out absent optional keys as None, as users write them.
-    let dict = dict.cast_into::<PyDict>()?;
+    let dict = pythonize::pythonize(py, &value)?.cast_into::<PyDict>()?;
     for key in ["floor", "strain_limit", "self_collision", "tearing", "wind"] {
         if !dict.contains(key)? {
             dict.set_item(key, py.None())?;
@@ -43,6 +44,19 @@ pub fn scene_to_dict<'py>(py: Python<'py>, scene: &Scene) -> PyResult<Bound<'py,
         watchdog.set_item("max_stretch", py.None())?;
     }
     Ok(dict.into_any())
+}
+
+/// A scene on its way to Python as a dict, as [`scene_to_dict`] writes it.
+pub struct SceneDict(pub Scene);
+
+impl<'py> IntoPyObject<'py> for SceneDict {
+    type Target = PyAny;
+    type Output = Bound<'py, PyAny>;
+    type Error = PyErr;
+
+    fn into_pyobject(self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        scene_to_dict(py, &self.0)
+    }
 }
 
 /// A Python scene dict (plain dicts, lists, numbers, strings) as a TOML value, so that the core
@@ -106,148 +120,95 @@ pub fn to_toml(obj: &Bound<'_, PyAny>, path: &str, depth: usize) -> PyResult<tom
     }
 }
 
-/// A TOML value as plain Python objects.
-pub fn from_toml<'py>(py: Python<'py>, value: &toml::Value) -> PyResult<Bound<'py, PyAny>> {
-    Ok(match value {
-        toml::Value::Table(table) => {
-            let dict = PyDict::new(py);
-            for (k, v) in table {
-                dict.set_item(k, from_toml(py, v)?)?;
-            }
-            dict.into_any()
-        }
-        toml::Value::Array(items) => {
-            let list = PyList::empty(py);
-            for v in items {
-                list.append(from_toml(py, v)?)?;
-            }
-            list.into_any()
-        }
-        toml::Value::String(s) => PyString::new(py, s).into_any(),
-        toml::Value::Integer(i) => i.into_pyobject(py)?.into_any(),
-        toml::Value::Float(f) => PyFloat::new(py, *f).into_any(),
-        toml::Value::Boolean(b) => PyBool::new(py, *b).to_owned().into_any(),
-        toml::Value::Datetime(d) => PyString::new(py, &d.to_string()).into_any(),
-    })
-}
-
 /// An `(n, 3)` float32 or float64 numpy array as SoA vectors.
 pub fn vec3s_from_array(obj: &Bound<'_, PyAny>, name: &str, n: usize) -> PyResult<Vec3s> {
-    let Ok(untyped) = obj.cast::<PyUntypedArray>() else {
-        let kind = type_name(obj);
-        return Err(type_error(
-            name,
-            format!("must be a numpy array of shape ({n}, 3), got {kind}"),
-        ));
-    };
-    if untyped.shape() != [n, 3] {
-        return Err(value_error(
-            name,
-            format!("must have shape ({n}, 3), got {:?}", untyped.shape()),
-        ));
-    }
-    let native = native_order(obj)?;
-    let obj = &native;
     let mut out = Vec3s::zeros(n);
-    if let Ok(array) = obj.extract::<PyReadonlyArray2<'_, f32>>() {
-        for (p, row) in array.as_array().outer_iter().enumerate() {
-            out.set(p, glam::Vec3::new(row[0], row[1], row[2]));
-        }
-    } else if let Ok(array) = obj.extract::<PyReadonlyArray2<'_, f64>>() {
-        for (p, row) in array.as_array().outer_iter().enumerate() {
-            out.set(p, glam::DVec3::new(row[0], row[1], row[2]).as_vec3());
-        }
-    } else {
-        return Err(dtype_error(untyped, name));
+    for (p, v) in f64s_from_array(obj, name, &[n, 3])?
+        .chunks_exact(3)
+        .enumerate()
+    {
+        out.set(p, glam::DVec3::from_slice(v).as_vec3());
     }
     Ok(out)
 }
 
-/// A float array in the machine's byte order: a big-endian float32 or float64 array is as valid
-/// as any, and numpy's typed views accept only the native order.
-fn native_order<'py>(obj: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
-    let dtype = obj.getattr("dtype")?;
-    let kind: String = dtype.getattr("kind")?.extract()?;
-    let native: bool = dtype.getattr("isnative")?.extract()?;
-    if kind == "f" && !native {
-        let order = dtype.call_method1("newbyteorder", ("=",))?;
-        obj.call_method1("astype", (order,))
-    } else {
-        Ok(obj.clone())
-    }
-}
-
-/// `TypeError` for an array that is neither float32 nor float64.
-fn dtype_error(array: &Bound<'_, PyUntypedArray>, name: &str) -> PyErr {
-    let dtype = array
-        .dtype()
-        .str()
-        .map(|s| s.to_string())
-        .unwrap_or_default();
-    type_error(
-        name,
-        format!("must have dtype float32 or float64, got {dtype}"),
-    )
-}
-
-/// An `(n,)` float32 or float64 numpy array as f64 values.
-pub fn f64s_from_array(obj: &Bound<'_, PyAny>, name: &str, n: usize) -> PyResult<Vec<f64>> {
+/// The values of a float32 or float64 numpy array of `shape` (`(n,)` or `(n, k)`), row-major,
+/// in float64. A big-endian array is as valid as any: it is read in the machine's order.
+pub fn f64s_from_array(obj: &Bound<'_, PyAny>, name: &str, shape: &[usize]) -> PyResult<Vec<f64>> {
+    let expected = match shape {
+        [n] => format!("({n},)"),
+        _ => format!("({}, {})", shape[0], shape[1]),
+    };
     let Ok(untyped) = obj.cast::<PyUntypedArray>() else {
         let kind = type_name(obj);
-        return Err(type_error(
-            name,
-            format!("must be a numpy array of shape ({n},), got {kind}"),
-        ));
+        let message = format!("must be a numpy array of shape {expected}, got {kind}");
+        return Err(type_error(name, message));
     };
-    if untyped.shape() != [n] {
-        return Err(value_error(
-            name,
-            format!("must have shape ({n},), got {:?}", untyped.shape()),
-        ));
+    if untyped.shape() != shape {
+        let message = format!("must have shape {expected}, got {:?}", untyped.shape());
+        return Err(value_error(name, message));
     }
-    let native = native_order(obj)?;
-    let obj = &native;
-    if let Ok(array) = obj.extract::<PyReadonlyArray1<'_, f32>>() {
+    let dtype = untyped.dtype();
+    let native = match dtype.kind() == b'f' && !dtype.is_native_byteorder().unwrap_or(true) {
+        true => obj.call_method1("astype", (dtype.call_method1("newbyteorder", ("=",))?,))?,
+        false => obj.clone(),
+    };
+    if let Ok(array) = native.extract::<PyReadonlyArrayDyn<'_, f32>>() {
         Ok(array.as_array().iter().map(|&x| x as f64).collect())
-    } else if let Ok(array) = obj.extract::<PyReadonlyArray1<'_, f64>>() {
-        Ok(array.as_array().to_vec())
+    } else if let Ok(array) = native.extract::<PyReadonlyArrayDyn<'_, f64>>() {
+        Ok(array.as_array().iter().copied().collect())
     } else {
-        Err(dtype_error(untyped, name))
+        let message = format!("must have dtype float32 or float64, got {dtype}");
+        Err(type_error(name, message))
     }
 }
 
-/// SoA vectors as interleaved `x, y, z` floats: the one copy a read costs, made under the lock.
-pub fn interleaved(v: &Vec3s) -> Vec<f32> {
-    let mut flat = vec![0.0f32; v.len() * 3];
-    v.write_interleaved(&mut flat);
-    flat
+/// Row-major values on their way to a new read-only numpy array, `(n, width)`, or `(n,)` for
+/// width 0: copied under the lock, converted after it. Read-only because it is a copy: a write
+/// to it would change nothing in the simulation, so numpy refuses it instead of losing it
+/// silently (`set_positions` writes).
+pub struct Rows<T>(pub Vec<T>, pub usize);
+
+impl Rows<f32> {
+    /// SoA vectors as an `(n, 3)` float32 array.
+    pub fn vec3s(v: &Vec3s) -> Self {
+        let mut flat = vec![0.0f32; v.len() * 3];
+        v.write_interleaved(&mut flat);
+        Rows(flat, 3)
+    }
 }
 
-/// Interleaved floats as a new read-only `(n, 3)` float32 array. Read-only because it is a
-/// copy: a write to it would change nothing in the simulation, so numpy refuses it instead of
-/// losing it silently (`set_positions` writes).
-pub fn vec3s_to_array(py: Python<'_>, flat: Vec<f32>) -> PyResult<Bound<'_, PyArray2<f32>>> {
-    rows_to_array(py, flat, 3)
+impl<'py, T: numpy::Element> IntoPyObject<'py> for Rows<T> {
+    type Target = PyAny;
+    type Output = Bound<'py, PyAny>;
+    type Error = PyErr;
+
+    fn into_pyobject(self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let Rows(flat, width) = self;
+        let rows = flat.len() / width.max(1);
+        let array = PyArray1::from_vec(py, flat);
+        let array = match width {
+            0 => array.into_any(),
+            _ => array.reshape([rows, width])?.into_any(),
+        };
+        let kwargs = PyDict::new(py);
+        kwargs.set_item("write", false)?;
+        array.call_method("setflags", (), Some(&kwargs))?;
+        Ok(array)
+    }
 }
 
-/// Row-major values as a new read-only `(n, width)` array (a copy, as [`vec3s_to_array`]).
-pub fn rows_to_array<T: numpy::Element>(
-    py: Python<'_>,
-    flat: Vec<T>,
-    width: usize,
-) -> PyResult<Bound<'_, PyArray2<T>>> {
-    let n = flat.len() / width;
-    let array = PyArray1::from_vec(py, flat).reshape([n, width])?;
-    read_only(array.as_any())?;
-    Ok(array)
-}
+/// A serde value on its way to plain Python objects (a stats struct becomes a dict).
+pub struct Plain<T>(pub T);
 
-/// Marks a numpy array read-only.
-pub fn read_only(array: &Bound<'_, PyAny>) -> PyResult<()> {
-    let kwargs = PyDict::new(array.py());
-    kwargs.set_item("write", false)?;
-    array.call_method("setflags", (), Some(&kwargs))?;
-    Ok(())
+impl<'py, T: serde::Serialize> IntoPyObject<'py> for Plain<T> {
+    type Target = PyAny;
+    type Output = Bound<'py, PyAny>;
+    type Error = PyErr;
+
+    fn into_pyobject(self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        Ok(pythonize::pythonize(py, &self.0)?)
+    }
 }
 
 /// N numbers from a sequence (or array) of N real numbers. Strings, bytes and booleans are
@@ -255,17 +216,18 @@ pub fn read_only(array: &Bound<'_, PyAny>) -> PyResult<()> {
 /// finite in float32 after conversion, which the core checks.
 pub fn floats_from_any<const N: usize>(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<[f64; N]> {
     let kind = type_name(obj);
+    let not_numbers = || {
+        let message = format!(
+            "must be a sequence of {N} numbers, got {kind} {}",
+            repr(obj)
+        );
+        Err(type_error(name, message))
+    };
     if obj.is_instance_of::<PyString>()
         || obj.is_instance_of::<PyBytes>()
         || obj.is_instance_of::<PyByteArray>()
     {
-        return Err(type_error(
-            name,
-            format!(
-                "must be a sequence of {N} numbers, got {kind} {}",
-                repr(obj)
-            ),
-        ));
+        return not_numbers();
     }
     // A sequence (list, tuple, numpy array, any `collections.abc.Sequence`): a dict would be
     // read as its keys, a set in any order.
@@ -273,13 +235,7 @@ pub fn floats_from_any<const N: usize>(obj: &Bound<'_, PyAny>, name: &str) -> Py
         // An array of anything but numbers is the wrong type whatever its length (its dtype
         // is known before its items are read).
         Ok(array) if !matches!(array.dtype().kind(), b'f' | b'i' | b'u') && array.ndim() == 1 => {
-            return Err(type_error(
-                name,
-                format!(
-                    "must be a sequence of {N} numbers, got {kind} {}",
-                    repr(obj)
-                ),
-            ))
+            return not_numbers()
         }
         // A 0-d array is a number, not a sequence.
         Ok(array) => array.ndim() == 1,
@@ -289,18 +245,10 @@ pub fn floats_from_any<const N: usize>(obj: &Bound<'_, PyAny>, name: &str) -> Py
                 || obj.cast::<PySequence>().is_ok()
         }
     };
-    let items: Vec<Bound<'_, PyAny>> = match sequence {
-        true => obj.try_iter()?.collect::<PyResult<_>>()?,
-        false => {
-            return Err(type_error(
-                name,
-                format!(
-                    "must be a sequence of {N} numbers, got {kind} {}",
-                    repr(obj)
-                ),
-            ))
-        }
-    };
+    if !sequence {
+        return not_numbers();
+    }
+    let items: Vec<Bound<'_, PyAny>> = obj.try_iter()?.collect::<PyResult<_>>()?;
     if items.len() != N {
         return Err(value_error(
             name,
@@ -343,10 +291,10 @@ pub fn direction_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<glam::
 /// A real number: a Python `int` or `float`, or a numpy scalar, never a `bool` or a string.
 /// An integer too large for a float is a value error naming `name`.
 pub fn float_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<f64> {
-    if obj.is_instance_of::<PyBool>() || is_numpy_bool(obj) {
+    if is_bool(obj) {
         return Err(type_error(
             name,
-            format!("must be a number, got bool {}", repr(obj)),
+            format!("must be a number, got {}", got(obj)),
         ));
     }
     // Complex numbers convert to float by dropping their imaginary part (numpy's do, with only
@@ -359,46 +307,31 @@ pub fn float_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<f64> {
     {
         return Err(type_error(
             name,
-            format!(
-                "must be a real number, got {} {}",
-                type_name(obj),
-                repr(obj)
-            ),
+            format!("must be a real number, got {}", got(obj)),
         ));
     }
-    match obj.extract::<f64>() {
-        Ok(x) => Ok(x),
-        Err(e) if e.is_instance_of::<PyOverflowError>(obj.py()) => Err(value_error(
-            name,
-            format!("{} is too large for a float", repr(obj)),
-        )),
-        Err(_) => Err(type_error(
-            name,
-            format!("must be a number, got {} {}", type_name(obj), repr(obj)),
-        )),
-    }
+    obj.extract::<f64>()
+        .map_err(|e| match e.is_instance_of::<PyOverflowError>(obj.py()) {
+            true => value_error(name, format!("{} is too large for a float", repr(obj))),
+            false => type_error(name, format!("must be a number, got {}", got(obj))),
+        })
 }
 
 /// A whole number: a Python `int` or a numpy integer, never a `bool` or a float (not even
 /// `2.0`: a count given as a float is usually a mistake). Values outside `i64` are value
 /// errors naming `name`, so the core's range checks report them like any other bad value.
 pub fn int_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<i64> {
-    if obj.is_instance_of::<PyBool>() || is_numpy_bool(obj) {
+    if is_bool(obj) {
         return Err(type_error(
             name,
-            format!("must be an integer, got bool {}", repr(obj)),
+            format!("must be an integer, got {}", got(obj)),
         ));
     }
-    match obj.extract::<i64>() {
-        Ok(i) => Ok(i),
-        Err(e) if e.is_instance_of::<PyOverflowError>(obj.py()) => {
-            Err(value_error(name, format!("{} is out of range", repr(obj))))
-        }
-        Err(_) => Err(type_error(
-            name,
-            format!("must be an integer, got {} {}", type_name(obj), repr(obj)),
-        )),
-    }
+    obj.extract::<i64>()
+        .map_err(|e| match e.is_instance_of::<PyOverflowError>(obj.py()) {
+            true => value_error(name, format!("{} is out of range", repr(obj))),
+            false => type_error(name, format!("must be an integer, got {}", got(obj))),
+        })
 }
 
 /// A count of steps: an integer `>= 0`.
@@ -409,12 +342,9 @@ pub fn count_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<u64> {
 
 /// A string: a Python `str` only.
 pub fn str_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<String> {
-    obj.cast::<PyString>().map(|s| s.to_string()).map_err(|_| {
-        type_error(
-            name,
-            format!("must be a string, got {} {}", type_name(obj), repr(obj)),
-        )
-    })
+    let text = obj.cast::<PyString>();
+    text.map(|s| s.to_string())
+        .map_err(|_| type_error(name, format!("must be a string, got {}", got(obj))))
 }
 
 /// The numpy dtype kind (`'f'`, `'b'`, `'c'`, ...) of a numpy scalar or array, else None.
@@ -425,10 +355,11 @@ fn dtype_kind(obj: &Bound<'_, PyAny>) -> Option<String> {
         .ok()
 }
 
-/// Whether `obj` is a numpy boolean: a scalar (not a Python `bool` subclass) or a 0-d array,
-/// which would otherwise convert to 0 or 1.
-fn is_numpy_bool(obj: &Bound<'_, PyAny>) -> bool {
-    type_name(obj) == "bool" && !obj.is_instance_of::<PyBool>()
+/// Whether `obj` is a bool: Python's, or numpy's (a scalar, not a Python `bool` subclass, or a
+/// 0-d array), which would otherwise convert to 0 or 1.
+pub fn is_bool(obj: &Bound<'_, PyAny>) -> bool {
+    obj.is_instance_of::<PyBool>()
+        || type_name(obj) == "bool"
         || type_name(obj) == "bool_"
         || dtype_kind(obj).is_some_and(|k| k == "b")
 }
@@ -443,6 +374,15 @@ fn repr(obj: &Bound<'_, PyAny>) -> String {
     }
 }
 
+/// `obj`'s type and value for messages: `bool True`, `str 'x'`.
+fn got(obj: &Bound<'_, PyAny>) -> String {
+    let kind = match is_bool(obj) {
+        true => "bool".to_string(),
+        false => type_name(obj),
+    };
+    format!("{kind} {}", repr(obj))
+}
+
 /// A particle index: any Python integer (`bool` excluded); one too large for 64 bits is out of
 /// range like any other.
 pub fn index_from_any(obj: &Bound<'_, PyAny>, name: &str, len: usize) -> PyResult<i64> {
@@ -452,29 +392,22 @@ pub fn index_from_any(obj: &Bound<'_, PyAny>, name: &str, len: usize) -> PyResul
             format!("must be an integer index, got {obj}"),
         ));
     }
-    match obj.extract::<i64>() {
-        Ok(i) => Ok(i),
-        Err(e) if e.is_instance_of::<PyOverflowError>(obj.py()) => {
-            Err(to_py(Error::IndexOutOfRange {
+    obj.extract::<i64>()
+        .map_err(|e| match e.is_instance_of::<PyOverflowError>(obj.py()) {
+            true => to_py(Error::IndexOutOfRange {
                 name: name.into(),
                 index: i64::MAX,
                 len,
-            }))
-        }
-        Err(_) => {
-            let kind = type_name(obj);
-            Err(type_error(
+            }),
+            false => type_error(
                 name,
-                format!("must be an integer index, got {kind} {obj}"),
-            ))
-        }
-    }
+                format!("must be an integer index, got {} {obj}", type_name(obj)),
+            ),
+        })
 }
 
 /// The Python type name of `obj`, for messages.
 fn type_name(obj: &Bound<'_, PyAny>) -> String {
-    obj.get_type()
-        .name()
-        .map(|n| n.to_string())
-        .unwrap_or_default()
+    let name = obj.get_type().name();
+    name.map(|n| n.to_string()).unwrap_or_default()
 }

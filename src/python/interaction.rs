@@ -1,36 +1,21 @@
 //! Picking, dragging and cutting (src/interaction.rs) for Python. Queries run detached from the
 //! interpreter: the first one after the cloth moved refits a tree over every particle.
 
+use glam::Vec3;
 use numpy::ndarray::ArrayView3;
 use numpy::PyReadonlyArray3;
 use pyo3::prelude::*;
 
-use super::conv::{
-    direction_from_any, float_from_any, index_from_any, str_from_any, vec3_from_any,
-};
+use super::conv::{direction_from_any, float_from_any, str_from_any, vec3_from_any, Plain};
 use super::errors::{type_error, value_error, IntoPyResult};
-use super::simulation::{stepping, PySimulation};
+use super::simulation::{reads, PySimulation};
 use crate::picking::PickStrategy;
+use crate::Simulation;
 
-/// `(origin, direction)` of ray `k` of a stroke: any pair of length-3 sequences, or a
-/// `(2, 3)` array.
-fn ray_from_any(item: &Bound<'_, PyAny>, k: usize) -> PyResult<(glam::Vec3, glam::Vec3)> {
-    let name = format!("rays[{k}]");
-    let len = item.len().map_err(|_| {
-        type_error(
-            &name,
-            format!("must be an (origin, direction) pair, got {item}"),
-        )
-    })?;
-    if len != 2 {
-        return Err(value_error(
-            &name,
-            format!("must be an (origin, direction) pair, got {len} items"),
-        ));
-    }
-    let origin = vec3_from_any(&item.get_item(0)?, &format!("{name}.origin"))?;
-    let direction = direction_from_any(&item.get_item(1)?, &format!("{name}.direction"))?;
-    Ok((origin, direction))
+/// A ray's `(origin, direction)` arguments.
+fn ray(origin: &Bound<'_, PyAny>, direction: &Bound<'_, PyAny>) -> PyResult<(Vec3, Vec3)> {
+    let origin = vec3_from_any(origin, "origin")?;
+    Ok((origin, direction_from_any(direction, "direction")?))
 }
 
 /// `(triangle_index, distance, (w0, w1, w2))`.
@@ -38,148 +23,115 @@ type TriangleHit = (usize, f32, (f32, f32, f32));
 
 #[pymethods]
 impl PySimulation {
-    /// Picks the live particle the ray ``origin + t * direction`` (``t >= 0``) hits first:
-    /// ``(index, distance)`` or ``None``.
     fn pick(
         &self,
         py: Python<'_>,
         origin: &Bound<'_, PyAny>,
         direction: &Bound<'_, PyAny>,
     ) -> PyResult<Option<(usize, f32)>> {
-        let origin = vec3_from_any(origin, "origin")?;
-        let direction = direction_from_any(direction, "direction")?;
-        self.with(py, |h| py.detach(|| h.sim.pick(origin, direction)).py())
+        self.call(py, ray(origin, direction), |sim, (o, d)| sim.pick(o, d))
     }
 
-    /// Picks the live triangle (a row of ``triangles``) the ray hits first:
-    /// ``(triangle_index, distance, (w0, w1, w2))`` or ``None``.
     fn pick_triangle(
         &self,
         py: Python<'_>,
         origin: &Bound<'_, PyAny>,
         direction: &Bound<'_, PyAny>,
     ) -> PyResult<Option<TriangleHit>> {
-        let origin = vec3_from_any(origin, "origin")?;
-        let direction = direction_from_any(direction, "direction")?;
-        let hit = self.with(py, |h| {
-            py.detach(|| h.sim.pick_triangle(origin, direction)).py()
+        let hit = self.call(py, ray(origin, direction), |sim, (o, d)| {
+            sim.pick_triangle(o, d)
         })?;
         Ok(hit.map(|(t, d, [a, b, c])| (t, d, (a, b, c))))
     }
 
-    /// Half-size in m of each particle's pick box; defaults to half the smaller grid spacing.
-    #[getter]
-    fn pick_radius(&self, py: Python<'_>) -> PyResult<f32> {
-        self.with(py, |h| Ok(h.sim.pick_radius()))
-    }
-
-    #[setter]
-    fn set_pick_radius(&self, py: Python<'_>, radius: &Bound<'_, PyAny>) -> PyResult<()> {
-        let radius = float_from_any(radius, "pick_radius")?;
-        self.with(py, |h| h.sim.set_pick_radius(radius).py())
-    }
-
-    /// ``"auto"``, ``"bvh"`` or ``"scan"``: how queries find what a ray hits.
-    #[getter]
-    fn pick_strategy(&self, py: Python<'_>) -> PyResult<&'static str> {
-        self.with(py, |h| Ok(h.sim.pick_strategy().name()))
-    }
-
-    #[setter]
-    fn set_pick_strategy(&self, py: Python<'_>, strategy: &Bound<'_, PyAny>) -> PyResult<()> {
-        let strategy = PickStrategy::by_name(&str_from_any(strategy, "pick_strategy")?).py()?;
-        self.with(py, |h| {
-            h.sim.set_pick_strategy(strategy);
-            Ok(())
-        })
-    }
-
-    /// Grabs particle ``index``: a kinematic pin at its current position that ``drag_to``
-    /// moves.
-    fn grab(&self, py: Python<'_>, index: &Bound<'_, PyAny>) -> PyResult<()> {
-        let index = index_from_any(index, "index", self.num_particles_now(py)?)?;
-        self.with(py, |h| h.sim.grab(index).py())
-    }
-
-    /// Moves the grabbed particle's target to ``target`` (3 numbers, m).
-    fn drag_to(&self, py: Python<'_>, target: &Bound<'_, PyAny>) -> PyResult<()> {
-        let target = vec3_from_any(target, "target")?;
-        self.with(py, |h| h.sim.drag_to(target).py())
-    }
-
-    /// Lets go of the grabbed particle, restoring the pin state it had before the grab.
-    fn release(&self, py: Python<'_>) -> PyResult<()> {
-        self.with(py, |h| {
-            h.sim.release();
-            Ok(())
-        })
-    }
-
-    /// The index of the grabbed particle, or ``None``.
-    fn grabbed(&self, py: Python<'_>) -> PyResult<Option<usize>> {
-        self.with(py, |h| Ok(h.sim.grabbed()))
-    }
-
-    /// Cuts the particle ``pick(origin, direction)`` finds; returns its index or ``None``.
     fn cut_ray(
         &self,
         py: Python<'_>,
         origin: &Bound<'_, PyAny>,
         direction: &Bound<'_, PyAny>,
     ) -> PyResult<Option<usize>> {
-        let origin = vec3_from_any(origin, "origin")?;
-        let direction = direction_from_any(direction, "direction")?;
-        self.with(py, |h| py.detach(|| h.sim.cut_ray(origin, direction)).py())
+        self.call(py, ray(origin, direction), |sim, (o, d)| sim.cut_ray(o, d))
     }
 
-    /// Cuts what a stroke of ``(origin, direction)`` rays passes over; returns the indices.
-    fn cut_stroke(&self, py: Python<'_>, rays: &Bound<'_, PyAny>) -> PyResult<Vec<usize>> {
-        let rays = rays_from_any(rays)?;
-        self.with(py, |h| py.detach(|| h.sim.cut_stroke(&rays)).py())
+    #[setter]
+    fn set_pick_radius(&self, py: Python<'_>, radius: &Bound<'_, PyAny>) -> PyResult<()> {
+        let radius = float_from_any(radius, "pick_radius");
+        self.call(py, radius, Simulation::set_pick_radius)
     }
 
-    /// Severs the springs the surface swept between consecutive rays crosses; returns how
-    /// many. No particle is removed.
-    /// Ctrl-C interrupts it, and then nothing is severed.
-    fn sever_stroke(&self, py: Python<'_>, rays: &Bound<'_, PyAny>) -> PyResult<usize> {
-        let rays = rays_from_any(rays)?;
-        self.with(py, |h| {
-            stepping(py, h, |sim, stop| sim.sever_stroke_with(&rays, stop)).0
+    #[setter]
+    fn set_pick_strategy(&self, py: Python<'_>, strategy: &Bound<'_, PyAny>) -> PyResult<()> {
+        let strategy = str_from_any(strategy, "pick_strategy")?;
+        let strategy = PickStrategy::by_name(&strategy).py();
+        self.call(py, strategy, |sim, strategy| {
+            sim.set_pick_strategy(strategy);
+            Ok(())
         })
     }
 
-    /// Connected pieces of the cloth (live particles joined by live springs).
-    fn pieces(&self, py: Python<'_>) -> PyResult<usize> {
-        self.with(py, |h| Ok(py.detach(|| h.sim.pieces())))
+    fn grab(&self, py: Python<'_>, index: &Bound<'_, PyAny>) -> PyResult<()> {
+        self.call(py, self.index(py, index), Simulation::grab)
     }
 
-    /// Work done on the picking trees so far.
-    fn bvh_stats(&self, py: Python<'_>) -> PyResult<std::collections::HashMap<&'static str, u64>> {
-        let s = self.with(py, |h| Ok(h.sim.bvh_stats()))?;
-        Ok([
-            ("particle_scans", s.particle_scans),
-            ("particle_builds", s.particle_builds),
-            ("particle_refits", s.particle_refits),
-            ("particle_removals", s.particle_removals),
-            ("triangle_scans", s.triangle_scans),
-            ("triangle_builds", s.triangle_builds),
-            ("triangle_refits", s.triangle_refits),
-            ("triangle_removals", s.triangle_removals),
-        ]
-        .into_iter()
-        .collect())
+    fn drag_to(&self, py: Python<'_>, target: &Bound<'_, PyAny>) -> PyResult<()> {
+        self.call(py, vec3_from_any(target, "target"), Simulation::drag_to)
+    }
+
+    fn release(&self, py: Python<'_>) -> PyResult<()> {
+        self.call(py, Ok(()), |sim, ()| {
+            sim.release();
+            Ok(())
+        })
+    }
+
+    fn cut_stroke(&self, py: Python<'_>, rays: &Bound<'_, PyAny>) -> PyResult<Vec<usize>> {
+        self.call(py, rays_from_any(rays), |sim, rays| sim.cut_stroke(&rays))
+    }
+
+    /// Ctrl-C interrupts it, and then nothing is severed.
+    fn sever_stroke(&self, py: Python<'_>, rays: &Bound<'_, PyAny>) -> PyResult<usize> {
+        let rays = rays_from_any(rays)?;
+        self.stepping(py, |sim, stop| sim.sever_stroke_with(&rays, stop))
+    }
+
+    fn pieces(&self, py: Python<'_>) -> PyResult<usize> {
+        self.call(py, Ok(()), |sim, ()| Ok(sim.pieces()))
     }
 }
 
+reads! {
+    #[getter] fn pick_radius -> f32 = |h| h.sim.pick_radius();
+    #[getter] fn pick_strategy -> &'static str = |h| h.sim.pick_strategy().name();
+    fn grabbed -> Option<usize> = |h| h.sim.grabbed();
+    fn bvh_stats -> Plain<crate::picking::BvhStats> = |h| Plain(h.sim.bvh_stats());
+}
+
+/// `(origin, direction)` of ray `k` of a stroke: any pair of length-3 sequences, or a
+/// `(2, 3)` array.
+fn ray_from_any(item: &Bound<'_, PyAny>, k: usize) -> PyResult<(Vec3, Vec3)> {
+    let name = format!("rays[{k}]");
+    let pair = "must be an (origin, direction) pair";
+    let len = item
+        .len()
+        .map_err(|_| type_error(&name, format!("{pair}, got {item}")))?;
+    if len != 2 {
+        return Err(value_error(&name, format!("{pair}, got {len} items")));
+    }
+    let origin = vec3_from_any(&item.get_item(0)?, &format!("{name}.origin"))?;
+    let direction = direction_from_any(&item.get_item(1)?, &format!("{name}.direction"))?;
+    Ok((origin, direction))
+}
+
 /// A stroke: a sequence of ``(origin, direction)`` pairs, each named ``rays[k]`` in errors.
-fn rays_from_any(rays: &Bound<'_, PyAny>) -> PyResult<Vec<(glam::Vec3, glam::Vec3)>> {
+fn rays_from_any(rays: &Bound<'_, PyAny>) -> PyResult<Vec<(Vec3, Vec3)>> {
+    let not_rays = || {
+        let message = format!("must be a sequence of (origin, direction) pairs, got {rays}");
+        type_error("rays", message)
+    };
     if rays.is_instance_of::<pyo3::types::PyString>()
         || rays.is_instance_of::<pyo3::types::PyBytes>()
     {
-        return Err(type_error(
-            "rays",
-            format!("must be a sequence of (origin, direction) pairs, got {rays}"),
-        ));
+        return Err(not_rays());
     }
     // An (M, 2, 3) float array, read in one pass without the interpreter: a stroke of
     // millions of rays took seconds item by item, under the interpreter's lock, where Ctrl-C
@@ -194,13 +146,8 @@ fn rays_from_any(rays: &Bound<'_, PyAny>) -> PyResult<Vec<(glam::Vec3, glam::Vec
             return Ok(rays);
         }
     }
-    let items = rays.try_iter().map_err(|_| {
-        type_error(
-            "rays",
-            format!("must be a sequence of (origin, direction) pairs, got {rays}"),
-        )
-    })?;
-    items
+    rays.try_iter()
+        .map_err(|_| not_rays())?
         .enumerate()
         .map(|(k, item)| ray_from_any(&item?, k))
         .collect()
@@ -209,9 +156,7 @@ fn rays_from_any(rays: &Bound<'_, PyAny>) -> PyResult<Vec<(glam::Vec3, glam::Vec
 /// The `(origin, direction)` pairs of an `(M, 2, 3)` float32 or float64 array (read in f64, so
 /// that a float64 value beyond float32's range becomes infinite and is refused by name); `None`
 /// for any other shape, which the item-by-item reading names.
-fn rays_from_array<T: Copy + Into<f64>>(
-    array: ArrayView3<'_, T>,
-) -> Option<Vec<(glam::Vec3, glam::Vec3)>> {
+fn rays_from_array<T: Copy + Into<f64>>(array: ArrayView3<'_, T>) -> Option<Vec<(Vec3, Vec3)>> {
     if array.shape()[1..] != [2, 3] {
         return None;
     }
@@ -226,10 +171,4 @@ fn rays_from_array<T: Copy + Into<f64>>(
         })
         .collect();
     Some(rays)
-}
-
-impl PySimulation {
-    fn num_particles_now(&self, py: Python<'_>) -> PyResult<usize> {
-        self.with(py, |h| Ok(h.sim.grid().len()))
-    }
 }

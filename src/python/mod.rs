@@ -17,21 +17,20 @@ use pyo3::prelude::*;
 
 use crate::integrators::IntegratorKind;
 use crate::scene::Scene;
-use conv::{scene_from_dict, scene_to_dict, str_from_any};
+use conv::{scene_from_dict, str_from_any, SceneDict};
 use errors::IntoPyResult;
 
 /// Validates a scene dict and returns it with every default filled in.
 #[pyfunction]
-fn normalize_scene<'py>(py: Python<'py>, scene: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
-    let scene = scene_from_dict(scene)?;
-    scene_to_dict(py, &scene)
+fn normalize_scene(scene: &Bound<'_, PyAny>) -> PyResult<SceneDict> {
+    Ok(SceneDict(scene_from_dict(scene)?))
 }
 
 /// Parses and validates a TOML scene document into a full scene dict.
 #[pyfunction]
-fn scene_from_toml<'py>(py: Python<'py>, text: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
+fn scene_from_toml(text: &Bound<'_, PyAny>) -> PyResult<SceneDict> {
     let text = str_from_any(text, "text")?;
-    scene_to_dict(py, &Scene::from_toml_str(&text).py()?)
+    Ok(SceneDict(Scene::from_toml_str(&text).py()?))
 }
 
 /// A scene dict as a TOML document.
@@ -63,9 +62,9 @@ fn builtin_scenes() -> Vec<&'static str> {
 
 /// The built-in scene `name` as a dict.
 #[pyfunction]
-fn builtin_scene<'py>(py: Python<'py>, name: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
+fn builtin_scene(name: &Bound<'_, PyAny>) -> PyResult<SceneDict> {
     let name = str_from_any(name, "name")?;
-    scene_to_dict(py, &Scene::builtin(&name).py()?)
+    Ok(SceneDict(Scene::builtin(&name).py()?))
 }
 
 /// The vector instruction set the solver's loops run with in this process (`baseline`,

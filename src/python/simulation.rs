@@ -3,27 +3,18 @@
 //! (shared.rs); stepping runs detached from the interpreter and checks for Ctrl-C between
 //! steps. The documented public API is `rustcloth.Simulation`, which wraps this class.
 
-use numpy::{PyArray1, PyArray2, PyReadonlyArray1};
+use numpy::{PyArrayDescrMethods, PyReadonlyArray1, PyUntypedArray, PyUntypedArrayMethods};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList, PyTuple};
+use pyo3::types::PyDict;
 
 use super::conv::{
-    count_from_any, f64s_from_array, float_from_any, index_from_any, int_from_any, interleaved,
-    read_only, rows_to_array, scene_from_dict, scene_to_dict, str_from_any, vec3_from_any,
-    vec3s_from_array, vec3s_to_array,
+    count_from_any, f64s_from_array, float_from_any, index_from_any, int_from_any, scene_from_dict,
+    str_from_any, vec3_from_any, vec3s_from_array, Plain, Rows, SceneDict,
 };
-use super::errors::{type_error, IntoPyResult};
+use super::errors::{type_error, value_error, IntoPyResult, ParticleIndexError};
 use super::shared::{Held, Shared};
 use super::state;
 use crate::{Error, IntegratorKind, Simulation};
-
-type Arrays2<'py> = Bound<'py, PyArray2<f32>>;
-/// `(triangles (T, 3), uvs (V, 2), sources (V,))` of the drawn mesh.
-type RenderTopology<'py> = (
-    Bound<'py, PyArray2<u32>>,
-    Bound<'py, PyArray2<f32>>,
-    Bound<'py, PyArray1<u32>>,
-);
 
 /// The solver. See `rustcloth.Simulation` for the documented API.
 #[pyclass(name = "Simulation", module = "rustcloth._core", frozen)]
@@ -66,49 +57,6 @@ fn not_converged_warning(held: &mut Held) -> Option<String> {
     ))
 }
 
-/// Gives `message` as a `RuntimeWarning`, outside the lock (a warning filter may call back).
-fn warn(py: Python<'_>, message: Option<String>) -> PyResult<()> {
-    let Some(message) = message else {
-        return Ok(());
-    };
-    let message = std::ffi::CString::new(message).expect("no NUL in the message");
-    let category = py.get_type::<pyo3::exceptions::PyRuntimeWarning>();
-    PyErr::warn(py, category.as_any(), &message, 1)
-}
-
-/// Runs a stepping call detached from the interpreter, asking Python between steps whether a
-/// signal (Ctrl-C) arrived; an interrupt comes back as the `KeyboardInterrupt` Python raised.
-pub(super) fn stepping<R: Send>(
-    py: Python<'_>,
-    held: &mut Held,
-    call: impl FnOnce(&mut Simulation, &mut dyn FnMut() -> bool) -> crate::Result<R> + Send,
-) -> (PyResult<R>, Option<String>) {
-    let mut signal: Option<PyErr> = None;
-    let outcome = py.detach(|| {
-        let mut interrupted = || match Python::attach(|py| py.check_signals()) {
-            Ok(()) => false,
-            Err(err) => {
-                signal = Some(err);
-                true
-            }
-        };
-        call(&mut held.sim, &mut interrupted)
-    });
-    let warning = not_converged_warning(held);
-    let outcome = match outcome {
-        Err(Error::Interrupted { .. }) if signal.is_some() => Err(signal.take().unwrap()),
-        other => other.py(),
-    };
-    (outcome, warning)
-}
-
-fn build(scene: &Bound<'_, PyAny>) -> PyResult<PySimulation> {
-    let scene = scene_from_dict(scene)?;
-    Ok(PySimulation {
-        shared: Shared::new(Simulation::new(scene).py()?),
-    })
-}
-
 /// A simulation continuing a state from `Simulation.get_state()` (what unpickling calls).
 #[pyfunction]
 pub(crate) fn simulation_from_state(state: &Bound<'_, PyAny>) -> PyResult<PySimulation> {
@@ -127,124 +75,172 @@ impl PySimulation {
     ) -> PyResult<R> {
         self.shared.with(py, f)
     }
+
+    /// Runs `call` on the simulation under its lock, once its argument converted, detached
+    /// from the interpreter (other Python threads run meanwhile).
+    pub(crate) fn call<A: Send, R: Send>(
+        &self,
+        py: Python<'_>,
+        arg: PyResult<A>,
+        call: impl FnOnce(&mut Simulation, A) -> crate::Result<R> + Send,
+    ) -> PyResult<R> {
+        let arg = arg?;
+        self.with(py, |h| py.detach(|| call(&mut h.sim, arg)).py())
+    }
+
+    /// Runs a stepping call as [`Self::call`] runs one, asking Python between steps whether a
+    /// signal (Ctrl-C) arrived: an interrupt comes back as the `KeyboardInterrupt` Python
+    /// raised. The warning about an unconverged solve, when due, is given once the lock is
+    /// released (a warning filter may call back).
+    pub(crate) fn stepping<R: Send>(
+        &self,
+        py: Python<'_>,
+        call: impl FnOnce(&mut Simulation, &mut dyn FnMut() -> bool) -> crate::Result<R> + Send,
+    ) -> PyResult<R> {
+        let (outcome, warning) = self.with(py, |held| {
+            let mut signal: Option<PyErr> = None;
+            let outcome = py.detach(|| {
+                let mut interrupted = || match Python::attach(|py| py.check_signals()) {
+                    Ok(()) => false,
+                    Err(err) => {
+                        signal = Some(err);
+                        true
+                    }
+                };
+                call(&mut held.sim, &mut interrupted)
+            });
+            let outcome = match outcome {
+                Err(Error::Interrupted { .. }) if signal.is_some() => Err(signal.unwrap()),
+                other => other.py(),
+            };
+            Ok((outcome, not_converged_warning(held)))
+        })?;
+        if let Some(message) = warning {
+            let message = std::ffi::CString::new(message).expect("no NUL in the message");
+            let category = py.get_type::<pyo3::exceptions::PyRuntimeWarning>();
+            PyErr::warn(py, category.as_any(), &message, 1)?;
+        }
+        outcome
+    }
+
+    /// A particle index, checked against the particles.
+    pub(crate) fn index(&self, py: Python<'_>, index: &Bound<'_, PyAny>) -> PyResult<i64> {
+        let n = self.with(py, |h| Ok(h.sim.grid().len()))?;
+        index_from_any(index, "index", n)
+    }
+
+    /// Particle values for the setters, read for the particles there are.
+    fn per_particle<T>(
+        &self,
+        py: Python<'_>,
+        read: impl FnOnce(usize) -> PyResult<T>,
+    ) -> PyResult<T> {
+        read(self.with(py, |h| Ok(h.sim.grid().len()))?)
+    }
+}
+
+/// `#[pymethods]` that return what `$read` reads under the lock, `|h| $read` with `h` the
+/// [`Held`] simulation.
+macro_rules! reads {
+    ($($(#[$attr:meta])* fn $name:ident -> $ty:ty = |$h:ident| $read:expr;)*) => {
+        #[pymethods]
+        impl PySimulation {
+            $($(#[$attr])* fn $name(&self, py: Python<'_>) -> PyResult<$ty> {
+                self.with(py, |$h| Ok($read))
+            })*
+        }
+    };
+}
+pub(super) use reads;
+
+reads! {
+    #[getter] fn positions -> Rows<f32> = |h| Rows::vec3s(h.sim.positions());
+    #[getter] fn velocities -> Rows<f32> = |h| Rows::vec3s(h.sim.velocities());
+    #[getter] fn normals -> Rows<f32> = |h| Rows::vec3s(h.sim.normals());
+    #[getter] fn masses -> Rows<f32> = |h| Rows(h.sim.particles().mass.clone(), 0);
+    #[getter] fn pinned -> Rows<bool> = |h| Rows(h.sim.particles().pinned.clone(), 0);
+    #[getter] fn alive -> Rows<bool> = |h| Rows(h.sim.particles().alive.clone(), 0);
+    #[getter] fn triangles -> Rows<u32> = |h| Rows(h.sim.triangles().as_flattened().to_vec(), 3);
+    /// The drawn mesh's `(positions, normals)`, particles first, then the cut vertices.
+    fn render_positions -> (Rows<f32>, Rows<f32>) = |h| {
+        let (positions, normals) = h.sim.render_frame();
+        (Rows::vec3s(positions), Rows::vec3s(normals))
+    };
+    /// The drawn mesh's `(triangles, uvs, sources)`: what changes only with the topology.
+    fn render_topology -> (Rows<u32>, Rows<f32>, Rows<u32>) = |h| {
+        let triangles = h.sim.render_triangles().as_flattened().to_vec();
+        let (grid, cut) = (h.sim.grid(), h.sim.render_cut_vertices());
+        let uvs = crate::render_mesh::uvs(grid, cut).as_flattened().to_vec();
+        (Rows(triangles, 3), Rows(uvs, 2), Rows(crate::render_mesh::sources(grid, cut), 0))
+    };
+    /// The scene with the run-time settings as they are now.
+    fn scene_dict -> SceneDict = |h| SceneDict(h.sim.scene().clone());
+    #[getter] fn time -> f64 = |h| h.sim.time();
+    #[getter] fn steps -> u64 = |h| h.sim.steps();
+    #[getter] fn dt -> f64 = |h| h.sim.dt();
+    #[getter] fn substeps -> u32 = |h| h.sim.scene().substeps;
+    #[getter] fn integrator -> &'static str = |h| h.sim.scene().integrator.name();
+    #[getter] fn effects -> Vec<&'static str> = |h| h.sim.effects();
+    #[getter] fn topology_version -> u64 = |h| h.sim.topology_version();
+    #[getter] fn state_version -> u64 = |h| h.sim.state_version();
+    #[getter] fn nx -> usize = |h| h.sim.grid().nx;
+    #[getter] fn ny -> usize = |h| h.sim.grid().ny;
+    #[getter] fn num_particles -> usize = |h| h.sim.grid().len();
+    /// `(kinetic, gravitational, elastic)` in J.
+    fn energy -> (f64, f64, f64) = |h| {
+        let e = h.sim.energy();
+        (e.kinetic, e.gravitational, e.elastic)
+    };
+    fn spring_strain -> Rows<f32> = |h| Rows(h.sim.spring_strain(), 0);
+    fn max_stretch -> f32 = |h| h.sim.max_stretch();
+    /// `(passes, steps, total_seconds)` with `passes` a list of `(name, seconds, calls)`.
+    fn profile -> (Vec<(&'static str, f64, u64)>, u64, f64) = |h| {
+        let p = h.sim.profile();
+        let passes = p.passes().iter().map(|p| (p.name, p.time.as_secs_f64(), p.calls));
+        (passes.collect(), p.steps, p.total.as_secs_f64())
+    };
+    fn solver_stats -> Option<Plain<crate::integrators::SolverStats>> =
+        |h| h.sim.solver_stats().map(Plain);
+    fn watchdog_stats -> Plain<crate::stepper::WatchdogStats> = |h| Plain(h.sim.watchdog_stats());
+    fn self_collision_stats -> Option<Plain<crate::self_collision::SelfCollisionStats>> =
+        |h| h.sim.self_collision_stats().map(Plain);
+    /// The largest stable `dt` (s) now, or None when any `dt` is.
+    fn stable_dt -> Option<f64> = |h| h.sim.stable_dt();
+    fn memory_bytes -> usize = |h| h.sim.memory_bytes();
 }
 
 #[pymethods]
 impl PySimulation {
     #[new]
     fn new(scene: &Bound<'_, PyAny>) -> PyResult<Self> {
-        build(scene)
+        Ok(PySimulation {
+            shared: Shared::new(Simulation::new(scene_from_dict(scene)?).py()?),
+        })
     }
 
-    // ----- stepping -----------------------------------------------------------------------
-
-    /// Advances exactly `n` steps of `dt`.
     fn step(&self, py: Python<'_>, n: &Bound<'_, PyAny>) -> PyResult<()> {
         let n = count_from_any(n, "n")?;
-        let (outcome, warning) = self.with(py, |h| {
-            Ok(stepping(py, h, |sim, stop| sim.step_with(n, stop)))
-        })?;
-        warn(py, warning)?;
-        outcome
+        self.stepping(py, |sim, stop| sim.step_with(n, stop))
     }
 
-    /// Adds `seconds` of requested time and runs the whole steps it covers; returns them.
     fn advance(&self, py: Python<'_>, seconds: &Bound<'_, PyAny>) -> PyResult<u64> {
         let seconds = float_from_any(seconds, "seconds")?;
-        let (outcome, warning) = self.with(py, |h| {
-            Ok(stepping(py, h, |sim, stop| sim.advance_with(seconds, stop)))
-        })?;
-        warn(py, warning)?;
-        outcome
-    }
-
-    // ----- state ----------------------------------------------------------------------------
-
-    #[getter]
-    fn positions<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
-        let flat = self.with(py, |h| Ok(interleaved(h.sim.positions())))?;
-        vec3s_to_array(py, flat)
-    }
-
-    #[getter]
-    fn velocities<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
-        let flat = self.with(py, |h| Ok(interleaved(h.sim.velocities())))?;
-        vec3s_to_array(py, flat)
+        self.stepping(py, |sim, stop| sim.advance_with(seconds, stop))
     }
 
     fn set_positions(&self, py: Python<'_>, positions: &Bound<'_, PyAny>) -> PyResult<()> {
-        let n = self.with(py, |h| Ok(h.sim.grid().len()))?;
-        let values = vec3s_from_array(positions, "positions", n)?;
-        self.with(py, |h| h.sim.set_positions(&values).py())
+        let values = self.per_particle(py, |n| vec3s_from_array(positions, "positions", n));
+        self.call(py, values, |sim, v| sim.set_positions(&v))
     }
 
     fn set_velocities(&self, py: Python<'_>, velocities: &Bound<'_, PyAny>) -> PyResult<()> {
-        let n = self.with(py, |h| Ok(h.sim.grid().len()))?;
-        let values = vec3s_from_array(velocities, "velocities", n)?;
-        self.with(py, |h| h.sim.set_velocities(&values).py())
+        let values = self.per_particle(py, |n| vec3s_from_array(velocities, "velocities", n));
+        self.call(py, values, |sim, v| sim.set_velocities(&v))
     }
 
     fn set_masses(&self, py: Python<'_>, masses: &Bound<'_, PyAny>) -> PyResult<()> {
-        let n = self.with(py, |h| Ok(h.sim.grid().len()))?;
-        let values = f64s_from_array(masses, "masses", n)?;
-        self.with(py, |h| h.sim.set_masses(&values).py())
-    }
-
-    #[getter]
-    fn masses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f32>>> {
-        let masses = self.with(py, |h| Ok(h.sim.particles().mass.clone()))?;
-        read_only_1d(PyArray1::from_vec(py, masses))
-    }
-
-    #[getter]
-    fn pinned<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<bool>>> {
-        let flags = self.with(py, |h| Ok(h.sim.particles().pinned.clone()))?;
-        read_only_1d(PyArray1::from_vec(py, flags))
-    }
-
-    #[getter]
-    fn alive<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<bool>>> {
-        let flags = self.with(py, |h| Ok(h.sim.particles().alive.clone()))?;
-        read_only_1d(PyArray1::from_vec(py, flags))
-    }
-
-    #[getter]
-    fn triangles<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<u32>>> {
-        let flat: Vec<u32> = self.with(py, |h| Ok(h.sim.triangles().as_flattened().to_vec()))?;
-        rows_to_array(py, flat, 3)
-    }
-
-    /// The drawn mesh's `(positions, normals)`, particles first, then the cut vertices.
-    fn render_positions<'py>(&self, py: Python<'py>) -> PyResult<(Arrays2<'py>, Arrays2<'py>)> {
-        let (pos, nrm) = self.with(py, |h| {
-            let (pos, nrm) = h.sim.render_frame();
-            Ok((interleaved(pos), interleaved(nrm)))
-        })?;
-        Ok((vec3s_to_array(py, pos)?, vec3s_to_array(py, nrm)?))
-    }
-
-    /// The drawn mesh's `(triangles, uvs, sources)`: what changes only with the topology.
-    fn render_topology<'py>(&self, py: Python<'py>) -> PyResult<RenderTopology<'py>> {
-        let (tris, uvs, sources) = self.with(py, |h| {
-            let grid = h.sim.grid();
-            let tris = h.sim.render_triangles().as_flattened().to_vec();
-            let cut = h.sim.render_cut_vertices();
-            let uvs = crate::render_mesh::uvs(grid, cut).as_flattened().to_vec();
-            Ok((tris, uvs, crate::render_mesh::sources(grid, cut)))
-        })?;
-        let sources = PyArray1::from_vec(py, sources);
-        read_only(sources.as_any())?;
-        Ok((
-            rows_to_array(py, tris, 3)?,
-            rows_to_array(py, uvs, 2)?,
-            sources,
-        ))
-    }
-
-    #[getter]
-    fn normals<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
-        let flat = self.with(py, |h| Ok(interleaved(h.sim.normals())))?;
-        vec3s_to_array(py, flat)
+        let values = self.per_particle(py, |n| f64s_from_array(masses, "masses", &[n]));
+        self.call(py, values, |sim, v| sim.set_masses(&v))
     }
 
     #[pyo3(signature = (index, target = None))]
@@ -254,17 +250,14 @@ impl PySimulation {
         index: &Bound<'_, PyAny>,
         target: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
-        let n = self.with(py, |h| Ok(h.sim.grid().len()))?;
-        let index = index_from_any(index, "index", n)?;
-        let target = match target {
-            Some(t) if !t.is_none() => Some(vec3_from_any(t, "target")?),
-            _ => None,
-        };
-        self.with(py, |h| h.sim.pin(index, target).py())
+        let index = self.index(py, index)?;
+        let target = target.filter(|t| !t.is_none());
+        let target = target.map(|t| vec3_from_any(t, "target")).transpose();
+        self.call(py, target, |sim, target| sim.pin(index, target))
     }
 
-    /// Pins many particles in one call; `indices` a 1-D int64 array (the Python wrapper
-    /// coerces), `targets` None or an `(len(indices), 3)` float array.
+    /// Pins many particles in one call; `indices` a 1-D integer array, `targets` None or an
+    /// `(len(indices), 3)` float array.
     #[pyo3(signature = (indices, targets = None))]
     fn pin_many(
         &self,
@@ -272,30 +265,20 @@ impl PySimulation {
         indices: &Bound<'_, PyAny>,
         targets: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
-        let indices: Vec<i64> = match indices.extract::<PyReadonlyArray1<'_, i64>>() {
-            Ok(a) => a.as_array().to_vec(),
-            Err(_) => {
-                return Err(type_error(
-                    "indices",
-                    "must be a 1-D int64 numpy array".into(),
-                ))
-            }
-        };
-        let targets = match targets {
-            Some(t) if !t.is_none() => Some(vec3s_from_array(t, "targets", indices.len())?),
-            _ => None,
-        };
-        self.with(py, |h| h.sim.pin_many(&indices, targets.as_ref()).py())
+        let indices = self.per_particle(py, |n| indices_from_array(indices, n))?;
+        let targets = targets.filter(|t| !t.is_none());
+        let targets = targets.map(|t| vec3s_from_array(t, "targets", indices.len()));
+        self.call(py, targets.transpose(), |sim, t| {
+            sim.pin_many(&indices, t.as_ref())
+        })
     }
 
     fn unpin(&self, py: Python<'_>, index: &Bound<'_, PyAny>) -> PyResult<()> {
-        let index = index_from_any(index, "index", self.with(py, |h| Ok(h.sim.grid().len()))?)?;
-        self.with(py, |h| h.sim.unpin(index).py())
+        self.call(py, self.index(py, index), Simulation::unpin)
     }
 
     fn cut(&self, py: Python<'_>, index: &Bound<'_, PyAny>) -> PyResult<()> {
-        let index = index_from_any(index, "index", self.with(py, |h| Ok(h.sim.grid().len()))?)?;
-        self.with(py, |h| h.sim.cut(index).py())
+        self.call(py, self.index(py, index), Simulation::cut)
     }
 
     fn reset(&self, py: Python<'_>) -> PyResult<()> {
@@ -303,12 +286,6 @@ impl PySimulation {
             h.warned_not_converged = false;
             h.sim.reset().py()
         })
-    }
-
-    /// The whole state as a dict of numpy arrays and plain values (see `set_state`).
-    fn get_state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let snapshot = self.with(py, |h| Ok(h.sim.snapshot()))?;
-        state::to_dict(py, &snapshot)
     }
 
     /// Replaces the whole simulation (scene included) by a state from `get_state`.
@@ -321,15 +298,18 @@ impl PySimulation {
         })
     }
 
+    /// The whole state as a dict of numpy arrays and plain values (see `set_state`).
+    fn get_state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        state::to_dict(py, &self.with(py, |h| Ok(h.sim.snapshot()))?)
+    }
+
     fn __reduce__<'py>(
         &self,
         py: Python<'py>,
-    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyTuple>)> {
-        let snapshot = self.with(py, |h| Ok(h.sim.snapshot()))?;
-        let constructor = py
-            .import("rustcloth._core")?
-            .getattr("simulation_from_state")?;
-        Ok((constructor, state::reduce_args(py, &snapshot)?))
+    ) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyDict>,))> {
+        let constructor = py.import("rustcloth._core")?;
+        let constructor = constructor.getattr("simulation_from_state")?;
+        Ok((constructor, (self.get_state(py)?,)))
     }
 
     /// Makes the next force evaluation panic inside its parallel sweep: a stand-in for a bug,
@@ -348,180 +328,55 @@ impl PySimulation {
         })
     }
 
-    // ----- settings -------------------------------------------------------------------------
-
-    #[getter]
-    fn time(&self, py: Python<'_>) -> PyResult<f64> {
-        self.with(py, |h| Ok(h.sim.time()))
-    }
-
-    #[getter]
-    fn steps(&self, py: Python<'_>) -> PyResult<u64> {
-        self.with(py, |h| Ok(h.sim.steps()))
-    }
-
-    #[getter]
-    fn dt(&self, py: Python<'_>) -> PyResult<f64> {
-        self.with(py, |h| Ok(h.sim.dt()))
-    }
-
     #[setter]
     fn set_dt(&self, py: Python<'_>, dt: &Bound<'_, PyAny>) -> PyResult<()> {
-        let dt = float_from_any(dt, "dt")?;
-        self.with(py, |h| h.sim.set_dt(dt).py())
-    }
-
-    #[getter]
-    fn substeps(&self, py: Python<'_>) -> PyResult<u32> {
-        self.with(py, |h| Ok(h.sim.scene().substeps))
+        self.call(py, float_from_any(dt, "dt"), Simulation::set_dt)
     }
 
     #[setter]
     fn set_substeps(&self, py: Python<'_>, substeps: &Bound<'_, PyAny>) -> PyResult<()> {
-        let substeps = int_from_any(substeps, "substeps")?;
-        self.with(py, |h| h.sim.set_substeps(substeps).py())
-    }
-
-    #[getter]
-    fn integrator(&self, py: Python<'_>) -> PyResult<&'static str> {
-        self.with(py, |h| Ok(h.sim.scene().integrator.name()))
+        self.call(
+            py,
+            int_from_any(substeps, "substeps"),
+            Simulation::set_substeps,
+        )
     }
 
     #[setter]
     fn set_integrator(&self, py: Python<'_>, name: &Bound<'_, PyAny>) -> PyResult<()> {
-        let name = str_from_any(name, "integrator")?;
-        self.with(py, |h| h.sim.set_integrator(&name).py())
-    }
-
-    /// The scene with the run-time settings as they are now.
-    fn scene_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let scene = self.with(py, |h| Ok(h.sim.scene().clone()))?;
-        scene_to_dict(py, &scene)
-    }
-
-    // ----- diagnostics ----------------------------------------------------------------------
-
-    /// `(kinetic, gravitational, elastic)` in J.
-    fn energy(&self, py: Python<'_>) -> PyResult<(f64, f64, f64)> {
-        self.with(py, |h| {
-            let e = h.sim.energy();
-            Ok((e.kinetic, e.gravitational, e.elastic))
-        })
-    }
-
-    fn spring_strain<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f32>>> {
-        let strain = self.with(py, |h| Ok(h.sim.spring_strain()))?;
-        read_only_1d(PyArray1::from_vec(py, strain))
-    }
-
-    fn max_stretch(&self, py: Python<'_>) -> PyResult<f32> {
-        self.with(py, |h| Ok(h.sim.max_stretch()))
-    }
-
-    #[getter]
-    fn effects(&self, py: Python<'_>) -> PyResult<Vec<&'static str>> {
-        self.with(py, |h| Ok(h.sim.effects()))
-    }
-
-    /// `(passes, steps, total_seconds)` with `passes` a list of `(name, seconds, calls)`.
-    fn profile<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyList>, u64, f64)> {
-        let profile = self.with(py, |h| Ok(h.sim.profile().clone()))?;
-        let passes = PyList::empty(py);
-        for p in profile.passes() {
-            passes.append((p.name, p.time.as_secs_f64(), p.calls))?;
-        }
-        Ok((passes, profile.steps, profile.total.as_secs_f64()))
-    }
-
-    /// Statistics of the implicit solver (`solves`, `iterations`, `last_iterations`,
-    /// `last_residual`, `not_converged`, `worst_residual`, `most_iterations`, `factorizations`,
-    /// `setup_seconds`, `solve_seconds`), or None for integrators that solve nothing.
-    fn solver_stats<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
-        let Some(stats) = self.with(py, |h| Ok(h.sim.solver_stats()))? else {
-            return Ok(None);
-        };
-        let dict = PyDict::new(py);
-        dict.set_item("solves", stats.solves)?;
-        dict.set_item("iterations", stats.iterations)?;
-        dict.set_item("last_iterations", stats.last_iterations)?;
-        dict.set_item("last_residual", stats.last_residual)?;
-        dict.set_item("not_converged", stats.not_converged)?;
-        dict.set_item("worst_residual", stats.worst_residual)?;
-        dict.set_item("most_iterations", stats.most_iterations)?;
-        dict.set_item("factorizations", stats.factorizations)?;
-        dict.set_item("setup_seconds", stats.setup_seconds)?;
-        dict.set_item("solve_seconds", stats.solve_seconds)?;
-        Ok(Some(dict))
-    }
-
-    /// The largest stable `dt` (s) now, or None when any `dt` is.
-    fn stable_dt(&self, py: Python<'_>) -> PyResult<Option<f64>> {
-        self.with(py, |h| Ok(h.sim.stable_dt()))
-    }
-
-    /// What the watchdog caught and retried since the start.
-    fn watchdog_stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let stats = self.with(py, |h| Ok(h.sim.watchdog_stats()))?;
-        let out = PyDict::new(py);
-        out.set_item("caught", stats.caught)?;
-        out.set_item("retried", stats.retried)?;
-        out.set_item("retry_substeps", stats.retry_substeps)?;
-        out.set_item("max_substeps_used", stats.max_substeps_used)?;
-        out.set_item("held_steps", stats.held_steps)?;
-        Ok(out)
-    }
-
-    fn self_collision_stats<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
-        let Some(stats) = self.with(py, |h| Ok(h.sim.self_collision_stats()))? else {
-            return Ok(None);
-        };
-        let out = PyDict::new(py);
-        out.set_item("substeps", stats.substeps)?;
-        out.set_item("pairs", stats.pairs)?;
-        out.set_item("rebuilds", stats.rebuilds)?;
-        out.set_item("swept_substeps", stats.swept_substeps)?;
-        out.set_item("redone", stats.redone)?;
-        out.set_item("contacts", stats.contacts)?;
-        out.set_item("capped", stats.capped)?;
-        out.set_item("stopped", stats.stopped)?;
-        out.set_item("max_cap_rounds", stats.max_cap_rounds)?;
-        out.set_item("min_distance", stats.min_distance)?;
-        Ok(Some(out))
-    }
-
-    fn memory_bytes(&self, py: Python<'_>) -> PyResult<usize> {
-        self.with(py, |h| Ok(h.sim.memory_bytes()))
-    }
-
-    #[getter]
-    fn topology_version(&self, py: Python<'_>) -> PyResult<u64> {
-        self.with(py, |h| Ok(h.sim.topology_version()))
-    }
-
-    #[getter]
-    fn state_version(&self, py: Python<'_>) -> PyResult<u64> {
-        self.with(py, |h| Ok(h.sim.state_version()))
-    }
-
-    #[getter]
-    fn nx(&self, py: Python<'_>) -> PyResult<usize> {
-        self.with(py, |h| Ok(h.sim.grid().nx))
-    }
-
-    #[getter]
-    fn ny(&self, py: Python<'_>) -> PyResult<usize> {
-        self.with(py, |h| Ok(h.sim.grid().ny))
-    }
-
-    #[getter]
-    fn num_particles(&self, py: Python<'_>) -> PyResult<usize> {
-        self.with(py, |h| Ok(h.sim.grid().len()))
+        let name = str_from_any(name, "integrator");
+        self.call(py, name, |sim, name| sim.set_integrator(&name))
     }
 }
 
-fn read_only_1d<T: numpy::Element>(
-    array: Bound<'_, PyArray1<T>>,
-) -> PyResult<Bound<'_, PyArray1<T>>> {
-    read_only(array.as_any())?;
-    Ok(array)
+/// `pin_many`'s indices: a 1-D numpy array of integers (of any dtype when empty), as i64. The
+/// core checks each against the particles.
+fn indices_from_array(obj: &Bound<'_, PyAny>, n: usize) -> PyResult<Vec<i64>> {
+    let array = obj
+        .cast::<PyUntypedArray>()
+        .map_err(|_| type_error("indices", format!("must be a numpy array, got {obj}")))?;
+    if array.ndim() != 1 {
+        let shape = obj.getattr("shape")?;
+        return Err(value_error(
+            "indices",
+            format!("must be 1-D, got shape {shape}"),
+        ));
+    }
+    let (dtype, empty) = (array.dtype(), array.len() == 0);
+    if !empty && !matches!(dtype.kind(), b'i' | b'u') {
+        let message = format!("must hold integers, got dtype {dtype}");
+        return Err(type_error("indices", message));
+    }
+    if !empty && dtype.kind() == b'u' {
+        let largest: u64 = obj.call_method0("max")?.extract()?;
+        if i64::try_from(largest).is_err() {
+            let message = format!("indices: index {largest} is out of range for {n} particles");
+            return Err(ParticleIndexError::new_err((message, "indices", i64::MAX)));
+        }
+    }
+    let int64 = obj.call_method1("astype", ("int64",))?;
+    Ok(int64
+        .extract::<PyReadonlyArray1<'_, i64>>()?
+        .as_array()
+        .to_vec())
 }

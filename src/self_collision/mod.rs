@@ -79,7 +79,7 @@ const SKIN: f64 = 1.0;
 const LIST_LIMIT: f64 = 2.0;
 
 /// What the pass did, summed since the simulation was built.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct SelfCollisionStats {
     /// Substeps the pass ran.
     pub substeps: u64,

@@ -34,7 +34,7 @@ use crate::springs::{neighbour_runs, overstretched, Springs};
 use crate::state::Kinematics;
 
 /// What the watchdog did since the simulation was built.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct WatchdogStats {
     /// Steps that went wrong, whether then saved by a retry or raised.
     pub caught: u64,
@@ -60,10 +60,12 @@ pub(super) struct Failure {
 }
 
 /// The watchdog's memory between steps, for a saved state.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct WatchdogSnapshot {
     /// The start of the last step and the integrator's history then, while that step can
-    /// still be undone (only with a stretch limit).
+    /// still be undone (only with a stretch limit). Per-particle arrays: outside serde, as in
+    /// [`crate::snapshot::Snapshot`].
+    #[serde(skip)]
     pub previous: Option<(Vec3s, Vec3s, History)>,
     /// The newest state has not been judged against the stretch limit yet.
     pub unjudged: bool,

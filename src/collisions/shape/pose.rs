@@ -10,7 +10,7 @@ use crate::error::{Error, Result};
 use crate::scene::MAX_COLLIDER_VALUE;
 
 /// Where a collider's frame is: its origin (m) and orientation (a unit quaternion).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Pose {
     pub position: DVec3,
     pub rotation: DQuat,
@@ -19,7 +19,7 @@ pub struct Pose {
 /// A pose set between steps: the collider goes from `from` at time `start` to `to` at `end`
 /// (s; the end of the step after the call) at constant velocity and turn rate, and rests at
 /// `to` after that.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PoseKey {
     pub from: Pose,
     pub to: Pose,
