@@ -15,6 +15,7 @@ mod symplectic_euler;
 mod verlet;
 
 use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
 
 pub use crate::scene::IntegratorKind;
 pub use implicit_euler::ImplicitEuler;

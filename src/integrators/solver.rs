@@ -1,6 +1,8 @@
 //! Settings, statistics and assembly helpers shared by the integrators that solve a system each
 //! step (`implicit_euler`, `projective_dynamics`).
 
+use serde::Serialize;
+
 use crate::grid::SpringKind;
 use crate::linear::stencil::slot_of;
 pub use crate::scene::{Preconditioner, SolverSettings};

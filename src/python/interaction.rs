@@ -29,7 +29,8 @@ impl PySimulation {
         origin: &Bound<'_, PyAny>,
         direction: &Bound<'_, PyAny>,
     ) -> PyResult<Option<(usize, f32)>> {
-        self.call(py, ray(origin, direction), |sim, (o, d)| sim.pick(o, d))
+        let hit = self.call(py, ray(origin, direction), |sim, (o, d)| sim.pick(o, d))?;
+        Ok(hit.map(|h| (h.index, h.distance)))
     }
 
     fn pick_triangle(
@@ -41,7 +42,10 @@ impl PySimulation {
         let hit = self.call(py, ray(origin, direction), |sim, (o, d)| {
             sim.pick_triangle(o, d)
         })?;
-        Ok(hit.map(|(t, d, [a, b, c])| (t, d, (a, b, c))))
+        Ok(hit.map(|h| {
+            let [a, b, c] = h.barycentric;
+            (h.index, h.distance, (a, b, c))
+        }))
     }
 
     fn cut_ray(

@@ -220,12 +220,12 @@ impl PySimulation {
 
     fn step(&self, py: Python<'_>, n: &Bound<'_, PyAny>) -> PyResult<()> {
         let n = count_from_any(n, "n")?;
-        self.stepping(py, |sim, stop| sim.step_with(n, stop))
+        self.stepping(py, |sim, stop| sim.step_interruptible(n, stop))
     }
 
     fn advance(&self, py: Python<'_>, seconds: &Bound<'_, PyAny>) -> PyResult<u64> {
         let seconds = float_from_any(seconds, "seconds")?;
-        self.stepping(py, |sim, stop| sim.advance_with(seconds, stop))
+        self.stepping(py, |sim, stop| sim.advance_interruptible(seconds, stop))
     }
 
     fn set_positions(&self, py: Python<'_>, positions: &Bound<'_, PyAny>) -> PyResult<()> {

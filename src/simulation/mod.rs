@@ -62,15 +62,19 @@ impl Simulation {
     /// Advances exactly `n` steps of `dt`. If a step produces a non-finite state, the state
     /// from before that step is kept and [`Error::Diverged`] names the step and the particle.
     pub fn step(&mut self, n: u64) -> Result<()> {
-        self.step_with(n, &mut || false)
+        self.step_interruptible(n, &mut || false)
     }
 
     /// [`Simulation::step`], asking `interrupted` every few milliseconds (between whole steps)
     /// whether to stop; then [`Error::Interrupted`], with the state at that step boundary.
-    pub fn step_with(&mut self, n: u64, interrupted: &mut dyn FnMut() -> bool) -> Result<()> {
+    pub fn step_interruptible(
+        &mut self,
+        n: u64,
+        interrupted: &mut dyn FnMut() -> bool,
+    ) -> Result<()> {
         let outcome = self
             .stepper
-            .step_with(&mut self.model, &mut self.state, n, interrupted);
+            .run(&mut self.model, &mut self.state, n, interrupted);
         self.after_stepping(outcome)
     }
 
@@ -80,19 +84,19 @@ impl Simulation {
     /// simulated stays owed, so the next call tries those steps again. At most
     /// [`MAX_ADVANCE_STEPS`] steps per call.
     pub fn advance(&mut self, seconds: f64) -> Result<u64> {
-        self.advance_with(seconds, &mut || false)
+        self.advance_interruptible(seconds, &mut || false)
     }
 
-    /// [`Simulation::advance`], asking `interrupted` between steps as [`Simulation::step_with`]
-    /// does. An interrupted call abandons the rest of its request.
-    pub fn advance_with(
+    /// [`Simulation::advance`], asking `interrupted` between steps as
+    /// [`Simulation::step_interruptible`] does. An interrupted call abandons the rest of its request.
+    pub fn advance_interruptible(
         &mut self,
         seconds: f64,
         interrupted: &mut dyn FnMut() -> bool,
     ) -> Result<u64> {
-        let outcome =
-            self.stepper
-                .advance_with(&mut self.model, &mut self.state, seconds, interrupted);
+        let outcome = self
+            .stepper
+            .advance(&mut self.model, &mut self.state, seconds, interrupted);
         self.after_stepping(outcome)
     }
 

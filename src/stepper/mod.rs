@@ -41,7 +41,7 @@ const ADVANCE_TOLERANCE: f64 = 1e-6;
 /// taken for s), and would hold the caller for days.
 pub const MAX_ADVANCE_STEPS: u64 = u32::MAX as u64;
 
-/// How long a run of steps goes between two asks whether to stop (`step_with`, `advance_with`):
+/// How long a run of steps goes between two asks whether to stop (`run`, `advance`):
 /// short enough that Ctrl-C answers at once, long enough that asking costs nothing.
 const INTERRUPT_SLICE: Duration = Duration::from_millis(20);
 
@@ -91,7 +91,7 @@ impl Stepper {
     /// Advances `state` exactly `n` steps, asking `interrupted` every few milliseconds (between
     /// whole steps) whether to stop; when it says so, returns [`Error::Interrupted`] with the
     /// state at that step boundary. The answer never changes the steps taken before it.
-    pub fn step_with(
+    pub fn run(
         &mut self,
         model: &mut Model,
         state: &mut State,
@@ -124,7 +124,7 @@ impl Stepper {
     /// time requested, not on how it was split into calls. After a failed step the time not
     /// simulated stays owed, so the next call tries those steps again; an interrupted call
     /// abandons the rest of its request. At most [`MAX_ADVANCE_STEPS`] steps per call.
-    pub fn advance_with(
+    pub fn advance(
         &mut self,
         model: &mut Model,
         state: &mut State,
@@ -151,7 +151,7 @@ impl Stepper {
         }
         let n = steps as u64;
         let before = state.clock.steps;
-        let outcome = self.step_with(model, state, n, interrupted);
+        let outcome = self.run(model, state, n, interrupted);
         // Counted from `steps`, not from the calls: a failed step can also roll back the step
         // before it (see watchdog.rs).
         let taken = match outcome {
