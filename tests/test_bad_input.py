@@ -25,7 +25,7 @@ BAD_SCENES = [
     ({"gravity": [0, -9.81]}, ValueError, "gravity"),
     ({"air_drag": -1.0}, ValueError, "air_drag"),
     ({"integrator": "leapfrog"}, ValueError, "symplectic_euler"),
-    ({"wind": 3.0}, ValueError, "wind"),
+    ({"breeze": 3.0}, ValueError, "breeze"),
     ({"cloth": {"nx": 1}}, ValueError, "cloth.nx"),
     ({"cloth": {"ny": 0}}, ValueError, "cloth.ny"),
     ({"cloth": {"nx": -4}}, ValueError, "cloth.nx"),

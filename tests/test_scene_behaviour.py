@@ -1,0 +1,52 @@
+"""The showcase scenes do what their names say, checked from the API as the demo runs them:
+``fold`` folds over its bar and stays (``flag`` flies: tests/wind.rs)."""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+import rustcloth
+
+
+def footprint(positions: npt.NDArray[np.float32], triangles: npt.NDArray[np.uint32],
+              cell: float = 0.01) -> float:
+    """Area (m^2) the cloth covers seen from above: the union of its triangles projected on the
+    floor, on a raster of ``cell``-sized squares (a square counts when its centre is covered)."""
+    xz = positions[:, [0, 2]].astype(np.float64)
+    lo = xz.min(axis=0)
+    covered = np.zeros(tuple(np.ceil((xz.max(axis=0) - lo) / cell).astype(int) + 1), bool)
+    for tri in xz[triangles]:
+        a, b, c = tri
+        i0, k0 = np.floor((tri.min(axis=0) - lo) / cell).astype(int)
+        i1, k1 = np.ceil((tri.max(axis=0) - lo) / cell).astype(int)
+        gi, gk = np.meshgrid(np.arange(i0, i1 + 1), np.arange(k0, k1 + 1), indexing="ij")
+        px = lo[0] + (gi + 0.5) * cell
+        pz = lo[1] + (gk + 0.5) * cell
+        # Which side of each edge the square's centre is on.
+        d = np.stack([(q[0] - p[0]) * (pz - p[1]) - (q[1] - p[1]) * (px - p[0])
+                      for p, q in ((a, b), (b, c), (c, a))])
+        inside = (d >= 0).all(axis=0) | (d <= 0).all(axis=0)
+        gi, gk = gi[inside], gk[inside]
+        ok = (gi < covered.shape[0]) & (gk < covered.shape[1])
+        covered[gi[ok], gk[ok]] = True
+    return float(covered.sum()) * cell * cell
+
+
+def test_footprint_of_a_flat_square_is_its_area():
+    sim = rustcloth.Simulation(rustcloth.load_scene("freefall"))
+    area = footprint(sim.positions, sim.triangles)
+    assert abs(area - 1.0) < 0.03, area
+
+
+def test_fold_folds_over_its_bar_and_is_still_there_after_five_seconds():
+    sim = rustcloth.Simulation(rustcloth.load_scene("fold"))
+    sim.advance(5.0)
+    p = sim.positions
+    # Folded over a bar 0.6 m up: both halves hang below it and none of the cloth lies on the
+    # floor; the particles that landed on the bar are still on it.
+    assert p[:, 1].max() < 0.65 and p[:, 1].min() > 0.05, (p[:, 1].min(), p[:, 1].max())
+    on_bar = np.abs(p[:, 1] - 0.6) < 0.05
+    assert on_bar.sum() >= 20, on_bar.sum()
+    halves = p[:, 2] > 0
+    assert 0.3 < halves.mean() < 0.7, halves.mean()
+
