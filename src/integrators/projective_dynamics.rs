@@ -385,9 +385,8 @@ fn in_contact(ctx: &StepContext, p: usize) -> bool {
         && ctx.particles.inv_mass[p] > 0.0
 }
 
-/// How far particle `p`, displaced by `dx` from `x_n`, is behind the plane of its predicted
-/// contact `(n, offset)`: positive inside the feasible half-space's complement. A particle that
-/// starts behind the plane (inside a collider) is held where it is along `n`, not pulled onto
+/// How far a particle at `x_n + dx` is behind the plane `n . x = offset` of its predicted
+/// contact (negative ahead of it). A particle that starts behind the plane (inside a collider) is held where it is along `n`, not pulled onto
 /// the plane within the step: that would turn the depth into speed; the collider pass after the
 /// step puts it out without velocity.
 #[inline(always)]
