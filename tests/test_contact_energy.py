@@ -66,33 +66,35 @@ def dropped(contact: str, integrator: str, dt: float) -> Scene:
     return scene.replace(substeps=max(1, needed))
 
 
-# Projective dynamics still projects its result out of colliders after the solve, and at a
-# display frame that pumps (the dropped cloth here gains several times its energy; the pile
-# 6.5 J -> 35 J): a known miss, kept visible. Strict, so that the fix is noticed.
-PD_AT_A_FRAME = pytest.mark.xfail(
-    strict=True, reason="projective dynamics does not hold contacts inside its solve yet")
-
-
 def _cases() -> list[object]:
     cases: list[object] = []
     for integrator in rustcloth.INTEGRATORS:
         for dt, label in [(0.001, "1ms"), (1 / 60, "frame")]:
             if integrator == "explicit_euler" and label == "frame":
                 continue  # thousands of substeps at 1/60 s: not a contact case
-            marks = PD_AT_A_FRAME if (integrator, label) == ("projective_dynamics",
-                                                             "frame") else ()
-            cases.append(pytest.param(integrator, dt, marks=marks, id=f"{integrator}-{label}"))
+            cases.append(pytest.param(integrator, dt, id=f"{integrator}-{label}"))
     return cases
 
 
 @pytest.mark.parametrize(("integrator", "dt"), _cases())
 def test_contact_never_adds_energy(integrator, dt):
-    _drop_everywhere(integrator, dt)
+    skip = ("sphere",) if (integrator, dt) == ("projective_dynamics", 1 / 60) else ()
+    _drop_everywhere(integrator, dt, [c for c in CONTACTS if c not in skip])
 
 
-def _drop_everywhere(integrator: str, dt: float) -> None:
+# Projective dynamics holds its predicted contacts inside the solve as implicit Euler does, but
+# the cloth landing on the bare 2 cm ball at a display frame still gains about 11 % (4360 %
+# when projected out after the solve): the ball is smaller than the cloth's 3.3 cm spacing, and
+# a cloth held by one or two particles and sliding off it swings. A known miss, kept visible;
+# strict, so that the fix is noticed.
+@pytest.mark.xfail(strict=True, reason="projective dynamics on the bare ball at a frame gains")
+def test_projective_dynamics_on_the_bare_ball_at_a_frame():
+    _drop_everywhere("projective_dynamics", 1 / 60, ["sphere"])
+
+
+def _drop_everywhere(integrator: str, dt: float, contacts: list[str]) -> None:
     gains = {}
-    for contact in CONTACTS:
+    for contact in contacts:
         sim = Simulation(dropped(contact, integrator, dt))
         start = sim.energy().total
         highest, steps = start, math.ceil(SECONDS / dt)

@@ -10,7 +10,8 @@
 //! `x + h v + h^2 g` of every particle; a particle they move is a contact, with the plane
 //! through the point they put it on, normal to the correction. The solver keeps such a
 //! particle on the plane as part of the solve (`ImplicitEuler`: a stiff penalty along the
-//! normal in the linear system), so the springs around it feel the contact within the same
+//! normal in the linear system; `ProjectiveDynamics`: a projection onto the plane's outer side,
+//! weighted in its global matrix), so the springs around it feel the contact within the same
 //! step.
 //! Coulomb friction takes the tangential velocity the prediction's contact took, bounded by
 //! what is left of it after the solve ([`PredictedContacts::apply_friction`]); the collider

@@ -48,9 +48,20 @@
 //! implicit Euler's linearisation. A cut particle's springs are dead; every value computed from
 //! them is selected away, so where it sits cannot change the step.
 //!
+//! **Contacts.** With colliders, each particle the stepper predicts to make a contact
+//! ([`crate::collisions::predict`]) adds the term `w_c/2 |x - P(x)|^2` to `G` (Bouaziz et al.,
+//! "Projective dynamics", 2014), `P` the projection onto the outer side of the contact's plane
+//! and `w_c = 100 m/h^2`: its local step is that projection and it adds `w_c` to the particle's
+//! diagonal of `Q`, isotropic like every term there. The springs around a landing particle feel
+//! the contact within the step; projected out of the collider after the solve instead, a long
+//! step crushes the springs of rows landing on each other (the dropped `pile` at 1/60 s gains
+//! five times its energy). `Q` is refactored when the set of particles in contact changes, not
+//! when their planes do: on steps where a cloth lands, not while it rests. With contacts the
+//! iteration runs without Chebyshev's extrapolation (see [`ProjectiveDynamics::step`]).
+//!
 //! **State between steps.** Only the factorisation of `Q`, a cache keyed on everything it is
-//! built from (step, masses, held particles, live springs, stiffness, damping, drag) and rebuilt
-//! when any of them changes: a refused step needs no rollback, and
+//! built from (step, masses, held particles, live springs, stiffness, damping, drag, contacts)
+//! and rebuilt when any of them changes: a refused step needs no rollback, and
 //! [`super::Integrator::reset_history`] has nothing to do.
 //!
 //! **Cost.** Per iteration one pass over the springs and two triangular solves with three
@@ -97,6 +108,8 @@ struct Key {
     inv_mass: Vec<f32>,
     /// `active` of each kind of `kinds`, back to back.
     active: Vec<f32>,
+    /// Which particles are in a predicted contact.
+    contact: Vec<bool>,
 }
 
 impl Key {
@@ -122,6 +135,8 @@ impl Key {
                 let n = ctx.grid.len();
                 self.active[i * n..(i + 1) * n] == ctx.springs.active[kind.index()][..]
             })
+            && self.contact.len() == ctx.grid.len()
+            && (0..ctx.grid.len()).all(|p| self.contact[p] == in_contact(ctx, p))
     }
 
     fn store(&mut self, h: f32, drag: f32, kinds: &[(SpringKind, f32, f32)], ctx: &StepContext) {
@@ -143,6 +158,9 @@ impl Key {
             self.active
                 .extend_from_slice(&ctx.springs.active[kind.index()]);
         }
+        self.contact.clear();
+        self.contact
+            .extend((0..ctx.grid.len()).map(|p| in_contact(ctx, p)));
     }
 }
 
@@ -242,9 +260,32 @@ impl ProjectiveDynamics {
                     x.set(i, target);
                 }
             });
+        // A particle in contact starts on its plane, where the prediction put it, not at the free
+        // motion's end behind it: there its stiff weight's gradient alone would set the first
+        // increments.
+        if let Some(contacts) = ctx.contacts.filter(|c| c.count > 0) {
+            for p in 0..n {
+                if in_contact(ctx, p) {
+                    let normal = contacts.normal.get(p);
+                    let d = work.x.get(p);
+                    let behind = depth(normal, contacts.offset[p], cur.pos.get(p), d);
+                    if behind > 0.0 {
+                        work.x.set(p, d + behind * normal);
+                    }
+                }
+            }
+        }
         let settings = self.settings;
         let started = Instant::now();
-        let rho = settings.pd_chebyshev_rho;
+        // Chebyshev's extrapolation assumes a fixed linear iteration; a contact's term switches
+        // on and off with the side of its plane the iterate is on, and extrapolated across that
+        // switch the iterates overshoot (a cloth landing on a 2 cm ball at 1/60 s gained 980 %
+        // of its energy with it, 11 % without). With contacts, the iteration is the plain one.
+        let rho = if ctx.contacts.is_some_and(|c| c.count > 0) {
+            0.0
+        } else {
+            settings.pd_chebyshev_rho
+        };
         let (mut omega, mut cheb_k) = (1.0f32, 0u32);
         let (mut g0, mut g_last) = (0.0f64, f64::INFINITY);
         let mut iterations = 0u32;
@@ -311,6 +352,38 @@ impl ProjectiveDynamics {
     }
 }
 
+/// How much stiffer than its own inertia (`m / h^2`) the weight `w_c` holding a contact is.
+/// The predicted penetration left after a converged solve is about `1 / (1 + CONTACT_WEIGHT)`
+/// of the free motion's, which the collider pass after the step removes. Not larger: the weight
+/// is isotropic in `Q` while the contact pushes only along its normal, so a particle in contact
+/// slides along its plane within the iterations as if `w_c` times heavier. At 1000 a cloth
+/// draped over a sphere at 0.5 ms substeps gained up to 0.1 J (of 2.7 J) over its running
+/// minimum; at 300, 0.01 J; at 100 and below nothing. Much softer (30) lets the cloth that
+/// lands on a small ball at 1/60 s sink in and swing off it.
+const CONTACT_WEIGHT: f32 = 100.0;
+
+/// `w_c` of a particle of mass `m` at step `h`.
+fn contact_weight(m: f32, h: f32) -> f32 {
+    CONTACT_WEIGHT * m / (h * h)
+}
+
+/// Whether free particle `p` is in a predicted contact this step.
+fn in_contact(ctx: &StepContext, p: usize) -> bool {
+    ctx.contacts
+        .is_some_and(|c| c.count > 0 && c.normal.get(p) != Vec3::ZERO)
+        && ctx.particles.inv_mass[p] > 0.0
+}
+
+/// How far a particle at `x_n + dx` is behind the plane `n . x = offset` of its predicted
+/// contact (negative ahead of it). A particle that starts behind the plane (inside a collider)
+/// is held where it is along `n`, not pulled onto the plane within the step: that would turn the
+/// depth into speed; the collider pass after the step puts it out without velocity.
+#[inline(always)]
+fn depth(n: Vec3, offset: f32, xn: Vec3, dx: Vec3) -> f32 {
+    let ahead = (n.dot(xn) - offset).max(0.0);
+    -ahead - n.dot(dx)
+}
+
 /// Builds `Q` and factors it over the free particles.
 fn factor(work: &mut Work, h: f32, drag: f32, ctx: &StepContext) {
     let n = ctx.grid.len();
@@ -347,6 +420,11 @@ fn factor(work: &mut Work, h: f32, drag: f32, ctx: &StepContext) {
             if fa && fb {
                 q.slot_mut(slot)[a] = -weight;
             }
+        }
+    }
+    for (p, &m) in mass.iter().enumerate() {
+        if in_contact(ctx, p) {
+            q.slot_mut(0)[p] += contact_weight(m, h) as f64;
         }
     }
     let free: Vec<bool> = w.iter().map(|&w| w > 0.0).collect();
@@ -419,6 +497,7 @@ fn local_step(work: &mut Work, h: f32, drag: f32, ctx: &StepContext) -> f64 {
         ..
     } = work;
     let (mass, inv_mass) = (&ctx.particles.mass, &ctx.particles.inv_mass);
+    let contacts = ctx.contacts.filter(|c| c.count > 0);
     let inv_h2 = inv_h * inv_h;
     let drag_h = drag * inv_h;
     grad.par_chunks_mut(REDUCE_CHUNK)
@@ -452,6 +531,22 @@ fn local_step(work: &mut Work, h: f32, drag: f32, ctx: &StepContext) -> f64 {
                                 *g += sign * f;
                             }
                         }
+                    }
+                }
+                // A contact's term `w_c/2 |x - P(x)|^2`, `P` the projection onto the outer
+                // side of its plane: zero on that side, `-w_c depth n` behind it.
+                if let Some(contacts) = contacts {
+                    for (i, p) in range.clone().enumerate() {
+                        let normal = contacts.normal.get(p);
+                        if normal == Vec3::ZERO {
+                            continue;
+                        }
+                        let (xn, d) = (cur.get(p), Vec3::new(xs.x[i], xs.y[i], xs.z[i]));
+                        let behind = depth(normal, contacts.offset[p], xn, d).max(0.0);
+                        let push = contact_weight(mass[p], h) * behind;
+                        g.x[i] -= push * normal.x;
+                        g.y[i] -= push * normal.y;
+                        g.z[i] -= push * normal.z;
                     }
                 }
                 for (i, p) in range.clone().enumerate() {

@@ -62,14 +62,14 @@ impl IntegratorKind {
     }
 
     /// Whether it holds the contacts a step is predicted to make inside its solve
-    /// ([`StepContext::contacts`]): implicit Euler, whose display-frame steps are long enough
-    /// that projecting its result out of a collider afterwards crushes springs. Projective
-    /// dynamics takes such steps too, but its prefactored matrix cannot take a contact set that
-    /// changes every step; projecting its iterates onto the contact planes (with or without
-    /// Chebyshev acceleration) converged too slowly to help, so it is still handled after the
-    /// fact.
+    /// (`crate::integrators::StepContext::contacts`): the implicit solvers, whose display-frame
+    /// steps are long enough that projecting their result out of a collider afterwards crushes
+    /// springs.
     pub fn holds_contacts(self) -> bool {
-        matches!(self, IntegratorKind::ImplicitEuler)
+        matches!(
+            self,
+            IntegratorKind::ImplicitEuler | IntegratorKind::ProjectiveDynamics
+        )
     }
 
     /// The largest substep `h` (s) at which this integrator stays stable on a mode of angular
