@@ -89,8 +89,13 @@ fn random_ray(rng: &mut Rng, sim: &Simulation) -> Ray {
 fn check_against_brute_force(rng: &mut Rng, sim: &mut Simulation, rays: usize) -> usize {
     let mut hits = 0;
     for _ in 0..rays {
-        let ray = random_ray(rng, sim);
-        let bvh = sim.pick(ray.origin, ray.dir).unwrap();
+        // The ray `pick` builds from this origin and direction, bit for bit.
+        let (origin, dir) = {
+            let r = random_ray(rng, sim);
+            (r.origin, r.dir)
+        };
+        let ray = Ray::new(origin, dir).unwrap();
+        let bvh = sim.pick(origin, dir).unwrap();
         let brute = pick_particle_brute_force(
             &ray,
             sim.positions(),
@@ -103,7 +108,7 @@ fn check_against_brute_force(rng: &mut Rng, sim: &mut Simulation, rays: usize) -
         assert_eq!(scan, brute, "particle scan, ray {ray:?}");
         hits += bvh.is_some() as usize;
 
-        let bvh = sim.pick_triangle(ray.origin, ray.dir).unwrap();
+        let bvh = sim.pick_triangle(origin, dir).unwrap();
         let tris = sim.triangles().to_vec();
         let brute = pick_triangle_brute_force(&ray, sim.positions(), &tris);
         assert_eq!(bvh, brute, "triangles, ray {ray:?}");
