@@ -5,14 +5,15 @@
 //! ```text
 //! w(x, t) = U (1 + g(t)) + T(x, t)
 //! g(t)    = gust * sum_k a_k sin(2 pi t / P_k + phi_k)                 (three terms, sum a_k = 1)
-//! T(x, t) = turbulence * sum_k e_k sin(kappa_k . (x - U t) + psi_k) / 2  (four terms)
+//! T(x, t) = turbulence * sum_k e_k sin(kappa_k . (x - U t) + psi_k) / 4  (four terms)
 //! ```
 //!
 //! `U` the mean wind (m/s); `g` the gusts, slow swells of the whole wind of at most `gust` times
 //! its strength, with periods `P_k` around `gust_period`; `T` the turbulence, eddies of size
 //! `turbulence_scale` (`|kappa_k| = 2 pi / turbulence_scale`) carried along by the mean wind,
-//! each of speed at most `turbulence / 2` (m/s) along a unit direction `e_k`. Periods,
-//! directions and phases come from `seed`: the same seed blows the same wind.
+//! each of speed at most `turbulence / 4` (m/s) along a unit direction `e_k`, so that together
+//! they add at most `turbulence`. Periods, directions and phases come from `seed`: the same seed
+//! blows the same wind.
 //!
 //! **The force.** A triangle of area `A` and unit normal `n`, whose corners move at mean
 //! velocity `v`, sees the air at `u = w - v` (`w` the mean of the air at its corners), and feels
@@ -91,7 +92,7 @@ impl Wind {
         let eddies = [(); EDDIES].map(|()| {
             let along = random.direction();
             let wave = random.direction() * (TAU / spec.turbulence_scale);
-            let amplitude = (along * spec.turbulence / 2.0).as_vec3();
+            let amplitude = (along * spec.turbulence / EDDIES as f64).as_vec3();
             (amplitude, wave, TAU * random.unit())
         });
         Wind {
@@ -274,5 +275,63 @@ impl SplitMix64 {
         let phi = TAU * self.unit();
         let r = (1.0 - z * z).sqrt();
         DVec3::new(r * phi.cos(), r * phi.sin(), z)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gusts_and_eddies_stay_within_their_bounds_and_follow_the_seed() {
+        let spec = WindSpec {
+            velocity: [3.0, 0.0, 1.0],
+            gust: 0.4,
+            turbulence: 0.8,
+            ..WindSpec::default()
+        };
+        let (wind, again) = (Wind::new(&spec, 1), Wind::new(&spec, 1));
+        let other = Wind::new(
+            &WindSpec {
+                seed: 1,
+                ..spec.clone()
+            },
+            1,
+        );
+        let mean = DVec3::from(spec.velocity);
+        let (mut widest_swell, mut strongest_eddy) = (0.0f64, 0.0f64);
+        let mut differs = false;
+        for k in 0..2000 {
+            let t = 0.01 * k as f64;
+            let x = Vec3::new(
+                (k % 7) as f32 * 0.3,
+                (k % 5) as f32 * 0.2,
+                (k % 3) as f32 * 0.5,
+            );
+            let swell = (wind.mean_at(t).as_dvec3().length() / mean.length() - 1.0).abs();
+            let eddy = (wind.air_at(x, t) - wind.mean_at(t)).length() as f64;
+            widest_swell = widest_swell.max(swell);
+            strongest_eddy = strongest_eddy.max(eddy);
+            assert_eq!(
+                wind.air_at(x, t),
+                again.air_at(x, t),
+                "the same seed, the same air"
+            );
+            differs |= wind.air_at(x, t) != other.air_at(x, t);
+        }
+        assert!(
+            widest_swell <= 0.4 + 1e-6,
+            "gusts swelled the wind by {widest_swell}"
+        );
+        assert!(widest_swell > 0.1, "gusts too weak to see: {widest_swell}");
+        assert!(
+            strongest_eddy <= 0.8 + 1e-5,
+            "eddies reached {strongest_eddy} m/s"
+        );
+        assert!(
+            strongest_eddy > 0.2,
+            "eddies too weak to see: {strongest_eddy} m/s"
+        );
+        assert!(differs, "another seed blew the same air");
     }
 }
