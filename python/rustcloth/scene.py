@@ -14,7 +14,7 @@ import tomllib
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -231,8 +231,7 @@ class Scene:
         """Every key with its value (defaults included); ``Scene.from_dict`` round-trips it.
         A mesh collider's ``vertices`` and ``triangles`` are read-only numpy arrays (float64,
         int64), shared with the scene rather than copied."""
-        data: dict[str, Any] = _copy(self._data)
-        return data
+        return cast("dict[str, Any]", _copy(self._data))
 
     def to_toml(self) -> str:
         """The scene as a TOML document; ``Scene.from_toml_str`` round-trips it."""
