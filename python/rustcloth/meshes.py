@@ -23,11 +23,18 @@ DEGENERATE = float(np.finfo(np.float32).eps)
 def read_mesh(
     path: str | os.PathLike[str], parameter: str
 ) -> tuple[list[list[float]], list[list[int]]]:
-    """The vertices and triangles of the mesh file ``path`` (any format trimesh reads: OBJ,
-    STL, PLY, glTF, ...), read as written: nothing is merged or dropped here (not even a
-    vertex no triangle uses), so the core's checks see the file's own triangles. Errors name
-    ``parameter`` and the file: a missing file, one trimesh cannot read, one without
-    triangles, a triangle with zero area (a repeated or collinear corner, with its index)."""
+    """:func:`mesh_arrays` as nested lists."""
+    vertices, triangles = mesh_arrays(path, parameter)
+    return vertices.tolist(), triangles.tolist()
+
+
+def mesh_arrays(path: str | os.PathLike[str], parameter: str) -> tuple[np.ndarray, np.ndarray]:
+    """The vertices (float64) and triangles (int64), as ``(n, 3)`` arrays, of the mesh file
+    ``path`` (any format trimesh reads: OBJ, STL, PLY, glTF, ...), read as written: nothing
+    is merged or dropped here (not even a vertex no triangle uses), so the core's checks see
+    the file's own triangles. Errors name ``parameter`` and the file: a missing file, one
+    trimesh cannot read, one without triangles, a triangle with zero area (a repeated or
+    collinear corner, with its index)."""
     if not isinstance(path, str | os.PathLike):
         raise ParameterTypeError(
             f"{parameter}: must be a str or os.PathLike, got {type(path).__name__} {path!r}",
@@ -66,7 +73,7 @@ def read_mesh(
             + (f", and {bad.size - 1} more" if bad.size > 1 else "") + "; remove it",
             parameter,
         )
-    return vertices.tolist(), faces.tolist()
+    return vertices, faces
 
 
 def _degenerate(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -101,7 +108,7 @@ def resolve_paths(data: Mapping[str, Any], base: str | os.PathLike[str] | None) 
             path = collider["path"]
             if base is not None and isinstance(path, str) and not os.path.isabs(path):
                 path = os.path.join(base, path)
-            vertices, triangles = read_mesh(path, f"{at}.path")
+            vertices, triangles = mesh_arrays(path, f"{at}.path")
             collider = {key: value for key, value in collider.items() if key != "path"}
             collider.update(vertices=vertices, triangles=triangles)
         resolved.append(collider)

@@ -7,7 +7,6 @@ exists is a scene that runs. See the README for every key, its unit and default.
 
 from __future__ import annotations
 
-import copy
 import math
 import os
 import stat
@@ -15,14 +14,14 @@ import tomllib
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 import numpy.typing as npt
 
 from . import _core
 from .errors import ParameterError, ParameterTypeError, StabilityWarning
-from .meshes import read_mesh, resolve_paths
+from .meshes import mesh_arrays, resolve_paths
 
 if TYPE_CHECKING:
     from .settings import (
@@ -48,7 +47,9 @@ def _check_nesting(settings: Mapping[str, Any]) -> None:
     pending: list[tuple[Any, str, int]] = [(v, str(k), 1) for k, v in settings.items()]
     while pending:
         value, name, depth = pending.pop()
-        if depth > _core.MAX_NESTING:
+        # An array's numbers lie `ndim` levels below it, known without reading them.
+        deepest = depth + value.ndim if isinstance(value, np.ndarray) else depth
+        if deepest > _core.MAX_NESTING:
             raise ParameterError(
                 f"{name}: lists and tables nest at most {_core.MAX_NESTING} deep in a scene",
                 name,
@@ -59,12 +60,37 @@ def _check_nesting(settings: Mapping[str, Any]) -> None:
             pending.extend((v, f"{name}[{i}]", depth + 1) for i, v in enumerate(value))
 
 
+def _copy(value: Any) -> Any:
+    """A deep copy of scene data that shares its read-only arrays (the core's mesh vertices
+    and triangles): nothing can change them, and a mesh of a million triangles would
+    otherwise be copied on every ``to_dict``."""
+    if isinstance(value, dict):
+        return {key: _copy(item) for key, item in value.items()}
+    if isinstance(value, list):
+        return [_copy(item) for item in value]
+    if isinstance(value, np.ndarray):
+        return value if not value.flags.writeable else value.copy()
+    return value
+
+
+def _equal(a: Any, b: Any) -> bool:
+    """Equality of scene data whose values may be arrays (``==`` on arrays is elementwise)."""
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return bool(np.array_equal(a, b))
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(_equal(a[k], b[k]) for k in a)
+    if isinstance(a, list) and isinstance(b, list):
+        return len(a) == len(b) and all(_equal(x, y) for x, y in zip(a, b, strict=True))
+    return bool(a == b)
+
+
 def _plain(value: Any) -> Any:
-    """numpy arrays and scalars as Python lists and numbers, the types the core reads."""
+    """numpy scalars and arrays as the types the core reads: Python numbers, lists, and arrays
+    of real numbers as they are (the core reads those in one pass)."""
     if isinstance(value, Mapping):
         return {key: _plain(item) for key, item in value.items()}
     if isinstance(value, np.ndarray):
-        return value.tolist()
+        return value if value.dtype.kind in "fiu" else value.tolist()
     if isinstance(value, np.generic):
         return value.item()
     if isinstance(value, list | tuple):
@@ -189,7 +215,7 @@ class Scene:
                 raise ParameterError(
                     f"{at}.path: give a file or vertices and triangles, not both", f"{at}.path"
                 )
-            vertices, triangles = read_mesh(path, f"{at}.path")
+            vertices, triangles = mesh_arrays(path, f"{at}.path")
         elif vertices is None or triangles is None:
             missing = "vertices" if vertices is None else "triangles"
             raise ParameterError(
@@ -202,8 +228,10 @@ class Scene:
         return Scene.from_dict(data)
 
     def to_dict(self) -> dict[str, Any]:
-        """Every key with its value (defaults included); ``Scene.from_dict`` round-trips it."""
-        return copy.deepcopy(self._data)
+        """Every key with its value (defaults included); ``Scene.from_dict`` round-trips it.
+        A mesh collider's ``vertices`` and ``triangles`` are read-only numpy arrays (float64,
+        int64), shared with the scene rather than copied."""
+        return cast("dict[str, Any]", _copy(self._data))
 
     def to_toml(self) -> str:
         """The scene as a TOML document; ``Scene.from_toml_str`` round-trips it."""
@@ -251,7 +279,7 @@ class Scene:
         if name.startswith("_"):
             raise AttributeError(name)
         try:
-            return copy.deepcopy(self._data[name])
+            return _copy(self._data[name])
         except KeyError:
             raise AttributeError(f"Scene has no key {name!r}") from None
 
@@ -260,7 +288,7 @@ class Scene:
         return (Scene.from_dict, (self.to_dict(),))
 
     def __eq__(self, other: object) -> bool:
-        return isinstance(other, Scene) and self._data == other._data
+        return isinstance(other, Scene) and _equal(self._data, other._data)
 
     def __hash__(self) -> int:
         return hash(self.to_toml())
@@ -333,9 +361,10 @@ class StabilityReport:
         return "\n".join(lines)
 
 
-def _mesh_array(values: npt.ArrayLike, parameter: str) -> Any:
-    """An ``(n, 3)`` array as nested lists; a wrong shape or a non-number is named here, before
-    the core's element-by-element checks."""
+def _mesh_array(values: npt.ArrayLike, parameter: str) -> np.ndarray:
+    """An ``(n, 3)`` array of numbers, as given (the core reads it in one pass and keeps its own
+    copy); a wrong shape or a non-number is named here, before the core's element-by-element
+    checks."""
     try:
         array = np.asarray(values)
     except (TypeError, ValueError) as err:
@@ -348,7 +377,7 @@ def _mesh_array(values: npt.ArrayLike, parameter: str) -> Any:
         raise ParameterError(
             f"{parameter}: must have shape (n, 3), got {array.shape}", parameter
         )
-    return array.tolist()
+    return array
 
 
 def scenes() -> list[str]:

@@ -185,7 +185,8 @@ class Simulation:
 
     def __init__(self, scene: Scene | Mapping[str, Any] | str | None = None) -> None:
         resolved = _as_scene(scene)
-        self._core = _core.Simulation(resolved.to_dict())
+        # The core only reads the dict: no copy of it (a big mesh's arrays are shared).
+        self._core = _core.Simulation(resolved._data)
         self._scene: Scene | None = resolved
         limit = self.stable_dt()
         if limit is not None and self.dt > limit:

@@ -26,13 +26,36 @@ pub fn scene_from_dict(obj: &Bound<'_, PyAny>) -> PyResult<Scene> {
     Scene::from_toml_value(to_toml(obj, "", 0)?).py()
 }
 
-/// A scene as a dict with every key spelled out, absent optional tables as `None`.
+/// A scene as a dict with every key spelled out, absent optional tables as `None`, and each
+/// mesh collider's `vertices` and `triangles` as new read-only `(n, 3)` numpy arrays (float64,
+/// int64): the scene's own copy, which its users share and nobody can change.
 pub fn scene_to_dict<'py>(py: Python<'py>, scene: &Scene) -> PyResult<Bound<'py, PyAny>> {
     // Through a TOML value, whose arrays become lists where serde's tuples (`[f32; 3]`) would
     // become Python tuples. TOML has no null: absent optional keys are spelled out as None
     // below, as users write them.
-    let value = toml::Value::try_from(scene).expect("a scene always serialises");
+    // A mesh's vertices and triangles go out as numpy arrays, not through the TOML value:
+    // a million triangles as Python lists of lists cost seconds each way.
+    let mut light = scene.clone();
+    let meshes: Vec<_> = light
+        .colliders
+        .iter_mut()
+        .map(|c| (c.vertices.take(), c.triangles.take()))
+        .collect();
+    let value = toml::Value::try_from(&light).expect("a scene always serialises");
     let dict = pythonize::pythonize(py, &value)?.cast_into::<PyDict>()?;
+    if let Some(colliders) = dict.get_item("colliders")? {
+        for (collider, (vertices, triangles)) in colliders.try_iter()?.zip(meshes) {
+            let collider = collider?.cast_into::<PyDict>()?;
+            if let Some(v) = vertices {
+                let rows = Rows(v.into_iter().flatten().collect::<Vec<f64>>(), 3);
+                collider.set_item("vertices", rows)?;
+            }
+            if let Some(t) = triangles {
+                let rows = Rows(t.into_iter().flatten().collect::<Vec<i64>>(), 3);
+                collider.set_item("triangles", rows)?;
+            }
+        }
+    }
     for key in ["floor", "strain_limit", "self_collision", "tearing", "wind"] {
         if !dict.contains(key)? {
             dict.set_item(key, py.None())?;
@@ -111,12 +134,69 @@ pub fn to_toml(obj: &Bound<'_, PyAny>, path: &str, depth: usize) -> PyResult<tom
             .map(|(i, item)| to_toml(&item?, &format!("{name}[{i}]"), depth + 1))
             .collect::<PyResult<Vec<_>>>()?;
         Ok(toml::Value::Array(items))
+    } else if let Ok(array) = obj.cast::<PyUntypedArray>() {
+        array_to_toml(obj, array, name, depth)
     } else {
         let kind = type_name(obj);
         Err(type_error(
             name,
             format!("unsupported value of type {kind}: {obj}"),
         ))
+    }
+}
+
+/// A numpy array as nested TOML arrays, as its `tolist()` would be read but without the
+/// Python objects: a mesh of a million triangles is read in one pass. Its numbers lie `ndim`
+/// levels below it, which counts against [`MAX_NESTING`] as a list's would. Arrays of anything
+/// but real numbers (bools, complex numbers, objects) and unsigned 64-bit integers (which may
+/// not fit an `i64`) go through `tolist()`, element by element, so that the core's errors
+/// name the offending element as they do for lists.
+fn array_to_toml(
+    obj: &Bound<'_, PyAny>,
+    array: &Bound<'_, PyUntypedArray>,
+    name: &str,
+    depth: usize,
+) -> PyResult<toml::Value> {
+    let shape = array.shape().to_vec();
+    if depth + shape.len() > MAX_NESTING {
+        return Err(value_error(
+            name,
+            format!("lists and tables nest at most {MAX_NESTING} deep in a scene"),
+        ));
+    }
+    let dtype = array.dtype();
+    let kwargs = PyDict::new(obj.py());
+    kwargs.set_item("copy", false)?;
+    let values: Vec<toml::Value> = match (dtype.kind(), dtype.itemsize()) {
+        (b'f', _) => {
+            let native = obj.call_method("astype", ("float64",), Some(&kwargs))?;
+            let native = native.extract::<PyReadonlyArrayDyn<'_, f64>>()?;
+            native
+                .as_array()
+                .iter()
+                .map(|&x| toml::Value::Float(x))
+                .collect()
+        }
+        (b'i', _) | (b'u', 1..=4) => {
+            let native = obj.call_method("astype", ("int64",), Some(&kwargs))?;
+            let native = native.extract::<PyReadonlyArrayDyn<'_, i64>>()?;
+            native
+                .as_array()
+                .iter()
+                .map(|&k| toml::Value::Integer(k))
+                .collect()
+        }
+        _ => return to_toml(&obj.call_method0("tolist")?, name, depth),
+    };
+    let mut values = values.into_iter();
+    Ok(nest(&mut values, &shape))
+}
+
+/// `values`, row-major, as nested arrays of `shape`.
+fn nest(values: &mut impl Iterator<Item = toml::Value>, shape: &[usize]) -> toml::Value {
+    match shape {
+        [] => values.next().expect("as many values as the shape holds"),
+        [n, rest @ ..] => toml::Value::Array((0..*n).map(|_| nest(values, rest)).collect()),
     }
 }
 

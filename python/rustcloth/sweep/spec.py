@@ -584,8 +584,16 @@ def _run_id(params: Mapping[str, Any], scene: Mapping[str, Any], steps: int, rec
             filters: Filters) -> str:
     key = {"format": FORMAT, "params": params, "scene": scene, "steps": steps,
            "record": record.fingerprint(), "filters": filters.fingerprint()}
-    text = json.dumps(key, sort_keys=True, separators=(",", ":"))
+    text = json.dumps(key, sort_keys=True, separators=(",", ":"), default=_json_array)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def _json_array(value: Any) -> Any:
+    """A numpy array (a scene's mesh vertices and triangles) as the lists JSON writes, so that
+    a run's id is the same whichever way the mesh was given."""
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    raise TypeError(f"Object of type {type(value).__name__} is not JSON serializable")
 
 
 def _record_from_dict(data: Mapping[str, Any], base_dir: str | None) -> Record:

@@ -118,7 +118,8 @@ class Store:
 
     def write_description(self, description: dict[str, Any]) -> None:
         _atomic_write(os.path.join(self.out, "sweep.json"),
-                      lambda f: json.dump(description, f, indent=1, default=str), binary=False)
+                      lambda f: json.dump(description, f, indent=1, default=_json_value),
+                      binary=False)
 
     def read_record(self, run_id: str) -> dict[str, Any] | None:
         """The run's record if it is complete on disk (an ``ok`` record with its arrays)."""
@@ -197,6 +198,12 @@ class Store:
             writer.writerows(rows)
 
         _atomic_write(os.path.join(self.out, INDEX), write, binary=False)
+
+
+def _json_value(value: Any) -> Any:
+    """A value JSON has no type for: a numpy array (a scene's mesh) as lists, anything else as
+    its text."""
+    return value.tolist() if isinstance(value, np.ndarray) else str(value)
 
 
 def _cell(value: Any) -> Any:
