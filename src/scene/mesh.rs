@@ -34,34 +34,45 @@ pub fn merged_indices(vertices: &[[f64; 3]]) -> Vec<u32> {
 /// walked the same way by both its triangles) or inside out (negative enclosed volume).
 pub fn is_closed(at: &str, vertices: &[[f64; 3]], triangles: &[[u32; 3]]) -> Result<bool> {
     let merged = merged_indices(vertices);
-    let edges = |tri: &[u32; 3]| {
-        let m = tri.map(|k| merged[k as usize]);
-        [(m[0], m[1]), (m[1], m[2]), (m[2], m[0])]
+    // Every corner's edge as (undirected key, triangle, corner), sorted: an edge's uses lie
+    // side by side. A sort, rather than a hash map, since a million-triangle mesh has three
+    // million of them.
+    let mut uses: Vec<(u64, u32, u8)> = Vec::with_capacity(3 * triangles.len());
+    let directed = |t: usize, k: usize| {
+        let tri = triangles[t];
+        (merged[tri[k] as usize], merged[tri[(k + 1) % 3] as usize])
     };
-    let mut shared: HashMap<(u32, u32), usize> = HashMap::with_capacity(3 * triangles.len());
-    for tri in triangles {
-        for (a, b) in edges(tri) {
-            *shared.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+    for t in 0..triangles.len() {
+        for k in 0..3 {
+            let (a, b) = directed(t, k);
+            uses.push(((a.min(b) as u64) << 32 | a.max(b) as u64, t as u32, k as u8));
         }
     }
-    if shared.values().any(|&n| n != 2) {
+    uses.sort_unstable();
+    let runs = || uses.chunk_by(|x, y| x.0 == y.0);
+    if runs().any(|run| run.len() != 2) {
         return Ok(false);
     }
-    let mut walked: HashMap<(u32, u32), usize> = HashMap::with_capacity(3 * triangles.len());
-    for (t, tri) in triangles.iter().enumerate() {
-        for edge in edges(tri) {
-            if let Some(other) = walked.insert(edge, t) {
-                return Err(Error::value(
-                    format!("{at}.triangles"),
-                    format!(
-                        "the mesh is closed but wound inconsistently: triangles {other} and {t} \
-                         both run their shared edge the same way (merged vertices {} to {}); \
-                         give every triangle the same order, counter-clockwise from outside",
-                        edge.0, edge.1
-                    ),
-                ));
-            }
-        }
+    // Both triangles of an edge walking it the same way. The one reported is the first a walk
+    // in triangle and corner order meets, whatever the sort did.
+    let same_way = runs()
+        .filter(|run| {
+            directed(run[0].1 as usize, run[0].2 as usize)
+                == directed(run[1].1 as usize, run[1].2 as usize)
+        })
+        .map(|run| (run[1].1, run[1].2, run[0].1))
+        .min();
+    if let Some((t, k, other)) = same_way {
+        let edge = directed(t as usize, k as usize);
+        return Err(Error::value(
+            format!("{at}.triangles"),
+            format!(
+                "the mesh is closed but wound inconsistently: triangles {other} and {t} both \
+                 run their shared edge the same way (merged vertices {} to {}); give every \
+                 triangle the same order, counter-clockwise from outside",
+                edge.0, edge.1
+            ),
+        ));
     }
     // Six times the enclosed volume, by the divergence theorem: negative when inside out.
     let volume: f64 = triangles
