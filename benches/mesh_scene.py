@@ -1,6 +1,6 @@
 """Time for a big mesh collider to become a Scene and then a Simulation.
 
-    python benches/mesh_scene.py [--triangles 200000] [--repeat 3] [--against /work/main/python]
+    python benches/mesh_scene.py [--triangles 200000] [--repeat 3] [--against OTHER_CHECKOUT/python]
 
 A closed torus of `--triangles` triangles (generated with numpy, nothing read from disk) is
 added to a small cloth scene with ``Scene.with_mesh_collider``, and the scene is turned into a
