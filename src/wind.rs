@@ -75,6 +75,10 @@ pub struct Wind {
     /// Per particle, summed over its triangles' thirds: the rate matrix `K` (N s/m) and `K w`
     /// (N).
     rates: Vec<Mat3>,
+    /// The cloth's drawn triangles, and the model's `topology_version` they were listed at:
+    /// listed again only after a cut or a tear, not every substep.
+    triangles: Vec<[u32; 3]>,
+    triangles_at: Option<u64>,
     pulls: Vec<Vec3>,
 }
 
@@ -103,6 +107,8 @@ impl Wind {
             lift: (0.5 * spec.air_density * spec.lift) as f32,
             air: Vec3s::zeros(particles),
             rates: vec![Mat3::ZERO; particles],
+            triangles: Vec::new(),
+            triangles_at: None,
             pulls: vec![Vec3::ZERO; particles],
         }
     }
@@ -171,8 +177,13 @@ impl Wind {
     fn sum_triangle_rates(&mut self, model: &Model, current: &Kinematics) {
         self.rates.fill(Mat3::ZERO);
         self.pulls.fill(Vec3::ZERO);
+        if self.triangles_at != Some(model.topology_version) {
+            self.triangles.clear();
+            self.triangles.extend(model.triangles());
+            self.triangles_at = Some(model.topology_version);
+        }
         let (pos, vel) = (&current.pos, &current.vel);
-        for [a, b, c] in model.triangles() {
+        for &[a, b, c] in &self.triangles {
             let [a, b, c] = [a as usize, b as usize, c as usize];
             let (xa, xb, xc) = (pos.get(a), pos.get(b), pos.get(c));
             let twice_area = (xb - xa).cross(xc - xa);
@@ -234,6 +245,7 @@ impl Wind {
         self.air.heap_bytes()
             + self.rates.capacity() * size_of::<Mat3>()
             + self.pulls.capacity() * size_of::<Vec3>()
+            + self.triangles.capacity() * size_of::<[u32; 3]>()
     }
 }
 

@@ -209,3 +209,18 @@ fn bad_wind_settings_are_named() {
         );
     }
 }
+
+#[test]
+fn wind_after_a_cut_pushes_on_the_cloth_as_cut() {
+    // The pass keeps its list of triangles between substeps: after a cut it must push on the
+    // cloth as it is now, as a simulation restored from that moment (with a fresh pass) does.
+    let mut sim = Simulation::new(curtain(Some(WindSpec::default()))).unwrap();
+    sim.step(100).unwrap();
+    for p in [100, 101, 102, 117, 118] {
+        sim.cut(p).unwrap();
+    }
+    let mut restored = Simulation::restore(sim.snapshot()).unwrap();
+    sim.step(100).unwrap();
+    restored.step(100).unwrap();
+    assert_eq!(state_hash(&sim), state_hash(&restored));
+}
