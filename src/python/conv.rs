@@ -165,31 +165,26 @@ fn array_to_toml(
         ));
     }
     let dtype = array.dtype();
-    let kwargs = PyDict::new(obj.py());
-    kwargs.set_item("copy", false)?;
-    let values: Vec<toml::Value> = match (dtype.kind(), dtype.itemsize()) {
-        (b'f', _) => {
-            let native = obj.call_method("astype", ("float64",), Some(&kwargs))?;
-            let native = native.extract::<PyReadonlyArrayDyn<'_, f64>>()?;
-            native
-                .as_array()
-                .iter()
-                .map(|&x| toml::Value::Float(x))
-                .collect()
-        }
-        (b'i', _) | (b'u', 1..=4) => {
-            let native = obj.call_method("astype", ("int64",), Some(&kwargs))?;
-            let native = native.extract::<PyReadonlyArrayDyn<'_, i64>>()?;
-            native
-                .as_array()
-                .iter()
-                .map(|&k| toml::Value::Integer(k))
-                .collect()
-        }
+    let values = match (dtype.kind(), dtype.itemsize()) {
+        (b'f', _) => values_as::<f64>(obj, "float64", toml::Value::Float)?,
+        (b'i', _) | (b'u', 1..=4) => values_as::<i64>(obj, "int64", toml::Value::Integer)?,
         _ => return to_toml(&obj.call_method0("tolist")?, name, depth),
     };
-    let mut values = values.into_iter();
-    Ok(nest(&mut values, &shape))
+    Ok(nest(&mut values.into_iter(), &shape))
+}
+
+/// The array's numbers, row-major, as `dtype` (numpy's name for `T`; no copy when it already
+/// is), each made a TOML value by `value`.
+fn values_as<T: numpy::Element + Copy>(
+    obj: &Bound<'_, PyAny>,
+    dtype: &str,
+    value: fn(T) -> toml::Value,
+) -> PyResult<Vec<toml::Value>> {
+    let kwargs = PyDict::new(obj.py());
+    kwargs.set_item("copy", false)?;
+    let native = obj.call_method("astype", (dtype,), Some(&kwargs))?;
+    let native = native.extract::<PyReadonlyArrayDyn<'_, T>>()?;
+    Ok(native.as_array().iter().map(|&x| value(x)).collect())
 }
 
 /// `values`, row-major, as nested arrays of `shape`.
