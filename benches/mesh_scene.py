@@ -25,29 +25,15 @@ from typing import Any
 
 import numpy as np
 
+# The generated meshes the tests use.
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
+import mesh_shapes  # noqa: E402
+
 
 def torus(triangles: int) -> tuple[np.ndarray, np.ndarray]:
-    """A closed torus (radii 0.4 and 0.15 m) of about `triangles` triangles, wound
-    counter-clockwise seen from outside."""
+    """A closed torus of about `triangles` triangles, 2.5 times as many segments as rings."""
     rings = max(3, round(math.sqrt(triangles / 2 / 2.5)))
-    segments = max(3, round(triangles / 2 / rings))
-    u = np.linspace(0, 2 * np.pi, segments, endpoint=False)[:, None]
-    v = np.linspace(0, 2 * np.pi, rings, endpoint=False)[None, :]
-    radius = 0.4 + 0.15 * np.cos(v)
-    vertices = np.stack(
-        np.broadcast_arrays(radius * np.cos(u), 0.15 * np.sin(v), radius * np.sin(u)), axis=-1
-    ).reshape(-1, 3)
-    i, j = np.meshgrid(np.arange(segments), np.arange(rings), indexing="ij")
-    a = i * rings + j
-    b = ((i + 1) % segments) * rings + j
-    c = ((i + 1) % segments) * rings + (j + 1) % rings
-    d = i * rings + (j + 1) % rings
-    faces = np.concatenate([np.stack([a, b, c], -1), np.stack([a, c, d], -1)]).reshape(-1, 3)
-    p = vertices[faces]
-    volume = np.einsum("ij,ij->i", p[:, 0], np.cross(p[:, 1], p[:, 2])).sum()
-    if volume < 0:
-        faces = faces[:, ::-1]
-    return vertices, np.ascontiguousarray(faces)
+    return mesh_shapes.torus(max(3, round(triangles / 2 / rings)), rings)
 
 
 def best(run: Callable[[], Any], repeat: int) -> tuple[float, Any]:

@@ -1,6 +1,6 @@
 """A big mesh collider stays numpy arrays from the caller to the core and back: the scene
 keeps read-only float64 and int64 arrays (its own copy, shared by every ``to_dict``), never
-Python lists of lists, which made a million-triangle mesh take tens of seconds to become a
+Python lists of lists, whose millions of objects would make a big mesh slow to become a
 simulation. The arrays' checks are the lists' checks: a NaN deep in a big array is named by
 its index, too deep an array is refused, and TOML still writes plain numbers."""
 
@@ -11,31 +11,13 @@ import pickle
 import numpy as np
 import pytest
 import rustcloth
+from mesh_shapes import torus
 from rustcloth import _core
-
-
-def _torus(segments: int, rings: int) -> tuple[np.ndarray, np.ndarray]:
-    """A closed torus of `2 * segments * rings` triangles, wound counter-clockwise seen from
-    outside."""
-    u = np.linspace(0, 2 * np.pi, segments, endpoint=False)[:, None]
-    v = np.linspace(0, 2 * np.pi, rings, endpoint=False)[None, :]
-    radius = 0.4 + 0.15 * np.cos(v)
-    vertices = np.stack(
-        np.broadcast_arrays(radius * np.cos(u), 0.15 * np.sin(v), radius * np.sin(u)), axis=-1
-    ).reshape(-1, 3)
-    i, j = np.meshgrid(np.arange(segments), np.arange(rings), indexing="ij")
-    a, d = i * rings + j, i * rings + (j + 1) % rings
-    b, c = ((i + 1) % segments) * rings + j, ((i + 1) % segments) * rings + (j + 1) % rings
-    faces = np.concatenate([np.stack([a, c, b], -1), np.stack([a, d, c], -1)]).reshape(-1, 3)
-    p = vertices[faces]
-    if np.einsum("ij,ij->i", p[:, 0], np.cross(p[:, 1], p[:, 2])).sum() < 0:
-        faces = faces[:, ::-1]
-    return vertices, np.ascontiguousarray(faces)
 
 
 @pytest.fixture(scope="module")
 def big() -> tuple[np.ndarray, np.ndarray]:
-    return _torus(500, 200)  # 200,000 triangles
+    return torus(500, 200)  # 200,000 triangles
 
 
 def test_big_mesh_is_kept_as_read_only_arrays(big: tuple[np.ndarray, np.ndarray]) -> None:
@@ -53,7 +35,7 @@ def test_big_mesh_is_kept_as_read_only_arrays(big: tuple[np.ndarray, np.ndarray]
 
 
 def test_changing_the_callers_arrays_leaves_the_scene_as_built() -> None:
-    vertices, triangles = _torus(20, 10)
+    vertices, triangles = torus(20, 10)
     scene = rustcloth.Scene().with_mesh_collider(vertices.copy(), triangles.copy())
     given_v, given_t = vertices.copy(), triangles.copy()
     twin = rustcloth.Scene().with_mesh_collider(given_v, given_t)
@@ -100,7 +82,7 @@ def test_arrays_the_core_reads_are_checked_as_lists_are(
 
 
 def test_array_scene_round_trips() -> None:
-    vertices, triangles = _torus(20, 10)
+    vertices, triangles = torus(20, 10)
     scene = rustcloth.Scene().with_mesh_collider(vertices, triangles, friction=0.3)
     assert pickle.loads(pickle.dumps(scene)) == scene
     assert rustcloth.Scene.from_dict(scene.to_dict()) == scene
