@@ -155,10 +155,11 @@ impl Pipeline {
     /// Finds the contacts each particle's free motion would make with the colliders, for an
     /// integrator that holds them inside its solve.
     pub fn predict_contacts(&mut self, s: &mut Substep) {
-        if !self.holds_contacts() {
-            return;
-        }
-        let Some(contacts) = &mut self.contacts else {
+        let Some(contacts) = self
+            .contacts
+            .as_mut()
+            .filter(|_| self.integrator.kind().holds_contacts())
+        else {
             return;
         };
         let t = Instant::now();
