@@ -135,8 +135,8 @@ impl Default for TearingSpec {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct WindSpec {
-    /// Mean velocity of the air in m/s. Default `[3, 0, 0]`: a light breeze along +x, which
-    /// holds a 0.4 kg/m^2 cloth out at about 45 degrees.
+    /// Mean velocity of the air in m/s. Default `[3, 0, 0]`: a light breeze along +x, in which
+    /// a 0.4 kg/m^2 curtain hung by its top edge settles about 55 degrees from the vertical.
     pub velocity: [f64; 3],
     /// Gusts: how far the whole wind swells above and below its mean, as a fraction of it,
     /// in `[0, 1]`. Default 0.3; 0 blows steadily.
