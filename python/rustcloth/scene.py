@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any, cast
 import numpy as np
 import numpy.typing as npt
 
-from . import _core
+from . import _args, _core
 from .errors import ParameterError, ParameterTypeError, StabilityWarning
 from .meshes import mesh_arrays, resolve_paths
 
@@ -188,7 +188,7 @@ class Scene:
         ):
             return cls._from_dict(table, base)
         scene = cls.__new__(cls)
-        scene._data = _core.scene_from_toml(text)
+        scene._data = _core.scene_from_toml(_args.text(text, "text"))
         return scene
 
     def with_mesh_collider(

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any, Literal, NamedTuple, TypeAlias, cast
 import numpy as np
 import numpy.typing as npt
 
-from . import _core
+from . import _args, _core
 from .errors import ParameterError, ParameterTypeError, StabilityWarning
 from .mesh import Mesh
 from .scene import Scene, load_scene
@@ -150,7 +150,14 @@ def _as_state(state: Mapping[str, Any]) -> dict[str, Any]:
             f"state: must be a dict from Simulation.get_state(), got {type(state).__name__}",
             "state",
         )
-    return dict(state)
+    state = dict(state)
+    if "version" in state:
+        _args.count(state["version"], "state.version")
+    return state
+
+
+def _ray(origin: object, direction: object) -> tuple[_args.Vec, _args.Vec]:
+    return _args.floats(origin, "origin", 3), _args.direction(direction, "direction")
 
 
 class Simulation:
@@ -216,7 +223,7 @@ class Simulation:
         retry (``watchdog.on_trouble = "substep"``); the state from before that step is kept.
         Ctrl-C raises ``KeyboardInterrupt`` with the state at the last step boundary.
         """
-        self._core.step(n)
+        self._core.step(_args.count(n, "n"))
 
     def advance(self, seconds: float) -> int:
         """Add ``seconds`` (s, finite, ``>= 0``) of requested time and run the whole steps of
@@ -227,7 +234,7 @@ class Simulation:
         time not simulated stays owed; after Ctrl-C the rest of the call's request is dropped.
         At most 2**32 - 1 steps per call.
         """
-        return self._core.advance(seconds)
+        return self._core.advance(_args.real(seconds, "seconds"))
 
     # ----- state ---------------------------------------------------------------------------
 
@@ -244,17 +251,17 @@ class Simulation:
     def set_positions(self, positions: npt.NDArray[np.floating[Any]]) -> None:
         """Replace every position (m): an ``(N, 3)`` float32 or float64 array of finite values.
         Integrators with history (Verlet) start afresh."""
-        self._core.set_positions(positions)
+        self._core.set_positions(self._rows(positions, "positions", 3))
 
     def set_velocities(self, velocities: npt.NDArray[np.floating[Any]]) -> None:
         """Replace every velocity (m/s), ``(N, 3)`` float32 or float64, finite. Pinned and cut
         particles keep zero velocity."""
-        self._core.set_velocities(velocities)
+        self._core.set_velocities(self._rows(velocities, "velocities", 3))
 
     def set_masses(self, masses: npt.NDArray[np.floating[Any]]) -> None:
         """Replace every particle's mass: ``(N,)`` float32 or float64, each in kg, finite,
         ``> 0`` and with a finite float32 inverse."""
-        self._core.set_masses(masses)
+        self._core.set_masses(self._rows(masses, "masses"))
 
     @property
     def masses(self) -> FloatArray:
@@ -326,7 +333,8 @@ class Simulation:
         ``target`` (m) it is a kinematic pin: each step puts it on the target with the velocity
         of that move. Raises :class:`~rustcloth.errors.ParticleIndexError` out of range and
         :class:`~rustcloth.errors.ParameterError` for a cut particle or a non-finite target."""
-        self._core.pin(index, target)
+        index = _args.index(index, "index")
+        self._core.pin(index, None if target is None else _args.floats(target, "target", 3))
 
     def pin_many(self, indices: npt.ArrayLike, targets: npt.ArrayLike | None = None) -> None:
         """Pin every particle of ``indices`` (1-D, integers) as :meth:`pin` pins one, at
@@ -336,17 +344,20 @@ class Simulation:
         target is checked first, and a bad one, named ``indices[k]`` or ``targets[k]``, pins
         nothing. A repeated index takes its last target."""
         rows = None if targets is None else _array(targets, "targets")
-        self._core.pin_many(_array(indices, "indices"), rows)
+        ids = _args.indices(_array(indices, "indices"), self.num_particles)
+        if rows is not None:
+            rows = _args.rows(rows, "targets", (len(ids), 3))
+        self._core.pin_many(ids, rows)
 
     def unpin(self, index: int) -> None:
         """Release particle ``index``; it keeps its velocity. Does nothing if not pinned."""
-        self._core.unpin(index)
+        self._core.unpin(_args.index(index, "index"))
 
     def cut(self, index: int) -> None:
         """Remove particle ``index``, every spring touching it, the bending springs over it and
         its triangles (the seed's cutting operation: the mesh loses a whole particle). A cut
         particle is absent from every computation. Cutting twice does nothing."""
-        self._core.cut(index)
+        self._core.cut(_args.index(index, "index"))
 
     def get_state(self) -> dict[str, Any]:
         """The whole state as a dict of numpy arrays and plain values: scene, positions,
@@ -371,8 +382,13 @@ class Simulation:
         return self.get_state()
 
     def __setstate__(self, state: dict[str, Any]) -> None:
-        self._core = _core.simulation_from_state(state)
+        self._core = _core.simulation_from_state(_as_state(state))
         self._scene = None
+
+    def _rows(self, values: object, name: str, width: int = 0) -> np.ndarray:
+        """Per-particle values: ``(N,)``, or ``(N, width)``."""
+        shape = (self.num_particles, width) if width else (self.num_particles,)
+        return _args.rows(values, name, shape)
 
     def __copy__(self) -> Simulation:
         return Simulation.from_state(self.get_state())
@@ -387,14 +403,14 @@ class Simulation:
         particle a box of half-size :attr:`pick_radius`: ``(index, distance in m)`` or None.
         Raises :class:`~rustcloth.errors.ParameterError` for a non-finite origin or a zero or
         non-finite direction. Answers bitwise as a brute-force scan would."""
-        return self._core.pick(origin, direction)
+        return self._core.pick(*_ray(origin, direction))
 
     def pick_triangle(
         self, origin: Vector, direction: Vector
     ) -> tuple[int, float, tuple[float, float, float]] | None:
         """The live triangle (a row of :attr:`triangles`) the ray hits first:
         ``(row, distance in m, barycentric weights of its three vertices)`` or None."""
-        return self._core.pick_triangle(origin, direction)
+        return self._core.pick_triangle(*_ray(origin, direction))
 
     @property
     def pick_radius(self) -> float:
@@ -404,7 +420,7 @@ class Simulation:
 
     @pick_radius.setter
     def pick_radius(self, radius: float) -> None:
-        self._core.pick_radius = radius
+        self._core.pick_radius = _args.real(radius, "pick_radius")
 
     @property
     def pick_strategy(self) -> PickStrategyName:
@@ -414,17 +430,17 @@ class Simulation:
 
     @pick_strategy.setter
     def pick_strategy(self, strategy: PickStrategyName) -> None:
-        self._core.pick_strategy = strategy
+        self._core.pick_strategy = _args.text(strategy, "pick_strategy")
 
     def grab(self, index: int) -> None:
         """Grab particle ``index``: a kinematic pin at its position that :meth:`drag_to` moves.
         Grabbing another releases the first."""
-        self._core.grab(index)
+        self._core.grab(_args.index(index, "index"))
 
     def drag_to(self, target: Vector) -> None:
         """Move the grabbed particle's target (m); it gets there over the next step. Does
         nothing without a grab."""
-        self._core.drag_to(target)
+        self._core.drag_to(_args.floats(target, "target", 3))
 
     def release(self) -> None:
         """Let go of the grabbed particle, restoring the pin state it had before the grab."""
@@ -436,14 +452,14 @@ class Simulation:
 
     def cut_ray(self, origin: Vector, direction: Vector) -> int | None:
         """Cut the particle :meth:`pick` finds; returns its index, or None on a miss."""
-        return self._core.cut_ray(origin, direction)
+        return self._core.cut_ray(*_ray(origin, direction))
 
     def cut_stroke(self, rays: Sequence[tuple[Vector, Vector]] | npt.ArrayLike) -> list[int]:
         """The seed's cut: remove the particles a mouse stroke passes over. ``rays`` is a
         sequence of ``(origin, direction)`` pairs (or an ``(M, 2, 3)`` array), each cutting the
         particle it picks after the rays before it. Returns the indices cut; their mass leaves
         the cloth. Bad input raises and cuts nothing. :meth:`sever_stroke` cuts like scissors."""
-        return self._core.cut_stroke(rays)
+        return self._core.cut_stroke(_args.stroke(rays))
 
     def sever_stroke(self, rays: Sequence[tuple[Vector, Vector]] | npt.ArrayLike) -> int:
         """Cut the cloth along a mouse stroke, like scissors: every live spring whose segment
@@ -458,7 +474,7 @@ class Simulation:
         only springs already severed sever nothing and change nothing (``topology_version``
         included). A non-finite origin or a zero or non-finite direction raises ``ValueError``
         naming ``rays[k].origin`` or ``rays[k].direction``, before anything changes."""
-        return self._core.sever_stroke(rays)
+        return self._core.sever_stroke(_args.stroke(rays))
 
     def pieces(self) -> int:
         """The number of pieces the cloth is in: connected components of the live particles
@@ -489,7 +505,10 @@ class Simulation:
         ``ValueError`` naming ``position`` (not finite) or ``rotation`` (not finite, or a norm
         more than 1e-3 from 1; it is normalised), changing nothing.
         """
-        self._core.set_collider_pose(index, position, rotation)
+        index = _args.index(index, "index")
+        self._core.set_collider_pose(
+            index, _args.floats(position, "position", 3), _args.floats(rotation, "rotation", 4)
+        )
 
     def collider_poses(self) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
         """Each collider's pose now, in the scene's order: ``(positions, rotations)``, a
@@ -536,7 +555,7 @@ class Simulation:
 
     @dt.setter
     def dt(self, dt: float) -> None:
-        self._core.dt = dt
+        self._core.dt = _args.real(dt, "dt")
         self._scene = None
 
     @property
@@ -546,7 +565,7 @@ class Simulation:
 
     @substeps.setter
     def substeps(self, substeps: int) -> None:
-        self._core.substeps = substeps
+        self._core.substeps = _args.integer(substeps, "substeps")
         self._scene = None
 
     @property
@@ -557,7 +576,7 @@ class Simulation:
 
     @integrator.setter
     def integrator(self, name: IntegratorName) -> None:
-        self._core.integrator = name
+        self._core.integrator = _args.text(name, "integrator")
         self._scene = None
 
     @property

@@ -3,7 +3,7 @@
 
 use pyo3::prelude::*;
 
-use super::conv::{floats_from_any, index_from_any, Rows};
+use super::conv::Rows;
 use super::errors::IntoPyResult;
 use super::simulation::PySimulation;
 
@@ -14,20 +14,15 @@ impl PySimulation {
     fn set_collider_pose(
         &self,
         py: Python<'_>,
-        index: &Bound<'_, PyAny>,
-        position: &Bound<'_, PyAny>,
-        rotation: &Bound<'_, PyAny>,
+        index: i64,
+        position: [f64; 3],
+        rotation: [f64; 4],
     ) -> PyResult<()> {
-        let count = self.with(py, |h| Ok(h.sim.scene().colliders.len()))?;
-        let index = index_from_any(index, "index", count)?;
-        let position = floats_from_any::<3>(position, "position")?;
-        let rotation = floats_from_any::<4>(rotation, "rotation")?;
         self.with(py, |h| {
             h.sim.set_collider_pose(index, position, rotation).py()
         })
     }
 }
-
 super::simulation::reads! {
     /// ``(positions, rotations)``: each collider's position now, ``(K, 3)`` float64 in m, and
     /// orientation, ``(K, 4)`` float64 unit quaternions ``(x, y, z, w)``.

@@ -4,17 +4,13 @@ use numpy::{
     PyArray1, PyArrayDescrMethods, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArray,
     PyUntypedArrayMethods,
 };
-use pyo3::exceptions::PyOverflowError;
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::{
-    PyBool, PyByteArray, PyBytes, PyComplex, PyDict, PyFloat, PyInt, PyList, PySequence, PyString,
-    PyTuple,
-};
+use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
 
-use super::errors::{to_py, type_error, value_error, IntoPyResult};
+use super::errors::{type_error, value_error, IntoPyResult};
 use crate::scene::Scene;
 use crate::soa::Vec3s;
-use crate::Error;
 
 /// How deeply lists and tables may nest in a scene. The deepest key of the schema is a mesh
 /// collider's vertex coordinate, `colliders[k].vertices[i][j]`, four levels down; this leaves
@@ -195,46 +191,39 @@ fn nest(values: &mut impl Iterator<Item = toml::Value>, shape: &[usize]) -> toml
     }
 }
 
-/// An `(n, 3)` float32 or float64 numpy array as SoA vectors.
-pub fn vec3s_from_array(obj: &Bound<'_, PyAny>, name: &str, n: usize) -> PyResult<Vec3s> {
-    let mut out = Vec3s::zeros(n);
-    for (p, v) in f64s_from_array(obj, name, &[n, 3])?
-        .chunks_exact(3)
-        .enumerate()
-    {
-        out.set(p, glam::DVec3::from_slice(v).as_vec3());
-    }
-    Ok(out)
+/// A float32 or float64 numpy array in the machine's byte order, read without a copy (the
+/// Python side checks shapes and dtypes and names the parameter).
+#[derive(FromPyObject)]
+pub enum Floats<'py> {
+    F32(PyReadonlyArrayDyn<'py, f32>),
+    F64(PyReadonlyArrayDyn<'py, f64>),
 }
 
-/// The values of a float32 or float64 numpy array of `shape` (`(n,)` or `(n, k)`), row-major,
-/// in float64. A big-endian array is as valid as any: it is read in the machine's order.
-pub fn f64s_from_array(obj: &Bound<'_, PyAny>, name: &str, shape: &[usize]) -> PyResult<Vec<f64>> {
-    let expected = match shape {
-        [n] => format!("({n},)"),
-        _ => format!("({}, {})", shape[0], shape[1]),
-    };
-    let Ok(untyped) = obj.cast::<PyUntypedArray>() else {
-        let kind = type_name(obj);
-        let message = format!("must be a numpy array of shape {expected}, got {kind}");
-        return Err(type_error(name, message));
-    };
-    if untyped.shape() != shape {
-        let message = format!("must have shape {expected}, got {:?}", untyped.shape());
-        return Err(value_error(name, message));
+impl Floats<'_> {
+    /// The values of an `(n, *row)` array, row-major, in float64.
+    pub fn rows(&self, row: &[usize]) -> PyResult<Vec<f64>> {
+        let shape = match self {
+            Floats::F32(a) => a.shape(),
+            Floats::F64(a) => a.shape(),
+        };
+        if shape.len() != row.len() + 1 || shape[1..] != *row {
+            let message = format!("expected an array of shape (n, {row:?}), got {shape:?}");
+            return Err(PyValueError::new_err(message));
+        }
+        Ok(match self {
+            Floats::F32(a) => a.as_array().iter().map(|&x| x as f64).collect(),
+            Floats::F64(a) => a.as_array().iter().copied().collect(),
+        })
     }
-    let dtype = untyped.dtype();
-    let native = match dtype.kind() == b'f' && !dtype.is_native_byteorder().unwrap_or(true) {
-        true => obj.call_method1("astype", (dtype.call_method1("newbyteorder", ("=",))?,))?,
-        false => obj.clone(),
-    };
-    if let Ok(array) = native.extract::<PyReadonlyArrayDyn<'_, f32>>() {
-        Ok(array.as_array().iter().map(|&x| x as f64).collect())
-    } else if let Ok(array) = native.extract::<PyReadonlyArrayDyn<'_, f64>>() {
-        Ok(array.as_array().iter().copied().collect())
-    } else {
-        let message = format!("must have dtype float32 or float64, got {dtype}");
-        Err(type_error(name, message))
+
+    /// The rows of an `(n, 3)` array as SoA vectors.
+    pub fn vec3s(&self) -> PyResult<Vec3s> {
+        let values = self.rows(&[3])?;
+        let mut out = Vec3s::zeros(values.len() / 3);
+        for (p, v) in values.chunks_exact(3).enumerate() {
+            out.set(p, glam::DVec3::from_slice(v).as_vec3());
+        }
+        Ok(out)
     }
 }
 
@@ -284,201 +273,6 @@ impl<'py, T: serde::Serialize> IntoPyObject<'py> for Plain<T> {
     fn into_pyobject(self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         Ok(pythonize::pythonize(py, &self.0)?)
     }
-}
-
-/// N numbers from a sequence (or array) of N real numbers. Strings, bytes and booleans are
-/// not numbers here (`b"abc"` would otherwise be the vector (97, 98, 99)); components must be
-/// finite in float32 after conversion, which the core checks.
-pub fn floats_from_any<const N: usize>(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<[f64; N]> {
-    let kind = type_name(obj);
-    let not_numbers = || {
-        let message = format!(
-            "must be a sequence of {N} numbers, got {kind} {}",
-            repr(obj)
-        );
-        Err(type_error(name, message))
-    };
-    if obj.is_instance_of::<PyString>()
-        || obj.is_instance_of::<PyBytes>()
-        || obj.is_instance_of::<PyByteArray>()
-    {
-        return not_numbers();
-    }
-    // A sequence (list, tuple, numpy array, any `collections.abc.Sequence`): a dict would be
-    // read as its keys, a set in any order.
-    let sequence = match obj.cast::<PyUntypedArray>() {
-        // An array of anything but numbers is the wrong type whatever its length (its dtype
-        // is known before its items are read).
-        Ok(array) if !matches!(array.dtype().kind(), b'f' | b'i' | b'u') && array.ndim() == 1 => {
-            return not_numbers()
-        }
-        // A 0-d array is a number, not a sequence.
-        Ok(array) => array.ndim() == 1,
-        Err(_) => {
-            obj.is_instance_of::<PyList>()
-                || obj.is_instance_of::<PyTuple>()
-                || obj.cast::<PySequence>().is_ok()
-        }
-    };
-    if !sequence {
-        return not_numbers();
-    }
-    let items: Vec<Bound<'_, PyAny>> = obj.try_iter()?.collect::<PyResult<_>>()?;
-    if items.len() != N {
-        return Err(value_error(
-            name,
-            format!("must have {N} components, got {}", items.len()),
-        ));
-    }
-    let mut v = [0.0f64; N];
-    for (c, item) in items.iter().enumerate() {
-        v[c] = float_from_any(item, &format!("{name}[{c}]"))?;
-    }
-    Ok(v)
-}
-
-/// A 3-vector as [`floats_from_any`] reads it.
-fn vec3_from_any_f64(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<glam::DVec3> {
-    Ok(glam::DVec3::from(floats_from_any::<3>(obj, name)?))
-}
-
-/// A 3-vector as [`vec3_from_any_f64`] reads it, in float32.
-pub fn vec3_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<glam::Vec3> {
-    Ok(vec3_from_any_f64(obj, name)?.as_vec3())
-}
-
-/// A direction: a 3-vector normalised in float64 before it becomes float32, so that a short
-/// one such as `(0, 0, 1e-300)`, whose float32 components would be zero, keeps its direction.
-/// A vector that is zero, or not finite in float32, passes through unnormalised for the core to
-/// refuse with its usual message.
-pub fn direction_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<glam::Vec3> {
-    let v = vec3_from_any_f64(obj, name)?;
-    let single = v.as_vec3();
-    // Scaled by the largest component first: the squared length of (0, 0, 1e-200) underflows
-    // even in float64.
-    let largest = v.abs().max_element();
-    Ok(match single.is_finite() && largest > 0.0 {
-        true => (v / largest).normalize().as_vec3(),
-        false => single,
-    })
-}
-
-/// A real number: a Python `int` or `float`, or a numpy scalar, never a `bool` or a string.
-/// An integer too large for a float is a value error naming `name`.
-pub fn float_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<f64> {
-    if is_bool(obj) {
-        return Err(type_error(
-            name,
-            format!("must be a number, got {}", got(obj)),
-        ));
-    }
-    // Complex numbers convert to float by dropping their imaginary part (numpy's do, with only
-    // a warning): not a real number.
-    let complex = obj.is_instance_of::<PyComplex>() || dtype_kind(obj).is_some_and(|k| k == "c");
-    if obj.is_instance_of::<PyString>()
-        || obj.is_instance_of::<PyBytes>()
-        || obj.is_instance_of::<PyByteArray>()
-        || complex
-    {
-        return Err(type_error(
-            name,
-            format!("must be a real number, got {}", got(obj)),
-        ));
-    }
-    obj.extract::<f64>()
-        .map_err(|e| match e.is_instance_of::<PyOverflowError>(obj.py()) {
-            true => value_error(name, format!("{} is too large for a float", repr(obj))),
-            false => type_error(name, format!("must be a number, got {}", got(obj))),
-        })
-}
-
-/// A whole number: a Python `int` or a numpy integer, never a `bool` or a float (not even
-/// `2.0`: a count given as a float is usually a mistake). Values outside `i64` are value
-/// errors naming `name`, so the core's range checks report them like any other bad value.
-pub fn int_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<i64> {
-    if is_bool(obj) {
-        return Err(type_error(
-            name,
-            format!("must be an integer, got {}", got(obj)),
-        ));
-    }
-    obj.extract::<i64>()
-        .map_err(|e| match e.is_instance_of::<PyOverflowError>(obj.py()) {
-            true => value_error(name, format!("{} is out of range", repr(obj))),
-            false => type_error(name, format!("must be an integer, got {}", got(obj))),
-        })
-}
-
-/// A count of steps: an integer `>= 0`.
-pub fn count_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<u64> {
-    let n = int_from_any(obj, name)?;
-    u64::try_from(n).map_err(|_| value_error(name, format!("must be an integer >= 0, got {n}")))
-}
-
-/// A string: a Python `str` only.
-pub fn str_from_any(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<String> {
-    let text = obj.cast::<PyString>();
-    text.map(|s| s.to_string())
-        .map_err(|_| type_error(name, format!("must be a string, got {}", got(obj))))
-}
-
-/// The numpy dtype kind (`'f'`, `'b'`, `'c'`, ...) of a numpy scalar or array, else None.
-fn dtype_kind(obj: &Bound<'_, PyAny>) -> Option<String> {
-    obj.getattr("dtype")
-        .and_then(|d| d.getattr("kind"))
-        .and_then(|k| k.extract::<String>())
-        .ok()
-}
-
-/// Whether `obj` is a bool: Python's, or numpy's (a scalar, not a Python `bool` subclass, or a
-/// 0-d array), which would otherwise convert to 0 or 1.
-pub fn is_bool(obj: &Bound<'_, PyAny>) -> bool {
-    obj.is_instance_of::<PyBool>()
-        || type_name(obj) == "bool"
-        || type_name(obj) == "bool_"
-        || dtype_kind(obj).is_some_and(|k| k == "b")
-}
-
-/// `repr(obj)`, shortened for messages.
-fn repr(obj: &Bound<'_, PyAny>) -> String {
-    let text = obj.repr().map(|r| r.to_string()).unwrap_or_default();
-    if text.chars().count() > 60 {
-        format!("{}...", text.chars().take(57).collect::<String>())
-    } else {
-        text
-    }
-}
-
-/// `obj`'s type and value for messages: `bool True`, `str 'x'`.
-fn got(obj: &Bound<'_, PyAny>) -> String {
-    let kind = match is_bool(obj) {
-        true => "bool".to_string(),
-        false => type_name(obj),
-    };
-    format!("{kind} {}", repr(obj))
-}
-
-/// A particle index: any Python integer (`bool` excluded); one too large for 64 bits is out of
-/// range like any other.
-pub fn index_from_any(obj: &Bound<'_, PyAny>, name: &str, len: usize) -> PyResult<i64> {
-    if obj.is_instance_of::<PyBool>() {
-        return Err(type_error(
-            name,
-            format!("must be an integer index, got {obj}"),
-        ));
-    }
-    obj.extract::<i64>()
-        .map_err(|e| match e.is_instance_of::<PyOverflowError>(obj.py()) {
-            true => to_py(Error::IndexOutOfRange {
-                name: name.into(),
-                index: i64::MAX,
-                len,
-            }),
-            false => type_error(
-                name,
-                format!("must be an integer index, got {} {obj}", type_name(obj)),
-            ),
-        })
 }
 
 /// The Python type name of `obj`, for messages.

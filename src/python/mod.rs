@@ -1,9 +1,17 @@
 //! The Python extension module `rustcloth._core`: the one place that knows about Python.
 //!
-//! Input conversion and its errors live in conv.rs and errors.rs, the sharing of a simulation
+//! The methods take typed arguments (`f64`, `u64`, `i64`, `[f32; 3]`, strings, float32 or
+//! float64 numpy arrays read without a copy), which pyo3 extracts. The strict readers that
+//! refuse bools, bytes and complex numbers and name the bad parameter live in Python
+//! (`python/rustcloth/_args.py`), where `rustcloth.Simulation` calls them before every method
+//! here: this module is private, and bad input to it raises a plain `TypeError` or
+//! `ValueError` from pyo3, never a crash or a panic. Values (finite, in range) are checked by
+//! the core, which names them.
+//!
+//! Scene dicts are converted in conv.rs, errors in errors.rs, the sharing of a simulation
 //! between Python threads (and the panic guard) in shared.rs, the saved state in state.rs, the
-//! simulation's methods in simulation.rs and interaction.rs. The public Python API in
-//! `python/rustcloth/` wraps these classes.
+//! simulation's methods in simulation.rs, interaction.rs and colliders.rs. The public Python
+//! API in `python/rustcloth/` wraps these classes.
 
 mod colliders;
 mod conv;
@@ -17,7 +25,7 @@ use pyo3::prelude::*;
 
 use crate::integrators::IntegratorKind;
 use crate::scene::Scene;
-use conv::{scene_from_dict, str_from_any, SceneDict};
+use conv::{scene_from_dict, SceneDict};
 use errors::IntoPyResult;
 
 /// Validates a scene dict and returns it with every default filled in.
@@ -28,9 +36,8 @@ fn normalize_scene(scene: &Bound<'_, PyAny>) -> PyResult<SceneDict> {
 
 /// Parses and validates a TOML scene document into a full scene dict.
 #[pyfunction]
-fn scene_from_toml(text: &Bound<'_, PyAny>) -> PyResult<SceneDict> {
-    let text = str_from_any(text, "text")?;
-    Ok(SceneDict(Scene::from_toml_str(&text).py()?))
+fn scene_from_toml(text: &str) -> PyResult<SceneDict> {
+    Ok(SceneDict(Scene::from_toml_str(text).py()?))
 }
 
 /// A scene dict as a TOML document.
@@ -62,9 +69,8 @@ fn builtin_scenes() -> Vec<&'static str> {
 
 /// The built-in scene `name` as a dict.
 #[pyfunction]
-fn builtin_scene(name: &Bound<'_, PyAny>) -> PyResult<SceneDict> {
-    let name = str_from_any(name, "name")?;
-    Ok(SceneDict(Scene::builtin(&name).py()?))
+fn builtin_scene(name: &str) -> PyResult<SceneDict> {
+    Ok(SceneDict(Scene::builtin(name).py()?))
 }
 
 /// The vector instruction set the solver's loops run with in this process (`baseline`,

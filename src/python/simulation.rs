@@ -1,20 +1,18 @@
-//! `rustcloth._core.Simulation`: the solver's methods for Python. Every method converts its
-//! arguments first (naming the parameter on bad input), then runs on the locked simulation
+//! `rustcloth._core.Simulation`: the solver's methods for Python. Every method takes typed
+//! arguments (checked and named by `rustcloth._args`), then runs on the locked simulation
 //! (shared.rs); stepping runs detached from the interpreter and checks for Ctrl-C between
 //! steps. The documented public API is `rustcloth.Simulation`, which wraps this class.
 
-use numpy::{PyArrayDescrMethods, PyReadonlyArray1, PyUntypedArray, PyUntypedArrayMethods};
+use numpy::PyReadonlyArray1;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use super::conv::{
-    count_from_any, f64s_from_array, float_from_any, index_from_any, int_from_any, scene_from_dict,
-    str_from_any, vec3_from_any, vec3s_from_array, Plain, Rows, SceneDict,
-};
-use super::errors::{type_error, value_error, IntoPyResult, ParticleIndexError};
+use super::conv::{scene_from_dict, Floats, Plain, Rows, SceneDict};
+use super::errors::IntoPyResult;
 use super::shared::{Held, Shared};
 use super::state;
 use crate::{Error, IntegratorKind, Simulation};
+use glam::Vec3;
 
 /// The solver. See `rustcloth.Simulation` for the documented API.
 #[pyclass(name = "Simulation", module = "rustcloth._core", frozen)]
@@ -59,7 +57,7 @@ fn not_converged_warning(held: &mut Held) -> Option<String> {
 
 /// A simulation continuing a state from `Simulation.get_state()` (what unpickling calls).
 #[pyfunction]
-pub(crate) fn simulation_from_state(state: &Bound<'_, PyAny>) -> PyResult<PySimulation> {
+pub(crate) fn simulation_from_state(state: &Bound<'_, PyDict>) -> PyResult<PySimulation> {
     let snapshot = state::from_dict(state)?;
     Ok(PySimulation {
         shared: Shared::new(Simulation::restore(snapshot).py()?),
@@ -76,16 +74,14 @@ impl PySimulation {
         self.shared.with(py, f)
     }
 
-    /// Runs `call` on the simulation under its lock, once its argument converted, detached
-    /// from the interpreter (other Python threads run meanwhile).
-    pub(crate) fn call<A: Send, R: Send>(
+    /// Runs `call` on the simulation under its lock, detached from the interpreter (other
+    /// Python threads run meanwhile).
+    pub(crate) fn call<R: Send>(
         &self,
         py: Python<'_>,
-        arg: PyResult<A>,
-        call: impl FnOnce(&mut Simulation, A) -> crate::Result<R> + Send,
+        call: impl FnOnce(&mut Simulation) -> crate::Result<R> + Send,
     ) -> PyResult<R> {
-        let arg = arg?;
-        self.with(py, |h| py.detach(|| call(&mut h.sim, arg)).py())
+        self.with(py, |h| py.detach(|| call(&mut h.sim)).py())
     }
 
     /// Runs a stepping call as [`Self::call`] runs one, asking Python between steps whether a
@@ -121,21 +117,6 @@ impl PySimulation {
             PyErr::warn(py, category.as_any(), &message, 1)?;
         }
         outcome
-    }
-
-    /// A particle index, checked against the particles.
-    pub(crate) fn index(&self, py: Python<'_>, index: &Bound<'_, PyAny>) -> PyResult<i64> {
-        let n = self.with(py, |h| Ok(h.sim.grid().len()))?;
-        index_from_any(index, "index", n)
-    }
-
-    /// Particle values for the setters, read for the particles there are.
-    fn per_particle<T>(
-        &self,
-        py: Python<'_>,
-        read: impl FnOnce(usize) -> PyResult<T>,
-    ) -> PyResult<T> {
-        read(self.with(py, |h| Ok(h.sim.grid().len()))?)
     }
 }
 
@@ -218,67 +199,53 @@ impl PySimulation {
         })
     }
 
-    fn step(&self, py: Python<'_>, n: &Bound<'_, PyAny>) -> PyResult<()> {
-        let n = count_from_any(n, "n")?;
+    fn step(&self, py: Python<'_>, n: u64) -> PyResult<()> {
         self.stepping(py, |sim, stop| sim.step_interruptible(n, stop))
     }
 
-    fn advance(&self, py: Python<'_>, seconds: &Bound<'_, PyAny>) -> PyResult<u64> {
-        let seconds = float_from_any(seconds, "seconds")?;
+    fn advance(&self, py: Python<'_>, seconds: f64) -> PyResult<u64> {
         self.stepping(py, |sim, stop| sim.advance_interruptible(seconds, stop))
     }
 
-    fn set_positions(&self, py: Python<'_>, positions: &Bound<'_, PyAny>) -> PyResult<()> {
-        let values = self.per_particle(py, |n| vec3s_from_array(positions, "positions", n));
-        self.call(py, values, |sim, v| sim.set_positions(&v))
+    fn set_positions(&self, py: Python<'_>, positions: Floats<'_>) -> PyResult<()> {
+        let positions = positions.vec3s()?;
+        self.call(py, |sim| sim.set_positions(&positions))
     }
 
-    fn set_velocities(&self, py: Python<'_>, velocities: &Bound<'_, PyAny>) -> PyResult<()> {
-        let values = self.per_particle(py, |n| vec3s_from_array(velocities, "velocities", n));
-        self.call(py, values, |sim, v| sim.set_velocities(&v))
+    fn set_velocities(&self, py: Python<'_>, velocities: Floats<'_>) -> PyResult<()> {
+        let velocities = velocities.vec3s()?;
+        self.call(py, |sim| sim.set_velocities(&velocities))
     }
 
-    fn set_masses(&self, py: Python<'_>, masses: &Bound<'_, PyAny>) -> PyResult<()> {
-        let values = self.per_particle(py, |n| f64s_from_array(masses, "masses", &[n]));
-        self.call(py, values, |sim, v| sim.set_masses(&v))
+    fn set_masses(&self, py: Python<'_>, masses: Floats<'_>) -> PyResult<()> {
+        let masses = masses.rows(&[])?;
+        self.call(py, |sim| sim.set_masses(&masses))
     }
 
     #[pyo3(signature = (index, target = None))]
-    fn pin(
-        &self,
-        py: Python<'_>,
-        index: &Bound<'_, PyAny>,
-        target: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<()> {
-        let index = self.index(py, index)?;
-        let target = target.filter(|t| !t.is_none());
-        let target = target.map(|t| vec3_from_any(t, "target")).transpose();
-        self.call(py, target, |sim, target| sim.pin(index, target))
+    fn pin(&self, py: Python<'_>, index: i64, target: Option<[f32; 3]>) -> PyResult<()> {
+        self.call(py, |sim| sim.pin(index, target.map(Vec3::from)))
     }
 
-    /// Pins many particles in one call; `indices` a 1-D integer array, `targets` None or an
-    /// `(len(indices), 3)` float array.
+    /// Pins many particles in one call: `targets` None or one row per index.
     #[pyo3(signature = (indices, targets = None))]
     fn pin_many(
         &self,
         py: Python<'_>,
-        indices: &Bound<'_, PyAny>,
-        targets: Option<&Bound<'_, PyAny>>,
+        indices: PyReadonlyArray1<'_, i64>,
+        targets: Option<Floats<'_>>,
     ) -> PyResult<()> {
-        let indices = self.per_particle(py, |n| indices_from_array(indices, n))?;
-        let targets = targets.filter(|t| !t.is_none());
-        let targets = targets.map(|t| vec3s_from_array(t, "targets", indices.len()));
-        self.call(py, targets.transpose(), |sim, t| {
-            sim.pin_many(&indices, t.as_ref())
-        })
+        let indices = indices.as_array().to_vec();
+        let targets = targets.map(|t| t.vec3s()).transpose()?;
+        self.call(py, |sim| sim.pin_many(&indices, targets.as_ref()))
     }
 
-    fn unpin(&self, py: Python<'_>, index: &Bound<'_, PyAny>) -> PyResult<()> {
-        self.call(py, self.index(py, index), Simulation::unpin)
+    fn unpin(&self, py: Python<'_>, index: i64) -> PyResult<()> {
+        self.call(py, |sim| sim.unpin(index))
     }
 
-    fn cut(&self, py: Python<'_>, index: &Bound<'_, PyAny>) -> PyResult<()> {
-        self.call(py, self.index(py, index), Simulation::cut)
+    fn cut(&self, py: Python<'_>, index: i64) -> PyResult<()> {
+        self.call(py, |sim| sim.cut(index))
     }
 
     fn reset(&self, py: Python<'_>) -> PyResult<()> {
@@ -289,7 +256,7 @@ impl PySimulation {
     }
 
     /// Replaces the whole simulation (scene included) by a state from `get_state`.
-    fn set_state(&self, py: Python<'_>, state: &Bound<'_, PyAny>) -> PyResult<()> {
+    fn set_state(&self, py: Python<'_>, state: &Bound<'_, PyDict>) -> PyResult<()> {
         let restored = Simulation::restore(state::from_dict(state)?).py()?;
         self.with(py, |h| {
             h.sim = restored;
@@ -329,54 +296,17 @@ impl PySimulation {
     }
 
     #[setter]
-    fn set_dt(&self, py: Python<'_>, dt: &Bound<'_, PyAny>) -> PyResult<()> {
-        self.call(py, float_from_any(dt, "dt"), Simulation::set_dt)
+    fn set_dt(&self, py: Python<'_>, dt: f64) -> PyResult<()> {
+        self.call(py, |sim| sim.set_dt(dt))
     }
 
     #[setter]
-    fn set_substeps(&self, py: Python<'_>, substeps: &Bound<'_, PyAny>) -> PyResult<()> {
-        self.call(
-            py,
-            int_from_any(substeps, "substeps"),
-            Simulation::set_substeps,
-        )
+    fn set_substeps(&self, py: Python<'_>, substeps: i64) -> PyResult<()> {
+        self.call(py, |sim| sim.set_substeps(substeps))
     }
 
     #[setter]
-    fn set_integrator(&self, py: Python<'_>, name: &Bound<'_, PyAny>) -> PyResult<()> {
-        let name = str_from_any(name, "integrator");
-        self.call(py, name, |sim, name| sim.set_integrator(&name))
+    fn set_integrator(&self, py: Python<'_>, name: &str) -> PyResult<()> {
+        self.call(py, |sim| sim.set_integrator(name))
     }
-}
-
-/// `pin_many`'s indices: a 1-D numpy array of integers (of any dtype when empty), as i64. The
-/// core checks each against the particles.
-fn indices_from_array(obj: &Bound<'_, PyAny>, n: usize) -> PyResult<Vec<i64>> {
-    let array = obj
-        .cast::<PyUntypedArray>()
-        .map_err(|_| type_error("indices", format!("must be a numpy array, got {obj}")))?;
-    if array.ndim() != 1 {
-        let shape = obj.getattr("shape")?;
-        return Err(value_error(
-            "indices",
-            format!("must be 1-D, got shape {shape}"),
-        ));
-    }
-    let (dtype, empty) = (array.dtype(), array.len() == 0);
-    if !empty && !matches!(dtype.kind(), b'i' | b'u') {
-        let message = format!("must hold integers, got dtype {dtype}");
-        return Err(type_error("indices", message));
-    }
-    if !empty && dtype.kind() == b'u' {
-        let largest: u64 = obj.call_method0("max")?.extract()?;
-        if i64::try_from(largest).is_err() {
-            let message = format!("indices: index {largest} is out of range for {n} particles");
-            return Err(ParticleIndexError::new_err((message, "indices", i64::MAX)));
-        }
-    }
-    let int64 = obj.call_method1("astype", ("int64",))?;
-    Ok(int64
-        .extract::<PyReadonlyArray1<'_, i64>>()?
-        .as_array()
-        .to_vec())
 }

@@ -6,16 +6,14 @@
 //! The plain values go through serde (pythonize); the scene and the per-particle arrays, which
 //! serde leaves out, are added and read here.
 
-use numpy::{PyArray1, PyReadonlyArray1, PyReadonlyArray2};
+use numpy::{PyArray1, PyReadonlyArray1, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyList, PyTuple};
 use pythonize::{pythonize, Depythonizer};
 use serde::Deserialize;
 
-use super::conv::{
-    count_from_any, is_bool, scene_from_dict, scene_to_dict, vec3s_from_array, Rows,
-};
+use super::conv::{scene_from_dict, scene_to_dict, Floats, Rows};
 use super::errors::{type_error, value_error};
 use crate::snapshot::Snapshot;
 use crate::soa::Vec3s;
@@ -135,20 +133,27 @@ fn array<T: numpy::Element + Clone>(
 
 /// Exactly float32 `(n, 3)` arrays, as [`array`].
 fn state_vectors(obj: &Bound<'_, PyAny>, name: &str, n: usize) -> PyResult<Vec3s> {
-    if obj.extract::<PyReadonlyArray2<'_, f32>>().is_err() {
-        return Err(type_error(
-            name,
-            format!("must be a float32 array of shape ({n}, 3)"),
-        ));
+    let array = obj.extract::<PyReadonlyArrayDyn<'_, f32>>().ok();
+    let array = array
+        .filter(|a| a.ndim() == 2)
+        .ok_or_else(|| type_error(name, format!("must be a float32 array of shape ({n}, 3)")))?;
+    if array.shape() != [n, 3] {
+        let message = format!("must have shape ({n}, 3), got {:?}", array.shape());
+        return Err(value_error(name, message));
     }
-    vec3s_from_array(obj, name, n)
+    Floats::F32(array).vec3s()
 }
 
-pub fn from_dict(obj: &Bound<'_, PyAny>) -> PyResult<Snapshot> {
-    if !obj.is_instance_of::<PyDict>() {
-        return Err(type_error("state", format!("must be a dict, got {obj}")));
-    }
-    let version = count_from_any(&item(obj, "version", "state.version")?, "state.version")?;
+/// Whether `obj` is a bool: Python's, or numpy's (a scalar or a 0-d array).
+fn is_bool(obj: &Bound<'_, PyAny>) -> bool {
+    let kind = obj.getattr("dtype").and_then(|d| d.getattr("kind"));
+    obj.is_instance_of::<PyBool>() || kind.is_ok_and(|k| k.to_string() == "b")
+}
+
+/// The Python side has checked that `obj` is a dict and its version an integer.
+pub fn from_dict(obj: &Bound<'_, PyDict>) -> PyResult<Snapshot> {
+    let obj = obj.as_any();
+    let version: u64 = item(obj, "version", "state.version")?.extract()?;
     if version != VERSION {
         return Err(value_error(
             "state.version",
