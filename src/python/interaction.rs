@@ -6,7 +6,7 @@ use pyo3::prelude::*;
 
 use super::conv::{Floats, Plain};
 use super::errors::IntoPyResult;
-use super::simulation::{reads, PySimulation};
+use super::simulation::{calls, reads, PySimulation};
 use crate::picking::PickStrategy;
 
 /// `(triangle_index, distance, (w0, w1, w2))`.
@@ -24,65 +24,35 @@ fn rays(rays: &Floats<'_>) -> PyResult<Vec<(Vec3, Vec3)>> {
         .collect())
 }
 
+/// A hit's `(index, distance)`.
+type ParticleHit = Option<(usize, f32)>;
+
+calls! {
+    fn pick(origin: [f32; 3], direction: [f32; 3]) -> ParticleHit =
+        |sim| Ok(sim.pick(origin.into(), direction.into())?.map(|h| (h.index, h.distance)));
+    fn pick_triangle(origin: [f32; 3], direction: [f32; 3]) -> Option<TriangleHit> = |sim| {
+        let hit = sim.pick_triangle(origin.into(), direction.into())?;
+        Ok(hit.map(|h| (h.index, h.distance, h.barycentric.into())))
+    };
+    fn cut_ray(origin: [f32; 3], direction: [f32; 3]) -> Option<usize> =
+        |sim| sim.cut_ray(origin.into(), direction.into());
+    #[setter] fn set_pick_radius(radius: f64) -> () = |sim| sim.set_pick_radius(radius);
+    fn grab(index: i64) -> () = |sim| sim.grab(index);
+    fn drag_to(target: [f32; 3]) -> () = |sim| sim.drag_to(target.into());
+    fn release() -> () = |sim| {
+        sim.release();
+        Ok(())
+    };
+    fn pieces() -> usize = |sim| Ok(sim.pieces());
+}
+
 #[pymethods]
 impl PySimulation {
-    fn pick(
-        &self,
-        py: Python<'_>,
-        origin: [f32; 3],
-        direction: [f32; 3],
-    ) -> PyResult<Option<(usize, f32)>> {
-        let hit = self.call(py, |sim| sim.pick(origin.into(), direction.into()))?;
-        Ok(hit.map(|h| (h.index, h.distance)))
-    }
-
-    fn pick_triangle(
-        &self,
-        py: Python<'_>,
-        origin: [f32; 3],
-        direction: [f32; 3],
-    ) -> PyResult<Option<TriangleHit>> {
-        let hit = self.call(py, |sim| sim.pick_triangle(origin.into(), direction.into()))?;
-        Ok(hit.map(|h| {
-            let [a, b, c] = h.barycentric;
-            (h.index, h.distance, (a, b, c))
-        }))
-    }
-
-    fn cut_ray(
-        &self,
-        py: Python<'_>,
-        origin: [f32; 3],
-        direction: [f32; 3],
-    ) -> PyResult<Option<usize>> {
-        self.call(py, |sim| sim.cut_ray(origin.into(), direction.into()))
-    }
-
-    #[setter]
-    fn set_pick_radius(&self, py: Python<'_>, radius: f64) -> PyResult<()> {
-        self.call(py, |sim| sim.set_pick_radius(radius))
-    }
-
     #[setter]
     fn set_pick_strategy(&self, py: Python<'_>, strategy: &str) -> PyResult<()> {
         let strategy = PickStrategy::by_name(strategy).py()?;
         self.call(py, |sim| {
             sim.set_pick_strategy(strategy);
-            Ok(())
-        })
-    }
-
-    fn grab(&self, py: Python<'_>, index: i64) -> PyResult<()> {
-        self.call(py, |sim| sim.grab(index))
-    }
-
-    fn drag_to(&self, py: Python<'_>, target: [f32; 3]) -> PyResult<()> {
-        self.call(py, |sim| sim.drag_to(target.into()))
-    }
-
-    fn release(&self, py: Python<'_>) -> PyResult<()> {
-        self.call(py, |sim| {
-            sim.release();
             Ok(())
         })
     }
@@ -96,10 +66,6 @@ impl PySimulation {
     fn sever_stroke(&self, py: Python<'_>, rays: Floats<'_>) -> PyResult<usize> {
         let rays = self::rays(&rays)?;
         self.stepping(py, |sim, stop| sim.sever_stroke_with(&rays, stop))
-    }
-
-    fn pieces(&self, py: Python<'_>) -> PyResult<usize> {
-        self.call(py, |sim| Ok(sim.pieces()))
     }
 }
 

@@ -134,6 +134,30 @@ macro_rules! reads {
 }
 pub(super) use reads;
 
+/// `#[pymethods]` that run `$call` on the simulation as [`PySimulation::call`] runs it (under
+/// the lock, detached from the interpreter), their arguments as pyo3 extracts them.
+macro_rules! calls {
+    ($($(#[$attr:meta])* fn $name:ident($($arg:ident: $ty:ty),*) -> $ret:ty = |$sim:ident| $call:expr;)*) => {
+        #[pymethods]
+        impl PySimulation {
+            $($(#[$attr])* fn $name(&self, py: Python<'_>, $($arg: $ty),*) -> PyResult<$ret> {
+                self.call(py, |$sim| $call)
+            })*
+        }
+    };
+}
+pub(super) use calls;
+
+calls! {
+    #[pyo3(signature = (index, target = None))]
+    fn pin(index: i64, target: Option<[f32; 3]>) -> () = |sim| sim.pin(index, target.map(Vec3::from));
+    fn unpin(index: i64) -> () = |sim| sim.unpin(index);
+    fn cut(index: i64) -> () = |sim| sim.cut(index);
+    #[setter] fn set_dt(dt: f64) -> () = |sim| sim.set_dt(dt);
+    #[setter] fn set_substeps(substeps: i64) -> () = |sim| sim.set_substeps(substeps);
+    #[setter] fn set_integrator(name: &str) -> () = |sim| sim.set_integrator(name);
+}
+
 reads! {
     #[getter] fn positions -> Rows<f32> = |h| Rows::vec3s(h.sim.positions());
     #[getter] fn velocities -> Rows<f32> = |h| Rows::vec3s(h.sim.velocities());
@@ -222,11 +246,6 @@ impl PySimulation {
         self.call(py, |sim| sim.set_masses(&masses))
     }
 
-    #[pyo3(signature = (index, target = None))]
-    fn pin(&self, py: Python<'_>, index: i64, target: Option<[f32; 3]>) -> PyResult<()> {
-        self.call(py, |sim| sim.pin(index, target.map(Vec3::from)))
-    }
-
     /// Pins many particles in one call: `targets` None or one row per index.
     #[pyo3(signature = (indices, targets = None))]
     fn pin_many(
@@ -238,14 +257,6 @@ impl PySimulation {
         let indices = indices.as_array().to_vec();
         let targets = targets.map(|t| t.vec3s()).transpose()?;
         self.call(py, |sim| sim.pin_many(&indices, targets.as_ref()))
-    }
-
-    fn unpin(&self, py: Python<'_>, index: i64) -> PyResult<()> {
-        self.call(py, |sim| sim.unpin(index))
-    }
-
-    fn cut(&self, py: Python<'_>, index: i64) -> PyResult<()> {
-        self.call(py, |sim| sim.cut(index))
     }
 
     fn reset(&self, py: Python<'_>) -> PyResult<()> {
@@ -293,20 +304,5 @@ impl PySimulation {
         self.with(py, |_| -> PyResult<()> {
             panic!("injected panic outside a step")
         })
-    }
-
-    #[setter]
-    fn set_dt(&self, py: Python<'_>, dt: f64) -> PyResult<()> {
-        self.call(py, |sim| sim.set_dt(dt))
-    }
-
-    #[setter]
-    fn set_substeps(&self, py: Python<'_>, substeps: i64) -> PyResult<()> {
-        self.call(py, |sim| sim.set_substeps(substeps))
-    }
-
-    #[setter]
-    fn set_integrator(&self, py: Python<'_>, name: &str) -> PyResult<()> {
-        self.call(py, |sim| sim.set_integrator(name))
     }
 }
