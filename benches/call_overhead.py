@@ -32,7 +32,6 @@ CALLS = {
 def measure(number: int) -> dict[str, float]:
     """Microseconds per call of each of CALLS, best of 5 rounds of ``number`` calls."""
     import numpy as np
-
     import rustcloth
 
     sim = rustcloth.Simulation(rustcloth.Scene(cloth={"nx": 4, "ny": 4}))
