@@ -387,7 +387,8 @@ class Simulation:
 
     def _rows(self, values: object, name: str, width: int = 0) -> np.ndarray:
         """Per-particle values: ``(N,)``, or ``(N, width)``."""
-        shape = (self.num_particles, width) if width else (self.num_particles,)
+        n = self._core.num_particles
+        shape = (n, width) if width else (n,)
         return _args.rows(values, name, shape)
 
     def __copy__(self) -> Simulation:
