@@ -108,9 +108,14 @@ def test_budgeted_stepping_falls_behind_rather_than_spiralling(ctx: Any) -> None
     assert stepper.real_time_ratio() < 0.5
 
 
-def test_overlay_says_paused_alone_ssao_state_and_scene_keys(ctx: Any) -> None:
+def test_overlay_is_one_line_until_asked_and_says_paused_alone_ssao_state_and_scene_keys(
+        ctx: Any) -> None:
     viewer, fbo = _viewer(ctx)
     viewer.frame(fbo, 1 / 30)
+    assert len(viewer.status_lines()) == 1  # the details wait for D
+    assert "SSAO" not in _text(viewer) and "D details" in _text(viewer)
+    viewer.key("D")
+    assert len(viewer.status_lines()) > 1
     assert "SSAO off" in _text(viewer)
     viewer.key("O")
     assert "SSAO on" in _text(viewer)

@@ -42,17 +42,19 @@ def render_frames(
     script: list[dict[str, Any]] | None, *, name: str = "scene", view: str = "lit",
     ssao: bool = False, lights: str = "studio", overlay: bool = False, progress: bool = True,
     sink: Callable[[int, Frame], None] | None = None, ctx: moderngl.Context | None = None,
-    on_notice: Callable[[str], None] | None = None,
+    on_notice: Callable[[str], None] | None = None, tier: str | None = "full",
 ) -> tuple[list[Frame], RenderStats]:
     """Simulate and render ``frames`` frames at ``fps`` offscreen; returns RGB frames (rows top
     to bottom) unless ``sink`` (called with each frame index and image) takes them. Uses
-    ``ctx`` if given, else a standalone EGL context of its own."""
+    ``ctx`` if given, else a standalone EGL context of its own. ``tier``: the renderer's
+    quality tier (None: the one the context calls for)."""
     own = ctx is None
     if ctx is None:
         ctx = create_standalone_context()
     try:
         viewer = Viewer(ctx, sim, size, name=name, realtime=False, script=script, view=view,
-                        ssao=ssao, lights=lights, overlay=overlay, on_notice=on_notice)
+                        ssao=ssao, lights=lights, overlay=overlay, on_notice=on_notice,
+                        tier=tier)
         w, h = size
         color = ctx.renderbuffer(size, 4)
         fbo = ctx.framebuffer(color_attachments=[color])
