@@ -89,6 +89,23 @@ def render_frames(
             ctx.release()
 
 
+def gif_frame(frame: Frame) -> Image.Image:
+    """One RGB frame as a GIF frame: a palette of its own 256 colours (median cut) and
+    Floyd-Steinberg dithering into it, so a smooth gradient (the sky, the floor's fog) shows
+    as fine noise, not as bands of flat colour."""
+    image = Image.fromarray(frame)
+    palette = image.quantize(colors=256, method=Image.Quantize.MEDIANCUT,
+                             dither=Image.Dither.NONE)
+    return image.quantize(palette=palette, dither=Image.Dither.FLOYDSTEINBERG)
+
+
+def write_gif(path: Path, frames: list[Frame], fps: float) -> None:
+    """An animated GIF, looping, each frame with its own palette (:func:`gif_frame`)."""
+    images = [gif_frame(f) for f in frames]
+    images[0].save(path, save_all=True, append_images=images[1:],
+                   duration=round(1000.0 / fps), loop=0, optimize=False)
+
+
 def write_outputs(
     sim: Any, out_dir: Path, size: tuple[int, int], frames: int, fps: float,
     script: list[dict[str, Any]] | None, *, gif: bool, mp4: bool, **options: Any,
@@ -108,10 +125,8 @@ def write_outputs(
 
     _, stats = render_frames(sim, size, frames, fps, script, sink=sink, **options)
     if gif:
-        import imageio.v3 as iio
-
         path = out_dir / "animation.gif"
-        iio.imwrite(path, np.stack(keep), duration=1000.0 / fps, loop=0)
+        write_gif(path, keep, fps)
         written.append(path)
     if mp4:
         import imageio.v3 as iio
