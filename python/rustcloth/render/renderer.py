@@ -127,6 +127,7 @@ class Renderer:
         self.lines = load_program(ctx, "lines.vert", "lines.frag")
         self.overlay_prog = load_program(ctx, "overlay.vert", "overlay.frag")
         self.forward = load_program(ctx, "forward.vert", "forward.frag")
+        self.forward_cloth = load_program(ctx, "forward_cloth.vert", "forward_cloth.frag")
         self.sky_prog = load_program(ctx, "fullscreen.vert", "sky.frag")
         # Full-screen passes draw one triangle from gl_VertexID: no vertex buffers.
         self.fullscreen = {
@@ -209,9 +210,13 @@ class Renderer:
     def _mesh_vao(
         self, prog: moderngl.Program, vbo: moderngl.Buffer, ibo: moderngl.Buffer
     ) -> moderngl.VertexArray:
-        fmt: list[tuple[Any, ...]] = (
-            [(vbo, "3f 3f 2f", "in_position", "in_normal", "in_uv")] if "in_normal" in prog
-            else [(vbo, "3f 12x 8x", "in_position")])
+        # Position, normal, uv per vertex; a program gets the attributes it reads.
+        if "in_normal" not in prog:
+            fmt: list[tuple[Any, ...]] = [(vbo, "3f 12x 8x", "in_position")]
+        elif "in_uv" not in prog:
+            fmt = [(vbo, "3f 3f 8x", "in_position", "in_normal")]
+        else:
+            fmt = [(vbo, "3f 3f 2f", "in_position", "in_normal", "in_uv")]
         return self.ctx.vertex_array(prog, fmt, index_buffer=ibo, index_element_size=4)
 
     def _solid_buffers(self, mesh: meshes.Mesh) -> tuple[
@@ -332,7 +337,7 @@ class Renderer:
             index_buffer=self.cloth_ibo, index_element_size=4,
         )
         self.cloth_forward_vao = ctx.vertex_array(
-            self.forward,
+            self.forward_cloth,
             [
                 (self.cloth_pos, "3f", "in_position"),
                 (self.cloth_nrm, "3f", "in_normal"),
@@ -541,35 +546,37 @@ class Renderer:
         # Geometry: every surface into the G-buffer (normal, albedo + material id, depth),
         # nearest first so the floor's hidden pixels fail the depth test early.
         g = self.geometry
-        self._begin_surfaces(self.gbuffer, g, camera, alpha=0.0)
+        self._begin_surfaces(self.gbuffer, (g,), camera, alpha=0.0)
         lay = self.layout
         _uniforms(g, view=K.VIEW_IDS[self.view],
                   grid_cells=(float(lay.grid[0] - 1), float(lay.grid[1] - 1)))
-        self._draw_surfaces(g, self.cloth_vao, [s.vao for s in self.solids], self.marker_vao,
-                            self.floor_vao)
+        self._draw_surfaces(g, g, self.cloth_vao, [s.vao for s in self.solids],
+                            self.marker_vao, self.floor_vao)
         self._done("geometry")
 
-    def _begin_surfaces(self, fbo: moderngl.Framebuffer, prog: moderngl.Program,
+    def _begin_surfaces(self, fbo: moderngl.Framebuffer, progs: tuple[moderngl.Program, ...],
                         camera: Camera, alpha: float) -> None:
-        """Clear ``fbo`` (colour to black with ``alpha``) and give ``prog`` the camera and the
+        """Clear ``fbo`` (colour to black with ``alpha``) and give ``progs`` the camera and the
         cloth's sides and size, for :meth:`_draw_surfaces`."""
         fbo.use()
         fbo.clear(0.0, 0.0, 0.0, alpha, depth=1.0)
         view_proj = camera.view_projection
         self._inv_view_proj = np.linalg.inv(view_proj.astype(np.float64)).astype(np.float32)
         lay = self.layout
-        _uniforms(prog, view_proj=view_proj, front_is_winding=lay.front_is_winding,
-                  cloth_size=lay.cloth_size)
+        for prog in progs:
+            _uniforms(prog, view_proj=view_proj, front_is_winding=lay.front_is_winding,
+                      cloth_size=lay.cloth_size)
 
-    def _draw_surfaces(self, prog: moderngl.Program, cloth: moderngl.VertexArray,
-                       solids: list[moderngl.VertexArray], marker: moderngl.VertexArray,
-                       floor: moderngl.VertexArray) -> None:
-        """Cloth, spheres and colliders, markers, floor (nearest first) with ``prog``, through
-        the vertex arrays it was given for them (``solids``: one per :attr:`solids`)."""
+    def _draw_surfaces(self, cloth_prog: moderngl.Program, prog: moderngl.Program,
+                       cloth: moderngl.VertexArray, solids: list[moderngl.VertexArray],
+                       marker: moderngl.VertexArray, floor: moderngl.VertexArray) -> None:
+        """The cloth with ``cloth_prog``, then spheres and colliders, markers, floor (nearest
+        first) with ``prog``, through the vertex arrays given for them (``solids``: one per
+        :attr:`solids`)."""
         lay = self.layout
         if self.index_count:
-            _uniforms(prog, model=np.identity(4, dtype=np.float32), material=K.CLOTH_FRONT.id,
-                      base_color=K.srgb_to_linear(K.CLOTH_FRONT.color))
+            _uniforms(cloth_prog, model=np.identity(4, dtype=np.float32),
+                      material=K.CLOTH_FRONT.id, base_color=K.srgb_to_linear(K.CLOTH_FRONT.color))
             cloth.render(vertices=self.index_count)
         for solid, vao in zip(self.solids, solids, strict=True):
             if self.show_colliders:
@@ -641,12 +648,15 @@ class Renderer:
         # nearest first so hidden pixels fail the depth test before shading; then the sky at
         # the far plane, paid only where nothing was drawn.
         ctx = self.ctx
-        fp = self.forward
-        self._begin_surfaces(self.forward_fbo, fp, camera, alpha=1.0)
-        _bind(fp, {"shadow_map": self.shadow_depth})
-        _uniforms(fp, **self._light_uniforms(camera))
-        self._draw_surfaces(fp, self.cloth_forward_vao, [s.forward_vao for s in self.solids],
-                            self.marker_forward_vao, self.floor_forward_vao)
+        fp, fc = self.forward, self.forward_cloth
+        self._begin_surfaces(self.forward_fbo, (fp, fc), camera, alpha=1.0)
+        light = self._light_uniforms(camera)
+        for prog in (fp, fc):
+            _bind(prog, {"shadow_map": self.shadow_depth})
+            _uniforms(prog, **light)
+        self._draw_surfaces(fc, fp, self.cloth_forward_vao,
+                            [s.forward_vao for s in self.solids], self.marker_forward_vao,
+                            self.floor_forward_vao)
         ctx.depth_func = "<="
         sky = self.sky_prog
         lights = self.lights

@@ -34,21 +34,28 @@ def with_constants(source: str) -> str:
 
 
 def expand_includes(source: str, directory: Path) -> tuple[str, list[str]]:
-    """``source`` with each ``#include "name"`` line replaced by that file (one level deep),
-    each numbered as its own source string by ``#line`` so errors name it; and the included
-    files' paths, in that numbering (the first is source string 1)."""
-    out: list[str] = []
+    """``source`` with each ``#include "name"`` line replaced by that file (and its own
+    includes), each numbered as its own source string by ``#line`` so errors name it; and the
+    included files' paths, in that numbering (the first is source string 1)."""
     included: list[str] = []
-    for number, line in enumerate(source.split("\n"), start=1):
-        m = _INCLUDE.match(line)
-        if m is None:
-            out.append(line)
-            continue
-        path = directory / m.group(1)
-        included.append(str(path))
-        out += [f"#line 1 {len(included)}", path.read_text(encoding="utf-8").rstrip("\n"),
-                f"#line {number + 1} 0"]
-    return "\n".join(out), included
+
+    def expand(text: str, number: int, depth: int) -> list[str]:
+        out: list[str] = []
+        for line_no, line in enumerate(text.split("\n"), start=1):
+            m = _INCLUDE.match(line)
+            if m is None:
+                out.append(line)
+                continue
+            if depth > 8:
+                raise ShaderError(f"{m.group(1)}: includes nested more than 8 deep")
+            path = directory / m.group(1)
+            included.append(str(path))
+            inner = path.read_text(encoding="utf-8").rstrip("\n")
+            out += [f"#line 1 {len(included)}", *expand(inner, len(included), depth + 1),
+                    f"#line {line_no + 1} {number}"]
+        return out
+
+    return "\n".join(expand(source, 0, 0)), included
 
 
 def _locate(message: str, files: dict[str, list[str]]) -> str:
