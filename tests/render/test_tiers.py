@@ -122,3 +122,26 @@ def test_the_software_tier_shadows_the_floor_and_skips_ssao_and_fxaa(standin_cls
     passes.clear()
     _frame(ctx, r, cam)
     assert "geometry" in passes and "forward" not in passes
+
+
+def test_only_the_full_tier_trades_resolution_for_frame_rate(ctx: Any) -> None:
+    # On llvmpipe the software tier's 70 % frame cost more than its full one (the scale-up
+    # is a textured pass over every output pixel), so slow frames lower the resolution in
+    # the full tier only, and the software tier draws at full resolution.
+    sim = rustcloth.Simulation(rustcloth.load_scene("hanging"))
+    viewer = Viewer(ctx, sim, SIZE, realtime=True, tier="full")
+    fbo = ctx.simple_framebuffer(SIZE)
+
+    def slow_frame() -> None:
+        viewer.render_s = 1.0  # the last frame took a second to render
+        viewer._scaled_at = float("-inf")
+        viewer.frame(fbo, 1 / 30)
+
+    slow_frame()
+    assert viewer.renderer.scale < 1.0
+    viewer.key("Q")
+    assert viewer.renderer.tier == "software"
+    slow_frame()
+    assert viewer.renderer.scale == 1.0
+    slow_frame()
+    assert viewer.renderer.scale == 1.0 and viewer.renderer.inner == viewer.renderer.size
