@@ -114,9 +114,12 @@ def main(argv: list[str] | None = None) -> int:
     print(f"wrote {out / 'demo.gif'}", file=sys.stderr)
 
     # explicit_euler in hanging diverges; the overlay says what the viewer did about it.
-    keys = {0.5 + 0.1 * k: "I" for k in range(4)}  # symplectic -> ... -> explicit_euler
-    shot = run(ctx, "hanging", 1.6, keys=keys, overlay=True)
-    _save(out / "screenshot_rollback.png", shot[1.6])
+    start = rustcloth.load_scene("hanging").to_dict()["integrator"]
+    presses = (rustcloth.INTEGRATORS.index("explicit_euler")
+               - rustcloth.INTEGRATORS.index(start)) % len(rustcloth.INTEGRATORS)
+    keys = {0.5 + 0.1 * k: "I" for k in range(presses)}  # ... -> explicit_euler
+    shot = run(ctx, "hanging", 2.5, keys=keys, overlay=True)
+    _save(out / "screenshot_rollback.png", shot[2.5])
 
     # Every view with its legend, and every light preset, as contact sheets.
     small = (480, 300)
