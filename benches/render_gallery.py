@@ -1,7 +1,8 @@
 """Regenerates the pictures in docs/ from the current renderer, offscreen through EGL: one
 screenshot per built-in scene, a drag, a cut, a rollback on the overlay, the debug views, the
-light presets, and the README's GIF of a drag and a cut. (It sits beside render_times.py,
-which regenerates the frame-time tables; neither is run by the tests.)
+light presets, the two quality tiers side by side, and the README's GIF of a drag and a cut.
+(It sits beside render_times.py, which regenerates the frame-time tables; neither is run by
+the tests.)
 
     python benches/render_gallery.py [--out docs]
 """
@@ -20,6 +21,7 @@ from PIL import Image
 from rustcloth.render import create_standalone_context
 from rustcloth.render.constants import VIEWS
 from rustcloth.render.lights import PRESET_NAMES
+from rustcloth.viewer.headless import write_gif
 from rustcloth.viewer.loop import Viewer
 
 Frame = npt.NDArray[np.uint8]
@@ -108,15 +110,16 @@ def main(argv: list[str] | None = None) -> int:
     _save(out / "screenshot_cut.png", shots[3.4])
     gif = run(ctx, "hanging", 5.0, (480, 300), script=script,
               keep=tuple(k / 15.0 for k in range(75)))
-    frames = [Image.fromarray(gif[t]) for t in sorted(gif)][::2]
-    frames[0].save(out / "demo.gif", save_all=True, append_images=frames[1:],
-                   duration=round(1000 / 15 * 2), loop=0, optimize=True)
+    write_gif(out / "demo.gif", [gif[t] for t in sorted(gif)][::2], 15.0 / 2)
     print(f"wrote {out / 'demo.gif'}", file=sys.stderr)
 
     # explicit_euler in hanging diverges; the overlay says what the viewer did about it.
-    keys = {0.5 + 0.1 * k: "I" for k in range(4)}  # symplectic -> ... -> explicit_euler
-    shot = run(ctx, "hanging", 1.6, keys=keys, overlay=True)
-    _save(out / "screenshot_rollback.png", shot[1.6])
+    start = rustcloth.load_scene("hanging").to_dict()["integrator"]
+    presses = (rustcloth.INTEGRATORS.index("explicit_euler")
+               - rustcloth.INTEGRATORS.index(start)) % len(rustcloth.INTEGRATORS)
+    keys = {0.5 + 0.1 * k: "I" for k in range(presses)}  # ... -> explicit_euler
+    shot = run(ctx, "hanging", 2.5, keys=keys, overlay=True)
+    _save(out / "screenshot_rollback.png", shot[2.5])
 
     # Every view with its legend, and every light preset, as contact sheets.
     small = (480, 300)
@@ -127,6 +130,9 @@ def main(argv: list[str] | None = None) -> int:
     lights = [run(ctx, "curtain", 2.0, small, lights=name, title=f"lights: {name}")[2.0]
               for name in PRESET_NAMES]
     _save(out / "screenshot_lights.png", montage(lights, 2))
+    tiers = [run(ctx, "drape", 3.0, small, tier=tier, title=f"tier: {tier}")[3.0]
+             for tier in ("full", "software")]
+    _save(out / "screenshot_tiers.png", montage(tiers, 2))
     ctx.release()
     return 0
 

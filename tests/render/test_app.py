@@ -259,3 +259,33 @@ def test_demo_without_display_falls_back_to_headless(tmp_path: Path) -> None:
     first = proc.stdout.splitlines()[0]
     assert first.startswith("no display") and str(tmp_path) in first
     assert (tmp_path / "animation.gif").exists() and (tmp_path / "frame_0005.png").exists()
+
+
+def test_the_gif_keeps_smooth_gradients_smooth(tmp_path: Path) -> None:
+    # The GIF's first frame showed bands of flat colour across the sky: each frame went
+    # through a 256-colour palette without dithering. A sky-like gradient of far more than
+    # 256 colours, written and read back, must match the source over small areas (the
+    # dither's noise averages out) much better than plain quantisation does.
+    from PIL import Image
+    from rustcloth.viewer.headless import write_gif
+
+    h, w = 120, 320
+    y, x = np.mgrid[0:h, 0:w].astype(np.float64)
+    frame = np.stack([40 + 120 * x / w, 60 + 100 * y / h, 200 - 60 * (x + y) / (w + h)],
+                     axis=-1).round().astype(np.uint8)
+    assert len(np.unique(frame.reshape(-1, 3), axis=0)) > 1000
+    path = tmp_path / "gradient.gif"
+    write_gif(path, [frame, frame[::-1].copy()], 30.0)
+    with Image.open(path) as gif:
+        assert gif.n_frames == 2
+        back = np.asarray(gif.convert("RGB"), dtype=np.float64)
+    plain = np.asarray(Image.fromarray(frame).quantize(colors=256, dither=Image.Dither.NONE)
+                       .convert("RGB"), dtype=np.float64)
+
+    def area_error(img: np.ndarray) -> float:
+        # Mean error of 8x8 block means: what banding is, and what dithering fixes.
+        d = (img - frame).reshape(h // 8, 8, w // 8, 8, 3).mean(axis=(1, 3))
+        return float(np.abs(d).mean())
+
+    assert np.abs(back - frame).max() < 40  # every pixel near its colour
+    assert area_error(back) < 0.6 * area_error(plain), (area_error(back), area_error(plain))

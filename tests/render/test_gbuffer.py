@@ -186,6 +186,20 @@ def test_shader_compile_error_names_file_and_line(ctx: Any, tmp_path: Any) -> No
         load_program(ctx, "fullscreen.vert", "broken.frag", directory=tmp_path)
 
 
+def test_an_error_in_an_included_file_names_that_file_and_line(ctx: Any, tmp_path: Any) -> None:
+    from rustcloth.render.shaders import SHADER_DIR
+
+    (tmp_path / "fullscreen.vert").write_text((SHADER_DIR / "fullscreen.vert").read_text())
+    (tmp_path / "outer.glsl").write_text('// outer\n#include "inner.glsl"\n')
+    (tmp_path / "inner.glsl").write_text("// inner\n\nvec3 broken() { return oops; }\n")
+    (tmp_path / "main.frag").write_text(
+        '#version 330 core\nout vec4 f_color;\n#include "outer.glsl"\n'
+        "void main() {\n    f_color = vec4(broken(), 1.0);\n}\n"
+    )
+    with pytest.raises(ShaderError, match=r"inner\.glsl:3"):
+        load_program(ctx, "fullscreen.vert", "main.frag", directory=tmp_path)
+
+
 def test_a_severed_cloth_grows_its_buffers_once_and_then_uploads_positions_only(
         ctx: Any) -> None:
     import rustcloth

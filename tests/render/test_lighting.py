@@ -13,7 +13,7 @@ from PIL import Image
 from rustcloth.camera import Camera
 from rustcloth.render import Renderer
 from rustcloth.render import constants as K
-from rustcloth.render.lights import PRESET_NAMES
+from rustcloth.render.lights import PRESET_NAMES, key_direction, preset
 
 pytestmark = pytest.mark.render
 SIZE = (200, 150)
@@ -192,3 +192,35 @@ def test_a_scene_without_a_floor_still_shadows_its_ground(ctx: Any) -> None:
     r.shadows = False
     off = _frame(ctx, r, cam).astype(np.float32).mean(axis=2)
     assert ((off - on)[floor] > 20.0).sum() > 400
+
+
+
+@pytest.mark.parametrize("lights", PRESET_NAMES)
+def test_every_preset_casts_the_cloth_shadow_away_from_the_camera(lights: str) -> None:
+    # Under `night` the blue moon shone from behind the scene, so the cloth's shadow came
+    # towards the viewer across the floor the orange lamps light, and where it took the
+    # moonlight away the floor turned a saturated orange: a shadow that looked like a spill.
+    # The key light of every preset now travels away from the camera (its shadow falls
+    # behind what casts it), whichever side the scene is framed from.
+    for view_azimuth in (0.0, 90.0, 200.0):
+        travel = key_direction(preset(lights), view_azimuth)
+        a = np.radians(view_azimuth)
+        camera_side = np.array([np.sin(a), 0.0, np.cos(a)])
+        assert float(travel @ camera_side) < 0.0, (lights, view_azimuth, travel)
+
+
+def test_the_night_shadow_darkens_the_floor_more_than_it_tints_it(standin_cls: Any,
+                                                                  ctx: Any) -> None:
+    # The moon is a cool white, not blue, so its shadow on the lamp-lit floor takes away
+    # some of every channel rather than only the blue.
+    p = preset("night")
+    assert max(p.key_color) - min(p.key_color) < 0.2
+    r = Renderer(ctx, standin_cls(amp=0.0, height=1.0), SIZE, shadow_size=1024, lights="night")
+    cam = _camera()
+    lit_on = _frame(ctx, r, cam).astype(np.float32)
+    r.shadows = False
+    lit_off = _frame(ctx, r, cam).astype(np.float32)
+    shadowed = (lit_on.sum(axis=2) < lit_off.sum(axis=2) - 15.0)
+    assert shadowed.sum() > 50
+    on, off = lit_on[shadowed].mean(axis=0), lit_off[shadowed].mean(axis=0)
+    assert (on < off - 1.0).all(), (on, off)  # every channel darker

@@ -108,9 +108,14 @@ def test_budgeted_stepping_falls_behind_rather_than_spiralling(ctx: Any) -> None
     assert stepper.real_time_ratio() < 0.5
 
 
-def test_overlay_says_paused_alone_ssao_state_and_scene_keys(ctx: Any) -> None:
+def test_overlay_is_one_line_until_asked_and_says_paused_alone_ssao_state_and_scene_keys(
+        ctx: Any) -> None:
     viewer, fbo = _viewer(ctx)
     viewer.frame(fbo, 1 / 30)
+    assert len(viewer.status_lines()) == 1  # the details wait for D
+    assert "SSAO" not in _text(viewer) and "D details" in _text(viewer)
+    viewer.key("D")
+    assert len(viewer.status_lines()) > 1
     assert "SSAO off" in _text(viewer)
     viewer.key("O")
     assert "SSAO on" in _text(viewer)
@@ -252,3 +257,21 @@ def test_ctrl_left_button_is_the_collider_gesture(ctx: Any) -> None:
     assert viewer.interaction.collider is None
     demo.mouse_button(glfw.MOUSE_BUTTON_LEFT, glfw.PRESS, 0, x, y)
     assert viewer.pointer.mode == "grab" and viewer.interaction.collider is None
+
+
+def test_a_long_notice_wraps_into_a_block_instead_of_spanning_the_window(ctx: Any) -> None:
+    # The orange divergence notice used to wrap only at the window's width: on a 1280-pixel
+    # window it was a band across the whole picture.
+    from rustcloth.viewer.loop import OVERLAY_MAX_WIDTH
+
+    size = (1280, 720)
+    sim = rustcloth.Simulation(rustcloth.load_scene("hanging"))
+    viewer = Viewer(ctx, sim, size, name="hanging", realtime=False)
+    fbo = ctx.simple_framebuffer(size)
+    viewer.notify("explicit_euler diverged at t = 0.900 s (springs at 1.9e+05 times their rest "
+                  "length at 2 substeps): the steps before it were already unstable, so put "
+                  "back the cloth of t = 0.833 s, and raised substeps 2 -> 68", warning=True)
+    viewer.frame(fbo, 1 / 30)
+    width, height = viewer.renderer.panels["status"].texture.size
+    assert width <= OVERLAY_MAX_WIDTH and width < 0.6 * size[0]
+    assert height > 3 * 13  # wrapped onto several lines, all of it kept

@@ -101,6 +101,40 @@ def floor_quad(center: tuple[float, float], height: float, half: float) -> Mesh:
     return vertices, np.array([[0, 2, 1], [0, 3, 2]], dtype=np.uint32)
 
 
+def floor_grid(center: tuple[float, float], height: float, half: float, fine: float,
+               cells: int = 24) -> Mesh:
+    """A square at ``height`` facing +y, as :func:`floor_quad`, cut into a grid whose lines
+    are ``fine`` apart at the centre and spread out geometrically to the edge (``cells``
+    each way from the centre): for light computed per vertex, which must resolve a pool of
+    light near the scene but not one far away."""
+    fine = min(fine, half / cells)
+    # Offsets o_k = fine * (r^k - 1) / (r - 1), k = 0..cells, with o_cells = half.
+    lo, hi = 1.0, 2.0
+    while fine * (hi**cells - 1.0) / (hi - 1.0) < half:
+        hi *= 2.0
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if mid == 1.0 or fine * (mid**cells - 1.0) / (mid - 1.0) < half:
+            lo = mid
+        else:
+            hi = mid
+    r = 0.5 * (lo + hi)
+    k = np.arange(cells + 1, dtype=np.float64)
+    side = fine * (r**k - 1.0) / (r - 1.0) if r > 1.0 else fine * k
+    side *= half / side[-1]
+    axis = np.concatenate([-side[:0:-1], side])
+    m = len(axis)
+    gx, gz = np.meshgrid(axis, axis, indexing="xy")
+    p = np.column_stack([gx.ravel() + center[0], np.full(m * m, height), gz.ravel() + center[1]])
+    n = np.tile(np.array([0.0, 1.0, 0.0]), (m * m, 1))
+    uv = np.column_stack([gx.ravel(), gz.ravel()]) / (2.0 * half) + 0.5
+    vertices = np.hstack([p, n, uv]).astype(np.float32)
+    i, j = np.meshgrid(np.arange(m - 1), np.arange(m - 1), indexing="xy")
+    a = (j * m + i).ravel()
+    quads = np.stack([a, a + m + 1, a + 1, a, a + m, a + m + 1], axis=1)  # as floor_quad winds
+    return vertices, quads.reshape(-1, 3).astype(np.uint32)
+
+
 def flat_mesh(vertices: npt.ArrayLike, triangles: npt.ArrayLike) -> Mesh:
     """A triangle mesh as given, flat-shaded: three vertices of its own per triangle, with
     the triangle's normal (its winding's side), so hard edges stay hard."""

@@ -1,7 +1,9 @@
-"""The deferred renderer: one method per pass (shadow map, G-buffer, fill light and SSAO at half
-size, lighting or a debug view, FXAA, highlights, overlay), fed from persistent vertex
-buffers, skipping the work a frame does not need (the shadow map when nothing moved,
-everything but the last pass when nothing changed)."""
+"""The renderer: one method per pass, fed from persistent vertex buffers, skipping the work a
+frame does not need (the shadow map when nothing moved, everything but the last pass when
+nothing changed). Two quality tiers: ``full``, deferred (shadow map, G-buffer, fill light and
+SSAO at half size, lighting or a debug view, FXAA, highlights, overlay); and ``software``,
+for renderers without a GPU (shadow map, one forward pass shading each surface as it is
+drawn, the sky behind it, a plain copy, highlights, overlay)."""
 
 from __future__ import annotations
 
@@ -19,6 +21,7 @@ from . import meshes
 from .layout import SceneLayout, box_corners
 from .lights import PRESET_NAMES, LightPreset, key_direction, place_points, preset
 from .shaders import load_program
+from .tiers import SOFTWARE_SHADOW_SIZE, TIERS
 
 F32 = npt.NDArray[np.float32]
 VIEWS = K.VIEWS
@@ -76,6 +79,7 @@ class _Solid:
 
     vao: moderngl.VertexArray
     shadow_vao: moderngl.VertexArray
+    forward_vao: moderngl.VertexArray
     model: F32
     material: K.Material
     collider: int | None = None
@@ -91,11 +95,18 @@ class Renderer:
     (the vertex buffers grow then, if the cut vertices need more room). :meth:`render` then
     runs the passes. ``pass_timer``, when set, is called with each pass's name as it finishes
     (benches use it to time passes).
+
+    ``tier`` (one of :data:`TIERS`, settable at any time): ``software`` draws the lit view
+    in one forward pass, lit per vertex, with a shadow map of :data:`SOFTWARE_SHADOW_SIZE`,
+    no SSAO and no FXAA; the debug views and the scalar views draw as in ``full``.
     """
 
     def __init__(self, ctx: moderngl.Context, sim: ClothSource, size: tuple[int, int],
-                 shadow_size: int = 1024, lights: str = "studio") -> None:
+                 shadow_size: int = 1024, lights: str = "studio", tier: str = "full") -> None:
+        if tier not in TIERS:
+            raise ValueError(f"tier must be one of {', '.join(TIERS)}, not {tier!r}")
         self.ctx = ctx
+        self._tier = tier
         self.view = "lit"
         self.shadows = True
         self.fxaa = True
@@ -115,29 +126,28 @@ class Renderer:
         self.fill_prog = load_program(ctx, "fullscreen.vert", "fill.frag")
         self.lines = load_program(ctx, "lines.vert", "lines.frag")
         self.overlay_prog = load_program(ctx, "overlay.vert", "overlay.frag")
+        self.forward = load_program(ctx, "forward.vert", "forward.frag")
+        self.forward_cloth = load_program(ctx, "forward_cloth.vert", "forward_cloth.frag")
+        self.sky_prog = load_program(ctx, "fullscreen.vert", "sky.frag")
         # Full-screen passes draw one triangle from gl_VertexID: no vertex buffers.
         self.fullscreen = {
             p: ctx.vertex_array(p, [])
-            for p in (self.lighting, self.debug, self.fxaa_prog, self.fill_prog)
+            for p in (self.lighting, self.debug, self.fxaa_prog, self.fill_prog, self.sky_prog)
         }
 
-        self.shadow_depth = ctx.depth_texture((shadow_size, shadow_size))
-        self.shadow_depth.compare_func = "<="
-        # Linear filtering of a compare texture gives a free 2x2 PCF on every tap.
-        self.shadow_depth.filter = (moderngl.LINEAR, moderngl.LINEAR)
-        self.shadow_depth.repeat_x = self.shadow_depth.repeat_y = False
-        self.shadow_fbo = ctx.framebuffer(depth_attachment=self.shadow_depth)
-        self.shadow_size = shadow_size
+        self._full_shadow_size = shadow_size
+        self._make_shadow_map()
 
         # One unit sphere for every ``[[spheres]]`` sphere, scaled by its model matrix.
-        self.sphere_vbo, self.sphere_ibo, self.sphere_vao, self.sphere_shadow_vao = (
-            self._solid_buffers(meshes.uv_sphere(32, 64)))
+        (self.sphere_vbo, self.sphere_ibo, self.sphere_vao, self.sphere_shadow_vao,
+         self.sphere_forward_vao) = self._solid_buffers(meshes.uv_sphere(32, 64))
         self._collider_buffers: list[moderngl.Buffer] = []
         # Markers are a few pixels across: a coarse sphere (vertex work is not free here).
         marker_v, marker_i = meshes.uv_sphere(8, 16)
         self.marker_vbo = ctx.buffer(marker_v)
         self.marker_ibo = ctx.buffer(marker_i)
         self.marker_vao = self._mesh_vao(self.geometry, self.marker_vbo, self.marker_ibo)
+        self.marker_forward_vao = self._mesh_vao(self.forward, self.marker_vbo, self.marker_ibo)
 
         self.stroke_vbo = ctx.buffer(reserve=4096 * 12)
         self.stroke_vao = ctx.vertex_array(self.lines, [(self.stroke_vbo, "3f", "in_position")])
@@ -155,6 +165,37 @@ class Renderer:
         self.set_simulation(sim)
 
     @property
+    def tier(self) -> str:
+        """The quality tier, one of :data:`TIERS`."""
+        return self._tier
+
+    @tier.setter
+    def tier(self, tier: str) -> None:
+        if tier not in TIERS:
+            raise ValueError(f"tier must be one of {', '.join(TIERS)}, not {tier!r}")
+        if tier != self._tier:
+            self._tier = tier
+            self._make_shadow_map()
+            self.set_lights(self.lights.name)  # the shadow tolerance follows the map's texel
+
+    def _make_shadow_map(self) -> None:
+        """The key light's shadow map at the tier's size (drawn again before its next use)."""
+        size = (self._full_shadow_size if self._tier == "full"
+                else min(self._full_shadow_size, SOFTWARE_SHADOW_SIZE))
+        for name in ("shadow_fbo", "shadow_depth"):
+            old = getattr(self, name, None)
+            if old is not None:
+                old.release()
+        self.shadow_depth = self.ctx.depth_texture((size, size))
+        self.shadow_depth.compare_func = "<="
+        # Linear filtering of a compare texture gives a free 2x2 PCF on every tap.
+        self.shadow_depth.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        self.shadow_depth.repeat_x = self.shadow_depth.repeat_y = False
+        self.shadow_fbo = self.ctx.framebuffer(depth_attachment=self.shadow_depth)
+        self.shadow_size = size
+        self._shadow_positions = None
+
+    @property
     def show_colliders(self) -> bool:
         """Whether the scene's colliders and spheres are drawn (off: cloth, floor, markers)."""
         return self._show_colliders
@@ -169,17 +210,24 @@ class Renderer:
     def _mesh_vao(
         self, prog: moderngl.Program, vbo: moderngl.Buffer, ibo: moderngl.Buffer
     ) -> moderngl.VertexArray:
-        fmt: list[tuple[Any, ...]] = (
-            [(vbo, "3f 3f 2f", "in_position", "in_normal", "in_uv")] if "in_normal" in prog
-            else [(vbo, "3f 12x 8x", "in_position")])
+        # Position, normal, uv per vertex; a program gets the attributes it reads.
+        if "in_normal" not in prog:
+            fmt: list[tuple[Any, ...]] = [(vbo, "3f 12x 8x", "in_position")]
+        elif "in_uv" not in prog:
+            fmt = [(vbo, "3f 3f 8x", "in_position", "in_normal")]
+        else:
+            fmt = [(vbo, "3f 3f 2f", "in_position", "in_normal", "in_uv")]
         return self.ctx.vertex_array(prog, fmt, index_buffer=ibo, index_element_size=4)
 
     def _solid_buffers(self, mesh: meshes.Mesh) -> tuple[
-            moderngl.Buffer, moderngl.Buffer, moderngl.VertexArray, moderngl.VertexArray]:
-        """A mesh uploaded once, with its vertex arrays for the geometry and shadow passes."""
+            moderngl.Buffer, moderngl.Buffer, moderngl.VertexArray, moderngl.VertexArray,
+            moderngl.VertexArray]:
+        """A mesh uploaded once, with its vertex arrays for the geometry, shadow and forward
+        passes."""
         vbo, ibo = self.ctx.buffer(mesh[0]), self.ctx.buffer(mesh[1])
         return (vbo, ibo, self._mesh_vao(self.geometry, vbo, ibo),
-                self._mesh_vao(self.shadow_prog, vbo, ibo))
+                self._mesh_vao(self.shadow_prog, vbo, ibo),
+                self._mesh_vao(self.forward, vbo, ibo))
 
     def _build_solids(self, sim: ClothSource) -> None:
         """The spheres and the colliders, each collider's mesh built and uploaded once here
@@ -187,15 +235,15 @@ class Renderer:
         for buffer in self._collider_buffers:
             buffer.release()
         self._collider_buffers = []
-        self.solids = [_Solid(self.sphere_vao, self.sphere_shadow_vao,
+        self.solids = [_Solid(self.sphere_vao, self.sphere_shadow_vao, self.sphere_forward_vao,
                               meshes.translate_scale(s.center, s.radius), K.SPHERE)
                        for s in self.layout.spheres]
         for k, collider in enumerate(sim.colliders()):
-            vbo, ibo, vao, shadow_vao = self._solid_buffers(
+            vbo, ibo, vao, shadow_vao, forward_vao = self._solid_buffers(
                 meshes.collider_mesh(collider, _FLOOR_HALF_SIZE))
             self._collider_buffers += [vbo, ibo]
-            self.solids.append(_Solid(vao, shadow_vao, np.identity(4, dtype=np.float32),
-                                      K.COLLIDER, k))
+            self.solids.append(_Solid(vao, shadow_vao, forward_vao,
+                                      np.identity(4, dtype=np.float32), K.COLLIDER, k))
         self._poses: tuple[npt.NDArray[np.float64], ...] | None = None
 
     def _pose_colliders(self) -> None:
@@ -223,8 +271,8 @@ class Renderer:
         inner = (max(1, round(size[0] * scale)), max(1, round(size[1] * scale)))
         if size == self.size and inner == self.inner:
             return
-        for name in ("gbuffer", "g_normal", "g_albedo", "g_depth", "lit_fbo", "lit",
-                     "fill_fbo", "fill"):
+        for name in ("gbuffer", "g_normal", "g_albedo", "g_depth", "lit_fbo", "forward_fbo",
+                     "forward_depth", "lit", "fill_fbo", "fill"):
             old = getattr(self, name, None)
             if old is not None:
                 old.release()
@@ -244,6 +292,10 @@ class Renderer:
         self.lit.filter = (moderngl.LINEAR, moderngl.LINEAR)
         self.lit.repeat_x = self.lit.repeat_y = False
         self.lit_fbo = ctx.framebuffer(color_attachments=[self.lit])
+        # The software tier's forward pass draws into the lit image with a depth buffer.
+        self.forward_depth = ctx.depth_renderbuffer(size)
+        self.forward_fbo = ctx.framebuffer(color_attachments=[self.lit],
+                                           depth_attachment=self.forward_depth)
         # rgb: the point lights' irradiance (can exceed 1); a: ambient occlusion.
         self.fill = ctx.texture((max(1, size[0] // 2), max(1, size[1] // 2)), 4, dtype="f2")
         self.fill.filter = (moderngl.LINEAR, moderngl.LINEAR)
@@ -257,7 +309,7 @@ class Renderer:
         else read here)."""
         ctx = self.ctx
         for name in ("cloth_pos", "cloth_nrm", "cloth_uv", "cloth_scalar", "cloth_ibo",
-                     "floor_vbo", "floor_ibo"):
+                     "floor_vbo", "floor_ibo", "floor_grid_vbo", "floor_grid_ibo"):
             old = getattr(self, name, None)
             if old is not None:
                 old.release()
@@ -284,6 +336,15 @@ class Renderer:
             self.shadow_prog, [(self.cloth_pos, "3f", "in_position")],
             index_buffer=self.cloth_ibo, index_element_size=4,
         )
+        self.cloth_forward_vao = ctx.vertex_array(
+            self.forward_cloth,
+            [
+                (self.cloth_pos, "3f", "in_position"),
+                (self.cloth_nrm, "3f", "in_normal"),
+                (self.cloth_uv, "2f", "in_uv"),
+            ],
+            index_buffer=self.cloth_ibo, index_element_size=4,
+        )
         self._topology = -1
         self.index_count = 0
         self.positions = np.zeros((n, 3), dtype=np.float32)
@@ -297,6 +358,13 @@ class Renderer:
         self.floor_vbo = ctx.buffer(floor_v)
         self.floor_ibo = ctx.buffer(floor_i)
         self.floor_vao = self._mesh_vao(self.geometry, self.floor_vbo, self.floor_ibo)
+        # The software tier lights the floor per vertex: a grid, fine where the lights are.
+        grid_v, grid_i = meshes.floor_grid((float(center[0]), float(center[2])), lay.ground,
+                                           _FLOOR_HALF_SIZE, 0.04 * lay.span + 0.02)
+        self.floor_grid_vbo = ctx.buffer(grid_v)
+        self.floor_grid_ibo = ctx.buffer(grid_i)
+        self.floor_forward_vao = self._mesh_vao(self.forward, self.floor_grid_vbo,
+                                                self.floor_grid_ibo)
         self._build_solids(sim)
         self.set_lights(self.lights.name)
         self.update()
@@ -412,13 +480,19 @@ class Renderer:
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
         lit_view = self.view not in K.GBUFFER_VIEWS
+        forward = self.tier == "software" and self.view == "lit"
         # The lit image is kept (and anti-aliased or scaled up by the last pass) unless it
         # can go straight to the target: a debug view at full scale.
-        retained = (self.fxaa and lit_view) or self.inner != self.size
+        retained = (self.fxaa and lit_view) or self.inner != self.size or forward
         key = (self._state_serial, camera.view_projection.tobytes(), self.view, self.ssao,
                self.shadows, self.point_lights, self.lights.name, self.inner, self.highlight,
-               self.show_colliders)
-        if not (retained and key == self._lit_key):
+               self.show_colliders, self.tier)
+        if forward:
+            if key != self._lit_key:
+                self._shadow_pass()
+                self._forward_pass(camera)
+                self._lit_key = key
+        elif not (retained and key == self._lit_key):
             self._shadow_pass()
             self._geometry_pass(camera)
             ctx.disable(moderngl.DEPTH_TEST)
@@ -431,7 +505,9 @@ class Renderer:
                 self._debug_pass(camera, out)
             self._lit_key = key if retained else None
         ctx.disable(moderngl.DEPTH_TEST)
-        if retained:
+        if forward and self.inner == self.size:
+            self._copy_pass(target)
+        elif retained:
             self._fxaa_pass(target)
         self._stroke_pass(target, camera)
         self._overlay_pass(target)
@@ -469,34 +545,53 @@ class Renderer:
     def _geometry_pass(self, camera: Camera) -> None:
         # Geometry: every surface into the G-buffer (normal, albedo + material id, depth),
         # nearest first so the floor's hidden pixels fail the depth test early.
-        self.gbuffer.use()
-        self.gbuffer.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         g = self.geometry
+        self._begin_surfaces(self.gbuffer, (g,), camera, alpha=0.0)
+        lay = self.layout
+        _uniforms(g, view=K.VIEW_IDS[self.view],
+                  grid_cells=(float(lay.grid[0] - 1), float(lay.grid[1] - 1)))
+        self._draw_surfaces(g, g, self.cloth_vao, [s.vao for s in self.solids],
+                            self.marker_vao, self.floor_vao)
+        self._done("geometry")
+
+    def _begin_surfaces(self, fbo: moderngl.Framebuffer, progs: tuple[moderngl.Program, ...],
+                        camera: Camera, alpha: float) -> None:
+        """Clear ``fbo`` (colour to black with ``alpha``) and give ``progs`` the camera and the
+        cloth's sides and size, for :meth:`_draw_surfaces`."""
+        fbo.use()
+        fbo.clear(0.0, 0.0, 0.0, alpha, depth=1.0)
         view_proj = camera.view_projection
         self._inv_view_proj = np.linalg.inv(view_proj.astype(np.float64)).astype(np.float32)
         lay = self.layout
-        _uniforms(g, view_proj=view_proj, view=K.VIEW_IDS[self.view],
-                  front_is_winding=lay.front_is_winding, cloth_size=lay.cloth_size,
-                  grid_cells=(float(lay.grid[0] - 1), float(lay.grid[1] - 1)))
+        for prog in progs:
+            _uniforms(prog, view_proj=view_proj, front_is_winding=lay.front_is_winding,
+                      cloth_size=lay.cloth_size)
+
+    def _draw_surfaces(self, cloth_prog: moderngl.Program, prog: moderngl.Program,
+                       cloth: moderngl.VertexArray, solids: list[moderngl.VertexArray],
+                       marker: moderngl.VertexArray, floor: moderngl.VertexArray) -> None:
+        """The cloth with ``cloth_prog``, then spheres and colliders, markers, floor (nearest
+        first) with ``prog``, through the vertex arrays given for them (``solids``: one per
+        :attr:`solids`)."""
+        lay = self.layout
         if self.index_count:
-            _uniforms(g, model=np.identity(4, dtype=np.float32), material=K.CLOTH_FRONT.id,
-                      base_color=K.srgb_to_linear(K.CLOTH_FRONT.color))
-            self.cloth_vao.render(vertices=self.index_count)
-        for solid in self._shown_solids():
-            self._draw_mesh(solid.vao, solid.model, solid.material.id,
-                            K.srgb_to_linear(solid.material.color))
+            _uniforms(cloth_prog, model=np.identity(4, dtype=np.float32),
+                      material=K.CLOTH_FRONT.id, base_color=K.srgb_to_linear(K.CLOTH_FRONT.color))
+            cloth.render(vertices=self.index_count)
+        for solid, vao in zip(self.solids, solids, strict=True):
+            if self.show_colliders:
+                self._draw_mesh(prog, vao, solid.model, solid.material.id,
+                                K.srgb_to_linear(solid.material.color))
         if self.highlight is not None and 0 <= self.highlight < len(self.positions):
             model = meshes.translate_scale(self.positions[self.highlight], 0.9 * lay.spacing)
-            self._draw_mesh(self.marker_vao, model, K.MARKER.id,
-                            K.srgb_to_linear(K.MARKER.color))
+            self._draw_mesh(prog, marker, model, K.MARKER.id, K.srgb_to_linear(K.MARKER.color))
         if self.view == "lit" and self.point_lights:
             size = 0.015 * lay.span + 0.02
             for pos, color in zip(self.points.positions, self.points.marker_colors, strict=True):
-                self._draw_mesh(self.marker_vao, meshes.translate_scale(pos, size), K.LIGHT.id,
+                self._draw_mesh(prog, marker, meshes.translate_scale(pos, size), K.LIGHT.id,
                                 (float(color[0]), float(color[1]), float(color[2])))
-        self._draw_mesh(self.floor_vao, np.identity(4, dtype=np.float32), K.FLOOR.id,
+        self._draw_mesh(prog, floor, np.identity(4, dtype=np.float32), K.FLOOR.id,
                         K.srgb_to_linear(K.FLOOR.color))
-        self._done("geometry")
 
     def _shown_solids(self) -> list[_Solid]:
         return self.solids if self.show_colliders else []
@@ -525,24 +620,53 @@ class Renderer:
         # Lighting: key light with shadows, point lights, ambient, fog; tone-mapped sRGB out.
         out.use()
         lp = self.lighting
-        lights = self.lights
         _bind(lp, {"g_normal": self.g_normal, "g_albedo": self.g_albedo,
                    "g_depth": self.g_depth, "shadow_map": self.shadow_depth,
                    "fill_map": self.fill})
-        distance = float(np.linalg.norm(camera.eye - camera.target))
-        _uniforms(
-            lp, inv_view_proj=self._inv_view_proj, light_view_proj=self.light_view_proj,
-            eye=tuple(camera.eye), key_dir=tuple(self.light_dir),
-            key_color=_scaled(lights.key_color, lights.key_intensity),
-            shadows_enabled=self.shadows, shadow_texel=1.0 / self.shadow_size,
-            sky_zenith=K.srgb_to_linear(lights.sky_zenith),
-            sky_horizon=K.srgb_to_linear(lights.sky_horizon),
-            ground_color=K.srgb_to_linear(lights.ground), ambient=lights.ambient,
-            fog_range=(distance + 1.0 * self.layout.span, distance + 14.0),
-            exposure=lights.exposure, scalar_view=self.view in K.SCALAR_VIEWS,
-            **self._point_uniforms())
+        _uniforms(lp, inv_view_proj=self._inv_view_proj,
+                  scalar_view=self.view in K.SCALAR_VIEWS, **self._light_uniforms(camera))
         self.fullscreen[lp].render(moderngl.TRIANGLES, vertices=3)
         self._done("lighting")
+
+    def _light_uniforms(self, camera: Camera) -> dict[str, Any]:
+        """The key light, its shadow map, sky, ambient, point lights, fog and exposure: what
+        the lighting pass and the forward pass both shade with."""
+        lights = self.lights
+        distance = float(np.linalg.norm(camera.eye - camera.target))
+        return {"light_view_proj": self.light_view_proj, "eye": tuple(camera.eye),
+                "key_dir": tuple(self.light_dir),
+                "key_color": _scaled(lights.key_color, lights.key_intensity),
+                "shadows_enabled": self.shadows, "shadow_texel": 1.0 / self.shadow_size,
+                "sky_zenith": K.srgb_to_linear(lights.sky_zenith),
+                "sky_horizon": K.srgb_to_linear(lights.sky_horizon),
+                "ground_color": K.srgb_to_linear(lights.ground), "ambient": lights.ambient,
+                "fog_range": (distance + 1.0 * self.layout.span, distance + 14.0),
+                "exposure": lights.exposure, **self._point_uniforms()}
+
+    def _forward_pass(self, camera: Camera) -> None:
+        # Forward (software tier): every surface shaded as it is drawn into the lit image,
+        # nearest first so hidden pixels fail the depth test before shading; then the sky at
+        # the far plane, paid only where nothing was drawn.
+        ctx = self.ctx
+        fp, fc = self.forward, self.forward_cloth
+        self._begin_surfaces(self.forward_fbo, (fp, fc), camera, alpha=1.0)
+        light = self._light_uniforms(camera)
+        for prog in (fp, fc):
+            _bind(prog, {"shadow_map": self.shadow_depth})
+            _uniforms(prog, **light)
+        self._draw_surfaces(fc, fp, self.cloth_forward_vao,
+                            [s.forward_vao for s in self.solids], self.marker_forward_vao,
+                            self.floor_forward_vao)
+        ctx.depth_func = "<="
+        sky = self.sky_prog
+        lights = self.lights
+        _uniforms(sky, ndc_depth=1.0, inv_view_proj=self._inv_view_proj, eye=tuple(camera.eye),
+                  sky_zenith=K.srgb_to_linear(lights.sky_zenith),
+                  sky_horizon=K.srgb_to_linear(lights.sky_horizon), exposure=lights.exposure)
+        self.fullscreen[sky].render(moderngl.TRIANGLES, vertices=3)
+        ctx.depth_func = "<"
+        ctx.disable(moderngl.DEPTH_TEST)
+        self._done("forward")
 
     def _debug_pass(self, camera: Camera, out: moderngl.Framebuffer) -> None:
         # Debug: one raw G-buffer channel (or the shadow map) instead of lighting.
@@ -566,10 +690,16 @@ class Renderer:
         f = self.fxaa_prog
         _bind(f, {"image": self.lit})
         w, h = self.inner
-        _uniforms(f, texel=(1.0 / w, 1.0 / h), enabled=self.fxaa and self.view not in
-                  K.GBUFFER_VIEWS)
+        _uniforms(f, texel=(1.0 / w, 1.0 / h), enabled=self.fxaa and self.tier == "full"
+                  and self.view not in K.GBUFFER_VIEWS)
         self.fullscreen[f].render(moderngl.TRIANGLES, vertices=3)
         self._done("fxaa")
+
+    def _copy_pass(self, target: moderngl.Framebuffer) -> None:
+        # Copy (software tier at full scale): the lit image into the caller's target by a
+        # framebuffer blit, a memory copy where a textured pass would filter every pixel.
+        self.ctx.copy_framebuffer(target, self.forward_fbo)
+        self._done("copy")
 
     def _stroke_pass(self, target: moderngl.Framebuffer, camera: Camera) -> None:
         # Highlights: the cut stroke on top of everything, so it stays visible behind folds.
@@ -600,9 +730,10 @@ class Renderer:
         ctx.disable(moderngl.BLEND)
         self._done("overlay")
 
-    def _draw_mesh(self, vao: moderngl.VertexArray, model: F32, material: int,
-                   color: tuple[float, float, float]) -> None:
-        _uniforms(self.geometry, model=model, material=material, base_color=color)
+    @staticmethod
+    def _draw_mesh(prog: moderngl.Program, vao: moderngl.VertexArray, model: F32,
+                   material: int, color: tuple[float, float, float]) -> None:
+        _uniforms(prog, model=model, material=material, base_color=color)
         vao.render()
 
     # -- read-back (tests, headless) -------------------------------------------------------

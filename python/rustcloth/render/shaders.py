@@ -1,5 +1,5 @@
-"""Load GLSL programs from ``rustcloth/shaders`` with the shared constants prepended, and report
-compile errors by file and line."""
+"""Load GLSL programs from ``rustcloth/shaders`` with the shared constants prepended and their
+``#include "file.glsl"`` lines expanded, and report compile errors by file and line."""
 
 from __future__ import annotations
 
@@ -13,8 +13,10 @@ from .constants import glsl_header
 
 SHADER_DIR = Path(str(resources.files("rustcloth") / "shaders"))
 
-# Mesa prints "0:12(5): error: ...", NVIDIA "0(12) : error ...": capture the line number.
-_LINE = re.compile(r"^\s*\d+[:(](\d+)[)(:]?[\d)]*\s*:?\s*(.*)$")
+# Mesa prints "0:12(5): error: ...", NVIDIA "0(12) : error ...": the source string (0 for the
+# file itself, k for its k-th include, as the #line directives number them) and the line.
+_LINE = re.compile(r"^\s*(\d+)[:(](\d+)[)(:]?[\d)]*\s*:?\s*(.*)$")
+_INCLUDE = re.compile(r'^#include "([\w.]+)"\s*$')
 _STAGES = {"vertex_shader": "vertex_shader", "fragment_shader": "fragment_shader"}
 
 
@@ -31,7 +33,32 @@ def with_constants(source: str) -> str:
     return f"{first}{newline}{glsl_header()}#line 2\n{rest}"
 
 
-def _locate(message: str, files: dict[str, str]) -> str:
+def expand_includes(source: str, directory: Path) -> tuple[str, list[str]]:
+    """``source`` with each ``#include "name"`` line replaced by that file (and its own
+    includes), each numbered as its own source string by ``#line`` so errors name it; and the
+    included files' paths, in that numbering (the first is source string 1)."""
+    included: list[str] = []
+
+    def expand(text: str, number: int, depth: int) -> list[str]:
+        out: list[str] = []
+        for line_no, line in enumerate(text.split("\n"), start=1):
+            m = _INCLUDE.match(line)
+            if m is None:
+                out.append(line)
+                continue
+            if depth > 8:
+                raise ShaderError(f"{m.group(1)}: includes nested more than 8 deep")
+            path = directory / m.group(1)
+            included.append(str(path))
+            inner = path.read_text(encoding="utf-8").rstrip("\n")
+            out += [f"#line 1 {len(included)}", *expand(inner, len(included), depth + 1),
+                    f"#line {line_no + 1} {number}"]
+        return out
+
+    return "\n".join(expand(source, 0, 0)), included
+
+
+def _locate(message: str, files: dict[str, list[str]]) -> str:
     """Rewrite the driver's log so each error names the shader file and line."""
     stage = None
     lines = []
@@ -41,8 +68,8 @@ def _locate(message: str, files: dict[str, str]) -> str:
             stage = key
             continue
         m = _LINE.match(raw)
-        if m and stage in files:
-            lines.append(f"{files[stage]}:{m.group(1)}: {m.group(2)}")
+        if m and stage in files and int(m.group(1)) < len(files[stage]):
+            lines.append(f"{files[stage][int(m.group(1))]}:{m.group(2)}: {m.group(3)}")
         elif key and not set(key) <= {"="}:
             lines.append(key)
     return "\n".join(lines)
@@ -53,10 +80,15 @@ def load_program(
 ) -> moderngl.Program:
     """Compile ``vertex`` and ``fragment`` (file names in the shader directory)."""
     directory = SHADER_DIR if directory is None else directory
-    files = {"vertex_shader": str(directory / vertex), "fragment_shader": str(directory / fragment)}
-    vs, fs = (with_constants(Path(files[stage]).read_text(encoding="utf-8"))
-              for stage in ("vertex_shader", "fragment_shader"))
+    files: dict[str, list[str]] = {}
+    sources: dict[str, str] = {}
+    for stage, name in (("vertex_shader", vertex), ("fragment_shader", fragment)):
+        path = directory / name
+        text, included = expand_includes(path.read_text(encoding="utf-8"), directory)
+        files[stage] = [str(path), *included]
+        sources[stage] = with_constants(text)
     try:
-        return ctx.program(vertex_shader=vs, fragment_shader=fs)
+        return ctx.program(vertex_shader=sources["vertex_shader"],
+                           fragment_shader=sources["fragment_shader"])
     except moderngl.Error as err:
         raise ShaderError(_locate(str(err), files)) from None

@@ -37,35 +37,7 @@ out vec4 f_color;
 
 const float PI = 3.14159265;
 
-// The sRGB transfer curve by three square roots (Ian Taylor's fit, within a quarter of an
-// 8-bit step of the exact curve): a third of the cost of pow on llvmpipe.
-vec3 srgb_encode(vec3 c) {
-    vec3 s1 = sqrt(clamp(c, 0.0, 1.0));
-    vec3 s2 = sqrt(s1);
-    vec3 s3 = sqrt(s2);
-    return clamp(0.585122381 * s1 + 0.783140355 * s2 - 0.368262736 * s3, 0.0, 1.0);
-}
-
-// Khronos PBR Neutral: identity below 0.76, a soft shoulder above, hue kept.
-vec3 tonemap(vec3 c) {
-    const float start = 0.8 - 0.04;
-    const float desaturation = 0.15;
-    float x = min(c.r, min(c.g, c.b));
-    float offset = x < 0.08 ? x - 6.25 * x * x : 0.04;
-    c -= offset;
-    float peak = max(c.r, max(c.g, c.b));
-    if (peak < start) return c;
-    const float d = 1.0 - start;
-    float new_peak = 1.0 - d * d / (peak + d - start);
-    c *= new_peak / peak;
-    float g = 1.0 - 1.0 / (desaturation * (peak - new_peak) + 1.0);
-    return mix(c, vec3(new_peak), g);
-}
-
-vec3 sky(vec3 dir) {
-    float up = clamp(dir.y, 0.0, 1.0);
-    return mix(sky_horizon, sky_zenith, sqrt(up));
-}
+#include "tonemap.glsl"
 
 // -- BRDFs ----------------------------------------------------------------------------------
 // Charlie sheen distribution (Estevez and Kulla 2017), alpha = roughness^2.
@@ -191,9 +163,7 @@ void main() {
     vec4 albedo_mat = texture(g_albedo, v_uv);
     int mat = int(albedo_mat.a * 255.0 + 0.5);
     vec3 color;
-    // Interleaved gradient noise (Jimenez), +-0.5 of an 8-bit step: no banding, no sin.
-    float dither = (fract(52.9829189 * fract(dot(gl_FragCoord.xy, vec2(0.06711056, 0.00583715))))
-                    - 0.5) / 255.0;
+    float dither = dither8(gl_FragCoord.xy);
     if (mat == 0) {
         f_color = vec4(srgb_encode(tonemap(sky(view_dir) * exposure)) + dither, 1.0);
         return;

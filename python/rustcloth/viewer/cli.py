@@ -22,6 +22,7 @@ from .._cli import USER_ERRORS, Parser, describe, guarded, positive, positive_in
 from .._extras import require
 from ..render.constants import VIEWS
 from ..render.lights import PRESET_NAMES
+from ..render.tiers import TIERS
 from .script import ScriptPlayer, default_script
 
 #: Modules of the viewer extra each command cannot start without.
@@ -70,11 +71,21 @@ def _script(parser: argparse.ArgumentParser, path: Path | None) -> list[dict[str
     return events
 
 
-def _add_look(parser: argparse.ArgumentParser) -> None:
+def _add_look(parser: argparse.ArgumentParser, tier: str) -> None:
     parser.add_argument("--lights", choices=PRESET_NAMES, default=PRESET_NAMES[0],
                         help="light preset (L cycles them in the demo)")
     parser.add_argument("--ssao", action="store_true",
-                        help="screen-space ambient occlusion (O toggles it in the demo)")
+                        help="screen-space ambient occlusion (O toggles it in the demo; "
+                             "full tier only)")
+    parser.add_argument("--tier", choices=("auto", *TIERS), default=tier,
+                        help="rendering quality: full (deferred, for a GPU), software (one "
+                             "forward pass lit per vertex, for GL without a GPU such as "
+                             "llvmpipe), auto: software when GL_RENDERER names a CPU "
+                             "rasteriser (Q switches in the demo)")
+
+
+def _tier(name: str) -> str | None:
+    return None if name == "auto" else name
 
 
 def _notice(text: str) -> None:
@@ -97,7 +108,7 @@ def demo_parser() -> argparse.ArgumentParser:
     parser.add_argument("--render-scale", type=_scale, default="auto", metavar="auto|0.25..1",
                         help="share of the window's resolution the 3D passes draw, each way "
                              "(auto: lowered while a frame takes over 40 ms to render)")
-    _add_look(parser)
+    _add_look(parser, "auto")
     return parser
 
 
@@ -117,7 +128,8 @@ def _demo(argv: list[str]) -> int:
 
     try:
         demo = Demo(args.scene, args.size, script=script, lights=args.lights, ssao=args.ssao,
-                    on_notice=_notice, render_scale=args.render_scale)
+                    on_notice=_notice, render_scale=args.render_scale,
+                    tier=_tier(args.tier))
     except DisplayUnavailable as err:
         no_display = str(err)
     except GLUnavailable as err:
@@ -142,7 +154,7 @@ def _demo(argv: list[str]) -> int:
     print(f"{no_display}: rendering headless to {args.out} instead")
     return main_render([args.scene, "--out", str(args.out), "--gif",
                         "--frames", str(args.frames or 150), "--size", "640x480",
-                        "--lights", args.lights, "--overlay"]
+                        "--lights", args.lights, "--overlay", "--tier", args.tier]
                        + (["--ssao"] if args.ssao else [])
                        + (["--script", str(args.script)] if args.script else ["--demo-script"]))
 
@@ -172,7 +184,7 @@ def render_parser() -> argparse.ArgumentParser:
     parser.add_argument("--view", choices=VIEWS, default="lit", help="what to show")
     parser.add_argument("--overlay", action="store_true",
                         help="draw the status text and the debug view's legend")
-    _add_look(parser)
+    _add_look(parser, "full")
     return parser
 
 
@@ -210,7 +222,7 @@ def _render(argv: list[str]) -> int:
         written, stats = write_outputs(
             sim, out, args.size, args.frames, args.fps, script, gif=args.gif, mp4=args.mp4,
             name=Path(args.scene).stem, view=args.view, ssao=args.ssao, lights=args.lights,
-            overlay=args.overlay, on_notice=_notice)
+            overlay=args.overlay, on_notice=_notice, tier=_tier(args.tier))
     except GLUnavailable as err:
         print(f"rustcloth render: error: {err}", file=sys.stderr)
         return 1

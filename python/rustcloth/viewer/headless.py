@@ -42,17 +42,19 @@ def render_frames(
     script: list[dict[str, Any]] | None, *, name: str = "scene", view: str = "lit",
     ssao: bool = False, lights: str = "studio", overlay: bool = False, progress: bool = True,
     sink: Callable[[int, Frame], None] | None = None, ctx: moderngl.Context | None = None,
-    on_notice: Callable[[str], None] | None = None,
+    on_notice: Callable[[str], None] | None = None, tier: str | None = "full",
 ) -> tuple[list[Frame], RenderStats]:
     """Simulate and render ``frames`` frames at ``fps`` offscreen; returns RGB frames (rows top
     to bottom) unless ``sink`` (called with each frame index and image) takes them. Uses
-    ``ctx`` if given, else a standalone EGL context of its own."""
+    ``ctx`` if given, else a standalone EGL context of its own. ``tier``: the renderer's
+    quality tier (None: the one the context calls for)."""
     own = ctx is None
     if ctx is None:
         ctx = create_standalone_context()
     try:
         viewer = Viewer(ctx, sim, size, name=name, realtime=False, script=script, view=view,
-                        ssao=ssao, lights=lights, overlay=overlay, on_notice=on_notice)
+                        ssao=ssao, lights=lights, overlay=overlay, on_notice=on_notice,
+                        tier=tier)
         w, h = size
         color = ctx.renderbuffer(size, 4)
         fbo = ctx.framebuffer(color_attachments=[color])
@@ -87,6 +89,23 @@ def render_frames(
             ctx.release()
 
 
+def gif_frame(frame: Frame) -> Image.Image:
+    """One RGB frame as a GIF frame: a palette of its own 256 colours (median cut) and
+    Floyd-Steinberg dithering into it, so a smooth gradient (the sky, the floor's fog) shows
+    as fine noise, not as bands of flat colour."""
+    image = Image.fromarray(frame)
+    palette = image.quantize(colors=256, method=Image.Quantize.MEDIANCUT,
+                             dither=Image.Dither.NONE)
+    return image.quantize(palette=palette, dither=Image.Dither.FLOYDSTEINBERG)
+
+
+def write_gif(path: Path, frames: list[Frame], fps: float) -> None:
+    """An animated GIF, looping, each frame with its own palette (:func:`gif_frame`)."""
+    images = [gif_frame(f) for f in frames]
+    images[0].save(path, save_all=True, append_images=images[1:],
+                   duration=round(1000.0 / fps), loop=0, optimize=False)
+
+
 def write_outputs(
     sim: Any, out_dir: Path, size: tuple[int, int], frames: int, fps: float,
     script: list[dict[str, Any]] | None, *, gif: bool, mp4: bool, **options: Any,
@@ -106,10 +125,8 @@ def write_outputs(
 
     _, stats = render_frames(sim, size, frames, fps, script, sink=sink, **options)
     if gif:
-        import imageio.v3 as iio
-
         path = out_dir / "animation.gif"
-        iio.imwrite(path, np.stack(keep), duration=1000.0 / fps, loop=0)
+        write_gif(path, keep, fps)
         written.append(path)
     if mp4:
         import imageio.v3 as iio

@@ -13,6 +13,8 @@ KEYS: dict[str, tuple[str, str]] = {
     "V": ("next_view", "next debug view"),
     "O": ("toggle_ssao", "ambient occlusion on / off"),
     "L": ("next_lights", "next light preset"),
+    "Q": ("next_tier", "quality tier: full / software"),
+    "D": ("toggle_details", "overlay details"),
     "H": ("toggle_help", "this help"),
     "ESCAPE": ("quit", "quit"),
 }

@@ -16,6 +16,7 @@ from ..drivers import driver_for
 from ..render.constants import VIEWS
 from ..render.overlay import Line, legend, text_panel
 from ..render.renderer import Renderer
+from ..render.tiers import TIERS, auto_tier
 from .interaction import Interaction, Pointer
 from .keys import KEYS, command_for, scene_key_help
 from .physics import MIN_BUDGET_S, FramePhysics, Stepper
@@ -29,6 +30,9 @@ NOTICE_SECONDS = 8.0
 """How long a notice stays on the overlay (viewer clock)."""
 OVERLAY_PERIOD = 0.25
 """Seconds between overlay refreshes when running live."""
+OVERLAY_MAX_WIDTH = 720
+"""Overlay text wraps at this many pixels (or the window's width), so a long notice is a
+short block in the corner, not a band across the window."""
 WARNING = (255, 170, 60)
 KEY_LABELS = {"SPACE": "Space", "EQUAL": "+", "MINUS": "-", "ESCAPE": "Esc"}
 MOUSE_HELP = [
@@ -52,7 +56,9 @@ class Viewer:
     ``render_scale``: the 3D passes' share of the output resolution, each way; None: 1 when
     offline, adapted to :data:`RENDER_TARGET_S` when live.
     ``make_sim`` builds the simulation for a scene name (keys 1..9); ``on_notice`` hears
-    every notice the overlay shows (the demo prints them).
+    every notice the overlay shows (the demo prints them). ``tier``: the renderer's quality
+    tier (:data:`~rustcloth.render.renderer.TIERS`), None for the one the context calls for
+    (``software`` on a CPU rasteriser).
     """
 
     def __init__(self, ctx: moderngl.Context, sim: Any, size: tuple[int, int], *,
@@ -61,7 +67,7 @@ class Viewer:
                  ssao: bool = False, lights: str = "studio", overlay: bool = True,
                  make_sim: Callable[[str], Any] = make_simulation,
                  on_notice: Callable[[str], None] | None = None,
-                 render_scale: float | None = None) -> None:
+                 render_scale: float | None = None, tier: str | None = "full") -> None:
         self.ctx = ctx
         self.size = size
         self.pointer_size = size
@@ -69,7 +75,8 @@ class Viewer:
         self.overlay = overlay
         self.make_sim = make_sim
         self.on_notice = on_notice
-        self.renderer = Renderer(ctx, sim, size, lights=lights)
+        self.renderer = Renderer(ctx, sim, size, lights=lights,
+                                 tier=auto_tier(ctx) if tier is None else tier)
         self.renderer.view = view
         self.renderer.ssao = ssao
         self.auto_scale = realtime and render_scale is None
@@ -85,6 +92,7 @@ class Viewer:
         self.last_physics = FramePhysics()
         self.paused = False
         self.show_help = False
+        self.show_details = False
         self.quit = False
         self.notices: list[tuple[str, float, bool]] = []
         self._fps_at, self._fps_frames = time.perf_counter(), 0
@@ -133,11 +141,18 @@ class Viewer:
             self._adapt_scale()
 
     def _adapt_scale(self) -> None:
-        """Trade resolution for frame rate, at most once per :data:`SCALE_PERIOD`."""
+        """Trade resolution for frame rate, at most once per :data:`SCALE_PERIOD`, in the
+        full tier. The software tier stays at full resolution: on a CPU rasteriser scaling
+        the image up is a textured full-screen pass that costs about what drawing fewer
+        pixels saves (at 1280x720 on llvmpipe a 70 % frame cost more than a full one)."""
+        r = self.renderer
+        if r.tier == "software":
+            if r.scale < 1.0:
+                r.resize(self.size, 1.0)
+            return
         now = time.perf_counter()
         if now - self._scaled_at < SCALE_PERIOD:
             return
-        r = self.renderer
         scale = r.scale
         if self.render_s > RENDER_TARGET_S and scale > MIN_SCALE:
             scale = max(MIN_SCALE, scale * SCALE_STEP)
@@ -203,19 +218,30 @@ class Viewer:
         substeps = f"substeps {sim.substeps}"
         if self.stepper.recovery.raised:
             substeps += f" (raised from {self.stepper.recovery.chosen_substeps})"
+        # One line unless asked (D): what a person watching needs, and what changed without
+        # their asking (a raised substep count, a SLOW or PAUSED state).
+        raised = f"  {substeps}" if self.stepper.recovery.raised else ""
+        tier = "  software tier (Q)" if r.tier == "software" else ""
         lines: list[Line] = [
-            f"{self.name}  t = {sim.time:.2f} s  {self.fps:.1f} fps  render "
-            f"{1e3 * self.render_s:.1f} ms{scale}  physics {1e3 * physics.seconds:.1f} ms/frame "
-            f"({physics.steps} steps, {per_step:.2f} ms/step)  {state}".rstrip(),
-            f"{sim.num_particles} particles  {self._pieces()} pieces  {sim.integrator}  "
-            f"dt {sim.dt:g} s  {substeps}  "
-            f"view {r.view}  lights {r.lights.name}  SSAO {'on' if r.ssao else 'off'}",
-            f"effects: {', '.join(sim.effects)}",
-        ]
+            f"{self.name}  t = {sim.time:.2f} s  {self.fps:.1f} fps{tier}{raised}  "
+            f"H help  D details  {state}".rstrip()]
+        if self.show_details:
+            ssao = "on" if r.ssao else "off"
+            if r.ssao and r.tier == "software" and r.view == "lit":
+                ssao = "on (drawn in the full tier only)"
+            lines += [
+                f"render {1e3 * self.render_s:.1f} ms{scale} ({r.tier} tier)  physics "
+                f"{1e3 * physics.seconds:.1f} ms/frame ({physics.steps} steps, "
+                f"{per_step:.2f} ms/step)",
+                f"{sim.num_particles} particles  {self._pieces()} pieces  {sim.integrator}  "
+                f"dt {sim.dt:g} s  {substeps}  "
+                f"view {r.view}  lights {r.lights.name}  SSAO {ssao}",
+                f"effects: {', '.join(sim.effects)}",
+            ]
         lines += [(text, WARNING) if warn else text
                   for text, until, warn in self.notices if until >= self.clock]
         if not self.show_help:
-            return [*lines, "H: help"]
+            return lines
         names = scenes()
         keys = [f"{KEY_LABELS.get(k, k)}: {h}" for k, (_, h) in KEYS.items() if h]
         scene_keys = scene_key_help(names)
@@ -229,8 +255,8 @@ class Viewer:
         if self.realtime and 0.0 <= now - self._overlay_at < OVERLAY_PERIOD:
             return
         self._overlay_at = now
-        self.renderer.set_panel("status", text_panel(self.status_lines(),
-                                                     max_width=self.size[0]))
+        self.renderer.set_panel("status", text_panel(
+            self.status_lines(), max_width=min(self.size[0], OVERLAY_MAX_WIDTH)))
         self.renderer.set_panel("legend", legend(self.renderer.view), "bottom-left")
 
     # -- commands (keys) -------------------------------------------------------------------
@@ -288,7 +314,19 @@ class Viewer:
         r.view = VIEWS[(VIEWS.index(r.view) + 1) % len(VIEWS)]
 
     def _cmd_toggle_ssao(self) -> None:
-        self.renderer.ssao = not self.renderer.ssao
+        r = self.renderer
+        r.ssao = not r.ssao
+        if r.ssao and r.tier == "software":
+            self.notify("SSAO is drawn in the full tier only: Q switches tiers")
+
+    def _cmd_next_tier(self) -> None:
+        r = self.renderer
+        r.tier = TIERS[(TIERS.index(r.tier) + 1) % len(TIERS)]
+        self.notify(f"{r.tier} tier: " + ("deferred, SSAO and FXAA" if r.tier == "full" else
+                    "one forward pass lit per vertex, no SSAO or FXAA (for GL without a GPU)"))
+
+    def _cmd_toggle_details(self) -> None:
+        self.show_details = not self.show_details
 
     def _cmd_next_lights(self) -> None:
         self.renderer.cycle_lights()

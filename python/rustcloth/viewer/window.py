@@ -41,13 +41,14 @@ class Demo:
     ``fixed_dt``: every frame advances exactly that much simulated time, however long it
     takes (tests); otherwise the physics keeps real time within half the frame.
     ``render_scale``: see :class:`~.loop.Viewer` (None: adapted to the frame time).
+    ``tier``: the renderer's quality tier; None: ``software`` on a CPU rasteriser.
     """
 
     def __init__(self, scene: str = "drape", size: tuple[int, int] = (1280, 720),
                  script: list[dict[str, Any]] | None = None, fixed_dt: float | None = None,
                  visible: bool = True, lights: str = "studio", ssao: bool = False,
                  on_notice: Callable[[str], None] | None = None,
-                 render_scale: float | None = None) -> None:
+                 render_scale: float | None = None, tier: str | None = None) -> None:
         if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
             raise DisplayUnavailable("no display (DISPLAY is not set)")
         # glfw errors become our one-line messages below instead of Python warnings.
@@ -80,7 +81,8 @@ class Demo:
         fb_size = glfw.get_framebuffer_size(window)
         self.viewer = Viewer(self.ctx, make_simulation(scene), fb_size, name=scene,
                              realtime=fixed_dt is None, script=script, lights=lights,
-                             ssao=ssao, on_notice=on_notice, render_scale=render_scale)
+                             ssao=ssao, on_notice=on_notice, render_scale=render_scale,
+                             tier=tier)
         self.viewer.input = WindowInput(self)
         self.viewer.resize(fb_size, glfw.get_window_size(window))
         self._codes = _key_codes()

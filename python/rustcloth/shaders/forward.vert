@@ -1,0 +1,3 @@
+#version 330 core
+// Software tier, forward pass: the one-sided surfaces (floor, spheres, colliders, markers).
+#include "forward_vertex.glsl"
