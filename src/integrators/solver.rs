@@ -5,6 +5,7 @@ use serde::Serialize;
 
 use crate::grid::SpringKind;
 use crate::linear::stencil::slot_of;
+use crate::scene::{IntegratorKind, Scene};
 pub use crate::scene::{Preconditioner, SolverSettings};
 
 /// What the solver did, accumulated since the integrator was created. For `implicit_euler` an
@@ -49,6 +50,39 @@ impl SolverStats {
             self.not_converged += 1;
             self.worst_residual = self.worst_residual.max(residual as f32);
         }
+    }
+
+    /// What to tell a user once some solve of `scene`'s integrator stopped at its cap above
+    /// its tolerance, and what to change; None while every solve converged.
+    pub fn not_converged_message(&self, scene: &Scene) -> Option<String> {
+        if self.not_converged == 0 {
+            return None;
+        }
+        let (what, cap, tolerance, remedy) = match scene.integrator {
+            IntegratorKind::ProjectiveDynamics => (
+                "the local-global iterations stopped at pd_iterations",
+                scene.pd_iterations,
+                ("relative gradient", "pd_tolerance", scene.pd_tolerance),
+                "the last iterate. Raise pd_iterations, loosen pd_tolerance",
+            ),
+            _ => (
+                "the conjugate gradient stopped at cg_max_iterations",
+                scene.cg_max_iterations,
+                ("relative residual", "cg_tolerance", scene.cg_tolerance),
+                "the partial solution. Raise cg_max_iterations, loosen cg_tolerance",
+            ),
+        };
+        Some(format!(
+            "{}: {what} = {cap} with {} up to {:.2e} > {} = {:.0e} ({} of {} solves so far); \
+             the step was taken with {remedy} or reduce dt. profile() counts these.",
+            scene.integrator,
+            tolerance.0,
+            self.worst_residual,
+            tolerance.1,
+            tolerance.2,
+            self.not_converged,
+            self.solves,
+        ))
     }
 }
 

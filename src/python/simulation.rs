@@ -11,7 +11,7 @@ use super::conv::{scene_from_dict, Floats, Plain, Rows, SceneDict};
 use super::errors::IntoPyResult;
 use super::shared::{Held, Shared};
 use super::state;
-use crate::{Error, IntegratorKind, Simulation};
+use crate::{Error, Simulation};
 use glam::Vec3;
 
 /// The solver. See `rustcloth.Simulation` for the documented API.
@@ -22,37 +22,13 @@ pub(crate) struct PySimulation {
 
 /// The warning to give once per simulation when an implicit solver stopped at its cap.
 fn not_converged_warning(held: &mut Held) -> Option<String> {
-    let stats = held.sim.solver_stats()?;
-    if stats.not_converged == 0 || held.warned_not_converged {
-        return None;
-    }
-    held.warned_not_converged = true;
-    let scene = held.sim.scene();
-    let (what, cap, tolerance, remedy) = match scene.integrator {
-        IntegratorKind::ProjectiveDynamics => (
-            "the local-global iterations stopped at pd_iterations",
-            scene.pd_iterations,
-            ("relative gradient", "pd_tolerance", scene.pd_tolerance),
-            "the last iterate. Raise pd_iterations, loosen pd_tolerance",
-        ),
-        _ => (
-            "the conjugate gradient stopped at cg_max_iterations",
-            scene.cg_max_iterations,
-            ("relative residual", "cg_tolerance", scene.cg_tolerance),
-            "the partial solution. Raise cg_max_iterations, loosen cg_tolerance",
-        ),
-    };
-    Some(format!(
-        "{}: {what} = {cap} with {} up to {:.2e} > {} = {:.0e} ({} of {} solves so far); the \
-         step was taken with {remedy} or reduce dt. profile() counts these.",
-        scene.integrator,
-        tolerance.0,
-        stats.worst_residual,
-        tolerance.1,
-        tolerance.2,
-        stats.not_converged,
-        stats.solves,
-    ))
+    let message = held
+        .sim
+        .solver_stats()?
+        .not_converged_message(held.sim.scene());
+    let warn = message.is_some() && !held.warned_not_converged;
+    held.warned_not_converged |= warn;
+    message.filter(|_| warn)
 }
 
 /// A simulation continuing a state from `Simulation.get_state()` (what unpickling calls).
