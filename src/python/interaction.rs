@@ -64,6 +64,12 @@ impl PySimulation {
     }
 
     #[setter]
+    fn set_grip_radius(&self, py: Python<'_>, radius: &Bound<'_, PyAny>) -> PyResult<()> {
+        let radius = float_from_any(radius, "grip_radius");
+        self.call(py, radius, Simulation::set_grip_radius)
+    }
+
+    #[setter]
     fn set_pick_strategy(&self, py: Python<'_>, strategy: &Bound<'_, PyAny>) -> PyResult<()> {
         let strategy = str_from_any(strategy, "pick_strategy")?;
         let strategy = PickStrategy::by_name(&strategy).py();
@@ -106,7 +112,10 @@ impl PySimulation {
 reads! {
     #[getter] fn pick_radius -> f32 = |h| h.sim.pick_radius();
     #[getter] fn pick_strategy -> &'static str = |h| h.sim.pick_strategy().name();
+    #[getter] fn grip_radius -> f32 = |h| h.sim.grip_radius();
     fn grabbed -> Option<usize> = |h| h.sim.grabbed();
+    fn gripped -> Vec<usize> = |h| h.sim.gripped();
+    fn piece_labels -> super::conv::Rows<u32> = |h| super::conv::Rows(h.sim.piece_labels(), 0);
     fn bvh_stats -> Plain<crate::picking::BvhStats> = |h| Plain(h.sim.bvh_stats());
 }
 
