@@ -1,9 +1,10 @@
 """The grip from Python, driven as the demo drives it (a ray picks a particle, ``grab``,
-``drag_to`` once per 60 Hz frame, ``release``). The grip's mechanics are tested in
-tests/grip.rs.
+``drag_to`` once per 60 Hz frame, ``release``), and the curtain's draught. The grip's
+mechanics are tested in tests/grip.rs, the wind's in tests/wind.rs.
 
 The story: a grab used to hold one particle, and dragging a lower corner of ``tear`` plucked
-that particle out (a pinhole, "2 pieces") while the sheet barely moved."""
+that particle out (a pinhole, "2 pieces") while the sheet barely moved; the curtain opened as a
+motionless sheet."""
 
 from __future__ import annotations
 
@@ -93,7 +94,8 @@ def test_a_drag_of_tear_rips_it_into_two_large_pieces(seconds):
 
 
 def test_a_drag_without_tearing_moves_the_patch_without_plucking():
-    sim = Simulation(rustcloth.load_scene("curtain"))
+    # The curtain has no [wind] here so that only the drag moves it.
+    sim = Simulation(rustcloth.load_scene("curtain").replace(wind=None))
     sim.advance(0.3)
     before = sim.positions.copy()
     held = _drag_corner(sim, (-0.3, -0.2, 0.3), 0.5)
@@ -127,3 +129,23 @@ def test_a_grip_survives_pickling_and_a_state_without_grip_keys_loads():
         del state[key]
     old = Simulation.from_state(state)
     assert old.gripped() == [7]
+
+
+def test_the_curtain_sways_in_its_draught_and_is_still_without_it():
+    def lower_edge_z(scene: rustcloth.Scene) -> np.ndarray:
+        sim = Simulation(scene)
+        z = []
+        for _ in range(round(3 * FPS)):
+            sim.advance(1 / FPS)
+            z.append(sim.positions[:40, 2].mean())
+        assert np.isfinite(sim.positions).all()
+        return np.asarray(z[round(FPS):])
+
+    scene = rustcloth.load_scene("curtain")
+    assert scene.wind is not None
+    windy = lower_edge_z(scene)
+    still = lower_edge_z(scene.replace(wind=None))
+    assert abs(still).max() < 1e-6
+    # Downwind (-z), and moving: it swings by centimetres, not a sheet set at an angle.
+    assert windy.mean() < -0.05
+    assert windy.max() - windy.min() > 0.03
