@@ -67,7 +67,7 @@ fn a_zero_radius_grabs_the_one_particle_hit() {
     sim.set_grip_radius(0.0).unwrap();
     sim.grab(5).unwrap();
     assert_eq!(sim.gripped(), vec![5]);
-    for bad in [-0.1, f64::NAN, f64::INFINITY, 1e300] {
+    for bad in [-0.1, -1e-50, f64::NAN, f64::INFINITY, 1e300] {
         let err = sim.set_grip_radius(bad).unwrap_err().to_string();
         assert!(err.contains("grip_radius"), "{err}");
     }

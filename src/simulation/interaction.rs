@@ -278,7 +278,7 @@ fn checked_rays(rays: &[(Vec3, Vec3)]) -> Result<Vec<Ray>> {
 /// A grip radius: finite and >= 0 within float32's range.
 pub(crate) fn checked_grip_radius(radius: f64) -> Result<f32> {
     let r = radius as f32;
-    if !(radius.is_finite() && r.is_finite() && r >= 0.0) {
+    if !(radius.is_finite() && r.is_finite() && radius >= 0.0) {
         return Err(Error::value(
             "grip_radius",
             format!("must be a finite number >= 0 within float32 range, got {radius}"),
