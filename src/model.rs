@@ -132,6 +132,14 @@ impl Model {
             .map(|id| crate::grid::cell_triangle(self.grid, id).map(|q| q as u32))
     }
 
+    /// The smaller of the two grid spacings at rest, in m.
+    pub fn min_spacing(&self) -> f64 {
+        let size = self.scene.cloth.size;
+        let dx = size[0] / (self.grid.nx - 1) as f64;
+        let dy = size[1] / (self.grid.ny - 1) as f64;
+        dx.min(dy)
+    }
+
     /// The stiffness (N/m) of a spring family in the scene.
     pub fn stiffness(&self, family: crate::grid::Family) -> f64 {
         let cloth = &self.scene.cloth;

@@ -14,7 +14,7 @@ use crate::collisions::{Pose, PoseKey};
 use crate::error::{check_scalar, check_vec3s, Bound, Error, Result};
 use crate::grid::SpringKind;
 use crate::integrators::History;
-use crate::interaction::Grab;
+use crate::interaction::{Grab, Held};
 use crate::model::Model;
 use crate::picking::{PickStrategy, Picker};
 use crate::scene::Scene;
@@ -23,9 +23,13 @@ use crate::state::{Clock, State};
 pub use crate::stepper::WatchdogSnapshot;
 use crate::stepper::{Stepper, MAX_ADVANCE_STEPS};
 
-/// What a grab remembers: the particle, whether it was pinned before, and the kinematic target
-/// it had.
+/// What a grab remembers of the particle it was taken at: the particle, whether it was pinned
+/// before, and the kinematic target it had.
 pub type GrabRecord = (usize, bool, Option<Vec3>);
+
+/// What a grip remembers of each other particle it holds: as [`GrabRecord`], and its position
+/// in m when grabbed.
+pub type HeldRecord = (usize, bool, Option<Vec3>, Vec3);
 
 /// Everything `Simulation::restore` needs to continue a run bit for bit.
 ///
@@ -56,6 +60,16 @@ pub struct Snapshot {
     /// Kinematic pins: `(particle, target in m)`, in the order they were set.
     pub targets: Vec<(usize, Vec3)>,
     pub grab: Option<GrabRecord>,
+    /// The grip's other particles (none in a state saved before grips, or with radius 0).
+    #[serde(default)]
+    pub grip: Vec<HeldRecord>,
+    /// The grabbed particle's position in m when grabbed (None without a grab, or from a
+    /// state saved before grips).
+    #[serde(default)]
+    pub grip_origin: Option<Vec3>,
+    /// The grip radius if one was set (None: the default).
+    #[serde(default)]
+    pub grip_radius: Option<f32>,
     pub pick_radius: Option<f32>,
     pub pick_strategy: PickStrategy,
     pub steps: u64,
@@ -79,7 +93,8 @@ impl Snapshot {
         state: &State,
         stepper: &Stepper,
         picker: &Picker,
-        grab: Option<Grab>,
+        grab: Option<&Grab>,
+        grip_radius: Option<f32>,
     ) -> Snapshot {
         Snapshot {
             scene: model.scene.clone(),
@@ -95,7 +110,18 @@ impl Snapshot {
                     .collect()
             }),
             targets: state.targets.targets().to_vec(),
-            grab: grab.map(|g| (g.index, g.was_pinned, g.previous_target)),
+            grab: grab.map(|g| {
+                let h = g.held[0];
+                (h.index, h.was_pinned, h.previous_target)
+            }),
+            grip: grab.map_or_else(Vec::new, |g| {
+                g.held[1..]
+                    .iter()
+                    .map(|h| (h.index, h.was_pinned, h.previous_target, h.start))
+                    .collect()
+            }),
+            grip_origin: grab.map(|g| g.held[0].start),
+            grip_radius,
             pick_radius: picker.radius_setting(),
             pick_strategy: picker.strategy(),
             steps: state.clock.steps,
@@ -182,6 +208,35 @@ impl Snapshot {
                     format!("particle {p} must be a live particle"),
                 ));
             }
+        } else if !self.grip.is_empty() {
+            return Err(Error::value("grip", "must be empty without a grab"));
+        }
+        if !self
+            .grip_origin
+            .is_none_or(|o| o.is_finite() && self.grab.is_some())
+        {
+            return Err(Error::value(
+                "grip_origin",
+                "must be finite, and only with a grab",
+            ));
+        }
+        if !self.grip.is_empty() && self.grip_origin.is_none() {
+            return Err(Error::value("grip_origin", "must be set with a grip"));
+        }
+        for (k, &(p, _, previous, start)) in self.grip.iter().enumerate() {
+            let finite = previous.is_none_or(|t| t.is_finite()) && start.is_finite();
+            if p >= n || !finite || self.grab.is_some_and(|g| g.0 == p) {
+                return Err(Error::value(
+                    format!("grip[{k}]"),
+                    format!(
+                        "particle {p} must be a particle other than the grabbed one, with a \
+                         finite start and target"
+                    ),
+                ));
+            }
+        }
+        if let Some(r) = self.grip_radius {
+            crate::simulation::checked_grip_radius(r as f64)?;
         }
         if let Some(r) = self.pick_radius {
             picker.set_radius(r as f64)?;
@@ -261,10 +316,25 @@ impl Snapshot {
         stepper.set_history(self.history);
         state.version = self.state_version;
         model.topology_version = self.topology_version;
-        Ok(self.grab.map(|(index, was_pinned, previous_target)| Grab {
-            index,
-            was_pinned,
-            previous_target,
+        let grip = self
+            .grip
+            .iter()
+            .map(|&(index, was_pinned, previous_target, start)| Held {
+                index,
+                was_pinned,
+                previous_target,
+                start,
+            });
+        Ok(self.grab.map(|(index, was_pinned, previous_target)| {
+            let grabbed = Held {
+                index,
+                was_pinned,
+                previous_target,
+                start: self.grip_origin.unwrap_or(Vec3::ZERO),
+            };
+            Grab {
+                held: std::iter::once(grabbed).chain(grip).collect(),
+            }
         }))
     }
 }

@@ -50,7 +50,9 @@ def rich(integrator: str) -> Simulation:
     sim.step(15)
     sim.advance(0.0123)
     state = sim.get_state()
-    assert state["grab"] is not None and len(state["targets"]) == 2
+    # The pin, and the grip: the grabbed particle and the patch around it, each with a target.
+    assert state["grab"] is not None and len(state["grip"]) > 1
+    assert len(state["targets"]) == 1 + len(sim.gripped()) == 2 + len(state["grip"])
     assert 0 < state["accumulator"] < sim.dt
     assert not state["alive"][20]
     return sim

@@ -35,7 +35,8 @@ DROPPED = Scene(
 SCENES = {
     "drape": rustcloth.load_scene("drape"),
     "freefall": rustcloth.load_scene("freefall"),
-    "curtain": rustcloth.load_scene("curtain"),
+    # Without its draught: wind does work on the cloth, and this checks that nothing else does.
+    "curtain": rustcloth.load_scene("curtain").replace(wind=None),
     "dropped": DROPPED,
 }
 

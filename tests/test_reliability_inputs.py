@@ -284,6 +284,14 @@ def positive_float_oracle(v: Any) -> str:
     return OK if _f32_ok(float(v), positive=True) else VALUE
 
 
+def non_negative_float_oracle(v: Any) -> str:
+    if _zero_d(v):
+        return EITHER
+    if not _is_real(v):
+        return TYPE
+    return OK if _f32_ok(float(v)) and float(v) >= 0 else VALUE
+
+
 def dt_oracle(v: Any) -> str:
     kind = positive_float_oracle(v)
     return VALUE if kind == OK and float(v) < 1e-9 else kind  # dt / substeps >= 1 ns
@@ -399,6 +407,8 @@ SIM_TARGETS: list[tuple[str, str, Call, Callable[[Any], str]]] = [
      positive_float_oracle),
     ("pick_strategy", "pick_strategy", lambda s, v: setattr(s, "pick_strategy", v),
      _name_oracle(("auto", "bvh", "scan"))),
+    ("grip_radius", "grip_radius", lambda s, v: setattr(s, "grip_radius", v),
+     non_negative_float_oracle),
     ("set_state", "state", lambda s, v: s.set_state(v),
      lambda v: TYPE if not isinstance(v, dict) else VALUE),
 ]
@@ -881,7 +891,7 @@ def test_integrator_none_names_the_integrator(sim):
 
 
 def test_none_for_a_setting_is_a_type_error(sim):
-    for name in ("integrator", "dt", "substeps", "pick_radius", "pick_strategy"):
+    for name in ("integrator", "dt", "substeps", "pick_radius", "pick_strategy", "grip_radius"):
         _refused(sim, lambda s, n=name: setattr(s, n, None), ParameterTypeError, name)
 
 
@@ -889,6 +899,9 @@ def test_pick_settings_name_themselves(sim):
     _refused(sim, lambda s: setattr(s, "pick_radius", "x"), ParameterTypeError, "pick_radius")
     _refused(sim, lambda s: setattr(s, "pick_radius", -1.0), ParameterError, "pick_radius")
     _refused(sim, lambda s: setattr(s, "pick_radius", 1e39), ParameterError, "pick_radius")
+    _refused(sim, lambda s: setattr(s, "grip_radius", "x"), ParameterTypeError, "grip_radius")
+    _refused(sim, lambda s: setattr(s, "grip_radius", -1e-50), ParameterError, "grip_radius")
+    _refused(sim, lambda s: setattr(s, "grip_radius", 1e39), ParameterError, "grip_radius")
     _refused(sim, lambda s: setattr(s, "pick_strategy", 3), ParameterTypeError, "pick_strategy")
     _refused(sim, lambda s: setattr(s, "pick_strategy", "x"), ParameterError, "pick_strategy")
 

@@ -433,23 +433,40 @@ class Simulation:
     def pick_strategy(self, strategy: PickStrategyName) -> None:
         self._core.pick_strategy = _args.text(strategy, "pick_strategy")
 
+    @property
+    def grip_radius(self) -> float:
+        """Radius in m of the patch of cloth a :meth:`grab` holds (default: 2.5 times the
+        smaller grid spacing, a patch about five particles across). Set it to a finite number
+        ``>= 0``; 0 grabs the one particle hit. It applies from the next grab."""
+        return self._core.grip_radius
+
+    @grip_radius.setter
+    def grip_radius(self, radius: float) -> None:
+        self._core.grip_radius = _args.real(radius, "grip_radius")
+
     def grab(self, index: int) -> None:
-        """Grab particle ``index``: a kinematic pin at its position that :meth:`drag_to` moves.
-        Grabbing another releases the first."""
+        """Grab the cloth at particle ``index``, as a hand would: that particle and every live
+        particle within :attr:`grip_radius` of it, joined to it by live springs inside that
+        ball, become kinematic pins where they are, which :meth:`drag_to` moves together.
+        Grabbing again releases the first grip."""
         self._core.grab(_args.index(index, "index"))
 
     def drag_to(self, target: Vector) -> None:
-        """Move the grabbed particle's target (m); it gets there over the next step. Does
-        nothing without a grab."""
+        """Move the grabbed particle's target (m), the rest of the grip keeping its offsets
+        from it; they get there over the next step. Does nothing without a grab."""
         self._core.drag_to(_args.floats(target, "target", 3))
 
     def release(self) -> None:
-        """Let go of the grabbed particle, restoring the pin state it had before the grab."""
+        """Let go of the grip, restoring the pin state each of its particles had before."""
         self._core.release()
 
     def grabbed(self) -> int | None:
-        """The grabbed particle's index, or None."""
+        """The index of the particle the grip was taken at, or None."""
         return self._core.grabbed()
+
+    def gripped(self) -> list[int]:
+        """Every live particle the grip holds, the grabbed one first; empty without a grab."""
+        return self._core.gripped()
 
     def cut_ray(self, origin: Vector, direction: Vector) -> int | None:
         """Cut the particle :meth:`pick` finds; returns its index, or None on a miss."""
@@ -481,6 +498,12 @@ class Simulation:
         """The number of pieces the cloth is in: connected components of the live particles
         joined by live springs (O(n))."""
         return self._core.pieces()
+
+    def piece_labels(self) -> npt.NDArray[np.uint32]:
+        """The piece each particle belongs to (see :meth:`pieces`), named by the smallest
+        particle index in it; ``2**32 - 1`` for a cut particle. ``np.bincount`` of the live
+        labels gives each piece's size."""
+        return self._core.piece_labels()
 
     def bvh_stats(self) -> dict[str, int]:
         """Work done on the picking trees: scans, builds, refits and removals."""

@@ -142,12 +142,8 @@ impl Picker {
     /// against. Defaults to half the smaller grid spacing, so that neighbouring boxes just
     /// touch.
     pub fn radius(&self, model: &Model) -> f32 {
-        self.radius.unwrap_or_else(|| {
-            let size = model.scene.cloth.size;
-            let dx = size[0] / (model.grid.nx - 1) as f64;
-            let dy = size[1] / (model.grid.ny - 1) as f64;
-            (0.5 * dx.min(dy)) as f32
-        })
+        self.radius
+            .unwrap_or_else(|| (0.5 * model.min_spacing()) as f32)
     }
 
     /// The radius if one was set (None: the default).

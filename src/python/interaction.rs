@@ -37,6 +37,7 @@ calls! {
     fn cut_ray(origin: [f32; 3], direction: [f32; 3]) -> Option<usize> =
         |sim| sim.cut_ray(origin.into(), direction.into());
     #[setter] fn set_pick_radius(radius: f64) -> () = |sim| sim.set_pick_radius(radius);
+    #[setter] fn set_grip_radius(radius: f64) -> () = |sim| sim.set_grip_radius(radius);
     fn grab(index: i64) -> () = |sim| sim.grab(index);
     fn drag_to(target: [f32; 3]) -> () = |sim| sim.drag_to(target.into());
     fn release() -> () = |sim| {
@@ -72,6 +73,9 @@ impl PySimulation {
 reads! {
     #[getter] fn pick_radius -> f32 = |h| h.sim.pick_radius();
     #[getter] fn pick_strategy -> &'static str = |h| h.sim.pick_strategy().name();
+    #[getter] fn grip_radius -> f32 = |h| h.sim.grip_radius();
     fn grabbed -> Option<usize> = |h| h.sim.grabbed();
+    fn gripped -> Vec<usize> = |h| h.sim.gripped();
+    fn piece_labels -> super::conv::Rows<u32> = |h| super::conv::Rows(h.sim.piece_labels(), 0);
     fn bvh_stats -> Plain<crate::picking::BvhStats> = |h| Plain(h.sim.bvh_stats());
 }

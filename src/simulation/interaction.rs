@@ -6,7 +6,7 @@ use glam::Vec3;
 
 use super::Simulation;
 use crate::error::{Error, Result};
-use crate::interaction::Grab;
+use crate::interaction::{Grab, GRIP_SPACINGS};
 use crate::picking::STROKE_TREE_MIN_RAYS;
 use crate::picking::{BvhStats, ParticleHit, PickStrategy, Picker, Queries, TriangleHit};
 use crate::ray::Ray;
@@ -57,9 +57,25 @@ impl Simulation {
 
     // ----- dragging and cutting -------------------------------------------------------------
 
-    /// Grabs particle `index`: it becomes a kinematic pin at its current position, which
-    /// [`Simulation::drag_to`] moves. Grabbing while holding another particle releases that
-    /// one first. Errors on an index out of range or a cut particle.
+    /// Radius in m of the patch a grab holds (see [`Simulation::grab`]). Defaults to
+    /// [`GRIP_SPACINGS`] times the smaller grid spacing.
+    pub fn grip_radius(&self) -> f32 {
+        self.grip_radius
+            .unwrap_or_else(|| (GRIP_SPACINGS * self.model.min_spacing()) as f32)
+    }
+
+    /// Sets the grip radius (m, finite and >= 0; 0 grabs the one particle hit). It applies
+    /// from the next grab.
+    pub fn set_grip_radius(&mut self, radius: f64) -> Result<()> {
+        self.grip_radius = Some(checked_grip_radius(radius)?);
+        Ok(())
+    }
+
+    /// Grabs the cloth at particle `index`: that particle and every live particle within
+    /// [`Simulation::grip_radius`] of it joined to it by live springs inside that ball (a
+    /// patch of cloth, as a hand holds it) become kinematic pins where they are, which
+    /// [`Simulation::drag_to`] moves together. Grabbing while holding releases the grip first.
+    /// Errors on an index out of range or a cut particle.
     pub fn grab(&mut self, index: i64) -> Result<()> {
         let p = self.check_index("index", index)?;
         if !self.model.particles.alive[p] {
@@ -69,14 +85,19 @@ impl Simulation {
             ));
         }
         self.release();
-        self.grab = Some(Grab::of(p, &self.model, &self.state));
-        self.pin_live(p, Some(self.state.kin.pos.get(p)));
+        let grab = Grab::around(p, self.grip_radius(), &self.model, &self.state);
+        for held in &grab.held {
+            self.pin_live(held.index, Some(self.state.kin.pos.get(held.index)));
+        }
+        self.grab = Some(grab);
         Ok(())
     }
 
-    /// Moves the grabbed particle's target to `target` (m): over the next step the particle
-    /// moves there, and the cloth follows through its springs. Without a grab (or once the
-    /// grabbed particle was cut) this does nothing. Errors on a non-finite target.
+    /// Moves the grip so that the grabbed particle's target is `target` (m) and every other
+    /// particle of the grip moves by the same displacement from where it was grabbed: over the next step they move there, and
+    /// the cloth follows through its springs. Without a grab (or once the grabbed particle was
+    /// cut) this does nothing; particles of the grip cut since are skipped. Errors on a
+    /// non-finite target.
     pub fn drag_to(&mut self, target: Vec3) -> Result<()> {
         if !target.is_finite() {
             return Err(Error::value(
@@ -84,39 +105,64 @@ impl Simulation {
                 format!("must be finite, got {:?}", target.to_array()),
             ));
         }
-        if let Some(p) = self.grabbed() {
+        let alive = &self.model.particles.alive;
+        let Some(grab) = self.grab.as_ref().filter(|g| alive[g.index()]) else {
+            return Ok(());
+        };
+        for (p, to) in grab.targets(target) {
+            if !self.model.particles.alive[p] || !to.is_finite() {
+                continue;
+            }
             // Pinned again in case `unpin` was called during the drag.
             self.model.particles.set_pinned(p, true);
-            self.state.targets.set(p, target);
+            self.state.targets.set(p, to);
         }
         Ok(())
     }
 
-    /// Lets go of the grabbed particle, restoring the pin state it had before the grab: a
-    /// free particle keeps the velocity of the drag; a statically pinned one stays pinned where
-    /// it is now; one that had a kinematic target gets it back. Without a grab this does
-    /// nothing.
+    /// Lets go of the grip, restoring the pin state each of its particles had before the
+    /// grab: a free particle keeps the velocity of the drag; a statically pinned one stays
+    /// pinned where it is now; one that had a kinematic target gets it back. Without a grab
+    /// this does nothing.
     pub fn release(&mut self) {
         let Some(grab) = self.grab.take() else {
             return;
         };
-        let p = grab.index;
-        if !self.model.particles.alive[p] {
-            return; // cut while grabbed: the cut already removed the pin
-        }
-        if grab.was_pinned {
-            self.pin_live(p, grab.previous_target);
-        } else {
-            self.model.particles.set_pinned(p, false);
-            self.state.targets.remove(p);
+        for held in grab.held {
+            let p = held.index;
+            if !self.model.particles.alive[p] {
+                continue; // cut while grabbed: the cut already removed the pin
+            }
+            if held.was_pinned {
+                self.pin_live(p, held.previous_target);
+            } else {
+                self.model.particles.set_pinned(p, false);
+                self.state.targets.remove(p);
+            }
         }
     }
 
-    /// The particle being dragged, if any (a grabbed particle that was cut is let go).
+    /// The particle the grip was taken at, if any (a grip whose grabbed particle was cut is
+    /// let go).
     pub fn grabbed(&self) -> Option<usize> {
         self.grab
-            .map(|g| g.index)
+            .as_ref()
+            .map(Grab::index)
             .filter(|&p| self.model.particles.alive[p])
+    }
+
+    /// Every live particle the grip holds, the grabbed one first; empty without a grab.
+    pub fn gripped(&self) -> Vec<usize> {
+        if self.grabbed().is_none() {
+            return Vec::new();
+        }
+        self.grab.as_ref().map_or_else(Vec::new, |g| {
+            g.held
+                .iter()
+                .map(|h| h.index)
+                .filter(|&p| self.model.particles.alive[p])
+                .collect()
+        })
     }
 
     /// Cuts the particle [`Simulation::pick`] finds along the ray; returns it, or `None` if the
@@ -227,4 +273,16 @@ fn checked_rays(rays: &[(Vec3, Vec3)]) -> Result<Vec<Ray>> {
             Ray::named(o, d, &origin, &dir)
         })
         .collect()
+}
+
+/// A grip radius: finite and >= 0 within float32's range.
+pub(crate) fn checked_grip_radius(radius: f64) -> Result<f32> {
+    let r = radius as f32;
+    if !(radius.is_finite() && r.is_finite() && radius >= 0.0) {
+        return Err(Error::value(
+            "grip_radius",
+            format!("must be a finite number >= 0 within float32 range, got {radius}"),
+        ));
+    }
+    Ok(r)
 }

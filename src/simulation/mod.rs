@@ -27,6 +27,8 @@ use crate::stepper::{Stepper, WatchdogStats};
 
 mod interaction;
 
+pub(crate) use interaction::checked_grip_radius;
+
 pub use crate::stepper::MAX_ADVANCE_STEPS;
 
 /// A running cloth simulation.
@@ -36,6 +38,8 @@ pub struct Simulation {
     stepper: Stepper,
     picker: Picker,
     grab: Option<Grab>,
+    /// `None`: the default grip radius.
+    grip_radius: Option<f32>,
     mesh: Mesh,
     render: RenderMesh,
     cutter: StrokeCutter,
@@ -51,6 +55,7 @@ impl Simulation {
             model,
             picker: Picker::default(),
             grab: None,
+            grip_radius: None,
             mesh: Mesh::default(),
             render: RenderMesh::default(),
             cutter: StrokeCutter::default(),
@@ -539,7 +544,8 @@ impl Simulation {
             &self.state,
             &self.stepper,
             &self.picker,
-            self.grab,
+            self.grab.as_ref(),
+            self.grip_radius,
         )
     }
 
@@ -553,6 +559,7 @@ impl Simulation {
             &mut sim.stepper,
             &mut sim.picker,
         );
+        sim.grip_radius = snapshot.grip_radius;
         sim.grab = snapshot.apply(model, state, stepper, picker)?;
         Ok(sim)
     }

@@ -86,7 +86,8 @@ class Interaction:
         return self.sim.grabbed()
 
     def grab(self, ray: Ray) -> bool:
-        """Grab the particle under the ray; False when the ray misses the cloth."""
+        """Grab the cloth under the ray (the core holds the patch within its ``grip_radius`` of
+        the particle hit); False when the ray misses the cloth."""
         hit = self.sim.pick(ray[0], ray[1])
         if hit is None:
             return False
@@ -95,7 +96,8 @@ class Interaction:
         return True
 
     def drag(self, ray: Ray, camera: Camera) -> None:
-        """Move the grabbed particle's target to where the ray meets its drag plane."""
+        """Move the grabbed particle's target to where the ray meets its drag plane (the rest
+        of the grip follows it)."""
         if self.drag_point is None or self.sim.grabbed() is None:
             return
         self.sim.drag_to(camera.drag_plane_point(ray, self.drag_point))
