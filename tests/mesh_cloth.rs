@@ -440,15 +440,25 @@ fn the_watchdog_catches_an_overstretched_mesh_cloth() {
     assert!(err.contains("stretch"), "{err}");
 }
 
-/// Sag and stretch of the same 1 m square of a soft cloth (60 N/m) at two resolutions (256
-/// and 1024 vertices), hung by the vertices within 6 cm of its top corners and settled under
-/// drag proportional to mass: the material does not depend on the mesh. The largest stretch
-/// is compared away from the pins, where the hold's concentration of strain, which grows as
-/// the mesh refines, does not reach. (1k, 4k and 16k: `examples/mesh_resolution.rs`.)
+/// Sag and stretch of a 1 m square of a soft cloth (60 N/m) hung by the first and last 12.5 cm
+/// of its top edge and settled under drag proportional to mass, as two different irregular
+/// meshes of about 1k vertices and as a coarser one of 289. The bounds are what edge springs
+/// reach, not the 2 %: two random triangulations of one resolution differ by 6 % in
+/// sag (an edge-spring network is stiffer or softer as its edges happen to line up with the
+/// load; a triangle element would not be), and across resolutions the sag converges as any
+/// discretisation of the clamp does (the grid cloth too: 9 % from 17 to 33 points a side, then
+/// 6 %). Measured in docs/mesh_cloth.md with `examples/mesh_resolution.rs`.
 #[test]
-fn coarse_and_fine_meshes_of_the_same_square_hang_alike() {
-    let settle = |n: usize| {
-        let mut scene = hanging_square(n, 0.06, 1);
+fn irregular_meshes_of_the_same_square_hang_alike() {
+    let settle = |n: usize, seed: u64| {
+        let mut scene = hanging_square(n, 0.06, seed);
+        scene.cloth.pins = [[-0.5, -0.375], [0.375, 0.5]]
+            .map(|[x0, x1]| {
+                PinSpec::Region(PinBox {
+                    corners: [[x0, 1.5 - 1e-9, -0.1], [x1, 1.5, 0.1]],
+                })
+            })
+            .to_vec();
         let spec = scene.cloth.mesh.as_mut().unwrap();
         (spec.stretch, spec.bend, spec.damping) = (60.0, 0.8, 0.01);
         scene.air_drag = 4.0 * 0.2 / (n * n) as f64;
@@ -461,27 +471,20 @@ fn coarse_and_fine_meshes_of_the_same_square_hang_alike() {
             / m.iter().map(|&m| m as f64).sum::<f64>();
         let strain = sim.spring_strain();
         let away = (0..m.len())
-            .filter(|&p| y[p] < 1.5 - 0.24)
+            .filter(|&p| y[p] < 1.25)
             .map(|p| strain[p])
             .fold(0.0f32, f32::max);
         (1.0 - centroid, away as f64)
     };
-    let (coarse, fine) = (settle(16), settle(32));
+    let (a, b, coarse) = (settle(33, 1), settle(33, 2), settle(17, 3));
+    assert!((0.03..0.2).contains(&a.0), "it hangs: sag {} m", a.0);
+    assert!((b.0 / a.0 - 1.0).abs() < 0.08, "sag {} m vs {} m", a.0, b.0);
+    assert!((b.1 / a.1 - 1.0).abs() < 0.10, "stretch {} vs {}", a.1, b.1);
     assert!(
-        (0.03..0.2).contains(&coarse.0),
-        "it hangs: sag {} m",
-        coarse.0
-    );
-    assert!(
-        (fine.0 / coarse.0 - 1.0).abs() < 0.02,
+        (coarse.0 / a.0 - 1.0).abs() < 0.12,
         "sag {} m vs {} m",
         coarse.0,
-        fine.0
+        a.0
     );
-    assert!(
-        (fine.1 / coarse.1 - 1.0).abs() < 0.02,
-        "stretch {} vs {}",
-        coarse.1,
-        fine.1
-    );
+    eprintln!("sag and stretch: {a:?} {b:?}, coarse {coarse:?}");
 }
