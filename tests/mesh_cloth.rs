@@ -7,7 +7,8 @@ use common::{state_hash, with_threads};
 use glam::{DVec3, Vec3};
 use rustcloth::mesh_cloth::{jittered_square, EdgeKind, MeshCloth};
 use rustcloth::scene::{
-    ClothSpec, FloorSpec, MeshSpec, PinBox, PinSpec, StrainLimitSpec, TearingSpec, WindSpec,
+    ClothSpec, ColliderSpec, FloorSpec, MeshSpec, PinBox, PinSpec, ShapeKind, StrainLimitSpec,
+    TearingSpec, WindSpec,
 };
 use rustcloth::soa::Vec3s;
 use rustcloth::{IntegratorKind, Scene, Simulation};
@@ -487,4 +488,54 @@ fn irregular_meshes_of_the_same_square_hang_alike() {
         a.0
     );
     eprintln!("sag and stretch: {a:?} {b:?}, coarse {coarse:?}");
+}
+
+/// A mesh cloth dropped on a box drapes over it: every step, no vertex is inside the box (the
+/// collider pass works on particles, whatever joins them).
+#[test]
+fn a_mesh_cloth_dropped_on_a_box_never_ends_a_step_inside_it() {
+    let (vertices, triangles) = jittered_square(20, 1.0, [0.0; 3], 0.3, 37);
+    let vertices = vertices.iter().map(|v| [v[0], 0.6, v[1]]).collect();
+    let mut scene = mesh_scene(vertices, triangles);
+    scene.dt = 0.7 * scene.stable_dt(IntegratorKind::SymplecticEuler).unwrap();
+    let half = [0.2, 0.25, 0.2];
+    scene.colliders = vec![ColliderSpec {
+        shape: ShapeKind::Box,
+        half_extents: Some(half),
+        center: [0.0, 0.25, 0.0],
+        ..ColliderSpec::default()
+    }];
+    scene.floor = Some(FloorSpec::default());
+    let mut sim = Simulation::new(scene).unwrap();
+    for _ in 0..100 {
+        sim.step(10).unwrap();
+        let pos = sim.positions();
+        for p in 0..pos.len() {
+            let x = pos.get(p);
+            let inside = x.x.abs() < half[0] as f32
+                && (x.y - 0.25).abs() < half[1] as f32
+                && x.z.abs() < half[2] as f32;
+            assert!(!inside, "vertex {p} at {x} is inside the box");
+        }
+    }
+    // It rests on the box's top, draped.
+    let top = sim.positions().y.iter().fold(f32::MIN, |a, &b| a.max(b));
+    assert!((0.5..0.55).contains(&top), "highest vertex at {top} m");
+}
+
+/// Grabbing a vertex and dragging it moves it exactly to the target (a kinematic pin), and
+/// the cloth follows.
+#[test]
+fn a_grabbed_mesh_vertex_goes_where_it_is_dragged() {
+    let mut sim = Simulation::new(hanging_square(10, 0.06, 41)).unwrap();
+    let p = 45;
+    sim.grab(p as i64).unwrap();
+    let target = sim.positions().get(p) + Vec3::new(0.0, 0.0, 0.2);
+    sim.drag_to(target).unwrap();
+    sim.step(200).unwrap();
+    assert_eq!(sim.positions().get(p), target);
+    assert!(
+        sim.positions().get(p + 1).z > 0.05,
+        "its neighbour did not follow"
+    );
 }
