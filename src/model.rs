@@ -216,10 +216,7 @@ impl Model {
 
 /// The unit vectors `(e_i, e_j)` the cloth's grid starts along.
 pub fn plane_axes(plane: Plane) -> (Vec3, Vec3) {
-    match plane {
-        Plane::Xz => (Vec3::X, Vec3::Z),
-        Plane::Xy => (Vec3::X, Vec3::Y),
-    }
+    plane.axes()
 }
 
 /// `center + (i/(nx-1) - 1/2) size[0] e1 + (j/(ny-1) - 1/2) size[1] e2`.

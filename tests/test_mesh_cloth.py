@@ -157,3 +157,17 @@ def test_a_mesh_cloths_settings_have_the_typed_keys() -> None:
     # `uvs` (NotRequired) only when given.
     assert set(scene.cloth["mesh"]) | {"uvs"} == set(settings.MeshSettings.__annotations__)
     assert scene.cloth["mesh"]["density"] == 0.3
+
+
+def test_the_demos_mouse_does_nothing_on_a_mesh_cloth_rather_than_crash() -> None:
+    pytest.importorskip("moderngl")  # rustcloth.viewer needs the viewer extra
+    from rustcloth.viewer.interaction import Interaction
+
+    sim = rustcloth.Simulation(hanging(6))
+    before = sim.positions.copy()
+    mouse = Interaction(sim)
+    ray = (np.array([0.0, 1.0, 2.0]), np.array([0.0, 0.0, -1.0]))
+    assert mouse.grab(ray) is False
+    assert mouse.cut([ray]) == 0
+    assert mouse.cut([(ray[0] + [0.3, 0, 0], ray[1])]) == 0
+    assert sim.grabbed() is None and np.array_equal(sim.positions, before)

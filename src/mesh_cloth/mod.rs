@@ -67,63 +67,11 @@
 //! edge springs here are the smallest model that runs on every explicit integrator already in
 //! the solver, with one set of equations for every pass.
 
-mod build;
 pub mod forces;
 
-pub use build::MeshCloth;
-
-/// What a spring of a mesh cloth stands for.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum EdgeKind {
-    /// On an edge of the mesh.
-    Stretch,
-    /// Across an interior edge, between the two opposite vertices.
-    Bend,
-}
-
-/// The springs of a mesh cloth as an explicit list, sorted by kind, then ends.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct EdgeSprings {
-    /// First end (the lower vertex index).
-    pub a: Vec<u32>,
-    /// Second end.
-    pub b: Vec<u32>,
-    /// Rest length in m.
-    pub rest: Vec<f32>,
-    /// Stiffness in N/m.
-    pub k: Vec<f32>,
-    /// Damping along the spring in N s/m.
-    pub c: Vec<f32>,
-    pub kind: Vec<EdgeKind>,
-}
-
-impl EdgeSprings {
-    pub fn len(&self) -> usize {
-        self.a.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.a.is_empty()
-    }
-
-    fn push(&mut self, (a, b): (u32, u32), rest: f64, k: f64, c: f64, kind: EdgeKind) {
-        self.a.push(a.min(b));
-        self.b.push(a.max(b));
-        self.rest.push(rest as f32);
-        self.k.push(k as f32);
-        self.c.push(c as f32);
-        self.kind.push(kind);
-    }
-
-    pub fn heap_bytes(&self) -> usize {
-        self.a.capacity() * 4
-            + self.b.capacity() * 4
-            + self.rest.capacity() * 4
-            + self.k.capacity() * 4
-            + self.c.capacity() * 4
-            + self.kind.capacity() * size_of::<EdgeKind>()
-    }
-}
+// The compiled mesh (its checks, masses and springs) lives with the scene that validates it,
+// so that the scene's checks and stability estimate need nothing from here.
+pub use crate::scene::{EdgeKind, EdgeSprings, MeshCloth};
 
 /// An irregular triangulation of a `size` x `size` square in the plane through `center` along
 /// `+x` and `+y` (a hanging sheet): `n` x `n` points on a grid, the interior ones moved by up

@@ -7,6 +7,7 @@
 //! Units are SI throughout: metres, kilograms, seconds, newtons.
 
 mod mesh;
+mod mesh_cloth;
 mod pins;
 mod solvers;
 mod specs;
@@ -15,8 +16,8 @@ mod validate;
 
 use serde::{Deserialize, Serialize};
 
-pub(crate) use mesh::{check_indices, has_zero_area};
 pub use mesh::{is_closed, merged_indices};
+pub use mesh_cloth::{EdgeKind, EdgeSprings, MeshCloth};
 pub use pins::PIN_GROUPS;
 pub use solvers::{IntegratorKind, Preconditioner, SolverSettings};
 pub use specs::{
@@ -259,7 +260,7 @@ impl Scene {
     /// stable step), or the density's kg/m^2 times nothing when the mesh is invalid.
     pub fn particle_mass(&self) -> f64 {
         if let Some(mesh) = &self.cloth.mesh {
-            return crate::mesh_cloth::MeshCloth::new(mesh).map_or(mesh.density, |m| {
+            return MeshCloth::new(mesh).map_or(mesh.density, |m| {
                 m.masses.iter().copied().fold(f64::INFINITY, f64::min)
             });
         }
@@ -281,7 +282,7 @@ impl Scene {
     /// k_shear + k_bend) / m)`.
     pub fn max_frequency(&self) -> f64 {
         if let Some(mesh) = &self.cloth.mesh {
-            return crate::mesh_cloth::MeshCloth::new(mesh).map_or(0.0, |m| m.max_omega2().sqrt());
+            return MeshCloth::new(mesh).map_or(0.0, |m| m.max_omega2().sqrt());
         }
         let c = &self.cloth;
         (4.0 * (c.k_structural + c.k_shear + c.k_bend) / self.particle_mass()).sqrt()

@@ -37,7 +37,7 @@ impl ClothSpec {
     pub fn grid_rest_position(&self, p: usize) -> [f64; 3] {
         let nx = self.nx as usize;
         let (i, j) = (p % nx, p / nx);
-        let (e1, e2) = crate::model::plane_axes(self.plane);
+        let (e1, e2) = self.plane.axes();
         let u = i as f64 / (nx - 1) as f64 - 0.5;
         let v = j as f64 / (self.ny as usize - 1) as f64 - 0.5;
         let center = glam::DVec3::from(self.center);

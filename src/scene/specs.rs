@@ -188,6 +188,16 @@ pub enum Plane {
     Xy,
 }
 
+impl Plane {
+    /// The unit vectors `(e_i, e_j)` a grid cloth starts along.
+    pub fn axes(self) -> (glam::Vec3, glam::Vec3) {
+        match self {
+            Plane::Xz => (glam::Vec3::X, glam::Vec3::Z),
+            Plane::Xy => (glam::Vec3::X, glam::Vec3::Y),
+        }
+    }
+}
+
 /// A pin: a named group of particles or one `[i, j]` grid position (a grid cloth only), one
 /// particle index (a mesh cloth's vertex index; on a grid, `j * nx + i`), or every particle
 /// whose starting position lies in a box.

@@ -31,10 +31,10 @@ pub fn stable_substep(scene: &Scene, integrator: IntegratorKind, m: f64) -> Opti
 }
 
 /// A mesh cloth's stable substep, from Gershgorin's bounds on its stiffest and most damped
-/// vertex ([`crate::mesh_cloth::MeshCloth::max_omega2`]): an upper bound on the frequency, so
+/// vertex ([`super::MeshCloth::max_omega2`]): an upper bound on the frequency, so
 /// the estimate errs towards a shorter step. The lightest vertex's drag rate is added.
 fn mesh_substep(scene: &Scene, integrator: IntegratorKind, mesh: &super::MeshSpec) -> Option<f64> {
-    let cloth = crate::mesh_cloth::MeshCloth::new(mesh).ok()?;
+    let cloth = super::MeshCloth::new(mesh).ok()?;
     let omega2 = cloth.max_omega2();
     if omega2 == 0.0 {
         return None;

@@ -329,7 +329,7 @@ impl ClothSpec {
 }
 
 impl ClothSpec {
-    /// A mesh cloth: the mesh's own checks ([`crate::mesh_cloth::MeshCloth::new`]), the grid's
+    /// A mesh cloth: the mesh's own checks ([`super::MeshCloth::new`]), the grid's
     /// keys left at their defaults (a value there would be silently ignored), and the pins.
     fn validate_mesh(&self) -> Result<()> {
         let Some(mesh) = &self.mesh else {
@@ -356,7 +356,7 @@ impl ClothSpec {
                  and its material from cloth.mesh.density, stretch, bend and damping: remove it",
             ));
         }
-        crate::mesh_cloth::MeshCloth::new(mesh)?;
+        super::MeshCloth::new(mesh)?;
         self.check_pins()
     }
 }

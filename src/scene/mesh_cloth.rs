@@ -1,19 +1,73 @@
 //! A mesh cloth from its [`MeshSpec`]: the checks that refuse a bad mesh (each error names the
 //! parameter and the offending vertex or triangle), then the lumped masses and the springs.
+//! The model and its equations: [`crate::mesh_cloth`].
 
 use std::collections::HashMap;
 
 use glam::DVec3;
 
-use super::{EdgeKind, EdgeSprings};
+use super::mesh::{check_indices, has_zero_area};
+use super::MeshSpec;
 use crate::error::{check_scalar, check_vector, Bound, Error, Result};
-use crate::scene::{check_indices, has_zero_area, MeshSpec};
 
 /// Two vertices closer than this (m) are one point.
 const DEGENERATE: f64 = f32::EPSILON as f64;
 
 /// Where a scene keeps the mesh, for error names.
 const AT: &str = "cloth.mesh";
+
+/// What a spring of a mesh cloth stands for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum EdgeKind {
+    /// On an edge of the mesh.
+    Stretch,
+    /// Across an interior edge, between the two opposite vertices.
+    Bend,
+}
+
+/// The springs of a mesh cloth as an explicit list, sorted by kind, then ends.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct EdgeSprings {
+    /// First end (the lower vertex index).
+    pub a: Vec<u32>,
+    /// Second end.
+    pub b: Vec<u32>,
+    /// Rest length in m.
+    pub rest: Vec<f32>,
+    /// Stiffness in N/m.
+    pub k: Vec<f32>,
+    /// Damping along the spring in N s/m.
+    pub c: Vec<f32>,
+    pub kind: Vec<EdgeKind>,
+}
+
+impl EdgeSprings {
+    pub fn len(&self) -> usize {
+        self.a.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.a.is_empty()
+    }
+
+    fn push(&mut self, (a, b): (u32, u32), rest: f64, k: f64, c: f64, kind: EdgeKind) {
+        self.a.push(a.min(b));
+        self.b.push(a.max(b));
+        self.rest.push(rest as f32);
+        self.k.push(k as f32);
+        self.c.push(c as f32);
+        self.kind.push(kind);
+    }
+
+    pub fn heap_bytes(&self) -> usize {
+        self.a.capacity() * 4
+            + self.b.capacity() * 4
+            + self.rest.capacity() * 4
+            + self.k.capacity() * 4
+            + self.c.capacity() * 4
+            + self.kind.capacity() * size_of::<EdgeKind>()
+    }
+}
 
 /// A validated mesh cloth: rest shape, triangles, lumped masses, springs, and for each vertex
 /// the springs that touch it (the gather the force pass walks).
@@ -49,12 +103,12 @@ impl MeshCloth {
                 format!("must hold at least 3 vertices, got {n}"),
             ));
         }
-        if n > crate::scene::MAX_PARTICLES {
+        if n > super::MAX_PARTICLES {
             return Err(Error::value(
                 format!("{AT}.vertices"),
                 format!(
                     "must hold at most {} vertices, got {n}",
-                    crate::scene::MAX_PARTICLES
+                    super::MAX_PARTICLES
                 ),
             ));
         }
