@@ -42,7 +42,7 @@ pub fn energy(model: &Model, state: &State) -> Energy {
             -m * g.dot(pos.get(p).as_dvec3()),
         ]
     });
-    let mut elastic = 0.0;
+    let mut elastic = model.mesh().map_or(0.0, |mesh| mesh.elastic_energy(pos));
     for family in Family::ALL {
         let k = model.stiffness(family);
         if k == 0.0 {
@@ -94,6 +94,9 @@ fn fixed_sum<const K: usize>(n: usize, term: impl Fn(usize) -> [f64; K] + Sync) 
 /// Per particle, the largest relative stretch `l / L - 1` of the live springs of the active
 /// families that touch it (0 for a particle with none).
 pub fn spring_strain(model: &Model, state: &State) -> Vec<f32> {
+    if let Some(mesh) = model.mesh() {
+        return mesh.vertex_strain(&state.kin.pos);
+    }
     let mut strain = vec![0.0f32; model.grid.len()];
     let pos = &state.kin.pos;
     for family in Family::ALL
@@ -145,6 +148,11 @@ impl Mesh {
             let (e1, e2) = plane_axes(model.scene.cloth.plane);
             let fallback = e1.cross(e2);
             let (grid, pos) = (model.grid, &state.kin.pos);
+            if let Some(mesh) = model.mesh() {
+                self.normals = mesh.vertex_normals(pos, Vec3::Y);
+                self.normals_for = Some(now);
+                return &self.normals;
+            }
             let drawn = |id: usize| model.triangle_drawn(id);
             let normals = &mut self.normals;
             if normals.len() != grid.len() {

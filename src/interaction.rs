@@ -11,6 +11,7 @@
 
 use glam::Vec3;
 
+use crate::error::{Error, Result};
 use crate::grid::SpringKind;
 use crate::model::Model;
 use crate::state::State;
@@ -102,4 +103,16 @@ impl Held {
             start: state.kin.pos.get(p),
         }
     }
+}
+
+/// A grip radius: finite and >= 0 within float32's range.
+pub fn checked_grip_radius(radius: f64) -> Result<f32> {
+    let r = radius as f32;
+    if !(radius.is_finite() && r.is_finite() && radius >= 0.0) {
+        return Err(Error::value(
+            "grip_radius",
+            format!("must be a finite number >= 0 within float32 range, got {radius}"),
+        ));
+    }
+    Ok(r)
 }

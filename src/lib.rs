@@ -29,6 +29,7 @@ pub mod grid;
 pub mod integrators;
 pub mod interaction;
 pub mod linear;
+pub mod mesh_cloth;
 pub mod model;
 pub mod parallel;
 pub mod particles;

@@ -5,19 +5,33 @@
 use glam::{DVec3, Vec3};
 
 use std::collections::HashMap;
+use std::sync::Arc;
 
 use crate::error::{check_scalar, Bound, Error, Result};
 use crate::grid::{Grid, SpringSlot};
+use crate::mesh_cloth::MeshCloth;
 use crate::scene::{Plane, Scene};
 use crate::soa::Vec3s;
 use crate::springs::Springs;
 
 pub use crate::particles::Particles;
 
+/// How the cloth's particles are joined.
+#[derive(Clone, Debug)]
+pub enum Topology {
+    /// The `nx` x `ny` grid and its 12-neighbour stencil ([`Model::springs`]): the fast path.
+    Grid,
+    /// A triangle mesh with its springs as an explicit list ([`crate::mesh_cloth`]); the
+    /// particles are laid out as one row ([`Model::grid`] is `vertices x 1`) and the stencil
+    /// holds no spring.
+    Mesh(Arc<MeshCloth>),
+}
+
 /// A scene compiled into the cloth it describes.
 pub struct Model {
     /// The scene, with the run-time settings (integrator, dt, substeps) as they are now.
     pub scene: Scene,
+    pub topology: Topology,
     pub grid: Grid,
     pub particles: Particles,
     pub springs: Springs,
@@ -36,6 +50,9 @@ impl Model {
     pub fn new(scene: Scene) -> Result<(Model, Vec3s)> {
         scene.validate()?;
         let grid = scene.grid();
+        if let Some(spec) = &scene.cloth.mesh {
+            return Self::new_mesh(MeshCloth::new(spec)?, scene);
+        }
         let pos = initial_positions(&scene);
         let springs = Springs::new(grid, &pos);
         let mut particles = Particles::new(grid.len(), scene.particle_mass() as f32);
@@ -44,6 +61,7 @@ impl Model {
         }
         let model = Model {
             scene,
+            topology: Topology::Grid,
             grid,
             particles,
             springs,
@@ -51,6 +69,45 @@ impl Model {
             topology_version: 0,
         };
         Ok((model, pos))
+    }
+
+    /// A mesh cloth: its vertices at rest, their lumped masses, no stencil springs.
+    fn new_mesh(mesh: MeshCloth, scene: Scene) -> Result<(Model, Vec3s)> {
+        let grid = scene.grid();
+        let pos = Vec3s::from_fn(grid.len(), |p| DVec3::from(mesh.rest[p]).as_vec3());
+        let mut particles = Particles::new(grid.len(), 1.0);
+        for (p, &m) in mesh.masses.iter().enumerate() {
+            particles.set_mass(p, m as f32);
+        }
+        for p in scene.cloth.pinned_indices() {
+            particles.set_pinned(p, true);
+        }
+        let model = Model {
+            springs: Springs::none(grid.len()),
+            scene,
+            topology: Topology::Mesh(Arc::new(mesh)),
+            grid,
+            particles,
+            crossings: HashMap::new(),
+            topology_version: 0,
+        };
+        Ok((model, pos))
+    }
+
+    /// The mesh of a mesh cloth; None on the grid.
+    pub fn mesh(&self) -> Option<&MeshCloth> {
+        match &self.topology {
+            Topology::Grid => None,
+            Topology::Mesh(mesh) => Some(mesh),
+        }
+    }
+
+    /// Refuses `feature` (an operation, named as the error names it) on a mesh cloth.
+    pub fn grid_only(&self, feature: &str) -> Result<()> {
+        match self.topology {
+            Topology::Grid => Ok(()),
+            Topology::Mesh(_) => Err(crate::scene::not_on_mesh(feature, feature)),
+        }
     }
 
     /// Replaces every particle's mass (kg, each finite and > 0, with a finite float32 inverse).
@@ -126,10 +183,16 @@ impl Model {
     /// The triangles of the cloth: two per grid cell, less those a cut or a tear runs through
     /// ([`Model::triangle_drawn`]), in the order of their ids ([`crate::grid::cell_triangle`]). What
     /// the renderer draws and what self-collision keeps apart are the same surface.
-    pub fn triangles(&self) -> impl Iterator<Item = [u32; 3]> + '_ {
-        (0..crate::grid::triangle_slots(self.grid))
-            .filter(|&id| self.triangle_drawn(id))
-            .map(|id| crate::grid::cell_triangle(self.grid, id).map(|q| q as u32))
+    /// A mesh cloth's are its mesh's, in their order.
+    pub fn triangles(&self) -> Box<dyn Iterator<Item = [u32; 3]> + '_> {
+        if let Some(mesh) = self.mesh() {
+            return Box::new(mesh.triangles.iter().copied());
+        }
+        Box::new(
+            (0..crate::grid::triangle_slots(self.grid))
+                .filter(|&id| self.triangle_drawn(id))
+                .map(|id| crate::grid::cell_triangle(self.grid, id).map(|q| q as u32)),
+        )
     }
 
     /// The smaller of the two grid spacings at rest, in m.
@@ -155,15 +218,13 @@ impl Model {
             + self.particles.heap_bytes()
             + self.springs.heap_bytes()
             + self.crossings.capacity() * size_of::<(SpringSlot, f32)>()
+            + self.mesh().map_or(0, MeshCloth::heap_bytes)
     }
 }
 
 /// The unit vectors `(e_i, e_j)` the cloth's grid starts along.
 pub fn plane_axes(plane: Plane) -> (Vec3, Vec3) {
-    match plane {
-        Plane::Xz => (Vec3::X, Vec3::Z),
-        Plane::Xy => (Vec3::X, Vec3::Y),
-    }
+    plane.axes()
 }
 
 /// `center + (i/(nx-1) - 1/2) size[0] e1 + (j/(ny-1) - 1/2) size[1] e2`.

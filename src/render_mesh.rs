@@ -195,6 +195,12 @@ impl RenderMesh {
         self.triangles.clear();
         self.cut.clear();
         self.index.clear();
+        if let Some(mesh) = model.mesh() {
+            // Nothing cuts a mesh cloth yet: the drawn mesh is the mesh.
+            self.triangles.extend_from_slice(&mesh.triangles);
+            self.topology_for = Some(model.topology_version);
+            return;
+        }
         let (grid, alive) = (model.grid, &model.particles.alive);
         for id in 0..triangle_slots(grid) {
             if triangle_alive(grid, alive, id) {
@@ -381,6 +387,36 @@ pub fn uvs(grid: Grid, cut: &[CutVertex]) -> Vec<[f32; 2]> {
                 .map(|v| uv(v.from as usize).lerp(uv(v.toward as usize), v.s)),
         )
         .map(|x| x.to_array())
+        .collect()
+}
+
+/// Texture coordinates of a mesh cloth's vertices: the mesh's own, or without them the rest
+/// shape projected onto the two axes along which it extends furthest, each scaled to `[0, 1]`.
+pub fn mesh_uvs(mesh: &crate::mesh_cloth::MeshCloth) -> Vec<[f32; 2]> {
+    if let Some(uvs) = &mesh.uvs {
+        return uvs.clone();
+    }
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for v in &mesh.rest {
+        for c in 0..3 {
+            lo[c] = lo[c].min(v[c]);
+            hi[c] = hi[c].max(v[c]);
+        }
+    }
+    let mut axes = [0, 1, 2];
+    axes.sort_by(|&a, &b| (hi[b] - lo[b]).total_cmp(&(hi[a] - lo[a])));
+    let along = |v: &[f64; 3], c: usize| {
+        let extent = hi[c] - lo[c];
+        (if extent > 0.0 {
+            (v[c] - lo[c]) / extent
+        } else {
+            0.0
+        }) as f32
+    };
+    let (u, w) = (axes[0].min(axes[1]), axes[0].max(axes[1]));
+    mesh.rest
+        .iter()
+        .map(|v| [along(v, u), along(v, w)])
         .collect()
 }
 

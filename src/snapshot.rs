@@ -236,7 +236,7 @@ impl Snapshot {
             }
         }
         if let Some(r) = self.grip_radius {
-            crate::simulation::checked_grip_radius(r as f64)?;
+            crate::interaction::checked_grip_radius(r as f64)?;
         }
         if let Some(r) = self.pick_radius {
             picker.set_radius(r as f64)?;

@@ -41,6 +41,14 @@ impl Springs {
         Springs { rest, active }
     }
 
+    /// `n` slots of every kind, none live: a mesh cloth's, whose springs are a list of its own.
+    pub fn none(n: usize) -> Self {
+        Springs {
+            rest: std::array::from_fn(|_| Floats::zeros(n)),
+            active: std::array::from_fn(|_| Floats::zeros(n)),
+        }
+    }
+
     /// Removes every spring that touches particle `p`, and the bending springs that pass over
     /// it (`(i-1, j)-(i+1, j)` and `(i, j-1)-(i, j+1)`): they span the hole, and left in place
     /// they would hold the cloth together across a cut one particle wide.

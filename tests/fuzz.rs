@@ -260,6 +260,7 @@ fn scene_any() -> BoxedStrategy<Scene> {
             k_bend: k[2],
             damping: k[3],
             pins,
+            mesh: None,
         });
     let floor = prop::option::of(
         [weird_f64(), weird_f64(), weird_f64()].prop_map(|f| FloorSpec {
@@ -406,6 +407,7 @@ fn scene_small() -> BoxedStrategy<Scene> {
                     None => PinSpec::Cell([(u * nx as f64) as i64, (v * ny as f64) as i64]),
                 })
                 .collect(),
+            mesh: None,
         });
     let floor = prop::option::of(
         (

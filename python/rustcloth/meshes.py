@@ -88,9 +88,65 @@ def _degenerate(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
         return np.flatnonzero(~(doubled > DEGENERATE * longest))
 
 
+def uv_array(path: str | os.PathLike[str]) -> np.ndarray | None:
+    """The per-vertex texture coordinates trimesh reads from ``path`` (in the order of
+    :func:`mesh_arrays`' vertices), or None when the file has none."""
+    import trimesh
+
+    extra: dict[str, Any] = (
+        {"maintain_order": True} if os.fspath(path).lower().endswith(".obj") else {}
+    )
+    mesh = trimesh.load(os.fspath(path), force="mesh", process=False, **extra)
+    uv = getattr(getattr(mesh, "visual", None), "uv", None)
+    if uv is None or len(uv) != len(getattr(mesh, "vertices", ())):
+        return None
+    return np.asarray(uv, dtype=np.float64)
+
+
+def wants_file(data: Mapping[str, Any]) -> bool:
+    """Whether scene ``data`` names a mesh file: a mesh collider's ``path``, or ``cloth.mesh``
+    given as a path (``mesh = "flag.obj"`` or ``mesh = { path = "flag.obj", ... }``)."""
+    colliders = data.get("colliders")
+    cloth = data.get("cloth")
+    mesh = cloth.get("mesh") if isinstance(cloth, Mapping) else None
+    return (isinstance(colliders, list | tuple) and any(
+        isinstance(c, Mapping) and "path" in c for c in colliders
+    )) or isinstance(mesh, str | os.PathLike) or (isinstance(mesh, Mapping) and "path" in mesh)
+
+
+def _resolve_cloth_mesh(
+    data: Mapping[str, Any], base: str | os.PathLike[str] | None
+) -> dict[str, Any]:
+    """``data`` with ``cloth.mesh``'s file (a path, or a table's ``path``) read into its
+    ``vertices``, ``triangles`` and, where the file has them, ``uvs``; relative to ``base``."""
+    cloth = data.get("cloth")
+    mesh = cloth.get("mesh") if isinstance(cloth, Mapping) else None
+    if isinstance(mesh, str | os.PathLike):
+        mesh = {"path": mesh}
+    if not (isinstance(cloth, Mapping) and isinstance(mesh, Mapping) and "path" in mesh):
+        return dict(data)
+    both = [key for key in ("vertices", "triangles", "uvs") if key in mesh]
+    if both:
+        raise ParameterError(
+            f"cloth.mesh.path: give a file or {' and '.join(both)}, not both", "cloth.mesh.path"
+        )
+    path = mesh["path"]
+    if base is not None and isinstance(path, str) and not os.path.isabs(path):
+        path = os.path.join(base, path)
+    vertices, triangles = mesh_arrays(path, "cloth.mesh.path")
+    resolved = {key: value for key, value in mesh.items() if key != "path"}
+    resolved.update(vertices=vertices, triangles=triangles)
+    uvs = uv_array(path)
+    if uvs is not None:
+        resolved["uvs"] = uvs
+    return {**data, "cloth": {**cloth, "mesh": resolved}}
+
+
 def resolve_paths(data: Mapping[str, Any], base: str | os.PathLike[str] | None) -> dict[str, Any]:
     """``data`` with each mesh collider's ``path`` replaced by the file's ``vertices`` and
-    ``triangles`` (a collider that gives ``path`` and either of those is refused)."""
+    ``triangles`` (a collider that gives ``path`` and either of those is refused), and a mesh
+    cloth's file read the same way."""
+    data = _resolve_cloth_mesh(data, base)
     colliders = data.get("colliders")
     if not isinstance(colliders, list | tuple) or not any(
         isinstance(c, Mapping) and "path" in c for c in colliders

@@ -21,7 +21,7 @@ import numpy.typing as npt
 
 from . import _args, _core
 from .errors import ParameterError, ParameterTypeError, StabilityWarning
-from .meshes import mesh_arrays, resolve_paths
+from .meshes import mesh_arrays, resolve_paths, wants_file
 
 if TYPE_CHECKING:
     from .settings import (
@@ -182,10 +182,7 @@ class Scene:
             # Python's reader recurses per level of nesting; the core's reader stops at its
             # own limit and says so.
             table = {}
-        colliders = table.get("colliders")
-        if isinstance(colliders, list) and any(
-            isinstance(c, dict) and "path" in c for c in colliders
-        ):
+        if wants_file(table):
             return cls._from_dict(table, base)
         scene = cls.__new__(cls)
         scene._data = _core.scene_from_toml(_args.text(text, "text"))
@@ -225,6 +222,46 @@ class Scene:
                     "triangles": _mesh_array(triangles, f"{at}.triangles")}
         data = self.to_dict()
         data["colliders"] = [*data["colliders"], collider]
+        return Scene.from_dict(data)
+
+    def with_cloth_mesh(
+        self,
+        vertices: npt.ArrayLike | None = None,
+        triangles: npt.ArrayLike | None = None,
+        uvs: npt.ArrayLike | None = None,
+        *,
+        path: str | os.PathLike[str] | None = None,
+        pins: list[Any] | None = None,
+        **keys: Any,
+    ) -> Scene:
+        """A copy whose cloth is the triangle mesh ``vertices`` (``(N, 3)``, m, where the cloth
+        starts, at rest) and ``triangles`` (``(M, 3)`` indices, wound consistently), with
+        optional per-vertex ``uvs`` (``(N, 2)``), or ``path``, a mesh file read with trimesh
+        (the ``export`` extra; its texture coordinates come along). ``keys`` are the mesh's
+        material: ``density`` (kg/m^2), ``stretch``, ``bend`` (N/m), ``damping`` (N s/m);
+        ``pins`` are vertex indices and ``{"box": [[x0, y0, z0], [x1, y1, z1]]}`` selections
+        (default none). The grid's keys go back to their defaults. Errors name
+        ``cloth.mesh.vertices[k]``, ``cloth.mesh.triangles[t]``, ... (docs/mesh_cloth.md)."""
+        if path is not None:
+            if vertices is not None or triangles is not None or uvs is not None:
+                raise ParameterError(
+                    "cloth.mesh.path: give a file or vertices and triangles, not both",
+                    "cloth.mesh.path",
+                )
+            mesh = {**keys, "path": path}
+        elif vertices is None or triangles is None:
+            missing = "vertices" if vertices is None else "triangles"
+            raise ParameterError(
+                f"cloth.mesh.{missing}: is required for a mesh cloth (or give path)",
+                f"cloth.mesh.{missing}",
+            )
+        else:
+            mesh = {**keys, "vertices": _mesh_array(vertices, "cloth.mesh.vertices"),
+                    "triangles": _mesh_array(triangles, "cloth.mesh.triangles")}
+            if uvs is not None:
+                mesh["uvs"] = _mesh_array(uvs, "cloth.mesh.uvs", columns=2)
+        data = self.to_dict()
+        data["cloth"] = {"mesh": mesh, "pins": [] if pins is None else pins}
         return Scene.from_dict(data)
 
     def to_dict(self) -> dict[str, Any]:
@@ -361,21 +398,24 @@ class StabilityReport:
         return "\n".join(lines)
 
 
-def _mesh_array(values: npt.ArrayLike, parameter: str) -> np.ndarray:
-    """An ``(n, 3)`` array of numbers, as given (the core reads it in one pass and keeps its own
-    copy); a wrong shape or a non-number is named here, before the core's element-by-element
-    checks."""
+def _mesh_array(values: npt.ArrayLike, parameter: str, columns: int = 3) -> np.ndarray:
+    """An ``(n, columns)`` array of numbers, as given (the core reads it in one pass and keeps
+    its own copy); a wrong shape or a non-number is named here, before the core's
+    element-by-element checks."""
     try:
         array = np.asarray(values)
     except (TypeError, ValueError) as err:
-        raise ParameterTypeError(f"{parameter}: must be an (n, 3) array: {err}", parameter) from err
+        raise ParameterTypeError(
+            f"{parameter}: must be an (n, {columns}) array: {err}", parameter
+        ) from err
     if array.dtype.kind not in "fiu":
         raise ParameterTypeError(
-            f"{parameter}: must be an (n, 3) array of numbers, got dtype {array.dtype}", parameter
+            f"{parameter}: must be an (n, {columns}) array of numbers, got dtype {array.dtype}",
+            parameter,
         )
-    if array.ndim != 2 or array.shape[1] != 3:
+    if array.ndim != 2 or array.shape[1] != columns:
         raise ParameterError(
-            f"{parameter}: must have shape (n, 3), got {array.shape}", parameter
+            f"{parameter}: must have shape (n, {columns}), got {array.shape}", parameter
         )
     return array
 

@@ -11,7 +11,7 @@ These are for type checkers: at run time each is a plain ``dict``, ``list`` or `
 
 from __future__ import annotations
 
-from typing import Any, Literal, TypeAlias, TypedDict
+from typing import Any, Literal, NotRequired, TypeAlias, TypedDict
 
 IntegratorName: TypeAlias = Literal[
     "explicit_euler",
@@ -27,8 +27,22 @@ module's list; tests/test_typing.py checks that the two agree)."""
 PreconditionerName: TypeAlias = Literal["jacobi", "block_jacobi", "multigrid"]
 """The preconditioners of ``implicit_euler``'s conjugate gradient."""
 
-Pin: TypeAlias = str | list[int]
-"""A named set of particles (``"top_corners"``, ``"top_edge"``, ...) or one ``[i, j]``."""
+Pin: TypeAlias = str | list[int] | int | dict[str, list[list[float]]]
+"""A named set of particles (``"top_corners"``, ``"top_edge"``, ...) or one ``[i, j]`` (the
+grid's), one particle index (a mesh cloth's vertex), or ``{"box": [[x0, y0, z0], [x1, y1,
+z1]]}``: every particle that starts inside the box."""
+
+
+class MeshSettings(TypedDict):
+    """``scene.cloth["mesh"]``: a cloth from a triangle mesh (docs/mesh_cloth.md)."""
+
+    vertices: Any
+    triangles: Any
+    uvs: NotRequired[Any]
+    density: float
+    stretch: float
+    bend: float
+    damping: float
 
 
 class ClothSettings(TypedDict):
@@ -45,6 +59,7 @@ class ClothSettings(TypedDict):
     k_bend: float
     damping: float
     pins: list[Pin]
+    mesh: NotRequired[MeshSettings]
 
 
 class FloorSettings(TypedDict):

@@ -23,6 +23,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::grid::{Family, Grid, SpringKind};
+use crate::mesh_cloth::MeshCloth;
 use crate::profile::Profile;
 use crate::soa::{Vec3SliceMut, Vec3s};
 use crate::springs::Springs;
@@ -77,6 +78,8 @@ pub struct StateRef<'a> {
     /// Particle masses in kg.
     pub mass: &'a [f32],
     pub springs: &'a Springs,
+    /// A mesh cloth's springs, added after the sweep; None on the grid.
+    pub mesh: Option<&'a MeshCloth>,
 }
 
 /// Per-spring anchor forces for one block of particles: for each kind, the springs anchored
@@ -133,7 +136,12 @@ pub struct ForceModel {
     /// Makes the next evaluation panic on a worker thread, to test that a panic anywhere in a
     /// step is caught and rolled back (see [`ForceModel::inject_panic`]).
     panic_next: bool,
+    /// A mesh cloth's per-spring forces, scratch for [`MeshCloth::add_spring_forces`].
+    mesh_table: Vec<[f32; 3]>,
 }
+
+/// The pass name of a mesh cloth's springs in `effects` and `profile()`.
+pub const MESH_SPRINGS: &str = "mesh_springs";
 
 impl ForceModel {
     pub fn new(forces: Vec<Force>) -> Self {
@@ -168,6 +176,7 @@ impl ForceModel {
             watch_armed: false,
             overstretched: AtomicBool::new(false),
             panic_next: false,
+            mesh_table: Vec::new(),
         }
     }
 
@@ -218,7 +227,11 @@ impl ForceModel {
 
     /// Heap memory of the spring tables.
     pub fn heap_bytes(&self) -> usize {
-        self.tables.iter().map(SpringTable::heap_bytes).sum()
+        self.tables
+            .iter()
+            .map(SpringTable::heap_bytes)
+            .sum::<usize>()
+            + self.mesh_table.capacity() * size_of::<[f32; 3]>()
     }
 
     /// One table per work item, each long enough for a block and the springs before it.
@@ -268,6 +281,7 @@ impl ForceModel {
             tables,
             cpu_nanos,
             overstretched,
+            mesh_table,
             ..
         } = self;
         let clocked = |work: &mut dyn FnMut()| {
@@ -339,6 +353,17 @@ impl ForceModel {
                 .for_each(sweep);
         }
 
+        // The sweep's time is split among its forces; the mesh's springs are booked apart.
+        let swept = start.elapsed();
+        if let Some(mesh) = state.mesh {
+            let clock = Instant::now();
+            let over =
+                mesh.add_spring_forces((state.pos, state.vel), out, mesh_table, chunk, watch);
+            if over {
+                overstretched.store(true, Ordering::Relaxed);
+            }
+            profile.add(MESH_SPRINGS, clock.elapsed());
+        }
         let wall = start.elapsed();
         profile.force_time += wall;
         let cpu_total = cpu_nanos
@@ -347,7 +372,7 @@ impl ForceModel {
             .sum::<u64>();
         for (force, nanos) in forces.iter().zip(cpu_nanos.iter()) {
             let share = nanos.swap(0, Ordering::Relaxed) as f64 / cpu_total.max(1) as f64;
-            profile.add(force.name(), wall.mul_f64(share));
+            profile.add(force.name(), swept.mul_f64(share));
         }
         wall
     }

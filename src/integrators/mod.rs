@@ -40,6 +40,8 @@ pub struct StepContext<'a> {
     pub next: &'a mut Kinematics,
     pub particles: &'a Particles,
     pub springs: &'a Springs,
+    /// A mesh cloth's springs; None on the grid.
+    pub mesh: Option<&'a crate::mesh_cloth::MeshCloth>,
     pub forces: &'a mut ForceModel,
     /// Scratch for the total force, one vector per particle.
     pub force: &'a mut Vec3s,
@@ -61,6 +63,7 @@ impl StepContext<'_> {
             vel: &state.vel,
             mass: &self.particles.mass,
             springs: self.springs,
+            mesh: self.mesh,
         };
         self.forces
             .evaluate(state, self.force, self.chunk, self.profile);

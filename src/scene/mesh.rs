@@ -95,6 +95,31 @@ pub fn is_closed(at: &str, vertices: &[[f64; 3]], triangles: &[[u32; 3]]) -> Res
     Ok(true)
 }
 
+/// Refuses a triangle `name` with an index outside `0..n`, naming the index.
+pub(crate) fn check_indices(name: &str, tri: &[i64; 3], n: usize) -> Result<()> {
+    match tri.iter().find(|&&k| !(0..n as i64).contains(&k)) {
+        Some(&k) => Err(Error::value(
+            name,
+            format!(
+                "index {k} is out of range for {n} vertices (0 to {})",
+                n - 1
+            ),
+        )),
+        None => Ok(()),
+    }
+}
+
+/// Whether the triangle (indices checked) has zero area in float32, where the solver works:
+/// repeated or collinear corners.
+pub(crate) fn has_zero_area(vertices: &[[f64; 3]], tri: &[i64; 3]) -> bool {
+    let [a, b, c] = tri.map(|k| DVec3::from(vertices[k as usize].map(|x| x as f32 as f64)));
+    let longest = (b - a)
+        .length_squared()
+        .max((c - b).length_squared())
+        .max((a - c).length_squared());
+    (b - a).cross(c - a).length() <= DEGENERATE * longest
+}
+
 /// Checks `vertices` and `triangles` of the mesh collider `at` (`colliders[c]`) and returns the
 /// triangles as `u32` indices. `within` bounds every coordinate (see `MAX_COLLIDER_VALUE`).
 pub fn check_mesh(
@@ -133,21 +158,8 @@ pub fn check_mesh(
     let n = vertices.len();
     let mut out = Vec::with_capacity(triangles.len());
     for (t, tri) in triangles.iter().enumerate() {
-        if let Some(&k) = tri.iter().find(|&&k| !(0..n as i64).contains(&k)) {
-            return Err(Error::value(
-                format!("{at}.triangles[{t}]"),
-                format!(
-                    "index {k} is out of range for {n} vertices (0 to {})",
-                    n - 1
-                ),
-            ));
-        }
-        let [a, b, c] = tri.map(|k| DVec3::from(vertices[k as usize].map(|x| x as f32 as f64)));
-        let longest = (b - a)
-            .length_squared()
-            .max((c - b).length_squared())
-            .max((a - c).length_squared());
-        if (b - a).cross(c - a).length() <= DEGENERATE * longest {
+        check_indices(&format!("{at}.triangles[{t}]"), tri, n)?;
+        if has_zero_area(vertices, tri) {
             return Err(Error::value(
                 format!("{at}.triangles[{t}]"),
                 format!(

@@ -7,6 +7,7 @@
 //! Units are SI throughout: metres, kilograms, seconds, newtons.
 
 mod mesh;
+mod mesh_cloth;
 mod pins;
 mod solvers;
 mod specs;
@@ -16,15 +17,16 @@ mod validate;
 use serde::{Deserialize, Serialize};
 
 pub use mesh::{is_closed, merged_indices};
+pub use mesh_cloth::{EdgeKind, EdgeSprings, MeshCloth};
 pub use pins::PIN_GROUPS;
 pub use solvers::{IntegratorKind, Preconditioner, SolverSettings};
 pub use specs::{
-    ClothSpec, ColliderSpec, FloorSpec, OnTrouble, PinSpec, Plane, SelfCollisionSpec, ShapeKind,
-    SphereSpec, StrainLimitSpec, TearingSpec, WatchdogSpec, WindSpec,
+    ClothSpec, ColliderSpec, FloorSpec, MeshSpec, OnTrouble, PinBox, PinSpec, Plane,
+    SelfCollisionSpec, ShapeKind, SphereSpec, StrainLimitSpec, TearingSpec, WatchdogSpec, WindSpec,
 };
 pub use stability::stable_substep;
-pub(crate) use validate::check_substep;
 use validate::require_tables;
+pub(crate) use validate::{check_substep, not_on_mesh};
 pub use validate::{MAX_COLLIDER_VALUE, MAX_ITERATIONS, MAX_PARTICLES, MIN_SUBSTEP};
 
 use crate::error::{Error, Result};
@@ -239,15 +241,29 @@ impl Scene {
         }
     }
 
+    /// The particles' layout: the cloth's grid, or for a mesh cloth one row of its vertices
+    /// (`nx` = vertex count, `ny` = 1), whose stencil holds no spring.
     pub fn grid(&self) -> Grid {
+        if let Some(mesh) = &self.cloth.mesh {
+            return Grid {
+                nx: mesh.vertices.len(),
+                ny: 1,
+            };
+        }
         Grid {
             nx: self.cloth.nx as usize,
             ny: self.cloth.ny as usize,
         }
     }
 
-    /// Mass of each particle in kg.
+    /// Mass of each particle in kg; for a mesh cloth the lightest vertex's (what bounds its
+    /// stable step), or the density's kg/m^2 times nothing when the mesh is invalid.
     pub fn particle_mass(&self) -> f64 {
+        if let Some(mesh) = &self.cloth.mesh {
+            return MeshCloth::new(mesh).map_or(mesh.density, |m| {
+                m.masses.iter().copied().fold(f64::INFINITY, f64::min)
+            });
+        }
         match (self.cloth.particle_mass, self.cloth.mass) {
             (Some(m), _) => m,
             (None, Some(total)) => total / self.grid().len() as f64,
@@ -265,6 +281,9 @@ impl Scene {
     /// The angular frequency (rad/s) of the cloth's stiffest mode, `sqrt(4 (k_structural +
     /// k_shear + k_bend) / m)`.
     pub fn max_frequency(&self) -> f64 {
+        if let Some(mesh) = &self.cloth.mesh {
+            return MeshCloth::new(mesh).map_or(0.0, |m| m.max_omega2().sqrt());
+        }
         let c = &self.cloth;
         (4.0 * (c.k_structural + c.k_shear + c.k_bend) / self.particle_mass()).sqrt()
     }

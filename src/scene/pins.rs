@@ -1,7 +1,7 @@
 //! Pins in a scene: named groups of particles (`top_corners`, `left_edge`, ...) or one grid
 //! cell, and the particle indices they name.
 
-use super::specs::{ClothSpec, PinSpec};
+use super::specs::{ClothSpec, PinBox, PinSpec};
 use crate::error::{Error, Result};
 use crate::grid::Grid;
 
@@ -20,14 +20,10 @@ pub const PIN_GROUPS: &[&str] = &[
 impl ClothSpec {
     /// Every pinned particle index, sorted and without repeats.
     pub fn pinned_indices(&self) -> Vec<usize> {
-        let grid = Grid {
-            nx: self.nx as usize,
-            ny: self.ny as usize,
-        };
         let mut out: Vec<usize> = self
             .pins
             .iter()
-            .flat_map(|pin| pin_indices(pin, grid).unwrap_or_default())
+            .flat_map(|pin| pin_indices(pin, self).unwrap_or_default())
             .collect();
         out.sort_unstable();
         out.dedup();
@@ -35,8 +31,29 @@ impl ClothSpec {
     }
 }
 
-/// The particles a pin entry names.
-pub(super) fn pin_indices(pin: &PinSpec, grid: Grid) -> Result<Vec<usize>> {
+impl ClothSpec {
+    /// Where grid particle `p` starts (m): `center + (i/(nx-1) - 1/2) size[0] e1 + (j/(ny-1) -
+    /// 1/2) size[1] e2`, in f64 (the model rounds it to float32).
+    pub fn grid_rest_position(&self, p: usize) -> [f64; 3] {
+        let nx = self.nx as usize;
+        let (i, j) = (p % nx, p / nx);
+        let (e1, e2) = self.plane.axes();
+        let u = i as f64 / (nx - 1) as f64 - 0.5;
+        let v = j as f64 / (self.ny as usize - 1) as f64 - 0.5;
+        let center = glam::DVec3::from(self.center);
+        (center + u * self.size[0] * e1.as_dvec3() + v * self.size[1] * e2.as_dvec3()).to_array()
+    }
+}
+
+/// The particles a pin entry of `cloth` names.
+pub(super) fn pin_indices(pin: &PinSpec, cloth: &ClothSpec) -> Result<Vec<usize>> {
+    if let Some(mesh) = &cloth.mesh {
+        return mesh_pin_indices(pin, &mesh.vertices);
+    }
+    let grid = Grid {
+        nx: cloth.nx as usize,
+        ny: cloth.ny as usize,
+    };
     let (nx, ny) = (grid.nx, grid.ny);
     if grid.is_empty() {
         // `pinned_indices` may be asked before validation: nothing to pin, and no `nx - 1`.
@@ -58,6 +75,24 @@ pub(super) fn pin_indices(pin: &PinSpec, grid: Grid) -> Result<Vec<usize>> {
                 ));
             }
             vec![grid.index(*i as usize, *j as usize)]
+        }
+        PinSpec::Index(p) => {
+            if !(0..grid.len() as i64).contains(p) {
+                return Err(Error::value(
+                    "pins",
+                    format!(
+                        "particle {p} is outside the {nx} x {ny} grid (0 to {})",
+                        grid.len() - 1
+                    ),
+                ));
+            }
+            vec![*p as usize]
+        }
+        PinSpec::Region(region) => {
+            let positions: Vec<[f64; 3]> = (0..grid.len())
+                .map(|p| cloth.grid_rest_position(p))
+                .collect();
+            in_box(region, &positions)?
         }
         PinSpec::Named(name) => match name.as_str() {
             "top_corners" => vec![grid.index(0, last_j), grid.index(last_i, last_j)],
@@ -81,4 +116,60 @@ pub(super) fn pin_indices(pin: &PinSpec, grid: Grid) -> Result<Vec<usize>> {
             }
         },
     })
+}
+
+/// The vertices a pin entry names on a mesh cloth: an index or a box; named groups and grid
+/// cells are the grid's.
+fn mesh_pin_indices(pin: &PinSpec, vertices: &[[f64; 3]]) -> Result<Vec<usize>> {
+    match pin {
+        PinSpec::Index(k) => {
+            if !(0..vertices.len() as i64).contains(k) {
+                return Err(Error::value(
+                    "pins",
+                    format!(
+                        "vertex {k} is out of range for the mesh's {} vertices",
+                        vertices.len()
+                    ),
+                ));
+            }
+            Ok(vec![*k as usize])
+        }
+        PinSpec::Region(region) => in_box(region, vertices),
+        PinSpec::Named(_) | PinSpec::Cell(_) => Err(Error::value(
+            "pins",
+            format!(
+                "{pin:?} names the grid's particles; a mesh cloth is pinned by vertex index                  (3) or box ({{ box = [[x0, y0, z0], [x1, y1, z1]] }}); pins = [] for none"
+            ),
+        )),
+    }
+}
+
+/// The particles whose starting positions lie in the box (bounds included); an empty
+/// selection is refused.
+fn in_box(region: &PinBox, positions: &[[f64; 3]]) -> Result<Vec<usize>> {
+    let [lo, hi] = region.corners;
+    for (name, v) in [("box[0]", lo), ("box[1]", hi)] {
+        if v.iter().any(|x| !x.is_finite()) {
+            return Err(Error::value(
+                "pins",
+                format!("{name} must be finite, got {v:?}"),
+            ));
+        }
+    }
+    if (0..3).any(|c| lo[c] > hi[c]) {
+        return Err(Error::value(
+            "pins",
+            format!("box {lo:?} to {hi:?} is empty: each of box[0]'s coordinates must be at most box[1]'s"),
+        ));
+    }
+    let inside: Vec<usize> = (0..positions.len())
+        .filter(|&p| (0..3).all(|c| (lo[c]..=hi[c]).contains(&positions[p][c])))
+        .collect();
+    if inside.is_empty() {
+        return Err(Error::value(
+            "pins",
+            format!("box {lo:?} to {hi:?} holds no particle"),
+        ));
+    }
+    Ok(inside)
 }

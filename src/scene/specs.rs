@@ -188,12 +188,91 @@ pub enum Plane {
     Xy,
 }
 
-/// A pin: a named group of particles or one `[i, j]` grid position.
+impl Plane {
+    /// The unit vectors `(e_i, e_j)` a grid cloth starts along.
+    pub fn axes(self) -> (glam::Vec3, glam::Vec3) {
+        match self {
+            Plane::Xz => (glam::Vec3::X, glam::Vec3::Z),
+            Plane::Xy => (glam::Vec3::X, glam::Vec3::Y),
+        }
+    }
+}
+
+/// A pin: a named group of particles or one `[i, j]` grid position (a grid cloth only), one
+/// particle index (a mesh cloth's vertex index; on a grid, `j * nx + i`), or every particle
+/// whose starting position lies in a box.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(untagged)]
 pub enum PinSpec {
     Named(String),
     Cell([i64; 2]),
+    Index(i64),
+    Region(PinBox),
+}
+
+/// `{ box = [[x0, y0, z0], [x1, y1, z1]] }`: the particles whose starting positions lie in the
+/// axis-aligned box with these corners (m, bounds included). A box that holds no particle is
+/// refused, so a mistyped box never pins nothing silently.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PinBox {
+    #[serde(rename = "box")]
+    pub corners: [[f64; 3]; 2],
+}
+
+/// A cloth made from a triangle mesh (`[cloth.mesh]`) instead of the `nx` x `ny` grid; see
+/// `src/mesh_cloth/` for the model and docs/mesh_cloth.md for the equations. Its particles are
+/// the vertices, in their order. Material is in physical units that do not change with the
+/// mesh's resolution: a coarse and a fine mesh of the same square hang alike.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MeshSpec {
+    /// Vertex positions in m, where the cloth starts, at rest: at least 3, each finite, each
+    /// used by a triangle (an unused vertex is refused, naming it, rather than dropped, so
+    /// that vertex `k` is always particle `k`). No default: required.
+    pub vertices: Vec<[f64; 3]>,
+    /// Triangles, each three vertex indices, wound consistently (every shared edge walked in
+    /// opposite directions by its two triangles: the normals agree). Refused: an index out of
+    /// range, a triangle of zero area, the same triangle twice, an edge shared by more than two
+    /// triangles (non-manifold). Several pieces are allowed. No default: required.
+    pub triangles: Vec<[i64; 3]>,
+    /// Texture coordinates per vertex, for the renderer and export. Default: none (the
+    /// renderer projects the rest shape onto its best-fit plane).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub uvs: Option<Vec<[f64; 2]>>,
+    /// Areal density in kg/m^2 (> 0). Default 0.2, a light cotton. Each vertex gets a third of
+    /// the mass of every triangle it is a corner of.
+    pub density: f64,
+    /// Stretch modulus `Y` in N/m (>= 0): a uniform strain `e` in every direction stores
+    /// `Y e^2 / 2` J per m^2. Default 600, the modulus of the default grid cloth's structural
+    /// and shear springs (`2 (k_structural + 2 k_shear)`). The spring on an edge gets
+    /// `k = Y A_e / L^2`, `A_e` a third of the area of its triangles.
+    pub stretch: f64,
+    /// Bending modulus in N/m (>= 0) of the springs across each interior edge (between the two
+    /// vertices opposite it): `k = bend A_e / L^2`, `A_e` a third of the two triangles' area,
+    /// `L` the springs' rest length. Default 80, the in-plane modulus of the default grid
+    /// cloth's bending springs (`8 k_bend`). Like the grid's bending springs they resist folding
+    /// only to second order in the fold angle.
+    pub bend: f64,
+    /// Damping modulus in N s/m (>= 0): a spring of either family gets `c = damping A_e / L^2`
+    /// along it, so a uniform strain rate `r` dissipates about `2 damping r^2` W per m^2 (both
+    /// families) at any resolution. Default 0.07: the default grid cloth's springs dissipate
+    /// `14 c r^2 = 0.14 r^2`.
+    pub damping: f64,
+}
+
+impl Default for MeshSpec {
+    fn default() -> Self {
+        MeshSpec {
+            vertices: Vec::new(),
+            triangles: Vec::new(),
+            uvs: None,
+            density: 0.2,
+            stretch: 600.0,
+            bend: 80.0,
+            damping: 0.07,
+        }
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -226,8 +305,14 @@ pub struct ClothSpec {
     /// Damping along each spring in N s/m, `c ((v_b - v_a) . u) u`. Default 0.01. Damps
     /// stretching oscillations without slowing rigid motion.
     pub damping: f64,
-    /// Pinned particles. Default `["top_corners"]`.
+    /// Pinned particles. Default `["top_corners"]`. A mesh cloth has no named groups: give
+    /// it vertex indices and boxes, or `pins = []`.
     pub pins: Vec<PinSpec>,
+    /// A cloth from a triangle mesh instead of the grid: `nx`, `ny`, `size`, `center`,
+    /// `plane`, `particle_mass`, `mass`, the `k_*` and `damping` keys are the grid's and must
+    /// keep their defaults (the mesh carries its own material). Absent (default): the grid.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mesh: Option<MeshSpec>,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -269,6 +354,7 @@ impl Default for ClothSpec {
             k_bend: 10.0,
             damping: 0.01,
             pins: vec![PinSpec::Named("top_corners".into())],
+            mesh: None,
         }
     }
 }

@@ -6,7 +6,6 @@ use super::pins::pin_indices;
 use super::specs::{ClothSpec, ColliderSpec, Plane, ShapeKind, WatchdogSpec};
 use super::Scene;
 use crate::error::{check_scalar, check_vector, Bound, Error, Result};
-use crate::grid::Grid;
 
 /// Upper bound on particles per scene: indices are exposed as `u32` and the triangle list must
 /// fit a GPU index buffer. 4096 x 4096 is far beyond interactive rates anyway.
@@ -34,6 +33,7 @@ impl Scene {
             ));
         }
         self.cloth.validate()?;
+        self.refuse_on_mesh()?;
         if let Some(floor) = &self.floor {
             check_scalar("floor.height", floor.height, Bound::Any)?;
             check_scalar("floor.friction", floor.friction, Bound::NonNegative)?;
@@ -253,6 +253,9 @@ impl WatchdogSpec {
 
 impl ClothSpec {
     fn validate(&self) -> Result<()> {
+        if self.mesh.is_some() {
+            return self.validate_mesh();
+        }
         for (name, n) in [("cloth.nx", self.nx), ("cloth.ny", self.ny)] {
             if n < 2 {
                 return Err(Error::value(
@@ -321,12 +324,48 @@ impl ClothSpec {
         check_scalar("cloth.k_shear", self.k_shear, Bound::NonNegative)?;
         check_scalar("cloth.k_bend", self.k_bend, Bound::NonNegative)?;
         check_scalar("cloth.damping", self.damping, Bound::NonNegative)?;
-        let grid = Grid {
-            nx: self.nx as usize,
-            ny: self.ny as usize,
+        self.check_pins()
+    }
+}
+
+impl ClothSpec {
+    /// A mesh cloth: the mesh's own checks ([`super::MeshCloth::new`]), the grid's
+    /// keys left at their defaults (a value there would be silently ignored), and the pins.
+    fn validate_mesh(&self) -> Result<()> {
+        let Some(mesh) = &self.mesh else {
+            return Ok(());
         };
+        let grid = ClothSpec::default();
+        let grid_keys = [
+            ("cloth.nx", self.nx != grid.nx),
+            ("cloth.ny", self.ny != grid.ny),
+            ("cloth.size", self.size != grid.size),
+            ("cloth.center", self.center != grid.center),
+            ("cloth.plane", self.plane != grid.plane),
+            ("cloth.particle_mass", self.particle_mass.is_some()),
+            ("cloth.mass", self.mass.is_some()),
+            ("cloth.k_structural", self.k_structural != grid.k_structural),
+            ("cloth.k_shear", self.k_shear != grid.k_shear),
+            ("cloth.k_bend", self.k_bend != grid.k_bend),
+            ("cloth.damping", self.damping != grid.damping),
+        ];
+        if let Some((name, _)) = grid_keys.iter().find(|(_, set)| *set) {
+            return Err(Error::value(
+                *name,
+                "is a grid cloth's key; a mesh cloth takes its shape from cloth.mesh.vertices \
+                 and its material from cloth.mesh.density, stretch, bend and damping: remove it",
+            ));
+        }
+        super::MeshCloth::new(mesh)?;
+        self.check_pins()
+    }
+}
+
+impl ClothSpec {
+    /// Each pin names particles of this cloth; the error names `cloth.pins[n]`.
+    fn check_pins(&self) -> Result<()> {
         for (n, pin) in self.pins.iter().enumerate() {
-            pin_indices(pin, grid).map_err(|e| match e {
+            pin_indices(pin, self).map_err(|e| match e {
                 Error::InvalidValue { message, .. } => {
                     Error::value(format!("cloth.pins[{n}]"), message)
                 }
@@ -335,6 +374,37 @@ impl ClothSpec {
         }
         Ok(())
     }
+}
+
+impl Scene {
+    /// Refuses what a mesh cloth does not support yet, naming the feature: every pass that is
+    /// still written for the grid's stencil.
+    fn refuse_on_mesh(&self) -> Result<()> {
+        if self.cloth.mesh.is_none() {
+            return Ok(());
+        }
+        if !self.integrator.runs_on_mesh() {
+            return Err(not_on_mesh("integrator", self.integrator.name()));
+        }
+        let present = [
+            ("strain_limit", self.strain_limit.is_some()),
+            ("self_collision", self.self_collision.is_some()),
+            ("tearing", self.tearing.is_some()),
+            ("wind", self.wind.is_some()),
+        ];
+        match present.iter().find(|(_, on)| *on) {
+            Some((name, _)) => Err(not_on_mesh(name, name)),
+            None => Ok(()),
+        }
+    }
+}
+
+/// The error for `feature` set at `name` on a mesh cloth.
+pub(crate) fn not_on_mesh(name: &str, feature: &str) -> Error {
+    Error::value(
+        name,
+        format!("{feature} is not yet supported on a mesh cloth (cloth.mesh); it runs on the grid cloth"),
+    )
 }
 
 /// The scene's tables (`cloth`, `floor`, ..., each sphere) must be tables: serde would also

@@ -41,6 +41,7 @@ impl Simulation {
     /// particle nearer the ray. `None` if the ray misses every particle. Errors (changing
     /// nothing) on a non-finite origin or a zero or non-finite direction.
     pub fn pick(&mut self, origin: Vec3, direction: Vec3) -> Result<Option<ParticleHit>> {
+        self.model.grid_only("pick")?;
         let ray = Ray::new(origin, direction)?;
         Ok(self
             .picker
@@ -51,6 +52,7 @@ impl Simulation {
     /// distance along the ray (m) and the barycentric weights of its three vertices. Errors as
     /// [`Simulation::pick`].
     pub fn pick_triangle(&mut self, origin: Vec3, direction: Vec3) -> Result<Option<TriangleHit>> {
+        self.model.grid_only("pick_triangle")?;
         let ray = Ray::new(origin, direction)?;
         Ok(self.picker.triangle(&self.model, &self.state, &ray))
     }
@@ -67,7 +69,7 @@ impl Simulation {
     /// Sets the grip radius (m, finite and >= 0; 0 grabs the one particle hit). It applies
     /// from the next grab.
     pub fn set_grip_radius(&mut self, radius: f64) -> Result<()> {
-        self.grip_radius = Some(checked_grip_radius(radius)?);
+        self.grip_radius = Some(crate::interaction::checked_grip_radius(radius)?);
         Ok(())
     }
 
@@ -168,6 +170,7 @@ impl Simulation {
     /// Cuts the particle [`Simulation::pick`] finds along the ray; returns it, or `None` if the
     /// ray hits nothing.
     pub fn cut_ray(&mut self, origin: Vec3, direction: Vec3) -> Result<Option<usize>> {
+        self.model.grid_only("cut_ray")?;
         let ray = Ray::new(origin, direction)?;
         Ok(self.cut_along(&ray, Queries::One))
     }
@@ -177,6 +180,7 @@ impl Simulation {
     /// Every ray is checked before anything is cut, so bad input changes nothing. Sample the
     /// stroke densely enough (about one ray per grid spacing on screen) to leave no gaps.
     pub fn cut_stroke(&mut self, rays: &[(Vec3, Vec3)]) -> Result<Vec<usize>> {
+        self.model.grid_only("cut_stroke")?;
         let rays = checked_rays(rays)?;
         let queries = if rays.len() >= STROKE_TREE_MIN_RAYS {
             Queries::Many
@@ -212,6 +216,7 @@ impl Simulation {
         rays: &[(Vec3, Vec3)],
         interrupted: &mut dyn FnMut() -> bool,
     ) -> Result<usize> {
+        self.model.grid_only("sever_stroke")?;
         let rays = checked_rays(rays)?;
         let model = &self.model;
         let crossings = self.cutter.crossings(
@@ -232,6 +237,12 @@ impl Simulation {
     /// joined by live springs (`O(n)`).
     pub fn pieces(&self) -> usize {
         let model = &self.model;
+        if let Some(mesh) = model.mesh() {
+            let mut labels = mesh.piece_labels();
+            labels.sort_unstable();
+            labels.dedup();
+            return labels.len();
+        }
         crate::cutting::pieces(model.grid, &model.springs, &model.particles.alive)
     }
 
@@ -239,6 +250,9 @@ impl Simulation {
     /// (`u32::MAX` for a removed particle).
     pub fn piece_labels(&self) -> Vec<u32> {
         let model = &self.model;
+        if let Some(mesh) = model.mesh() {
+            return mesh.piece_labels();
+        }
         crate::cutting::piece_labels(model.grid, &model.springs, &model.particles.alive)
     }
 
@@ -273,16 +287,4 @@ fn checked_rays(rays: &[(Vec3, Vec3)]) -> Result<Vec<Ray>> {
             Ray::named(o, d, &origin, &dir)
         })
         .collect()
-}
-
-/// A grip radius: finite and >= 0 within float32's range.
-pub(crate) fn checked_grip_radius(radius: f64) -> Result<f32> {
-    let r = radius as f32;
-    if !(radius.is_finite() && r.is_finite() && radius >= 0.0) {
-        return Err(Error::value(
-            "grip_radius",
-            format!("must be a finite number >= 0 within float32 range, got {radius}"),
-        ));
-    }
-    Ok(r)
 }

@@ -27,8 +27,6 @@ use crate::stepper::{Stepper, WatchdogStats};
 
 mod interaction;
 
-pub(crate) use interaction::checked_grip_radius;
-
 pub use crate::stepper::MAX_ADVANCE_STEPS;
 
 /// A running cloth simulation.
@@ -146,6 +144,11 @@ impl Simulation {
     }
 
     /// The scene, with the run-time settings (integrator, dt, substeps) as they are now.
+    /// The compiled model: topology, particles, springs.
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+
     pub fn scene(&self) -> &Scene {
         &self.model.scene
     }
@@ -442,6 +445,7 @@ impl Simulation {
     /// mass leaves the cloth. [`Simulation::sever_stroke`] cuts
     /// without removing anything.
     pub fn cut(&mut self, index: i64) -> Result<()> {
+        self.model.grid_only("cut")?;
         let p = self.check_index("index", index)?;
         if self.model.particles.alive[p] {
             self.cut_live(p);
@@ -458,7 +462,11 @@ impl Simulation {
 
     /// Switches the integrator at run time; the state carries over.
     pub fn set_integrator(&mut self, name: &str) -> Result<()> {
-        self.model.scene.integrator = IntegratorKind::by_name(name, "integrator")?;
+        let kind = IntegratorKind::by_name(name, "integrator")?;
+        if self.model.mesh().is_some() && !kind.runs_on_mesh() {
+            return Err(crate::scene::not_on_mesh("integrator", kind.name()));
+        }
+        self.model.scene.integrator = kind;
         self.stepper.set_integrator(&self.model);
         Ok(())
     }

@@ -405,6 +405,7 @@ impl Stepper {
             vel: &state.kin.vel,
             mass: &model.particles.mass,
             springs: &model.springs,
+            mesh: model.mesh(),
         };
         let chunk = chunk_len(model.grid.len());
         self.pipeline

@@ -60,6 +60,8 @@ pub(super) struct Pipeline {
     /// With colliders: the contacts an implicit solver holds inside its solve (made for any
     /// integrator, since the integrator can change between steps).
     pub contacts: Option<PredictedContacts>,
+    /// Whether the cloth is a mesh, whose springs the force model adds after its sweep.
+    pub mesh_springs: bool,
 }
 
 /// What the passes of one substep read and write.
@@ -121,12 +123,16 @@ impl Pipeline {
                 .as_ref()
                 .map(|t| Tearing::new(t.max_strain as f32, t.max_per_step)),
             wind: scene.wind.as_ref().map(|w| Wind::new(w, particles)),
+            mesh_springs: scene.cloth.mesh.is_some(),
         }
     }
 
     /// The passes a step runs, in order (kinematic pins only while a target is set).
     pub fn effects(&self, state: &State) -> Vec<&'static str> {
         let mut out: Vec<&'static str> = self.forces.forces().iter().map(Force::name).collect();
+        if self.mesh_springs {
+            out.push(crate::forces::MESH_SPRINGS);
+        }
         out.push(self.integrator.name());
         if self.wind.is_some() {
             out.push(Wind::NAME);
@@ -183,6 +189,7 @@ impl Pipeline {
             next: s.next,
             particles: &s.model.particles,
             springs: &s.model.springs,
+            mesh: s.model.mesh(),
             forces: &mut self.forces,
             force,
             chunk: s.chunk,
@@ -326,6 +333,10 @@ fn forces_of(scene: &Scene) -> Vec<Force> {
         });
     }
     let cloth = &scene.cloth;
+    if cloth.mesh.is_some() {
+        // A mesh cloth's springs are its own list, not the stencil's families.
+        return forces;
+    }
     for (family, k) in [
         (Family::Structural, cloth.k_structural),
         (Family::Shear, cloth.k_shear),

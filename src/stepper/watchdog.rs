@@ -350,6 +350,15 @@ impl Watchdog {
         substeps: u32,
     ) -> Option<Failure> {
         let limit = self.stretch_limit()?;
+        if let Some(mesh) = model.mesh() {
+            let (particle, stretch) = mesh.first_overstretched(&kin.pos, limit)?;
+            return Some(Failure {
+                reason: Trouble::Overstretched { stretch, limit },
+                particle,
+                in_start_state,
+                substeps,
+            });
+        }
         let (grid, springs) = (model.grid, &model.springs);
         if !any_overstretched(grid, springs, &kin.pos, kinds, limit) {
             return None;

@@ -11,6 +11,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..camera import Camera
+from ..errors import ParameterError
 from ..render.meshes import bounding_radius, collider_mesh, rotation_matrix
 
 F32 = npt.NDArray[np.float32]
@@ -87,8 +88,12 @@ class Interaction:
 
     def grab(self, ray: Ray) -> bool:
         """Grab the cloth under the ray (the core holds the patch within its ``grip_radius`` of
-        the particle hit); False when the ray misses the cloth."""
-        hit = self.sim.pick(ray[0], ray[1])
+        the particle hit); False when the ray misses the cloth, or the cloth is a mesh (picking
+        is not yet supported on one: the click does nothing)."""
+        try:
+            hit = self.sim.pick(ray[0], ray[1])
+        except ParameterError:
+            return False
         if hit is None:
             return False
         self.sim.grab(hit[0])
@@ -114,10 +119,16 @@ class Interaction:
         sample's."""
         stroke = rays if self._last_ray is None else [self._last_ray, *rays]
         self._last_ray = rays[-1]
-        severed = self.sim.sever_stroke(stroke) if len(stroke) >= 2 else 0
+        try:
+            severed = self.sim.sever_stroke(stroke) if len(stroke) >= 2 else 0
+        except ParameterError:  # not yet supported on a mesh cloth: the stroke does nothing
+            return 0
         hits: list[F32] = []
         for origin, direction in rays:
-            hit = self.sim.pick(origin, direction)
+            try:
+                hit = self.sim.pick(origin, direction)
+            except ParameterError:  # not yet supported on a mesh cloth
+                return 0
             if hit is not None:
                 d = np.asarray(direction, dtype=np.float64)
                 point = np.asarray(origin, dtype=np.float64) + hit[1] * d / np.linalg.norm(d)

@@ -1,0 +1,134 @@
+//! Resolution independence of the mesh cloth's material: the same 1 m square, as irregular
+//! meshes of several sizes and as the grid cloth of the same material, hung by the first and
+//! last `CLAMP` m of its top edge (the same clamp at every resolution: the top edge's vertices
+//! lie on it exactly), settled under air drag, then measured: the sag (how far its centre of
+//! mass dropped), the drop of its lowest point, and the largest stretch `l / L - 1` (over all
+//! springs, and away from the clamps).
+//!
+//! `cargo run --release --example mesh_resolution -- [SIZES] [SECONDS]`, SIZES points per side
+//! (default `17,33`, about 300 and 1k vertices: seconds), SECONDS simulated (default 3).
+//! docs/mesh_cloth.md quotes `-- 33,65,129 4` (1k, 4k and 16k vertices; about ten minutes on
+//! two shared cores, most of it the 16k mesh).
+
+use std::time::Instant;
+
+use rustcloth::mesh_cloth::jittered_square;
+use rustcloth::scene::{ClothSpec, MeshSpec, PinBox, PinSpec, Plane};
+use rustcloth::{IntegratorKind, Scene, Simulation};
+
+/// Length of each clamp along the top edge from a corner, m.
+const CLAMP: f64 = 0.125;
+/// Areal density (kg/m^2) and stretch modulus (N/m): a soft cloth, so that it sags visibly.
+const DENSITY: f64 = 0.2;
+const STRETCH: f64 = 60.0;
+/// Air drag per unit mass, 1/s: settles the cloth without changing where it settles.
+const DRAG_RATE: f64 = 4.0;
+
+fn pins() -> Vec<PinSpec> {
+    [[-0.5, -0.5 + CLAMP], [0.5 - CLAMP, 0.5]]
+        .map(|[x0, x1]| {
+            PinSpec::Region(PinBox {
+                corners: [[x0, 1.5 - 1e-9, -0.1], [x1, 1.5, 0.1]],
+            })
+        })
+        .to_vec()
+}
+
+fn mesh_scene(n: usize) -> Scene {
+    let (vertices, triangles) = jittered_square(n, 1.0, [0.0, 1.0, 0.0], 0.3, 1);
+    let mut scene = Scene {
+        air_drag: DRAG_RATE * DENSITY / (n * n) as f64,
+        cloth: ClothSpec {
+            mesh: Some(MeshSpec {
+                vertices,
+                triangles,
+                density: DENSITY,
+                stretch: STRETCH,
+                bend: 0.8,
+                damping: 0.01,
+                ..MeshSpec::default()
+            }),
+            pins: pins(),
+            ..ClothSpec::default()
+        },
+        ..Scene::default()
+    };
+    scene.dt = 0.7 * scene.stable_dt(IntegratorKind::SymplecticEuler).unwrap();
+    scene
+}
+
+/// The grid cloth of the same material: `Y = 2 (k_structural + 2 k_shear)` with the grid's
+/// usual 4 : 1, bend `8 k_bend`, the same mass.
+fn grid_scene(n: u32) -> Scene {
+    let k_structural = STRETCH / 2.0 / 1.5;
+    let mut scene = Scene {
+        air_drag: DRAG_RATE * DENSITY / (n * n) as f64,
+        cloth: ClothSpec {
+            nx: n,
+            ny: n,
+            size: [1.0, 1.0],
+            center: [0.0, 1.0, 0.0],
+            plane: Plane::Xy,
+            mass: Some(DENSITY),
+            k_structural,
+            k_shear: k_structural / 4.0,
+            k_bend: 0.1,
+            damping: 0.001,
+            pins: pins(),
+            ..ClothSpec::default()
+        },
+        ..Scene::default()
+    };
+    scene.dt = 0.7 * scene.stable_dt(IntegratorKind::SymplecticEuler).unwrap();
+    scene
+}
+
+fn measure(label: &str, scene: Scene, seconds: f64) {
+    let mut sim = Simulation::new(scene).unwrap();
+    let start = Instant::now();
+    sim.advance(seconds).unwrap();
+    let wall = start.elapsed().as_secs_f64();
+    let (pos, m) = (sim.positions(), &sim.particles().mass);
+    let mass: f64 = m.iter().map(|&m| m as f64).sum();
+    let centroid = (0..m.len())
+        .map(|p| m[p] as f64 * pos.y[p] as f64)
+        .sum::<f64>()
+        / mass;
+    let lowest = pos.y.iter().fold(f32::MAX, |a, &b| a.min(b)) as f64;
+    let strain = sim.spring_strain();
+    // Away from the clamps, whose ends concentrate strain more as the mesh refines.
+    let away = (0..m.len())
+        .filter(|&p| pos.y[p] < 1.5 - 2.0 * CLAMP as f32)
+        .map(|p| strain[p])
+        .fold(0.0f32, f32::max);
+    let e = sim.energy();
+    println!(
+        "{label:>16} {:>6} particles  sag {:.5} m  lowest drop {:.5} m  max stretch {:.5}  \
+         away from pins {:.5}  kinetic {:.2e} J  dt {:.2e} s  {wall:.1} s wall",
+        m.len(),
+        1.0 - centroid,
+        0.5 - lowest,
+        sim.max_stretch(),
+        away,
+        e.kinetic,
+        sim.dt(),
+    );
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let sizes: Vec<usize> = args
+        .get(1)
+        .map_or("17,33", String::as_str)
+        .split(',')
+        .map(|s| s.parse().expect("SIZES: points per side, comma separated"))
+        .collect();
+    let seconds: f64 = args.get(2).map_or(3.0, |s| s.parse().expect("SECONDS"));
+    println!("density {DENSITY} kg/m^2, stretch {STRETCH} N/m, clamps {CLAMP} m, {seconds} s");
+    for &n in &sizes {
+        measure(&format!("mesh {n}x{n}"), mesh_scene(n), seconds);
+    }
+    for &n in &sizes {
+        measure(&format!("grid {n}x{n}"), grid_scene(n as u32), seconds);
+    }
+}

@@ -1,0 +1,417 @@
+//! A mesh cloth from its [`MeshSpec`]: the checks that refuse a bad mesh (each error names the
+//! parameter and the offending vertex or triangle), then the lumped masses and the springs.
+//! The model and its equations: [`crate::mesh_cloth`].
+
+use std::collections::HashMap;
+
+use glam::DVec3;
+
+use super::mesh::{check_indices, has_zero_area};
+use super::MeshSpec;
+use crate::error::{check_scalar, check_vector, Bound, Error, Result};
+
+/// Two vertices closer than this (m) are one point.
+const DEGENERATE: f64 = f32::EPSILON as f64;
+
+/// Where a scene keeps the mesh, for error names.
+const AT: &str = "cloth.mesh";
+
+/// What a spring of a mesh cloth stands for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum EdgeKind {
+    /// On an edge of the mesh.
+    Stretch,
+    /// Across an interior edge, between the two opposite vertices.
+    Bend,
+}
+
+/// The springs of a mesh cloth as an explicit list, sorted by kind, then ends.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct EdgeSprings {
+    /// First end (the lower vertex index).
+    pub a: Vec<u32>,
+    /// Second end.
+    pub b: Vec<u32>,
+    /// Rest length in m.
+    pub rest: Vec<f32>,
+    /// Stiffness in N/m.
+    pub k: Vec<f32>,
+    /// Damping along the spring in N s/m.
+    pub c: Vec<f32>,
+    pub kind: Vec<EdgeKind>,
+}
+
+impl EdgeSprings {
+    pub fn len(&self) -> usize {
+        self.a.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.a.is_empty()
+    }
+
+    fn push(&mut self, (a, b): (u32, u32), rest: f64, k: f64, c: f64, kind: EdgeKind) {
+        self.a.push(a.min(b));
+        self.b.push(a.max(b));
+        self.rest.push(rest as f32);
+        self.k.push(k as f32);
+        self.c.push(c as f32);
+        self.kind.push(kind);
+    }
+
+    pub fn heap_bytes(&self) -> usize {
+        self.a.capacity() * 4
+            + self.b.capacity() * 4
+            + self.rest.capacity() * 4
+            + self.k.capacity() * 4
+            + self.c.capacity() * 4
+            + self.kind.capacity() * size_of::<EdgeKind>()
+    }
+}
+
+/// A validated mesh cloth: rest shape, triangles, lumped masses, springs, and for each vertex
+/// the springs that touch it (the gather the force pass walks).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeshCloth {
+    /// Rest (and starting) positions in m, vertex `k` being particle `k`.
+    pub rest: Vec<[f64; 3]>,
+    pub triangles: Vec<[u32; 3]>,
+    /// Texture coordinates per vertex, when the mesh has them.
+    pub uvs: Option<Vec<[f32; 2]>>,
+    /// Lumped mass of each vertex in kg.
+    pub masses: Vec<f64>,
+    pub springs: EdgeSprings,
+    /// The springs touching vertex `v` are `incident[offsets[v]..offsets[v + 1]]`, in
+    /// increasing order, each as `spring << 1 | end` (`end` 1 at the spring's `b`).
+    pub offsets: Vec<u32>,
+    pub incident: Vec<u32>,
+}
+
+impl MeshCloth {
+    /// Checks `spec` and builds the cloth. Refused, naming `cloth.mesh.<key>[k]`: fewer than
+    /// three vertices, a vertex that is not finite or beyond float32, a vertex no triangle
+    /// uses, no triangles, an index out of range, a triangle of zero area, a triangle given
+    /// twice (in any order), an edge of more than two triangles (non-manifold), two triangles
+    /// that run their shared edge the same way (inconsistent winding), `uvs` of the wrong
+    /// length or not finite, and a material value out of range.
+    pub fn new(spec: &MeshSpec) -> Result<MeshCloth> {
+        let rest = &spec.vertices;
+        let n = rest.len();
+        if n < 3 {
+            return Err(Error::value(
+                format!("{AT}.vertices"),
+                format!("must hold at least 3 vertices, got {n}"),
+            ));
+        }
+        if n > super::MAX_PARTICLES {
+            return Err(Error::value(
+                format!("{AT}.vertices"),
+                format!(
+                    "must hold at most {} vertices, got {n}",
+                    super::MAX_PARTICLES
+                ),
+            ));
+        }
+        for (k, v) in rest.iter().enumerate() {
+            let name = format!("{AT}.vertices[{k}]");
+            check_vector(&name, v, Bound::Any)?;
+            if v.iter().any(|x| !(*x as f32).is_finite()) {
+                return Err(Error::value(
+                    name,
+                    format!("{v:?} is beyond float32 range (3.4e38)"),
+                ));
+            }
+        }
+        check_scalar(&format!("{AT}.density"), spec.density, Bound::Positive)?;
+        check_scalar(&format!("{AT}.stretch"), spec.stretch, Bound::NonNegative)?;
+        check_scalar(&format!("{AT}.bend"), spec.bend, Bound::NonNegative)?;
+        check_scalar(&format!("{AT}.damping"), spec.damping, Bound::NonNegative)?;
+        let triangles = check_triangles(rest, &spec.triangles)?;
+        let uvs = check_uvs(spec.uvs.as_deref(), n)?;
+        let at = |k: u32| DVec3::from(rest[k as usize]);
+        let area: Vec<f64> = triangles
+            .iter()
+            .map(|t| 0.5 * (at(t[1]) - at(t[0])).cross(at(t[2]) - at(t[0])).length())
+            .collect();
+        let mut masses = vec![0.0; n];
+        for (t, tri) in triangles.iter().enumerate() {
+            for &v in tri {
+                masses[v as usize] += spec.density * area[t] / 3.0;
+            }
+        }
+        if let Some(k) = masses.iter().position(|&m| m == 0.0) {
+            return Err(Error::value(
+                format!("{AT}.vertices[{k}]"),
+                "is used by no triangle: an unreferenced vertex has no mass; remove it \
+                 (vertex k is particle k, so the cloth does not drop it for you)",
+            ));
+        }
+        if let Some((k, m)) = masses
+            .iter()
+            .enumerate()
+            .find(|(_, &m)| (m as f32) == 0.0 || !(1.0 / m as f32).is_finite())
+        {
+            return Err(Error::value(
+                format!("{AT}.density"),
+                format!(
+                    "vertex {k}'s lumped mass ({m:e} kg) must be representable in float32 \
+                     with a finite inverse"
+                ),
+            ));
+        }
+        let springs = springs_of(rest, &triangles, &area, spec)?;
+        let (offsets, incident) = incidence(n, &springs);
+        Ok(MeshCloth {
+            rest: rest.clone(),
+            triangles,
+            uvs,
+            masses,
+            springs,
+            offsets,
+            incident,
+        })
+    }
+
+    pub fn len(&self) -> usize {
+        self.rest.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.rest.is_empty()
+    }
+
+    /// The largest squared angular frequency (rad^2/s^2) of the springs alone, bounded by
+    /// Gershgorin's theorem on the mass-scaled stiffness at rest: `2 sum_e k_e / m_v` at the
+    /// worst vertex. An upper bound, so a step chosen from it is on the safe side.
+    pub fn max_omega2(&self) -> f64 {
+        self.per_vertex_max(|s| self.springs.k[s] as f64)
+    }
+
+    /// The largest damping rate (1/s) of the springs, `2 sum_e c_e / m_v`, bounded the same way.
+    pub fn max_damping_rate(&self) -> f64 {
+        self.per_vertex_max(|s| self.springs.c[s] as f64)
+    }
+
+    fn per_vertex_max(&self, value: impl Fn(usize) -> f64) -> f64 {
+        (0..self.len())
+            .map(|v| {
+                let around = self.incident[self.offsets[v] as usize..self.offsets[v + 1] as usize]
+                    .iter()
+                    .map(|&e| value((e >> 1) as usize))
+                    .sum::<f64>();
+                2.0 * around / self.masses[v]
+            })
+            .fold(0.0, f64::max)
+    }
+
+    /// The piece each vertex belongs to (vertices joined through triangles), named by the
+    /// smallest vertex index in it.
+    pub fn piece_labels(&self) -> Vec<u32> {
+        let mut parent: Vec<u32> = (0..self.len() as u32).collect();
+        fn root(parent: &mut [u32], mut v: u32) -> u32 {
+            while parent[v as usize] != v {
+                parent[v as usize] = parent[parent[v as usize] as usize];
+                v = parent[v as usize];
+            }
+            v
+        }
+        for t in &self.triangles {
+            for k in 1..3 {
+                let (a, b) = (root(&mut parent, t[0]), root(&mut parent, t[k]));
+                // The smaller index as the root, so that a root is its piece's smallest vertex.
+                parent[a.max(b) as usize] = a.min(b);
+            }
+        }
+        (0..self.len() as u32)
+            .map(|v| root(&mut parent, v))
+            .collect()
+    }
+
+    pub fn heap_bytes(&self) -> usize {
+        self.rest.capacity() * 24
+            + self.triangles.capacity() * 12
+            + self.uvs.as_ref().map_or(0, |u| u.capacity() * 8)
+            + self.masses.capacity() * 8
+            + self.springs.heap_bytes()
+            + (self.offsets.capacity() + self.incident.capacity()) * 4
+    }
+}
+
+/// The triangles as `u32` indices, after every check on them.
+fn check_triangles(rest: &[[f64; 3]], triangles: &[[i64; 3]]) -> Result<Vec<[u32; 3]>> {
+    let n = rest.len();
+    if triangles.is_empty() {
+        return Err(Error::value(
+            format!("{AT}.triangles"),
+            "must hold at least one triangle, got none",
+        ));
+    }
+    let mut out = Vec::with_capacity(triangles.len());
+    let mut seen: HashMap<[u32; 3], usize> = HashMap::with_capacity(triangles.len());
+    for (t, tri) in triangles.iter().enumerate() {
+        let name = format!("{AT}.triangles[{t}]");
+        check_indices(&name, tri, n)?;
+        if has_zero_area(rest, tri) {
+            return Err(Error::value(
+                name,
+                format!(
+                    "triangle {tri:?} has zero area (repeated or collinear corners): it has no \
+                     mass and no normal; remove it"
+                ),
+            ));
+        }
+        let tri = tri.map(|k| k as u32);
+        let mut key = tri;
+        key.sort_unstable();
+        if let Some(first) = seen.insert(key, t) {
+            return Err(Error::value(
+                name,
+                format!("triangle {tri:?} repeats triangle {first}: remove one of them"),
+            ));
+        }
+        out.push(tri);
+    }
+    check_edges(&out)?;
+    Ok(out)
+}
+
+/// Every edge as `(undirected key, triangle, corner)`, sorted: an edge's uses lie side by side.
+fn edge_uses(triangles: &[[u32; 3]]) -> Vec<(u64, u32, u8)> {
+    let mut uses = Vec::with_capacity(3 * triangles.len());
+    for (t, tri) in triangles.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (tri[k], tri[(k + 1) % 3]);
+            uses.push(((a.min(b) as u64) << 32 | a.max(b) as u64, t as u32, k as u8));
+        }
+    }
+    uses.sort_unstable();
+    uses
+}
+
+/// Refuses a non-manifold edge and two triangles that walk their shared edge the same way,
+/// naming the later triangle.
+fn check_edges(triangles: &[[u32; 3]]) -> Result<()> {
+    let directed = |t: u32, k: u8| {
+        let tri = triangles[t as usize];
+        (tri[k as usize], tri[(k as usize + 1) % 3])
+    };
+    for run in edge_uses(triangles).chunk_by(|x, y| x.0 == y.0) {
+        let (a, b) = ((run[0].0 >> 32) as u32, run[0].0 as u32);
+        if run.len() > 2 {
+            let ts: Vec<u32> = run.iter().map(|u| u.1).collect();
+            return Err(Error::value(
+                format!("{AT}.triangles[{}]", run[2].1),
+                format!(
+                    "edge ({a}, {b}) is shared by {} triangles {ts:?}: a non-manifold edge \
+                     (more than two triangles) is not supported; split the mesh there",
+                    run.len()
+                ),
+            ));
+        }
+        if run.len() == 2 && directed(run[0].1, run[0].2) == directed(run[1].1, run[1].2) {
+            return Err(Error::value(
+                format!("{AT}.triangles[{}]", run[1].1),
+                format!(
+                    "runs edge ({a}, {b}) the same way as triangle {}: the two are wound \
+                     inconsistently (their normals disagree); reverse one",
+                    run[0].1
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn check_uvs(uvs: Option<&[[f64; 2]]>, n: usize) -> Result<Option<Vec<[f32; 2]>>> {
+    let Some(uvs) = uvs else { return Ok(None) };
+    if uvs.len() != n {
+        return Err(Error::value(
+            format!("{AT}.uvs"),
+            format!("must hold one pair per vertex ({n}), got {}", uvs.len()),
+        ));
+    }
+    for (k, uv) in uvs.iter().enumerate() {
+        check_vector(&format!("{AT}.uvs[{k}]"), uv, Bound::Any)?;
+    }
+    Ok(Some(uvs.iter().map(|uv| uv.map(|x| x as f32)).collect()))
+}
+
+/// Stretch springs on the edges, then bend springs across the interior edges, each with the
+/// stiffness and damping of the area it stands for (see the module doc).
+fn springs_of(
+    rest: &[[f64; 3]],
+    triangles: &[[u32; 3]],
+    area: &[f64],
+    spec: &MeshSpec,
+) -> Result<EdgeSprings> {
+    let at = |k: u32| DVec3::from(rest[k as usize]);
+    let uses = edge_uses(triangles);
+    let runs: Vec<&[(u64, u32, u8)]> = uses.chunk_by(|x, y| x.0 == y.0).collect();
+    let mut springs = EdgeSprings::default();
+    let ends = |key: u64| ((key >> 32) as u32, key as u32);
+    let add = |springs: &mut EdgeSprings, (a, b): (u32, u32), share: f64, kind| {
+        let (modulus, damping) = match kind {
+            EdgeKind::Stretch => (spec.stretch, spec.damping),
+            EdgeKind::Bend => (spec.bend, spec.damping),
+        };
+        if modulus == 0.0 {
+            return;
+        }
+        let rest = (at(b) - at(a)).length();
+        let scale = share / (rest * rest);
+        springs.push((a, b), rest, modulus * scale, damping * scale, kind);
+    };
+    for run in &runs {
+        let share = run.iter().map(|u| area[u.1 as usize]).sum::<f64>() / 3.0;
+        add(&mut springs, ends(run[0].0), share, EdgeKind::Stretch);
+    }
+    let opposite = |t: u32, k: u8| triangles[t as usize][(k as usize + 2) % 3];
+    let mut bends: Vec<((u32, u32), f64)> = runs
+        .iter()
+        .filter(|run| run.len() == 2)
+        .map(|run| {
+            let (c, d) = (opposite(run[0].1, run[0].2), opposite(run[1].1, run[1].2));
+            let share = (area[run[0].1 as usize] + area[run[1].1 as usize]) / 3.0;
+            ((c.min(d), c.max(d)), share)
+        })
+        .collect();
+    bends.sort_by_key(|&(pair, _)| pair);
+    for (pair, share) in bends {
+        // Two triangles folded flat onto each other across the edge would put the opposite
+        // vertices together: a bend spring of no length has no direction.
+        if (at(pair.1) - at(pair.0)).length() <= DEGENERATE {
+            return Err(Error::value(
+                format!("{AT}.vertices[{}]", pair.1),
+                format!(
+                    "lies on vertex {} across a shared edge: the two triangles are folded \
+                     flat onto each other",
+                    pair.0
+                ),
+            ));
+        }
+        add(&mut springs, pair, share, EdgeKind::Bend);
+    }
+    Ok(springs)
+}
+
+/// For each vertex, the springs that touch it, in increasing order (CSR).
+fn incidence(n: usize, springs: &EdgeSprings) -> (Vec<u32>, Vec<u32>) {
+    let mut count = vec![0u32; n + 1];
+    for s in 0..springs.len() {
+        count[springs.a[s] as usize + 1] += 1;
+        count[springs.b[s] as usize + 1] += 1;
+    }
+    for v in 0..n {
+        count[v + 1] += count[v];
+    }
+    let offsets = count.clone();
+    let mut next = count;
+    let mut incident = vec![0u32; 2 * springs.len()];
+    for s in 0..springs.len() {
+        for (end, v) in [(0, springs.a[s]), (1, springs.b[s])] {
+            incident[next[v as usize] as usize] = (s as u32) << 1 | end;
+            next[v as usize] += 1;
+        }
+    }
+    (offsets, incident)
+}

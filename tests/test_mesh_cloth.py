@@ -1,0 +1,173 @@
+"""A cloth from a triangle mesh through the Python API: ``Scene.with_cloth_mesh``, a mesh file
+named by a scene (``mesh = "flag.obj"``, relative to the scene file), errors that name the
+offending element, stepping with pins and a floor, snapshots, pickling and export."""
+
+from __future__ import annotations
+
+import pickle
+import re
+
+import numpy as np
+import pytest
+import rustcloth
+from rustcloth.errors import ParameterError
+
+
+def jittered_square(n: int, seed: int = 0, jitter: float = 0.3) -> tuple[np.ndarray, np.ndarray]:
+    """An ``n`` x ``n`` grid of points on a 1 m square (x, y), centred at (0, 1, 0), the interior
+    ones jittered, each quad split along its shorter diagonal, counter-clockwise from +z."""
+    rng = np.random.default_rng(seed)
+    h = 1.0 / (n - 1)
+    i, j = np.meshgrid(np.arange(n), np.arange(n))
+    x = i * h - 0.5 + np.where((i > 0) & (i < n - 1), rng.uniform(-jitter, jitter, i.shape) * h, 0)
+    y = j * h - 0.5 + np.where((j > 0) & (j < n - 1), rng.uniform(-jitter, jitter, j.shape) * h, 0)
+    vertices = np.stack([x.ravel(), y.ravel() + 1.0, np.zeros(n * n)], axis=1)
+    triangles = []
+    for jj in range(n - 1):
+        for ii in range(n - 1):
+            a = jj * n + ii
+            b, c, d = a + 1, a + n, a + n + 1
+            if np.sum((vertices[a] - vertices[d]) ** 2) <= np.sum((vertices[b] - vertices[c]) ** 2):
+                triangles += [[a, b, d], [a, d, c]]
+            else:
+                triangles += [[a, b, c], [b, d, c]]
+    return vertices, np.array(triangles, dtype=np.int64)
+
+
+def corner_pins() -> list[object]:
+    return [{"box": [[-0.51, 1.44, -0.1], [-0.44, 1.51, 0.1]]},
+            {"box": [[0.44, 1.44, -0.1], [0.51, 1.51, 0.1]]}]
+
+
+def hanging(n: int = 10, **keys: object) -> rustcloth.Scene:
+    vertices, triangles = jittered_square(n)
+    scene = rustcloth.Scene(dt=0.0005).with_cloth_mesh(
+        vertices, triangles, pins=corner_pins(), **keys
+    )
+    return scene
+
+
+def test_a_mesh_cloth_hangs_from_its_pinned_vertices_and_keeps_its_mass() -> None:
+    scene = hanging()
+    sim = rustcloth.Simulation(scene)
+    assert sim.num_particles == 100
+    assert "mesh_springs" in sim.effects
+    # Lumped from the areas: the whole square's density.
+    assert sim.masses.sum() == pytest.approx(0.2, rel=1e-6)
+    pinned = np.flatnonzero(sim.pinned)
+    start = sim.positions[pinned].copy()
+    sim.advance(0.5)
+    x = sim.positions
+    assert np.isfinite(x).all() and (np.abs(x) < 3).all()
+    assert np.array_equal(x[pinned], start)
+    assert x[:, 1].min() < 0.5 - 1e-3  # it fell and hangs
+
+
+def test_bad_meshes_name_the_element() -> None:
+    vertices, triangles = jittered_square(4)
+    bad = vertices.copy()
+    bad[5, 0] = np.nan
+    last = len(triangles)
+    flipped = triangles[:1, ::-1]  # the first triangle again, wound the other way
+    cases = [
+        (bad, triangles, "cloth.mesh.vertices[5]"),
+        (vertices, np.vstack([triangles, [[0, 1, 99]]]), f"cloth.mesh.triangles[{last}]"),
+        (vertices, np.vstack([triangles, flipped]), f"cloth.mesh.triangles[{last}]"),
+        (vertices, triangles[1:], "cloth.mesh.vertices[0]"),
+    ]
+    for v, t, name in cases:
+        with pytest.raises(ParameterError, match=r"^" + re.escape(name)):
+            rustcloth.Scene().with_cloth_mesh(v, t)
+    with pytest.raises(ParameterError, match=r"cloth.mesh.vertices: must have shape"):
+        rustcloth.Scene().with_cloth_mesh(vertices[:, :2], triangles)
+    with pytest.raises(ParameterError, match=r"^cloth.pins\[0\]"):
+        rustcloth.Scene().with_cloth_mesh(vertices, triangles, pins=["top_corners"])
+
+
+@pytest.mark.parametrize("feature", [
+    {"integrator": "implicit_euler"}, {"integrator": "projective_dynamics"},
+    {"strain_limit": {}}, {"self_collision": {}}, {"tearing": {}}, {"wind": {}},
+])
+def test_features_not_yet_on_a_mesh_cloth_are_refused(feature: dict[str, object]) -> None:
+    name = next(iter(feature))
+    with pytest.raises(ParameterError, match=rf"^{name}: .*not yet supported on a mesh cloth"):
+        hanging(4).replace(**feature)
+    sim = rustcloth.Simulation(hanging(4))
+    with pytest.raises(ParameterError, match="not yet supported on a mesh cloth"):
+        sim.integrator = "implicit_euler"
+    with pytest.raises(ParameterError, match="not yet supported on a mesh cloth"):
+        sim.cut(0)
+
+
+def test_a_mesh_cloth_restores_and_unpickles_bitwise() -> None:
+    scene = hanging(8).replace(floor={"height": 0.8})
+    sim = rustcloth.Simulation(scene)
+    sim.step(100)
+    state = sim.get_state()
+    copy = pickle.loads(pickle.dumps(sim))
+    sim.step(200)
+    copy.step(200)
+    assert np.array_equal(copy.positions, sim.positions)
+    assert np.array_equal(copy.velocities, sim.velocities)
+    sim.set_state(state)
+    sim.step(200)
+    assert np.array_equal(copy.positions, sim.positions)
+    assert (sim.positions[:, 1] >= 0.8).all()
+
+
+def test_a_mesh_file_named_by_a_scene_is_read_beside_it(tmp_path) -> None:
+    pytest.importorskip("trimesh")
+    vertices, triangles = jittered_square(5)
+    uvs = (vertices[:, :2] - vertices[:, :2].min(axis=0))
+    lines = [f"v {x} {y} {z}" for x, y, z in vertices]
+    lines += [f"vt {u} {v}" for u, v in uvs]
+    lines += ["f " + " ".join(f"{k + 1}/{k + 1}" for k in t) for t in triangles]
+    (tmp_path / "flag.obj").write_text("\n".join(lines) + "\n")
+    (tmp_path / "flag.toml").write_text(
+        '[cloth]\nmesh = "flag.obj"\npins = [0, 4]\n'
+    )
+    scene = rustcloth.Scene.from_toml(tmp_path / "flag.toml")
+    sim = rustcloth.Simulation(scene)
+    assert np.allclose(sim.positions, vertices.astype(np.float32))
+    mesh = sim.to_mesh()
+    assert np.array_equal(mesh.triangles, triangles)
+    assert np.allclose(mesh.uvs, uvs, atol=1e-6)
+    # Export keeps the vertex order and triangles.
+    sim.step(10)
+    sim.export(tmp_path / "out.obj")
+    import trimesh
+
+    back = trimesh.load(tmp_path / "out.obj", force="mesh", process=False, maintain_order=True)
+    assert np.array_equal(np.asarray(back.faces), triangles)
+    assert np.allclose(np.asarray(back.vertices), sim.positions, atol=1e-5)
+
+
+def test_a_mesh_cloth_without_uvs_is_drawn_with_planar_ones() -> None:
+    sim = rustcloth.Simulation(hanging(4))
+    uvs = sim.to_mesh().uvs
+    assert uvs.shape == (16, 2) and uvs.min() == 0.0 and uvs.max() == 1.0
+
+
+def test_a_mesh_cloths_settings_have_the_typed_keys() -> None:
+    from rustcloth import settings
+
+    scene = hanging(4, density=0.3)
+    # A mesh's masses come from its density: no `particle_mass`.
+    assert set(scene.cloth) | {"particle_mass"} == set(settings.ClothSettings.__annotations__)
+    # `uvs` (NotRequired) only when given.
+    assert set(scene.cloth["mesh"]) | {"uvs"} == set(settings.MeshSettings.__annotations__)
+    assert scene.cloth["mesh"]["density"] == 0.3
+
+
+def test_the_demos_mouse_does_nothing_on_a_mesh_cloth_rather_than_crash() -> None:
+    pytest.importorskip("moderngl")  # rustcloth.viewer needs the viewer extra
+    from rustcloth.viewer.interaction import Interaction
+
+    sim = rustcloth.Simulation(hanging(6))
+    before = sim.positions.copy()
+    mouse = Interaction(sim)
+    ray = (np.array([0.0, 1.0, 2.0]), np.array([0.0, 0.0, -1.0]))
+    assert mouse.grab(ray) is False
+    assert mouse.cut([ray]) == 0
+    assert mouse.cut([(ray[0] + [0.3, 0, 0], ray[1])]) == 0
+    assert sim.grabbed() is None and np.array_equal(sim.positions, before)
