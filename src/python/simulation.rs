@@ -8,8 +8,8 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use super::conv::{
-    count_from_any, f64s_from_array, float_from_any, index_from_any, int_from_any, scene_from_dict,
-    str_from_any, vec3_from_any, vec3s_from_array, Plain, Rows, SceneDict,
+    count_from_any, f64s_from_array, float_from_any, index_from_any, int_from_any, str_from_any,
+    unvalidated_scene_from_dict, vec3_from_any, vec3s_from_array, Plain, Rows, SceneDict,
 };
 use super::errors::{type_error, value_error, IntoPyResult, ParticleIndexError};
 use super::shared::{Held, Shared};
@@ -214,7 +214,8 @@ impl PySimulation {
     #[new]
     fn new(scene: &Bound<'_, PyAny>) -> PyResult<Self> {
         Ok(PySimulation {
-            shared: Shared::new(Simulation::new(scene_from_dict(scene)?).py()?),
+            // Validated once, by `Simulation::new`.
+            shared: Shared::new(Simulation::new(unvalidated_scene_from_dict(scene)?).py()?),
         })
     }
 
