@@ -69,6 +69,14 @@ impl Collider {
         }
     }
 
+    /// Whether the collider moves or turns at `time` (s): then its contacts do work.
+    pub fn moves(&self, time: f64) -> bool {
+        match self {
+            Collider::Spheres(s) | Collider::Shapes(s) => s.moves(time),
+            Collider::Floor(_) => false,
+        }
+    }
+
     /// Bytes the collider holds on the heap.
     pub fn heap_bytes(&self) -> usize {
         match self {

@@ -134,6 +134,14 @@ impl Shapes {
         self.shapes.is_empty()
     }
 
+    /// Whether any shape moves or turns at `time` (s).
+    pub fn moves(&self, time: f64) -> bool {
+        self.shapes.iter().zip(&self.keys).any(|(shape, key)| {
+            let (_, velocity, angular_velocity) = shape.pose_at(time, key.as_ref());
+            velocity != DVec3::ZERO || angular_velocity != DVec3::ZERO
+        })
+    }
+
     /// Collider `i`'s pose at `time` (s).
     pub fn pose(&self, i: usize, time: f64) -> Pose {
         self.shapes[i].pose_at(time, self.keys[i].as_ref()).0
