@@ -29,8 +29,13 @@ impl Energy {
 
 /// The energy of `state`, in f64: bitwise the same for any thread count and any call.
 pub fn energy(model: &Model, state: &State) -> Energy {
+    energy_of(model, &state.kin)
+}
+
+/// The energy of positions and velocities `kin`, as [`energy`].
+pub fn energy_of(model: &Model, kin: &crate::state::Kinematics) -> Energy {
     let g = DVec3::from(model.scene.gravity);
-    let (pos, vel, particles) = (&state.kin.pos, &state.kin.vel, &model.particles);
+    let (pos, vel, particles) = (&kin.pos, &kin.vel, &model.particles);
     let [kinetic, gravitational] = fixed_sum(model.grid.len(), |p| {
         if !particles.alive[p] {
             return [0.0, 0.0];

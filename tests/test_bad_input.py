@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import rustcloth
 from conftest import full_digest, small_scene, state_differences
-from rustcloth import Scene, Simulation
+from rustcloth import Scene, Simulation, _core
 
 BAD_SCENES = [
     # (changes, exception, text that must appear in the message)
@@ -58,6 +58,22 @@ def test_bad_scenes_raise_naming_the_parameter(changes, exception, text):
         small_scene(**changes)
     assert isinstance(info.value, rustcloth.RustclothError)
     assert text in str(info.value)
+
+
+@pytest.mark.parametrize(("changes", "exception", "text"), BAD_SCENES)
+def test_a_simulation_refuses_a_bad_scene_dict_as_the_scene_does(changes, exception, text):
+    # Simulation(scene) hands the scene's dict to the core's Simulation, which validates it once,
+    # as it builds the simulation, not also as it reads the dict (a second with a big mesh
+    # collider). Handed a bad dict, the core's refusal is the Scene's, word for word.
+    data = small_scene().to_dict()
+    for key, value in changes.items():
+        data[key] = {**data[key], **value} if key == "cloth" else value
+    with pytest.raises(exception) as from_scene:
+        Scene.from_dict(data)
+    with pytest.raises(exception) as from_simulation:
+        _core.Simulation(data)
+    assert str(from_simulation.value) == str(from_scene.value)
+    assert text in str(from_simulation.value)
 
 
 def test_bad_toml_is_a_value_error():

@@ -1,12 +1,20 @@
 """Contact never adds energy: a cloth dropped edge first onto every kind of contact, with every
 integrator, at a physics step (1 ms) and at a display frame (1/60 s).
 
-Two defects this guards. The ``[[spheres]]`` pass tested a particle's straight path against
+Three defects this guards. The ``[[spheres]]`` pass tested a particle's straight path against
 the sphere's offset shell, so a particle sliding on it was put back at its start every substep
 while its velocity kept growing: the ``pile`` cloth falling past its 4 cm ball went from 6.53 J
 to 246 J, with particles at 571 m/s. And at 1/60 s, projecting an implicit solve's result out
 of the floor crushed the springs of rows that had landed on top of each other: the dropped
 ``pile`` reached 30 J (implicit Euler) and 47 J (projective dynamics) from 6.53 J.
+And the contacts the implicit solvers held inside their solve still added energy at a hard
+landing (the ``pile`` dropped 40 cm at 1/60 s: 9.04 J to 9.64 J with implicit Euler, 10.85 J
+with projective dynamics; a cloth on a bare 2 cm ball at 1/120 s: 1.51 J to 19 J): a contact's
+plane was tilted by the friction slide or taken at the entry point of a path through a ball,
+not along the surface's normal; a predicted contact held its particle by pulling as well as
+pushing; a particle the springs carried into a collider its free motion missed was projected
+out after the solve; and one linearised solve of a landing stored joules in springs that its
+linear model did not count.
 
 With no pins and static colliders nothing does work on the cloth, so its total energy
 (kinetic, gravitational, elastic) may only fall. Explicit schemes take the substeps their
@@ -78,30 +86,59 @@ def _cases() -> list[object]:
 
 @pytest.mark.parametrize(("integrator", "dt"), _cases())
 def test_contact_never_adds_energy(integrator, dt):
-    skip = ("sphere",) if (integrator, dt) == ("projective_dynamics", 1 / 60) else ()
-    _drop_everywhere(integrator, dt, [c for c in CONTACTS if c not in skip])
-
-
-# Projective dynamics holds its predicted contacts inside the solve as implicit Euler does, but
-# the cloth landing on the bare 2 cm ball at a display frame still gains about 11 % (4360 %
-# when projected out after the solve): the ball is smaller than the cloth's 3.3 cm spacing, and
-# a cloth held by one or two particles and sliding off it swings. A known miss, kept visible;
-# strict, so that the fix is noticed.
-@pytest.mark.xfail(strict=True, reason="projective dynamics on the bare ball at a frame gains")
-def test_projective_dynamics_on_the_bare_ball_at_a_frame():
-    _drop_everywhere("projective_dynamics", 1 / 60, ["sphere"])
-
-
-def _drop_everywhere(integrator: str, dt: float, contacts: list[str]) -> None:
-    gains = {}
-    for contact in contacts:
-        sim = Simulation(dropped(contact, integrator, dt))
-        start = sim.energy().total
-        highest, steps = start, math.ceil(SECONDS / dt)
-        for _ in range(steps):
-            sim.step(1)
-            highest = max(highest, sim.energy().total)
-        assert np.isfinite(sim.positions).all()
-        gains[contact] = (highest - start) / abs(start)
+    gains = {c: highest_gain(dropped(c, integrator, dt), SECONDS) for c in CONTACTS}
     assert all(g <= TOLERANCE for g in gains.values()), {
         contact: f"{g:+.3%}" for contact, g in gains.items()}
+
+
+def highest_gain(scene: Scene, seconds: float) -> float:
+    """The highest total energy over ``seconds`` of steps, above the start, over the start."""
+    sim = Simulation(scene)
+    start = sim.energy().total
+    highest, steps = start, math.ceil(seconds / scene.dt)
+    for _ in range(steps):
+        sim.step(1)
+        highest = max(highest, sim.energy().total)
+    assert np.isfinite(sim.positions).all()
+    return (highest - start) / abs(start)
+
+
+def pile(drop: float) -> Scene:
+    """The ``pile`` scene (floor, its 4 cm ball, self-collision) with its lower edge ``drop``
+    metres above the floor."""
+    scene = rustcloth.load_scene("pile")
+    return scene.replace(cloth={"center": [0.0, drop + scene.cloth["size"][1] / 2, 0.0]})
+
+
+# Implicit Euler and projective dynamics are dissipative without contact: their energy only
+# falls in free fall. Only rounding may show as a rise (float32 positions near 1 m: about 1e-7
+# of the energies); a contact that pumps gains percent.
+DISSIPATIVE = 1e-5
+
+
+@pytest.mark.parametrize("drop", [0.1, 0.4, 1.0], ids=["10cm", "40cm", "1m"])
+@pytest.mark.parametrize("steps_per_second", [60, 120, 240])
+@pytest.mark.parametrize("integrator", ["implicit_euler", "projective_dynamics"])
+def test_implicit_landing_never_adds_energy(integrator, steps_per_second, drop, request):
+    # The pile dropped onto its floor and ball, at display-frame steps: before the fix implicit
+    # Euler reached 9.64 J from 9.04 J (40 cm, 1/60 s) and projective dynamics 10.85 J (40 cm)
+    # and 16.47 J from 15.07 J (1 m). The landing from 1 m is over at 0.45 s.
+    if (integrator, steps_per_second, drop) == ("projective_dynamics", 60, 0.1):
+        # Measured +4.4 %, none without self-collision: the self-collision pass, which runs
+        # after the solve, holds the pile's layers apart where the solve relaxed their springs.
+        # A known miss, kept visible; strict, so that a fix is noticed.
+        request.applymarker(pytest.mark.xfail(strict=True, reason="self-collision pumps"))
+    scene = pile(drop).replace(integrator=integrator, dt=1.0 / steps_per_second, substeps=1)
+    assert highest_gain(scene, 0.8) <= DISSIPATIVE
+
+
+@pytest.mark.parametrize("steps_per_second", [60, 120, 240])
+@pytest.mark.parametrize("integrator", rustcloth.INTEGRATORS)
+def test_cloth_on_a_bare_ball_never_gains_energy(integrator, steps_per_second):
+    # Before the fix, implicit Euler at 1/120 s reached 19 J from 1.51 J (a particle pulled
+    # through the ball along a plane taken at its entry point, then put back out after the
+    # solve) and projective dynamics gained 11 % at 1/60 s and 1/120 s.
+    scene = dropped("sphere", integrator, 1.0 / steps_per_second)
+    tolerance = DISSIPATIVE if integrator in ("implicit_euler", "projective_dynamics") else (
+        TOLERANCE)
+    assert highest_gain(scene, SECONDS) <= tolerance

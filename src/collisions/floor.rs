@@ -2,6 +2,7 @@ use glam::Vec3;
 
 use super::contact_velocity;
 use crate::particles::Particles;
+use crate::soa::Vec3s;
 use crate::state::Kinematics;
 
 /// The half-space `y < height + thickness`. A half-space cannot be tunnelled through: a particle
@@ -17,22 +18,26 @@ pub struct Floor {
 
 impl Floor {
     /// Moves every dynamic particle of `next` below the floor onto it; see
-    /// [`super::Collider::resolve`].
+    /// [`super::Collider::resolve`]; writes `+y` into `normals` (when given) for each.
     pub fn resolve(
         &self,
         _start: &Kinematics,
         next: &mut Kinematics,
+        normals: Option<&mut Vec3s>,
         particles: &Particles,
         chunk: usize,
     ) -> bool {
         let top = self.height + self.thickness;
-        super::resolve_chunks(next, chunk, |first, pos, mut vel| {
+        super::resolve_chunks(next, normals, chunk, |first, pos, mut vel, mut normals| {
             let mut finite = true;
             for i in 0..pos.len() {
                 if pos.y[i] < top && particles.is_dynamic(first + i) {
                     pos.y[i] = top;
                     let v = contact_velocity(vel.get(i), Vec3::Y, self.friction);
                     vel.set(i, v);
+                    if let Some(normals) = &mut normals {
+                        normals.set(i, Vec3::Y);
+                    }
                     finite &= v.is_finite();
                 }
             }

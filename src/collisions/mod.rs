@@ -18,24 +18,36 @@ pub use predict::PredictedContacts;
 pub use shape::{Pose, PoseKey, Shapes, ROTATION_TOLERANCE};
 
 use crate::particles::Particles;
-use crate::soa::Vec3SliceMut;
+use crate::soa::{Vec3SliceMut, Vec3s};
 use crate::state::Kinematics;
 
 /// Runs `contact` on each parallel chunk of `next` (given the chunk's first particle index, its
-/// positions and its velocities) and returns whether every chunk reported finite output: the
+/// positions, its velocities, and the chunk of `normals` when given, where a contact writes the
+/// surface's outward normal) and returns whether every chunk reported finite output: the
 /// traversal every collider shares, so each writes only its contact test.
 fn resolve_chunks(
     next: &mut Kinematics,
+    normals: Option<&mut Vec3s>,
     chunk: usize,
-    contact: impl Fn(usize, Vec3SliceMut<'_>, Vec3SliceMut<'_>) -> bool + Sync + Send,
+    contact: impl Fn(usize, Vec3SliceMut<'_>, Vec3SliceMut<'_>, Option<Vec3SliceMut<'_>>) -> bool
+        + Sync
+        + Send,
 ) -> bool {
     use rayon::prelude::*;
     let Kinematics { pos, vel } = next;
-    pos.par_chunks_mut(chunk)
+    let chunks = pos
+        .par_chunks_mut(chunk)
         .zip(vel.par_chunks_mut(chunk))
-        .enumerate()
-        .map(|(c, (pos, vel))| contact(c * chunk, pos, vel))
-        .reduce(|| true, |a, b| a & b)
+        .enumerate();
+    match normals {
+        None => chunks
+            .map(|(c, (pos, vel))| contact(c * chunk, pos, vel, None))
+            .reduce(|| true, |a, b| a & b),
+        Some(normals) => chunks
+            .zip(normals.par_chunks_mut(chunk))
+            .map(|((c, (pos, vel)), n)| contact(c * chunk, pos, vel, Some(n)))
+            .reduce(|| true, |a, b| a & b),
+    }
 }
 
 /// A collider: the closed set of shapes a scene can hold.
@@ -57,6 +69,14 @@ impl Collider {
         }
     }
 
+    /// Whether the collider moves or turns at `time` (s): then its contacts do work.
+    pub fn moves(&self, time: f64) -> bool {
+        match self {
+            Collider::Spheres(s) | Collider::Shapes(s) => s.moves(time),
+            Collider::Floor(_) => false,
+        }
+    }
+
     /// Bytes the collider holds on the heap.
     pub fn heap_bytes(&self) -> usize {
         match self {
@@ -67,21 +87,29 @@ impl Collider {
 
     /// Moves every dynamic particle of `next` that ended inside the collider out of it.
     /// `start` holds the positions at the start of the step, `h` is its length and `time` the
-    /// simulated time at its end (s), where moving colliders are posed. Returns whether every value it
-    /// wrote is finite (a contact at speeds near float32's limit can overflow).
+    /// simulated time at its end (s), where moving colliders are posed. Returns whether every
+    /// value it wrote is finite (a contact at speeds near float32's limit can overflow).
+    ///
+    /// With `normals`, a prediction of contacts for an implicit solve: a particle is left where
+    /// its contact put it, on the surface, without the friction slide along it, and the
+    /// surface's outward normal there is written into `normals` (its velocity changes as
+    /// without). The contact's plane is the one through that point along that normal; the move
+    /// from where the particle was is not along the normal where the contact took the entry
+    /// point of a path through a shape, and a slid point is off the surface.
     pub fn resolve(
         &self,
         start: &Kinematics,
         next: &mut Kinematics,
+        normals: Option<&mut Vec3s>,
         particles: &Particles,
         chunk: usize,
-        h: f32,
-        time: f64,
+        (h, time): (f32, f64),
     ) -> bool {
         match self {
-            Collider::Spheres(s) => s.resolve(start, next, particles, chunk, h, time),
-            Collider::Shapes(s) => s.resolve(start, next, particles, chunk, h, time),
-            Collider::Floor(f) => f.resolve(start, next, particles, chunk),
+            Collider::Spheres(s) | Collider::Shapes(s) => {
+                s.resolve(start, next, normals, particles, chunk, (h, time))
+            }
+            Collider::Floor(f) => f.resolve(start, next, normals, particles, chunk),
         }
     }
 }

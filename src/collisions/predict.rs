@@ -8,11 +8,20 @@
 //! other, with their springs crushed, and the energy stored in those springs would come back as
 //! motion. So before the solve, the collider passes are run on the free motion
 //! `x + h v + h^2 g` of every particle; a particle they move is a contact, with the plane
-//! through the point they put it on, normal to the correction. The solver keeps such a
-//! particle on the plane as part of the solve (`ImplicitEuler`: a stiff penalty along the
-//! normal in the linear system; `ProjectiveDynamics`: a projection onto the plane's outer side,
-//! weighted in its global matrix), so the springs around it feel the contact within the same
-//! step.
+//! through the surface point they put it on, along the surface's outward normal there. The
+//! solver keeps such a particle on the outer side of its plane as part of the solve
+//! (`ImplicitEuler`: a stiff penalty along the normal in the linear system;
+//! `ProjectiveDynamics`: a projection onto the plane's outer side, weighted in its global
+//! matrix), so the springs around it feel the contact within the same step.
+//!
+//! The free motion follows gravity alone, so the prediction is corrected after the solve
+//! ([`PredictedContacts::correct`], run by the stepper until nothing changes, a few rounds at
+//! most): a contact the solve held by pulling (its springs lifted the particle off the plane,
+//! and a penalty that pulls it back drags the cloth down, energy a landing then returns as a
+//! bounce) is released; a particle the springs carried into a collider its free motion missed
+//! is held; a contact that slid along its plane into a curved surface is held on the plane
+//! where the surface is now.
+//!
 //! Coulomb friction takes the tangential velocity the prediction's contact took, bounded by
 //! what is left of it after the solve ([`PredictedContacts::apply_friction`]); the collider
 //! passes then run on the result as on any step, and correct little.
@@ -29,6 +38,8 @@ use crate::state::Kinematics;
 pub struct PredictedContacts {
     /// The free motion's end, then where the colliders put it.
     predicted: Kinematics,
+    /// The outward normal of the surface where the colliders put a particle, zero elsewhere.
+    surface: Vec3s,
     /// The outward unit normal of the contact plane, zero where there is no contact.
     pub normal: Vec3s,
     /// `n . s` for a point `s` of the contact plane: a particle at `x` is on its outer side
@@ -47,6 +58,7 @@ impl PredictedContacts {
     pub fn new(n: usize) -> Self {
         PredictedContacts {
             predicted: Kinematics::zeros(n),
+            surface: Vec3s::zeros(n),
             normal: Vec3s::zeros(n),
             offset: vec![0.0; n],
             friction: Vec3s::zeros(n),
@@ -57,6 +69,7 @@ impl PredictedContacts {
     /// Bytes held on the heap.
     pub fn heap_bytes(&self) -> usize {
         self.predicted.heap_bytes()
+            + self.surface.heap_bytes()
             + self.normal.heap_bytes()
             + self.friction.heap_bytes()
             + self.offset.capacity() * size_of::<f32>()
@@ -83,18 +96,12 @@ impl PredictedContacts {
             self.predicted.pos.set(p, x);
             self.predicted.vel.set(p, v);
         }
-        for collider in colliders {
-            collider.resolve(current, &mut self.predicted, particles, chunk, h, time);
-        }
+        self.put_out(colliders, current, particles, (h, time), chunk);
         let mut count = 0;
         for p in 0..current.pos.len() {
-            let (x, v) = free(p);
-            let at = self.predicted.pos.get(p);
-            let normal = if at.is_finite() {
-                (at - x).normalize_or_zero()
-            } else {
-                Vec3::ZERO
-            };
+            let (_, v) = free(p);
+            let (normal, at) = (self.surface.get(p), self.predicted.pos.get(p));
+            let normal = if at.is_finite() { normal } else { Vec3::ZERO };
             let dv = self.predicted.vel.get(p) - v;
             self.normal.set(p, normal);
             self.offset[p] = normal.dot(at);
@@ -104,6 +111,91 @@ impl PredictedContacts {
         self.count = count;
     }
 
+    /// Runs the colliders' prediction on `self.predicted`, from `current`: the surface normal
+    /// of each contact into `self.surface`.
+    fn put_out(
+        &mut self,
+        colliders: &[Collider],
+        current: &Kinematics,
+        particles: &Particles,
+        (h, time): (f32, f64),
+        chunk: usize,
+    ) {
+        self.surface.fill(Vec3::ZERO);
+        for collider in colliders {
+            let (predicted, surface) = (&mut self.predicted, &mut self.surface);
+            collider.resolve(
+                current,
+                predicted,
+                Some(surface),
+                particles,
+                chunk,
+                (h, time),
+            );
+        }
+    }
+
+    /// Corrects the contacts after a solve wrote `solved` (from `current`, over a substep of
+    /// length `h` ending at `time`) and returns how many changed. A contact holds only by
+    /// pushing: one whose particle the solve left ahead of its target (the plane, or its start
+    /// when it started behind it) was pulled in, and is released. A particle without one whose
+    /// solved motion ends inside a collider gets one, with the plane the collider puts it on:
+    /// the prediction follows only gravity, and the springs can carry a particle into a
+    /// collider its free motion missed.
+    pub fn correct(
+        &mut self,
+        colliders: &[Collider],
+        (current, solved): (&Kinematics, &Kinematics),
+        particles: &Particles,
+        (h, time): (f32, f64),
+        chunk: usize,
+    ) -> usize {
+        self.predicted.copy_from(solved);
+        self.put_out(colliders, current, particles, (h, time), chunk);
+        let mut changed = 0;
+        for p in 0..current.pos.len() {
+            let (x, v) = (solved.pos.get(p), solved.vel.get(p));
+            let n = self.normal.get(p);
+            let (normal, at) = (self.surface.get(p), self.predicted.pos.get(p));
+            let inside = normal != Vec3::ZERO && at.is_finite();
+            if n != Vec3::ZERO {
+                let target = self.offset[p].min(n.dot(current.pos.get(p)));
+                if n.dot(x) > target {
+                    self.normal.set(p, Vec3::ZERO);
+                    self.friction.set(p, Vec3::ZERO);
+                    self.count -= 1;
+                    changed += 1;
+                } else if inside && !same_plane((n, self.offset[p]), (normal, normal.dot(at))) {
+                    // Slid along its plane into a curved surface (a ball's tangent plane
+                    // leaves the ball): held on the plane where the surface is now, with the
+                    // friction it had.
+                    self.normal.set(p, normal);
+                    self.offset[p] = normal.dot(at);
+                    changed += 1;
+                }
+                continue;
+            }
+            if !inside {
+                continue;
+            }
+            let dv = self.predicted.vel.get(p) - v;
+            self.normal.set(p, normal);
+            self.offset[p] = normal.dot(at);
+            self.friction.set(p, dv - dv.dot(normal) * normal);
+            self.count += 1;
+            changed += 1;
+        }
+        changed
+    }
+}
+
+/// Whether two contact planes `(normal, offset)` are the same to within 0.01 rad and 1 um: a
+/// flat face gives the same plane however far a particle slides on it.
+fn same_plane((n, offset): (Vec3, f32), (m, other): (Vec3, f32)) -> bool {
+    n.dot(m) > 0.99995 && (offset - other).abs() < 1e-6
+}
+
+impl PredictedContacts {
     /// Coulomb friction on the solver's result `next` for a substep of length `h`: each
     /// contact's tangential velocity loses what the predicted contact's friction took, and no
     /// more than it has (friction stops a particle, it does not turn it round); its position

@@ -22,6 +22,12 @@ pub fn scene_from_dict(obj: &Bound<'_, PyAny>) -> PyResult<Scene> {
     Scene::from_toml_value(to_toml(obj, "", 0)?).py()
 }
 
+/// As [`scene_from_dict`], not yet validated ([`Scene::read_toml_value`]): for
+/// `Simulation::new`, which validates it.
+pub fn unvalidated_scene_from_dict(obj: &Bound<'_, PyAny>) -> PyResult<Scene> {
+    Scene::read_toml_value(to_toml(obj, "", 0)?).py()
+}
+
 /// A scene as a dict with every key spelled out, absent optional tables as `None`, and each
 /// mesh collider's `vertices` and `triangles` as new read-only `(n, 3)` numpy arrays (float64,
 /// int64): the scene's own copy, which its users share and nobody can change.

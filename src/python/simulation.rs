@@ -7,7 +7,7 @@ use numpy::PyReadonlyArray1;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use super::conv::{scene_from_dict, Floats, Plain, Rows, SceneDict};
+use super::conv::{unvalidated_scene_from_dict, Floats, Plain, Rows, SceneDict};
 use super::errors::IntoPyResult;
 use super::shared::{Held, Shared};
 use super::state;
@@ -197,7 +197,8 @@ impl PySimulation {
     #[new]
     fn new(scene: &Bound<'_, PyAny>) -> PyResult<Self> {
         Ok(PySimulation {
-            shared: Shared::new(Simulation::new(scene_from_dict(scene)?).py()?),
+            // Validated once, by `Simulation::new`.
+            shared: Shared::new(Simulation::new(unvalidated_scene_from_dict(scene)?).py()?),
         })
     }
 

@@ -178,6 +178,15 @@ impl Scene {
     /// Builds and validates a scene from an already parsed TOML value (the binding converts a
     /// Python dict into one).
     pub fn from_toml_value(value: toml::Value) -> Result<Scene> {
+        let scene = Self::read_toml_value(value)?;
+        scene.validate()?;
+        Ok(scene)
+    }
+
+    /// As [`Scene::from_toml_value`], with its errors for keys, types and tables, but not yet
+    /// validated: for a caller that validates it next, as [`crate::Simulation::new`] does
+    /// (with a big mesh collider, validating twice costs a second).
+    pub fn read_toml_value(value: toml::Value) -> Result<Scene> {
         require_tables(&value)?;
         Self::from_deserializer(value)
     }
@@ -202,7 +211,6 @@ impl Scene {
                 Error::InvalidValue { name, message }
             }
         })?;
-        scene.validate()?;
         Ok(scene)
     }
 

@@ -34,6 +34,7 @@ use glam::{DQuat, DVec3, Quat, Vec3};
 use super::contact_velocity;
 use crate::particles::Particles;
 use crate::scene::{ColliderSpec, ShapeKind};
+use crate::soa::Vec3s;
 use crate::state::Kinematics;
 use geometry::{Geometry, Projection};
 pub use pose::{Pose, PoseKey, ROTATION_TOLERANCE};
@@ -133,6 +134,14 @@ impl Shapes {
         self.shapes.is_empty()
     }
 
+    /// Whether any shape moves or turns at `time` (s).
+    pub fn moves(&self, time: f64) -> bool {
+        self.shapes.iter().zip(&self.keys).any(|(shape, key)| {
+            let (_, velocity, angular_velocity) = shape.pose_at(time, key.as_ref());
+            velocity != DVec3::ZERO || angular_velocity != DVec3::ZERO
+        })
+    }
+
     /// Collider `i`'s pose at `time` (s).
     pub fn pose(&self, i: usize, time: f64) -> Pose {
         self.shapes[i].pose_at(time, self.keys[i].as_ref()).0
@@ -163,54 +172,68 @@ impl Shapes {
 
     /// Moves every dynamic particle of `next` that ended inside a shape (posed at `time`, the
     /// end of the substep of length `h`, in s) or within its thickness onto the offset surface;
-    /// see [`super::Collider::resolve`].
+    /// with `normals`, a prediction: see [`super::Collider::resolve`].
     pub fn resolve(
         &self,
         start: &Kinematics,
         next: &mut Kinematics,
+        normals: Option<&mut Vec3s>,
         particles: &Particles,
         chunk: usize,
-        h: f32,
-        time: f64,
+        (h, time): (f32, f64),
     ) -> bool {
-        super::resolve_chunks(next, chunk, |first, mut pos, mut vel| {
-            let mut finite = true;
-            for (shape, key) in self.shapes.iter().zip(&self.keys) {
-                // Posed once per chunk: a few dozen flops, and no buffer to keep.
-                let posed = shape.posed(time, key.as_ref());
-                let before = shape.posed(time - h as f64, key.as_ref());
-                let drift = (posed.center - before.center).length();
-                let turn = posed.angular_velocity.length() * h;
-                for i in 0..pos.len() {
-                    let (p0, p1) = (start.pos.get(first + i), pos.get(i));
-                    // As in `contact`: where the floor will leave it.
-                    let lifted = Vec3::new(p1.x, p1.y.max(shape.floor), p1.z);
-                    // A cheap screen: the path relative to the shape moves at most
-                    // |x1 - x0| + |c1 - c0| + |w| h |x0 - c0|, so only a particle that
-                    // ends within that of the shape's bounding ball can touch it.
-                    let travel = (p1 - p0).length() + drift + turn * (p0 - before.center).length();
-                    let limit = (shape.reach + travel) * (1.0 + 1e-4);
-                    if (lifted - posed.center).length_squared() >= limit * limit
-                        || !particles.is_dynamic(first + i)
-                    {
-                        continue;
-                    }
-                    if let Some((n, at)) = shape.contact(&before, &posed, p0, p1) {
-                        let surface = posed.surface_velocity(at);
-                        let v0 = vel.get(i);
-                        let v = surface + contact_velocity(v0 - surface, n, shape.friction);
-                        let dv = v - v0;
-                        let slid = shape.on_ball(&posed, at + h * (dv - dv.dot(n) * n));
-                        // The slide can take a point in the crease below the floor again.
-                        let (_, at) = shape.above_floor(posed.center, n, slid);
-                        pos.set(i, at);
-                        vel.set(i, v);
-                        finite &= at.is_finite() && v.is_finite();
+        let slide = normals.is_none();
+        super::resolve_chunks(
+            next,
+            normals,
+            chunk,
+            |first, mut pos, mut vel, mut normals| {
+                let mut finite = true;
+                for (shape, key) in self.shapes.iter().zip(&self.keys) {
+                    // Posed once per chunk: a few dozen flops, and no buffer to keep.
+                    let posed = shape.posed(time, key.as_ref());
+                    let before = shape.posed(time - h as f64, key.as_ref());
+                    let drift = (posed.center - before.center).length();
+                    let turn = posed.angular_velocity.length() * h;
+                    for i in 0..pos.len() {
+                        let (p0, p1) = (start.pos.get(first + i), pos.get(i));
+                        // As in `contact`: where the floor will leave it.
+                        let lifted = Vec3::new(p1.x, p1.y.max(shape.floor), p1.z);
+                        // A cheap screen: the path relative to the shape moves at most
+                        // |x1 - x0| + |c1 - c0| + |w| h |x0 - c0|, so only a particle that
+                        // ends within that of the shape's bounding ball can touch it.
+                        let travel =
+                            (p1 - p0).length() + drift + turn * (p0 - before.center).length();
+                        let limit = (shape.reach + travel) * (1.0 + 1e-4);
+                        if (lifted - posed.center).length_squared() >= limit * limit
+                            || !particles.is_dynamic(first + i)
+                        {
+                            continue;
+                        }
+                        if let Some((n, at)) = shape.contact(&before, &posed, p0, p1) {
+                            let surface = posed.surface_velocity(at);
+                            let v0 = vel.get(i);
+                            let v = surface + contact_velocity(v0 - surface, n, shape.friction);
+                            let at = if slide {
+                                let dv = v - v0;
+                                let slid = shape.on_ball(&posed, at + h * (dv - dv.dot(n) * n));
+                                // The slide can take a point in the crease below the floor again.
+                                shape.above_floor(posed.center, n, slid).1
+                            } else {
+                                at
+                            };
+                            if let Some(normals) = &mut normals {
+                                normals.set(i, n);
+                            }
+                            pos.set(i, at);
+                            vel.set(i, v);
+                            finite &= at.is_finite() && v.is_finite();
+                        }
                     }
                 }
-            }
-            finite
-        })
+                finite
+            },
+        )
     }
 }
 
