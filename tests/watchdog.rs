@@ -250,3 +250,44 @@ fn non_finite_input_is_still_rejected_before_the_watchdog_sees_it() {
     assert!(sim.set_positions(&pos).is_err());
     sim.step(5).unwrap();
 }
+
+/// A landing at a long implicit step whose solve is halved for its energy rise (each half
+/// evaluating forces from its own start): the stretch watch must judge the substep's start state
+/// only, as the scan that names the spring does, or a retried step fails as an internal error.
+#[test]
+fn a_halved_implicit_solve_judges_stretch_at_the_substep_start() {
+    let scene = Scene::from_toml_str(
+        r#"
+        integrator = "implicit_euler"
+        dt = 0.016666666666666666
+        air_drag = 0.0
+        cg_max_iterations = 1
+        preconditioner = "jacobi"
+        [cloth]
+        nx = 3
+        ny = 2
+        size = [0.1, 1.9544695484155405]
+        center = [0.0, 0.0, 0.0]
+        plane = "xy"
+        k_structural = 277.8424760521764
+        k_shear = 11.84448999515455
+        k_bend = 12.638599851346797
+        damping = 0.03128773994491654
+        pins = ["top_corners", [0, 1]]
+        [floor]
+        height = -0.43122327812880995
+        friction = 0.24808397053681805
+        thickness = 0.007015799180520596
+        [watchdog]
+        max_stretch = 2.3711132326209152
+        on_trouble = "substep"
+        max_substeps = 8
+        "#,
+    )
+    .unwrap();
+    let mut sim = Simulation::new(scene).unwrap();
+    match sim.step(6) {
+        Ok(()) | Err(Error::Diverged { .. }) => {}
+        Err(other) => panic!("a step failed as {other}"),
+    }
+}

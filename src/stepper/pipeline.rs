@@ -251,6 +251,9 @@ impl Pipeline {
             profile: &mut *s.profile,
             force,
         };
+        // The watch judges the state the substep starts from: the first force evaluation of
+        // this solve, not a later round's or a half's, which start elsewhere.
+        self.forces.arm_stretch_watch();
         let mut finite = self.solve(&mut job, from, s.next, false);
         if finite && self.holds_contacts() && self.rose(model, from, s.next, s.time) {
             finite = self.split(&mut job, from, s.next, 1);
@@ -338,7 +341,6 @@ impl Pipeline {
         let mut round = 0;
         let finite = loop {
             round += 1;
-            self.forces.arm_stretch_watch();
             let mut ctx = StepContext {
                 grid: job.model.grid,
                 current: from,
