@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import collections
+import contextlib
 import functools
 import hashlib
 import json
 import os
+import signal
 import struct
 import subprocess
 import sys
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -20,6 +23,18 @@ import pytest
 sys.path.insert(0, os.path.dirname(__file__))
 
 import rustcloth  # noqa: E402
+
+
+@contextlib.contextmanager
+def python_ctrl_c() -> Iterator[None]:
+    """Python's own Ctrl-C handler while a test sends itself SIGINT, whatever the process
+    inherited: a suite started from a background job inherits SIGINT ignored, which Python
+    keeps, and the signal would then never become a KeyboardInterrupt."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def small_scene(**changes) -> rustcloth.Scene:

@@ -27,7 +27,7 @@ import time
 import numpy as np
 import pytest
 import rustcloth
-from conftest import HOSTILE_COUNTS
+from conftest import HOSTILE_COUNTS, python_ctrl_c
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from rustcloth.errors import ParameterError
@@ -189,7 +189,7 @@ def test_ctrl_c_during_a_long_sever_stroke_severs_nothing():
     timer.start()
     started = time.perf_counter()
     try:
-        with pytest.raises(KeyboardInterrupt):
+        with python_ctrl_c(), pytest.raises(KeyboardInterrupt):
             sim.sever_stroke(stroke)
     finally:
         timer.cancel()

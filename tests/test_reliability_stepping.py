@@ -18,7 +18,7 @@ import time
 
 import pytest
 import rustcloth
-from conftest import full_digest, small_scene
+from conftest import full_digest, python_ctrl_c, small_scene
 from rustcloth import ParameterError, ParameterTypeError, Simulation
 
 
@@ -71,8 +71,7 @@ class _Interrupter:
 
 def _interrupted(call) -> float:
     """Runs `call` until Ctrl-C; returns the seconds from the signal to the KeyboardInterrupt."""
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
-    with _Interrupter() as ctrl_c, pytest.raises(KeyboardInterrupt):
+    with python_ctrl_c(), _Interrupter() as ctrl_c, pytest.raises(KeyboardInterrupt):
         call()
     raised_at = time.monotonic()
     assert ctrl_c.sent_at is not None
