@@ -15,21 +15,19 @@ from rustcloth.render import Renderer
 from rustcloth.render import constants as K
 from rustcloth.render.lights import PRESET_NAMES, key_direction, preset
 
+from .frames import camera, frame
+
 pytestmark = pytest.mark.render
 SIZE = (200, 150)
 GOLDEN = Path(__file__).parent / "golden" / "standin_lit.png"
 
 
 def _camera() -> Camera:
-    return Camera(eye=(0.9, 2.2, 2.4), target=(0.0, 0.5, 0.0), aspect=SIZE[0] / SIZE[1])
+    return camera(SIZE)
 
 
 def _frame(ctx: Any, r: Renderer, cam: Camera) -> np.ndarray:
-    fbo = ctx.simple_framebuffer(SIZE)
-    r.update()
-    r.render(fbo, cam)
-    # Not released: moderngl would later rebind the deleted framebuffer (GL_INVALID_OPERATION).
-    return np.frombuffer(fbo.read(components=3), dtype=np.uint8).reshape(SIZE[1], SIZE[0], 3)
+    return frame(ctx, r, cam, SIZE)
 
 
 def test_lit_frame_is_neither_black_nor_saturated(standin_cls: Any, ctx: Any) -> None:

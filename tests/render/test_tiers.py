@@ -16,21 +16,19 @@ from rustcloth.render import constants as K
 from rustcloth.render.tiers import SOFTWARE_SHADOW_SIZE, TIERS, auto_tier, is_software
 from rustcloth.viewer.loop import Viewer
 
+from .frames import camera, frame
+
 pytestmark = pytest.mark.render
 SIZE = (240, 180)
 CLOTH = (K.CLOTH_FRONT.id, K.CLOTH_BACK.id)
 
 
 def _camera() -> Camera:
-    return Camera(eye=(0.9, 2.2, 2.4), target=(0.0, 0.5, 0.0), aspect=SIZE[0] / SIZE[1])
+    return camera(SIZE)
 
 
 def _frame(ctx: Any, r: Renderer, cam: Camera) -> np.ndarray:
-    fbo = ctx.simple_framebuffer(SIZE)
-    r.update()
-    r.render(fbo, cam)
-    return np.frombuffer(fbo.read(components=3), dtype=np.uint8).reshape(
-        SIZE[1], SIZE[0], 3).astype(np.float32)
+    return frame(ctx, r, cam, SIZE).astype(np.float32)
 
 
 @pytest.mark.parametrize(("name", "software"), [
