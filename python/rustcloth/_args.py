@@ -17,6 +17,7 @@ from typing import Any, NoReturn
 
 import numpy as np
 
+from . import _core
 from .errors import ParameterError, ParameterTypeError, ParticleIndexError
 
 I64_MAX = 2**63 - 1
@@ -222,3 +223,51 @@ def ray(value: Any, name: str) -> tuple[Vec, Vec]:
     if size != 2:
         value_error(name, f"{pair}, got {size} items")
     return floats(value[0], f"{name}.origin", 3), direction(value[1], f"{name}.direction")
+
+
+def scene_data(value: object, name: str = "", depth: int = 0) -> Any:
+    """A scene dict (plain dicts, lists, numbers, strings, numpy arrays) as the core reads it
+    into the TOML value it also parses files into: ``None`` values dropped (absent), tuples as
+    lists, arrays of real numbers as float64 or int64 arrays (read by the core in one pass,
+    never as Python lists: a mesh of a million triangles), other arrays as their ``tolist()``,
+    so that the core's errors name their offending element as a list's. Refuses by name what
+    TOML cannot hold, and nesting deeper than ``_core.MAX_NESTING`` (an array's numbers lie
+    ``ndim`` levels below it), before recursing into it. ``depth``: how many lists and tables
+    hold ``value``."""
+    where = name or "scene"
+    deepest = depth + value.ndim if isinstance(value, np.ndarray) else depth
+    if deepest > _core.MAX_NESTING:
+        value_error(where, f"lists and tables nest at most {_core.MAX_NESTING} deep in a scene")
+    if isinstance(value, dict):
+        table = {}
+        for key, item in value.items():
+            if not isinstance(key, str):
+                type_error(where, f"keys must be strings, got {text_of(key, repr)}")
+            if item is not None:
+                table[key] = scene_data(item, f"{name}.{key}" if name else key, depth + 1)
+        return table
+    if isinstance(value, bool | float | str):
+        return value
+    if isinstance(value, int):
+        if not -I64_MAX - 1 <= value <= I64_MAX:
+            value_error(where, f"{text_of(value)} does not fit a 64-bit integer")
+        return value
+    if isinstance(value, list | tuple):
+        # Numbers, and lists of numbers (a mesh's rows as lists: a million of them), are taken
+        # as they are, without the walk's call each, where they nest shallow enough.
+        leaf, row = depth + 1 <= _core.MAX_NESTING, depth + 2 <= _core.MAX_NESTING
+        return [x if (leaf and _number(x)) or (row and type(x) is list and all(map(_number, x)))
+                else scene_data(x, f"{where}[{i}]", depth + 1) for i, x in enumerate(value)]
+    if isinstance(value, np.ndarray):
+        kind, size = value.dtype.kind, value.dtype.itemsize
+        if kind == "f":
+            return value.astype(np.float64, copy=False)
+        if kind == "i" or (kind == "u" and size <= 4):
+            return value.astype(np.int64, copy=False)
+        return scene_data(value.tolist(), name, depth)
+    type_error(where, f"unsupported value of type {type(value).__name__}: {text_of(value)}")
+
+
+def _number(x: object) -> bool:
+    """A float or an int that fits 64 bits (not a bool, nor a subclass): a plain leaf."""
+    return type(x) is float or (type(x) is int and -I64_MAX - 1 <= x <= I64_MAX)

@@ -1,31 +1,29 @@
 //! Conversions between Python objects and core types. Every failure names the parameter.
 
-use numpy::{
-    PyArray1, PyArrayDescrMethods, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArray,
-    PyUntypedArrayMethods,
-};
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArray, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
+use pyo3::types::{PyDict, PyList};
 
-use super::errors::{type_error, value_error, IntoPyResult};
+use super::errors::IntoPyResult;
 use crate::scene::Scene;
 use crate::soa::Vec3s;
 
 /// How deeply lists and tables may nest in a scene. The deepest key of the schema is a mesh
 /// collider's vertex coordinate, `colliders[k].vertices[i][j]`, four levels down; this leaves
-/// room for any future key while stopping input whose conversion would overflow the stack.
+/// room for any future key while stopping input whose conversion would overflow the stack
+/// (`rustcloth._args.scene_data` checks it).
 pub const MAX_NESTING: usize = 32;
 
 /// A scene dict, validated by the core (one parse, one validation).
 pub fn scene_from_dict(obj: &Bound<'_, PyAny>) -> PyResult<Scene> {
-    Scene::from_toml_value(to_toml(obj, "", 0)?).py()
+    Scene::from_toml_value(to_toml(obj)?).py()
 }
 
 /// As [`scene_from_dict`], not yet validated ([`Scene::read_toml_value`]): for
 /// `Simulation::new`, which validates it.
 pub fn unvalidated_scene_from_dict(obj: &Bound<'_, PyAny>) -> PyResult<Scene> {
-    Scene::read_toml_value(to_toml(obj, "", 0)?).py()
+    Scene::read_toml_value(to_toml(obj)?).py()
 }
 
 /// A scene as a dict with every key spelled out, absent optional tables as `None`, and each
@@ -84,109 +82,42 @@ impl<'py> IntoPyObject<'py> for SceneDict {
     }
 }
 
-/// A Python scene dict (plain dicts, lists, numbers, strings) as a TOML value, so that the core
-/// parses dicts and TOML files with the same deserializer and the same errors. `None` values in
-/// a dict mean "absent". `depth` is how many lists and tables hold `obj`, at most
-/// [`MAX_NESTING`].
-pub fn to_toml(obj: &Bound<'_, PyAny>, path: &str, depth: usize) -> PyResult<toml::Value> {
-    let name = if path.is_empty() { "scene" } else { path };
-    if depth > MAX_NESTING {
-        return Err(value_error(
-            name,
-            format!("lists and tables nest at most {MAX_NESTING} deep in a scene"),
-        ));
-    }
-    if let Ok(dict) = obj.cast::<PyDict>() {
-        let mut table = toml::Table::new();
-        for (key, value) in dict.iter() {
-            let key: String = key.extract().map_err(|_| {
-                type_error(
-                    name,
-                    format!(
-                        "keys must be strings, got {}",
-                        key.repr().map(|r| r.to_string()).unwrap_or_default()
-                    ),
-                )
-            })?;
-            if value.is_none() {
-                continue;
-            }
-            let child = if path.is_empty() {
-                key.clone()
-            } else {
-                format!("{path}.{key}")
-            };
-            table.insert(key, to_toml(&value, &child, depth + 1)?);
-        }
-        Ok(toml::Value::Table(table))
-    } else if obj.is_instance_of::<PyBool>() {
-        Ok(toml::Value::Boolean(obj.extract()?))
-    } else if obj.is_instance_of::<PyInt>() {
-        obj.extract::<i64>()
-            .map(toml::Value::Integer)
-            .map_err(|_| value_error(name, format!("{obj} does not fit a 64-bit integer")))
-    } else if obj.is_instance_of::<PyFloat>() {
-        Ok(toml::Value::Float(obj.extract()?))
-    } else if obj.is_instance_of::<PyString>() {
-        Ok(toml::Value::String(obj.extract()?))
-    } else if obj.is_instance_of::<PyList>() || obj.is_instance_of::<PyTuple>() {
-        let items = obj
-            .try_iter()?
-            .enumerate()
-            .map(|(i, item)| to_toml(&item?, &format!("{name}[{i}]"), depth + 1))
-            .collect::<PyResult<Vec<_>>>()?;
-        Ok(toml::Value::Array(items))
-    } else if let Ok(array) = obj.cast::<PyUntypedArray>() {
-        array_to_toml(obj, array, name, depth)
+/// A Python scene dict as a TOML value, so that the core parses dicts and TOML files with the
+/// same deserializer and the same errors. `rustcloth._args.scene_data` checks it first (naming
+/// what TOML cannot hold, bounding the nesting) and hands over plain values, with numpy arrays
+/// of real numbers as float64 or int64, read here in one pass.
+fn to_toml(obj: &Bound<'_, PyAny>) -> PyResult<toml::Value> {
+    let args = obj.py().import("rustcloth._args")?;
+    read_plain(&args.call_method1("scene_data", (obj,))?)
+}
+
+/// `scene_data`'s output as a TOML value: `None` is gone, integers fit 64 bits.
+fn read_plain(obj: &Bound<'_, PyAny>) -> PyResult<toml::Value> {
+    Ok(if let Ok(dict) = obj.cast::<PyDict>() {
+        let items = dict
+            .iter()
+            .map(|(k, v)| Ok((k.extract()?, read_plain(&v)?)));
+        toml::Value::Table(items.collect::<PyResult<_>>()?)
+    } else if let Ok(list) = obj.cast::<PyList>() {
+        toml::Value::Array(
+            list.iter()
+                .map(|v| read_plain(&v))
+                .collect::<PyResult<_>>()?,
+        )
+    } else if obj.cast::<PyUntypedArray>().is_err() {
+        pythonize::depythonize(obj)?
+    } else if let Ok(a) = obj.extract::<PyReadonlyArrayDyn<'_, f64>>() {
+        nest(
+            &mut a.as_array().iter().map(|&x| toml::Value::Float(x)),
+            a.shape(),
+        )
     } else {
-        let kind = type_name(obj);
-        Err(type_error(
-            name,
-            format!("unsupported value of type {kind}: {obj}"),
-        ))
-    }
-}
-
-/// A numpy array as nested TOML arrays, as its `tolist()` would be read but without the
-/// Python objects: a mesh of a million triangles is read in one pass. Its numbers lie `ndim`
-/// levels below it, which counts against [`MAX_NESTING`] as a list's would. Arrays of anything
-/// but real numbers (bools, complex numbers, objects) and unsigned 64-bit integers (which may
-/// not fit an `i64`) go through `tolist()`, element by element, so that the core's errors
-/// name the offending element as they do for lists.
-fn array_to_toml(
-    obj: &Bound<'_, PyAny>,
-    array: &Bound<'_, PyUntypedArray>,
-    name: &str,
-    depth: usize,
-) -> PyResult<toml::Value> {
-    let shape = array.shape().to_vec();
-    if depth + shape.len() > MAX_NESTING {
-        return Err(value_error(
-            name,
-            format!("lists and tables nest at most {MAX_NESTING} deep in a scene"),
-        ));
-    }
-    let dtype = array.dtype();
-    let values = match (dtype.kind(), dtype.itemsize()) {
-        (b'f', _) => values_as::<f64>(obj, "float64", toml::Value::Float)?,
-        (b'i', _) | (b'u', 1..=4) => values_as::<i64>(obj, "int64", toml::Value::Integer)?,
-        _ => return to_toml(&obj.call_method0("tolist")?, name, depth),
-    };
-    Ok(nest(&mut values.into_iter(), &shape))
-}
-
-/// The array's numbers, row-major, as `dtype` (numpy's name for `T`; no copy when it already
-/// is), each made a TOML value by `value`.
-fn values_as<T: numpy::Element + Copy>(
-    obj: &Bound<'_, PyAny>,
-    dtype: &str,
-    value: fn(T) -> toml::Value,
-) -> PyResult<Vec<toml::Value>> {
-    let kwargs = PyDict::new(obj.py());
-    kwargs.set_item("copy", false)?;
-    let native = obj.call_method("astype", (dtype,), Some(&kwargs))?;
-    let native = native.extract::<PyReadonlyArrayDyn<'_, T>>()?;
-    Ok(native.as_array().iter().map(|&x| value(x)).collect())
+        let a = obj.extract::<PyReadonlyArrayDyn<'_, i64>>()?;
+        nest(
+            &mut a.as_array().iter().map(|&x| toml::Value::Integer(x)),
+            a.shape(),
+        )
+    })
 }
 
 /// `values`, row-major, as nested arrays of `shape`.
@@ -279,10 +210,4 @@ impl<'py, T: serde::Serialize> IntoPyObject<'py> for Plain<T> {
     fn into_pyobject(self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         Ok(pythonize::pythonize(py, &self.0)?)
     }
-}
-
-/// The Python type name of `obj`, for messages.
-fn type_name(obj: &Bound<'_, PyAny>) -> String {
-    let name = obj.get_type().name();
-    name.map(|n| n.to_string()).unwrap_or_default()
 }
