@@ -86,6 +86,12 @@ fn thread_count() -> usize {
     rayon::current_num_threads()
 }
 
+/// How many scenes this thread has validated (for the tests that count validations).
+#[pyfunction]
+fn _scene_validations() -> u64 {
+    crate::scene::validations()
+}
+
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<simulation::PySimulation>()?;
@@ -98,6 +104,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(simulation::simulation_from_state, m)?)?;
     m.add_function(wrap_pyfunction!(instruction_set, m)?)?;
     m.add_function(wrap_pyfunction!(thread_count, m)?)?;
+    m.add_function(wrap_pyfunction!(_scene_validations, m)?)?;
     m.add("INTEGRATORS", IntegratorKind::names())?;
     m.add("MAX_NESTING", conv::MAX_NESTING)?;
     Ok(())

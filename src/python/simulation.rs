@@ -34,9 +34,8 @@ fn not_converged_warning(held: &mut Held) -> Option<String> {
 /// A simulation continuing a state from `Simulation.get_state()` (what unpickling calls).
 #[pyfunction]
 pub(crate) fn simulation_from_state(state: &Bound<'_, PyDict>) -> PyResult<PySimulation> {
-    let snapshot = state::from_dict(state)?;
     Ok(PySimulation {
-        shared: Shared::new(Simulation::restore(snapshot).py()?),
+        shared: Shared::new(state::restore(state)?),
     })
 }
 
@@ -247,7 +246,7 @@ impl PySimulation {
 
     /// Replaces the whole simulation (scene included) by a state from `get_state`.
     fn set_state(&self, py: Python<'_>, state: &Bound<'_, PyDict>) -> PyResult<()> {
-        let restored = Simulation::restore(state::from_dict(state)?).py()?;
+        let restored = state::restore(state)?;
         self.with(py, |h| {
             h.sim = restored;
             h.warned_not_converged = false;

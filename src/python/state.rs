@@ -6,17 +6,19 @@
 //! The plain values go through serde (pythonize); the scene and the per-particle arrays, which
 //! serde leaves out, are added and read here.
 
-use numpy::{PyArray1, PyReadonlyArray1, PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use glam::Vec3;
+use numpy::{PyArray1, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyList, PyTuple};
 use pythonize::{pythonize, Depythonizer};
 use serde::Deserialize;
 
-use super::conv::{scene_from_dict, scene_to_dict, Floats, Rows};
-use super::errors::{type_error, value_error};
+use super::conv::{scene_to_dict, unvalidated_scene_from_dict, Rows};
+use super::errors::{type_error, value_error, IntoPyResult};
 use crate::snapshot::Snapshot;
 use crate::soa::Vec3s;
+use crate::Simulation;
 
 /// The layout of the dict; a state of another layout is refused rather than guessed at.
 const VERSION: u64 = 3;
@@ -112,36 +114,38 @@ fn items<'py>(obj: &Bound<'py, PyAny>, name: &str, len: usize) -> PyResult<Vec<B
     Ok(items)
 }
 
-/// Exactly a `(n,)` array of `T`: a state is bits, and another dtype would be another state.
-fn array<T: numpy::Element + Clone>(
+/// The values, row-major, of exactly a `dtype` array of `shape` (`(n,)` or `(n, 3)`): a state
+/// is bits, and another dtype would be another state.
+fn array<T: numpy::Element + Copy>(
     obj: &Bound<'_, PyAny>,
     (name, dtype): (&str, &str),
-    n: usize,
+    shape: &[usize],
 ) -> PyResult<Vec<T>> {
-    let array = obj
-        .extract::<PyReadonlyArray1<'_, T>>()
-        .map_err(|_| type_error(name, format!("must be a {dtype} array of shape ({n},)")))?;
-    let values = array.as_array().to_vec();
-    if values.len() != n {
+    let expected = match shape {
+        [n] => format!("({n},)"),
+        _ => format!("({}, {})", shape[0], shape[1]),
+    };
+    let array = obj.extract::<PyReadonlyArrayDyn<'_, T>>().ok();
+    let array = array
+        .filter(|a| a.ndim() == shape.len())
+        .ok_or_else(|| type_error(name, format!("must be a {dtype} array of shape {expected}")))?;
+    if array.shape() != shape {
+        let got = match array.shape() {
+            [n] => format!("({n},)"),
+            got => format!("{got:?}"),
+        };
         return Err(value_error(
             name,
-            format!("must have shape ({n},), got ({},)", values.len()),
+            format!("must have shape {expected}, got {got}"),
         ));
     }
-    Ok(values)
+    Ok(array.as_array().iter().copied().collect())
 }
 
-/// Exactly float32 `(n, 3)` arrays, as [`array`].
+/// Exactly a float32 `(n, 3)` array, as [`array`].
 fn state_vectors(obj: &Bound<'_, PyAny>, name: &str, n: usize) -> PyResult<Vec3s> {
-    let array = obj.extract::<PyReadonlyArrayDyn<'_, f32>>().ok();
-    let array = array
-        .filter(|a| a.ndim() == 2)
-        .ok_or_else(|| type_error(name, format!("must be a float32 array of shape ({n}, 3)")))?;
-    if array.shape() != [n, 3] {
-        let message = format!("must have shape ({n}, 3), got {:?}", array.shape());
-        return Err(value_error(name, message));
-    }
-    Floats::F32(array).vec3s()
+    let values = array::<f32>(obj, (name, "float32"), &[n, 3])?;
+    Ok(Vec3s::from_fn(n, |p| Vec3::from_slice(&values[3 * p..])))
 }
 
 /// Whether `obj` is a bool: Python's, or numpy's (a scalar or a 0-d array).
@@ -150,8 +154,10 @@ fn is_bool(obj: &Bound<'_, PyAny>) -> bool {
     obj.is_instance_of::<PyBool>() || kind.is_ok_and(|k| k.to_string() == "b")
 }
 
-/// The Python side has checked that `obj` is a dict and its version an integer.
-pub fn from_dict(obj: &Bound<'_, PyDict>) -> PyResult<Snapshot> {
+/// The simulation a state continues. The Python side has checked that `obj` is a dict and its
+/// version an integer. The scene is validated once, as the simulation is built from it, and
+/// the arrays are checked against its particles.
+pub fn restore(obj: &Bound<'_, PyDict>) -> PyResult<Simulation> {
     let obj = obj.as_any();
     let version: u64 = item(obj, "version", "state.version")?.extract()?;
     if version != VERSION {
@@ -160,20 +166,19 @@ pub fn from_dict(obj: &Bound<'_, PyDict>) -> PyResult<Snapshot> {
             format!("this rustcloth reads state version {VERSION}, got {version}"),
         ));
     }
-    let scene = scene_from_dict(&item(obj, "scene", "state.scene")?)?;
-    let n = scene.grid().len();
+    let scene = unvalidated_scene_from_dict(&item(obj, "scene", "state.scene")?)?;
+    let sim = Simulation::new(scene).py()?;
+    let n = sim.grid().len();
     let mut s: Snapshot = deserialize(obj, "state")?;
     let get = |key: &str| item(obj, key, &format!("state.{key}"));
     s.positions = state_vectors(&get("positions")?, "state.positions", n)?;
     s.velocities = state_vectors(&get("velocities")?, "state.velocities", n)?;
-    s.masses = array(&get("masses")?, ("state.masses", "float32"), n)?;
-    s.pinned = array(&get("pinned")?, ("state.pinned", "bool"), n)?;
-    s.alive = array(&get("alive")?, ("state.alive", "bool"), n)?;
-    for (k, flags) in items(&get("springs")?, "state.springs", 6)?
-        .iter()
-        .enumerate()
-    {
-        s.springs[k] = array(flags, (&format!("state.springs[{k}]"), "bool"), n)?;
+    s.masses = array(&get("masses")?, ("state.masses", "float32"), &[n])?;
+    s.pinned = array(&get("pinned")?, ("state.pinned", "bool"), &[n])?;
+    s.alive = array(&get("alive")?, ("state.alive", "bool"), &[n])?;
+    let springs = items(&get("springs")?, "state.springs", 6)?;
+    for (k, flags) in springs.iter().enumerate() {
+        s.springs[k] = array(flags, (&format!("state.springs[{k}]"), "bool"), &[n])?;
     }
     let name = "state.watchdog.previous";
     let previous = item(&get("watchdog")?, "previous", name)?;
@@ -185,6 +190,5 @@ pub fn from_dict(obj: &Bound<'_, PyDict>) -> PyResult<Snapshot> {
             deserialize(&parts[2], name)?,
         ));
     }
-    s.scene = scene;
-    Ok(s)
+    sim.continuing(s).py()
 }

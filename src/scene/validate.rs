@@ -11,9 +11,20 @@ use crate::error::{check_scalar, check_vector, Bound, Error, Result};
 /// fit a GPU index buffer. 4096 x 4096 is far beyond interactive rates anyway.
 pub const MAX_PARTICLES: usize = 1 << 24;
 
+thread_local! {
+    static VALIDATIONS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+}
+
+/// How many scenes this thread has validated, for the tests that check a scene is validated
+/// once on its way in (with a big mesh collider, each validation costs a second).
+pub fn validations() -> u64 {
+    VALIDATIONS.get()
+}
+
 impl Scene {
     /// Checks every value; the error names the first offending parameter and its value.
     pub fn validate(&self) -> Result<()> {
+        VALIDATIONS.set(VALIDATIONS.get() + 1);
         check_scalar("dt", self.dt, Bound::Positive)?;
         if self.substeps == 0 {
             return Err(Error::value("substeps", "must be an integer >= 1, got 0"));

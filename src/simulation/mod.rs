@@ -560,16 +560,23 @@ impl Simulation {
     /// A simulation continuing `snapshot` exactly. Every part is checked against the scene
     /// (lengths, finite values, masses, indices, springs the grid has); a bad one is named.
     pub fn restore(snapshot: Snapshot) -> Result<Simulation> {
-        let mut sim = Simulation::new(snapshot.scene.clone())?;
+        Simulation::new(snapshot.scene.clone())?.continuing(snapshot)
+    }
+
+    /// This simulation, new and built from `snapshot`'s scene, continuing `snapshot` as
+    /// [`Simulation::restore`] does; the snapshot's own scene is not read. For a caller that
+    /// needs the validated scene (its particle count) to read the rest of a snapshot, as the
+    /// Python binding does, without validating the scene twice.
+    pub fn continuing(mut self, snapshot: Snapshot) -> Result<Simulation> {
         let (model, state, stepper, picker) = (
-            &mut sim.model,
-            &mut sim.state,
-            &mut sim.stepper,
-            &mut sim.picker,
+            &mut self.model,
+            &mut self.state,
+            &mut self.stepper,
+            &mut self.picker,
         );
-        sim.grip_radius = snapshot.grip_radius;
-        sim.grab = snapshot.apply(model, state, stepper, picker)?;
-        Ok(sim)
+        self.grip_radius = snapshot.grip_radius;
+        self.grab = snapshot.apply(model, state, stepper, picker)?;
+        Ok(self)
     }
 }
 
