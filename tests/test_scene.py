@@ -84,3 +84,27 @@ def test_from_toml_str_of_something_not_text_names_the_parameter():
     for value in (None, 3, b"dt = 0.01"):
         with pytest.raises(ParameterTypeError, match="text"):
             Scene.from_toml_str(value)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(("particle", "vertex"), [(16, 4), (-1, -1), (2**40, 2**40)])
+def test_a_pin_index_outside_the_cloth_is_refused_in_one_wording_for_grid_and_mesh(
+    particle, vertex
+):
+    # The grid's particles and a mesh cloth's vertices are refused by one check in one
+    # sentence, which gives the valid range (the mesh's other refusal once ran 18 spaces into
+    # its sentence).
+    with pytest.raises(rustcloth.ParameterError) as grid:
+        Scene(cloth={"nx": 4, "ny": 4, "pins": [particle]})
+    assert grid.value.parameter == "cloth.pins[0]"
+    assert str(grid.value) == (
+        f"cloth.pins[0]: particle {particle} is outside the 4 x 4 grid (0 to 15)")
+    vertices = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]]
+    triangles = [[0, 1, 2], [1, 3, 2]]
+    with pytest.raises(rustcloth.ParameterError) as mesh:
+        Scene().with_cloth_mesh(vertices, triangles, pins=[vertex])
+    assert mesh.value.parameter == "cloth.pins[0]"
+    assert str(mesh.value) == (
+        f"cloth.pins[0]: vertex {vertex} is outside the mesh's 4 vertices (0 to 3)")
+    with pytest.raises(rustcloth.ParameterError, match=r"vertex index \(3\) or box") as named:
+        Scene().with_cloth_mesh(vertices, triangles, pins=["top_edge"])
+    assert "  " not in str(named.value)

@@ -77,16 +77,12 @@ pub(super) fn pin_indices(pin: &PinSpec, cloth: &ClothSpec) -> Result<Vec<usize>
             vec![grid.index(*i as usize, *j as usize)]
         }
         PinSpec::Index(p) => {
-            if !(0..grid.len() as i64).contains(p) {
-                return Err(Error::value(
-                    "pins",
-                    format!(
-                        "particle {p} is outside the {nx} x {ny} grid (0 to {})",
-                        grid.len() - 1
-                    ),
-                ));
-            }
-            vec![*p as usize]
+            vec![checked_index(
+                *p,
+                grid.len(),
+                "particle",
+                &format!("the {nx} x {ny} grid"),
+            )?]
         }
         PinSpec::Region(region) => {
             let positions: Vec<[f64; 3]> = (0..grid.len())
@@ -123,25 +119,32 @@ pub(super) fn pin_indices(pin: &PinSpec, cloth: &ClothSpec) -> Result<Vec<usize>
 fn mesh_pin_indices(pin: &PinSpec, vertices: &[[f64; 3]]) -> Result<Vec<usize>> {
     match pin {
         PinSpec::Index(k) => {
-            if !(0..vertices.len() as i64).contains(k) {
-                return Err(Error::value(
-                    "pins",
-                    format!(
-                        "vertex {k} is out of range for the mesh's {} vertices",
-                        vertices.len()
-                    ),
-                ));
-            }
-            Ok(vec![*k as usize])
+            let n = vertices.len();
+            Ok(vec![checked_index(
+                *k,
+                n,
+                "vertex",
+                &format!("the mesh's {n} vertices"),
+            )?])
         }
         PinSpec::Region(region) => in_box(region, vertices),
         PinSpec::Named(_) | PinSpec::Cell(_) => Err(Error::value(
             "pins",
             format!(
-                "{pin:?} names the grid's particles; a mesh cloth is pinned by vertex index                  (3) or box ({{ box = [[x0, y0, z0], [x1, y1, z1]] }}); pins = [] for none"
+                "{pin:?} names the grid's particles; a mesh cloth is pinned by vertex index \
+                 (3) or box ({{ box = [[x0, y0, z0], [x1, y1, z1]] }}); pins = [] for none"
             ),
         )),
     }
+}
+
+/// Index `k` of a pin entry, refused unless one of the `len` particles `of` describes: the one
+/// message for a grid's particle and a mesh's vertex.
+fn checked_index(k: i64, len: usize, what: &str, of: &str) -> Result<usize> {
+    let last = len.saturating_sub(1);
+    let message = || format!("{what} {k} is outside {of} (0 to {last})");
+    let k = usize::try_from(k).ok().filter(|&k| k < len);
+    k.ok_or_else(|| Error::value("pins", message()))
 }
 
 /// The particles whose starting positions lie in the box (bounds included); an empty
