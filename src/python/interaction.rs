@@ -4,9 +4,8 @@
 use glam::Vec3;
 use pyo3::prelude::*;
 
-use super::conv::{Floats, Plain};
-use super::errors::IntoPyResult;
-use super::simulation::{calls, reads, PySimulation};
+use super::conv::{Floats, Plain, Rows};
+use super::simulation::{methods, PySimulation};
 use crate::picking::PickStrategy;
 
 /// `(triangle_index, distance, (w0, w1, w2))`.
@@ -27,37 +26,39 @@ fn rays(rays: &Floats<'_>) -> PyResult<Vec<(Vec3, Vec3)>> {
 /// A hit's `(index, distance)`.
 type ParticleHit = Option<(usize, f32)>;
 
-calls! {
+methods! {
     fn pick(origin: [f32; 3], direction: [f32; 3]) -> ParticleHit =
-        |sim| Ok(sim.pick(origin.into(), direction.into())?.map(|h| (h.index, h.distance)));
-    fn pick_triangle(origin: [f32; 3], direction: [f32; 3]) -> Option<TriangleHit> = |sim| {
+        call |sim| Ok(sim.pick(origin.into(), direction.into())?.map(|h| (h.index, h.distance)));
+    fn pick_triangle(origin: [f32; 3], direction: [f32; 3]) -> Option<TriangleHit> = call |sim| {
         let hit = sim.pick_triangle(origin.into(), direction.into())?;
         Ok(hit.map(|h| (h.index, h.distance, h.barycentric.into())))
     };
     fn cut_ray(origin: [f32; 3], direction: [f32; 3]) -> Option<usize> =
-        |sim| sim.cut_ray(origin.into(), direction.into());
-    #[setter] fn set_pick_radius(radius: f64) -> () = |sim| sim.set_pick_radius(radius);
-    #[setter] fn set_grip_radius(radius: f64) -> () = |sim| sim.set_grip_radius(radius);
-    fn grab(index: i64) -> () = |sim| sim.grab(index);
-    fn drag_to(target: [f32; 3]) -> () = |sim| sim.drag_to(target.into());
-    fn release() -> () = |sim| {
+        call |sim| sim.cut_ray(origin.into(), direction.into());
+    #[setter] fn set_pick_radius(radius: f64) -> () = call |sim| sim.set_pick_radius(radius);
+    #[setter] fn set_grip_radius(radius: f64) -> () = call |sim| sim.set_grip_radius(radius);
+    fn grab(index: i64) -> () = call |sim| sim.grab(index);
+    fn drag_to(target: [f32; 3]) -> () = call |sim| sim.drag_to(target.into());
+    fn release() -> () = call |sim| {
         sim.release();
         Ok(())
     };
-    fn pieces() -> usize = |sim| Ok(sim.pieces());
+    fn pieces() -> usize = call |sim| Ok(sim.pieces());
+    #[setter] fn set_pick_strategy(strategy: &str) -> () = call |sim| {
+        sim.set_pick_strategy(PickStrategy::by_name(strategy)?);
+        Ok(())
+    };
+    #[getter] fn pick_radius() -> f32 = read |h| h.sim.pick_radius();
+    #[getter] fn pick_strategy() -> &'static str = read |h| h.sim.pick_strategy().name();
+    #[getter] fn grip_radius() -> f32 = read |h| h.sim.grip_radius();
+    fn grabbed() -> Option<usize> = read |h| h.sim.grabbed();
+    fn gripped() -> Vec<usize> = read |h| h.sim.gripped();
+    fn piece_labels() -> Rows<u32> = read |h| Rows(h.sim.piece_labels(), 0);
+    fn bvh_stats() -> Plain<crate::picking::BvhStats> = read |h| Plain(h.sim.bvh_stats());
 }
 
 #[pymethods]
 impl PySimulation {
-    #[setter]
-    fn set_pick_strategy(&self, py: Python<'_>, strategy: &str) -> PyResult<()> {
-        let strategy = PickStrategy::by_name(strategy).py()?;
-        self.call(py, |sim| {
-            sim.set_pick_strategy(strategy);
-            Ok(())
-        })
-    }
-
     fn cut_stroke(&self, py: Python<'_>, rays: Floats<'_>) -> PyResult<Vec<usize>> {
         let rays = self::rays(&rays)?;
         self.call(py, |sim| sim.cut_stroke(&rays))
@@ -68,14 +69,4 @@ impl PySimulation {
         let rays = self::rays(&rays)?;
         self.stepping(py, |sim, stop| sim.sever_stroke_with(&rays, stop))
     }
-}
-
-reads! {
-    #[getter] fn pick_radius -> f32 = |h| h.sim.pick_radius();
-    #[getter] fn pick_strategy -> &'static str = |h| h.sim.pick_strategy().name();
-    #[getter] fn grip_radius -> f32 = |h| h.sim.grip_radius();
-    fn grabbed -> Option<usize> = |h| h.sim.grabbed();
-    fn gripped -> Vec<usize> = |h| h.sim.gripped();
-    fn piece_labels -> super::conv::Rows<u32> = |h| super::conv::Rows(h.sim.piece_labels(), 0);
-    fn bvh_stats -> Plain<crate::picking::BvhStats> = |h| Plain(h.sim.bvh_stats());
 }

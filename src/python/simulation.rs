@@ -49,6 +49,11 @@ impl PySimulation {
         self.shared.with(py, f)
     }
 
+    /// Returns what `read` reads from the simulation under its lock.
+    pub(crate) fn read<R>(&self, py: Python<'_>, read: impl FnOnce(&mut Held) -> R) -> PyResult<R> {
+        self.with(py, |h| Ok(read(h)))
+    }
+
     /// Runs `call` on the simulation under its lock, detached from the interpreter (other
     /// Python threads run meanwhile).
     pub(crate) fn call<R: Send>(
@@ -95,59 +100,70 @@ impl PySimulation {
     }
 }
 
-/// `#[pymethods]` that return what `$read` reads under the lock, `|h| $read` with `h` the
-/// [`Held`] simulation.
-macro_rules! reads {
-    ($($(#[$attr:meta])* fn $name:ident -> $ty:ty = |$h:ident| $read:expr;)*) => {
-        #[pymethods]
-        impl PySimulation {
-            $($(#[$attr])* fn $name(&self, py: Python<'_>) -> PyResult<$ty> {
-                self.with(py, |$h| Ok($read))
-            })*
-        }
-    };
-}
-pub(super) use reads;
-
-/// `#[pymethods]` that run `$call` on the simulation as [`PySimulation::call`] runs it (under
-/// the lock, detached from the interpreter), their arguments as pyo3 extracts them.
-macro_rules! calls {
-    ($($(#[$attr:meta])* fn $name:ident($($arg:ident: $ty:ty),*) -> $ret:ty = |$sim:ident| $call:expr;)*) => {
+/// `#[pymethods]`, each `fn name(args) -> T = how |..| body;` with its arguments as pyo3
+/// extracts them and `body` run as the [`PySimulation`] method `how` runs it, under the lock:
+/// `read` (`body` the value, attached to the interpreter), `with` (`body` a `PyResult`,
+/// attached), `call` (`body` a core `Result` on the simulation, detached) or `stepping` (as
+/// `call`, checking for Ctrl-C).
+macro_rules! methods {
+    ($($(#[$attr:meta])* fn $name:ident($($arg:ident: $ty:ty),*) -> $ret:ty = $how:ident |$($x:ident),*| $body:expr;)*) => {
         #[pymethods]
         impl PySimulation {
             $($(#[$attr])* fn $name(&self, py: Python<'_>, $($arg: $ty),*) -> PyResult<$ret> {
-                self.call(py, |$sim| $call)
+                self.$how(py, |$($x),*| $body)
             })*
         }
     };
 }
-pub(super) use calls;
+pub(super) use methods;
 
-calls! {
+methods! {
+    fn step(n: u64) -> () = stepping |sim, stop| sim.step_interruptible(n, stop);
+    fn advance(seconds: f64) -> u64 = stepping |sim, stop| sim.advance_interruptible(seconds, stop);
     #[pyo3(signature = (index, target = None))]
-    fn pin(index: i64, target: Option<[f32; 3]>) -> () = |sim| sim.pin(index, target.map(Vec3::from));
-    fn unpin(index: i64) -> () = |sim| sim.unpin(index);
-    fn cut(index: i64) -> () = |sim| sim.cut(index);
-    #[setter] fn set_dt(dt: f64) -> () = |sim| sim.set_dt(dt);
-    #[setter] fn set_substeps(substeps: i64) -> () = |sim| sim.set_substeps(substeps);
-    #[setter] fn set_integrator(name: &str) -> () = |sim| sim.set_integrator(name);
-}
-
-reads! {
-    #[getter] fn positions -> Rows<f32> = |h| Rows::vec3s(h.sim.positions());
-    #[getter] fn velocities -> Rows<f32> = |h| Rows::vec3s(h.sim.velocities());
-    #[getter] fn normals -> Rows<f32> = |h| Rows::vec3s(h.sim.normals());
-    #[getter] fn masses -> Rows<f32> = |h| Rows(h.sim.particles().mass.clone(), 0);
-    #[getter] fn pinned -> Rows<bool> = |h| Rows(h.sim.particles().pinned.clone(), 0);
-    #[getter] fn alive -> Rows<bool> = |h| Rows(h.sim.particles().alive.clone(), 0);
-    #[getter] fn triangles -> Rows<u32> = |h| Rows(h.sim.triangles().as_flattened().to_vec(), 3);
+    fn pin(index: i64, target: Option<[f32; 3]>) -> () =
+        call |sim| sim.pin(index, target.map(Vec3::from));
+    fn unpin(index: i64) -> () = call |sim| sim.unpin(index);
+    fn cut(index: i64) -> () = call |sim| sim.cut(index);
+    #[setter] fn set_dt(dt: f64) -> () = call |sim| sim.set_dt(dt);
+    #[setter] fn set_substeps(substeps: i64) -> () = call |sim| sim.set_substeps(substeps);
+    #[setter] fn set_integrator(name: &str) -> () = call |sim| sim.set_integrator(name);
+    fn set_positions(positions: Floats<'_>) -> () =
+        with |h| h.sim.set_positions(&positions.vec3s()?).py();
+    fn set_velocities(velocities: Floats<'_>) -> () =
+        with |h| h.sim.set_velocities(&velocities.vec3s()?).py();
+    fn set_masses(masses: Floats<'_>) -> () = with |h| h.sim.set_masses(&masses.rows(&[])?).py();
+    /// Pins many particles in one call: `targets` None or one row per index.
+    #[pyo3(signature = (indices, targets = None))]
+    fn pin_many(indices: PyReadonlyArray1<'_, i64>, targets: Option<Floats<'_>>) -> () =
+        with |h| {
+            let targets = targets.map(|t| t.vec3s()).transpose()?;
+            h.sim.pin_many(&indices.as_array().to_vec(), targets.as_ref()).py()
+        };
+    fn reset() -> () = with |h| {
+        h.warned_not_converged = false;
+        h.sim.reset().py()
+    };
+    /// Makes the next force evaluation panic inside its parallel sweep: a stand-in for a bug,
+    /// for the tests of the panic guards.
+    fn _inject_panic() -> () = read |h| h.sim.inject_panic();
+    /// Panics right here, under the lock: the binding's last-resort guard, for the tests.
+    fn _panic_now() -> () = read |_h| panic!("injected panic outside a step");
+    #[getter] fn positions() -> Rows<f32> = read |h| Rows::vec3s(h.sim.positions());
+    #[getter] fn velocities() -> Rows<f32> = read |h| Rows::vec3s(h.sim.velocities());
+    #[getter] fn normals() -> Rows<f32> = read |h| Rows::vec3s(h.sim.normals());
+    #[getter] fn masses() -> Rows<f32> = read |h| Rows(h.sim.particles().mass.clone(), 0);
+    #[getter] fn pinned() -> Rows<bool> = read |h| Rows(h.sim.particles().pinned.clone(), 0);
+    #[getter] fn alive() -> Rows<bool> = read |h| Rows(h.sim.particles().alive.clone(), 0);
+    #[getter] fn triangles() -> Rows<u32> =
+        read |h| Rows(h.sim.triangles().as_flattened().to_vec(), 3);
     /// The drawn mesh's `(positions, normals)`, particles first, then the cut vertices.
-    fn render_positions -> (Rows<f32>, Rows<f32>) = |h| {
+    fn render_positions() -> (Rows<f32>, Rows<f32>) = read |h| {
         let (positions, normals) = h.sim.render_frame();
         (Rows::vec3s(positions), Rows::vec3s(normals))
     };
     /// The drawn mesh's `(triangles, uvs, sources)`: what changes only with the topology.
-    fn render_topology -> (Rows<u32>, Rows<f32>, Rows<u32>) = |h| {
+    fn render_topology() -> (Rows<u32>, Rows<f32>, Rows<u32>) = read |h| {
         let mesh_uvs = h.sim.model().mesh().map(crate::render_mesh::mesh_uvs);
         let triangles = h.sim.render_triangles().as_flattened().to_vec();
         let (grid, cut) = (h.sim.grid(), h.sim.render_cut_vertices());
@@ -156,39 +172,40 @@ reads! {
         (Rows(triangles, 3), Rows(uvs, 2), Rows(crate::render_mesh::sources(grid, cut), 0))
     };
     /// The scene with the run-time settings as they are now.
-    fn scene_dict -> SceneDict = |h| SceneDict(h.sim.scene().clone());
-    #[getter] fn time -> f64 = |h| h.sim.time();
-    #[getter] fn steps -> u64 = |h| h.sim.steps();
-    #[getter] fn dt -> f64 = |h| h.sim.dt();
-    #[getter] fn substeps -> u32 = |h| h.sim.scene().substeps;
-    #[getter] fn integrator -> &'static str = |h| h.sim.scene().integrator.name();
-    #[getter] fn effects -> Vec<&'static str> = |h| h.sim.effects();
-    #[getter] fn topology_version -> u64 = |h| h.sim.topology_version();
-    #[getter] fn state_version -> u64 = |h| h.sim.state_version();
-    #[getter] fn nx -> usize = |h| h.sim.grid().nx;
-    #[getter] fn ny -> usize = |h| h.sim.grid().ny;
-    #[getter] fn num_particles -> usize = |h| h.sim.grid().len();
+    fn scene_dict() -> SceneDict = read |h| SceneDict(h.sim.scene().clone());
+    #[getter] fn time() -> f64 = read |h| h.sim.time();
+    #[getter] fn steps() -> u64 = read |h| h.sim.steps();
+    #[getter] fn dt() -> f64 = read |h| h.sim.dt();
+    #[getter] fn substeps() -> u32 = read |h| h.sim.scene().substeps;
+    #[getter] fn integrator() -> &'static str = read |h| h.sim.scene().integrator.name();
+    #[getter] fn effects() -> Vec<&'static str> = read |h| h.sim.effects();
+    #[getter] fn topology_version() -> u64 = read |h| h.sim.topology_version();
+    #[getter] fn state_version() -> u64 = read |h| h.sim.state_version();
+    #[getter] fn nx() -> usize = read |h| h.sim.grid().nx;
+    #[getter] fn ny() -> usize = read |h| h.sim.grid().ny;
+    #[getter] fn num_particles() -> usize = read |h| h.sim.grid().len();
     /// `(kinetic, gravitational, elastic)` in J.
-    fn energy -> (f64, f64, f64) = |h| {
+    fn energy() -> (f64, f64, f64) = read |h| {
         let e = h.sim.energy();
         (e.kinetic, e.gravitational, e.elastic)
     };
-    fn spring_strain -> Rows<f32> = |h| Rows(h.sim.spring_strain(), 0);
-    fn max_stretch -> f32 = |h| h.sim.max_stretch();
+    fn spring_strain() -> Rows<f32> = read |h| Rows(h.sim.spring_strain(), 0);
+    fn max_stretch() -> f32 = read |h| h.sim.max_stretch();
     /// `(passes, steps, total_seconds)` with `passes` a list of `(name, seconds, calls)`.
-    fn profile -> (Vec<(&'static str, f64, u64)>, u64, f64) = |h| {
+    fn profile() -> (Vec<(&'static str, f64, u64)>, u64, f64) = read |h| {
         let p = h.sim.profile();
         let passes = p.passes().iter().map(|p| (p.name, p.time.as_secs_f64(), p.calls));
         (passes.collect(), p.steps, p.total.as_secs_f64())
     };
-    fn solver_stats -> Option<Plain<crate::integrators::SolverStats>> =
-        |h| h.sim.solver_stats().map(Plain);
-    fn watchdog_stats -> Plain<crate::stepper::WatchdogStats> = |h| Plain(h.sim.watchdog_stats());
-    fn self_collision_stats -> Option<Plain<crate::self_collision::SelfCollisionStats>> =
-        |h| h.sim.self_collision_stats().map(Plain);
+    fn solver_stats() -> Option<Plain<crate::integrators::SolverStats>> =
+        read |h| h.sim.solver_stats().map(Plain);
+    fn watchdog_stats() -> Plain<crate::stepper::WatchdogStats> =
+        read |h| Plain(h.sim.watchdog_stats());
+    fn self_collision_stats() -> Option<Plain<crate::self_collision::SelfCollisionStats>> =
+        read |h| h.sim.self_collision_stats().map(Plain);
     /// The largest stable `dt` (s) now, or None when any `dt` is.
-    fn stable_dt -> Option<f64> = |h| h.sim.stable_dt();
-    fn memory_bytes -> usize = |h| h.sim.memory_bytes();
+    fn stable_dt() -> Option<f64> = read |h| h.sim.stable_dt();
+    fn memory_bytes() -> usize = read |h| h.sim.memory_bytes();
 }
 
 #[pymethods]
@@ -198,49 +215,6 @@ impl PySimulation {
         Ok(PySimulation {
             // Validated once, by `Simulation::new`.
             shared: Shared::new(Simulation::new(unvalidated_scene_from_dict(scene)?).py()?),
-        })
-    }
-
-    fn step(&self, py: Python<'_>, n: u64) -> PyResult<()> {
-        self.stepping(py, |sim, stop| sim.step_interruptible(n, stop))
-    }
-
-    fn advance(&self, py: Python<'_>, seconds: f64) -> PyResult<u64> {
-        self.stepping(py, |sim, stop| sim.advance_interruptible(seconds, stop))
-    }
-
-    fn set_positions(&self, py: Python<'_>, positions: Floats<'_>) -> PyResult<()> {
-        let positions = positions.vec3s()?;
-        self.call(py, |sim| sim.set_positions(&positions))
-    }
-
-    fn set_velocities(&self, py: Python<'_>, velocities: Floats<'_>) -> PyResult<()> {
-        let velocities = velocities.vec3s()?;
-        self.call(py, |sim| sim.set_velocities(&velocities))
-    }
-
-    fn set_masses(&self, py: Python<'_>, masses: Floats<'_>) -> PyResult<()> {
-        let masses = masses.rows(&[])?;
-        self.call(py, |sim| sim.set_masses(&masses))
-    }
-
-    /// Pins many particles in one call: `targets` None or one row per index.
-    #[pyo3(signature = (indices, targets = None))]
-    fn pin_many(
-        &self,
-        py: Python<'_>,
-        indices: PyReadonlyArray1<'_, i64>,
-        targets: Option<Floats<'_>>,
-    ) -> PyResult<()> {
-        let indices = indices.as_array().to_vec();
-        let targets = targets.map(|t| t.vec3s()).transpose()?;
-        self.call(py, |sim| sim.pin_many(&indices, targets.as_ref()))
-    }
-
-    fn reset(&self, py: Python<'_>) -> PyResult<()> {
-        self.with(py, |h| {
-            h.warned_not_converged = false;
-            h.sim.reset().py()
         })
     }
 
@@ -266,21 +240,5 @@ impl PySimulation {
         let constructor = py.import("rustcloth._core")?;
         let constructor = constructor.getattr("simulation_from_state")?;
         Ok((constructor, (self.get_state(py)?,)))
-    }
-
-    /// Makes the next force evaluation panic inside its parallel sweep: a stand-in for a bug,
-    /// for the tests of the panic guards.
-    fn _inject_panic(&self, py: Python<'_>) -> PyResult<()> {
-        self.with(py, |h| {
-            h.sim.inject_panic();
-            Ok(())
-        })
-    }
-
-    /// Panics right here, under the lock: the binding's last-resort guard, for the tests.
-    fn _panic_now(&self, py: Python<'_>) -> PyResult<()> {
-        self.with(py, |_| -> PyResult<()> {
-            panic!("injected panic outside a step")
-        })
     }
 }
