@@ -23,6 +23,7 @@ __all__ = [
     "simulation_from_state",
     "instruction_set",
     "thread_count",
+    "_scene_validations",
     "INTEGRATORS",
     "MAX_NESTING",
 ]

@@ -156,11 +156,8 @@ impl Floats<'_> {
     /// The rows of an `(n, 3)` array as SoA vectors.
     pub fn vec3s(&self) -> PyResult<Vec3s> {
         let values = self.rows(&[3])?;
-        let mut out = Vec3s::zeros(values.len() / 3);
-        for (p, v) in values.chunks_exact(3).enumerate() {
-            out.set(p, glam::DVec3::from_slice(v).as_vec3());
-        }
-        Ok(out)
+        let vec3 = |p: usize| glam::DVec3::from_slice(&values[3 * p..]).as_vec3();
+        Ok(Vec3s::from_fn(values.len() / 3, vec3))
     }
 }
 

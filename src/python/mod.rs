@@ -21,91 +21,86 @@ mod shared;
 mod simulation;
 mod state;
 
-use pyo3::prelude::*;
-
-use crate::integrators::IntegratorKind;
-use crate::scene::Scene;
-use conv::{scene_from_dict, SceneDict};
-use errors::IntoPyResult;
-
-/// Validates a scene dict and returns it with every default filled in.
-#[pyfunction]
-fn normalize_scene(scene: &Bound<'_, PyAny>) -> PyResult<SceneDict> {
-    Ok(SceneDict(scene_from_dict(scene)?))
-}
-
-/// Parses and validates a TOML scene document into a full scene dict.
-#[pyfunction]
-fn scene_from_toml(text: &str) -> PyResult<SceneDict> {
-    Ok(SceneDict(Scene::from_toml_str(text).py()?))
-}
-
-/// A scene dict as a TOML document.
-#[pyfunction]
-fn scene_to_toml(scene: &Bound<'_, PyAny>) -> PyResult<String> {
-    Ok(scene_from_dict(scene)?.to_toml_string())
-}
-
-/// `(integrator, largest stable dt)` for every integrator.
-type StableDts = Vec<(&'static str, Option<f64>)>;
-
-/// Every integrator's largest stable `dt` for a scene dict (None: any `dt`), and the angular
-/// frequency (rad/s) of the cloth's stiffest mode.
-#[pyfunction]
-fn scene_stability(scene: &Bound<'_, PyAny>) -> PyResult<(StableDts, f64)> {
-    let scene = scene_from_dict(scene)?;
-    let limits = IntegratorKind::ALL
-        .iter()
-        .map(|&kind| (kind.name(), scene.stable_dt(kind)))
-        .collect();
-    Ok((limits, scene.max_frequency()))
-}
-
-/// Names of the built-in scenes.
-#[pyfunction]
-fn builtin_scenes() -> Vec<&'static str> {
-    Scene::builtin_names()
-}
-
-/// The built-in scene `name` as a dict.
-#[pyfunction]
-fn builtin_scene(name: &str) -> PyResult<SceneDict> {
-    Ok(SceneDict(Scene::builtin(name).py()?))
-}
-
-/// The vector instruction set the solver's loops run with in this process (`baseline`,
-/// `avx2`, `avx512`): the widest the CPU has, or what `RUSTCLOTH_SIMD` asked for.
-#[pyfunction]
-fn instruction_set() -> &'static str {
-    crate::simd::isa().name()
-}
-
-/// The threads of the pool the solver runs on (`RAYON_NUM_THREADS`, or one per core).
-#[pyfunction]
-fn thread_count() -> usize {
-    rayon::current_num_threads()
-}
-
-/// How many scenes this thread has validated (for the tests that count validations).
-#[pyfunction]
-fn _scene_validations() -> u64 {
-    crate::scene::validations()
-}
+use pyo3::pymodule;
 
 #[pymodule]
-fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
-    m.add_class::<simulation::PySimulation>()?;
-    m.add_function(wrap_pyfunction!(normalize_scene, m)?)?;
-    m.add_function(wrap_pyfunction!(scene_from_toml, m)?)?;
-    m.add_function(wrap_pyfunction!(scene_to_toml, m)?)?;
-    m.add_function(wrap_pyfunction!(builtin_scenes, m)?)?;
-    m.add_function(wrap_pyfunction!(builtin_scene, m)?)?;
-    m.add_function(wrap_pyfunction!(scene_stability, m)?)?;
-    m.add_function(wrap_pyfunction!(simulation::simulation_from_state, m)?)?;
-    m.add_function(wrap_pyfunction!(instruction_set, m)?)?;
-    m.add_function(wrap_pyfunction!(thread_count, m)?)?;
-    m.add_function(wrap_pyfunction!(_scene_validations, m)?)?;
-    m.add("INTEGRATORS", IntegratorKind::names())?;
-    m.add("MAX_NESTING", conv::MAX_NESTING)?;
-    Ok(())
+mod _core {
+    use pyo3::prelude::*;
+
+    use super::conv::{self, scene_from_dict, SceneDict};
+    use super::errors::IntoPyResult;
+    #[pymodule_export]
+    use super::simulation::{simulation_from_state, PySimulation};
+    use crate::integrators::IntegratorKind;
+    use crate::scene::Scene;
+
+    /// Validates a scene dict and returns it with every default filled in.
+    #[pyfunction]
+    fn normalize_scene(scene: &Bound<'_, PyAny>) -> PyResult<SceneDict> {
+        Ok(SceneDict(scene_from_dict(scene)?))
+    }
+
+    /// Parses and validates a TOML scene document into a full scene dict.
+    #[pyfunction]
+    fn scene_from_toml(text: &str) -> PyResult<SceneDict> {
+        Ok(SceneDict(Scene::from_toml_str(text).py()?))
+    }
+
+    /// A scene dict as a TOML document.
+    #[pyfunction]
+    fn scene_to_toml(scene: &Bound<'_, PyAny>) -> PyResult<String> {
+        Ok(scene_from_dict(scene)?.to_toml_string())
+    }
+
+    /// `(integrator, largest stable dt)` for every integrator.
+    type StableDts = Vec<(&'static str, Option<f64>)>;
+
+    /// Every integrator's largest stable `dt` for a scene dict (None: any `dt`), and the angular
+    /// frequency (rad/s) of the cloth's stiffest mode.
+    #[pyfunction]
+    fn scene_stability(scene: &Bound<'_, PyAny>) -> PyResult<(StableDts, f64)> {
+        let scene = scene_from_dict(scene)?;
+        let limits = IntegratorKind::ALL
+            .iter()
+            .map(|&kind| (kind.name(), scene.stable_dt(kind)))
+            .collect();
+        Ok((limits, scene.max_frequency()))
+    }
+
+    /// Names of the built-in scenes.
+    #[pyfunction]
+    fn builtin_scenes() -> Vec<&'static str> {
+        Scene::builtin_names()
+    }
+
+    /// The built-in scene `name` as a dict.
+    #[pyfunction]
+    fn builtin_scene(name: &str) -> PyResult<SceneDict> {
+        Ok(SceneDict(Scene::builtin(name).py()?))
+    }
+
+    /// The vector instruction set the solver's loops run with in this process (`baseline`,
+    /// `avx2`, `avx512`): the widest the CPU has, or what `RUSTCLOTH_SIMD` asked for.
+    #[pyfunction]
+    fn instruction_set() -> &'static str {
+        crate::simd::isa().name()
+    }
+
+    /// The threads of the pool the solver runs on (`RAYON_NUM_THREADS`, or one per core).
+    #[pyfunction]
+    fn thread_count() -> usize {
+        rayon::current_num_threads()
+    }
+
+    /// How many scenes this thread has validated (for the tests that count validations).
+    #[pyfunction]
+    fn _scene_validations() -> u64 {
+        crate::scene::validations()
+    }
+
+    #[pymodule_init]
+    fn init(m: &Bound<'_, PyModule>) -> PyResult<()> {
+        m.add("INTEGRATORS", IntegratorKind::names())?;
+        m.add("MAX_NESTING", conv::MAX_NESTING)
+    }
 }
