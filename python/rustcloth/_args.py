@@ -271,3 +271,37 @@ def scene_data(value: object, name: str = "", depth: int = 0) -> Any:
 def _number(x: object) -> bool:
     """A float or an int that fits 64 bits (not a bool, nor a subclass): a plain leaf."""
     return type(x) is float or (type(x) is int and -I64_MAX - 1 <= x <= I64_MAX)
+
+
+def state_array(value: object, name: str, dtype: str, shape: Sequence[int]) -> np.ndarray:
+    """Exactly a ``dtype`` array of ``shape``, ``(n,)`` or ``(n, 3)``, for a saved state: a state
+    is bits, and another dtype would be another state."""
+    shape = tuple(shape)
+    expected = f"({shape[0]},)" if len(shape) == 1 else f"({shape[0]}, {shape[1]})"
+    if not (isinstance(value, np.ndarray) and value.dtype == dtype and value.ndim == len(shape)):
+        type_error(name, f"must be a {dtype} array of shape {expected}")
+    if value.shape != shape:
+        got = f"({value.shape[0]},)" if len(shape) == 1 else f"[{', '.join(map(str, value.shape))}]"
+        value_error(name, f"must have shape {expected}, got {got}")
+    return value
+
+
+def state_bools(given: Any, read: object, name: str) -> None:
+    """Refuses in a saved state what the core's serde reader takes and the strict readers do
+    not: a bool where a number goes (``True`` as 1), anything but a bool where a bool goes
+    (serde takes any value's truth). ``read`` is what was read, back as Python values: its
+    shape leads the walk, and keys it filled in with their defaults are not looked for."""
+    if isinstance(read, dict):
+        for key, value in read.items():
+            try:
+                item = given[key]
+            except Exception:
+                continue
+            state_bools(item, value, f"{name}.{key}")
+    elif isinstance(read, list | tuple):
+        for k, value in enumerate(read):
+            state_bools(given[k], value, f"{name}[{k}]")
+    elif isinstance(read, bool) != (isinstance(given, bool) or dtype_kind(given) == "b"):
+        if isinstance(read, bool):
+            type_error(name, f"must be a bool, got {given}")
+        type_error(name, f"must be a number, got bool {given}")

@@ -87,8 +87,13 @@ impl<'py> IntoPyObject<'py> for SceneDict {
 /// what TOML cannot hold, bounding the nesting) and hands over plain values, with numpy arrays
 /// of real numbers as float64 or int64, read here in one pass.
 fn to_toml(obj: &Bound<'_, PyAny>) -> PyResult<toml::Value> {
-    let args = obj.py().import("rustcloth._args")?;
-    read_plain(&args.call_method1("scene_data", (obj,))?)
+    read_plain(&args(obj.py())?.call_method1("scene_data", (obj,))?)
+}
+
+/// `rustcloth._args`, the strict readers, which the binding calls for the checks that name
+/// what they refuse.
+pub fn args(py: Python<'_>) -> PyResult<Bound<'_, PyModule>> {
+    py.import("rustcloth._args")
 }
 
 /// `scene_data`'s output as a TOML value: `None` is gone, integers fit 64 bits.

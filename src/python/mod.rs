@@ -6,7 +6,8 @@
 //! (`python/rustcloth/_args.py`), where `rustcloth.Simulation` calls them before every method
 //! here: this module is private, and bad input to it raises a plain `TypeError` or
 //! `ValueError` from pyo3, never a crash or a panic. Values (finite, in range) are checked by
-//! the core, which names them.
+//! the core, which names them. Scene dicts and saved states, which the core reads itself, are
+//! checked by `_args` too (`scene_data`, `state_array`, `state_bools`), called from here.
 //!
 //! Scene dicts are converted in conv.rs, errors in errors.rs, the sharing of a simulation
 //! between Python threads (and the panic guard) in shared.rs, the saved state in state.rs, the

@@ -7,14 +7,14 @@
 //! serde leaves out, are added and read here.
 
 use glam::Vec3;
-use numpy::{PyArray1, PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use numpy::{PyArray1, PyReadonlyArrayDyn};
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
-use pyo3::types::{PyBool, PyDict, PyList, PyTuple};
+use pyo3::types::{PyDict, PyList};
 use pythonize::{pythonize, Depythonizer};
 use serde::Deserialize;
 
-use super::conv::{scene_to_dict, unvalidated_scene_from_dict, Rows};
+use super::conv::{args, scene_to_dict, unvalidated_scene_from_dict, Rows};
 use super::errors::{type_error, value_error, IntoPyResult};
 use crate::snapshot::Snapshot;
 use crate::soa::Vec3s;
@@ -64,33 +64,9 @@ where
                 false => value_error(&name, message),
             }
         })?;
-    check_bools(obj, &pythonize(obj.py(), &value)?, name)?;
+    let read = pythonize(obj.py(), &value)?;
+    args(obj.py())?.call_method1("state_bools", (obj, read, name))?;
     Ok(value)
-}
-
-/// Refuses what pythonize reads and the strict readers do not: a bool where a number goes
-/// (`True` as 1), anything but a bool where a bool goes (pythonize takes any value's truth).
-/// `read` is what was read, back as Python values: its shape leads the walk.
-fn check_bools(input: &Bound<'_, PyAny>, read: &Bound<'_, PyAny>, name: &str) -> PyResult<()> {
-    if let Ok(read) = read.cast::<PyDict>() {
-        for (key, value) in read.iter() {
-            if let Ok(item) = input.get_item(&key) {
-                check_bools(&item, &value, &format!("{name}.{key}"))?;
-            }
-        }
-    } else if read.is_instance_of::<PyList>() || read.is_instance_of::<PyTuple>() {
-        for (k, value) in read.try_iter()?.enumerate() {
-            check_bools(&input.get_item(k)?, &value?, &format!("{name}[{k}]"))?;
-        }
-    } else if read.is_instance_of::<PyBool>() && !is_bool(input) {
-        return Err(type_error(name, format!("must be a bool, got {input}")));
-    } else if !read.is_instance_of::<PyBool>() && is_bool(input) {
-        return Err(type_error(
-            name,
-            format!("must be a number, got bool {input}"),
-        ));
-    }
-    Ok(())
 }
 
 /// Item `key` of a mapping, named `name` when missing.
@@ -114,31 +90,15 @@ fn items<'py>(obj: &Bound<'py, PyAny>, name: &str, len: usize) -> PyResult<Vec<B
     Ok(items)
 }
 
-/// The values, row-major, of exactly a `dtype` array of `shape` (`(n,)` or `(n, 3)`): a state
-/// is bits, and another dtype would be another state.
+/// The values, row-major, of exactly a `dtype` array of `shape` (`(n,)` or `(n, 3)`), as
+/// `rustcloth._args.state_array` checks it.
 fn array<T: numpy::Element + Copy>(
     obj: &Bound<'_, PyAny>,
     (name, dtype): (&str, &str),
     shape: &[usize],
 ) -> PyResult<Vec<T>> {
-    let expected = match shape {
-        [n] => format!("({n},)"),
-        _ => format!("({}, {})", shape[0], shape[1]),
-    };
-    let array = obj.extract::<PyReadonlyArrayDyn<'_, T>>().ok();
-    let array = array
-        .filter(|a| a.ndim() == shape.len())
-        .ok_or_else(|| type_error(name, format!("must be a {dtype} array of shape {expected}")))?;
-    if array.shape() != shape {
-        let got = match array.shape() {
-            [n] => format!("({n},)"),
-            got => format!("{got:?}"),
-        };
-        return Err(value_error(
-            name,
-            format!("must have shape {expected}, got {got}"),
-        ));
-    }
+    let array = args(obj.py())?.call_method1("state_array", (obj, name, dtype, shape.to_vec()))?;
+    let array = array.extract::<PyReadonlyArrayDyn<'_, T>>()?;
     Ok(array.as_array().iter().copied().collect())
 }
 
@@ -146,12 +106,6 @@ fn array<T: numpy::Element + Copy>(
 fn state_vectors(obj: &Bound<'_, PyAny>, name: &str, n: usize) -> PyResult<Vec3s> {
     let values = array::<f32>(obj, (name, "float32"), &[n, 3])?;
     Ok(Vec3s::from_fn(n, |p| Vec3::from_slice(&values[3 * p..])))
-}
-
-/// Whether `obj` is a bool: Python's, or numpy's (a scalar or a 0-d array).
-fn is_bool(obj: &Bound<'_, PyAny>) -> bool {
-    let kind = obj.getattr("dtype").and_then(|d| d.getattr("kind"));
-    obj.is_instance_of::<PyBool>() || kind.is_ok_and(|k| k.to_string() == "b")
 }
 
 /// The simulation a state continues. The Python side has checked that `obj` is a dict and its
