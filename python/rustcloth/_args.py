@@ -305,3 +305,15 @@ def state_bools(given: Any, read: object, name: str) -> None:
         if isinstance(read, bool):
             type_error(name, f"must be a bool, got {given}")
         type_error(name, f"must be a number, got bool {given}")
+
+
+def state_items(value: object, name: str, n: int) -> list[Any]:
+    """Exactly ``n`` items of a sequence, for a saved state."""
+    try:
+        iterator = iter(value)  # type: ignore[call-overload]
+    except Exception:
+        type_error(name, f"must be a sequence, got {value}")
+    items = list(iterator)
+    if len(items) != n:
+        value_error(name, f"must have {n} items, got {len(items)}")
+    return items

@@ -57,15 +57,10 @@ pub fn scene_to_dict<'py>(py: Python<'py>, scene: &Scene) -> PyResult<Bound<'py,
         }
     }
     for key in ["floor", "strain_limit", "self_collision", "tearing", "wind"] {
-        if !dict.contains(key)? {
-            dict.set_item(key, py.None())?;
-        }
+        dict.call_method1("setdefault", (key, py.None()))?;
     }
     let watchdog = dict.get_item("watchdog")?.expect("always serialised");
-    let watchdog = watchdog.cast_into::<PyDict>()?;
-    if !watchdog.contains("max_stretch")? {
-        watchdog.set_item("max_stretch", py.None())?;
-    }
+    watchdog.call_method1("setdefault", ("max_stretch", py.None()))?;
     Ok(dict.into_any())
 }
 
@@ -104,24 +99,15 @@ fn read_plain(obj: &Bound<'_, PyAny>) -> PyResult<toml::Value> {
             .map(|(k, v)| Ok((k.extract()?, read_plain(&v)?)));
         toml::Value::Table(items.collect::<PyResult<_>>()?)
     } else if let Ok(list) = obj.cast::<PyList>() {
-        toml::Value::Array(
-            list.iter()
-                .map(|v| read_plain(&v))
-                .collect::<PyResult<_>>()?,
-        )
+        let items = list.iter().map(|v| read_plain(&v));
+        toml::Value::Array(items.collect::<PyResult<_>>()?)
     } else if obj.cast::<PyUntypedArray>().is_err() {
         pythonize::depythonize(obj)?
     } else if let Ok(a) = obj.extract::<PyReadonlyArrayDyn<'_, f64>>() {
-        nest(
-            &mut a.as_array().iter().map(|&x| toml::Value::Float(x)),
-            a.shape(),
-        )
+        nest(&mut a.as_array().iter().map(|&x| x.into()), a.shape())
     } else {
         let a = obj.extract::<PyReadonlyArrayDyn<'_, i64>>()?;
-        nest(
-            &mut a.as_array().iter().map(|&x| toml::Value::Integer(x)),
-            a.shape(),
-        )
+        nest(&mut a.as_array().iter().map(|&x| x.into()), a.shape())
     })
 }
 

@@ -4,7 +4,8 @@
 //! on the way back, and an error names it (`state.positions`, `state.watchdog.hold`, ...).
 //!
 //! The plain values go through serde (pythonize); the scene and the per-particle arrays, which
-//! serde leaves out, are added and read here.
+//! serde leaves out, are added and read here. The strict checks that name a bad key (dtypes,
+//! shapes, lengths, bools) are `rustcloth._args`'s, as the method arguments' are.
 
 use glam::Vec3;
 use numpy::{PyArray1, PyReadonlyArrayDyn};
@@ -75,19 +76,12 @@ fn item<'py>(obj: &Bound<'py, PyAny>, key: &str, name: &str) -> PyResult<Bound<'
         .map_err(|_| value_error(name, "is missing".into()))
 }
 
-/// Exactly `len` items of a sequence, named `name`.
+/// Exactly `len` items of a sequence, named `name`, as `rustcloth._args.state_items` checks
+/// them.
 fn items<'py>(obj: &Bound<'py, PyAny>, name: &str, len: usize) -> PyResult<Vec<Bound<'py, PyAny>>> {
-    let items: Vec<Bound<'py, PyAny>> = obj
-        .try_iter()
-        .map_err(|_| type_error(name, format!("must be a sequence, got {obj}")))?
-        .collect::<PyResult<_>>()?;
-    if items.len() != len {
-        return Err(value_error(
-            name,
-            format!("must have {len} items, got {}", items.len()),
-        ));
-    }
-    Ok(items)
+    args(obj.py())?
+        .call_method1("state_items", (obj, name, len))?
+        .extract()
 }
 
 /// The values, row-major, of exactly a `dtype` array of `shape` (`(n,)` or `(n, 3)`), as
