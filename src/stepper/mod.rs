@@ -204,15 +204,22 @@ impl Stepper {
         );
         let passes = &mut self.pipeline;
         passes.predict_contacts(&mut s);
-        let mut finite = passes.integrate(&mut s, &mut self.force);
-        if passes.forces.overstretched() {
-            return Err(self.overstretched_start(model, &state.kin, substeps));
-        }
-        finite &= passes.blow_wind(&mut s);
-        finite &= passes.pin_targets(&mut s);
-        finite &= passes.limit_strain(&mut s);
-        finite &= passes.collide(&mut s);
-        finite &= passes.separate_self_contacts(&mut s);
+        let mut round = 0;
+        let finite = loop {
+            let mut finite = passes.integrate(&mut s, &mut self.force);
+            if passes.forces.overstretched() {
+                return Err(self.overstretched_start(model, &state.kin, substeps));
+            }
+            finite &= passes.blow_wind(&mut s);
+            finite &= passes.pin_targets(&mut s);
+            finite &= passes.limit_strain(&mut s);
+            finite &= passes.collide(&mut s);
+            finite &= passes.separate_self_contacts(&mut s);
+            if !finite || !passes.hold_self_contacts(&s, round) {
+                break finite;
+            }
+            round += 1;
+        };
         self.accept(state, finite, substeps)
     }
 

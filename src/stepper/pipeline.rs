@@ -16,7 +16,9 @@
 //! 7. self-collision (when the scene asks for it, `src/self_collision/`), last, so that its
 //!    guarantee covers everything the passes before it did. It only shortens a particle's
 //!    motion along its path from the substep's start, so the floor (a half-space, which holds
-//!    both ends of that path) stays satisfied.
+//!    both ends of that path) stays satisfied. For a solver that holds contacts, the passes
+//!    from 2 on run once more when it moved a particle, the solve holding each one where the
+//!    pass left it ([`Pipeline::hold_self_contacts`]).
 //!
 //! and once per step, after its last substep was accepted, tearing (when the scene asks for it,
 //! `src/tearing.rs`): it changes the model (springs break), not the state, so it runs between
@@ -62,6 +64,10 @@ const SPLITS: u32 = 3;
 /// still a thousandth of the smallest gain measured from a landing.
 const ENERGY_SLACK: f64 = 1e-6;
 
+/// How many times at most a substep's passes run, the solve after the first holding the
+/// particles the self-collision pass moved ([`Pipeline::hold_self_contacts`]).
+const SELF_ROUNDS: u32 = 2;
+
 /// What one solve of a substep reads and writes, apart from the states it goes between.
 struct Solve<'a> {
     model: &'a Model,
@@ -94,6 +100,9 @@ pub(super) struct Pipeline {
     pub mesh_springs: bool,
     /// The midpoints of a solve split in halves, one per level ([`Pipeline::integrate`]).
     halves: Vec<Kinematics>,
+    /// Where the passes before self-collision left the particles, for a solver that holds
+    /// contacts: what the self-collision pass moved ([`Pipeline::hold_self_contacts`]).
+    unshortened: Vec3s,
 }
 
 /// What the passes of one substep read and write.
@@ -144,7 +153,8 @@ impl Pipeline {
                 .strain_limit
                 .as_ref()
                 .map(|s| StrainLimit::new(s.max_strain as f32, s.iterations)),
-            contacts: (!colliders.is_empty()).then(|| PredictedContacts::new(particles)),
+            contacts: (!colliders.is_empty() || scene.self_collision.is_some())
+                .then(|| PredictedContacts::new(particles)),
             colliders,
             self_collision: scene
                 .self_collision
@@ -157,6 +167,7 @@ impl Pipeline {
             wind: scene.wind.as_ref().map(|w| Wind::new(w, particles)),
             mesh_springs: scene.cloth.mesh.is_some(),
             halves: Vec::new(),
+            unshortened: Vec3s::zeros(0),
         }
     }
 
@@ -440,9 +451,45 @@ impl Pipeline {
             return true;
         };
         let t = Instant::now();
+        if self.contacts.is_some() && self.integrator.kind().holds_contacts() {
+            let n = s.next.pos.len();
+            if self.unshortened.len() != n {
+                self.unshortened = Vec3s::zeros(n);
+            }
+            self.unshortened.copy_from(&s.next.pos);
+        }
         let finite = contact.apply(s.model, &s.state.kin, s.next);
         s.profile.add(SelfCollision::NAME, t.elapsed());
         finite
+    }
+
+    /// After round `round` (from 0) of a substep's passes, holds inside the solve the particles
+    /// the self-collision pass moved, and returns whether the substep must run again.
+    ///
+    /// Self-collision runs after the solve and shortens motion: at a display-frame step it
+    /// stops a vertex of a landing layer a spring's length short of where its neighbours go,
+    /// and the springs between them hold joules the solve never traded for (the `pile` dropped
+    /// 10 cm at 1/60 s with projective dynamics: +0.6 J in one substep, +4 % over the drop).
+    /// Held on the plane through where the pass left it, normal to the pass's correction (the
+    /// side it pushed toward is free), a vertex stops within the solve, and its springs slow
+    /// its neighbours there instead of straining. The pass then runs again on the new result.
+    pub fn hold_self_contacts(&mut self, s: &Substep, round: u32) -> bool {
+        if round + 1 >= SELF_ROUNDS || self.self_collision.is_none() || !self.holds_contacts() {
+            return false;
+        }
+        let Some(contacts) = self.contacts.as_mut() else {
+            return false;
+        };
+        let (before, after) = (&self.unshortened, &s.next.pos);
+        let mut held = false;
+        for p in 0..after.len() {
+            let push = after.get(p) - before.get(p);
+            let length = push.length();
+            if length > 0.0 && length.is_finite() {
+                held |= contacts.hold(p, push / length, after.get(p));
+            }
+        }
+        held
     }
 
     /// Breaks the springs strained beyond the tearing limit, on the accepted end-of-step
@@ -496,6 +543,7 @@ impl Pipeline {
                 .iter()
                 .map(Kinematics::heap_bytes)
                 .sum::<usize>()
+            + self.unshortened.heap_bytes()
     }
 }
 
