@@ -382,8 +382,8 @@ impl Stepper {
     }
 
     /// The passes a step runs, in order.
-    pub fn effects(&self, state: &State) -> Vec<&'static str> {
-        self.pipeline.effects(state)
+    pub fn effects(&self, model: &Model, state: &State) -> Vec<&'static str> {
+        self.pipeline.effects(model, state)
     }
 
     pub fn profile(&self) -> &Profile {
@@ -395,7 +395,8 @@ impl Stepper {
     }
 
     pub fn solver_stats(&self) -> Option<SolverStats> {
-        self.pipeline.integrator.solver_stats()
+        let halved = self.pipeline.halved;
+        (self.pipeline.integrator.solver_stats()).map(|s| SolverStats { halved, ..s })
     }
 
     /// What the self-collision pass did, when the scene has one.

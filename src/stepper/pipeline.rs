@@ -32,7 +32,7 @@ use std::time::Instant;
 use glam::{DVec3, Vec3};
 
 use crate::collisions::{Collider, Floor, PredictedContacts, Shapes};
-use crate::diagnostics::energy_of;
+use crate::diagnostics::{energy_of, Energy};
 use crate::forces::{Force, ForceModel};
 use crate::grid::Family;
 use crate::integrators::{Integrator, StepContext};
@@ -96,10 +96,10 @@ pub(super) struct Pipeline {
     /// With colliders: the contacts an implicit solver holds inside its solve (made for any
     /// integrator, since the integrator can change between steps).
     pub contacts: Option<PredictedContacts>,
-    /// Whether the cloth is a mesh, whose springs the force model adds after its sweep.
-    pub mesh_springs: bool,
     /// The midpoints of a solve split in halves, one per level ([`Pipeline::integrate`]).
     halves: Vec<Kinematics>,
+    /// Solves split in halves since the pipeline was compiled.
+    pub halved: u64,
     /// Where the passes before self-collision left the particles, for a solver that holds
     /// contacts: what the self-collision pass moved ([`Pipeline::hold_self_contacts`]).
     unshortened: Vec3s,
@@ -165,16 +165,17 @@ impl Pipeline {
                 .as_ref()
                 .map(|t| Tearing::new(t.max_strain as f32, t.max_per_step)),
             wind: scene.wind.as_ref().map(|w| Wind::new(w, particles)),
-            mesh_springs: scene.cloth.mesh.is_some(),
             halves: Vec::new(),
+            halved: 0,
             unshortened: Vec3s::zeros(0),
         }
     }
 
-    /// The passes a step runs, in order (kinematic pins only while a target is set).
-    pub fn effects(&self, state: &State) -> Vec<&'static str> {
+    /// The passes a step runs, in order (kinematic pins only while a target is set); a mesh
+    /// cloth's springs are added after the force model's sweep.
+    pub fn effects(&self, model: &Model, state: &State) -> Vec<&'static str> {
         let mut out: Vec<&'static str> = self.forces.forces().iter().map(Force::name).collect();
-        if self.mesh_springs {
+        if model.mesh().is_some() {
             out.push(crate::forces::MESH_SPRINGS);
         }
         out.push(self.integrator.name());
@@ -205,36 +206,28 @@ impl Pipeline {
     /// Finds the contacts each particle's free motion would make with the colliders, for an
     /// integrator that holds them inside its solve.
     pub fn predict_contacts(&mut self, s: &mut Substep) {
-        if !self.holds_contacts() {
-            return;
+        if self.holds_contacts() {
+            let span = (s.h, s.time);
+            self.find_contacts(s.model, &s.state.kin, span, s.chunk, s.profile);
         }
-        let mut job = Solve {
-            model: s.model,
-            h: s.h,
-            time: s.time,
-            chunk: s.chunk,
-            profile: &mut *s.profile,
-            force: &mut Vec3s::zeros(0),
-        };
-        self.find_contacts(&mut job, &s.state.kin);
     }
 
-    fn find_contacts(&mut self, job: &mut Solve, from: &Kinematics) {
+    /// The contacts of a solve from `from` over `(h, time)`: its length and the time at its end.
+    fn find_contacts(
+        &mut self,
+        model: &Model,
+        from: &Kinematics,
+        span: (f32, f64),
+        chunk: usize,
+        profile: &mut Profile,
+    ) {
         let Some(contacts) = self.contacts.as_mut() else {
             return;
         };
         let t = Instant::now();
-        let g = DVec3::from(job.model.scene.gravity).as_vec3();
-        let particles = &job.model.particles;
-        contacts.find(
-            &self.colliders,
-            from,
-            particles,
-            g,
-            (job.h, job.time),
-            job.chunk,
-        );
-        job.profile.add(PredictedContacts::NAME, t.elapsed());
+        let g = DVec3::from(model.scene.gravity).as_vec3();
+        contacts.find(&self.colliders, from, &model.particles, g, span, chunk);
+        profile.add(PredictedContacts::NAME, t.elapsed());
     }
 
     /// The integrator's step into `s.next`, with the predicted contacts' friction; returns
@@ -266,8 +259,11 @@ impl Pipeline {
         // this solve, not a later round's or a half's, which start elsewhere.
         self.forces.arm_stretch_watch();
         let mut finite = self.solve(&mut job, from, s.next, false);
-        if finite && self.holds_contacts() && self.rose(model, from, s.next, s.time) {
-            finite = self.split(&mut job, from, s.next, 1);
+        if finite && self.holds_contacts() && !self.does_work(model, s.state, (s.h, s.time)) {
+            let start = energy_of(model, from);
+            if self.rose(start, || energy_of(model, s.next)).is_none() {
+                finite = self.split(&mut job, from, start, s.next, 1).0;
+            }
         }
         let own_time = started
             .elapsed()
@@ -276,34 +272,45 @@ impl Pipeline {
         finite
     }
 
-    /// Whether the total energy of `to` is above that of `from` by more than the rounding of
-    /// float32 positions and speeds can explain, in a solve where nothing does work on the
-    /// cloth: with contacts held, no collider moving and no pinned particle moving (a dragged
-    /// pin or a moving collider adds energy rightly, and is not split for it).
-    fn rose(&self, model: &Model, from: &Kinematics, to: &Kinematics, time: f64) -> bool {
-        if self.contacts.as_ref().is_none_or(|c| c.count == 0)
-            || self.colliders.iter().any(|c| c.moves(time))
-        {
-            return false;
+    /// Whether something may do work on the cloth within the substep of length `h` ending at
+    /// `time`, from `state`: a collider moving at its start or end, a kinematic pin's target,
+    /// or a pinned particle moving (a pin dragged in the step before). Such a substep adds
+    /// energy rightly and is never split for it; judged once per substep, for all its halves.
+    fn does_work(&self, model: &Model, state: &State, (h, time): (f32, f64)) -> bool {
+        let start = time - h as f64;
+        if (self.colliders.iter()).any(|c| c.moves(time) || c.moves(start)) {
+            return true;
         }
-        let pinned = &model.particles.pinned;
-        if (0..pinned.len()).any(|p| pinned[p] && from.vel.get(p) != glam::Vec3::ZERO) {
-            return false;
-        }
-        let (a, b) = (energy_of(model, from), energy_of(model, to));
-        let scale = a.kinetic + a.gravitational.abs() + a.elastic;
-        b.total() > a.total() + ENERGY_SLACK * scale
+        let (pinned, vel) = (&model.particles.pinned, &state.kin.vel);
+        !state.targets.is_empty()
+            || (0..pinned.len()).any(|p| pinned[p] && vel.get(p) != Vec3::ZERO)
     }
 
-    /// Steps `from` over `job.h` into `into` as two halves, splitting a half again while it
-    /// gains energy and `depth < SPLITS`; see [`Pipeline::integrate`].
+    /// The energy at a solve's end (`end` evaluated), or None when it is above the energy
+    /// `start` at its start by more than the rounding of float32 positions and speeds can
+    /// explain, with contacts held. Called only where nothing does work on the cloth
+    /// ([`Pipeline::does_work`]).
+    fn rose(&self, start: Energy, end: impl FnOnce() -> Energy) -> Option<Energy> {
+        let end = end();
+        let held = self.contacts.as_ref().is_some_and(|c| c.count > 0);
+        let scale = start.kinetic + start.gravitational.abs() + start.elastic;
+        let gained = end.total() > start.total() + ENERGY_SLACK * scale;
+        (!(held && gained)).then_some(end)
+    }
+
+    /// Steps `from` (whose energy is `energy`) over `job.h` into `into` as two halves,
+    /// splitting a half again while it gains energy and `depth < SPLITS`; see
+    /// [`Pipeline::integrate`]. Returns whether every value is finite, and the energy at
+    /// `into` when it was evaluated.
     fn split(
         &mut self,
         job: &mut Solve,
         from: &Kinematics,
+        energy: Energy,
         into: &mut Kinematics,
         depth: u32,
-    ) -> bool {
+    ) -> (bool, Option<Energy>) {
+        self.halved += 1;
         let (h, time) = (job.h, job.time);
         let n = from.pos.len();
         let slot = depth as usize - 1;
@@ -312,7 +319,7 @@ impl Pipeline {
         }
         let mut mid = std::mem::replace(&mut self.halves[slot], Kinematics::zeros(0));
         job.h = h / 2.0;
-        let mut finite = true;
+        let (mut finite, mut at_start) = (true, Some(energy));
         for (half, end) in [(0, time - (h / 2.0) as f64), (1, time)] {
             job.time = end;
             let (start, out) = if half == 0 {
@@ -321,17 +328,31 @@ impl Pipeline {
                 (&mid, &mut *into)
             };
             finite = self.solve(job, start, out, true);
-            if !finite {
-                break;
+            if !finite || depth == SPLITS {
+                at_start = None;
+                if !finite {
+                    break;
+                }
+                continue;
             }
-            if depth < SPLITS && self.rose(job.model, start, out, job.time) {
-                finite = self.split(job, start, out, depth + 1);
-            }
+            let model = job.model;
+            let start_energy = at_start.unwrap_or_else(|| energy_of(model, start));
+            at_start = match self.rose(start_energy, || energy_of(model, out)) {
+                Some(end) => Some(end),
+                None => {
+                    let (ok, end) = self.split(job, start, start_energy, out, depth + 1);
+                    finite = ok;
+                    if !finite {
+                        break;
+                    }
+                    end
+                }
+            };
         }
         self.halves[slot] = mid;
         job.h = h;
         job.time = time;
-        finite
+        (finite, at_start)
     }
 
     /// One solve of the integrator from `from` over `job.h` into `into` (contacts predicted
@@ -347,7 +368,8 @@ impl Pipeline {
     ) -> bool {
         let holds = self.holds_contacts();
         if predict && holds {
-            self.find_contacts(job, from);
+            let span = (job.h, job.time);
+            self.find_contacts(job.model, from, span, job.chunk, job.profile);
         }
         let mut round = 0;
         let finite = loop {
