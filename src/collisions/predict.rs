@@ -189,6 +189,21 @@ impl PredictedContacts {
     }
 }
 
+impl PredictedContacts {
+    /// Holds particle `p`, which has no contact, on the outer side of the plane through `at`
+    /// with outward unit normal `normal`, without friction; returns whether it was free.
+    pub fn hold(&mut self, p: usize, normal: Vec3, at: Vec3) -> bool {
+        if self.normal.get(p) != Vec3::ZERO {
+            return false;
+        }
+        self.normal.set(p, normal);
+        self.offset[p] = normal.dot(at);
+        self.friction.set(p, Vec3::ZERO);
+        self.count += 1;
+        true
+    }
+}
+
 /// Whether two contact planes `(normal, offset)` are the same to within 0.01 rad and 1 um: a
 /// flat face gives the same plane however far a particle slides on it.
 fn same_plane((n, offset): (Vec3, f32), (m, other): (Vec3, f32)) -> bool {

@@ -35,6 +35,10 @@ pub struct SolverStats {
     pub setup_seconds: f64,
     /// Wall time in s spent iterating (CG iterations; local-global iterations).
     pub solve_seconds: f64,
+    /// Solves holding contacts that gained energy while nothing did work on the cloth, run
+    /// again in halves (a half that gains too is counted again), since the simulation was
+    /// built. Kept by the stepper, not the integrator.
+    pub halved: u64,
 }
 
 impl SolverStats {

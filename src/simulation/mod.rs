@@ -185,7 +185,7 @@ impl Simulation {
 
     /// The passes a step runs, in order.
     pub fn effects(&self) -> Vec<&'static str> {
-        self.stepper.effects(&self.state)
+        self.stepper.effects(&self.model, &self.state)
     }
 
     pub fn profile(&self) -> &Profile {

@@ -204,15 +204,22 @@ impl Stepper {
         );
         let passes = &mut self.pipeline;
         passes.predict_contacts(&mut s);
-        let mut finite = passes.integrate(&mut s, &mut self.force);
-        if passes.forces.overstretched() {
-            return Err(self.overstretched_start(model, &state.kin, substeps));
-        }
-        finite &= passes.blow_wind(&mut s);
-        finite &= passes.pin_targets(&mut s);
-        finite &= passes.limit_strain(&mut s);
-        finite &= passes.collide(&mut s);
-        finite &= passes.separate_self_contacts(&mut s);
+        let mut round = 0;
+        let finite = loop {
+            let mut finite = passes.integrate(&mut s, &mut self.force);
+            if passes.forces.overstretched() {
+                return Err(self.overstretched_start(model, &state.kin, substeps));
+            }
+            finite &= passes.blow_wind(&mut s);
+            finite &= passes.pin_targets(&mut s);
+            finite &= passes.limit_strain(&mut s);
+            finite &= passes.collide(&mut s);
+            finite &= passes.separate_self_contacts(&mut s);
+            if !finite || !passes.hold_self_contacts(&s, round) {
+                break finite;
+            }
+            round += 1;
+        };
         self.accept(state, finite, substeps)
     }
 
@@ -375,8 +382,8 @@ impl Stepper {
     }
 
     /// The passes a step runs, in order.
-    pub fn effects(&self, state: &State) -> Vec<&'static str> {
-        self.pipeline.effects(state)
+    pub fn effects(&self, model: &Model, state: &State) -> Vec<&'static str> {
+        self.pipeline.effects(model, state)
     }
 
     pub fn profile(&self) -> &Profile {
@@ -388,7 +395,8 @@ impl Stepper {
     }
 
     pub fn solver_stats(&self) -> Option<SolverStats> {
-        self.pipeline.integrator.solver_stats()
+        let halved = self.pipeline.halved;
+        (self.pipeline.integrator.solver_stats()).map(|s| SolverStats { halved, ..s })
     }
 
     /// What the self-collision pass did, when the scene has one.
