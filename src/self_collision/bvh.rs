@@ -9,7 +9,7 @@
 //! box overlaps the query, which the caller sorts. So a tree built from other positions (a
 //! state restored into a new simulation) finds the same pairs.
 
-use glam::{Vec3, Vec3A};
+use glam::{BVec4A, Vec3, Vec3A, Vec4};
 use rayon::prelude::*;
 
 /// An axis-aligned box, in m.
@@ -36,8 +36,8 @@ impl Aabb {
     }
 }
 
-/// Items in a leaf at most. Small leaves test few boxes that the query misses; large ones keep
-/// the tree shallow and its refit short.
+/// Items in a leaf at most: the four lanes of a vector, so a box is tested against a whole leaf
+/// at once (`Quad`).
 const LEAF: usize = 4;
 
 /// A box as the tree keeps it: SIMD lanes, so an overlap test is two vector compares.
@@ -102,6 +102,34 @@ struct Node {
     index: u32,
     /// Leaf: how many items (at least one); inner node: 0.
     count: u32,
+    /// Leaf: its boxes side by side in `quads`.
+    quad: u32,
+}
+
+/// A leaf's boxes lane by lane (one lane an item, an empty box in lanes without one), so one
+/// box is tested against the whole leaf in six vector compares.
+#[derive(Clone, Copy, Debug)]
+struct Quad {
+    min: [Vec4; 3],
+    max: [Vec4; 3],
+}
+
+impl Quad {
+    const EMPTY: Quad = Quad {
+        min: [Vec4::INFINITY; 3],
+        max: [Vec4::NEG_INFINITY; 3],
+    };
+
+    /// Bit `i` set when the leaf's item `i` overlaps `b`.
+    #[inline]
+    fn overlapping(&self, b: &Lanes) -> u32 {
+        let mut hit = BVec4A::splat(true);
+        for axis in 0..3 {
+            hit &= self.min[axis].cmple(Vec4::splat(b.max[axis]))
+                & self.max[axis].cmpge(Vec4::splat(b.min[axis]));
+        }
+        hit.bitmask()
+    }
 }
 
 /// The tree. Nodes are in depth-first order, each parent before its children, so a refit
@@ -115,6 +143,9 @@ pub struct Bvh {
     leaf_boxes: Vec<Lanes>,
     /// How many items the tree was built for.
     items: usize,
+    /// Each leaf's boxes, lane by lane, in the leaves' order.
+    quads: Vec<Quad>,
+    leaves: u32,
 }
 
 impl Bvh {
@@ -128,6 +159,7 @@ impl Bvh {
     /// broken by item), and its boxes are those of `boxes`.
     pub fn build(&mut self, boxes: &[Aabb]) {
         self.nodes.clear();
+        self.leaves = 0;
         self.items = boxes.len();
         self.order = (0..boxes.len() as u32).collect();
         if boxes.is_empty() {
@@ -147,8 +179,10 @@ impl Bvh {
             bounds: Lanes::EMPTY,
             index: offset as u32,
             count: items.len() as u32,
+            quad: self.leaves,
         });
         if items.len() <= LEAF {
+            self.leaves += 1;
             return;
         }
         let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
@@ -182,10 +216,19 @@ impl Bvh {
         self.leaf_boxes.clear();
         self.leaf_boxes
             .extend(self.order.iter().map(|&i| Lanes::of(&boxes[i as usize])));
+        self.quads.resize(self.leaves as usize, Quad::EMPTY);
         for k in (0..self.nodes.len()).rev() {
             let node = self.nodes[k];
             self.nodes[k].bounds = if node.count > 0 {
                 let range = node.index as usize..(node.index + node.count) as usize;
+                let mut quad = Quad::EMPTY;
+                for (lane, b) in self.leaf_boxes[range.clone()].iter().enumerate() {
+                    for axis in 0..3 {
+                        quad.min[axis][lane] = b.min[axis];
+                        quad.max[axis][lane] = b.max[axis];
+                    }
+                }
+                self.quads[node.quad as usize] = quad;
                 self.leaf_boxes[range]
                     .iter()
                     .fold(Lanes::EMPTY, |b, l| b.union(l))
@@ -270,14 +313,16 @@ impl Bvh {
             if w.same {
                 if leaf_a {
                     let range = na.index as usize..(na.index + na.count) as usize;
-                    let boxes = &self.leaf_boxes[range.clone()];
-                    let items = &self.order[range];
-                    for p in 0..items.len() {
-                        for q in p + 1..items.len() {
-                            tested += 1;
-                            if boxes[p].overlaps(&boxes[q]) {
-                                looked += emit(items[p], items[q], out) as u64;
-                            }
+                    let quad = &self.quads[na.quad as usize];
+                    let items = &self.order[range.clone()];
+                    for (p, box_p) in self.leaf_boxes[range].iter().enumerate() {
+                        tested += 1;
+                        // The items after `p` only: each pair once.
+                        let mut hits = quad.overlapping(box_p) & !((2u32 << p) - 1);
+                        while hits != 0 {
+                            let q = hits.trailing_zeros() as usize;
+                            hits &= hits - 1;
+                            looked += emit(items[p], items[q], out) as u64;
                         }
                     }
                 } else {
@@ -313,19 +358,15 @@ impl Bvh {
             if leaf_a && leaf_b {
                 let ra = na.index as usize..(na.index + na.count) as usize;
                 let rb = nb.index as usize..(nb.index + nb.count) as usize;
-                let (ia, ib) = (&self.order[ra.clone()], &b.order[rb.clone()]);
-                let (ba, bb) = (&self.leaf_boxes[ra], &b.leaf_boxes[rb]);
-                for (p, box_a) in ba.iter().enumerate() {
-                    // Only the other leaf's items within this item's box.
-                    if !box_a.overlaps(&nb.bounds) {
-                        tested += 1;
-                        continue;
-                    }
-                    for (q, box_b) in bb.iter().enumerate() {
-                        tested += 1;
-                        if box_a.overlaps(box_b) {
-                            looked += emit(ia[p], ib[q], out) as u64;
-                        }
+                let (ia, ib) = (&self.order[ra.clone()], &b.order[rb]);
+                let quad = &b.quads[nb.quad as usize];
+                for (p, box_a) in self.leaf_boxes[ra].iter().enumerate() {
+                    tested += 1;
+                    let mut hits = quad.overlapping(box_a);
+                    while hits != 0 {
+                        let q = hits.trailing_zeros() as usize;
+                        hits &= hits - 1;
+                        looked += emit(ia[p], ib[q], out) as u64;
                     }
                 }
                 continue;
@@ -363,6 +404,7 @@ impl Bvh {
     pub fn heap_bytes(&self) -> usize {
         self.nodes.capacity() * size_of::<Node>()
             + self.order.capacity() * 4
+            + self.quads.capacity() * size_of::<Quad>()
             + self.leaf_boxes.capacity() * size_of::<Lanes>()
     }
 }

@@ -106,7 +106,8 @@ pub struct SelfCollisionStats {
     pub min_distance: f64,
     /// Boxes the searches tested (tree nodes and primitives), summed over searches.
     pub boxes_tested: u64,
-    /// Pairs whose boxes overlapped in a search, and whose closest points were computed.
+    /// Pairs whose boxes overlapped in a search (the primitives' tight boxes then pass over
+    /// those too far apart, the rest get their closest points).
     pub candidates: u64,
     /// Wall time of each stage, summed over substeps (s): finding the pairs (the searches,
     /// the list's upkeep and the pairs' closest points), the repulsion (with each touched
@@ -169,6 +170,8 @@ pub struct SelfCollision {
     near: Vec<(u32, bool)>,
     scale: Vec<f64>,
     scale_next: Vec<f64>,
+    /// Whether the cap's last round changed each vertex's scale.
+    rescaled: Vec<bool>,
     stats: SelfCollisionStats,
 }
 
@@ -193,6 +196,7 @@ impl SelfCollision {
             near: Vec::new(),
             scale: Vec::new(),
             scale_next: Vec::new(),
+            rescaled: Vec::new(),
             stats: SelfCollisionStats::default(),
         }
     }
@@ -287,10 +291,15 @@ impl SelfCollision {
                 max: p + grow,
             }
         }));
-        let keep = |p: &Pair| p.d0 < reach;
-        let looked = self
-            .broad
-            .search(&self.topology, &boxes, x0, keep, &mut self.pairs);
+        let limit = |_: &[u32; 4], _: usize| reach;
+        let looked = self.broad.search(
+            &self.topology,
+            &boxes,
+            x0,
+            limit,
+            1e-3 * eps as f64,
+            &mut self.pairs,
+        );
         self.count(looked);
         self.search_boxes = boxes;
         let found = self.pairs.iter().map(|p| (p.candidate(), p.d0)).collect();
@@ -322,14 +331,19 @@ impl SelfCollision {
             let v = v as usize;
             (ends[v] - x0.get(v)).as_dvec3().length() + radius
         };
-        let keep = |pair: &Pair| {
-            let (a, b) = pair.verts.split_at(pair.split);
+        let limit = |verts: &[u32; 4], split: usize| {
+            let (a, b) = verts.split_at(split);
             let side = |s: &[u32]| s.iter().map(|&v| reach(v)).fold(0.0, f64::max);
-            pair.d0 < thickness + side(a) + side(b) + eps
+            thickness + side(a) + side(b) + eps
         };
-        let looked = self
-            .broad
-            .search(&self.topology, boxes, x0, keep, &mut self.pairs);
+        let looked = self.broad.search(
+            &self.topology,
+            boxes,
+            x0,
+            limit,
+            1e-3 * eps,
+            &mut self.pairs,
+        );
         self.count(looked);
     }
 
@@ -427,6 +441,7 @@ impl SelfCollision {
             + self.marked.capacity()
             + self.near.capacity() * 8
             + (self.scale.capacity() + self.scale_next.capacity()) * 8
+            + self.rescaled.capacity()
     }
 }
 

@@ -24,6 +24,7 @@ pub struct Broad {
     /// The pairs found, each with what orders it.
     vertex_triangles: Vec<(u64, Pair)>,
     edge_edges: Vec<(u64, Pair)>,
+    sorted: Vec<(u64, u32)>,
     /// The topology version the trees were shaped for.
     shaped_for: Option<u64>,
 }
@@ -33,20 +34,25 @@ pub struct Broad {
 pub struct Looked {
     /// Boxes tested against each other (the trees' nodes and items).
     pub boxes: u64,
-    /// Pairs whose boxes overlapped, and so whose closest points were computed.
+    /// Pairs whose boxes overlapped: each is passed over by its tight boxes or given its
+    /// closest points.
     pub candidates: u64,
 }
 
 impl Broad {
     /// Into `out`, in vertex then triangle and edge then edge order (so the same for any
-    /// thread count): every pair whose boxes overlap, given each vertex's box, that `keep`
-    /// keeps, with its closest points at `x`. A primitive's box is the union of its vertices'.
+    /// thread count): every pair whose boxes overlap, given each vertex's box, and which is
+    /// closer than `limit(verts, split)` at `x`, with its closest points there. A primitive's
+    /// box is the union of its vertices'. `margin` (m) bounds the round-off of a distance at
+    /// `x`: a pair whose primitives' tight boxes at `x` are farther apart than `limit` and
+    /// `margin` is passed over without its closest points.
     pub fn search(
         &mut self,
         topo: &Topology,
         vertex_boxes: &[Aabb],
         x: &Vec3s,
-        keep: impl Fn(&Pair) -> bool + Sync,
+        limit: impl Fn(&[u32; 4], usize) -> f64 + Sync,
+        margin: f64,
         out: &mut Vec<Pair>,
     ) -> Looked {
         let vb = vertex_boxes;
@@ -79,8 +85,13 @@ impl Broad {
             if v == a || v == b || v == c {
                 return false;
             }
-            let pair = vertex_triangle(x, [v, a, b, c]);
-            if keep(&pair) {
+            let verts = [v, a, b, c];
+            let most = limit(&verts, 1);
+            if apart(x, &verts, 1) > most + margin {
+                return true;
+            }
+            let pair = vertex_triangle(x, verts);
+            if pair.d0 < most {
                 out.push(((v as u64) << 32 | t as u64, pair));
             }
             true
@@ -96,8 +107,13 @@ impl Broad {
             if a == c || a == d || b == c || b == d {
                 return false;
             }
-            let pair = edge_edge(x, [a, b, c, d]);
-            if keep(&pair) {
+            let verts = [a, b, c, d];
+            let most = limit(&verts, 2);
+            if apart(x, &verts, 2) > most + margin {
+                return true;
+            }
+            let pair = edge_edge(x, verts);
+            if pair.d0 < most {
                 out.push(((e as u64) << 32 | f as u64, pair));
             }
             true
@@ -108,11 +124,15 @@ impl Broad {
         // Vertex then triangle, then edge then edge: an order of the pairs alone, whatever the
         // trees' shape or the thread count (the keys are distinct, so an unstable sort is
         // exact).
-        self.vertex_triangles.par_sort_unstable_by_key(|p| p.0);
-        self.edge_edges.par_sort_unstable_by_key(|p| p.0);
+        // The keys are sorted with where each pair is, not with the pairs (ten times larger).
         out.clear();
-        out.extend(self.vertex_triangles.iter().map(|p| p.1));
-        out.extend(self.edge_edges.iter().map(|p| p.1));
+        for found in [&self.vertex_triangles, &self.edge_edges] {
+            self.sorted.clear();
+            self.sorted
+                .extend(found.iter().enumerate().map(|(k, p)| (p.0, k as u32)));
+            self.sorted.par_sort_unstable();
+            out.extend(self.sorted.iter().map(|&(_, k)| found[k as usize].1));
+        }
         Looked {
             boxes: boxes + more.0,
             candidates: candidates + more.1,
@@ -124,10 +144,32 @@ impl Broad {
             + self.vert_boxes.capacity() * size_of::<Aabb>()
             + (self.vertex_triangles.capacity() + self.edge_edges.capacity())
                 * size_of::<(u64, Pair)>()
+            + self.sorted.capacity() * 16
             + self.vert_tree.heap_bytes()
             + self.tri_tree.heap_bytes()
             + self.edge_tree.heap_bytes()
     }
+}
+
+/// The distance between the boxes of `verts[..split]` and `verts[split..]` at `x` (m), a lower
+/// bound of the distance between the primitives, each inside its box: cheaper than their
+/// closest points, and enough to pass over the neighbours a box test lets through in a flat
+/// cloth (two parallel edges a grid spacing apart).
+#[inline]
+fn apart(x: &Vec3s, verts: &[u32; 4], split: usize) -> f64 {
+    let bounds = |s: &[u32]| {
+        let first = x.get(s[0] as usize);
+        s[1..].iter().fold((first, first), |(lo, hi), &v| {
+            let p = x.get(v as usize);
+            (lo.min(p), hi.max(p))
+        })
+    };
+    let ((lo_a, hi_a), (lo_b, hi_b)) = (bounds(&verts[..split]), bounds(&verts[split..]));
+    // Per axis, the gap between the two intervals (zero where they overlap), exact in f64.
+    let gap = (lo_b.as_dvec3() - hi_a.as_dvec3())
+        .max(lo_a.as_dvec3() - hi_b.as_dvec3())
+        .max(glam::DVec3::ZERO);
+    gap.length()
 }
 
 /// The union of `vertices`' boxes.
