@@ -1,6 +1,11 @@
 """What self-collision costs, against the same step without it, at 32^2 to 256^2 particles.
 
-    python benches/self_collision.py [--sizes 32 64 128 256] [--window 100]
+    python benches/self_collision.py            # quick: about two minutes
+    python benches/self_collision.py --sizes 32 64 128 256 --contact-sizes 32 64 128 \
+        --window 40                                # the full table (most of an hour)
+
+Run it with ``PYTHONPATH`` pointing at another build (``--no-write``) to compare two builds
+in one session; stages and counters a build does not report print as 0.
 
 Three cases, each a 1 m cloth, ``thickness`` 3 mm (at most 0.4 of the grid spacing, so that
 a flat cloth's own neighbours are not in contact at rest):
@@ -11,6 +16,10 @@ a flat cloth's own neighbours are not in contact at rest):
 - ``pile``: the built-in scene dropped on the floor, timed from 1.0 s in, crumpled;
 - ``quiet``: the twist scene left at rest, where nothing is close: what the pass costs when it
   finds no pair.
+
+and, with ``--peer-frames`` above 0, ``twist50``: newton's ``example_cloth_twist`` as
+``benches/peers/impl_rustcloth_twist.py`` sets it up (50 x 50, implicit Euler, ten 1/600 s
+steps a 1/60 s frame), timed per frame over ``--peer-frames`` frames from 2.0 s in.
 
 Each is timed with the pass and then without it (the same scene with ``self_collision``
 removed, stepped from 0.05 s in for ten times as many steps: a step without contact costs the
@@ -25,7 +34,6 @@ import os
 import platform
 import sys
 import time
-from collections.abc import Callable
 from pathlib import Path
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
@@ -49,29 +57,6 @@ def scene(name: str, n: int, contact: bool) -> rustcloth.Scene:
     return base.replace(**changes)
 
 
-def timed_window(sim: rustcloth.Simulation, driven: bool, settle: float, window: int) -> float:
-    """Steps ``sim`` (with the twist driver when ``driven``) to ``settle`` s, then returns the
-    mean wall time (s) of ``window`` steps; the driver's own time is not counted."""
-    driver = TwistDriver(sim) if driven else None
-    step: Callable[[], None]
-    if driver is None:
-        step = sim.step
-    else:
-        def step() -> None:
-            driver.before_step(sim)
-            sim.step()
-    while sim.time < settle - 0.5 * sim.dt:
-        step()
-    spent = 0.0
-    for _ in range(window):
-        if driver is not None:
-            driver.before_step(sim)
-        t0 = time.perf_counter()
-        sim.step()
-        spent += time.perf_counter() - t0
-    return spent / window
-
-
 CASES = {
     "twist": ("twist", True, 2.0),
     "pile": ("pile", False, 1.0),
@@ -79,33 +64,113 @@ CASES = {
 }
 
 
+STAGES = ("search", "repulsion", "cap", "redo")
+
+
+def per_substep(before: dict[str, float], after: dict[str, float]) -> dict[str, float]:
+    """The pass's counters and stage times per substep between two ``self_collision_stats()``
+    (times in ms)."""
+    substeps = max(after.get("substeps", 0) - before.get("substeps", 0), 1)
+
+    def delta(key: str) -> float:
+        return (after.get(key, 0.0) - before.get(key, 0.0)) / substeps
+
+    out = {key: delta(key) for key in ("pairs", "contacts", "swept_substeps", "redone",
+                                          "boxes_tested", "candidates")}
+    for stage in STAGES:
+        out[stage] = 1e3 * delta(f"{stage}_seconds")
+    return out
+
+
 def measure(case: str, n: int, window: int) -> dict[str, float]:
     name, driven, settle = CASES[case]
     with_pass = rustcloth.Simulation(scene(name, n, True))
-    t_with = timed_window(with_pass, driven, settle, window)
-    stats = with_pass.self_collision_stats() or {}
+    t_with, split = timed_window(with_pass, driven, settle, window)
     # Ten times the window: a step without the pass is short, and the machine is noisy.
     without = rustcloth.Simulation(scene(name, n, False))
-    t_without = timed_window(without, driven, 0.05, 10 * window)
-    return {
-        "with_ms": 1e3 * t_with,
-        "without_ms": 1e3 * t_without,
-        "ratio": t_with / t_without,
-        "pairs": stats.get("pairs", 0) / max(stats.get("substeps", 1), 1),
-        "contacts": stats.get("contacts", 0) / max(stats.get("substeps", 1), 1),
-        "swept": stats.get("swept_substeps", 0) / max(stats.get("substeps", 1), 1),
-    }
+    t_without, _ = timed_window(without, driven, 0.05, 10 * window)
+    return {"with_ms": 1e3 * t_with, "without_ms": 1e3 * t_without,
+            "ratio": t_with / t_without, **split}
+
+
+def timed_window(
+    sim: rustcloth.Simulation, driven: bool, settle: float, window: int
+) -> tuple[float, dict[str, float]]:
+    """Steps ``sim`` (with the twist driver when ``driven``) to ``settle`` s, then returns the
+    mean wall time (s) of ``window`` steps (the driver's own time not counted) and the pass's
+    counters per substep over those steps."""
+    marks: list[dict[str, float]] = []
+    driver = TwistDriver(sim) if driven else None
+    while sim.time < settle - 0.5 * sim.dt:
+        if driver is not None:
+            driver.before_step(sim)
+        sim.step()
+    marks.append(dict(sim.self_collision_stats() or {}))
+    spent = 0.0
+    for _ in range(window):
+        if driver is not None:
+            driver.before_step(sim)
+        t0 = time.perf_counter()
+        sim.step()
+        spent += time.perf_counter() - t0
+    marks.append(dict(sim.self_collision_stats() or {}))
+    return spent / window, per_substep(marks[0], marks[1])
+
+
+def peer_twist(frames: int) -> dict[str, float]:
+    """newton's twist (benches/peers/impl_rustcloth_twist.py): ms per 1/60 s frame over
+    ``frames`` frames from 2.0 s in, with and without the pass."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent / "peers"))
+    import impl_rustcloth_twist as peer
+
+    out: dict[str, float] = {}
+    for contact in (True, False):
+        s = peer.scene("implicit_euler", (1000.0, 250.0, 10.0))
+        if not contact:
+            s = s.replace(self_collision=None)
+        sim = rustcloth.Simulation(s)
+        driver = TwistDriver(sim, turns=peer.RATE_TURNS * peer.END, seconds=peer.END)
+        steps = 0
+        while sim.time < 2.0 - 0.5 * sim.dt:
+            driver.before_step(sim)
+            sim.step()
+            steps += 1
+        before = dict(sim.self_collision_stats() or {})
+        spent = 0.0
+        for _ in range(frames * peer.STEPS_PER_FRAME):
+            driver.before_step(sim)
+            t0 = time.perf_counter()
+            sim.step()
+            spent += time.perf_counter() - t0
+        key = "with_ms" if contact else "without_ms"
+        out[key] = 1e3 * spent / frames
+        if contact:
+            out.update(per_substep(before, dict(sim.self_collision_stats() or {})))
+    out["ratio"] = out["with_ms"] / out["without_ms"]
+    return out
+
+
+def row(case: str, cloth: str, r: dict[str, float]) -> str:
+    stages = " | ".join(f"{r.get(stage, 0.0):.3f}" for stage in STAGES)
+    return (
+        f"| {case} | {cloth} | {r['with_ms']:.3f} | {r['without_ms']:.3f} | "
+        f"{r['ratio']:.1f} | {stages} | {r.get('boxes_tested', 0):.0f} | "
+        f"{r.get('candidates', 0):.0f} | {r['pairs']:.0f} | {r['contacts']:.0f} | "
+        f"{100 * r['swept_substeps']:.0f} % |"
+    )
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sizes", type=int, nargs="+", default=[32, 64, 128, 256])
+    parser.add_argument("--sizes", type=int, nargs="+", default=[32, 64, 128])
     parser.add_argument(
-        "--contact-sizes", type=int, nargs="+", default=[32, 64, 128],
-        help="sizes for the cases in contact (twist, pile), which take minutes each above 128",
+        "--contact-sizes", type=int, nargs="+", default=[32, 64],
+        help="sizes for the cases in contact (twist, pile), which take minutes each above 64",
     )
     parser.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
-    parser.add_argument("--window", type=int, default=100)
+    parser.add_argument("--window", type=int, default=20)
+    parser.add_argument("--peer-frames", type=int, default=10,
+                        help="frames of newton's 50 x 50 twist to time (0: none)")
     parser.add_argument("--no-write", action="store_true")
     args = parser.parse_args()
     rows = []
@@ -114,23 +179,25 @@ def main() -> None:
         for n in args.sizes if case == "quiet" else args.contact_sizes:
             r = measure(case, n, args.window)
             results[case].append((n * n, r["ratio"]))
-            rows.append(
-                f"| {case} | {n} x {n} | {r['with_ms']:.3f} | {r['without_ms']:.3f} | "
-                f"{r['ratio']:.1f} | {r['pairs']:.0f} | {r['contacts']:.0f} | "
-                f"{100 * r['swept']:.0f} % |"
-            )
+            rows.append(row(case, f"{n} x {n}", r))
             print(rows[-1], flush=True)
+    if args.peer_frames > 0:
+        rows.append(row("twist50 (ms per frame)", "50 x 50", peer_twist(args.peer_frames)))
+        print(rows[-1], flush=True)
     table = "\n".join(
         [
             f"Measured on {platform.processor() or platform.machine()}, "
             f"{os.cpu_count()} cores, {args.window} steps per case "
             f"(`{' '.join(['python', 'benches/self_collision.py', *sys.argv[1:]])}`). "
-            "Pairs, contacts and swept are per substep, "
-            "averaged over the whole run with the pass.",
+            "The stages (ms), boxes tested, candidates, pairs, contacts and swept are per "
+            "substep over the timed window with the pass; twist50's times are per 1/60 s "
+            f"frame over {args.peer_frames} frames.",
             "",
-            "| case | cloth | step with the pass (ms) | without (ms) | ratio | pairs looked at "
-            "| contacts | substeps on the swept search |",
-            "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |",
+            "| case | cloth | step with the pass (ms) | without (ms) | ratio | search | repulsion "
+            "| cap | redo | boxes tested | candidates | pairs looked at | contacts "
+            "| substeps on the swept search |",
+            "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: "
+            "| ---: | ---: |",
             *rows,
         ]
     )

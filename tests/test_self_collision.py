@@ -81,3 +81,20 @@ def test_the_pass_reports_what_it_did():
     assert 0 < stats["rebuilds"] < listed
     assert 0.0 < stats["min_distance"] < 0.01
     assert Simulation(_pile().replace(self_collision=None)).self_collision_stats() is None
+
+
+def test_the_stages_are_timed_and_the_search_counts_what_it_tested():
+    # The split a profile of the pass needs: each stage's time (together within the pass's own
+    # time), and the search's funnel: an overlapping pair needs at least one box test.
+    sim = Simulation(_pile(20))
+    sim.step(900)
+    stats = sim.self_collision_stats()
+    assert stats is not None
+    assert stats["swept_substeps"] > 0
+    assert stats["boxes_tested"] >= stats["candidates"] > 0
+    for stage in ("search", "repulsion", "cap"):
+        seconds = stats[f"{stage}_seconds"]
+        assert np.isfinite(seconds) and seconds > 0.0, stage
+    assert stats["redone"] > 0 or stats["redo_seconds"] == 0.0
+    total = sum(stats[f"{s}_seconds"] for s in ("search", "repulsion", "cap", "redo"))
+    assert total <= sim.profile().passes["self_collision"].seconds

@@ -44,17 +44,22 @@ impl SelfCollision {
         self.scale.resize(n, 1.0);
         self.scale_next.clear();
         self.scale_next.resize(n, 1.0);
+        self.rescaled.clear();
+        self.rescaled.resize(n, false);
         let mut rounds = 0;
         loop {
             // Each pair's factor depends only on the scales of the round before (a Jacobi
             // round), so the pairs are checked in parallel; taking the least factor per vertex
-            // is exact whatever the order.
-            let (s, pos) = (&self.scale, &next.pos);
+            // is exact whatever the order. After the first round only a pair with a vertex
+            // the last round rescaled can be unsafe: any other has the scales it was safe
+            // with (a violated pair rescales its own vertices).
+            let (s, pos, rescaled) = (&self.scale, &next.pos, &self.rescaled);
             let violations: Vec<(u32, f64)> = self
                 .pairs
                 .par_iter()
                 .enumerate()
                 .with_min_len(1024)
+                .filter(|(_, pair)| rounds == 0 || pair.verts.iter().any(|&v| rescaled[v as usize]))
                 .filter_map(|(k, pair)| {
                     cap_factor(pair, s, x0, pos, eps, rounds).map(|f| (k as u32, f))
                 })
@@ -70,6 +75,9 @@ impl SelfCollision {
                 break;
             }
             rounds += 1;
+            for (v, changed) in self.rescaled.iter_mut().enumerate() {
+                *changed = self.scale_next[v] != self.scale[v];
+            }
             self.scale.copy_from_slice(&self.scale_next);
         }
         self.stats.max_cap_rounds = self.stats.max_cap_rounds.max(rounds);

@@ -13,7 +13,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::hash::Aabb;
+use super::bvh::Aabb;
 use super::SelfCollision;
 use crate::soa::Vec3s;
 

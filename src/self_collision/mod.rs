@@ -39,10 +39,10 @@
 //! updates are sequential in pair order, so the result is bitwise the same for any thread
 //! count.
 
+mod bvh;
 mod cap;
 mod capsule;
 mod geometry;
-mod hash;
 mod list;
 mod pair;
 mod repulsion;
@@ -55,10 +55,11 @@ use rayon::prelude::*;
 use crate::model::Model;
 use crate::soa::Vec3s;
 use crate::state::Kinematics;
-use hash::Aabb;
+use bvh::Aabb;
 use list::{PairList, Spread};
 use pair::Pair;
-use search::Broad;
+use search::{Broad, Looked};
+use std::time::Instant;
 use topology::Topology;
 
 /// How far, as a fraction of `thickness`, the repulsion and the cap may move a vertex away from
@@ -103,6 +104,19 @@ pub struct SelfCollisionStats {
     /// Smallest distance at the start of a substep between a vertex and a triangle without it,
     /// or two edges with no shared vertex, among the pairs looked at (m; infinite if none).
     pub min_distance: f64,
+    /// Boxes the searches tested (tree nodes and primitives), summed over searches.
+    pub boxes_tested: u64,
+    /// Pairs whose boxes overlapped in a search (the primitives' tight boxes then pass over
+    /// those too far apart, the rest get their closest points).
+    pub candidates: u64,
+    /// Wall time of each stage, summed over substeps (s): finding the pairs (the searches,
+    /// the list's upkeep and the pairs' closest points), the repulsion (with each touched
+    /// vertex put back in its capsule), the cap, and the substeps redone with the swept search
+    /// (all of their stages). Measured, so not the same from run to run.
+    pub search_seconds: f64,
+    pub repulsion_seconds: f64,
+    pub cap_seconds: f64,
+    pub redo_seconds: f64,
 }
 
 impl Default for SelfCollisionStats {
@@ -118,6 +132,12 @@ impl Default for SelfCollisionStats {
             stopped: 0,
             max_cap_rounds: 0,
             min_distance: f64::INFINITY,
+            boxes_tested: 0,
+            candidates: 0,
+            search_seconds: 0.0,
+            repulsion_seconds: 0.0,
+            cap_seconds: 0.0,
+            redo_seconds: 0.0,
         }
     }
 }
@@ -150,6 +170,8 @@ pub struct SelfCollision {
     near: Vec<(u32, bool)>,
     scale: Vec<f64>,
     scale_next: Vec<f64>,
+    /// Whether the cap's last round changed each vertex's scale.
+    rescaled: Vec<bool>,
     stats: SelfCollisionStats,
 }
 
@@ -174,6 +196,7 @@ impl SelfCollision {
             near: Vec::new(),
             scale: Vec::new(),
             scale_next: Vec::new(),
+            rescaled: Vec::new(),
             stats: SelfCollisionStats::default(),
         }
     }
@@ -212,6 +235,7 @@ impl SelfCollision {
         let needed = thickness + 2.0 * allowed + eps;
         // Which pairs a substep looks at depends on the substep alone, never on when the list
         // was built, so a restored state steps exactly as the original.
+        let clock = Instant::now();
         let finite = if needed <= LIST_LIMIT * thickness {
             let mut drift = survey.drift.map_or(0.0, |d| d.radius()) + eps;
             if !self.list.covers(survey.drift, needed, eps) {
@@ -219,6 +243,7 @@ impl SelfCollision {
                 drift = eps;
             }
             self.listed_pairs(x0, needed, drift);
+            self.stats.search_seconds += clock.elapsed().as_secs_f64();
             if self.pairs.is_empty() {
                 return true;
             }
@@ -235,12 +260,16 @@ impl SelfCollision {
                 finite
             } else {
                 // The repulsion or the cap moved a vertex farther than the list allowed for.
-                self.redo_loose(x0, next, inv_mass, eps, before)
+                let clock = Instant::now();
+                let finite = self.redo_loose(x0, next, inv_mass, eps, before);
+                self.stats.redo_seconds += clock.elapsed().as_secs_f64();
+                finite
             }
         } else {
             self.stats.swept_substeps += 1;
             self.sweep_boxes(x0, &next.pos, eps as f32);
             self.swept_pairs(x0, eps);
+            self.stats.search_seconds += clock.elapsed().as_secs_f64();
             self.resolve(x0, next, inv_mass, eps)
         };
         self.stats.pairs += self.pairs.len() as u64;
@@ -262,9 +291,16 @@ impl SelfCollision {
                 max: p + grow,
             }
         }));
-        let keep = |p: &Pair| p.d0 < reach;
-        self.broad
-            .search(&self.topology, &boxes, x0, keep, &mut self.pairs);
+        let limit = |_: &[u32; 4], _: usize| reach;
+        let looked = self.broad.search(
+            &self.topology,
+            &boxes,
+            x0,
+            limit,
+            1e-3 * eps as f64,
+            &mut self.pairs,
+        );
+        self.count(looked);
         self.search_boxes = boxes;
         let found = self.pairs.iter().map(|p| (p.candidate(), p.d0)).collect();
         self.list.rebuild(x0, reach, found);
@@ -295,13 +331,25 @@ impl SelfCollision {
             let v = v as usize;
             (ends[v] - x0.get(v)).as_dvec3().length() + radius
         };
-        let keep = |pair: &Pair| {
-            let (a, b) = pair.verts.split_at(pair.split);
+        let limit = |verts: &[u32; 4], split: usize| {
+            let (a, b) = verts.split_at(split);
             let side = |s: &[u32]| s.iter().map(|&v| reach(v)).fold(0.0, f64::max);
-            pair.d0 < thickness + side(a) + side(b) + eps
+            thickness + side(a) + side(b) + eps
         };
-        self.broad
-            .search(&self.topology, boxes, x0, keep, &mut self.pairs);
+        let looked = self.broad.search(
+            &self.topology,
+            boxes,
+            x0,
+            limit,
+            1e-3 * eps,
+            &mut self.pairs,
+        );
+        self.count(looked);
+    }
+
+    fn count(&mut self, looked: Looked) {
+        self.stats.boxes_tested += looked.boxes;
+        self.stats.candidates += looked.candidates;
     }
 
     /// Redoes the substep from where the integrator left it with the swept search (`before`:
@@ -315,12 +363,26 @@ impl SelfCollision {
         before: SelfCollisionStats,
     ) -> bool {
         self.restore_listed(next);
-        self.stats = before;
+        // The abandoned attempt's counts are forgotten, but not what it looked at or how long
+        // it took; the redo's own time counts as `redo_seconds` alone.
+        let tried = self.stats;
+        self.stats = SelfCollisionStats {
+            boxes_tested: tried.boxes_tested,
+            candidates: tried.candidates,
+            search_seconds: tried.search_seconds,
+            repulsion_seconds: tried.repulsion_seconds,
+            cap_seconds: tried.cap_seconds,
+            redo_seconds: tried.redo_seconds,
+            ..before
+        };
         self.stats.substeps += 1;
         self.stats.swept_substeps += 1;
         self.stats.redone += 1;
         self.swept_pairs(x0, eps);
-        self.resolve(x0, next, inv_mass, eps)
+        let finite = self.resolve(x0, next, inv_mass, eps);
+        self.stats.repulsion_seconds = tried.repulsion_seconds;
+        self.stats.cap_seconds = tried.cap_seconds;
+        finite
     }
 
     /// Keeps the positions and velocities of the pairs' vertices, the only ones the pass
@@ -350,6 +412,7 @@ impl SelfCollision {
 
     /// The repulsion, each touched vertex put back inside its box, and the cap.
     fn resolve(&mut self, x0: &Vec3s, next: &mut Kinematics, inv_mass: &[f32], eps: f64) -> bool {
+        let clock = Instant::now();
         let finite = self.repel(next, inv_mass);
         // Back inside each vertex's capsule, what the swept search allows for.
         for &(k, touched) in &self.near {
@@ -360,7 +423,10 @@ impl SelfCollision {
                 }
             }
         }
+        let capping = Instant::now();
+        self.stats.repulsion_seconds += (capping - clock).as_secs_f64();
         self.cap(x0, next, eps);
+        self.stats.cap_seconds += capping.elapsed().as_secs_f64();
         finite
     }
 
@@ -375,6 +441,7 @@ impl SelfCollision {
             + self.marked.capacity()
             + self.near.capacity() * 8
             + (self.scale.capacity() + self.scale_next.capacity()) * 8
+            + self.rescaled.capacity()
     }
 }
 

@@ -1,40 +1,60 @@
 //! The search for pairs: every vertex-triangle pair (the vertex not in the triangle) and
-//! edge-edge pair (no shared vertex) whose boxes overlap, through a spatial hash of the
-//! triangles' and the edges' boxes, each the union of its vertices' boxes.
+//! edge-edge pair (no shared vertex) whose boxes overlap, through trees over the vertices',
+//! the triangles' and the edges' boxes (a primitive's box the union of its vertices'), shaped
+//! once for the mesh and refitted at every search, walked two at a time.
 
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::self_collision::hash::{Aabb, HashGrid};
+use crate::self_collision::bvh::{Aabb, Bvh};
 use crate::self_collision::pair::{edge_edge, vertex_triangle, Pair};
 use crate::self_collision::topology::Topology;
 use crate::soa::Vec3s;
-
-/// Vertices (or edges) a parallel task searches for; each task keeps its own scratch, so a
-/// search allocates per task, not per vertex.
-const CHUNK: usize = 256;
 
 /// The search's workspace.
 #[derive(Default)]
 pub struct Broad {
     tri_boxes: Vec<Aabb>,
     edge_boxes: Vec<Aabb>,
-    tri_grid: HashGrid,
-    edge_grid: HashGrid,
+    /// The mesh's vertices' boxes, in `Topology::vertices` order.
+    vert_boxes: Vec<Aabb>,
+    vert_tree: Bvh,
+    tri_tree: Bvh,
+    edge_tree: Bvh,
+    /// The pairs found, each with what orders it.
+    vertex_triangles: Vec<(u64, Pair)>,
+    edge_edges: Vec<(u64, Pair)>,
+    sorted: Vec<(u64, u32)>,
+    /// The topology version the trees were shaped for.
+    shaped_for: Option<u64>,
+}
+
+/// What a search looked at.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Looked {
+    /// Boxes tested against each other (the trees' nodes and items).
+    pub boxes: u64,
+    /// Pairs whose boxes overlapped: each is passed over by its tight boxes or given its
+    /// closest points.
+    pub candidates: u64,
 }
 
 impl Broad {
     /// Into `out`, in vertex then triangle and edge then edge order (so the same for any
-    /// thread count): every pair whose boxes overlap, given each vertex's box, that `keep`
-    /// keeps, with its closest points at `x`. A primitive's box is the union of its vertices'.
+    /// thread count): every pair whose boxes overlap, given each vertex's box, and which is
+    /// closer than `limit(verts, split)` at `x`, with its closest points there. A primitive's
+    /// box is the union of its vertices'. `margin` (m) bounds the round-off of a distance at
+    /// `x`: a pair whose primitives' tight boxes at `x` are farther apart than `limit` and
+    /// `margin` is passed over without its closest points.
     pub fn search(
         &mut self,
         topo: &Topology,
         vertex_boxes: &[Aabb],
         x: &Vec3s,
-        keep: impl Fn(&Pair) -> bool + Sync,
+        limit: impl Fn(&[u32; 4], usize) -> f64 + Sync,
+        margin: f64,
         out: &mut Vec<Pair>,
-    ) {
+    ) -> Looked {
         let vb = vertex_boxes;
         self.tri_boxes.clear();
         self.tri_boxes
@@ -42,63 +62,114 @@ impl Broad {
         self.edge_boxes.clear();
         self.edge_boxes
             .par_extend(topo.edges.par_iter().map(|e| union(vb, e)));
-        self.tri_grid.build(&self.tri_boxes);
-        self.edge_grid.build(&self.edge_boxes);
-        let eb = &self.edge_boxes;
-        let (tri_grid, edge_grid) = (&self.tri_grid, &self.edge_grid);
-        let vertex_triangles = topo.vertices.par_chunks(CHUNK).map(|chunk| {
-            let (mut found, mut pairs) = (Vec::new(), Vec::new());
-            for &v in chunk {
-                let b = vb[v as usize];
-                found.clear();
-                tri_grid.query(&b, |t| {
-                    if !topo.triangles[t as usize].contains(&v) {
-                        found.push(t);
-                    }
-                });
-                found.sort_unstable();
-                found.dedup();
-                let near = found.iter().map(|&t| {
-                    let [a, b, c] = topo.triangles[t as usize];
-                    vertex_triangle(x, [v, a, b, c])
-                });
-                pairs.extend(near.filter(&keep));
+        self.vert_boxes.clear();
+        self.vert_boxes
+            .extend(topo.vertices.iter().map(|&v| vb[v as usize]));
+        if self.shaped_for != topo.version
+            || !self.vert_tree.is_built_for(self.vert_boxes.len())
+            || !self.tri_tree.is_built_for(self.tri_boxes.len())
+            || !self.edge_tree.is_built_for(self.edge_boxes.len())
+        {
+            self.vert_tree.build(&self.vert_boxes);
+            self.tri_tree.build(&self.tri_boxes);
+            self.edge_tree.build(&self.edge_boxes);
+            self.shaped_for = topo.version;
+        } else {
+            self.vert_tree.refit(&self.vert_boxes);
+            self.tri_tree.refit(&self.tri_boxes);
+            self.edge_tree.refit(&self.edge_boxes);
+        }
+        let vertex_triangle_pair = |k: u32, t: u32, out: &mut Vec<(u64, Pair)>| {
+            let v = topo.vertices[k as usize];
+            let [a, b, c] = topo.triangles[t as usize];
+            if v == a || v == b || v == c {
+                return false;
             }
-            pairs
-        });
-        let edge_edges = topo.edges.par_chunks(CHUNK).enumerate().map(|(k, chunk)| {
-            let (mut found, mut pairs) = (Vec::new(), Vec::new());
-            for (e, &[a, b]) in (k * CHUNK..).zip(chunk) {
-                let bx = eb[e];
-                found.clear();
-                edge_grid.query(&bx, |f| {
-                    if (f as usize) > e {
-                        let [c, d] = topo.edges[f as usize];
-                        if a != c && a != d && b != c && b != d {
-                            found.push(f);
-                        }
-                    }
-                });
-                found.sort_unstable();
-                found.dedup();
-                let near = found.iter().map(|&f| {
-                    let [c, d] = topo.edges[f as usize];
-                    edge_edge(x, [a, b, c, d])
-                });
-                pairs.extend(near.filter(&keep));
+            let verts = [v, a, b, c];
+            let most = limit(&verts, 1);
+            if apart(x, &verts, 1) > most + margin {
+                return true;
             }
-            pairs
-        });
-        let found: Vec<Vec<Pair>> = vertex_triangles.chain(edge_edges).collect();
+            let pair = vertex_triangle(x, verts);
+            if pair.d0 < most {
+                out.push(((v as u64) << 32 | t as u64, pair));
+            }
+            true
+        };
+        let (boxes, candidates) = self.vert_tree.overlapping_pairs(
+            Some(&self.tri_tree),
+            vertex_triangle_pair,
+            &mut self.vertex_triangles,
+        );
+        let edge_edge_pair = |e: u32, f: u32, out: &mut Vec<(u64, Pair)>| {
+            let (e, f) = (e.min(f), e.max(f));
+            let ([a, b], [c, d]) = (topo.edges[e as usize], topo.edges[f as usize]);
+            if a == c || a == d || b == c || b == d {
+                return false;
+            }
+            let verts = [a, b, c, d];
+            let most = limit(&verts, 2);
+            if apart(x, &verts, 2) > most + margin {
+                return true;
+            }
+            let pair = edge_edge(x, verts);
+            if pair.d0 < most {
+                out.push(((e as u64) << 32 | f as u64, pair));
+            }
+            true
+        };
+        let more = self
+            .edge_tree
+            .overlapping_pairs(None, edge_edge_pair, &mut self.edge_edges);
+        // Vertex then triangle, then edge then edge: an order of the pairs alone, whatever the
+        // trees' shape or the thread count (the keys are distinct, so an unstable sort is
+        // exact).
+        // The keys are sorted with where each pair is, not with the pairs (ten times larger).
         out.clear();
-        out.extend(found.into_iter().flatten());
+        for found in [&self.vertex_triangles, &self.edge_edges] {
+            self.sorted.clear();
+            self.sorted
+                .extend(found.iter().enumerate().map(|(k, p)| (p.0, k as u32)));
+            self.sorted.par_sort_unstable();
+            out.extend(self.sorted.iter().map(|&(_, k)| found[k as usize].1));
+        }
+        Looked {
+            boxes: boxes + more.0,
+            candidates: candidates + more.1,
+        }
     }
 
     pub fn heap_bytes(&self) -> usize {
         (self.tri_boxes.capacity() + self.edge_boxes.capacity()) * size_of::<Aabb>()
-            + self.tri_grid.heap_bytes()
-            + self.edge_grid.heap_bytes()
+            + self.vert_boxes.capacity() * size_of::<Aabb>()
+            + (self.vertex_triangles.capacity() + self.edge_edges.capacity())
+                * size_of::<(u64, Pair)>()
+            + self.sorted.capacity() * 16
+            + self.vert_tree.heap_bytes()
+            + self.tri_tree.heap_bytes()
+            + self.edge_tree.heap_bytes()
     }
+}
+
+/// The distance between the boxes of `verts[..split]` and `verts[split..]` at `x` (m), a lower
+/// bound of the distance between the primitives, each inside its box: cheaper than their
+/// closest points, and enough to pass over the neighbours a box test lets through in a flat
+/// cloth (two parallel edges a grid spacing apart).
+#[inline]
+fn apart(x: &Vec3s, verts: &[u32; 4], split: usize) -> f64 {
+    let bounds = |s: &[u32]| {
+        let first = x.get(s[0] as usize);
+        s[1..].iter().fold((first, first), |(lo, hi), &v| {
+            let p = x.get(v as usize);
+            (lo.min(p), hi.max(p))
+        })
+    };
+    let ((lo_a, hi_a), (lo_b, hi_b)) = (bounds(&verts[..split]), bounds(&verts[split..]));
+    // Per axis, the gap between the two intervals (zero where they overlap), exact in f64.
+    let gap = (lo_b.as_dvec3() - hi_a.as_dvec3())
+        .max(lo_a.as_dvec3() - hi_b.as_dvec3())
+        .max(glam::DVec3::ZERO);
+    gap.length()
 }
 
 /// The union of `vertices`' boxes.

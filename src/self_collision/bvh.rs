@@ -1,0 +1,480 @@
+//! The broad phase: a bounding-volume tree over the mesh's triangles (or edges), its shape
+//! built once for a topology and its boxes refitted every search. A cloth's triangles that are
+//! neighbours in the tree are a patch of the cloth, and the springs keep a patch about its rest
+//! size however the cloth folds or winds, so a tree built once keeps tight boxes: a query only
+//! opens the nodes near it, where a spatial hash sized to the mean box scanned every box of
+//! every cell it met (in a wound cloth, many layers per cell).
+//!
+//! The tree's shape only changes how fast an answer comes, never the answer: every item whose
+//! box overlaps the query, which the caller sorts. So a tree built from other positions (a
+//! state restored into a new simulation) finds the same pairs.
+
+use glam::{BVec4A, Vec3, Vec3A, Vec4};
+use rayon::prelude::*;
+
+/// An axis-aligned box, in m.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Aabb {
+    pub min: Vec3,
+    pub max: Vec3,
+}
+
+impl Aabb {
+    pub const EMPTY: Aabb = Aabb {
+        min: Vec3::splat(f32::INFINITY),
+        max: Vec3::splat(f32::NEG_INFINITY),
+    };
+
+    /// Closed boxes: touching counts as overlapping (the test must never miss a pair).
+    #[cfg(test)]
+    pub fn overlaps(&self, other: &Aabb) -> bool {
+        self.min.cmple(other.max).all() && other.min.cmple(self.max).all()
+    }
+
+    fn centre(&self) -> Vec3 {
+        0.5 * (self.min + self.max)
+    }
+}
+
+/// Items in a leaf at most: the four lanes of a vector, so a box is tested against a whole leaf
+/// at once (`Quad`).
+const LEAF: usize = 4;
+
+/// A box as the tree keeps it: SIMD lanes, so an overlap test is two vector compares.
+#[derive(Clone, Copy, Debug)]
+struct Lanes {
+    min: Vec3A,
+    max: Vec3A,
+}
+
+impl Lanes {
+    const EMPTY: Lanes = Lanes {
+        min: Vec3A::splat(f32::INFINITY),
+        max: Vec3A::splat(f32::NEG_INFINITY),
+    };
+
+    #[inline]
+    fn of(b: &Aabb) -> Lanes {
+        Lanes {
+            min: b.min.into(),
+            max: b.max.into(),
+        }
+    }
+
+    #[inline]
+    fn overlaps(&self, other: &Lanes) -> bool {
+        (self.min.cmple(other.max) & other.min.cmple(self.max)).all()
+    }
+
+    /// The sum of the sides (m): which of two nodes to open first.
+    fn extent(&self) -> f32 {
+        (self.max - self.min).element_sum()
+    }
+
+    #[inline]
+    fn union(&self, other: &Lanes) -> Lanes {
+        Lanes {
+            min: self.min.min(other.min),
+            max: self.max.max(other.max),
+        }
+    }
+}
+
+/// Levels of the simultaneous walk done on one thread before its front is shared out: up to
+/// `3^6` node pairs, enough to keep every thread busy.
+const FRONT_DEPTH: usize = 6;
+
+/// A pair of nodes in the simultaneous walk: node `a` of the first tree and `b` of the second,
+/// or (`same`) node `a` against itself.
+#[derive(Clone, Copy, Debug)]
+struct Walk {
+    a: u32,
+    b: u32,
+    same: bool,
+}
+
+/// A node: its box and either its two children (the first is the next node, `right` the
+/// second) or its items, `order[first..first + count]`.
+#[derive(Clone, Copy, Debug)]
+struct Node {
+    bounds: Lanes,
+    /// Leaf: the first of its items in `order`; inner node: its second child.
+    index: u32,
+    /// Leaf: how many items (at least one); inner node: 0.
+    count: u32,
+    /// Leaf: its boxes side by side in `quads`.
+    quad: u32,
+}
+
+/// A leaf's boxes lane by lane (one lane an item, an empty box in lanes without one), so one
+/// box is tested against the whole leaf in six vector compares.
+#[derive(Clone, Copy, Debug)]
+struct Quad {
+    min: [Vec4; 3],
+    max: [Vec4; 3],
+}
+
+impl Quad {
+    const EMPTY: Quad = Quad {
+        min: [Vec4::INFINITY; 3],
+        max: [Vec4::NEG_INFINITY; 3],
+    };
+
+    /// Bit `i` set when the leaf's item `i` overlaps `b`.
+    #[inline]
+    fn overlapping(&self, b: &Lanes) -> u32 {
+        let mut hit = BVec4A::splat(true);
+        for axis in 0..3 {
+            hit &= self.min[axis].cmple(Vec4::splat(b.max[axis]))
+                & self.max[axis].cmpge(Vec4::splat(b.min[axis]));
+        }
+        hit.bitmask()
+    }
+}
+
+/// The tree. Nodes are in depth-first order, each parent before its children, so a refit
+/// walks them backwards.
+#[derive(Default)]
+pub struct Bvh {
+    nodes: Vec<Node>,
+    /// The items, leaf by leaf.
+    order: Vec<u32>,
+    /// Their boxes at the last refit, in the same order: a leaf's are side by side in memory.
+    leaf_boxes: Vec<Lanes>,
+    /// How many items the tree was built for.
+    items: usize,
+    /// Each leaf's boxes, lane by lane, in the leaves' order.
+    quads: Vec<Quad>,
+    leaves: u32,
+}
+
+impl Bvh {
+    /// Whether the tree is built for `items` items.
+    pub fn is_built_for(&self, items: usize) -> bool {
+        self.items == items && (items == 0 || !self.nodes.is_empty())
+    }
+
+    /// Shapes the tree for `boxes` (all finite): median splits of their centres along the
+    /// longest side of the centres' box, down to leaves of `LEAF` items. Deterministic (ties are
+    /// broken by item), and its boxes are those of `boxes`.
+    pub fn build(&mut self, boxes: &[Aabb]) {
+        self.nodes.clear();
+        self.leaves = 0;
+        self.items = boxes.len();
+        self.order = (0..boxes.len() as u32).collect();
+        if boxes.is_empty() {
+            return;
+        }
+        let centres: Vec<Vec3> = boxes.iter().map(Aabb::centre).collect();
+        let mut order = std::mem::take(&mut self.order);
+        self.split(&centres, &mut order, 0);
+        self.order = order;
+        self.refit(boxes);
+    }
+
+    /// Appends the subtree over `items` (which start at `offset` in `order`).
+    fn split(&mut self, centres: &[Vec3], items: &mut [u32], offset: usize) {
+        let at = self.nodes.len();
+        self.nodes.push(Node {
+            bounds: Lanes::EMPTY,
+            index: offset as u32,
+            count: items.len() as u32,
+            quad: self.leaves,
+        });
+        if items.len() <= LEAF {
+            self.leaves += 1;
+            return;
+        }
+        let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+        for &i in items.iter() {
+            (lo, hi) = (lo.min(centres[i as usize]), hi.max(centres[i as usize]));
+        }
+        let side = hi - lo;
+        let axis = if side.x >= side.y && side.x >= side.z {
+            0
+        } else if side.y >= side.z {
+            1
+        } else {
+            2
+        };
+        let half = items.len() / 2;
+        items.select_nth_unstable_by(half, |&a, &b| {
+            let (p, q) = (centres[a as usize][axis], centres[b as usize][axis]);
+            p.total_cmp(&q).then(a.cmp(&b))
+        });
+        let (left, right) = items.split_at_mut(half);
+        self.split(centres, left, offset);
+        let second = self.nodes.len() as u32;
+        self.split(centres, right, offset + half);
+        self.nodes[at].index = second;
+        self.nodes[at].count = 0;
+    }
+
+    /// Sets every node's box from `boxes`, the items' boxes now (the tree's shape is kept).
+    pub fn refit(&mut self, boxes: &[Aabb]) {
+        debug_assert_eq!(boxes.len(), self.items);
+        self.leaf_boxes.clear();
+        self.leaf_boxes
+            .extend(self.order.iter().map(|&i| Lanes::of(&boxes[i as usize])));
+        self.quads.resize(self.leaves as usize, Quad::EMPTY);
+        for k in (0..self.nodes.len()).rev() {
+            let node = self.nodes[k];
+            self.nodes[k].bounds = if node.count > 0 {
+                let range = node.index as usize..(node.index + node.count) as usize;
+                let mut quad = Quad::EMPTY;
+                for (lane, b) in self.leaf_boxes[range.clone()].iter().enumerate() {
+                    for axis in 0..3 {
+                        quad.min[axis][lane] = b.min[axis];
+                        quad.max[axis][lane] = b.max[axis];
+                    }
+                }
+                self.quads[node.quad as usize] = quad;
+                self.leaf_boxes[range]
+                    .iter()
+                    .fold(Lanes::EMPTY, |b, l| b.union(l))
+            } else {
+                self.nodes[k + 1]
+                    .bounds
+                    .union(&self.nodes[node.index as usize].bounds)
+            };
+        }
+    }
+
+    /// Every pair of items whose boxes at the last refit overlap, one item of `self` and one of
+    /// `other`, or, with `other` None, two distinct items of `self` (each pair once, in either
+    /// order). `emit` is called with each (self's item, the other's) and the output of its
+    /// task, and says whether it looked at the pair; the outputs come back in an order fixed by
+    /// the trees, whatever the thread count. Returns how many boxes it tested and how many
+    /// pairs `emit` looked at.
+    ///
+    /// Both trees are walked at once (a bounding-volume test tree): a test of two nodes stands
+    /// for every pair of their items, so the upper levels are tested once for all, not once per
+    /// query. The walk's first levels are done here and its front is shared out to threads.
+    pub fn overlapping_pairs<T: Send>(
+        &self,
+        other: Option<&Bvh>,
+        emit: impl Fn(u32, u32, &mut Vec<T>) -> bool + Sync,
+        out: &mut Vec<T>,
+    ) -> (u64, u64) {
+        out.clear();
+        let b = other.unwrap_or(self);
+        if self.nodes.is_empty() || b.nodes.is_empty() {
+            return (0, 0);
+        }
+        let root = Walk {
+            a: 0,
+            b: 0,
+            same: other.is_none(),
+        };
+        let mut front = Vec::new();
+        let mut counts = self.walk(b, root, Some(FRONT_DEPTH), &mut front, &emit, out);
+        let done: Vec<(Vec<T>, (u64, u64))> = front
+            .par_iter()
+            .map(|&w| {
+                let mut found = Vec::new();
+                let counts = self.walk(b, w, None, &mut Vec::new(), &emit, &mut found);
+                (found, counts)
+            })
+            .collect();
+        for (found, (tested, looked)) in done {
+            out.extend(found);
+            counts.0 += tested;
+            counts.1 += looked;
+        }
+        counts
+    }
+
+    /// Walks the node pairs below `root` (of `self` and `b`), depth first; node pairs at
+    /// `limit` levels below it go to `front` instead of being opened.
+    fn walk<T>(
+        &self,
+        b: &Bvh,
+        root: Walk,
+        limit: Option<usize>,
+        front: &mut Vec<Walk>,
+        emit: &impl Fn(u32, u32, &mut Vec<T>) -> bool,
+        out: &mut Vec<T>,
+    ) -> (u64, u64) {
+        let mut stack = vec![(root, 0usize)];
+        let (mut tested, mut looked) = (0u64, 0u64);
+        while let Some((w, depth)) = stack.pop() {
+            let (na, nb) = (&self.nodes[w.a as usize], &b.nodes[w.b as usize]);
+            if !w.same {
+                tested += 1;
+                if !na.bounds.overlaps(&nb.bounds) {
+                    continue;
+                }
+            }
+            if limit == Some(depth) {
+                front.push(w);
+                continue;
+            }
+            let (leaf_a, leaf_b) = (na.count > 0, nb.count > 0);
+            if w.same {
+                if leaf_a {
+                    let range = na.index as usize..(na.index + na.count) as usize;
+                    let quad = &self.quads[na.quad as usize];
+                    let items = &self.order[range.clone()];
+                    for (p, box_p) in self.leaf_boxes[range].iter().enumerate() {
+                        tested += 1;
+                        // The items after `p` only: each pair once.
+                        let mut hits = quad.overlapping(box_p) & !((2u32 << p) - 1);
+                        while hits != 0 {
+                            let q = hits.trailing_zeros() as usize;
+                            hits &= hits - 1;
+                            looked += emit(items[p], items[q], out) as u64;
+                        }
+                    }
+                } else {
+                    let (l, r) = (w.a + 1, na.index);
+                    let next = depth + 1;
+                    stack.push((
+                        Walk {
+                            a: l,
+                            b: r,
+                            same: false,
+                        },
+                        next,
+                    ));
+                    stack.push((
+                        Walk {
+                            a: r,
+                            b: r,
+                            same: true,
+                        },
+                        next,
+                    ));
+                    stack.push((
+                        Walk {
+                            a: l,
+                            b: l,
+                            same: true,
+                        },
+                        next,
+                    ));
+                }
+                continue;
+            }
+            if leaf_a && leaf_b {
+                let ra = na.index as usize..(na.index + na.count) as usize;
+                let rb = nb.index as usize..(nb.index + nb.count) as usize;
+                let (ia, ib) = (&self.order[ra.clone()], &b.order[rb]);
+                let quad = &b.quads[nb.quad as usize];
+                for (p, box_a) in self.leaf_boxes[ra].iter().enumerate() {
+                    tested += 1;
+                    let mut hits = quad.overlapping(box_a);
+                    while hits != 0 {
+                        let q = hits.trailing_zeros() as usize;
+                        hits &= hits - 1;
+                        looked += emit(ia[p], ib[q], out) as u64;
+                    }
+                }
+                continue;
+            }
+            // Open the larger node (a leaf cannot be opened).
+            let open_a = !leaf_a && (leaf_b || na.bounds.extent() >= nb.bounds.extent());
+            let next = depth + 1;
+            if open_a {
+                for c in [na.index, w.a + 1] {
+                    stack.push((
+                        Walk {
+                            a: c,
+                            b: w.b,
+                            same: false,
+                        },
+                        next,
+                    ));
+                }
+            } else {
+                for c in [nb.index, w.b + 1] {
+                    stack.push((
+                        Walk {
+                            a: w.a,
+                            b: c,
+                            same: false,
+                        },
+                        next,
+                    ));
+                }
+            }
+        }
+        (tested, looked)
+    }
+
+    pub fn heap_bytes(&self) -> usize {
+        self.nodes.capacity() * size_of::<Node>()
+            + self.order.capacity() * 4
+            + self.quads.capacity() * size_of::<Quad>()
+            + self.leaf_boxes.capacity() * size_of::<Lanes>()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cube(c: Vec3, r: f32) -> Aabb {
+        Aabb {
+            min: c - Vec3::splat(r),
+            max: c + Vec3::splat(r),
+        }
+    }
+
+    /// Boxes scattered in `[-2, 2]^3`, of several sizes, moved by `t`.
+    fn scattered(count: usize, t: f32) -> Vec<Aabb> {
+        (0..count)
+            .map(|k| {
+                let f = k as f32;
+                let c = Vec3::new((f * 0.37 + t).sin(), (f * 0.11).cos(), (f * 0.73 - t).sin());
+                cube(2.0 * c, 0.05 + 0.1 * ((f * 1.3).sin().abs()))
+            })
+            .collect()
+    }
+
+    /// The simultaneous walk must report exactly the overlapping pairs a brute-force test
+    /// finds, each once: between two trees, and within one tree (no item with itself).
+    #[test]
+    fn every_overlapping_pair_is_found_once_between_trees_and_within_one() {
+        let (mut first, mut second) = (Bvh::default(), Bvh::default());
+        let a = scattered(700, 0.0);
+        let b = scattered(500, 2.9);
+        first.build(&scattered(700, 0.4));
+        second.build(&b);
+        first.refit(&a);
+        let emit = |i: u32, j: u32, out: &mut Vec<(u32, u32)>| {
+            out.push((i, j));
+            true
+        };
+        let mut found = Vec::new();
+        let (_, looked) = first.overlapping_pairs(Some(&second), emit, &mut found);
+        assert_eq!(looked as usize, found.len());
+        found.sort_unstable();
+        let brute: Vec<(u32, u32)> = (0..a.len() as u32)
+            .flat_map(|i| (0..b.len() as u32).map(move |j| (i, j)))
+            .filter(|&(i, j)| a[i as usize].overlaps(&b[j as usize]))
+            .collect();
+        assert!(brute.len() > 100, "too few pairs to test: {}", brute.len());
+        assert_eq!(found, brute);
+        let ordered = |i: u32, j: u32, out: &mut Vec<(u32, u32)>| {
+            out.push((i.min(j), i.max(j)));
+            true
+        };
+        first.overlapping_pairs(None, ordered, &mut found);
+        found.sort_unstable();
+        let brute: Vec<(u32, u32)> = (0..a.len() as u32)
+            .flat_map(|i| (i + 1..a.len() as u32).map(move |j| (i, j)))
+            .filter(|&(i, j)| a[i as usize].overlaps(&a[j as usize]))
+            .collect();
+        assert_eq!(found, brute);
+    }
+
+    #[test]
+    fn an_empty_tree_finds_nothing() {
+        let mut tree = Bvh::default();
+        tree.build(&[]);
+        assert!(tree.is_built_for(0));
+        let mut found: Vec<()> = Vec::new();
+        let never = |_, _, _: &mut Vec<()>| -> bool { panic!() };
+        assert_eq!(tree.overlapping_pairs(None, never, &mut found), (0, 0));
+    }
+}
