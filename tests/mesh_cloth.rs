@@ -209,10 +209,6 @@ fn features_not_yet_on_a_mesh_cloth_are_refused_by_name() {
             with(&|s| s.strain_limit = Some(StrainLimitSpec::default())),
         ),
         (
-            "self_collision",
-            with(&|s| s.self_collision = Some(Default::default())),
-        ),
-        (
             "tearing",
             with(&|s| s.tearing = Some(TearingSpec::default())),
         ),

@@ -86,7 +86,7 @@ def test_bad_meshes_name_the_element() -> None:
 
 @pytest.mark.parametrize("feature", [
     {"integrator": "implicit_euler"}, {"integrator": "projective_dynamics"},
-    {"strain_limit": {}}, {"self_collision": {}}, {"tearing": {}}, {"wind": {}},
+    {"strain_limit": {}}, {"tearing": {}}, {"wind": {}},
 ])
 def test_features_not_yet_on_a_mesh_cloth_are_refused(feature: dict[str, object]) -> None:
     name = next(iter(feature))

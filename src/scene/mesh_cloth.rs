@@ -237,6 +237,21 @@ impl MeshCloth {
     }
 }
 
+/// The smallest altitude of any triangle of a checked mesh (m): the shortest distance from a
+/// corner to the line through the opposite edge, `2 A / l` for the triangle's longest edge.
+pub(crate) fn min_altitude(vertices: &[[f64; 3]], triangles: &[[i64; 3]]) -> f64 {
+    let at = |k: i64| DVec3::from(vertices[k as usize]);
+    triangles
+        .iter()
+        .map(|&[a, b, c]| {
+            let (p, q, r) = (at(a), at(b), at(c));
+            let twice_area = (q - p).cross(r - p).length();
+            let longest = (q - p).length().max((r - q).length()).max((p - r).length());
+            twice_area / longest
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
 /// The triangles as `u32` indices, after every check on them.
 fn check_triangles(rest: &[[f64; 3]], triangles: &[[i64; 3]]) -> Result<Vec<[u32; 3]>> {
     let n = rest.len();

@@ -77,8 +77,8 @@ impl Default for StrainLimitSpec {
 #[serde(deny_unknown_fields, default)]
 pub struct SelfCollisionSpec {
     /// Gap the repulsion keeps between a particle and any triangle without it, and between
-    /// edges with no shared particle, in m (> 0, below half the cloth's grid spacing, so that
-    /// a cloth at rest has no pair this close). Default 0.002. A thicker gap holds layers apart
+    /// edges with no shared particle, in m (> 0, below half the cloth's grid spacing, or a
+    /// mesh cloth's shortest triangle altitude, so that a cloth at rest has no pair this close). Default 0.002. A thicker gap holds layers apart
     /// more visibly and lets the cap act less often; a thinner one looks tighter.
     pub thickness: f64,
     /// Coulomb friction coefficient between layers (>= 0, dimensionless). Default 0.2: each
