@@ -8,7 +8,7 @@ use glam::{DVec3, Vec3};
 use rustcloth::mesh_cloth::{jittered_square, EdgeKind, MeshCloth};
 use rustcloth::scene::{
     ClothSpec, ColliderSpec, FloorSpec, MeshSpec, PinBox, PinSpec, ShapeKind, StrainLimitSpec,
-    TearingSpec, WindSpec,
+    TearingSpec,
 };
 use rustcloth::soa::Vec3s;
 use rustcloth::{IntegratorKind, Scene, Simulation};
@@ -45,18 +45,7 @@ type MeshArrays = (Vec<[f64; 3]>, Vec<[i64; 3]>);
 type Case = (Vec<[f64; 3]>, Vec<[i64; 3]>, &'static str);
 
 fn mesh_scene(vertices: Vec<[f64; 3]>, triangles: Vec<[i64; 3]>) -> Scene {
-    Scene {
-        cloth: ClothSpec {
-            mesh: Some(MeshSpec {
-                vertices,
-                triangles,
-                ..MeshSpec::default()
-            }),
-            pins: vec![],
-            ..ClothSpec::default()
-        },
-        ..Scene::default()
-    }
+    common::mesh_cloth_scene(vertices, triangles, vec![])
 }
 
 /// Two triangles sharing the edge 0-2: a unit square.
@@ -212,7 +201,6 @@ fn features_not_yet_on_a_mesh_cloth_are_refused_by_name() {
             "tearing",
             with(&|s| s.tearing = Some(TearingSpec::default())),
         ),
-        ("wind", with(&|s| s.wind = Some(WindSpec::default()))),
     ] {
         assert!(text.starts_with(name), "{text}");
         assert!(text.contains("not yet supported on a mesh cloth"), "{text}");
@@ -223,9 +211,6 @@ fn features_not_yet_on_a_mesh_cloth_are_refused_by_name() {
     for result in [
         sim.set_integrator("implicit_euler").map(|_| ()),
         sim.cut(0),
-        sim.pick(Vec3::new(0.5, 0.5, 1.0), -Vec3::Z).map(|_| ()),
-        sim.pick_triangle(Vec3::new(0.5, 0.5, 1.0), -Vec3::Z)
-            .map(|_| ()),
         sim.sever_stroke(&[(Vec3::Z, -Vec3::Z), (Vec3::ONE, -Vec3::Z)])
             .map(|_| ()),
         sim.cut_stroke(&[(Vec3::Z, -Vec3::Z)]).map(|_| ()),

@@ -407,7 +407,6 @@ impl Scene {
         let present = [
             ("strain_limit", self.strain_limit.is_some()),
             ("tearing", self.tearing.is_some()),
-            ("wind", self.wind.is_some()),
         ];
         match present.iter().find(|(_, on)| *on) {
             Some((name, _)) => Err(not_on_mesh(name, name)),
