@@ -7,8 +7,8 @@ use common::{state_hash, with_threads};
 use glam::{DVec3, Vec3};
 use rustcloth::mesh_cloth::{jittered_square, EdgeKind, MeshCloth};
 use rustcloth::scene::{
-    ClothSpec, ColliderSpec, FloorSpec, MeshSpec, PinBox, PinSpec, ShapeKind, StrainLimitSpec,
-    TearingSpec,
+    ClothSpec, ColliderSpec, FloorSpec, MeshSpec, PinBoundary, PinBox, PinSpec, PinTop, ShapeKind,
+    StrainLimitSpec, TearingSpec,
 };
 use rustcloth::soa::Vec3s;
 use rustcloth::{IntegratorKind, Scene, Simulation};
@@ -519,4 +519,110 @@ fn a_grabbed_mesh_vertex_goes_where_it_is_dragged() {
         sim.positions().get(p + 1).z > 0.05,
         "its neighbour did not follow"
     );
+}
+
+/// `{ boundary = true }` pins the outline and the rims of holes: on a 9 x 9 irregular square
+/// with the two triangles of one interior cell removed, the 32 vertices of the outer ring and
+/// the 4 corners of the hole, found here from the grid coordinates the mesh was made from.
+#[test]
+fn the_boundary_selection_pins_the_outline_and_the_rims_of_holes() {
+    let n = 9;
+    let (vertices, triangles) = jittered_square(n, 1.0, [0.0, 0.0, 0.0], 0.3, 5);
+    // Horizontal, 1 m up, so that gravity pulls the free vertices out of its plane.
+    let vertices = vertices.iter().map(|v| [v[0], 1.0, -v[1]]).collect();
+    let cell = 4 * (n - 1) + 4;
+    let triangles: Vec<[i64; 3]> = triangles
+        .into_iter()
+        .enumerate()
+        .filter(|&(t, _)| t / 2 != cell)
+        .map(|(_, tri)| tri)
+        .collect();
+    let mut scene = mesh_scene(vertices, triangles);
+    scene.cloth.pins = vec![PinSpec::Boundary(PinBoundary { boundary: true })];
+    let mut expected: Vec<usize> = (0..n * n)
+        .filter(|&p| {
+            let (i, j) = (p % n, p / n);
+            i == 0 || j == 0 || i == n - 1 || j == n - 1
+        })
+        .collect();
+    let corner = 4 * n + 4;
+    expected.extend([corner, corner + 1, corner + n, corner + n + 1]);
+    expected.sort_unstable();
+    assert_eq!(scene.cloth.pinned_indices(), expected);
+    // Pinned, the sheet keeps its outline and the hole's rim; the rest sags like a drum skin.
+    let sim_scene = Scene {
+        dt: 0.5 * scene.stable_dt(IntegratorKind::SymplecticEuler).unwrap(),
+        ..scene
+    };
+    let mut sim = Simulation::new(sim_scene).unwrap();
+    let start: Vec<Vec3> = expected.iter().map(|&p| sim.positions().get(p)).collect();
+    sim.advance(0.2).unwrap();
+    for (&p, &x) in expected.iter().zip(&start) {
+        assert_eq!(sim.positions().get(p), x, "vertex {p}");
+    }
+    let lowest = sim.positions().y.iter().fold(f32::MAX, |a, &b| a.min(b));
+    assert!(lowest < 1.0 - 5e-3, "the skin sagged only to {lowest} m");
+}
+
+/// `{ top = d }` pins the vertices within `d` of the highest, whatever their numbering: the top
+/// row of a hanging square whose vertices are listed in reverse, which then hangs from it.
+#[test]
+fn the_top_selection_pins_the_highest_row_however_the_vertices_are_numbered() {
+    let n = 10;
+    let (vertices, triangles) = jittered_square(n, 1.0, [0.0, 1.0, 0.0], 0.3, 8);
+    let last = (n * n - 1) as i64;
+    let vertices: Vec<[f64; 3]> = vertices.into_iter().rev().collect();
+    let triangles = triangles.into_iter().map(|t| t.map(|k| last - k)).collect();
+    let mut scene = mesh_scene(vertices, triangles);
+    scene.cloth.pins = vec![PinSpec::Top(PinTop { top: 1e-9 })];
+    // The top row was n*n - n .. n*n, reversed: 0 .. n.
+    assert_eq!(scene.cloth.pinned_indices(), (0..n).collect::<Vec<_>>());
+    // A wider band takes the jittered second row too (jitter at most 0.3 of 1/9 m).
+    scene.cloth.pins = vec![PinSpec::Top(PinTop {
+        top: 1.0 / 9.0 + 0.04,
+    })];
+    assert_eq!(scene.cloth.pinned_indices(), (0..2 * n).collect::<Vec<_>>());
+    scene.cloth.pins = vec![PinSpec::Top(PinTop { top: 0.0 })];
+    scene.dt = 0.5 * scene.stable_dt(IntegratorKind::SymplecticEuler).unwrap();
+    let mut sim = Simulation::new(scene).unwrap();
+    let top = sim.positions().get(0);
+    sim.advance(0.3).unwrap();
+    assert_eq!(sim.positions().get(0), top);
+    let lowest = sim.positions().y.iter().fold(f32::MAX, |a, &b| a.min(b));
+    assert!(
+        lowest < 0.5 - 1e-3,
+        "it hangs and stretches: lowest at {lowest} m"
+    );
+}
+
+/// The selections read from TOML on either cloth; the grid's boundary is its four edges, its
+/// top (hanging in xy) its top edge; bad values name the pin.
+#[test]
+fn the_selections_read_from_toml_and_bad_ones_name_the_pin() {
+    let grid = |pins: &str| {
+        Scene::from_toml_str(&format!(
+            "[cloth]\nnx = 6\nny = 5\nplane = \"xy\"\npins = [{pins}]"
+        ))
+    };
+    let named = |names: &[&str]| {
+        let mut scene = grid("").unwrap();
+        scene.cloth.pins = names.iter().map(|&n| PinSpec::Named(n.into())).collect();
+        scene.cloth.pinned_indices()
+    };
+    let boundary = grid("{ boundary = true }").unwrap().cloth.pinned_indices();
+    assert_eq!(
+        boundary,
+        named(&["top_edge", "bottom_edge", "left_edge", "right_edge"])
+    );
+    let top = grid("{ top = 0.0 }").unwrap().cloth.pinned_indices();
+    assert_eq!(top, named(&["top_edge"]));
+    for (pins, says) in [
+        ("{ boundary = false }", "selects nothing"),
+        ("{ top = -1.0 }", "top must be"),
+        ("{ top = nan }", "top must be"),
+    ] {
+        let err = grid(&format!("3, {pins}")).unwrap_err().to_string();
+        assert!(err.starts_with("cloth.pins[1]"), "{pins}: {err}");
+        assert!(err.contains(says), "{pins}: {err}");
+    }
 }

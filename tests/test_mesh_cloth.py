@@ -176,3 +176,17 @@ def test_the_demos_mouse_drags_a_mesh_cloth_and_its_cut_does_nothing() -> None:
     sim.drag_to(before[held] + [0.0, 0.0, 0.1])
     sim.step(20)
     assert np.allclose(sim.positions[held], before[held] + [0.0, 0.0, 0.1], atol=1e-6)
+
+
+def test_a_mesh_cloth_is_pinned_by_its_boundary_or_its_top_row() -> None:
+    n = 6
+    scene = hanging(n).replace(cloth={"pins": [{"top": 1e-9}]})
+    sim = rustcloth.Simulation(scene)
+    assert np.array_equal(np.flatnonzero(sim.pinned), np.arange(n * n - n, n * n))
+    scene = hanging(n).replace(cloth={"pins": [{"boundary": True}]})
+    sim = rustcloth.Simulation(scene)
+    i, j = np.arange(n * n) % n, np.arange(n * n) // n
+    ring = (i == 0) | (j == 0) | (i == n - 1) | (j == n - 1)
+    assert np.array_equal(sim.pinned, ring)
+    with pytest.raises(ParameterError, match=r"^cloth.pins\[0\]: .*selects nothing"):
+        hanging(n).replace(cloth={"pins": [{"boundary": False}]})

@@ -21,8 +21,9 @@ pub use mesh_cloth::{EdgeKind, EdgeSprings, MeshCloth};
 pub use pins::PIN_GROUPS;
 pub use solvers::{IntegratorKind, Preconditioner, SolverSettings};
 pub use specs::{
-    ClothSpec, ColliderSpec, FloorSpec, MeshSpec, OnTrouble, PinBox, PinSpec, Plane,
-    SelfCollisionSpec, ShapeKind, SphereSpec, StrainLimitSpec, TearingSpec, WatchdogSpec, WindSpec,
+    ClothSpec, ColliderSpec, FloorSpec, MeshSpec, OnTrouble, PinBoundary, PinBox, PinSpec, PinTop,
+    Plane, SelfCollisionSpec, ShapeKind, SphereSpec, StrainLimitSpec, TearingSpec, WatchdogSpec,
+    WindSpec,
 };
 pub use stability::stable_substep;
 use validate::require_tables;
