@@ -626,3 +626,86 @@ fn the_selections_read_from_toml_and_bad_ones_name_the_pin() {
         assert!(err.contains(says), "{pins}: {err}");
     }
 }
+
+/// Runs the built-in scene `name` for `seconds`, checking every 10 ms that every position is
+/// finite and within 5 m and that `outside` holds for every vertex; returns the simulation.
+fn run_builtin(name: &str, seconds: f64, outside: impl Fn(Vec3) -> bool) -> Simulation {
+    let scene = Scene::builtin(name).unwrap();
+    let stable = scene.stable_dt(scene.integrator).unwrap();
+    let substep = scene.dt / scene.substeps as f64;
+    assert!(
+        substep < stable,
+        "{name}: substep {substep} s, stable {stable} s"
+    );
+    let mut sim = Simulation::new(scene).unwrap();
+    let every = (0.01 / sim.scene().dt).round() as u64;
+    for _ in 0..(seconds / 0.01) as usize {
+        sim.step(every).unwrap();
+        let pos = sim.positions();
+        for p in 0..pos.len() {
+            let x = pos.get(p);
+            assert!(x.is_finite() && x.abs().max_element() < 5.0, "{name}: {x}");
+            assert!(outside(x), "{name}: vertex {p} at {x}");
+        }
+    }
+    sim
+}
+
+/// The round tablecloth lands on the round table, falls over its rim all round and never
+/// enters the top or the leg.
+#[test]
+fn the_round_tablecloth_drapes_over_its_round_table() {
+    let inside_cylinder = |x: Vec3, radius: f32, y: f32, half: f32| {
+        (x.x * x.x + x.z * x.z).sqrt() < radius - 1e-3 && (x.y - y).abs() < half - 1e-3
+    };
+    let sim = run_builtin("round_tablecloth", 1.0, |x| {
+        !inside_cylinder(x, 0.5, 0.75, 0.02) && !inside_cylinder(x, 0.05, 0.365, 0.365)
+    });
+    let pos = sim.positions();
+    // Resting on the top (0.77 m) inside the rim; hanging below it all round.
+    let on_top = (0..pos.len()).filter(|&p| {
+        let x = pos.get(p);
+        (x.x * x.x + x.z * x.z).sqrt() < 0.4
+    });
+    for p in on_top {
+        assert!(
+            (0.77..0.8).contains(&pos.get(p).y),
+            "vertex {p} at {}",
+            pos.get(p)
+        );
+    }
+    for quadrant in 0..4 {
+        let angle = quadrant as f32 * std::f32::consts::FRAC_PI_2;
+        let hanging = (0..pos.len()).any(|p| {
+            let x = pos.get(p);
+            x.y < 0.6
+                && (x.z.atan2(x.x) - angle).sin().abs() < 0.5
+                && x.x * angle.cos() + x.z * angle.sin() > 0.0
+        });
+        assert!(hanging, "nothing hangs over the rim towards {angle} rad");
+    }
+}
+
+/// The flag with a hole hangs from its pinned edge by the pole, never inside the pole.
+#[test]
+fn the_flag_with_a_hole_hangs_from_its_pole() {
+    let sim = run_builtin("flag_hole", 1.0, |x| {
+        let axis = Vec3::new(0.02, x.y.clamp(0.0, 2.4), 0.0);
+        (x - axis).length() > 0.025 - 1e-3
+    });
+    let pos = sim.positions();
+    let pinned = &sim.particles().pinned;
+    let scene = Scene::builtin("flag_hole").unwrap();
+    let rest = &scene.cloth.mesh.as_ref().unwrap().vertices;
+    assert!(pinned.iter().filter(|&&p| p).count() >= 20);
+    for p in (0..pos.len()).filter(|&p| pinned[p]) {
+        assert_eq!(pos.get(p), Vec3::from(rest[p].map(|x| x as f32)));
+    }
+    // Its free end fell: the far edge (starting 1.15 to 1.25 m out) is lower than it started.
+    let far = (0..pos.len()).filter(|&p| rest[p][0] > 1.15);
+    let dropped = far
+        .map(|p| rest[p][1] as f32 - pos.get(p).y)
+        .fold(f32::MAX, f32::min);
+    eprintln!("flag_hole: far edge dropped at least {dropped} m");
+    assert!(dropped > 0.05, "the far edge dropped only {dropped} m");
+}

@@ -795,3 +795,21 @@ fn a_mesh_pile_steps_the_same_for_any_thread_count() {
         assert_eq!(run(threads), one, "{threads} threads");
     }
 }
+
+/// The built-in Delaunay sheet, dropped over a ball, folds onto itself without a crossing.
+#[test]
+fn the_delaunay_sheet_folds_over_its_ball_without_crossing_itself() {
+    let scene = Scene::builtin("delaunay_sheet").unwrap();
+    let every = (0.01 / scene.dt).round() as u64;
+    let (sim, found) = run_checked(scene, 200 * every, every);
+    assert!(found.iter().all(|&k| k == 0), "intersections: {found:?}");
+    let stats = sim.self_collision_stats().unwrap();
+    eprintln!("delaunay sheet: {stats:?}");
+    // Its folds met (116 contacts when written): the pass had something to do.
+    assert!(stats.contacts > 20, "{stats:?}");
+    let top = sim.positions().y.iter().fold(f32::MIN, |a, &b| a.max(b));
+    assert!(
+        (0.3..0.32).contains(&top),
+        "it rests on the ball: top at {top} m"
+    );
+}

@@ -140,6 +140,16 @@ const BUILTIN: &[(&str, &str)] = &[
     ("tablecloth", include_str!("../../scenes/tablecloth.toml")),
     ("mannequin", include_str!("../../scenes/mannequin.toml")),
     ("spinner", include_str!("../../scenes/spinner.toml")),
+    // Mesh cloths (their meshes inline; scripts/mesh_scenes.py writes them).
+    (
+        "round_tablecloth",
+        include_str!("../../scenes/round_tablecloth.toml"),
+    ),
+    ("flag_hole", include_str!("../../scenes/flag_hole.toml")),
+    (
+        "delaunay_sheet",
+        include_str!("../../scenes/delaunay_sheet.toml"),
+    ),
 ];
 
 impl Scene {
