@@ -53,6 +53,26 @@ impl Grab {
         while next < held.len() {
             let a = held[next].index;
             next += 1;
+            if let Some(mesh) = model.mesh() {
+                // A mesh cloth's springs, each listed at both its ends.
+                let around = &mesh.incident[mesh.offsets[a] as usize..mesh.offsets[a + 1] as usize];
+                for &e in around {
+                    let s = (e >> 1) as usize;
+                    let b = if e & 1 == 0 {
+                        mesh.springs.b[s]
+                    } else {
+                        mesh.springs.a[s]
+                    } as usize;
+                    if seen[b] || !alive[b] {
+                        continue;
+                    }
+                    seen[b] = true;
+                    if pos.get(b).distance(centre) <= radius {
+                        held.push(Held::of(b, model, state));
+                    }
+                }
+                continue;
+            }
             for kind in SpringKind::ALL {
                 let o = grid.offset(kind);
                 // The spring `a` anchors, and the one anchored at `a - offset` ending at `a`.

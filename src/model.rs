@@ -27,6 +27,34 @@ pub enum Topology {
     Mesh(Arc<MeshCloth>),
 }
 
+/// Where each stable triangle id's corners are: the grid's cells ([`crate::grid::cell_triangle`],
+/// two per cell, some not drawn after cuts) or a mesh's triangle list (id = position). What the
+/// picking tree keeps to refit and cast without the model.
+#[derive(Clone, Debug)]
+pub enum TriangleIds {
+    Grid(Grid),
+    Mesh(Arc<MeshCloth>),
+}
+
+impl TriangleIds {
+    /// The number of ids, drawn or not.
+    pub fn slots(&self) -> usize {
+        match self {
+            TriangleIds::Grid(grid) => crate::grid::triangle_slots(*grid),
+            TriangleIds::Mesh(mesh) => mesh.triangles.len(),
+        }
+    }
+
+    /// The corners of triangle `id`.
+    #[inline]
+    pub fn corners(&self, id: usize) -> [usize; 3] {
+        match self {
+            TriangleIds::Grid(grid) => crate::grid::cell_triangle(*grid, id),
+            TriangleIds::Mesh(mesh) => mesh.triangles[id].map(|q| q as usize),
+        }
+    }
+}
+
 /// A scene compiled into the cloth it describes.
 pub struct Model {
     /// The scene, with the run-time settings (integrator, dt, substeps) as they are now.
@@ -175,9 +203,23 @@ impl Model {
         severed
     }
 
-    /// Whether triangle `id` of the grid's cells is drawn (see [`crate::cutting::triangle_drawn`]).
+    /// Whether triangle `id` of the grid's cells is drawn (see [`crate::cutting::triangle_drawn`]);
+    /// every triangle of a mesh cloth is.
     pub fn triangle_drawn(&self, id: usize) -> bool {
-        crate::cutting::triangle_drawn(self.grid, &self.springs, &self.particles.alive, id)
+        match self.topology {
+            Topology::Grid => {
+                crate::cutting::triangle_drawn(self.grid, &self.springs, &self.particles.alive, id)
+            }
+            Topology::Mesh(_) => true,
+        }
+    }
+
+    /// The triangles' stable ids and their corners.
+    pub fn triangle_ids(&self) -> TriangleIds {
+        match &self.topology {
+            Topology::Grid => TriangleIds::Grid(self.grid),
+            Topology::Mesh(mesh) => TriangleIds::Mesh(Arc::clone(mesh)),
+        }
     }
 
     /// The triangles of the cloth: two per grid cell, less those a cut or a tear runs through
@@ -195,8 +237,12 @@ impl Model {
         )
     }
 
-    /// The smaller of the two grid spacings at rest, in m.
+    /// The smaller of the two grid spacings at rest, in m; a mesh cloth's mean edge length at
+    /// rest (the distance between neighbouring particles, as the grid spacing is).
     pub fn min_spacing(&self) -> f64 {
+        if let Some(mesh) = self.mesh() {
+            return mesh.mean_edge;
+        }
         let size = self.scene.cloth.size;
         let dx = size[0] / (self.grid.nx - 1) as f64;
         let dy = size[1] / (self.grid.ny - 1) as f64;

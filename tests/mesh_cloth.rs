@@ -7,8 +7,8 @@ use common::{state_hash, with_threads};
 use glam::{DVec3, Vec3};
 use rustcloth::mesh_cloth::{jittered_square, EdgeKind, MeshCloth};
 use rustcloth::scene::{
-    ClothSpec, ColliderSpec, FloorSpec, MeshSpec, PinBox, PinSpec, ShapeKind, StrainLimitSpec,
-    TearingSpec, WindSpec,
+    ClothSpec, ColliderSpec, FloorSpec, MeshSpec, PinBoundary, PinBox, PinSpec, PinTop, ShapeKind,
+    StrainLimitSpec, TearingSpec,
 };
 use rustcloth::soa::Vec3s;
 use rustcloth::{IntegratorKind, Scene, Simulation};
@@ -45,18 +45,7 @@ type MeshArrays = (Vec<[f64; 3]>, Vec<[i64; 3]>);
 type Case = (Vec<[f64; 3]>, Vec<[i64; 3]>, &'static str);
 
 fn mesh_scene(vertices: Vec<[f64; 3]>, triangles: Vec<[i64; 3]>) -> Scene {
-    Scene {
-        cloth: ClothSpec {
-            mesh: Some(MeshSpec {
-                vertices,
-                triangles,
-                ..MeshSpec::default()
-            }),
-            pins: vec![],
-            ..ClothSpec::default()
-        },
-        ..Scene::default()
-    }
+    common::mesh_cloth_scene(vertices, triangles, vec![])
 }
 
 /// Two triangles sharing the edge 0-2: a unit square.
@@ -209,14 +198,9 @@ fn features_not_yet_on_a_mesh_cloth_are_refused_by_name() {
             with(&|s| s.strain_limit = Some(StrainLimitSpec::default())),
         ),
         (
-            "self_collision",
-            with(&|s| s.self_collision = Some(Default::default())),
-        ),
-        (
             "tearing",
             with(&|s| s.tearing = Some(TearingSpec::default())),
         ),
-        ("wind", with(&|s| s.wind = Some(WindSpec::default()))),
     ] {
         assert!(text.starts_with(name), "{text}");
         assert!(text.contains("not yet supported on a mesh cloth"), "{text}");
@@ -227,9 +211,6 @@ fn features_not_yet_on_a_mesh_cloth_are_refused_by_name() {
     for result in [
         sim.set_integrator("implicit_euler").map(|_| ()),
         sim.cut(0),
-        sim.pick(Vec3::new(0.5, 0.5, 1.0), -Vec3::Z).map(|_| ()),
-        sim.pick_triangle(Vec3::new(0.5, 0.5, 1.0), -Vec3::Z)
-            .map(|_| ()),
         sim.sever_stroke(&[(Vec3::Z, -Vec3::Z), (Vec3::ONE, -Vec3::Z)])
             .map(|_| ()),
         sim.cut_stroke(&[(Vec3::Z, -Vec3::Z)]).map(|_| ()),
@@ -538,4 +519,193 @@ fn a_grabbed_mesh_vertex_goes_where_it_is_dragged() {
         sim.positions().get(p + 1).z > 0.05,
         "its neighbour did not follow"
     );
+}
+
+/// `{ boundary = true }` pins the outline and the rims of holes: on a 9 x 9 irregular square
+/// with the two triangles of one interior cell removed, the 32 vertices of the outer ring and
+/// the 4 corners of the hole, found here from the grid coordinates the mesh was made from.
+#[test]
+fn the_boundary_selection_pins_the_outline_and_the_rims_of_holes() {
+    let n = 9;
+    let (vertices, triangles) = jittered_square(n, 1.0, [0.0, 0.0, 0.0], 0.3, 5);
+    // Horizontal, 1 m up, so that gravity pulls the free vertices out of its plane.
+    let vertices = vertices.iter().map(|v| [v[0], 1.0, -v[1]]).collect();
+    let cell = 4 * (n - 1) + 4;
+    let triangles: Vec<[i64; 3]> = triangles
+        .into_iter()
+        .enumerate()
+        .filter(|&(t, _)| t / 2 != cell)
+        .map(|(_, tri)| tri)
+        .collect();
+    let mut scene = mesh_scene(vertices, triangles);
+    scene.cloth.pins = vec![PinSpec::Boundary(PinBoundary { boundary: true })];
+    let mut expected: Vec<usize> = (0..n * n)
+        .filter(|&p| {
+            let (i, j) = (p % n, p / n);
+            i == 0 || j == 0 || i == n - 1 || j == n - 1
+        })
+        .collect();
+    let corner = 4 * n + 4;
+    expected.extend([corner, corner + 1, corner + n, corner + n + 1]);
+    expected.sort_unstable();
+    assert_eq!(scene.cloth.pinned_indices(), expected);
+    // Pinned, the sheet keeps its outline and the hole's rim; the rest sags like a drum skin.
+    let sim_scene = Scene {
+        dt: 0.5 * scene.stable_dt(IntegratorKind::SymplecticEuler).unwrap(),
+        ..scene
+    };
+    let mut sim = Simulation::new(sim_scene).unwrap();
+    let start: Vec<Vec3> = expected.iter().map(|&p| sim.positions().get(p)).collect();
+    sim.advance(0.2).unwrap();
+    for (&p, &x) in expected.iter().zip(&start) {
+        assert_eq!(sim.positions().get(p), x, "vertex {p}");
+    }
+    let lowest = sim.positions().y.iter().fold(f32::MAX, |a, &b| a.min(b));
+    assert!(lowest < 1.0 - 5e-3, "the skin sagged only to {lowest} m");
+}
+
+/// `{ top = d }` pins the vertices within `d` of the highest, whatever their numbering: the top
+/// row of a hanging square whose vertices are listed in reverse, which then hangs from it.
+#[test]
+fn the_top_selection_pins_the_highest_row_however_the_vertices_are_numbered() {
+    let n = 10;
+    let (vertices, triangles) = jittered_square(n, 1.0, [0.0, 1.0, 0.0], 0.3, 8);
+    let last = (n * n - 1) as i64;
+    let vertices: Vec<[f64; 3]> = vertices.into_iter().rev().collect();
+    let triangles = triangles.into_iter().map(|t| t.map(|k| last - k)).collect();
+    let mut scene = mesh_scene(vertices, triangles);
+    scene.cloth.pins = vec![PinSpec::Top(PinTop { top: 1e-9 })];
+    // The top row was n*n - n .. n*n, reversed: 0 .. n.
+    assert_eq!(scene.cloth.pinned_indices(), (0..n).collect::<Vec<_>>());
+    // A wider band takes the jittered second row too (jitter at most 0.3 of 1/9 m).
+    scene.cloth.pins = vec![PinSpec::Top(PinTop {
+        top: 1.0 / 9.0 + 0.04,
+    })];
+    assert_eq!(scene.cloth.pinned_indices(), (0..2 * n).collect::<Vec<_>>());
+    scene.cloth.pins = vec![PinSpec::Top(PinTop { top: 0.0 })];
+    scene.dt = 0.5 * scene.stable_dt(IntegratorKind::SymplecticEuler).unwrap();
+    let mut sim = Simulation::new(scene).unwrap();
+    let top = sim.positions().get(0);
+    sim.advance(0.3).unwrap();
+    assert_eq!(sim.positions().get(0), top);
+    let lowest = sim.positions().y.iter().fold(f32::MAX, |a, &b| a.min(b));
+    assert!(
+        lowest < 0.5 - 1e-3,
+        "it hangs and stretches: lowest at {lowest} m"
+    );
+}
+
+/// The selections read from TOML on either cloth; the grid's boundary is its four edges, its
+/// top (hanging in xy) its top edge; bad values name the pin.
+#[test]
+fn the_selections_read_from_toml_and_bad_ones_name_the_pin() {
+    let grid = |pins: &str| {
+        Scene::from_toml_str(&format!(
+            "[cloth]\nnx = 6\nny = 5\nplane = \"xy\"\npins = [{pins}]"
+        ))
+    };
+    let named = |names: &[&str]| {
+        let mut scene = grid("").unwrap();
+        scene.cloth.pins = names.iter().map(|&n| PinSpec::Named(n.into())).collect();
+        scene.cloth.pinned_indices()
+    };
+    let boundary = grid("{ boundary = true }").unwrap().cloth.pinned_indices();
+    assert_eq!(
+        boundary,
+        named(&["top_edge", "bottom_edge", "left_edge", "right_edge"])
+    );
+    let top = grid("{ top = 0.0 }").unwrap().cloth.pinned_indices();
+    assert_eq!(top, named(&["top_edge"]));
+    for (pins, says) in [
+        ("{ boundary = false }", "selects nothing"),
+        ("{ top = -1.0 }", "top must be"),
+        ("{ top = nan }", "top must be"),
+    ] {
+        let err = grid(&format!("3, {pins}")).unwrap_err().to_string();
+        assert!(err.starts_with("cloth.pins[1]"), "{pins}: {err}");
+        assert!(err.contains(says), "{pins}: {err}");
+    }
+}
+
+/// Runs the built-in scene `name` for `seconds`, checking every 10 ms that every position is
+/// finite and within 5 m and that `outside` holds for every vertex; returns the simulation.
+fn run_builtin(name: &str, seconds: f64, outside: impl Fn(Vec3) -> bool) -> Simulation {
+    let scene = Scene::builtin(name).unwrap();
+    let stable = scene.stable_dt(scene.integrator).unwrap();
+    let substep = scene.dt / scene.substeps as f64;
+    assert!(
+        substep < stable,
+        "{name}: substep {substep} s, stable {stable} s"
+    );
+    let mut sim = Simulation::new(scene).unwrap();
+    let every = (0.01 / sim.scene().dt).round() as u64;
+    for _ in 0..(seconds / 0.01) as usize {
+        sim.step(every).unwrap();
+        let pos = sim.positions();
+        for p in 0..pos.len() {
+            let x = pos.get(p);
+            assert!(x.is_finite() && x.abs().max_element() < 5.0, "{name}: {x}");
+            assert!(outside(x), "{name}: vertex {p} at {x}");
+        }
+    }
+    sim
+}
+
+/// The round tablecloth lands on the round table, falls over its rim all round and never
+/// enters the top or the leg.
+#[test]
+fn the_round_tablecloth_drapes_over_its_round_table() {
+    let inside_cylinder = |x: Vec3, radius: f32, y: f32, half: f32| {
+        (x.x * x.x + x.z * x.z).sqrt() < radius - 1e-3 && (x.y - y).abs() < half - 1e-3
+    };
+    let sim = run_builtin("round_tablecloth", 1.0, |x| {
+        !inside_cylinder(x, 0.5, 0.75, 0.02) && !inside_cylinder(x, 0.05, 0.365, 0.365)
+    });
+    let pos = sim.positions();
+    // Resting on the top (0.77 m) inside the rim; hanging below it all round.
+    let on_top = (0..pos.len()).filter(|&p| {
+        let x = pos.get(p);
+        (x.x * x.x + x.z * x.z).sqrt() < 0.4
+    });
+    for p in on_top {
+        assert!(
+            (0.77..0.8).contains(&pos.get(p).y),
+            "vertex {p} at {}",
+            pos.get(p)
+        );
+    }
+    for quadrant in 0..4 {
+        let angle = quadrant as f32 * std::f32::consts::FRAC_PI_2;
+        let hanging = (0..pos.len()).any(|p| {
+            let x = pos.get(p);
+            x.y < 0.6
+                && (x.z.atan2(x.x) - angle).sin().abs() < 0.5
+                && x.x * angle.cos() + x.z * angle.sin() > 0.0
+        });
+        assert!(hanging, "nothing hangs over the rim towards {angle} rad");
+    }
+}
+
+/// The flag with a hole hangs from its pinned edge by the pole, never inside the pole.
+#[test]
+fn the_flag_with_a_hole_hangs_from_its_pole() {
+    let sim = run_builtin("flag_hole", 1.0, |x| {
+        let axis = Vec3::new(0.02, x.y.clamp(0.0, 2.4), 0.0);
+        (x - axis).length() > 0.025 - 1e-3
+    });
+    let pos = sim.positions();
+    let pinned = &sim.particles().pinned;
+    let scene = Scene::builtin("flag_hole").unwrap();
+    let rest = &scene.cloth.mesh.as_ref().unwrap().vertices;
+    assert!(pinned.iter().filter(|&&p| p).count() >= 20);
+    for p in (0..pos.len()).filter(|&p| pinned[p]) {
+        assert_eq!(pos.get(p), Vec3::from(rest[p].map(|x| x as f32)));
+    }
+    // Its free end fell: the far edge (starting 1.15 to 1.25 m out) is lower than it started.
+    let far = (0..pos.len()).filter(|&p| rest[p][0] > 1.15);
+    let dropped = far
+        .map(|p| rest[p][1] as f32 - pos.get(p).y)
+        .fold(f32::MAX, f32::min);
+    eprintln!("flag_hole: far edge dropped at least {dropped} m");
+    assert!(dropped > 0.05, "the far edge dropped only {dropped} m");
 }

@@ -113,13 +113,18 @@ fn check_against_brute_force(rng: &mut Rng, sim: &mut Simulation, rays: usize) -
         let brute = pick_triangle_brute_force(&ray, sim.positions(), &tris);
         assert_eq!(bvh, brute, "triangles, ray {ray:?}");
         let (grid, alive) = (sim.grid(), &sim.particles().alive);
-        let scan = pick_triangle_scan(&ray, grid, sim.positions(), alive);
+        // The strip scan walks the grid's rows: a mesh cloth (one row) has none.
+        let scan = if grid.ny > 1 {
+            pick_triangle_scan(&ray, grid, sim.positions(), alive)
+        } else {
+            brute
+        };
         assert_eq!(
             scan.is_some(),
             brute.is_some(),
             "triangle scan, ray {ray:?}"
         );
-        if let (Some(scan), Some(brute)) = (scan, brute) {
+        if let (Some(scan), Some(brute), true) = (scan, brute, grid.ny > 1) {
             let vertices = cell_triangle(grid, scan.index).map(|q| q as u32);
             assert_eq!(vertices, tris[brute.index], "triangle scan, ray {ray:?}");
             assert_eq!(scan.distance, brute.distance);
@@ -664,4 +669,97 @@ fn memory_bytes_counts_the_picking_trees() {
         with_both >= with_particles + 32 * 2 * 63 * 63,
         "{with_particles} -> {with_both}"
     );
+}
+
+// ----- a mesh cloth ---------------------------------------------------------------------------
+
+/// A hanging mesh cloth: a 1 m irregular square of `n` x `n` jittered points in the xy plane,
+/// centre at y = 1, held by its two top corners.
+fn hanging_mesh(n: usize, seed: u64) -> Scene {
+    let (vertices, triangles) =
+        rustcloth::mesh_cloth::jittered_square(n, 1.0, [0.0, 1.0, 0.0], 0.3, seed);
+    let pins = [n * n - n, n * n - 1].map(|p| PinSpec::Index(p as i64));
+    let mut scene = common::mesh_cloth_scene(vertices, triangles, pins.to_vec());
+    scene.dt = 0.5
+        * scene
+            .stable_dt(rustcloth::IntegratorKind::SymplecticEuler)
+            .unwrap();
+    scene
+}
+
+/// Picking on a mesh cloth answers as testing every particle and every triangle of the mesh,
+/// under each strategy, on the cloth at rest, moving, and scattered at random.
+#[test]
+fn picking_a_mesh_cloth_answers_as_testing_every_particle_and_triangle() {
+    let mut rng = Rng(17);
+    for strategy in PickStrategy::ALL {
+        let mut sim = Simulation::new(hanging_mesh(14, 5)).unwrap();
+        sim.set_pick_strategy(strategy);
+        let mut hits = check_against_brute_force(&mut rng, &mut sim, 60);
+        sim.step(300).unwrap();
+        hits += check_against_brute_force(&mut rng, &mut sim, 60);
+        deform(&mut rng, &mut sim);
+        hits += check_against_brute_force(&mut rng, &mut sim, 60);
+        assert!(
+            hits > 60,
+            "{strategy:?}: only {hits} particles hit by 180 rays"
+        );
+    }
+}
+
+/// A mesh cloth's default pick radius and grip are sized by its mean edge, as the grid's are by
+/// its spacing; a grab holds the vertices within the grip radius joined to the one hit through
+/// the mesh's springs, and a drag carries them rigidly while the cloth follows.
+#[test]
+fn a_mesh_cloth_is_picked_grabbed_and_dragged_by_its_grip() {
+    let mut sim = Simulation::new(hanging_mesh(21, 9)).unwrap();
+    let triangles = sim.triangles().to_vec();
+    let mut lengths = Vec::new();
+    for t in &triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3]));
+            lengths.push((
+                (a, b),
+                (sim.positions().get(a as usize) - sim.positions().get(b as usize)).length(),
+            ));
+        }
+    }
+    lengths.sort_by_key(|x| x.0);
+    lengths.dedup_by(|x, y| x.0 == y.0);
+    let mean = lengths.iter().map(|l| l.1 as f64).sum::<f64>() / lengths.len() as f64;
+    assert!((sim.pick_radius() as f64 / (0.5 * mean) - 1.0).abs() < 1e-5);
+    // A ray straight at the middle of the sheet, from in front.
+    let hit = sim
+        .pick(Vec3::new(0.01, 1.0, 2.0), Vec3::NEG_Z)
+        .unwrap()
+        .unwrap();
+    let p = hit.index;
+    assert!((sim.positions().get(p) - Vec3::new(0.0, 1.0, 0.0)).length() < 0.05);
+    sim.grab(p as i64).unwrap();
+    let held = sim.gripped();
+    let radius = sim.grip_radius();
+    let centre = sim.positions().get(p);
+    // On a flat sheet every vertex within the radius is joined to the centre inside the ball.
+    let within: Vec<usize> = (0..sim.positions().len())
+        .filter(|&q| sim.positions().get(q).distance(centre) <= radius)
+        .collect();
+    let mut sorted = held.clone();
+    sorted.sort_unstable();
+    assert_eq!(sorted, within);
+    assert!(held.len() >= 10, "a patch, not a point: {held:?}");
+    let start: Vec<Vec3> = held.iter().map(|&q| sim.positions().get(q)).collect();
+    let moved = Vec3::new(0.0, 0.0, 0.2);
+    sim.drag_to(centre + moved).unwrap();
+    sim.step(200).unwrap();
+    for (&q, &s) in held.iter().zip(&start) {
+        assert!(
+            (sim.positions().get(q) - (s + moved)).length() < 1e-6,
+            "vertex {q}"
+        );
+    }
+    let corner_z = sim.positions().get(21 * 21 - 1).z;
+    assert_eq!(corner_z, 0.0, "the pinned corner stays");
+    let others = (0..sim.positions().len()).filter(|q| !held.contains(q));
+    let followed = others.filter(|&q| sim.positions().get(q).z > 0.05).count();
+    assert!(followed > 20, "only {followed} vertices followed the drag");
 }

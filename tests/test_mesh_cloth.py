@@ -86,7 +86,7 @@ def test_bad_meshes_name_the_element() -> None:
 
 @pytest.mark.parametrize("feature", [
     {"integrator": "implicit_euler"}, {"integrator": "projective_dynamics"},
-    {"strain_limit": {}}, {"self_collision": {}}, {"tearing": {}}, {"wind": {}},
+    {"strain_limit": {}}, {"tearing": {}},
 ])
 def test_features_not_yet_on_a_mesh_cloth_are_refused(feature: dict[str, object]) -> None:
     name = next(iter(feature))
@@ -159,7 +159,7 @@ def test_a_mesh_cloths_settings_have_the_typed_keys() -> None:
     assert scene.cloth["mesh"]["density"] == 0.3
 
 
-def test_the_demos_mouse_does_nothing_on_a_mesh_cloth_rather_than_crash() -> None:
+def test_the_demos_mouse_drags_a_mesh_cloth_and_its_cut_does_nothing() -> None:
     pytest.importorskip("moderngl")  # rustcloth.viewer needs the viewer extra
     from rustcloth.viewer.interaction import Interaction
 
@@ -167,7 +167,26 @@ def test_the_demos_mouse_does_nothing_on_a_mesh_cloth_rather_than_crash() -> Non
     before = sim.positions.copy()
     mouse = Interaction(sim)
     ray = (np.array([0.0, 1.0, 2.0]), np.array([0.0, 0.0, -1.0]))
-    assert mouse.grab(ray) is False
     assert mouse.cut([ray]) == 0
     assert mouse.cut([(ray[0] + [0.3, 0, 0], ray[1])]) == 0
-    assert sim.grabbed() is None and np.array_equal(sim.positions, before)
+    assert np.array_equal(sim.positions, before)
+    assert mouse.grab(ray) is True
+    held = sim.grabbed()
+    assert held is not None and np.linalg.norm(before[held] - [0.0, 1.0, 0.0]) < 0.2
+    sim.drag_to(before[held] + [0.0, 0.0, 0.1])
+    sim.step(20)
+    assert np.allclose(sim.positions[held], before[held] + [0.0, 0.0, 0.1], atol=1e-6)
+
+
+def test_a_mesh_cloth_is_pinned_by_its_boundary_or_its_top_row() -> None:
+    n = 6
+    scene = hanging(n).replace(cloth={"pins": [{"top": 1e-9}]})
+    sim = rustcloth.Simulation(scene)
+    assert np.array_equal(np.flatnonzero(sim.pinned), np.arange(n * n - n, n * n))
+    scene = hanging(n).replace(cloth={"pins": [{"boundary": True}]})
+    sim = rustcloth.Simulation(scene)
+    i, j = np.arange(n * n) % n, np.arange(n * n) // n
+    ring = (i == 0) | (j == 0) | (i == n - 1) | (j == n - 1)
+    assert np.array_equal(sim.pinned, ring)
+    with pytest.raises(ParameterError, match=r"^cloth.pins\[0\]: .*selects nothing"):
+        hanging(n).replace(cloth={"pins": [{"boundary": False}]})

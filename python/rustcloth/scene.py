@@ -239,9 +239,10 @@ class Scene:
         optional per-vertex ``uvs`` (``(N, 2)``), or ``path``, a mesh file read with trimesh
         (the ``export`` extra; its texture coordinates come along). ``keys`` are the mesh's
         material: ``density`` (kg/m^2), ``stretch``, ``bend`` (N/m), ``damping`` (N s/m);
-        ``pins`` are vertex indices and ``{"box": [[x0, y0, z0], [x1, y1, z1]]}`` selections
-        (default none). The grid's keys go back to their defaults. Errors name
-        ``cloth.mesh.vertices[k]``, ``cloth.mesh.triangles[t]``, ... (docs/mesh_cloth.md)."""
+        ``pins`` are vertex indices and selections: ``{"box": [[x0, y0, z0], [x1, y1, z1]]}``,
+        ``{"boundary": True}``, ``{"top": 0.001}`` (default none). The grid's keys go back to
+        their defaults. Errors name ``cloth.mesh.vertices[k]``, ``cloth.mesh.triangles[t]``,
+        ... (docs/mesh_cloth.md)."""
         if path is not None:
             if vertices is not None or triangles is not None or uvs is not None:
                 raise ParameterError(

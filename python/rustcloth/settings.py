@@ -27,10 +27,14 @@ module's list; tests/test_typing.py checks that the two agree)."""
 PreconditionerName: TypeAlias = Literal["jacobi", "block_jacobi", "multigrid"]
 """The preconditioners of ``implicit_euler``'s conjugate gradient."""
 
-Pin: TypeAlias = str | list[int] | int | dict[str, list[list[float]]]
+Pin: TypeAlias = (
+    str | list[int] | int | dict[str, list[list[float]]] | dict[str, bool] | dict[str, float]
+)
 """A named set of particles (``"top_corners"``, ``"top_edge"``, ...) or one ``[i, j]`` (the
-grid's), one particle index (a mesh cloth's vertex), or ``{"box": [[x0, y0, z0], [x1, y1,
-z1]]}``: every particle that starts inside the box."""
+grid's), one particle index (a mesh cloth's vertex), or a selection on either cloth:
+``{"box": [[x0, y0, z0], [x1, y1, z1]]}`` (every particle that starts inside the box),
+``{"boundary": True}`` (the outline and the rims of holes) or ``{"top": 0.001}`` (the particles
+within 1 mm of the highest)."""
 
 
 class MeshSettings(TypedDict):

@@ -418,7 +418,8 @@ class Simulation:
     @property
     def pick_radius(self) -> float:
         """Half-size in m of each particle's pick box (default: half the smaller grid
-        spacing, so neighbouring boxes touch). Set it to a finite number ``> 0``."""
+        spacing, or a mesh cloth's mean edge length, so neighbouring boxes touch). Set it to a
+        finite number ``> 0``."""
         return self._core.pick_radius
 
     @pick_radius.setter
@@ -438,7 +439,8 @@ class Simulation:
     @property
     def grip_radius(self) -> float:
         """Radius in m of the patch of cloth a :meth:`grab` holds (default: 2.5 times the
-        smaller grid spacing, a patch about five particles across). Set it to a finite number
+        smaller grid spacing or a mesh cloth's mean edge length, a patch about five particles
+        across). Set it to a finite number
         ``>= 0``; 0 grabs the one particle hit. It applies from the next grab."""
         return self._core.grip_radius
 

@@ -8,7 +8,8 @@ use super::ray::{
     hit_particle, nearest_hit, particle_box, ray_triangle, triangle_bounds, triangle_query_margin,
     ParticleHit, Ray, TriangleHit,
 };
-use crate::grid::{cell_triangle, triangle_alive, triangle_slots, Grid};
+use crate::grid::{triangle_alive, Grid};
+use crate::model::TriangleIds;
 use crate::soa::Vec3s;
 
 /// A binned-SAH BVH over `(leaf id, box)` pairs.
@@ -112,9 +113,10 @@ impl ParticleBvh {
     }
 }
 
-/// The BVH over the live triangles, leaf id = stable triangle id ([`cell_triangle`]).
+/// The BVH over the live triangles, leaf id = stable triangle id ([`TriangleIds`]: a grid
+/// cell's, or a mesh's position in its list).
 pub struct TriangleBvh {
-    grid: Grid,
+    ids: TriangleIds,
     bvh: Bvh,
     in_tree: Vec<bool>,
     leaves: usize,
@@ -127,19 +129,22 @@ fn triangle_box(pos: &Vec3s, tri: [usize; 3]) -> Aabb {
 }
 
 impl TriangleBvh {
+    /// A tree of the grid's triangles whose corners are all `alive`.
     pub fn build(grid: Grid, pos: &Vec3s, alive: &[bool]) -> Self {
-        Self::build_where(grid, pos, |id| triangle_alive(grid, alive, id))
+        Self::build_where(TriangleIds::Grid(grid), pos, |id| {
+            triangle_alive(grid, alive, id)
+        })
     }
 
     /// A tree of the triangles `drawn` says are there (by id).
-    pub fn build_where(grid: Grid, pos: &Vec3s, drawn: impl Fn(usize) -> bool) -> Self {
-        let in_tree: Vec<bool> = (0..triangle_slots(grid)).map(drawn).collect();
+    pub fn build_where(ids: TriangleIds, pos: &Vec3s, drawn: impl Fn(usize) -> bool) -> Self {
+        let in_tree: Vec<bool> = (0..ids.slots()).map(drawn).collect();
         let leaves = (0..in_tree.len())
             .filter(|&id| in_tree[id])
-            .map(|id| (id, triangle_box(pos, cell_triangle(grid, id))));
+            .map(|id| (id, triangle_box(pos, ids.corners(id))));
         let bvh = build_bvh(leaves);
         TriangleBvh {
-            grid,
+            ids,
             bvh,
             leaves: in_tree.iter().filter(|&&t| t).count(),
             in_tree,
@@ -166,7 +171,7 @@ impl TriangleBvh {
 
     pub fn refit(&mut self, pos: &Vec3s) {
         for id in (0..self.in_tree.len()).filter(|&id| self.in_tree[id]) {
-            let aabb = triangle_box(pos, cell_triangle(self.grid, id));
+            let aabb = triangle_box(pos, self.ids.corners(id));
             self.bvh.update_partially_if_present(aabb, id as u32, 0.0);
         }
         if !self.is_empty() {
@@ -183,21 +188,30 @@ impl TriangleBvh {
         dead.into_iter().filter(|&id| self.remove(id)).count()
     }
 
-    /// Removes the (at most six) triangles around particle `p`; returns how many.
+    /// Removes the triangles around particle `p` (at most six on the grid); returns how many.
     pub fn remove_around(&mut self, p: usize) -> usize {
-        let (i, j) = self.grid.coords(p);
+        let grid = match &self.ids {
+            TriangleIds::Grid(grid) => *grid,
+            TriangleIds::Mesh(_) => {
+                let around: Vec<usize> = (0..self.in_tree.len())
+                    .filter(|&id| self.ids.corners(id).contains(&p))
+                    .collect();
+                return around.into_iter().filter(|&id| self.remove(id)).count();
+            }
+        };
+        let (i, j) = grid.coords(p);
         let mut removed = 0;
         // The four cells with p as a corner, by their lower-left corner.
         for (di, dj) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
             let (Some(ci), Some(cj)) = (i.checked_sub(di), j.checked_sub(dj)) else {
                 continue;
             };
-            if ci + 1 >= self.grid.nx || cj + 1 >= self.grid.ny {
+            if ci + 1 >= grid.nx || cj + 1 >= grid.ny {
                 continue;
             }
-            let cell = cj * (self.grid.nx - 1) + ci;
+            let cell = cj * (grid.nx - 1) + ci;
             for id in [2 * cell, 2 * cell + 1] {
-                if cell_triangle(self.grid, id).contains(&p) && self.remove(id) {
+                if self.ids.corners(id).contains(&p) && self.remove(id) {
                     removed += 1;
                 }
             }
@@ -217,7 +231,7 @@ impl TriangleBvh {
     /// The nearest triangle along `ray` (`index` is the stable id).
     pub fn cast(&self, ray: &Ray, pos: &Vec3s) -> Option<TriangleHit> {
         nearest_hit(&self.bvh, ray, triangle_query_margin(ray), |id| {
-            let [a, b, c] = cell_triangle(self.grid, id as usize).map(|q| pos.get(q));
+            let [a, b, c] = self.ids.corners(id as usize).map(|q| pos.get(q));
             ray_triangle(ray, a, b, c).map(|(distance, barycentric)| TriangleHit {
                 index: id as usize,
                 distance,

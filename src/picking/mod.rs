@@ -139,8 +139,8 @@ fn versions(model: &Model, state: &State) -> (u64, u64) {
 
 impl Picker {
     /// Half-size in m of the box around each particle that a particle query tests the ray
-    /// against. Defaults to half the smaller grid spacing, so that neighbouring boxes just
-    /// touch.
+    /// against. Defaults to half the smaller grid spacing (a mesh's mean edge), so that
+    /// neighbouring boxes just touch.
     pub fn radius(&self, model: &Model) -> f32 {
         self.radius
             .unwrap_or_else(|| (0.5 * model.min_spacing()) as f32)
@@ -202,9 +202,13 @@ impl Picker {
             self.triangles.as_ref()?.tree.cast(ray, &state.kin.pos)?
         } else {
             self.stats.triangle_scans += 1;
-            pick_triangle_scan_where(ray, model.grid, &state.kin.pos, |id| {
-                model.triangle_drawn(id)
-            })?
+            match model.mesh() {
+                None => pick_triangle_scan_where(ray, model.grid, &state.kin.pos, |id| {
+                    model.triangle_drawn(id)
+                })?,
+                // A mesh has no rows to bound in strips: every triangle is tested.
+                Some(mesh) => pick_triangle_brute_force(ray, &state.kin.pos, &mesh.triangles)?,
+            }
         };
         hit.index = self.triangle_rank(model, hit.index);
         Some(hit)
@@ -313,12 +317,12 @@ impl Picker {
 
     fn sync_triangle_tree(&mut self, model: &Model, state: &State) {
         let (sv, tv) = versions(model, state);
-        let (grid, pos) = (model.grid, &state.kin.pos);
+        let pos = &state.kin.pos;
         let drawn = |id: usize| model.triangle_drawn(id);
         match &mut self.triangles {
             None => {
                 self.triangles = Some(Cached {
-                    tree: TriangleBvh::build_where(grid, pos, drawn),
+                    tree: TriangleBvh::build_where(model.triangle_ids(), pos, drawn),
                     versions: (sv, tv),
                 });
                 self.stats.triangle_builds += 1;
@@ -343,7 +347,7 @@ impl Picker {
         let tv = model.topology_version;
         if self.triangle_rank.as_ref().is_none_or(|(v, _)| *v != tv) {
             let mut next = 0u32;
-            let rank = (0..triangle_slots(model.grid))
+            let rank = (0..model.triangle_ids().slots())
                 .map(|t| {
                     let r = next;
                     if model.triangle_drawn(t) {

@@ -85,6 +85,8 @@ pub struct MeshCloth {
     /// increasing order, each as `spring << 1 | end` (`end` 1 at the spring's `b`).
     pub offsets: Vec<u32>,
     pub incident: Vec<u32>,
+    /// The mean length of the mesh's edges at rest (m): its spacing, where the grid has one.
+    pub mean_edge: f64,
 }
 
 impl MeshCloth {
@@ -161,7 +163,16 @@ impl MeshCloth {
         }
         let springs = springs_of(rest, &triangles, &area, spec)?;
         let (offsets, incident) = incidence(n, &springs);
+        let (total, edges) = edge_uses(&triangles).chunk_by(|x, y| x.0 == y.0).fold(
+            (0.0, 0),
+            |(total, edges), run| {
+                let (a, b) = ((run[0].0 >> 32) as u32, run[0].0 as u32);
+                (total + (at(b) - at(a)).length(), edges + 1)
+            },
+        );
+        let mean_edge = total / edges as f64;
         Ok(MeshCloth {
+            mean_edge,
             rest: rest.clone(),
             triangles,
             uvs,
@@ -235,6 +246,21 @@ impl MeshCloth {
             + self.springs.heap_bytes()
             + (self.offsets.capacity() + self.incident.capacity()) * 4
     }
+}
+
+/// The smallest altitude of any triangle of a checked mesh (m): the shortest distance from a
+/// corner to the line through the opposite edge, `2 A / l` for the triangle's longest edge.
+pub(crate) fn min_altitude(vertices: &[[f64; 3]], triangles: &[[i64; 3]]) -> f64 {
+    let at = |k: i64| DVec3::from(vertices[k as usize]);
+    triangles
+        .iter()
+        .map(|&[a, b, c]| {
+            let (p, q, r) = (at(a), at(b), at(c));
+            let twice_area = (q - p).cross(r - p).length();
+            let longest = (q - p).length().max((r - q).length()).max((p - r).length());
+            twice_area / longest
+        })
+        .fold(f64::INFINITY, f64::min)
 }
 
 /// The triangles as `u32` indices, after every check on them.

@@ -21,8 +21,9 @@ pub use mesh_cloth::{EdgeKind, EdgeSprings, MeshCloth};
 pub use pins::PIN_GROUPS;
 pub use solvers::{IntegratorKind, Preconditioner, SolverSettings};
 pub use specs::{
-    ClothSpec, ColliderSpec, FloorSpec, MeshSpec, OnTrouble, PinBox, PinSpec, Plane,
-    SelfCollisionSpec, ShapeKind, SphereSpec, StrainLimitSpec, TearingSpec, WatchdogSpec, WindSpec,
+    ClothSpec, ColliderSpec, FloorSpec, MeshSpec, OnTrouble, PinBoundary, PinBox, PinSpec, PinTop,
+    Plane, SelfCollisionSpec, ShapeKind, SphereSpec, StrainLimitSpec, TearingSpec, WatchdogSpec,
+    WindSpec,
 };
 pub use stability::stable_substep;
 use validate::require_tables;
@@ -139,6 +140,16 @@ const BUILTIN: &[(&str, &str)] = &[
     ("tablecloth", include_str!("../../scenes/tablecloth.toml")),
     ("mannequin", include_str!("../../scenes/mannequin.toml")),
     ("spinner", include_str!("../../scenes/spinner.toml")),
+    // Mesh cloths (their meshes inline; scripts/mesh_scenes.py writes them).
+    (
+        "round_tablecloth",
+        include_str!("../../scenes/round_tablecloth.toml"),
+    ),
+    ("flag_hole", include_str!("../../scenes/flag_hole.toml")),
+    (
+        "delaunay_sheet",
+        include_str!("../../scenes/delaunay_sheet.toml"),
+    ),
 ];
 
 impl Scene {

@@ -1,5 +1,6 @@
 //! Pins in a scene: named groups of particles (`top_corners`, `left_edge`, ...) or one grid
-//! cell, and the particle indices they name.
+//! cell, an index, the selections (a box, the boundary, the highest particles), and the
+//! particle indices they name.
 
 use super::specs::{ClothSpec, PinBox, PinSpec};
 use crate::error::{Error, Result};
@@ -48,7 +49,7 @@ impl ClothSpec {
 /// The particles a pin entry of `cloth` names.
 pub(super) fn pin_indices(pin: &PinSpec, cloth: &ClothSpec) -> Result<Vec<usize>> {
     if let Some(mesh) = &cloth.mesh {
-        return mesh_pin_indices(pin, &mesh.vertices);
+        return mesh_pin_indices(pin, &mesh.vertices, &mesh.triangles);
     }
     let grid = Grid {
         nx: cloth.nx as usize,
@@ -90,6 +91,21 @@ pub(super) fn pin_indices(pin: &PinSpec, cloth: &ClothSpec) -> Result<Vec<usize>
                 .collect();
             in_box(region, &positions)?
         }
+        PinSpec::Boundary(pin) => {
+            check_boundary(pin.boundary)?;
+            (0..grid.len())
+                .filter(|&p| {
+                    let (i, j) = grid.coords(p);
+                    i == 0 || j == 0 || i == last_i || j == last_j
+                })
+                .collect()
+        }
+        PinSpec::Top(pin) => {
+            let positions: Vec<[f64; 3]> = (0..grid.len())
+                .map(|p| cloth.grid_rest_position(p))
+                .collect();
+            highest(pin.top, &positions)?
+        }
         PinSpec::Named(name) => match name.as_str() {
             "top_corners" => vec![grid.index(0, last_j), grid.index(last_i, last_j)],
             "bottom_corners" => vec![grid.index(0, 0), grid.index(last_i, 0)],
@@ -114,9 +130,13 @@ pub(super) fn pin_indices(pin: &PinSpec, cloth: &ClothSpec) -> Result<Vec<usize>
     })
 }
 
-/// The vertices a pin entry names on a mesh cloth: an index or a box; named groups and grid
-/// cells are the grid's.
-fn mesh_pin_indices(pin: &PinSpec, vertices: &[[f64; 3]]) -> Result<Vec<usize>> {
+/// The vertices a pin entry names on a mesh cloth: an index or a selection; named groups and
+/// grid cells are the grid's.
+fn mesh_pin_indices(
+    pin: &PinSpec,
+    vertices: &[[f64; 3]],
+    triangles: &[[i64; 3]],
+) -> Result<Vec<usize>> {
     match pin {
         PinSpec::Index(k) => {
             let n = vertices.len();
@@ -128,11 +148,17 @@ fn mesh_pin_indices(pin: &PinSpec, vertices: &[[f64; 3]]) -> Result<Vec<usize>> 
             )?])
         }
         PinSpec::Region(region) => in_box(region, vertices),
+        PinSpec::Boundary(pin) => {
+            check_boundary(pin.boundary)?;
+            Ok(boundary_vertices(vertices.len(), triangles))
+        }
+        PinSpec::Top(pin) => highest(pin.top, vertices),
         PinSpec::Named(_) | PinSpec::Cell(_) => Err(Error::value(
             "pins",
             format!(
-                "{pin:?} names the grid's particles; a mesh cloth is pinned by vertex index \
-                 (3) or box ({{ box = [[x0, y0, z0], [x1, y1, z1]] }}); pins = [] for none"
+                "{pin:?} names the grid's particles; a mesh cloth is pinned by vertex index (3), \
+                 box ({{ box = [[x0, y0, z0], [x1, y1, z1]] }}), {{ boundary = true }} or \
+                 {{ top = 0.001 }}; pins = [] for none"
             ),
         )),
     }
@@ -175,4 +201,51 @@ fn in_box(region: &PinBox, positions: &[[f64; 3]]) -> Result<Vec<usize>> {
         ));
     }
     Ok(inside)
+}
+
+fn check_boundary(boundary: bool) -> Result<()> {
+    if boundary {
+        Ok(())
+    } else {
+        Err(Error::value(
+            "pins",
+            "{ boundary = false } selects nothing: remove the entry",
+        ))
+    }
+}
+
+/// The vertices of the edges only one triangle has, ascending. Indices out of range are the
+/// mesh's checks' to report; they are skipped here.
+fn boundary_vertices(n: usize, triangles: &[[i64; 3]]) -> Vec<usize> {
+    let mut edges: Vec<(usize, usize)> = triangles
+        .iter()
+        .filter(|t| t.iter().all(|&k| (0..n as i64).contains(&k)))
+        .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
+        .map(|(a, b)| (a.min(b) as usize, a.max(b) as usize))
+        .collect();
+    edges.sort_unstable();
+    let mut on = vec![false; n];
+    for run in edges.chunk_by(|x, y| x == y) {
+        if run.len() == 1 {
+            (on[run[0].0], on[run[0].1]) = (true, true);
+        }
+    }
+    (0..n).filter(|&v| on[v]).collect()
+}
+
+/// The particles whose starting height (y) is within `tolerance` m of the highest one's.
+fn highest(tolerance: f64, positions: &[[f64; 3]]) -> Result<Vec<usize>> {
+    if !(tolerance.is_finite() && tolerance >= 0.0) {
+        return Err(Error::value(
+            "pins",
+            format!("top must be a finite number >= 0 (m), got {tolerance}"),
+        ));
+    }
+    let top = positions
+        .iter()
+        .map(|x| x[1])
+        .fold(f64::NEG_INFINITY, f64::max);
+    Ok((0..positions.len())
+        .filter(|&p| positions[p][1] >= top - tolerance)
+        .collect())
 }

@@ -77,8 +77,8 @@ impl Default for StrainLimitSpec {
 #[serde(deny_unknown_fields, default)]
 pub struct SelfCollisionSpec {
     /// Gap the repulsion keeps between a particle and any triangle without it, and between
-    /// edges with no shared particle, in m (> 0, below half the cloth's grid spacing, so that
-    /// a cloth at rest has no pair this close). Default 0.002. A thicker gap holds layers apart
+    /// edges with no shared particle, in m (> 0, below half the cloth's grid spacing, or a
+    /// mesh cloth's shortest triangle altitude, so that a cloth at rest has no pair this close). Default 0.002. A thicker gap holds layers apart
     /// more visibly and lets the cap act less often; a thinner one looks tighter.
     pub thickness: f64,
     /// Coulomb friction coefficient between layers (>= 0, dimensionless). Default 0.2: each
@@ -199,8 +199,9 @@ impl Plane {
 }
 
 /// A pin: a named group of particles or one `[i, j]` grid position (a grid cloth only), one
-/// particle index (a mesh cloth's vertex index; on a grid, `j * nx + i`), or every particle
-/// whose starting position lies in a box.
+/// particle index (a mesh cloth's vertex index; on a grid, `j * nx + i`), or a selection on
+/// either cloth: every particle whose starting position lies in a box, the boundary, or the
+/// highest particles.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(untagged)]
 pub enum PinSpec {
@@ -208,6 +209,26 @@ pub enum PinSpec {
     Cell([i64; 2]),
     Index(i64),
     Region(PinBox),
+    Boundary(PinBoundary),
+    Top(PinTop),
+}
+
+/// `{ boundary = true }`: every particle on the cloth's boundary, the vertices of the edges
+/// that only one triangle has (a mesh's outline and the rims of its holes; the grid's four
+/// edges). `false` selects nothing and is refused.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PinBoundary {
+    pub boundary: bool,
+}
+
+/// `{ top = 0.001 }`: the highest particles at the start, those within `top` m (finite, >= 0)
+/// below the highest along +y: a mesh's top row, however its vertices are numbered. 0 takes
+/// only those exactly as high as the highest.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PinTop {
+    pub top: f64,
 }
 
 /// `{ box = [[x0, y0, z0], [x1, y1, z1]] }`: the particles whose starting positions lie in the

@@ -102,13 +102,12 @@ impl Scene {
         }
         if let Some(sc) = &self.self_collision {
             check_scalar("self_collision.thickness", sc.thickness, Bound::Positive)?;
-            let c = &self.cloth;
-            let spacing = (c.size[0] / (c.nx - 1) as f64).min(c.size[1] / (c.ny - 1) as f64);
+            let (spacing, what) = self.cloth.rest_spacing();
             if sc.thickness >= 0.5 * spacing {
                 return Err(Error::value(
                     "self_collision.thickness",
                     format!(
-                        "must be below half the cloth's grid spacing ({spacing} m), so that a \
+                        "must be below half the cloth's {what} ({spacing} m), so that a \
                          cloth at rest is not in contact with itself; got {}",
                         sc.thickness
                     ),
@@ -340,6 +339,25 @@ impl ClothSpec {
 }
 
 impl ClothSpec {
+    /// How close two parts of the cloth that share no particle come at rest, a lower bound (m),
+    /// and what it is: the grid spacing, or a mesh's shortest triangle altitude. In a flat mesh
+    /// a vertex is farther than that from every triangle and edge it is not on (they all lie
+    /// beyond the triangles around it), and two edges with no shared vertex are as far apart
+    /// as some vertex is from the other edge. A curved mesh can bring distant parts closer,
+    /// which is the pass's own business once it runs. Called on a validated cloth.
+    pub(crate) fn rest_spacing(&self) -> (f64, &'static str) {
+        match &self.mesh {
+            Some(mesh) => (
+                super::mesh_cloth::min_altitude(&mesh.vertices, &mesh.triangles),
+                "shortest triangle altitude",
+            ),
+            None => (
+                (self.size[0] / (self.nx - 1) as f64).min(self.size[1] / (self.ny - 1) as f64),
+                "grid spacing",
+            ),
+        }
+    }
+
     /// A mesh cloth: the mesh's own checks ([`super::MeshCloth::new`]), the grid's
     /// keys left at their defaults (a value there would be silently ignored), and the pins.
     fn validate_mesh(&self) -> Result<()> {
@@ -399,9 +417,7 @@ impl Scene {
         }
         let present = [
             ("strain_limit", self.strain_limit.is_some()),
-            ("self_collision", self.self_collision.is_some()),
             ("tearing", self.tearing.is_some()),
-            ("wind", self.wind.is_some()),
         ];
         match present.iter().find(|(_, on)| *on) {
             Some((name, _)) => Err(not_on_mesh(name, name)),

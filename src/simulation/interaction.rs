@@ -41,7 +41,6 @@ impl Simulation {
     /// particle nearer the ray. `None` if the ray misses every particle. Errors (changing
     /// nothing) on a non-finite origin or a zero or non-finite direction.
     pub fn pick(&mut self, origin: Vec3, direction: Vec3) -> Result<Option<ParticleHit>> {
-        self.model.grid_only("pick")?;
         let ray = Ray::new(origin, direction)?;
         Ok(self
             .picker
@@ -52,7 +51,6 @@ impl Simulation {
     /// distance along the ray (m) and the barycentric weights of its three vertices. Errors as
     /// [`Simulation::pick`].
     pub fn pick_triangle(&mut self, origin: Vec3, direction: Vec3) -> Result<Option<TriangleHit>> {
-        self.model.grid_only("pick_triangle")?;
         let ray = Ray::new(origin, direction)?;
         Ok(self.picker.triangle(&self.model, &self.state, &ray))
     }
@@ -60,7 +58,7 @@ impl Simulation {
     // ----- dragging and cutting -------------------------------------------------------------
 
     /// Radius in m of the patch a grab holds (see [`Simulation::grab`]). Defaults to
-    /// [`GRIP_SPACINGS`] times the smaller grid spacing.
+    /// [`GRIP_SPACINGS`] times the smaller grid spacing (a mesh cloth's mean edge length).
     pub fn grip_radius(&self) -> f32 {
         self.grip_radius
             .unwrap_or_else(|| (GRIP_SPACINGS * self.model.min_spacing()) as f32)

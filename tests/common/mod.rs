@@ -5,7 +5,7 @@ use std::hash::{Hash, Hasher};
 
 use glam::Vec3;
 use rustcloth::scene::{
-    ClothSpec, ColliderSpec, FloorSpec, PinSpec, Plane, SphereSpec, StrainLimitSpec,
+    ClothSpec, ColliderSpec, FloorSpec, MeshSpec, PinSpec, Plane, SphereSpec, StrainLimitSpec,
 };
 use rustcloth::soa::Vec3s;
 use rustcloth::IntegratorKind;
@@ -19,6 +19,27 @@ pub fn bare_scene(nx: u32, ny: u32) -> Scene {
             nx,
             ny,
             pins: vec![],
+            ..ClothSpec::default()
+        },
+        ..Scene::default()
+    }
+}
+
+/// The default scene (under gravity, no colliders) with a mesh cloth of the default material
+/// held by `pins`: change `scene.cloth.mesh` for another.
+pub fn mesh_cloth_scene(
+    vertices: Vec<[f64; 3]>,
+    triangles: Vec<[i64; 3]>,
+    pins: Vec<PinSpec>,
+) -> Scene {
+    Scene {
+        cloth: ClothSpec {
+            mesh: Some(MeshSpec {
+                vertices,
+                triangles,
+                ..MeshSpec::default()
+            }),
+            pins,
             ..ClothSpec::default()
         },
         ..Scene::default()

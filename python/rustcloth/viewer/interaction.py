@@ -88,12 +88,8 @@ class Interaction:
 
     def grab(self, ray: Ray) -> bool:
         """Grab the cloth under the ray (the core holds the patch within its ``grip_radius`` of
-        the particle hit); False when the ray misses the cloth, or the cloth is a mesh (picking
-        is not yet supported on one: the click does nothing)."""
-        try:
-            hit = self.sim.pick(ray[0], ray[1])
-        except ParameterError:
-            return False
+        the particle hit); False when the ray misses the cloth."""
+        hit = self.sim.pick(ray[0], ray[1])
         if hit is None:
             return False
         self.sim.grab(hit[0])
@@ -125,10 +121,7 @@ class Interaction:
             return 0
         hits: list[F32] = []
         for origin, direction in rays:
-            try:
-                hit = self.sim.pick(origin, direction)
-            except ParameterError:  # not yet supported on a mesh cloth
-                return 0
+            hit = self.sim.pick(origin, direction)
             if hit is not None:
                 d = np.asarray(direction, dtype=np.float64)
                 point = np.asarray(origin, dtype=np.float64) + hit[1] * d / np.linalg.norm(d)
