@@ -71,6 +71,13 @@ const ENERGY_SLACK: f64 = 1e-6;
 /// particles the self-collision pass moved ([`Pipeline::hold_self_contacts`]).
 const SELF_ROUNDS: u32 = 2;
 
+/// Whether the total energy `end` is above `start` by more than the rounding of float32
+/// positions and speeds can explain ([`ENERGY_SLACK`] of the energies' sum at the start).
+fn gained(start: Energy, end: Energy) -> bool {
+    let scale = start.kinetic + start.gravitational.abs() + start.elastic;
+    end.total() > start.total() + ENERGY_SLACK * scale
+}
+
 /// What one solve of a substep reads and writes, apart from the states it goes between.
 struct Solve<'a> {
     model: &'a Model,
@@ -302,9 +309,7 @@ impl Pipeline {
     fn rose(&self, start: Energy, end: impl FnOnce() -> Energy) -> Option<Energy> {
         let end = end();
         let held = self.contacts.as_ref().is_some_and(|c| c.count > 0);
-        let scale = start.kinetic + start.gravitational.abs() + start.elastic;
-        let gained = end.total() > start.total() + ENERGY_SLACK * scale;
-        (!(held && gained)).then_some(end)
+        (!(held && gained(start, end))).then_some(end)
     }
 
     /// Steps `from` (whose energy is `energy`) over `job.h` into `into` as two halves,
@@ -505,7 +510,7 @@ impl Pipeline {
     /// side it pushed toward is free), a vertex stops within the solve, and its springs slow
     /// its neighbours there instead of straining. The pass then runs again on the new result.
     /// Only where it matters: where nothing does work on the cloth and the substep ended with
-    /// more energy than it started with (by more than rounding, as for [`Pipeline::rose`]).
+    /// more energy than it started with (by more than rounding, [`gained`]).
     pub fn hold_self_contacts(&mut self, s: &Substep, round: u32) -> bool {
         if round + 1 >= SELF_ROUNDS || self.self_collision.is_none() || !self.holds_contacts() {
             return false;
@@ -513,8 +518,7 @@ impl Pipeline {
         let (Some(start), Some(contacts)) = (self.start_energy, self.contacts.as_mut()) else {
             return false;
         };
-        let scale = start.kinetic + start.gravitational.abs() + start.elastic;
-        if energy_of(s.model, s.next).total() <= start.total() + ENERGY_SLACK * scale {
+        if !gained(start, energy_of(s.model, s.next)) {
             return false;
         }
         let (before, after) = (&self.unshortened, &s.next.pos);
