@@ -54,15 +54,7 @@ impl Grab {
             let a = held[next].index;
             next += 1;
             if let Some(mesh) = model.mesh() {
-                // A mesh cloth's springs, each listed at both its ends.
-                let around = &mesh.incident[mesh.offsets[a] as usize..mesh.offsets[a + 1] as usize];
-                for &e in around {
-                    let s = (e >> 1) as usize;
-                    let b = if e & 1 == 0 {
-                        mesh.springs.b[s]
-                    } else {
-                        mesh.springs.a[s]
-                    } as usize;
+                for b in mesh.neighbours(a) {
                     if seen[b] || !alive[b] {
                         continue;
                     }

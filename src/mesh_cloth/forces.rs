@@ -55,8 +55,7 @@ impl MeshCloth {
                 for i in 0..f.len() {
                     let v = c * chunk + i;
                     let mut sum = f.get(i);
-                    for &e in &self.incident[self.offsets[v] as usize..self.offsets[v + 1] as usize]
-                    {
+                    for &e in self.springs_at(v) {
                         let g = glam::Vec3::from_array(table[(e >> 1) as usize]);
                         sum = if e & 1 == 0 { sum + g } else { sum - g };
                     }

@@ -163,14 +163,10 @@ impl MeshCloth {
         }
         let springs = springs_of(rest, &triangles, &area, spec)?;
         let (offsets, incident) = incidence(n, &springs);
-        let (total, edges) = edge_uses(&triangles).chunk_by(|x, y| x.0 == y.0).fold(
-            (0.0, 0),
-            |(total, edges), run| {
-                let (a, b) = ((run[0].0 >> 32) as u32, run[0].0 as u32);
-                (total + (at(b) - at(a)).length(), edges + 1)
-            },
-        );
-        let mean_edge = total / edges as f64;
+        // Every edge has one stretch spring, at its rest length.
+        let edges = (0..springs.len()).filter(|&s| springs.kind[s] == EdgeKind::Stretch);
+        let (total, count) = edges.fold((0.0, 0), |(t, c), s| (t + springs.rest[s] as f64, c + 1));
+        let mean_edge = total / count as f64;
         Ok(MeshCloth {
             mean_edge,
             rest: rest.clone(),
@@ -203,11 +199,28 @@ impl MeshCloth {
         self.per_vertex_max(|s| self.springs.c[s] as f64)
     }
 
+    /// The springs touching vertex `v`, each as `spring << 1 | end` (`end` 1 at its `b`).
+    pub fn springs_at(&self, v: usize) -> &[u32] {
+        &self.incident[self.offsets[v] as usize..self.offsets[v + 1] as usize]
+    }
+
+    /// The other end of each spring touching vertex `v` (edge and bend neighbours).
+    pub fn neighbours(&self, v: usize) -> impl Iterator<Item = usize> + '_ {
+        self.springs_at(v).iter().map(|&e| {
+            let s = (e >> 1) as usize;
+            let other = if e & 1 == 0 {
+                self.springs.b[s]
+            } else {
+                self.springs.a[s]
+            };
+            other as usize
+        })
+    }
+
     fn per_vertex_max(&self, value: impl Fn(usize) -> f64) -> f64 {
         (0..self.len())
             .map(|v| {
-                let around = self.incident[self.offsets[v] as usize..self.offsets[v + 1] as usize]
-                    .iter()
+                let around = (self.springs_at(v).iter())
                     .map(|&e| value((e >> 1) as usize))
                     .sum::<f64>();
                 2.0 * around / self.masses[v]
