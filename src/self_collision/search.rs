@@ -79,21 +79,29 @@ impl Broad {
             self.tri_tree.refit(&self.tri_boxes);
             self.edge_tree.refit(&self.edge_boxes);
         }
+        // A candidate's closest points, kept under `key` when closer than its limit; its tight
+        // boxes pass over it first when they are already farther apart than that.
+        let keep_close = |verts: [u32; 4],
+                          split: usize,
+                          key: u64,
+                          closest: fn(&Vec3s, [u32; 4]) -> Pair,
+                          out: &mut Vec<(u64, Pair)>| {
+            let most = limit(&verts, split);
+            if apart(x, &verts, split) <= most + margin {
+                let pair = closest(x, verts);
+                if pair.d0 < most {
+                    out.push((key, pair));
+                }
+            }
+        };
         let vertex_triangle_pair = |k: u32, t: u32, out: &mut Vec<(u64, Pair)>| {
             let v = topo.vertices[k as usize];
             let [a, b, c] = topo.triangles[t as usize];
             if v == a || v == b || v == c {
                 return false;
             }
-            let verts = [v, a, b, c];
-            let most = limit(&verts, 1);
-            if apart(x, &verts, 1) > most + margin {
-                return true;
-            }
-            let pair = vertex_triangle(x, verts);
-            if pair.d0 < most {
-                out.push(((v as u64) << 32 | t as u64, pair));
-            }
+            let key = (v as u64) << 32 | t as u64;
+            keep_close([v, a, b, c], 1, key, vertex_triangle, out);
             true
         };
         let (boxes, candidates) = self.vert_tree.overlapping_pairs(
@@ -107,15 +115,8 @@ impl Broad {
             if a == c || a == d || b == c || b == d {
                 return false;
             }
-            let verts = [a, b, c, d];
-            let most = limit(&verts, 2);
-            if apart(x, &verts, 2) > most + margin {
-                return true;
-            }
-            let pair = edge_edge(x, verts);
-            if pair.d0 < most {
-                out.push(((e as u64) << 32 | f as u64, pair));
-            }
+            let key = (e as u64) << 32 | f as u64;
+            keep_close([a, b, c, d], 2, key, edge_edge, out);
             true
         };
         let more = self
