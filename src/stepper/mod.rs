@@ -204,6 +204,7 @@ impl Stepper {
         );
         let passes = &mut self.pipeline;
         passes.predict_contacts(&mut s);
+        passes.judge_work(&s);
         let mut round = 0;
         let finite = loop {
             let mut finite = passes.integrate(&mut s, &mut self.force);

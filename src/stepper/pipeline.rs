@@ -273,10 +273,7 @@ impl Pipeline {
         // this solve, not a later round's or a half's, which start elsewhere.
         self.forces.arm_stretch_watch();
         let mut finite = self.solve(&mut job, from, s.next, false);
-        self.start_energy = None;
-        if finite && self.holds_contacts() && !self.does_work(model, s.state, (s.h, s.time)) {
-            let start = energy_of(model, from);
-            self.start_energy = Some(start);
+        if let (true, Some(start)) = (finite, self.start_energy) {
             if self.rose(start, || energy_of(model, s.next)).is_none() {
                 finite = self.split(&mut job, from, start, s.next, 1).0;
             }
@@ -286,6 +283,15 @@ impl Pipeline {
             .saturating_sub(s.profile.force_time - forces_before);
         s.profile.add(self.integrator.name(), own_time);
         finite
+    }
+
+    /// Keeps the energy at the substep's start where a solver holds contacts and nothing does
+    /// work on the cloth ([`Pipeline::does_work`]), None elsewhere: what every solve of the
+    /// substep (each round of its passes, each half) is judged against. Once per substep,
+    /// before its first round.
+    pub fn judge_work(&mut self, s: &Substep) {
+        let idle = self.holds_contacts() && !self.does_work(s.model, s.state, (s.h, s.time));
+        self.start_energy = idle.then(|| energy_of(s.model, &s.state.kin));
     }
 
     /// Whether something may do work on the cloth within the substep of length `h` ending at
