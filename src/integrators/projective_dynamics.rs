@@ -82,7 +82,7 @@ use super::{par_update, FiniteCheck, StepContext};
 use crate::forces::Force;
 use crate::grid::SpringKind;
 use crate::linear::reduce::{dot3, partials, REDUCE_CHUNK};
-use crate::linear::{GridCholesky, ScalarStencil};
+use crate::linear::{ScalarStencil, SparseCholesky};
 use crate::soa::Vec3s;
 use crate::springs::{anchored_run, neighbour_runs};
 
@@ -164,24 +164,28 @@ impl Key {
     }
 }
 
-struct Work {
+pub(super) struct Work {
     key: Key,
     /// `(kind, k, c)` of every spring kind in the pipeline.
-    kinds: Vec<(SpringKind, f32, f32)>,
-    factor: GridCholesky,
+    pub(super) kinds: Vec<(SpringKind, f32, f32)>,
+    pub(super) factor: SparseCholesky,
     /// The current iterate as a displacement from the start of the step, `x_k - x_n` (held
     /// particles at `h v_n`), the one before it, the global step's increment `Q^-1 g`, the
     /// inertial target `y - x_n` and the gradient. Displacements keep float32's full relative
     /// precision for the step's motion: as absolute positions, `h^2 g` is below the resolution
     /// of a coordinate of 1 m once `h` is under 1e-4 s, and the cloth stopped falling.
-    x: Vec3s,
-    previous: Vec3s,
-    increment: Vec3s,
-    y: Vec3s,
-    grad: Vec3s,
+    pub(super) x: Vec3s,
+    pub(super) previous: Vec3s,
+    pub(super) increment: Vec3s,
+    pub(super) y: Vec3s,
+    pub(super) grad: Vec3s,
     /// Per kind, the force of the spring anchored at each particle on that particle.
-    force: [Vec3s; 6],
-    partials: Vec<f64>,
+    pub(super) force: [Vec3s; 6],
+    pub(super) partials: Vec<f64>,
+    /// A mesh cloth's: the force of each spring on its first end, and the rest shape's
+    /// nested-dissection order (made with the first factor).
+    pub(super) spring_force: Vec3s,
+    pub(super) order: Vec<usize>,
 }
 
 impl ProjectiveDynamics {
@@ -220,7 +224,7 @@ impl ProjectiveDynamics {
         let work = self.work.get_or_insert_with(|| Work {
             key: Key::default(),
             kinds: Vec::new(),
-            factor: GridCholesky::default(),
+            factor: SparseCholesky::default(),
             x: Vec3s::zeros(n),
             previous: Vec3s::zeros(n),
             increment: Vec3s::zeros(n),
@@ -228,6 +232,8 @@ impl ProjectiveDynamics {
             grad: Vec3s::zeros(n),
             force: Default::default(),
             partials: partials(n),
+            spring_force: Vec3s::default(),
+            order: Vec::new(),
         });
         if !work.key.matches(h, drag, kinds, ctx) {
             let started = Instant::now();
@@ -363,12 +369,12 @@ impl ProjectiveDynamics {
 const CONTACT_WEIGHT: f32 = 100.0;
 
 /// `w_c` of a particle of mass `m` at step `h`.
-fn contact_weight(m: f32, h: f32) -> f32 {
+pub(super) fn contact_weight(m: f32, h: f32) -> f32 {
     CONTACT_WEIGHT * m / (h * h)
 }
 
 /// Whether free particle `p` is in a predicted contact this step.
-fn in_contact(ctx: &StepContext, p: usize) -> bool {
+pub(super) fn in_contact(ctx: &StepContext, p: usize) -> bool {
     ctx.contacts
         .is_some_and(|c| c.count > 0 && c.normal.get(p) != Vec3::ZERO)
         && ctx.particles.inv_mass[p] > 0.0
@@ -379,13 +385,16 @@ fn in_contact(ctx: &StepContext, p: usize) -> bool {
 /// is held where it is along `n`, not pulled onto the plane within the step: that would turn the
 /// depth into speed; the collider pass after the step puts it out without velocity.
 #[inline(always)]
-fn depth(n: Vec3, offset: f32, xn: Vec3, dx: Vec3) -> f32 {
+pub(super) fn depth(n: Vec3, offset: f32, xn: Vec3, dx: Vec3) -> f32 {
     let ahead = (n.dot(xn) - offset).max(0.0);
     -ahead - n.dot(dx)
 }
 
 /// Builds `Q` and factors it over the free particles.
 fn factor(work: &mut Work, h: f32, drag: f32, ctx: &StepContext) {
+    if let Some(mesh) = ctx.mesh {
+        return super::projective_mesh::factor(mesh, work, h, drag, ctx);
+    }
     let n = ctx.grid.len();
     let (mass, w) = (&ctx.particles.mass, &ctx.particles.inv_mass);
     let slots: Vec<usize> = work
@@ -428,7 +437,7 @@ fn factor(work: &mut Work, h: f32, drag: f32, ctx: &StepContext) {
         }
     }
     let free: Vec<bool> = w.iter().map(|&w| w > 0.0).collect();
-    work.factor = GridCholesky::factor(&q, &free);
+    work.factor = SparseCholesky::factor(&q, &free);
     for kind in work.kinds.iter().map(|k| k.0) {
         if work.force[kind.index()].len() != n {
             work.force[kind.index()] = Vec3s::zeros(n);
@@ -440,6 +449,9 @@ fn factor(work: &mut Work, h: f32, drag: f32, ctx: &StepContext) {
 /// gradient of the incremental potential, `g = M/h^2 (x - y) + c_d/h (x - x_n) - f_springs(x)`,
 /// zero for held particles. Returns `|g|`.
 fn local_step(work: &mut Work, h: f32, drag: f32, ctx: &StepContext) -> f64 {
+    if let Some(mesh) = ctx.mesh {
+        return super::projective_mesh::local_step(mesh, work, h, drag, ctx);
+    }
     let n = ctx.grid.len();
     let chunk = ctx.chunk;
     let (cur, rest, active) = (&ctx.current.pos, &ctx.springs.rest, &ctx.springs.active);

@@ -12,9 +12,11 @@
 //! looked at the stencil and run unchanged on a mesh cloth, whose particles are laid out as a
 //! one-row grid (`nx` = vertex count, `ny` = 1) with every stencil slot empty; the springs of
 //! [`EdgeSprings`] are added to the force after the grid's sweep ([`forces`]), and the surface
-//! passes (normals, energy, strain, the drawn mesh) read the mesh's triangles. Passes still
-//! written only for the stencil (cutting, tearing, strain limiting, self-collision, wind,
-//! picking, the implicit solvers) are refused on a mesh cloth when the scene is validated, or
+//! passes (normals, energy, strain, the drawn mesh) read the mesh's triangles. The implicit
+//! solvers assemble their matrices from the spring list (`src/integrators/implicit_mesh.rs`,
+//! `src/integrators/projective_mesh.rs`) and strain limiting walks it
+//! (`src/strain_limit/mesh.rs`). Passes still written only for the stencil (cutting, tearing,
+//! self-collision, wind, picking) are refused on a mesh cloth when the scene is validated, or
 //! when the call is made, with an error that names them.
 //!
 //! # Springs

@@ -383,11 +383,7 @@ impl Scene {
         if self.cloth.mesh.is_none() {
             return Ok(());
         }
-        if !self.integrator.runs_on_mesh() {
-            return Err(not_on_mesh("integrator", self.integrator.name()));
-        }
         let present = [
-            ("strain_limit", self.strain_limit.is_some()),
             ("self_collision", self.self_collision.is_some()),
             ("tearing", self.tearing.is_some()),
             ("wind", self.wind.is_some()),
