@@ -115,6 +115,7 @@ impl MeshSystem {
     ) {
         let started = Instant::now();
         self.build_blocks(mesh, h, ctx);
+        self.matrix.gather();
         self.assemble_diagonal_and_rhs(mesh, h, drag, ctx);
         if let Some(contacts) = ctx.contacts.filter(|c| c.count > 0) {
             self.hold_contacts(h, contacts, ctx);

@@ -1,8 +1,10 @@
 //! A symmetric matrix of 3 x 3 blocks over the springs of a mesh: a block-CSR whose rows are
 //! the vertices and whose entries in row `a` are the springs touching `a`, in increasing spring
 //! order. A spring's two off-diagonal blocks `A[a, b]` and `A[b, a]` are one symmetric block
-//! (`C_s = alpha u u^T + beta I` is its own transpose), stored once per spring; two springs
-//! joining the same pair are two entries that add up. Each row's product sums its entries in a
+//! (`C_s = alpha u u^T + beta I` is its own transpose), written once per spring ([`SpringMatrix::off`])
+//! and copied into each of its two rows by [`SpringMatrix::gather`], so that a product streams
+//! each row's blocks instead of looking them up by spring; two springs joining the same pair
+//! are two entries that add up. Each row's product sums its entries in a
 //! fixed order, so `A x` is bitwise the same for any number of threads.
 
 use super::cg::BlockOperator;
@@ -20,6 +22,8 @@ pub struct SpringMatrix {
     pub diagonal: Vec<Sym3>,
     /// The off-diagonal block of each spring.
     pub off: Vec<Sym3>,
+    /// The off-diagonal blocks in row order, as [`SpringMatrix::gather`] copied them.
+    values: Vec<Sym3>,
 }
 
 impl SpringMatrix {
@@ -46,7 +50,24 @@ impl SpringMatrix {
             column,
             diagonal: vec![Sym3::ZERO; n],
             off: vec![Sym3::ZERO; a.len()],
+            values: vec![Sym3::ZERO; incident.len()],
         }
+    }
+
+    /// Copies each spring's block [`SpringMatrix::off`] into its two rows: call after writing
+    /// `off`, before a product.
+    pub fn gather(&mut self) {
+        use rayon::prelude::*;
+        let (off, spring) = (&self.off, &self.spring);
+        self.values
+            .par_chunks_mut(1 << 14)
+            .enumerate()
+            .for_each(|(c, values)| {
+                let start = c << 14;
+                for (i, v) in values.iter_mut().enumerate() {
+                    *v = off[spring[start + i] as usize];
+                }
+            });
     }
 
     /// Rows (vertices).
@@ -71,7 +92,8 @@ impl SpringMatrix {
         self.offsets.capacity() * 4
             + self.spring.capacity() * 4
             + self.column.capacity() * 4
-            + (self.diagonal.capacity() + self.off.capacity()) * size_of::<Sym3>()
+            + (self.diagonal.capacity() + self.off.capacity() + self.values.capacity())
+                * size_of::<Sym3>()
     }
 }
 
@@ -81,8 +103,8 @@ impl BlockOperator for SpringMatrix {
         for (i, v) in range.enumerate() {
             let mut acc = self.diagonal[v].mul(x.get(v));
             let r = self.offsets[v] as usize..self.offsets[v + 1] as usize;
-            for (&s, &c) in self.spring[r.clone()].iter().zip(&self.column[r]) {
-                acc += self.off[s as usize].mul(x.get(c as usize));
+            for (block, &c) in self.values[r.clone()].iter().zip(&self.column[r]) {
+                acc += block.mul(x.get(c as usize));
             }
             out.set(i, acc);
         }
@@ -116,6 +138,7 @@ mod tests {
         for (s, o) in m.off.iter_mut().enumerate() {
             *o = Sym3::outer(-0.5, Vec3::new(0.6, 0.8, 0.0), -(s as f32) * 0.1);
         }
+        m.gather();
         let x = Vec3s::from_fn(3, |v| Vec3::new(v as f32, 1.0, -2.0 * v as f32));
         let mut y = Vec3s::zeros(3);
         m.apply(&x, &mut y);
