@@ -7,7 +7,9 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use super::implicit_mesh::MeshSystem;
-use super::solver::{kind_slot, live_or_zero, Preconditioner, SolverSettings, SolverStats};
+use super::solver::{
+    kind_slot, live_or_zero, Preconditioner, SolverSettings, SolverStats, CONTACT_STIFFNESS,
+};
 use super::{par_update, FiniteCheck, StepContext};
 use crate::collisions::PredictedContacts;
 use crate::forces::Force;
@@ -360,12 +362,6 @@ fn assemble_diagonal_and_rhs(work: &mut Work, h: f32, drag: f32, ctx: &StepConte
         });
     *work.matrix.slot_mut(0) = diag;
 }
-
-/// How much stiffer than its own inertia (`m / h^2`) the penalty holding a contact is. The
-/// predicted penetration left after the solve is `1 / (1 + CONTACT_STIFFNESS)` of the free
-/// motion's; larger also holds, but worsens the matrix's condition for nothing the collider
-/// pass after the step does not already correct.
-pub(super) const CONTACT_STIFFNESS: f32 = 1000.0;
 
 /// Holds each predicted contact on its plane inside the solve: a stiff spring along the normal
 /// `n` pulling the particle's end position onto the plane, `f = -k_c n (n . x' - offset)` with

@@ -29,8 +29,7 @@ use std::time::Instant;
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::implicit_euler::CONTACT_STIFFNESS;
-use super::solver::{live_or_zero, Preconditioner, SolverSettings, SolverStats};
+use super::solver::{live_or_zero, Preconditioner, SolverSettings, SolverStats, CONTACT_STIFFNESS};
 use super::StepContext;
 use crate::collisions::PredictedContacts;
 use crate::linear::cg::{diagonal_blocks, ConjugateGradient};

@@ -10,8 +10,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::implicit_mesh::mesh_order;
-use super::projective_dynamics::{contact_weight, depth, in_contact, Work};
-use super::solver::live_or_zero;
+use super::solver::{contact_weight, depth, in_contact, live_or_zero};
 use super::StepContext;
 use crate::linear::reduce::{dot3, REDUCE_CHUNK};
 use crate::linear::SparseCholesky;
@@ -22,10 +21,18 @@ use crate::soa::Vec3s;
 const SPRING_CHUNK: usize = 4096;
 
 /// `Q = M/h^2 + c_d/h I + sum_s (k_s + c_s/h) A_s^T A_s` (plus `w_c` on the diagonal of each
-/// vertex in a predicted contact), factored over the free vertices.
-pub(super) fn factor(mesh: &MeshCloth, work: &mut Work, h: f32, drag: f32, ctx: &StepContext) {
-    if work.order.is_empty() {
-        work.order = mesh_order(mesh);
+/// vertex in a predicted contact), factored over the free vertices in the rest shape's
+/// nested-dissection `order` (made on the first call); sizes `spring_force`, the local step's
+/// table, to the springs.
+pub(super) fn factor(
+    mesh: &MeshCloth,
+    order: &mut Vec<usize>,
+    spring_force: &mut Vec3s,
+    (h, drag): (f32, f32),
+    ctx: &StepContext,
+) -> SparseCholesky {
+    if order.is_empty() {
+        *order = mesh_order(mesh);
     }
     let (mass, w) = (&ctx.particles.mass, &ctx.particles.inv_mass);
     let (h64, drag64) = (h as f64, drag as f64);
@@ -44,29 +51,29 @@ pub(super) fn factor(mesh: &MeshCloth, work: &mut Work, h: f32, drag: f32, ctx: 
             diagonal[p] += contact_weight(m, h) as f64;
         }
     }
-    let order = work.order.iter().copied().filter(|&p| w[p] > 0.0).collect();
-    let entries = (0..s.len()).map(|e| (s.a[e] as usize, s.b[e] as usize, -weight(e)));
-    work.factor = SparseCholesky::factor_ordered(order, &diagonal, entries);
-    if work.spring_force.len() != s.len() {
-        work.spring_force = Vec3s::zeros(s.len());
+    if spring_force.len() != s.len() {
+        *spring_force = Vec3s::zeros(s.len());
     }
+    let order = order.iter().copied().filter(|&p| w[p] > 0.0).collect();
+    let entries = (0..s.len()).map(|e| (s.a[e] as usize, s.b[e] as usize, -weight(e)));
+    SparseCholesky::factor_ordered(order, &diagonal, entries)
 }
 
-/// The local step at `x = x_n + work.x` and the gradient
+/// The local step at the iterate `x_n + x` (`y` the inertial target, both as displacements) into
+/// the per-spring table `spring_force`, and the gradient into `grad`
 /// `g = M/h^2 (x - y) + c_d/h (x - x_n) - f_springs(x)` (contacts' terms included, zero for held
 /// vertices), as the grid's. Returns `|g|`.
 pub(super) fn local_step(
     mesh: &MeshCloth,
-    work: &mut Work,
-    h: f32,
-    drag: f32,
+    (x, y): (&Vec3s, &Vec3s),
+    (grad, spring_force, partials): (&mut Vec3s, &mut Vec3s, &mut [f64]),
+    (h, drag): (f32, f32),
     ctx: &StepContext,
 ) -> f64 {
     let s = &mesh.springs;
     let cur = &ctx.current.pos;
     let inv_h = 1.0 / h;
-    let x = &work.x;
-    work.spring_force
+    spring_force
         .par_chunks_mut(SPRING_CHUNK)
         .enumerate()
         .for_each(|(ci, mut f)| {
@@ -85,14 +92,7 @@ pub(super) fn local_step(
                 f.set(i, magnitude * u);
             }
         });
-    let Work {
-        y,
-        grad,
-        spring_force,
-        partials,
-        ..
-    } = work;
-    let (y, table) = (&*y, &*spring_force);
+    let table = &*spring_force;
     let (mass, inv_mass) = (&ctx.particles.mass, &ctx.particles.inv_mass);
     let contacts = ctx.contacts.filter(|c| c.count > 0);
     let (inv_h2, drag_h) = (inv_h * inv_h, drag * inv_h);
