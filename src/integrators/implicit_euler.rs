@@ -6,7 +6,10 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-use super::solver::{kind_slot, live_or_zero, Preconditioner, SolverSettings, SolverStats};
+use super::implicit_mesh::MeshSystem;
+use super::solver::{
+    kind_slot, live_or_zero, Preconditioner, SolverSettings, SolverStats, CONTACT_STIFFNESS,
+};
 use super::{par_update, FiniteCheck, StepContext};
 use crate::collisions::PredictedContacts;
 use crate::forces::Force;
@@ -50,6 +53,8 @@ pub struct ImplicitEuler {
     /// `(family, k, c)` of the spring terms, refilled each step (kept to reuse its allocation).
     families: Vec<(crate::grid::Family, f32, f32)>,
     work: Option<Work>,
+    /// A mesh cloth's system ([`super::implicit_mesh`]), made on its first step.
+    mesh: Option<MeshSystem>,
 }
 
 /// The matrix `A = M + h drag I + sum_s C_s` (filtered), per-spring data and the solver's
@@ -96,6 +101,7 @@ impl ImplicitEuler {
             stats: SolverStats::default(),
             families: Vec::new(),
             work: None,
+            mesh: None,
         }
     }
 }
@@ -118,6 +124,11 @@ impl ImplicitEuler {
                 Force::Drag { c } => drag += c,
                 Force::Gravity { .. } => {}
             }
+        }
+        if let Some(mesh) = ctx.mesh {
+            let system = self.mesh.get_or_insert_with(|| MeshSystem::new(mesh));
+            system.solve(mesh, (h, drag), self.settings, &mut self.stats, ctx);
+            return update(h, ctx, &system.dv);
         }
         let work = self.work.get_or_insert_with(|| {
             let kinds = families
@@ -186,27 +197,32 @@ impl ImplicitEuler {
         self.stats
             .record(iterations, residual, settings.tolerance as f64);
 
-        // v' = v + dv, x' = x + h v'.
-        let (cur, dv, w) = (ctx.current, &work.dv, &ctx.particles.inv_mass);
-        par_update(ctx.next, ctx.chunk, |mut out| {
-            let mut check = FiniteCheck::default();
-            for (i, p) in out.range.clone().enumerate() {
-                let (x, v) = (cur.pos.get(p), cur.vel.get(p));
-                let (x_new, v_new) = if w[p] > 0.0 {
-                    let v_new = v + dv.get(p);
-                    (x + h * v_new, v_new)
-                } else {
-                    (x, v)
-                };
-                out.pos.set(i, x_new);
-                out.vel.set(i, v_new);
-                for value in x_new.to_array().into_iter().chain(v_new.to_array()) {
-                    check.watch(value);
-                }
-            }
-            check
-        })
+        update(h, ctx, &work.dv)
     }
+}
+
+/// `v' = v + dv`, `x' = x + h v'` for free particles; held ones keep their state bitwise.
+/// Returns whether everything written is finite.
+fn update(h: f32, ctx: &mut StepContext, dv: &Vec3s) -> bool {
+    let (cur, w) = (ctx.current, &ctx.particles.inv_mass);
+    par_update(ctx.next, ctx.chunk, |mut out| {
+        let mut check = FiniteCheck::default();
+        for (i, p) in out.range.clone().enumerate() {
+            let (x, v) = (cur.pos.get(p), cur.vel.get(p));
+            let (x_new, v_new) = if w[p] > 0.0 {
+                let v_new = v + dv.get(p);
+                (x + h * v_new, v_new)
+            } else {
+                (x, v)
+            };
+            out.pos.set(i, x_new);
+            out.vel.set(i, v_new);
+            for value in x_new.to_array().into_iter().chain(v_new.to_array()) {
+                check.watch(value);
+            }
+        }
+        check
+    })
 }
 
 /// The blocks `-C_s` of every spring of `kind` into the matrix slot `slot` (unfiltered), and
@@ -346,12 +362,6 @@ fn assemble_diagonal_and_rhs(work: &mut Work, h: f32, drag: f32, ctx: &StepConte
         });
     *work.matrix.slot_mut(0) = diag;
 }
-
-/// How much stiffer than its own inertia (`m / h^2`) the penalty holding a contact is. The
-/// predicted penetration left after the solve is `1 / (1 + CONTACT_STIFFNESS)` of the free
-/// motion's; larger also holds, but worsens the matrix's condition for nothing the collider
-/// pass after the step does not already correct.
-const CONTACT_STIFFNESS: f32 = 1000.0;
 
 /// Holds each predicted contact on its plane inside the solve: a stiff spring along the normal
 /// `n` pulling the particle's end position onto the plane, `f = -k_c n (n . x' - offset)` with

@@ -8,7 +8,9 @@
 
 mod explicit_euler;
 mod implicit_euler;
+mod implicit_mesh;
 mod projective_dynamics;
+mod projective_mesh;
 mod rk4;
 pub mod solver;
 mod symplectic_euler;

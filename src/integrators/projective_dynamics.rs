@@ -77,12 +77,14 @@ use std::time::Instant;
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::solver::{kind_slot, live_or_zero, SolverSettings, SolverStats};
+use super::solver::{
+    contact_weight, depth, in_contact, kind_slot, live_or_zero, SolverSettings, SolverStats,
+};
 use super::{par_update, FiniteCheck, StepContext};
 use crate::forces::Force;
 use crate::grid::SpringKind;
 use crate::linear::reduce::{dot3, partials, REDUCE_CHUNK};
-use crate::linear::{GridCholesky, ScalarStencil};
+use crate::linear::{ScalarStencil, SparseCholesky};
 use crate::soa::Vec3s;
 use crate::springs::{anchored_run, neighbour_runs};
 
@@ -168,7 +170,7 @@ struct Work {
     key: Key,
     /// `(kind, k, c)` of every spring kind in the pipeline.
     kinds: Vec<(SpringKind, f32, f32)>,
-    factor: GridCholesky,
+    factor: SparseCholesky,
     /// The current iterate as a displacement from the start of the step, `x_k - x_n` (held
     /// particles at `h v_n`), the one before it, the global step's increment `Q^-1 g`, the
     /// inertial target `y - x_n` and the gradient. Displacements keep float32's full relative
@@ -182,6 +184,10 @@ struct Work {
     /// Per kind, the force of the spring anchored at each particle on that particle.
     force: [Vec3s; 6],
     partials: Vec<f64>,
+    /// A mesh cloth's: the force of each spring on its first end, and the rest shape's
+    /// nested-dissection order (made with the first factor).
+    spring_force: Vec3s,
+    order: Vec<usize>,
 }
 
 impl ProjectiveDynamics {
@@ -220,7 +226,7 @@ impl ProjectiveDynamics {
         let work = self.work.get_or_insert_with(|| Work {
             key: Key::default(),
             kinds: Vec::new(),
-            factor: GridCholesky::default(),
+            factor: SparseCholesky::default(),
             x: Vec3s::zeros(n),
             previous: Vec3s::zeros(n),
             increment: Vec3s::zeros(n),
@@ -228,6 +234,8 @@ impl ProjectiveDynamics {
             grad: Vec3s::zeros(n),
             force: Default::default(),
             partials: partials(n),
+            spring_force: Vec3s::default(),
+            order: Vec::new(),
         });
         if !work.key.matches(h, drag, kinds, ctx) {
             let started = Instant::now();
@@ -352,40 +360,13 @@ impl ProjectiveDynamics {
     }
 }
 
-/// How much stiffer than its own inertia (`m / h^2`) the weight `w_c` holding a contact is.
-/// The predicted penetration left after a converged solve is about `1 / (1 + CONTACT_WEIGHT)`
-/// of the free motion's, which the collider pass after the step removes. Not larger: the weight
-/// is isotropic in `Q` while the contact pushes only along its normal, so a particle in contact
-/// slides along its plane within the iterations as if `w_c` times heavier. At 1000 a cloth
-/// draped over a sphere at 0.5 ms substeps gained up to 0.1 J (of 2.7 J) over its running
-/// minimum; at 300, 0.01 J; at 100 and below nothing. Much softer (30) lets the cloth that
-/// lands on a small ball at 1/60 s sink in and swing off it.
-const CONTACT_WEIGHT: f32 = 100.0;
-
-/// `w_c` of a particle of mass `m` at step `h`.
-fn contact_weight(m: f32, h: f32) -> f32 {
-    CONTACT_WEIGHT * m / (h * h)
-}
-
-/// Whether free particle `p` is in a predicted contact this step.
-fn in_contact(ctx: &StepContext, p: usize) -> bool {
-    ctx.contacts
-        .is_some_and(|c| c.count > 0 && c.normal.get(p) != Vec3::ZERO)
-        && ctx.particles.inv_mass[p] > 0.0
-}
-
-/// How far a particle at `x_n + dx` is behind the plane `n . x = offset` of its predicted
-/// contact (negative ahead of it). A particle that starts behind the plane (inside a collider)
-/// is held where it is along `n`, not pulled onto the plane within the step: that would turn the
-/// depth into speed; the collider pass after the step puts it out without velocity.
-#[inline(always)]
-fn depth(n: Vec3, offset: f32, xn: Vec3, dx: Vec3) -> f32 {
-    let ahead = (n.dot(xn) - offset).max(0.0);
-    -ahead - n.dot(dx)
-}
-
 /// Builds `Q` and factors it over the free particles.
 fn factor(work: &mut Work, h: f32, drag: f32, ctx: &StepContext) {
+    if let Some(mesh) = ctx.mesh {
+        let (order, forces) = (&mut work.order, &mut work.spring_force);
+        work.factor = super::projective_mesh::factor(mesh, order, forces, (h, drag), ctx);
+        return;
+    }
     let n = ctx.grid.len();
     let (mass, w) = (&ctx.particles.mass, &ctx.particles.inv_mass);
     let slots: Vec<usize> = work
@@ -428,7 +409,7 @@ fn factor(work: &mut Work, h: f32, drag: f32, ctx: &StepContext) {
         }
     }
     let free: Vec<bool> = w.iter().map(|&w| w > 0.0).collect();
-    work.factor = GridCholesky::factor(&q, &free);
+    work.factor = SparseCholesky::factor(&q, &free);
     for kind in work.kinds.iter().map(|k| k.0) {
         if work.force[kind.index()].len() != n {
             work.force[kind.index()] = Vec3s::zeros(n);
@@ -440,6 +421,23 @@ fn factor(work: &mut Work, h: f32, drag: f32, ctx: &StepContext) {
 /// gradient of the incremental potential, `g = M/h^2 (x - y) + c_d/h (x - x_n) - f_springs(x)`,
 /// zero for held particles. Returns `|g|`.
 fn local_step(work: &mut Work, h: f32, drag: f32, ctx: &StepContext) -> f64 {
+    if let Some(mesh) = ctx.mesh {
+        let Work {
+            x,
+            y,
+            grad,
+            spring_force,
+            partials,
+            ..
+        } = work;
+        return super::projective_mesh::local_step(
+            mesh,
+            (x, y),
+            (grad, spring_force, partials),
+            (h, drag),
+            ctx,
+        );
+    }
     let n = ctx.grid.len();
     let chunk = ctx.chunk;
     let (cur, rest, active) = (&ctx.current.pos, &ctx.springs.rest, &ctx.springs.active);

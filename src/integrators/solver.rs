@@ -1,7 +1,10 @@
 //! Settings, statistics and assembly helpers shared by the integrators that solve a system each
 //! step (`implicit_euler`, `projective_dynamics`).
 
+use glam::Vec3;
 use serde::Serialize;
+
+use super::StepContext;
 
 use crate::grid::SpringKind;
 use crate::linear::stencil::slot_of;
@@ -110,3 +113,41 @@ pub(super) fn live_or_zero(live: bool, x: f32) -> f32 {
         0.0
     }
 }
+
+/// How much stiffer than its own inertia (`m / h^2`) the weight `w_c` holding a contact is.
+/// The predicted penetration left after a converged solve is about `1 / (1 + CONTACT_WEIGHT)`
+/// of the free motion's, which the collider pass after the step removes. Not larger: the weight
+/// is isotropic in `Q` while the contact pushes only along its normal, so a particle in contact
+/// slides along its plane within the iterations as if `w_c` times heavier. At 1000 a cloth
+/// draped over a sphere at 0.5 ms substeps gained up to 0.1 J (of 2.7 J) over its running
+/// minimum; at 300, 0.01 J; at 100 and below nothing. Much softer (30) lets the cloth that
+/// lands on a small ball at 1/60 s sink in and swing off it.
+pub(super) const CONTACT_WEIGHT: f32 = 100.0;
+
+/// `w_c` of a particle of mass `m` at step `h`.
+pub(super) fn contact_weight(m: f32, h: f32) -> f32 {
+    CONTACT_WEIGHT * m / (h * h)
+}
+
+/// Whether free particle `p` is in a predicted contact this step.
+pub(super) fn in_contact(ctx: &StepContext, p: usize) -> bool {
+    ctx.contacts
+        .is_some_and(|c| c.count > 0 && c.normal.get(p) != Vec3::ZERO)
+        && ctx.particles.inv_mass[p] > 0.0
+}
+
+/// How far a particle at `x_n + dx` is behind the plane `n . x = offset` of its predicted
+/// contact (negative ahead of it). A particle that starts behind the plane (inside a collider)
+/// is held where it is along `n`, not pulled onto the plane within the step: that would turn the
+/// depth into speed; the collider pass after the step puts it out without velocity.
+#[inline(always)]
+pub(super) fn depth(n: Vec3, offset: f32, xn: Vec3, dx: Vec3) -> f32 {
+    let ahead = (n.dot(xn) - offset).max(0.0);
+    -ahead - n.dot(dx)
+}
+
+/// How much stiffer than its own inertia (`m / h^2`) the penalty holding a contact is. The
+/// predicted penetration left after the solve is `1 / (1 + CONTACT_STIFFNESS)` of the free
+/// motion's; larger also holds, but worsens the matrix's condition for nothing the collider
+/// pass after the step does not already correct.
+pub(super) const CONTACT_STIFFNESS: f32 = 1000.0;

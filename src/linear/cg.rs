@@ -1,5 +1,5 @@
-//! The preconditioned conjugate gradient on a [`BlockStencil`] system `A x = b`, `A` symmetric
-//! positive definite (Hestenes and Stiefel 1952; Shewchuk, "An introduction to the conjugate
+//! The preconditioned conjugate gradient on a system `A x = b` of 3-vectors, `A` symmetric
+//! positive definite (a [`BlockStencil`] on the grid, a [`super::SpringMatrix`] on a mesh) (Hestenes and Stiefel 1952; Shewchuk, "An introduction to the conjugate
 //! gradient method without the agonizing pain", 1994):
 //!
 //! ```text
@@ -21,7 +21,20 @@ use rayon::prelude::*;
 
 use super::reduce::{dot, dot3, par_dot, partials, REDUCE_CHUNK};
 use super::stencil::{set_product, BlockStencil, SlotArrays};
-use crate::soa::Vec3s;
+use crate::soa::{Vec3SliceMut, Vec3s};
+
+/// A symmetric matrix of 3 x 3 blocks that CG can multiply by, a range of rows at a time.
+pub trait BlockOperator: Sync {
+    /// `out = A x` over the rows `range` (`out` covers exactly `range`).
+    fn apply_range(&self, x: &Vec3s, range: std::ops::Range<usize>, out: &mut Vec3SliceMut);
+}
+
+impl BlockOperator for BlockStencil {
+    #[inline(always)]
+    fn apply_range(&self, x: &Vec3s, range: std::ops::Range<usize>, out: &mut Vec3SliceMut) {
+        BlockStencil::apply_range(self, x, range, out)
+    }
+}
 
 /// The vectors of a CG solve, kept between solves so that a solve allocates nothing.
 #[derive(Clone, Debug, Default)]
@@ -50,9 +63,9 @@ impl ConjugateGradient {
     /// Returns the iterations and the final relative residual: 0 for `b = 0`, NaN for a
     /// non-finite `b` (`x` is then left zero), and 1 when the first direction already broke
     /// down.
-    pub fn solve(
+    pub fn solve<A: BlockOperator>(
         &mut self,
-        a: &BlockStencil,
+        a: &A,
         b: &Vec3s,
         x: &mut Vec3s,
         tolerance: f64,
@@ -101,7 +114,7 @@ impl ConjugateGradient {
     }
 
     /// `q = A p`, returning `p . q`.
-    fn product(&mut self, a: &BlockStencil) -> f64 {
+    fn product<A: BlockOperator>(&mut self, a: &A) -> f64 {
         let ConjugateGradient { p, q, partials, .. } = self;
         let p = &*p;
         q.par_chunks_mut(REDUCE_CHUNK)

@@ -4,7 +4,10 @@
 //! factorisation with a nested-dissection ordering for grids, and the fixed-chunk reductions
 //! that keep every result bitwise the same for any number of threads.
 //!
-//! Everything here works on grids of `nx` x `ny` nodes indexed `p = j * nx + i`, the particle
+//! The mesh cloth's matrices are a [`SpringMatrix`] (3 x 3 blocks, for implicit Euler) and a
+//! [`SparseCholesky`] ordered by [`dissect_points`] (for projective dynamics).
+//!
+//! Everything else works on grids of `nx` x `ny` nodes indexed `p = j * nx + i`, the particle
 //! numbering of [`crate::grid::Grid`], and on per-node 3-vectors stored as [`crate::soa::Vec3s`].
 
 pub mod cg;
@@ -12,9 +15,11 @@ pub mod cholesky;
 pub mod dense;
 pub mod multigrid;
 pub mod reduce;
+pub mod spring_matrix;
 pub mod stencil;
 
 pub use cg::ConjugateGradient;
-pub use cholesky::{GridCholesky, ScalarStencil};
+pub use cholesky::{dissect_points, ScalarStencil, SparseCholesky};
 pub use multigrid::Multigrid;
+pub use spring_matrix::SpringMatrix;
 pub use stencil::{BlockStencil, Sym3, OFFSETS, SLOTS};

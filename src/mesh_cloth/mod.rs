@@ -13,8 +13,10 @@
 //! one-row grid (`nx` = vertex count, `ny` = 1) with every stencil slot empty; the springs of
 //! [`EdgeSprings`] are added to the force after the grid's sweep ([`forces`]), and the surface
 //! passes (normals, energy, strain, the drawn mesh, self-collision, wind, picking) read the
-//! mesh's triangles. Passes still written only for the stencil (cutting, tearing, strain
-//! limiting, the implicit solvers) are refused on a mesh cloth when the scene is validated, or
+//! mesh's triangles. The implicit solvers assemble their matrices from the spring list
+//! (`src/integrators/implicit_mesh.rs`, `src/integrators/projective_mesh.rs`) and strain
+//! limiting walks it (`src/strain_limit/mesh.rs`). Passes still written only for the stencil
+//! (cutting, tearing) are refused on a mesh cloth when the scene is validated, or
 //! when the call is made, with an error that names them.
 //!
 //! # Springs

@@ -61,12 +61,6 @@ impl IntegratorKind {
             })
     }
 
-    /// Whether the integrator steps a mesh cloth: the explicit ones, which need only the
-    /// total force. The implicit solvers assemble the grid's block-stencil matrix.
-    pub fn runs_on_mesh(self) -> bool {
-        !self.holds_contacts()
-    }
-
     /// Whether it holds the contacts a step is predicted to make inside its solve
     /// (`crate::integrators::StepContext::contacts`): the implicit solvers, whose display-frame
     /// steps are long enough that projecting their result out of a collider afterwards crushes

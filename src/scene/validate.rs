@@ -412,13 +412,7 @@ impl Scene {
         if self.cloth.mesh.is_none() {
             return Ok(());
         }
-        if !self.integrator.runs_on_mesh() {
-            return Err(not_on_mesh("integrator", self.integrator.name()));
-        }
-        let present = [
-            ("strain_limit", self.strain_limit.is_some()),
-            ("tearing", self.tearing.is_some()),
-        ];
+        let present = [("tearing", self.tearing.is_some())];
         match present.iter().find(|(_, on)| *on) {
             Some((name, _)) => Err(not_on_mesh(name, name)),
             None => Ok(()),

@@ -463,9 +463,6 @@ impl Simulation {
     /// Switches the integrator at run time; the state carries over.
     pub fn set_integrator(&mut self, name: &str) -> Result<()> {
         let kind = IntegratorKind::by_name(name, "integrator")?;
-        if self.model.mesh().is_some() && !kind.runs_on_mesh() {
-            return Err(crate::scene::not_on_mesh("integrator", kind.name()));
-        }
         self.model.scene.integrator = kind;
         self.stepper.set_integrator(&self.model);
         Ok(())

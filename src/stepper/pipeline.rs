@@ -467,9 +467,11 @@ impl Pipeline {
         };
         let t = Instant::now();
         let (grid, springs, particles) = (s.model.grid, &s.model.springs, &s.model.particles);
-        let finite = limit
-            .apply(grid, springs, particles, s.next, s.chunk)
-            .finite;
+        let finite = match s.model.mesh() {
+            Some(mesh) => limit.apply_mesh((grid, springs), mesh, particles, s.next, s.chunk),
+            None => limit.apply(grid, springs, particles, s.next, s.chunk),
+        }
+        .finite;
         s.profile.add(StrainLimit::NAME, t.elapsed());
         finite
     }

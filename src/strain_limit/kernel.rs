@@ -6,6 +6,7 @@ use rayon::prelude::*;
 
 use super::{Check, LIMITED_KINDS};
 use crate::grid::{Grid, SpringKind};
+use crate::mesh_cloth::MeshCloth;
 use crate::soa::{Vec3SliceMut, Vec3s};
 use crate::springs::{neighbour_runs, SpringRun, Springs};
 use crate::state::Kinematics;
@@ -14,6 +15,8 @@ use crate::state::Kinematics;
 pub(super) struct Kernel<'a> {
     pub grid: Grid,
     pub springs: &'a Springs,
+    /// A mesh cloth's springs, limited instead of the stencil's ([`super::mesh`]).
+    pub mesh: Option<&'a MeshCloth>,
     pub inv_mass: &'a [f32],
     /// `1 + max_strain`.
     pub factor: f32,
@@ -34,6 +37,9 @@ impl Kernel<'_> {
     /// Counts, for every particle that can move, its springs over the limit in `pos` into
     /// `count`, and returns the totals.
     pub(super) fn check(&self, pos: &Vec3s, count: &mut [u8], chunk: usize) -> Check {
+        if let Some(mesh) = self.mesh {
+            return self.check_mesh(mesh, pos, count, chunk);
+        }
         count
             .par_chunks_mut(chunk)
             .enumerate()
@@ -117,6 +123,9 @@ impl Kernel<'_> {
     /// the limit, as counted in `count` by a check of `pos`.
     /// Returns whether any position changed.
     pub(super) fn sweep(&self, pos: &Vec3s, count: &[u8], out: &mut Vec3s, chunk: usize) -> bool {
+        if let Some(mesh) = self.mesh {
+            return self.sweep_mesh(mesh, pos, count, out, chunk);
+        }
         out.par_chunks_mut(chunk)
             .enumerate()
             .map(|(c, mut out)| {
@@ -169,6 +178,9 @@ impl Kernel<'_> {
         out: &mut Vec3s,
         chunk: usize,
     ) -> bool {
+        if let Some(mesh) = self.mesh {
+            return self.velocity_corrections_mesh(mesh, before, after, count, out, chunk);
+        }
         out.par_chunks_mut(chunk)
             .enumerate()
             .map(|(c, mut out)| {

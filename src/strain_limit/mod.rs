@@ -76,11 +76,13 @@
 //! colliders (so that contacts have the last word).
 
 mod kernel;
+mod mesh;
 
 use rayon::prelude::*;
 
 use crate::grid::{Grid, SpringKind};
 use crate::integrators::FiniteCheck;
+use crate::mesh_cloth::MeshCloth;
 use crate::particles::Particles;
 use crate::soa::Vec3s;
 use crate::springs::Springs;
@@ -237,19 +239,51 @@ impl StrainLimit {
         next: &mut Kinematics,
         chunk: usize,
     ) -> StrainStats {
-        let n = grid.len();
+        assert_eq!(next.pos.len(), grid.len(), "state and grid disagree");
+        let kernel = Kernel {
+            grid,
+            springs,
+            mesh: None,
+            inv_mass: &particles.inv_mass,
+            factor: 1.0 + self.max_strain,
+        };
+        self.run(&kernel, next, chunk)
+    }
+
+    /// [`StrainLimit::apply`] on a mesh cloth: its stretch springs (one on every edge) are
+    /// limited, its bend springs are not, as the grid's bending springs are not. Each vertex
+    /// gathers the corrections of its springs in spring order, so the result is bitwise the same
+    /// for any number of threads. `grid` and `springs` are the model's (a one-row grid with an
+    /// empty stencil).
+    ///
+    /// # Panics
+    /// If `chunk` is 0 or `next` does not have one particle per vertex.
+    pub fn apply_mesh(
+        &mut self,
+        (grid, springs): (Grid, &Springs),
+        mesh: &MeshCloth,
+        particles: &Particles,
+        next: &mut Kinematics,
+        chunk: usize,
+    ) -> StrainStats {
+        assert_eq!(next.pos.len(), mesh.len(), "state and mesh disagree");
+        let kernel = Kernel {
+            grid,
+            springs,
+            mesh: Some(mesh),
+            inv_mass: &particles.inv_mass,
+            factor: 1.0 + self.max_strain,
+        };
+        self.run(&kernel, next, chunk)
+    }
+
+    fn run(&mut self, kernel: &Kernel, next: &mut Kinematics, chunk: usize) -> StrainStats {
+        let n = next.pos.len();
         assert!(chunk > 0, "chunk must be positive");
-        assert_eq!(next.pos.len(), n, "state and grid disagree");
         if self.count[0].len() != n {
             self.pos = [Vec3s::zeros(n), Vec3s::zeros(n)];
             self.count = [vec![0; n], vec![0; n]];
         }
-        let kernel = Kernel {
-            grid,
-            springs,
-            inv_mass: &particles.inv_mass,
-            factor: 1.0 + self.max_strain,
-        };
         let Self {
             iterations,
             pos: [written, spare],

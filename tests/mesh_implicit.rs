@@ -1,0 +1,442 @@
+//! The implicit solvers and strain limiting on a mesh cloth: the physics tests the grid has for
+//! them (`tests/stiff.rs`, `tests/strain_limit.rs`, `tests/energy.rs`), on irregular meshes.
+
+mod common;
+
+use common::{state_hash, with_threads};
+use glam::DVec3;
+use rustcloth::mesh_cloth::{jittered_square, MeshCloth};
+use rustcloth::scene::{
+    ClothSpec, ColliderSpec, FloorSpec, MeshSpec, PinSpec, Preconditioner, ShapeKind,
+    StrainLimitSpec,
+};
+use rustcloth::{IntegratorKind, Scene, Simulation};
+
+const IMPLICIT: [IntegratorKind; 2] = [
+    IntegratorKind::ImplicitEuler,
+    IntegratorKind::ProjectiveDynamics,
+];
+
+/// A 1 m square of `n` x `n` jittered points hanging in the xy plane (centre at y = 1), held by
+/// its two top corners, with the material `stretch` (N/m) and `damping` (N s/m).
+fn hanging(n: usize, stretch: f64, damping: f64, seed: u64) -> Scene {
+    let (vertices, triangles) = jittered_square(n, 1.0, [0.0, 1.0, 0.0], 0.3, seed);
+    let corners = [n * (n - 1), n * n - 1].map(|p| PinSpec::Index(p as i64));
+    Scene {
+        dt: 1.0 / 60.0,
+        cloth: ClothSpec {
+            mesh: Some(MeshSpec {
+                vertices,
+                triangles,
+                density: 0.2,
+                stretch,
+                bend: stretch / 10.0,
+                damping,
+                ..MeshSpec::default()
+            }),
+            pins: corners.to_vec(),
+            ..ClothSpec::default()
+        },
+        ..Scene::default()
+    }
+}
+
+/// The same square lying flat (xz) at height `y`, free.
+fn flat(n: usize, y: f64, seed: u64) -> Scene {
+    let mut scene = hanging(n, 600.0, 0.05, seed);
+    let mesh = scene.cloth.mesh.as_mut().unwrap();
+    for v in &mut mesh.vertices {
+        *v = [v[0], y, v[1] - 1.0];
+    }
+    scene.cloth.pins.clear();
+    scene
+}
+
+/// Centre of mass.
+fn centroid(sim: &Simulation) -> DVec3 {
+    let (pos, m) = (sim.positions(), &sim.particles().mass);
+    let total: f64 = m.iter().map(|&m| m as f64).sum();
+    (0..m.len())
+        .map(|p| m[p] as f64 * pos.get(p).as_dvec3())
+        .sum::<DVec3>()
+        / total
+}
+
+fn finite_and_bounded(sim: &Simulation, bound: f32) {
+    let pos = sim.positions();
+    for p in 0..pos.len() {
+        let x = pos.get(p);
+        assert!(
+            x.is_finite() && x.abs().max_element() < bound,
+            "vertex {p} at {x}"
+        );
+    }
+}
+
+/// Backward Euler dissipates: with damping, a hanging mesh cloth's total energy (kinetic,
+/// gravitational, elastic) never rises from one frame to the next, under either solver and
+/// each preconditioner, at a display frame and at a short step.
+#[test]
+fn energy_never_rises_on_a_hanging_mesh_cloth() {
+    for integrator in IMPLICIT {
+        for dt in [1.0 / 60.0, 1.0 / 600.0] {
+            for preconditioner in Preconditioner::ALL {
+                if integrator == IntegratorKind::ProjectiveDynamics
+                    && preconditioner != Preconditioner::Multigrid
+                {
+                    continue; // projective dynamics has no preconditioner
+                }
+                let mut scene = hanging(12, 600.0, 0.05, 3);
+                scene.integrator = integrator;
+                scene.preconditioner = preconditioner;
+                scene.dt = dt;
+                scene.cg_tolerance = 1e-6;
+                scene.pd_iterations = 200;
+                scene.pd_tolerance = 1e-5;
+                let mut sim = Simulation::new(scene).unwrap();
+                let mut last = sim.energy().total();
+                let start = last;
+                for frame in 0..60 {
+                    sim.step(1).unwrap();
+                    let e = sim.energy().total();
+                    assert!(
+                        e <= last + 1e-6 * start.abs().max(1e-3),
+                        "{integrator} {preconditioner} dt {dt}: frame {frame} rose {last} -> {e}"
+                    );
+                    last = e;
+                }
+                assert!(last < start, "{integrator}: nothing dissipated");
+            }
+        }
+    }
+}
+
+/// A pinned mesh square settles where the springs carry its weight, whatever steps it there:
+/// the implicit solvers at 1/60 s end within 0.5 % of the sag symplectic Euler finds at 0.7 of
+/// its stable step, with the same air drag settling both.
+#[test]
+fn a_pinned_mesh_square_settles_to_the_explicit_sag() {
+    let settle = |integrator: IntegratorKind| {
+        let mut scene = hanging(10, 60.0, 0.05, 5);
+        scene.air_drag = 0.02;
+        scene.integrator = integrator;
+        scene.cg_tolerance = 1e-6;
+        scene.pd_iterations = 300;
+        scene.pd_tolerance = 1e-6;
+        if integrator == IntegratorKind::SymplecticEuler {
+            scene.dt = 0.7 * scene.stable_dt(integrator).unwrap();
+        }
+        let mut sim = Simulation::new(scene).unwrap();
+        sim.advance(8.0).unwrap();
+        assert!(
+            sim.energy().kinetic < 1e-6,
+            "{integrator}: still moving, {:?}",
+            sim.energy()
+        );
+        1.0 - centroid(&sim).y
+    };
+    let explicit = settle(IntegratorKind::SymplecticEuler);
+    assert!(explicit > 0.05, "the square barely sags: {explicit} m");
+    for integrator in IMPLICIT {
+        let sag = settle(integrator);
+        assert!(
+            (sag - explicit).abs() < 0.005 * explicit,
+            "{integrator}: sag {sag} m against {explicit} m"
+        );
+    }
+}
+
+/// Every sum has a fixed order: the same steps on 1, 2 and 3 threads give the same bits, with
+/// predicted contacts held inside the solve (a ball under the cloth) and strain limiting on.
+/// 60 x 60 vertices: several parallel chunks of vertices and of springs.
+#[test]
+fn the_implicit_solvers_step_a_mesh_cloth_bitwise_alike_on_any_thread_count() {
+    for integrator in IMPLICIT {
+        for preconditioner in [Preconditioner::BlockJacobi, Preconditioner::Multigrid] {
+            let mut scene = hanging(60, 600.0, 0.05, 7);
+            scene.integrator = integrator;
+            scene.preconditioner = preconditioner;
+            scene.pd_iterations = 6;
+            scene.strain_limit = Some(StrainLimitSpec::default());
+            scene.colliders = vec![ColliderSpec {
+                shape: ShapeKind::Sphere,
+                radius: Some(0.2),
+                center: [0.0, 0.9, -0.19],
+                ..ColliderSpec::default()
+            }];
+            let hashes: Vec<u64> = [1, 2, 3]
+                .into_iter()
+                .map(|threads| {
+                    with_threads(threads, || {
+                        let mut sim = Simulation::new(scene.clone()).unwrap();
+                        sim.step(4).unwrap();
+                        state_hash(&sim)
+                    })
+                })
+                .collect();
+            assert!(
+                hashes.windows(2).all(|w| w[0] == w[1]),
+                "{integrator} {preconditioner}: {hashes:?}"
+            );
+        }
+    }
+}
+
+/// The stiff case the implicit solvers are for: the stiffest spring's `k h^2 / m` is in the
+/// thousands at 1/60 s (explicit integrators would need a step a hundred times shorter). Both
+/// solvers stay finite and bounded for two seconds, every CG solve converges, and the cloth
+/// hangs without stretching far.
+#[test]
+fn a_stiff_mesh_cloth_stays_stable_at_a_display_frame() {
+    for integrator in IMPLICIT {
+        let mut scene = hanging(24, 6000.0, 0.05, 11);
+        scene.integrator = integrator;
+        scene.cg_max_iterations = 2000;
+        let mesh = MeshCloth::new(scene.cloth.mesh.as_ref().unwrap()).unwrap();
+        let s = &mesh.springs;
+        let stiffest = (0..s.len())
+            .map(|e| {
+                let m = mesh.masses[s.a[e] as usize].min(mesh.masses[s.b[e] as usize]);
+                s.k[e] as f64 * scene.dt * scene.dt / m
+            })
+            .fold(0.0, f64::max);
+        assert!(stiffest >= 100.0, "k h^2 / m = {stiffest}");
+        let mut sim = Simulation::new(scene).unwrap();
+        for _ in 0..12 {
+            sim.step(10).unwrap();
+            finite_and_bounded(&sim, 3.0);
+        }
+        let stats = sim.solver_stats().unwrap();
+        if integrator == IntegratorKind::ImplicitEuler {
+            assert_eq!(stats.not_converged, 0, "{stats:?}");
+        }
+        assert!(
+            sim.max_stretch() < 0.5,
+            "{integrator}: {}",
+            sim.max_stretch()
+        );
+        assert!(
+            sim.energy().kinetic < 0.1,
+            "{integrator}: {:?}",
+            sim.energy()
+        );
+    }
+}
+
+/// The mesh's preconditioners change the answer only within the solve's tolerance.
+#[test]
+fn each_preconditioner_solves_the_same_mesh_step() {
+    let step = |preconditioner| {
+        let mut scene = hanging(20, 6000.0, 0.05, 13);
+        scene.integrator = IntegratorKind::ImplicitEuler;
+        scene.preconditioner = preconditioner;
+        scene.cg_tolerance = 1e-7;
+        scene.cg_max_iterations = 5000;
+        let mut sim = Simulation::new(scene).unwrap();
+        sim.step(3).unwrap();
+        assert_eq!(sim.solver_stats().unwrap().not_converged, 0);
+        sim.positions().clone()
+    };
+    let reference = step(Preconditioner::Jacobi);
+    for preconditioner in [Preconditioner::BlockJacobi, Preconditioner::Multigrid] {
+        let x = step(preconditioner);
+        let worst = (0..x.len())
+            .map(|p| (x.get(p) - reference.get(p)).length())
+            .fold(0.0f32, f32::max);
+        assert!(worst < 1e-4, "{preconditioner}: {worst} m");
+    }
+}
+
+/// A mesh cloth dropped flat at 1/60 s onto a box on the floor for 90 frames: asserts that no
+/// frame ends with a vertex inside the box or below the floor, and returns the energy at the
+/// start, the highest energy at a frame's end and the highest vertex at the last frame.
+fn drop_on_a_box(integrator: IntegratorKind) -> (f64, f64, f32) {
+    let half = [0.2f32, 0.25, 0.2];
+    let mut scene = flat(16, 0.8, 17);
+    scene.integrator = integrator;
+    scene.floor = Some(FloorSpec::default());
+    scene.colliders = vec![ColliderSpec {
+        shape: ShapeKind::Box,
+        half_extents: Some(half.map(f64::from)),
+        center: [0.0, 0.25, 0.0],
+        ..ColliderSpec::default()
+    }];
+    let mut sim = Simulation::new(scene).unwrap();
+    let start = sim.energy().total();
+    let mut highest = start;
+    for frame in 0..90 {
+        sim.step(1).unwrap();
+        let pos = sim.positions();
+        for p in 0..pos.len() {
+            let x = pos.get(p);
+            let inside = x.x.abs() < half[0] && (x.y - 0.25).abs() < half[1] && x.z.abs() < half[2];
+            assert!(
+                !inside,
+                "{integrator}: frame {frame}, vertex {p} at {x} in the box"
+            );
+            assert!(x.y > 0.0, "{integrator}: frame {frame}, vertex {p} at {x}");
+        }
+        highest = highest.max(sim.energy().total());
+    }
+    let top = sim.positions().y.iter().fold(f32::MIN, |a, &b| a.max(b));
+    (start, highest, top)
+}
+
+/// Contacts held inside the solve work on a mesh: a mesh cloth dropped on a box never ends a
+/// frame inside it or below the floor, and rests draped on it.
+#[test]
+fn a_mesh_cloth_dropped_on_a_box_at_a_display_frame_stays_outside_it() {
+    for integrator in IMPLICIT {
+        let (_, _, top) = drop_on_a_box(integrator);
+        assert!(
+            (0.5..0.56).contains(&top),
+            "{integrator}: highest vertex at {top} m"
+        );
+    }
+}
+
+/// Contact never adds energy: implicit Euler's contacts held inside its solve on a mesh cloth.
+#[test]
+fn implicit_euler_landing_a_mesh_cloth_on_a_box_never_gains_energy() {
+    let (start, highest, _) = drop_on_a_box(IntegratorKind::ImplicitEuler);
+    assert!(
+        highest <= start + 1e-3 * start.abs(),
+        "{start} -> {highest} J"
+    );
+}
+
+/// Known failure: projective dynamics gains 7 % (1.570 -> 1.685 J) landing a mesh cloth on a
+/// box, which a grid of the same material dropped the same way does not (docs/mesh_cloth.md).
+/// `should_panic` keeps it visible: the test fails once the gain is gone, and is then turned
+/// into the plain assertion above.
+#[test]
+#[should_panic(expected = "J (known energy gain)")]
+fn projective_dynamics_landing_a_mesh_cloth_on_a_box_never_gains_energy() {
+    let (start, highest, _) = drop_on_a_box(IntegratorKind::ProjectiveDynamics);
+    assert!(
+        highest <= start + 1e-3 * start.abs(),
+        "{start} -> {highest} J (known energy gain)"
+    );
+}
+
+/// Largest `l / L - 1` over the mesh's stretch springs.
+fn worst_stretch(sim: &Simulation, mesh: &MeshCloth) -> f32 {
+    let (s, pos) = (&mesh.springs, sim.positions());
+    (0..s.len())
+        .filter(|&e| s.kind[e] == rustcloth::mesh_cloth::EdgeKind::Stretch)
+        .map(|e| (pos.get(s.b[e] as usize) - pos.get(s.a[e] as usize)).length() / s.rest[e] - 1.0)
+        .fold(0.0, f32::max)
+}
+
+/// Strain limiting over the mesh's edges: a free mesh cloth stretched uniformly by half (no
+/// gravity, springs too soft to matter) is pulled back to within float resolution of its 10 %
+/// limit by the sweeps of one step. Unlike the grid's, an irregular mesh's interior corrections
+/// do not cancel, so the worst strain first rises (0.67 after one sweep, 0.88 after four) while
+/// the edges move in, and falls below 0.51 by 64.
+#[test]
+fn strain_limiting_pulls_a_stretched_mesh_cloth_back_to_its_limit() {
+    let worst_after = |iterations: u32| {
+        let mut scene = flat(10, 1.0, 29);
+        let mesh = scene.cloth.mesh.as_mut().unwrap();
+        (mesh.stretch, mesh.bend, mesh.damping) = (1e-6, 0.0, 0.0);
+        scene.gravity = [0.0; 3];
+        scene.dt = 1e-4;
+        scene.strain_limit = Some(StrainLimitSpec {
+            max_strain: 0.1,
+            iterations,
+        });
+        let mesh = MeshCloth::new(scene.cloth.mesh.as_ref().unwrap()).unwrap();
+        let mut sim = Simulation::new(scene).unwrap();
+        let c = centroid(&sim).as_vec3();
+        let pos = sim.positions().clone();
+        let stretched = rustcloth::soa::Vec3s::from_fn(pos.len(), |p| c + 1.5 * (pos.get(p) - c));
+        sim.set_positions(&stretched).unwrap();
+        assert!((worst_stretch(&sim, &mesh) - 0.5).abs() < 1e-3);
+        sim.step(1).unwrap();
+        finite_and_bounded(&sim, 3.0);
+        worst_stretch(&sim, &mesh)
+    };
+    let worst = worst_after(64);
+    assert!(worst < 0.6, "{worst} after 64 sweeps");
+    let worst = worst_after(4000);
+    assert!(
+        1.0 + worst <= 1.1 * (1.0 + 1e-5),
+        "{worst} after 4000 sweeps"
+    );
+}
+
+/// A soft mesh cloth hung by two corner vertices, which stretches by more than 30 % under
+/// symplectic Euler without the limit, stretches less than a third as far with it (10 %, 16
+/// sweeps a step), and its pins stay put. As on the grid, Jacobi sweeps do not hold a whole
+/// hanging cloth at the limit (docs/mesh_cloth.md measures what they leave, also at 1/60 s).
+#[test]
+fn strain_limiting_holds_a_soft_hanging_mesh_cloth_nearer_its_limit() {
+    let run = |limit: Option<StrainLimitSpec>| {
+        let mut scene = hanging(14, 30.0, 0.02, 19);
+        scene.air_drag = 0.01;
+        scene.strain_limit = limit;
+        scene.dt = 0.7 * scene.stable_dt(IntegratorKind::SymplecticEuler).unwrap();
+        let mesh = MeshCloth::new(scene.cloth.mesh.as_ref().unwrap()).unwrap();
+        let mut sim = Simulation::new(scene).unwrap();
+        let pins = [14 * 13, 14 * 14 - 1];
+        let pinned = pins.map(|p| sim.positions().get(p));
+        sim.advance(3.0).unwrap();
+        finite_and_bounded(&sim, 5.0);
+        assert_eq!(pins.map(|p| sim.positions().get(p)), pinned);
+        worst_stretch(&sim, &mesh)
+    };
+    let free = run(None);
+    let limited = run(Some(StrainLimitSpec {
+        max_strain: 0.1,
+        iterations: 16,
+    }));
+    assert!(free > 0.3, "only {free} without the limit");
+    assert!(
+        limited < free / 3.0,
+        "{limited} with the limit ({free} without)"
+    );
+}
+
+/// The strain limit's velocity correction is inelastic: on a free mesh cloth thrown apart
+/// (every vertex moving away from the centre, springs too soft to matter) it only removes
+/// kinetic energy, and the pass keeps the cloth's momentum.
+#[test]
+fn strain_limiting_a_mesh_cloth_never_adds_kinetic_energy_and_keeps_momentum() {
+    let mut scene = flat(12, 1.0, 23);
+    let mesh = scene.cloth.mesh.as_mut().unwrap();
+    (mesh.stretch, mesh.bend, mesh.damping) = (1e-6, 0.0, 0.0);
+    scene.gravity = [0.0; 3];
+    scene.dt = 1e-3;
+    scene.strain_limit = Some(StrainLimitSpec {
+        max_strain: 0.05,
+        iterations: 8,
+    });
+    let mut sim = Simulation::new(scene).unwrap();
+    let c = centroid(&sim).as_vec3();
+    let pos = sim.positions().clone();
+    let vel = rustcloth::soa::Vec3s::from_fn(pos.len(), |p| 3.0 * (pos.get(p) - c));
+    sim.set_velocities(&vel).unwrap();
+    let momentum = |sim: &Simulation| {
+        let (v, m) = (&sim.velocities(), &sim.particles().mass);
+        (0..m.len())
+            .map(|p| m[p] as f64 * v.get(p).as_dvec3())
+            .sum::<DVec3>()
+    };
+    let mut kinetic = sim.energy().kinetic;
+    let (k0, p0) = (kinetic, momentum(&sim));
+    for _ in 0..50 {
+        sim.step(1).unwrap();
+        let k = sim.energy().kinetic;
+        assert!(k <= kinetic * (1.0 + 1e-5), "{kinetic} -> {k}");
+        kinetic = k;
+    }
+    assert!(
+        (momentum(&sim) - p0).length() < 1e-5,
+        "{:?}",
+        momentum(&sim)
+    );
+    assert!(
+        kinetic < 0.5 * k0,
+        "the limit took little: {k0} -> {kinetic} J"
+    );
+}
