@@ -33,6 +33,16 @@ grid's), one particle index (a mesh cloth's vertex), or ``{"box": [[x0, y0, z0],
 z1]]}``: every particle that starts inside the box."""
 
 
+class SeamsSettings(TypedDict):
+    """``scene.cloth["mesh"]["seams"]``: vertex pairs sewn together, as a garment compiles
+    to (docs/garments.md)."""
+
+    pairs: list[list[int]]
+    sew_time: float
+    stiffness: float
+    damping: float
+
+
 class MeshSettings(TypedDict):
     """``scene.cloth["mesh"]``: a cloth from a triangle mesh (docs/mesh_cloth.md)."""
 
@@ -43,6 +53,7 @@ class MeshSettings(TypedDict):
     stretch: float
     bend: float
     damping: float
+    seams: NotRequired[SeamsSettings]
 
 
 class ClothSettings(TypedDict):

@@ -14,6 +14,10 @@ pub const MAX_PARTICLES: usize = 1 << 24;
 impl Scene {
     /// Checks every value; the error names the first offending parameter and its value.
     pub fn validate(&self) -> Result<()> {
+        if self.cloth.garment.is_some() {
+            // A scene built in code, not read: check the cloth its garment compiles to.
+            return self.sewn()?.validate();
+        }
         check_scalar("dt", self.dt, Bound::Positive)?;
         if self.substeps == 0 {
             return Err(Error::value("substeps", "must be an integer >= 1, got 0"));

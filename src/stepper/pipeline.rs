@@ -254,6 +254,7 @@ impl Pipeline {
         // The watch judges the state the substep starts from: the first force evaluation of
         // this solve, not a later round's or a half's, which start elsewhere.
         self.forces.arm_stretch_watch();
+        self.forces.set_time(s.time - s.h as f64);
         let mut finite = self.solve(&mut job, from, s.next, false);
         if finite && self.holds_contacts() && self.rose(model, from, s.next, s.time) {
             finite = self.split(&mut job, from, s.next, 1);
