@@ -57,3 +57,20 @@ def test_sewing_closes_the_gap_between_two_hanging_panels():
     m = sim.masses
     centre = (m[:, None] * x).sum(0) / m.sum()
     assert np.allclose(centre, [0.225, 0.1, 0.0], atol=1e-5), centre
+
+
+@pytest.mark.parametrize("name", ["shirt", "skirt"])
+def test_a_garment_shows_its_front_material_outside(name):
+    # The renderer took the front of every mesh cloth to face up at rest; a skirt's normals
+    # are horizontal, the mean picked the inside, and the skirt was drawn inside out.
+    pytest.importorskip("moderngl")  # rustcloth.render needs the viewer extra
+    from rustcloth.render.renderer import layout_of
+
+    sim = rustcloth.Simulation(rustcloth.load_scene(name))
+    sim.advance(2.0)
+    layout = layout_of(sim)
+    front = sim.normals if layout.front_is_winding else -sim.normals
+    # Away from the body's vertical axis (x = z = 0).
+    outward = sim.positions * [1.0, 0.0, 1.0]
+    away = np.einsum("ij,ij->i", front, outward) > 0.0
+    assert away.mean() > 0.8, away.mean()

@@ -13,8 +13,10 @@ seamed edges sampled at matching points, and seam springs that draw the pairs to
 >>> back = garment.panel("back", [[0, 0], [0.3, 0], [0.3, 0.3], [0, 0.3]],
 ...                      edges={"left": [3, 0]}, origin=[0.35, 0, 0])
 >>> scene = garment.scene([front, back], [garment.seam("front.right", "back.left")])
->>> len(scene.cloth["mesh"]["seams"]["pairs"])
-11
+>>> mesh = scene.cloth["mesh"]
+>>> seams = mesh["seams"]
+>>> len(seams["pairs"]), seams["sew_time"]
+(11, 1.0)
 """
 
 from __future__ import annotations
