@@ -25,6 +25,7 @@ pub mod cutting;
 pub mod diagnostics;
 pub mod error;
 pub mod forces;
+pub mod garment;
 pub mod grid;
 pub mod integrators;
 pub mod interaction;

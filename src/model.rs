@@ -76,6 +76,10 @@ pub struct Model {
 impl Model {
     /// The cloth `scene` describes (validated here), and its particles' starting positions.
     pub fn new(scene: Scene) -> Result<(Model, Vec3s)> {
+        let scene = match scene.cloth.garment {
+            Some(_) => scene.sewn()?,
+            None => scene,
+        };
         scene.validate()?;
         let grid = scene.grid();
         if let Some(spec) = &scene.cloth.mesh {

@@ -261,6 +261,7 @@ fn scene_any() -> BoxedStrategy<Scene> {
             damping: k[3],
             pins,
             mesh: None,
+            garment: None,
         });
     let floor = prop::option::of(
         [weird_f64(), weird_f64(), weird_f64()].prop_map(|f| FloorSpec {
@@ -408,6 +409,7 @@ fn scene_small() -> BoxedStrategy<Scene> {
                 })
                 .collect(),
             mesh: None,
+            garment: None,
         });
     let floor = prop::option::of(
         (

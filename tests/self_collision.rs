@@ -11,88 +11,18 @@
 
 mod common;
 
+use common::crossings::{intersecting_pairs, triangles_intersect};
 use common::{bare_scene, builtin_scene, scene_under_gravity, state_hash, with_threads};
 use glam::{DVec3, Vec3};
 use rustcloth::scene::SelfCollisionSpec;
 use rustcloth::soa::Vec3s;
 use rustcloth::{IntegratorKind, Scene, Simulation};
 
-// ----- the independent checker ----------------------------------------------------------------
-
-/// Six times the signed volume of the tetrahedron `a b c d`, and a scale for its round-off
-/// (the product of the three edge lengths from `a`).
-fn orient(a: DVec3, b: DVec3, c: DVec3, d: DVec3) -> (f64, f64) {
-    let (u, v, w) = (b - a, c - a, d - a);
-    (u.cross(v).dot(w), u.length() * v.length() * w.length())
-}
-
-/// Whether segment `p q` properly crosses triangle `a b c`: `p` and `q` strictly on opposite
-/// sides of its plane, and the line `p q` strictly on the same side of each of its edges
-/// (signed volumes, Segura and Feito 1998). A sign within round-off of zero counts as not
-/// crossing: such a touch (a segment in the triangle's plane, or through its boundary) is
-/// within 1e-12 of the triangles' size of not intersecting at all.
-fn segment_hits_triangle(p: DVec3, q: DVec3, a: DVec3, b: DVec3, c: DVec3) -> bool {
-    let sign = |(v, scale): (f64, f64)| {
-        if v.abs() <= 1e-12 * scale {
-            0
-        } else if v > 0.0 {
-            1
-        } else {
-            -1
-        }
-    };
-    let (sp, sq) = (sign(orient(a, b, c, p)), sign(orient(a, b, c, q)));
-    if sp * sq >= 0 {
-        return false;
-    }
-    let e = [
-        sign(orient(p, q, a, b)),
-        sign(orient(p, q, b, c)),
-        sign(orient(p, q, c, a)),
-    ];
-    e[0] != 0 && e[0] == e[1] && e[1] == e[2]
-}
-
-fn triangles_intersect(t: [DVec3; 3], u: [DVec3; 3]) -> bool {
-    let crosses = |s: [DVec3; 3], o: [DVec3; 3]| {
-        (0..3).any(|k| segment_hits_triangle(s[k], s[(k + 1) % 3], o[0], o[1], o[2]))
-    };
-    crosses(t, u) || crosses(u, t)
-}
-
-/// The pairs of triangles sharing no particle that intersect, by sort and sweep along x.
+/// The pairs of triangles sharing no particle that intersect (the checker in
+/// tests/common/crossings.rs).
 fn intersections(sim: &mut Simulation) -> Vec<(usize, usize)> {
     let tris: Vec<[u32; 3]> = sim.triangles().to_vec();
-    let pos = sim.positions();
-    let corners: Vec<[DVec3; 3]> = tris
-        .iter()
-        .map(|t| t.map(|p| pos.get(p as usize).as_dvec3()))
-        .collect();
-    let boxes: Vec<(DVec3, DVec3)> = corners
-        .iter()
-        .map(|c| (c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2])))
-        .collect();
-    let mut order: Vec<usize> = (0..tris.len()).collect();
-    order.sort_by(|&a, &b| boxes[a].0.x.total_cmp(&boxes[b].0.x));
-    let mut found = Vec::new();
-    for (k, &a) in order.iter().enumerate() {
-        for &b in &order[k + 1..] {
-            if boxes[b].0.x > boxes[a].1.x {
-                break;
-            }
-            let (ba, bb) = (boxes[a], boxes[b]);
-            if ba.0.cmpgt(bb.1).any() || bb.0.cmpgt(ba.1).any() {
-                continue;
-            }
-            if tris[a].iter().any(|p| tris[b].contains(p)) {
-                continue;
-            }
-            if triangles_intersect(corners[a], corners[b]) {
-                found.push((a.min(b), a.max(b)));
-            }
-        }
-    }
-    found
+    intersecting_pairs(&tris, sim.positions(), |p| p)
 }
 
 #[test]

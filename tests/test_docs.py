@@ -17,7 +17,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 PUBLIC_MODULES = ["rustcloth", "rustcloth.scene", "rustcloth.simulation", "rustcloth.export",
                   "rustcloth.settings", "rustcloth.sweep", "rustcloth.drivers",
-                  "rustcloth.errors", "rustcloth.reference"]
+                  "rustcloth.errors", "rustcloth.reference", "rustcloth.garment"]
 
 
 @pytest.mark.parametrize("name", PUBLIC_MODULES)

@@ -37,6 +37,16 @@ grid's), one particle index (a mesh cloth's vertex), or a selection on either cl
 within 1 mm of the highest)."""
 
 
+class SeamsSettings(TypedDict):
+    """``scene.cloth["mesh"]["seams"]``: vertex pairs sewn together, as a garment compiles
+    to (docs/garments.md)."""
+
+    pairs: list[list[int]]
+    sew_time: float
+    stiffness: float
+    damping: float
+
+
 class MeshSettings(TypedDict):
     """``scene.cloth["mesh"]``: a cloth from a triangle mesh (docs/mesh_cloth.md)."""
 
@@ -47,6 +57,7 @@ class MeshSettings(TypedDict):
     stretch: float
     bend: float
     damping: float
+    seams: NotRequired[SeamsSettings]
 
 
 class ClothSettings(TypedDict):

@@ -138,6 +138,8 @@ pub struct ForceModel {
     panic_next: bool,
     /// A mesh cloth's per-spring forces, scratch for [`MeshCloth::add_spring_forces`].
     mesh_table: Vec<[f32; 3]>,
+    /// The simulated time (s) the seams' rest lengths are taken at ([`MeshCloth::sewing`]).
+    time: f64,
 }
 
 /// The pass name of a mesh cloth's springs in `effects` and `profile()`.
@@ -177,6 +179,7 @@ impl ForceModel {
             overstretched: AtomicBool::new(false),
             panic_next: false,
             mesh_table: Vec::new(),
+            time: 0.0,
         }
     }
 
@@ -193,6 +196,13 @@ impl ForceModel {
     /// Sets the watchdog's stretch limit, a ratio `l / L` (None: no stretch check).
     pub fn set_stretch_limit(&mut self, limit: Option<f32>) {
         self.stretch_limit = limit;
+    }
+
+    /// Sets the simulated time (s) of the evaluations that follow: a mesh cloth's seams take
+    /// their rest lengths at it. The stepper sets it at each substep's start, so that a
+    /// retried or restored step sees the same seams.
+    pub fn set_time(&mut self, time: f64) {
+        self.time = time;
     }
 
     /// Makes the next evaluation (only) check every live spring against the stretch limit, in
@@ -357,8 +367,14 @@ impl ForceModel {
         let swept = start.elapsed();
         if let Some(mesh) = state.mesh {
             let clock = Instant::now();
-            let over =
-                mesh.add_spring_forces((state.pos, state.vel), out, mesh_table, chunk, watch);
+            let over = mesh.add_spring_forces(
+                (state.pos, state.vel),
+                mesh.sewing(self.time),
+                out,
+                mesh_table,
+                chunk,
+                watch,
+            );
             if over {
                 overstretched.store(true, Ordering::Relaxed);
             }

@@ -7,7 +7,7 @@
 
 use rayon::prelude::*;
 
-use super::MeshCloth;
+use super::{EdgeKind, MeshCloth};
 use crate::soa::Vec3s;
 use crate::springs::overstretched;
 
@@ -16,11 +16,14 @@ const SPRING_CHUNK: usize = 4096;
 
 impl MeshCloth {
     /// Adds the force of every spring at `(pos, vel)` into `out`, using `table` (one entry per
-    /// spring, resized here) as scratch. With a `watch` limit, also returns whether a spring is
-    /// longer than that many times its rest length (the watchdog's stretch check).
+    /// spring, resized here) as scratch, the seams' rest lengths scaled by `sewing`
+    /// ([`MeshCloth::sewing`]). With a `watch` limit, also returns whether a spring other
+    /// than a seam (whose rest length goes to zero) is longer than that many times its rest
+    /// length (the watchdog's stretch check). A seam shorter than its rest length is slack.
     pub fn add_spring_forces(
         &self,
         (pos, vel): (&Vec3s, &Vec3s),
+        sewing: f32,
         out: &mut Vec3s,
         table: &mut Vec<[f32; 3]>,
         chunk: usize,
@@ -39,11 +42,23 @@ impl MeshCloth {
                     let (a, b) = (s.a[e] as usize, s.b[e] as usize);
                     let d = pos.get(b) - pos.get(a);
                     let l = d.length();
-                    over |= overstretched(l, s.rest[e], 1.0, limit);
+                    let rest = if s.kind[e] == EdgeKind::Seam {
+                        s.rest[e] * sewing
+                    } else {
+                        over |= overstretched(l, s.rest[e], 1.0, limit);
+                        s.rest[e]
+                    };
                     let u = if l > 0.0 { d / l } else { d * 0.0 };
                     let closing = (vel.get(b) - vel.get(a)).dot(u);
-                    let magnitude = s.k[e] * (l - s.rest[e]) + s.c[e] * closing;
-                    *f = (magnitude * u).to_array();
+                    let magnitude = s.k[e] * (l - rest) + s.c[e] * closing;
+                    // A seam is a thread: it pulls its ends together, it never pushes them
+                    // apart (a pair that came closer than the seam's rest length is slack).
+                    let slack = s.kind[e] == EdgeKind::Seam && l <= rest;
+                    *f = if slack {
+                        [0.0; 3]
+                    } else {
+                        (magnitude * u).to_array()
+                    };
                 }
                 over
             })
@@ -65,13 +80,20 @@ impl MeshCloth {
         watch.is_some() && over
     }
 
-    /// Elastic energy of the springs at `pos`, `sum k (l - L)^2 / 2`, in J (f64).
+    /// Elastic energy of the springs at `pos`, `sum k (l - L)^2 / 2`, in J (f64); a seam
+    /// counts at the zero rest length it holds once sewn (while it closes, its rest length is
+    /// driven by the clock and the energy is not conserved).
     pub fn elastic_energy(&self, pos: &Vec3s) -> f64 {
         let s = &self.springs;
         (0..s.len())
             .map(|e| {
                 let l = (pos.get(s.b[e] as usize) - pos.get(s.a[e] as usize)).length() as f64;
-                let stretch = l - s.rest[e] as f64;
+                let rest = if s.kind[e] == EdgeKind::Seam {
+                    0.0
+                } else {
+                    s.rest[e] as f64
+                };
+                let stretch = l - rest;
                 0.5 * s.k[e] as f64 * stretch * stretch
             })
             .sum()
@@ -82,18 +104,20 @@ impl MeshCloth {
     /// loop's check is.
     pub fn first_overstretched(&self, pos: &Vec3s, limit: f32) -> Option<(usize, f32)> {
         let s = &self.springs;
-        (0..s.len()).find_map(|e| {
-            let (a, b) = (s.a[e] as usize, s.b[e] as usize);
-            let l = (pos.get(b) - pos.get(a)).length();
-            overstretched(l, s.rest[e], 1.0, limit).then(|| (a, l / s.rest[e]))
-        })
+        (0..s.len())
+            .filter(|&e| s.kind[e] != EdgeKind::Seam)
+            .find_map(|e| {
+                let (a, b) = (s.a[e] as usize, s.b[e] as usize);
+                let l = (pos.get(b) - pos.get(a)).length();
+                overstretched(l, s.rest[e], 1.0, limit).then(|| (a, l / s.rest[e]))
+            })
     }
 
     /// Per vertex, the largest strain `(l - L) / L` of the stretch springs that touch it.
     pub fn vertex_strain(&self, pos: &Vec3s) -> Vec<f32> {
         let s = &self.springs;
         let mut strain = vec![0.0f32; self.len()];
-        for e in (0..s.len()).filter(|&e| s.kind[e] == super::EdgeKind::Stretch) {
+        for e in (0..s.len()).filter(|&e| s.kind[e] == EdgeKind::Stretch) {
             let (a, b) = (s.a[e] as usize, s.b[e] as usize);
             let value = (pos.get(b) - pos.get(a)).length() / s.rest[e] - 1.0;
             strain[a] = strain[a].max(value);

@@ -7,7 +7,7 @@ use std::collections::HashMap;
 use glam::DVec3;
 
 use super::mesh::{check_indices, has_zero_area};
-use super::MeshSpec;
+use super::{ClothSpec, MeshSpec, SeamsSpec};
 use crate::error::{check_scalar, check_vector, Bound, Error, Result};
 
 /// Two vertices closer than this (m) are one point.
@@ -23,6 +23,9 @@ pub enum EdgeKind {
     Stretch,
     /// Across an interior edge, between the two opposite vertices.
     Bend,
+    /// A seam: two vertices sewn together. Its listed rest length is the pair's starting
+    /// distance, scaled down to zero over the cloth's `sew_time` ([`MeshCloth::sewing`]).
+    Seam,
 }
 
 /// The springs of a mesh cloth as an explicit list, sorted by kind, then ends.
@@ -87,6 +90,8 @@ pub struct MeshCloth {
     pub incident: Vec<u32>,
     /// The mean length of the mesh's edges at rest (m): its spacing, where the grid has one.
     pub mean_edge: f64,
+    /// Seconds over which the seams close (0 without seams).
+    pub sew_time: f64,
 }
 
 impl MeshCloth {
@@ -161,7 +166,11 @@ impl MeshCloth {
                 ),
             ));
         }
-        let springs = springs_of(rest, &triangles, &area, spec)?;
+        let mut springs = springs_of(rest, &triangles, &area, spec)?;
+        let sew_time = match &spec.seams {
+            Some(seams) => add_seams(&mut springs, rest, seams)?,
+            None => 0.0,
+        };
         let (offsets, incident) = incidence(n, &springs);
         // Every edge has one stretch spring, at its rest length.
         let edges = (0..springs.len()).filter(|&s| springs.kind[s] == EdgeKind::Stretch);
@@ -176,7 +185,18 @@ impl MeshCloth {
             springs,
             offsets,
             incident,
+            sew_time,
         })
+    }
+
+    /// The fraction of its starting length a seam spring's rest length has at `time` (s):
+    /// `1 - time / sew_time` down to 0, then 0 (sewn). 0 without seams.
+    pub fn sewing(&self, time: f64) -> f32 {
+        if self.sew_time > 0.0 {
+            (1.0 - time / self.sew_time).max(0.0) as f32
+        } else {
+            0.0
+        }
     }
 
     pub fn len(&self) -> usize {
@@ -392,6 +412,7 @@ fn springs_of(
         let (modulus, damping) = match kind {
             EdgeKind::Stretch => (spec.stretch, spec.damping),
             EdgeKind::Bend => (spec.bend, spec.damping),
+            EdgeKind::Seam => unreachable!("seams are added apart"),
         };
         if modulus == 0.0 {
             return;
@@ -431,6 +452,71 @@ fn springs_of(
         add(&mut springs, pair, share, EdgeKind::Bend);
     }
     Ok(springs)
+}
+
+/// Appends the seam springs of `seams` (checked: indices in range, two different vertices,
+/// no pair twice) and returns the sewing time.
+fn add_seams(springs: &mut EdgeSprings, rest: &[[f64; 3]], seams: &SeamsSpec) -> Result<f64> {
+    let at = format!("{AT}.seams");
+    check_scalar(&format!("{at}.sew_time"), seams.sew_time, Bound::Positive)?;
+    check_scalar(&format!("{at}.stiffness"), seams.stiffness, Bound::Positive)?;
+    check_scalar(&format!("{at}.damping"), seams.damping, Bound::NonNegative)?;
+    let mut seen: HashMap<(u32, u32), usize> = HashMap::with_capacity(seams.pairs.len());
+    for (s, pair) in seams.pairs.iter().enumerate() {
+        let name = format!("{at}.pairs[{s}]");
+        for &v in pair {
+            if !(0..rest.len() as i64).contains(&v) {
+                return Err(Error::IndexOutOfRange {
+                    name,
+                    index: v,
+                    len: rest.len(),
+                });
+            }
+        }
+        let (a, b) = (pair[0] as u32, pair[1] as u32);
+        if a == b {
+            return Err(Error::value(name, format!("sews vertex {a} to itself")));
+        }
+        if let Some(first) = seen.insert((a.min(b), a.max(b)), s) {
+            return Err(Error::value(name, format!("repeats pairs[{first}]")));
+        }
+        let d = (DVec3::from(rest[b as usize]) - DVec3::from(rest[a as usize])).length();
+        springs.push((a, b), d, seams.stiffness, seams.damping, EdgeKind::Seam);
+    }
+    Ok(seams.sew_time)
+}
+
+impl ClothSpec {
+    /// Compiles `garment` into `mesh` (and clears it): its vertices, triangles, UVs, material
+    /// and seams. A cloth with both is refused.
+    pub(super) fn sew_garment(&mut self) -> Result<()> {
+        let Some(garment) = self.garment.take() else {
+            return Ok(());
+        };
+        if self.mesh.is_some() {
+            return Err(Error::value(
+                "cloth.garment",
+                "a cloth is a garment or a mesh (cloth.mesh), not both",
+            ));
+        }
+        let sewn = garment.compile()?;
+        self.mesh = Some(MeshSpec {
+            vertices: sewn.vertices,
+            triangles: sewn.triangles,
+            uvs: Some(sewn.uvs),
+            density: garment.density,
+            stretch: garment.stretch,
+            bend: garment.bend,
+            damping: garment.damping,
+            seams: (!sewn.seams.is_empty()).then_some(SeamsSpec {
+                pairs: sewn.seams,
+                sew_time: garment.sew_time,
+                stiffness: garment.seam_stiffness,
+                damping: garment.seam_damping,
+            }),
+        });
+        Ok(())
+    }
 }
 
 /// For each vertex, the springs that touch it, in increasing order (CSR).

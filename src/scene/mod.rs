@@ -22,8 +22,8 @@ pub use pins::PIN_GROUPS;
 pub use solvers::{IntegratorKind, Preconditioner, SolverSettings};
 pub use specs::{
     ClothSpec, ColliderSpec, FloorSpec, MeshSpec, OnTrouble, PinBoundary, PinBox, PinSpec, PinTop,
-    Plane, SelfCollisionSpec, ShapeKind, SphereSpec, StrainLimitSpec, TearingSpec, WatchdogSpec,
-    WindSpec,
+    Plane, SeamsSpec, SelfCollisionSpec, ShapeKind, SphereSpec, StrainLimitSpec, TearingSpec,
+    WatchdogSpec, WindSpec,
 };
 pub use stability::stable_substep;
 use validate::require_tables;
@@ -150,6 +150,8 @@ const BUILTIN: &[(&str, &str)] = &[
         "delaunay_sheet",
         include_str!("../../scenes/delaunay_sheet.toml"),
     ),
+    ("shirt", include_str!("../../scenes/shirt.toml")),
+    ("skirt", include_str!("../../scenes/skirt.toml")),
 ];
 
 impl Scene {
@@ -222,12 +224,23 @@ impl Scene {
                 Error::InvalidValue { name, message }
             }
         })?;
+        let mut scene = scene;
+        scene.cloth.sew_garment()?;
         Ok(scene)
     }
 
-    /// Serialises to TOML with every key spelled out.
+    /// Serialises to TOML with every key spelled out (a garment as the mesh it compiles to).
     pub fn to_toml_string(&self) -> String {
-        toml::to_string(self).expect("a validated scene always serialises")
+        let sewn = self.sewn().expect("a validated scene's garment compiles");
+        toml::to_string(&sewn).expect("a validated scene always serialises")
+    }
+
+    /// This scene with its garment, if any, compiled into its mesh cloth (a scene read from
+    /// TOML or a dict already is).
+    pub fn sewn(&self) -> Result<Scene> {
+        let mut scene = self.clone();
+        scene.cloth.sew_garment()?;
+        Ok(scene)
     }
 
     /// The built-in scene called `name`.

@@ -280,6 +280,35 @@ pub struct MeshSpec {
     /// families) at any resolution. Default 0.07: the default grid cloth's springs dissipate
     /// `14 c r^2 = 0.14 r^2`.
     pub damping: f64,
+    /// Vertices sewn together (a garment's seams, `cloth.garment` fills it in). Default none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub seams: Option<SeamsSpec>,
+}
+
+/// Seams of a mesh cloth: pairs of vertices pulled together by springs whose rest length goes
+/// from the pair's starting distance to zero over `sew_time`, then stays zero.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SeamsSpec {
+    /// The vertex pairs sewn, each two different vertex indices.
+    pub pairs: Vec<[i64; 2]>,
+    /// Seconds over which the seams close (> 0). Default 1.
+    pub sew_time: f64,
+    /// Stiffness of each seam spring in N/m (> 0). Default 500.
+    pub stiffness: f64,
+    /// Damping along each seam spring in N s/m (>= 0). Default 0.05.
+    pub damping: f64,
+}
+
+impl Default for SeamsSpec {
+    fn default() -> Self {
+        SeamsSpec {
+            pairs: Vec::new(),
+            sew_time: 1.0,
+            stiffness: 500.0,
+            damping: 0.05,
+        }
+    }
 }
 
 impl Default for MeshSpec {
@@ -292,6 +321,7 @@ impl Default for MeshSpec {
             stretch: 600.0,
             bend: 80.0,
             damping: 0.07,
+            seams: None,
         }
     }
 }
@@ -334,6 +364,11 @@ pub struct ClothSpec {
     /// keep their defaults (the mesh carries its own material). Absent (default): the grid.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub mesh: Option<MeshSpec>,
+    /// A garment sewn from flat panels (`src/garment/`, docs/garments.md). Compiled when the
+    /// scene is read into `mesh` (its vertices, triangles, UVs, material and seams), which is
+    /// what a scene serialises to; give a garment or a mesh, not both. Absent (default): none.
+    #[serde(skip_serializing)]
+    pub garment: Option<crate::garment::GarmentSpec>,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -376,6 +411,7 @@ impl Default for ClothSpec {
             damping: 0.01,
             pins: vec![PinSpec::Named("top_corners".into())],
             mesh: None,
+            garment: None,
         }
     }
 }

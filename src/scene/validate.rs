@@ -24,6 +24,10 @@ pub fn validations() -> u64 {
 impl Scene {
     /// Checks every value; the error names the first offending parameter and its value.
     pub fn validate(&self) -> Result<()> {
+        if self.cloth.garment.is_some() {
+            // A scene built in code, not read: check the cloth its garment compiles to.
+            return self.sewn()?.validate();
+        }
         VALIDATIONS.set(VALIDATIONS.get() + 1);
         check_scalar("dt", self.dt, Bound::Positive)?;
         if self.substeps == 0 {

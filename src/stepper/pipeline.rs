@@ -272,6 +272,7 @@ impl Pipeline {
         // The watch judges the state the substep starts from: the first force evaluation of
         // this solve, not a later round's or a half's, which start elsewhere.
         self.forces.arm_stretch_watch();
+        self.forces.set_time(s.time - s.h as f64);
         let mut finite = self.solve(&mut job, from, s.next, false);
         if let (true, Some(start)) = (finite, self.start_energy) {
             if self.rose(start, || energy_of(model, s.next)).is_none() {

@@ -1,6 +1,8 @@
 //! Scaffolding shared by the Rust integration tests.
 #![allow(dead_code)]
 
+pub mod crossings;
+
 use std::hash::{Hash, Hasher};
 
 use glam::Vec3;

@@ -91,7 +91,13 @@ class SceneLayout:
             hi = np.maximum(hi, center + radius)
         plane = cloth.get("plane", "xz")
         front = _front(plane, rest_positions, pins, hang)
-        winding = float(np.mean(rest_normals @ _rest_front(plane))) > 0.0
+        facing = float(np.mean(rest_normals @ _rest_front(plane)))
+        if abs(facing) < 0.5:
+            # Neither up nor down (a garment wrapped round a body): the front is the outside,
+            # the side facing away from the cloth's centre.
+            outward = rest_positions - rest_positions.mean(axis=0)
+            facing = float(np.mean(np.sum(rest_normals * outward, axis=1)))
+        winding = facing > 0.0
         return cls(size, (nx, ny), spacing, ground, bool(floor), spheres,
                    lo.astype(np.float32), hi.astype(np.float32), front, winding)
 
