@@ -207,7 +207,7 @@ impl Stepper {
         passes.judge_work(&s);
         let mut round = 0;
         let finite = loop {
-            let mut finite = passes.integrate(&mut s, &mut self.force);
+            let mut finite = passes.integrate(&mut s, &mut self.force, round);
             if passes.forces.overstretched() {
                 return Err(self.overstretched_start(model, &state.kin, substeps));
             }
