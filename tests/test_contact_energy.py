@@ -230,3 +230,28 @@ def test_a_projective_dynamics_self_collision_rerun_costs_one_solve(steps_per_se
     steps = [s for s in steps if s["halved"] == 0]
     assert steps, "no step was rerun without halving: the case tests nothing"
     assert max(s["solves"] for s in steps) <= CONTACT_ROUNDS + 1, steps
+
+
+PUMPED = pytest.mark.xfail(strict=True, reason="the collider passes after its solve add 0.077 J")
+
+
+@pytest.mark.parametrize(("integrator", "drop"), [
+    pytest.param(i, d, id=f"{i}-{round(100 * d)}cm",
+                 marks=[PUMPED] if (i, d) == ("implicit_euler", 0.4) else [])
+    for i in ("implicit_euler", "projective_dynamics") for d in (0.1, 0.4, 1.0)])
+def test_no_landing_step_ends_above_its_start_energy(integrator, drop):
+    # Stricter than the run's highest energy against its start: the pile loses energy in the
+    # air, which can hide a step that gains. Implicit Euler's first landing step on the pile
+    # dropped 40 cm at 1/60 s gains 0.071 J (0.8 % of its 9.04 J): its solve loses 0.006 J and
+    # the collider passes after it, putting out the particles the springs carried into the
+    # floor after the last contact round, add 0.077 J. Projective dynamics gained 7 % in one
+    # step there until its self-collision rerun solved once.
+    scene = pile(drop).replace(integrator=integrator, dt=1 / 60, substeps=1)
+    sim = Simulation(scene)
+    before, worst = sim.energy().total, -math.inf
+    for _ in range(48):
+        sim.step(1)
+        after = sim.energy().total
+        worst = max(worst, (after - before) / abs(before))
+        before = after
+    assert worst <= DISSIPATIVE, f"{worst:+.2e} of a step's start energy"
