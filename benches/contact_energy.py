@@ -41,21 +41,28 @@ def case(base: Scene, integrator: str, dt: float) -> Scene:
     return scene.replace(substeps=max(1, needed))
 
 
-def run(scene: Scene, seconds: float) -> tuple[float, float, float, float, float]:
-    """Start, highest and final total energy (J), the seconds a step took, and the implicit
-    solves a step ran (0 for the explicit integrators)."""
-    sim = Simulation(scene)
-    start = sim.energy().total
-    highest = start
-    steps = math.ceil(seconds / scene.dt)
+def drive(sim: Simulation, steps: int) -> tuple[float, float]:
+    """Runs ``steps`` steps one at a time: the highest total energy (J) at their ends or at the
+    start, and the seconds a step took."""
+    highest = sim.energy().total
     took = 0.0
     for _ in range(steps):
         t = time.perf_counter()
         sim.step(1)
         took += time.perf_counter() - t
         highest = max(highest, sim.energy().total)
+    return highest, took / steps
+
+
+def run(scene: Scene, seconds: float) -> tuple[float, float, float, float, float]:
+    """Start, highest and final total energy (J), the seconds a step took, and the implicit
+    solves a step ran (0 for the explicit integrators)."""
+    sim = Simulation(scene)
+    start = sim.energy().total
+    steps = math.ceil(seconds / scene.dt)
+    highest, step = drive(sim, steps)
     solves = (sim.profile().solver or {}).get("solves", 0)
-    return start, highest, sim.energy().total, took / steps, solves / steps
+    return start, highest, sim.energy().total, step, solves / steps
 
 
 def main() -> None:

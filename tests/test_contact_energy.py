@@ -171,3 +171,87 @@ def test_a_step_that_work_is_done_in_is_not_halved(by, integrator):
     assert stats is not None
     assert sim.energy().total > start + 0.01, "nothing did work: the case tests nothing"
     assert stats["halved"] == 0, stats
+
+
+# At most this many solves in a substep's first pass with contacts (the stepper's
+# CONTACT_ROUNDS): after each, the contacts change and the solve runs again.
+CONTACT_ROUNDS = 3
+
+
+def rerun_steps(integrator: str, steps_per_second: int, drop: float) -> list[dict[str, float]]:
+    """The steps of the ``pile`` dropped ``drop`` m at ``1 / steps_per_second`` in which the
+    self-collision pass's particles were held in a second solve: the energy before and after,
+    the solves and halvings the step ran."""
+    scene = pile(drop).replace(integrator=integrator, dt=1.0 / steps_per_second, substeps=1)
+    sim = Simulation(scene)
+
+    def counts() -> tuple[float, int, int, int]:
+        solver, contact = sim.solver_stats() or {}, sim.self_collision_stats() or {}
+        return (sim.energy().total, solver.get("solves", 0), solver.get("halved", 0),
+                contact.get("substeps", 0))
+
+    out = []
+    before = counts()
+    for _ in range(math.ceil(0.8 * steps_per_second)):
+        sim.step(1)
+        after = counts()
+        if after[3] - before[3] == 2:
+            out.append({"before": before[0], "after": after[0], "solves": after[1] - before[1],
+                        "halved": after[2] - before[2]})
+        before = after
+    return out
+
+
+RERUN_CASES = [pytest.param(i, s, d, id=f"{i}-1/{s}-{round(100 * d)}cm")
+               for i in ("implicit_euler", "projective_dynamics")
+               for s in (60, 120) for d in (0.1, 0.4)]
+
+
+@pytest.mark.parametrize(("integrator", "steps_per_second", "drop"), RERUN_CASES)
+def test_a_self_collision_rerun_ends_below_its_start_energy(integrator, steps_per_second, drop):
+    # The rerun exists because the self-collision pass stored energy in the springs of a
+    # landing layer (+0.44 J in one step of implicit Euler on the pile dropped 40 cm at 1/60 s);
+    # the substep it reruns must end with no more energy than it started with, whatever
+    # energy the cloth had lost before.
+    steps = rerun_steps(integrator, steps_per_second, drop)
+    assert steps, "no step was rerun: the case tests nothing"
+    worst = max((s["after"] - s["before"]) / abs(s["before"]) for s in steps)
+    assert worst <= DISSIPATIVE, f"{worst:+.2e} of the step's start energy"
+
+
+@pytest.mark.parametrize(("steps_per_second", "drop"), [(60, 0.1), (60, 0.4), (120, 0.1)])
+def test_a_projective_dynamics_self_collision_rerun_costs_one_solve(steps_per_second, drop):
+    # The rerun's contact set is the one the first solve's rounds settled, plus the holds on
+    # the particles the self-collision pass moved. A projective-dynamics contact only pushes,
+    # so rounds of the rerun's own, which mostly released holds left ahead of their planes,
+    # changed nothing the solve converges to and cost 1.7 of its 4.6 solves a step on the pile
+    # dropped 10 cm at 1/60 s: the rerun solves once. A halved solve runs more, and is left out.
+    steps = rerun_steps("projective_dynamics", steps_per_second, drop)
+    steps = [s for s in steps if s["halved"] == 0]
+    assert steps, "no step was rerun without halving: the case tests nothing"
+    assert max(s["solves"] for s in steps) <= CONTACT_ROUNDS + 1, steps
+
+
+PUMPED = pytest.mark.xfail(strict=True, reason="the collider passes after its solve add 0.077 J")
+
+
+@pytest.mark.parametrize(("integrator", "drop"), [
+    pytest.param(i, d, id=f"{i}-{round(100 * d)}cm",
+                 marks=[PUMPED] if (i, d) == ("implicit_euler", 0.4) else [])
+    for i in ("implicit_euler", "projective_dynamics") for d in (0.1, 0.4, 1.0)])
+def test_no_landing_step_ends_above_its_start_energy(integrator, drop):
+    # Stricter than the run's highest energy against its start: the pile loses energy in the
+    # air, which can hide a step that gains. Implicit Euler's first landing step on the pile
+    # dropped 40 cm at 1/60 s gains 0.071 J (0.8 % of its 9.04 J): its solve loses 0.006 J and
+    # the collider passes after it, putting out the particles the springs carried into the
+    # floor after the last contact round, add 0.077 J. Projective dynamics gained 7 % in one
+    # step there until its self-collision rerun solved once.
+    scene = pile(drop).replace(integrator=integrator, dt=1 / 60, substeps=1)
+    sim = Simulation(scene)
+    before, worst = sim.energy().total, -math.inf
+    for _ in range(48):
+        sim.step(1)
+        after = sim.energy().total
+        worst = max(worst, (after - before) / abs(before))
+        before = after
+    assert worst <= DISSIPATIVE, f"{worst:+.2e} of a step's start energy"

@@ -2,7 +2,7 @@
 //! advances a [`State`] of a [`Model`] by whole steps.
 //!
 //! One step of `dt` ([`Stepper::step`]) is `substeps` substeps of `h = dt / substeps`, each
-//! running the passes of `pipeline.rs` in the order [`Stepper::substep`] calls them. The passes
+//! running the passes of `pipeline/` in the order [`Stepper::substep`] calls them. The passes
 //! write into a scratch buffer, swapped with the state only when the result is finite and
 //! within the watchdog's limits, so a step that goes wrong leaves the previous state in place;
 //! what then happens (a retry, a rollback, an error) is in `recovery.rs`, the watchdog's memory
@@ -207,7 +207,7 @@ impl Stepper {
         passes.judge_work(&s);
         let mut round = 0;
         let finite = loop {
-            let mut finite = passes.integrate(&mut s, &mut self.force);
+            let mut finite = passes.integrate(&mut s, &mut self.force, round);
             if passes.forces.overstretched() {
                 return Err(self.overstretched_start(model, &state.kin, substeps));
             }

@@ -1,0 +1,103 @@
+//! The cheap passes after the integrator, each a change of the substep's result: wind, kinematic
+//! pins, strain limiting, colliders, self-collision; and tearing, after a whole step.
+
+use std::time::Instant;
+
+use super::{Pipeline, Substep};
+use crate::model::Model;
+use crate::pins::KinematicPins;
+use crate::profile::Profile;
+use crate::self_collision::SelfCollision;
+use crate::soa::Vec3s;
+use crate::state::State;
+use crate::strain_limit::StrainLimit;
+use crate::tearing::Tearing;
+use crate::wind::Wind;
+
+impl Pipeline {
+    /// Pushes the cloth with the wind's drag and lift.
+    pub fn blow_wind(&mut self, s: &mut Substep) -> bool {
+        let Some(wind) = &mut self.wind else {
+            return true;
+        };
+        let t = Instant::now();
+        let start = s.time - s.h as f64;
+        let finite = wind.apply(s.model, &s.state.kin, s.next, s.h, start);
+        s.profile.add(Wind::NAME, t.elapsed());
+        finite
+    }
+
+    /// Moves the dragged particles to their targets.
+    pub fn pin_targets(&mut self, s: &mut Substep) -> bool {
+        let targets = &s.state.targets;
+        if targets.is_empty() {
+            return true;
+        }
+        let t = Instant::now();
+        let next = &mut *s.next;
+        let finite = targets.apply(s.h, &s.state.kin.pos, &mut next.pos, &mut next.vel);
+        s.profile.add(KinematicPins::NAME, t.elapsed());
+        finite
+    }
+
+    /// Shortens the springs stretched beyond the limit. After the pins, so that the limit pulls
+    /// the cloth after a dragged particle rather than back to where it was; before the
+    /// colliders, so that contacts have the last word.
+    pub fn limit_strain(&mut self, s: &mut Substep) -> bool {
+        let Some(limit) = &mut self.strain_limit else {
+            return true;
+        };
+        let t = Instant::now();
+        let (grid, springs, particles) = (s.model.grid, &s.model.springs, &s.model.particles);
+        let finite = match s.model.mesh() {
+            Some(mesh) => limit.apply_mesh((grid, springs), mesh, particles, s.next, s.chunk),
+            None => limit.apply(grid, springs, particles, s.next, s.chunk),
+        }
+        .finite;
+        s.profile.add(StrainLimit::NAME, t.elapsed());
+        finite
+    }
+
+    /// Puts the particles outside every collider, in the scene's order.
+    pub fn collide(&mut self, s: &mut Substep) -> bool {
+        let mut finite = true;
+        for collider in &self.colliders {
+            let t = Instant::now();
+            let particles = &s.model.particles;
+            let (start, time) = (&s.state.kin, (s.h, s.time));
+            finite &= collider.resolve(start, s.next, None, particles, s.chunk, time);
+            s.profile.add(collider.name(), t.elapsed());
+        }
+        finite
+    }
+
+    /// Keeps the cloth from passing through itself; for a solver that holds contacts, keeps
+    /// where the particles were before, for [`Pipeline::hold_self_contacts`].
+    pub fn separate_self_contacts(&mut self, s: &mut Substep) -> bool {
+        let holds = self.holds_contacts();
+        let Some(contact) = &mut self.self_collision else {
+            return true;
+        };
+        let t = Instant::now();
+        if holds {
+            let n = s.next.pos.len();
+            if self.unshortened.len() != n {
+                self.unshortened = Vec3s::zeros(n);
+            }
+            self.unshortened.copy_from(&s.next.pos);
+        }
+        let finite = contact.apply(s.model, &s.state.kin, s.next);
+        s.profile.add(SelfCollision::NAME, t.elapsed());
+        finite
+    }
+
+    /// Breaks the springs strained beyond the tearing limit, on the accepted end-of-step
+    /// positions.
+    pub fn tear(&mut self, model: &mut Model, state: &State, profile: &mut Profile) {
+        if let Some(tearing) = &mut self.tearing {
+            let t = Instant::now();
+            tearing.apply(model, &state.kin.pos);
+            profile.add(Tearing::NAME, t.elapsed());
+        }
+    }
+}

@@ -1,0 +1,363 @@
+//! The integrator's solve with contacts held inside it, judged by its energy.
+//!
+//! For an integrator that holds contacts (implicit Euler, projective dynamics), a substep's
+//! solve is:
+//!
+//! 1. the contacts each particle's free motion would make ([`Pipeline::predict_contacts`]);
+//! 2. the solve, in rounds while the contacts change: after each, the contacts it pulled in are
+//!    released and the particles it carried into a collider are held, at most
+//!    [`CONTACT_ROUNDS`] times ([`Pipeline::solve`]);
+//! 3. where nothing does work on the cloth ([`Pipeline::judge_work`]) and the solve ended with
+//!    more energy than it started with, the same again as two halves, each judged the same way,
+//!    down to `1 / 2^SPLITS` of the substep ([`Pipeline::solve_judged`]);
+//! 4. after the passes that follow the integrator, where the self-collision pass moved particles
+//!    and the substep gained energy, the passes once more, the solve holding each particle where
+//!    the pass left it ([`Pipeline::hold_self_contacts`]); for projective dynamics in one
+//!    round, the first solve's rounds having settled the colliders' contacts ([`contact_rounds`]).
+
+use std::time::Instant;
+
+use glam::{DVec3, Vec3};
+
+use super::{Pipeline, Substep};
+use crate::collisions::PredictedContacts;
+use crate::diagnostics::{energy_of, Energy};
+use crate::integrators::StepContext;
+use crate::model::Model;
+use crate::profile::Profile;
+use crate::scene::IntegratorKind;
+use crate::soa::Vec3s;
+use crate::state::{Kinematics, State};
+
+/// How many times at most an implicit solve runs in a substep with contacts: after each, the
+/// contacts it pulled in are released and the particles it carried into a collider are held,
+/// and the solve runs again while that changed anything. A contact set still changing after
+/// the last round leaves its few particles to the collider passes after the solve. A resting
+/// pile's set changes in every round (a few particles released, then held again), so this is
+/// what most of its solves cost: 3 keeps every case of `benches/contact_energy.py` from
+/// gaining energy, 2 let projective dynamics gain 5 % on the pile dropped 40 cm at 1/60 s.
+const CONTACT_ROUNDS: u32 = 3;
+
+/// How many times at most a solve holding contacts that gained energy is halved
+/// ([`Pipeline::integrate`]): down to an eighth of the substep.
+const SPLITS: u32 = 3;
+
+/// The energy rise a solve may show before it is split, as a fraction of the energies' sum
+/// `K + |G| + E` at its start: float32 positions near 1 m round at 6e-8 m, so the sum of
+/// potential energies is known to about 1e-7 of that scale; ten times more is noise-proof and
+/// still a thousandth of the smallest gain measured from a landing.
+const ENERGY_SLACK: f64 = 1e-6;
+
+/// How many times at most a substep's passes run, the solve after the first holding the
+/// particles the self-collision pass moved ([`Pipeline::hold_self_contacts`]).
+const SELF_ROUNDS: u32 = 2;
+
+/// How many times at most the solve of a rerun holding the self-collision pass's particles runs
+/// with an integrator whose contacts only push ([`contact_rounds`]). Its contact set is the one
+/// the first solve's rounds settled, plus those holds; further rounds mostly release holds the
+/// solve left ahead of their planes, which changes nothing the solve converges to, at a whole
+/// solve each: 1.7 of projective dynamics' 4.6 solves a step on the `pile` dropped 10 cm at
+/// 1/60 s. With 3, one such rerun (the pile dropped 40 cm at 1/60 s) ended 8 % above its
+/// substep's start energy; with 1, every rerun of `tests/test_contact_energy.py`'s landings
+/// ends below it.
+const RERUN_ROUNDS: u32 = 1;
+
+/// How many times at most the solve of round `round` (from 0) of a substep's passes runs while
+/// its contacts change. A rerun holding the self-collision pass's particles settles its
+/// contacts in rounds only where a contact pulls as well as pushes inside the solve (implicit
+/// Euler's stiff spring onto the plane): there releasing a hold the solve left ahead of its
+/// plane lets the vertex move off. A projective-dynamics contact is the term
+/// `w_c/2 |x - P(x)|^2`, zero on the plane's outer side: a hold ahead of its plane exerts
+/// nothing where the iteration converges, and releasing it changes nothing but the cost.
+fn contact_rounds(kind: IntegratorKind, round: u32) -> u32 {
+    match (round, kind) {
+        (0, _) => CONTACT_ROUNDS,
+        (_, IntegratorKind::ProjectiveDynamics) => RERUN_ROUNDS,
+        _ => CONTACT_ROUNDS,
+    }
+}
+
+/// Whether the total energy `end` is above `start` by more than the rounding of float32
+/// positions and speeds can explain ([`ENERGY_SLACK`] of the energies' sum at the start).
+fn gained(start: Energy, end: Energy) -> bool {
+    let scale = start.kinetic + start.gravitational.abs() + start.elastic;
+    end.total() > start.total() + ENERGY_SLACK * scale
+}
+
+/// What one solve of a substep reads and writes, apart from the states it goes between.
+struct Solve<'a> {
+    model: &'a Model,
+    /// Length of the solve, s.
+    h: f32,
+    /// Time at its end, s.
+    time: f64,
+    chunk: usize,
+    profile: &'a mut Profile,
+    force: &'a mut Vec3s,
+    /// How many times at most it runs while its contacts change ([`Pipeline::solve`]).
+    rounds: u32,
+}
+
+/// Whether a solve's values are all finite, and the energy at its end where it was evaluated.
+type Judged = (bool, Option<Energy>);
+
+impl Pipeline {
+    /// Whether this substep's integrator holds the predicted contacts inside its solve.
+    pub(super) fn holds_contacts(&self) -> bool {
+        self.contacts.is_some() && self.integrator.kind().holds_contacts()
+    }
+
+    /// Finds the contacts each particle's free motion would make with the colliders, for an
+    /// integrator that holds them inside its solve.
+    pub fn predict_contacts(&mut self, s: &mut Substep) {
+        if self.holds_contacts() {
+            let span = (s.h, s.time);
+            self.find_contacts(s.model, &s.state.kin, span, s.chunk, s.profile);
+        }
+    }
+
+    /// The contacts of a solve from `from` over `(h, time)`: its length and the time at its end.
+    fn find_contacts(
+        &mut self,
+        model: &Model,
+        from: &Kinematics,
+        span: (f32, f64),
+        chunk: usize,
+        profile: &mut Profile,
+    ) {
+        let Some(contacts) = self.contacts.as_mut() else {
+            return;
+        };
+        let t = Instant::now();
+        let g = DVec3::from(model.scene.gravity).as_vec3();
+        contacts.find(&self.colliders, from, &model.particles, g, span, chunk);
+        profile.add(PredictedContacts::NAME, t.elapsed());
+    }
+
+    /// Keeps the energy at the substep's start where a solver holds contacts and nothing does
+    /// work on the cloth ([`Pipeline::does_work`]), None elsewhere: what every solve of the
+    /// substep (each round of its passes, each half) is judged against. Once per substep,
+    /// before its first round.
+    pub fn judge_work(&mut self, s: &Substep) {
+        let idle = self.holds_contacts() && !self.does_work(s.model, s.state, (s.h, s.time));
+        self.start_energy = idle.then(|| energy_of(s.model, &s.state.kin));
+    }
+
+    /// Whether something may do work on the cloth within the substep of length `h` ending at
+    /// `time`, from `state`: a collider moving at its start or end, a kinematic pin's target,
+    /// or a pinned particle moving (a pin dragged in the step before). Such a substep adds
+    /// energy rightly and is never split for it; judged once per substep, for all its halves.
+    fn does_work(&self, model: &Model, state: &State, (h, time): (f32, f64)) -> bool {
+        let start = time - h as f64;
+        if (self.colliders.iter()).any(|c| c.moves(time) || c.moves(start)) {
+            return true;
+        }
+        let (pinned, vel) = (&model.particles.pinned, &state.kin.vel);
+        !state.targets.is_empty()
+            || (0..pinned.len()).any(|p| pinned[p] && vel.get(p) != Vec3::ZERO)
+    }
+
+    /// The integrator's step into `s.next` in round `round` (from 0) of the substep's passes,
+    /// with the predicted contacts' friction; returns whether every value it wrote is finite.
+    /// Arms the force loop's stretch watch, read after it by
+    /// [`crate::forces::ForceModel::overstretched`].
+    ///
+    /// A solve holding contacts that ends with more energy than it started with is run again
+    /// as two halves ([`Pipeline::solve_judged`]). A landing at a long step moves a row a
+    /// spring's length or more into the rows that already landed; the solve's springs are
+    /// linearised at the step's start, where a compressed spring has no sideways stiffness,
+    /// and their true energy at the end can be joules above what the linear model traded for
+    /// (the `pile` dropped 40 cm at 1/60 s: 3.2 J of elastic energy from one solve). Where
+    /// nothing does work on the cloth ([`Pipeline::rose`]) the rise is the linearisation's
+    /// error, and shorter solves shrink it (at 1/120 s and 1/240 s the same drops gain
+    /// nothing).
+    pub fn integrate(&mut self, s: &mut Substep, force: &mut Vec3s, round: u32) -> bool {
+        let started = Instant::now();
+        let forces_before = s.profile.force_time;
+        let mut job = Solve {
+            model: s.model,
+            h: s.h,
+            time: s.time,
+            chunk: s.chunk,
+            profile: &mut *s.profile,
+            force,
+            rounds: contact_rounds(self.integrator.kind(), round),
+        };
+        // The watch judges the state the substep starts from: the first force evaluation of
+        // this solve, not a later round's or a half's, which start elsewhere.
+        self.forces.arm_stretch_watch();
+        self.forces.set_time(s.time - s.h as f64);
+        let judge = self.start_energy;
+        let (finite, _) = self.solve_judged(&mut job, (&s.state.kin, s.next), false, judge, 0);
+        let own_time = started
+            .elapsed()
+            .saturating_sub(s.profile.force_time - forces_before);
+        s.profile.add(self.integrator.name(), own_time);
+        finite
+    }
+
+    /// The energy at a solve's end (`end` evaluated), or None when it is above the energy
+    /// `start` at its start by more than the rounding of float32 positions and speeds can
+    /// explain, with contacts held. Called only where nothing does work on the cloth
+    /// ([`Pipeline::does_work`]).
+    fn rose(&self, start: Energy, end: impl FnOnce() -> Energy) -> Option<Energy> {
+        let end = end();
+        let held = self.contacts.as_ref().is_some_and(|c| c.count > 0);
+        (!(held && gained(start, end))).then_some(end)
+    }
+
+    /// Steps `from` over `job.h` into `into` (contacts predicted first when `predict`): the
+    /// whole solve, and, when it is judged (`judge`: the energy at `from`) and gained energy,
+    /// two halves instead ([`Pipeline::in_halves`]). `depth` is how many times this solve's
+    /// span was halved already.
+    fn solve_judged(
+        &mut self,
+        job: &mut Solve,
+        (from, into): (&Kinematics, &mut Kinematics),
+        predict: bool,
+        judge: Option<Energy>,
+        depth: u32,
+    ) -> Judged {
+        let finite = self.solve(job, from, into, predict);
+        let Some(start) = judge.filter(|_| finite) else {
+            return (finite, None);
+        };
+        match self.rose(start, || energy_of(job.model, into)) {
+            Some(end) => (true, Some(end)),
+            None => self.in_halves(job, (from, into), start, depth + 1),
+        }
+    }
+
+    /// Steps `from` (whose energy is `start`) over `job.h` into `into` as two halves, each
+    /// judged as a whole solve is while `depth < SPLITS` (so halved again while it gains
+    /// energy), and taken as it comes at the last level.
+    fn in_halves(
+        &mut self,
+        job: &mut Solve,
+        (from, into): (&Kinematics, &mut Kinematics),
+        start: Energy,
+        depth: u32,
+    ) -> Judged {
+        self.halved += 1;
+        let (h, time, rounds) = (job.h, job.time, job.rounds);
+        // Each half predicts its own contacts, and settles them in rounds.
+        job.rounds = CONTACT_ROUNDS;
+        let mut mid = self.take_half(depth, from.pos.len());
+        let judged = depth < SPLITS;
+        job.h = h / 2.0;
+        job.time = time - (h / 2.0) as f64;
+        let first = judged.then_some(start);
+        let (mut finite, at_mid) = self.solve_judged(job, (from, &mut mid), true, first, depth);
+        let mut end = None;
+        if finite {
+            job.time = time;
+            let second = judged.then(|| at_mid.unwrap_or_else(|| energy_of(job.model, &mid)));
+            (finite, end) = self.solve_judged(job, (&mid, into), true, second, depth);
+        }
+        self.halves[depth as usize - 1] = mid;
+        (job.h, job.time, job.rounds) = (h, time, rounds);
+        (finite, end)
+    }
+
+    /// The buffer for the midpoint of a solve halved `depth` times (from 1), taken out of
+    /// `halves` until [`Pipeline::in_halves`] puts it back.
+    fn take_half(&mut self, depth: u32, n: usize) -> Kinematics {
+        let slot = depth as usize - 1;
+        if self.halves.len() <= slot {
+            self.halves.resize_with(slot + 1, || Kinematics::zeros(n));
+        }
+        std::mem::replace(&mut self.halves[slot], Kinematics::zeros(0))
+    }
+
+    /// One solve of the integrator from `from` over `job.h` into `into` (contacts predicted
+    /// first when `predict`), in rounds while the contacts change, `job.rounds` at most: after
+    /// each, the contacts the solve pulled in are released and the particles it carried into a
+    /// collider are held ([`PredictedContacts::correct`]). Then the contacts' friction.
+    fn solve(
+        &mut self,
+        job: &mut Solve,
+        from: &Kinematics,
+        into: &mut Kinematics,
+        predict: bool,
+    ) -> bool {
+        let holds = self.holds_contacts();
+        if predict && holds {
+            let span = (job.h, job.time);
+            self.find_contacts(job.model, from, span, job.chunk, job.profile);
+        }
+        let mut round = 0;
+        let finite = loop {
+            round += 1;
+            let mut ctx = StepContext {
+                grid: job.model.grid,
+                current: from,
+                next: into,
+                particles: &job.model.particles,
+                springs: &job.model.springs,
+                mesh: job.model.mesh(),
+                forces: &mut self.forces,
+                force: job.force,
+                chunk: job.chunk,
+                profile: job.profile,
+                contacts: self.contacts.as_ref().filter(|_| holds),
+            };
+            let finite = self.integrator.step(job.h, &mut ctx);
+            let Some(contacts) = self.contacts.as_mut().filter(|_| holds) else {
+                break finite;
+            };
+            if !finite || round >= job.rounds {
+                break finite;
+            }
+            let t = Instant::now();
+            let changed = contacts.correct(
+                &self.colliders,
+                (from, into),
+                &job.model.particles,
+                (job.h, job.time),
+                job.chunk,
+            );
+            job.profile.add(PredictedContacts::NAME, t.elapsed());
+            if changed == 0 {
+                break finite;
+            }
+        };
+        if let Some(contacts) = self.contacts.as_ref().filter(|c| holds && c.count > 0) {
+            contacts.apply_friction(into, job.h, job.chunk);
+        }
+        finite
+    }
+
+    /// After round `round` (from 0) of a substep's passes, holds inside the solve the particles
+    /// the self-collision pass moved, and returns whether the substep must run again.
+    ///
+    /// Self-collision runs after the solve and shortens motion: at a display-frame step it
+    /// stops a vertex of a landing layer a spring's length short of where its neighbours go,
+    /// and the springs between them hold joules the solve never traded for (the `pile` dropped
+    /// 10 cm at 1/60 s with projective dynamics: +0.6 J in one substep, +4 % over the drop).
+    /// Held on the plane through where the pass left it, normal to the pass's correction (the
+    /// side it pushed toward is free), a vertex stops within the solve, and its springs slow
+    /// its neighbours there instead of straining. The pass then runs again on the new result.
+    /// Only where it matters: where nothing does work on the cloth and the substep ended with
+    /// more energy than it started with (by more than rounding, [`gained`]).
+    pub fn hold_self_contacts(&mut self, s: &Substep, round: u32) -> bool {
+        if round + 1 >= SELF_ROUNDS || self.self_collision.is_none() || !self.holds_contacts() {
+            return false;
+        }
+        let (Some(start), Some(contacts)) = (self.start_energy, self.contacts.as_mut()) else {
+            return false;
+        };
+        if !gained(start, energy_of(s.model, s.next)) {
+            return false;
+        }
+        let (before, after) = (&self.unshortened, &s.next.pos);
+        let mut held = false;
+        for p in 0..after.len() {
+            let push = after.get(p) - before.get(p);
+            let length = push.length();
+            if length > 0.0 && length.is_finite() {
+                held |= contacts.hold(p, push / length, after.get(p));
+            }
+        }
+        held
+    }
+}
