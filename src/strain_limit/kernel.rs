@@ -179,7 +179,7 @@ impl Kernel<'_> {
         chunk: usize,
     ) -> bool {
         if let Some(mesh) = self.mesh {
-            return self.velocity_corrections_mesh(mesh, before, after, count, out, chunk);
+            return self.velocity_corrections_mesh(mesh, (before, after), (count, out), chunk);
         }
         out.par_chunks_mut(chunk)
             .enumerate()

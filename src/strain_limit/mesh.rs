@@ -84,79 +84,80 @@ impl Kernel<'_> {
         chunk: usize,
     ) -> bool {
         let (s, w, factor) = (&mesh.springs, self.inv_mass, self.factor);
-        out.par_chunks_mut(chunk)
-            .enumerate()
-            .map(|(c, mut out)| {
-                let mut changed = false;
-                for i in 0..out.len() {
-                    let v = c * chunk + i;
-                    let x = pos.get(v);
-                    if count[v] == 0 {
-                        // Nothing to correct (or it cannot move): it keeps its bits.
-                        out.set(i, x);
-                        continue;
-                    }
-                    let mut sum = Vec3::ZERO;
-                    for (e, other) in stretch_springs(mesh, v) {
-                        let d = pos.get(other) - x;
-                        let l2 = d.length_squared();
-                        if !over_limit(l2, s.rest[e], 1.0, factor) {
-                            continue;
-                        }
-                        let l = l2.sqrt();
-                        let lim = factor * s.rest[e];
-                        let shared = count[v].max(count[other]) as f32;
-                        let share = w[v] / (w[v] + w[other]) * ((l - lim) / (l * shared));
-                        sum += share * d;
-                    }
-                    let new = x + sum;
-                    changed |= new.to_array().map(f32::to_bits) != x.to_array().map(f32::to_bits);
-                    out.set(i, new);
+        per_vertex(out, chunk, |v| {
+            let x = pos.get(v);
+            if count[v] == 0 {
+                // Nothing to correct (or it cannot move): it keeps its bits.
+                return (x, false);
+            }
+            let mut sum = Vec3::ZERO;
+            for (e, other) in stretch_springs(mesh, v) {
+                let d = pos.get(other) - x;
+                let l2 = d.length_squared();
+                if !over_limit(l2, s.rest[e], 1.0, factor) {
+                    continue;
                 }
-                changed
-            })
-            .reduce(|| false, |a, b| a | b)
+                let l = l2.sqrt();
+                let lim = factor * s.rest[e];
+                let shared = count[v].max(count[other]) as f32;
+                let share = w[v] / (w[v] + w[other]) * ((l - lim) / (l * shared));
+                sum += share * d;
+            }
+            let new = x + sum;
+            (
+                new,
+                new.to_array().map(f32::to_bits) != x.to_array().map(f32::to_bits),
+            )
+        })
     }
 
-    /// [`Kernel::velocity_corrections`] on a mesh.
+    /// [`Kernel::velocity_corrections`] on a mesh, `(before, after)` as there.
     pub(super) fn velocity_corrections_mesh(
         &self,
         mesh: &MeshCloth,
-        before: &Kinematics,
-        after: &Vec3s,
-        count: &[u8],
-        out: &mut Vec3s,
+        (before, after): (&Kinematics, &Vec3s),
+        (count, out): (&[u8], &mut Vec3s),
         chunk: usize,
     ) -> bool {
         let (s, w, factor) = (&mesh.springs, self.inv_mass, self.factor);
-        out.par_chunks_mut(chunk)
-            .enumerate()
-            .map(|(c, mut out)| {
-                let mut any = false;
-                for i in 0..out.len() {
-                    let v = c * chunk + i;
-                    let mut sum = Vec3::ZERO;
-                    if w[v] > 0.0 {
-                        for (e, other) in stretch_springs(mesh, v) {
-                            let d0 = before.pos.get(other) - before.pos.get(v);
-                            if !over_limit(d0.length_squared(), s.rest[e], 1.0, factor) {
-                                continue;
-                            }
-                            let d = after.get(other) - after.get(v);
-                            let l2 = d.length_squared();
-                            let apart = (before.vel.get(other) - before.vel.get(v)).dot(d);
-                            if !(apart > 0.0 && l2 > 0.0) {
-                                continue;
-                            }
-                            let shared = count[v].max(count[other]) as f32;
-                            sum += w[v] / (w[v] + w[other]) * (apart / (l2 * shared)) * d;
-                            any = true;
-                        }
-                    }
-                    out.set(i, sum);
+        per_vertex(out, chunk, |v| {
+            let (mut sum, mut any) = (Vec3::ZERO, false);
+            if w[v] == 0.0 {
+                return (sum, any);
+            }
+            for (e, other) in stretch_springs(mesh, v) {
+                let d0 = before.pos.get(other) - before.pos.get(v);
+                if !over_limit(d0.length_squared(), s.rest[e], 1.0, factor) {
+                    continue;
                 }
-                any
-            })
-            .reduce(|| false, |a, b| a | b)
+                let d = after.get(other) - after.get(v);
+                let l2 = d.length_squared();
+                let apart = (before.vel.get(other) - before.vel.get(v)).dot(d);
+                if !(apart > 0.0 && l2 > 0.0) {
+                    continue;
+                }
+                let shared = count[v].max(count[other]) as f32;
+                sum += w[v] / (w[v] + w[other]) * (apart / (l2 * shared)) * d;
+                any = true;
+            }
+            (sum, any)
+        })
     }
+}
+
+/// Writes `f(v)`'s vector for every vertex `v` into `out`, in parallel chunks of `chunk`
+/// vertices, and returns whether any `f(v)` said true.
+fn per_vertex(out: &mut Vec3s, chunk: usize, f: impl Fn(usize) -> (Vec3, bool) + Sync) -> bool {
+    out.par_chunks_mut(chunk)
+        .enumerate()
+        .map(|(c, mut out)| {
+            let mut any = false;
+            for i in 0..out.len() {
+                let (value, flag) = f(c * chunk + i);
+                out.set(i, value);
+                any |= flag;
+            }
+            any
+        })
+        .reduce(|| false, |a, b| a | b)
 }

@@ -138,6 +138,17 @@ impl Geometry {
         matches!(self, Geometry::Mesh(m) if !m.closed)
     }
 
+    /// Whether faces meet at edges (a box, a cylinder's caps and side, a mesh): the face nearest
+    /// a point inside may then be one the point never came near. A ball's and a capsule's
+    /// surfaces turn smoothly, and their nearest point is where a shallow contact is.
+    #[inline]
+    pub(super) fn has_edges(&self) -> bool {
+        matches!(
+            self,
+            Geometry::Cuboid(_) | Geometry::Cylinder(_) | Geometry::Mesh(_)
+        )
+    }
+
     /// Where the segment `from + t d`, `t` in `[0, 1]`, first meets the solid shape, and the
     /// outward normal there; `t = 0` when `from` is inside.
     #[inline]
