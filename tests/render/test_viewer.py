@@ -313,3 +313,15 @@ def test_c_turns_self_collision_off_and_on_and_the_step_follows(ctx: Any) -> Non
     follows(back_on)
     viewer.key("H")
     assert "C: self-collision on / off" in _text(viewer)
+
+
+def test_c_says_why_when_the_cloth_cannot_take_self_collision(ctx: Any) -> None:
+    # A cloth 1 mm between particles: the default gap (2 mm) would start it in contact.
+    sim = rustcloth.Simulation(rustcloth.Scene(cloth={"nx": 4, "ny": 4, "size": [0.003, 0.003]}))
+    viewer = Viewer(ctx, sim, SIZE, name="tiny", realtime=False)
+    before = sim.get_state()
+    viewer.key("C")
+    assert sim.self_collision is None and "self_collision" not in sim.effects
+    text, _, warning = viewer.notices[-1]
+    assert warning and "self-collision stays off" in text and "self_collision.thickness" in text
+    assert np.array_equal(sim.positions, before["positions"])

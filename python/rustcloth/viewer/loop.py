@@ -105,7 +105,7 @@ class Viewer:
         self.sim = sim
         self.name = name
         # The scene's own settings, which C turns back on (the defaults where it had none).
-        self.self_collision = sim.self_collision
+        self.scene_self_collision = sim.self_collision
         self.stepper = Stepper(sim, driver_for(name, sim))
         layout = self.renderer.layout
         self.camera: Camera = layout.camera(self.size[0] / max(self.size[1], 1))
@@ -320,7 +320,7 @@ class Viewer:
             self.notify("self-collision off: layers pass through each other")
             return
         try:
-            sim.self_collision = self.self_collision or True
+            sim.self_collision = self.scene_self_collision or True
         except ParameterError as err:
             self.notify(f"self-collision stays off: {err}", warning=True)
             return
