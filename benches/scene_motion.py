@@ -1,5 +1,5 @@
 """What two showcase scenes do when a user meets them: a drag of ``tear``'s lower corner as the
-demo drives it, and how far ``curtain`` sways in its draught. Prints two tables (markdown).
+demo drives it, and how far ``curtain`` sways in its draught. Prints three tables (markdown).
 
     .venv/bin/python benches/scene_motion.py [--quick]
 
@@ -8,6 +8,12 @@ The drag: a ray from in front of the cloth picks the lower-left corner, ``grab``
 then the grip is held still for a second and released. For each grip radius, speed and
 direction it reports the pieces the cloth ends in and the sizes of the two largest: a pluck
 leaves a small second piece the size of the grip, a rip two large ones.
+
+The third table asks what a rip across needs: the same drags of ``tear``'s cloth held taut
+between pins along its top and bottom edges, its springs' rest lengths along the height
+shortened so that it starts at rest at a uniform vertical ``pre-strain`` (a background tension
+across the path a rip would take), for tear strains of 0.2, 0.3 and 0.4; and whether a gentle drag
+(3 and 10 cm over a second) rips it too.
 """
 
 from __future__ import annotations
@@ -29,6 +35,14 @@ def drag_tear(radius: float | None, seconds: float, move: tuple[float, float, fl
     sim = rustcloth.Simulation("tear")
     if radius is not None:
         sim.grip_radius = radius
+    return drag(sim, seconds, move, settle, hold)
+
+
+def drag(sim: rustcloth.Simulation, seconds: float, move: tuple[float, float, float],
+         settle: float = 0.5, hold: float = 1.0) -> tuple[int, list[int], int]:
+    """After ``settle`` s, pick ``sim``'s lower-left corner with a ray from the viewer's side,
+    grab it, drag it by ``move`` over ``seconds`` frame by frame, hold ``hold`` s, release;
+    returns the pieces, the two largest pieces' sizes, and the number of particles held."""
     sim.advance(settle)
     hit = sim.pick(sim.positions[0] + [0.0, 0.0, 3.0], [0.0, 0.0, -1.0])
     assert hit is not None
@@ -44,6 +58,44 @@ def drag_tear(radius: float | None, seconds: float, move: tuple[float, float, fl
     sim.release()
     sizes = np.sort(np.bincount(sim.piece_labels()[sim.alive]))[::-1]
     return sim.pieces(), [int(s) for s in sizes[sizes > 0][:2]], held
+
+
+GENTLE = {"3 cm": (-0.02, -0.02, 0.0), "10 cm": (-0.07, -0.07, 0.0)}
+
+
+def taut_tear(prestrain: float, max_strain: float) -> rustcloth.Simulation:
+    """``tear``'s cloth pinned along its top and bottom edges, its rest height shortened by
+    ``1 + prestrain`` and its particles put back at full height, so that it starts at rest
+    (but for its free side edges) under a uniform vertical strain ``prestrain``."""
+    scene = rustcloth.load_scene("tear")
+    cloth = dict(scene.cloth)
+    width, height = cloth["size"]
+    cloth.update(size=[width, height / (1.0 + prestrain)], pins=["top_edge", "bottom_edge"])
+    tearing = {**scene.tearing, "max_strain": max_strain}
+    sim = rustcloth.Simulation(scene.replace(cloth=cloth, tearing=tearing))
+    x = sim.positions.copy()
+    top = x[:, 1].max()
+    x[:, 1] = top - (top - x[:, 1]) * (1.0 + prestrain)
+    sim.set_positions(x)
+    return sim
+
+
+def background_table(prestrains: list[float], speeds: list[float]) -> None:
+    print("| pre-strain | tear strain | untouched 3 s: pieces | second piece after each drag "
+          "(down-out, down, out; 0.2 s then 1.5 s) | gentle drag (3 cm, 10 cm): second piece |")
+    print("|---|---|---|---|---|")
+    for prestrain in prestrains:
+        for max_strain in (0.2, 0.3, 0.4):
+            if prestrain >= max_strain:
+                continue
+            idle = taut_tear(prestrain, max_strain)
+            idle.advance(3.0)
+            second = [(drag(taut_tear(prestrain, max_strain), s, m)[1] + [0])[1]
+                      for s in speeds for m in MOVES.values()]
+            gentle = [(drag(taut_tear(prestrain, max_strain), 1.0, m)[1] + [0])[1]
+                      for m in GENTLE.values()]
+            print(f"| {prestrain:g} | {max_strain:g} | {idle.pieces()} | "
+                  f"{', '.join(map(str, second))} | {', '.join(map(str, gentle))} |", flush=True)
 
 
 def curtain_sway(seconds: float, wind: bool = True) -> tuple[float, float, float, float]:
@@ -85,6 +137,8 @@ def main() -> None:
                 shown = "default" if radius is None else f"{radius:g}"
                 print(f"| {shown} | {held} | {name} | {seconds:g} | {pieces} | {sizes} |",
                       flush=True)
+    print()
+    background_table([0.0, 0.1] if args.quick else [0.0, 0.05, 0.1, 0.15, 0.2], speeds)
     print()
     print("| curtain | lower edge z after 1 s (m) | rms speed (m/s) | sphere clearance (m) |")
     print("|---|---|---|---|")

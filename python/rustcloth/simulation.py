@@ -20,7 +20,7 @@ from . import _args, _core
 from .errors import ParameterError, ParameterTypeError, StabilityWarning
 from .mesh import Mesh
 from .scene import Scene, load_scene
-from .settings import IntegratorName
+from .settings import IntegratorName, SelfCollisionSettings
 
 if TYPE_CHECKING:
     from pathlib import Path
@@ -605,6 +605,31 @@ class Simulation:
     @integrator.setter
     def integrator(self, name: IntegratorName) -> None:
         self._core.integrator = _args.text(name, "integrator")
+        self._scene = None
+
+    @property
+    def self_collision(self) -> SelfCollisionSettings | None:
+        """The self-collision pass's settings (``thickness``, ``friction``, ``iterations``), or
+        None while it is off. Settable at run time, the state carrying over bit for bit: a
+        dict of ``[self_collision]`` settings (missing keys take their defaults) or True (all
+        defaults) turns it on, None or False turns it off. Settings the scene would refuse
+        raise :class:`~rustcloth.errors.ParameterError` naming the key (a ``thickness`` past
+        half the grid spacing), anything else :class:`TypeError`, changing nothing. The
+        :meth:`profile` and :meth:`self_collision_stats` start afresh."""
+        return self.scene.self_collision
+
+    @self_collision.setter
+    def self_collision(self, settings: SelfCollisionSettings | bool | None) -> None:
+        if settings is True:
+            table: dict[str, Any] | None = {}
+        elif settings is None or settings is False:
+            table = None
+        elif isinstance(settings, Mapping):
+            table = dict(settings)
+        else:
+            _args.type_error("self_collision", "must be a dict of [self_collision] settings, "
+                             f"True, False or None, got {_args.got(settings)}")
+        self._core.set_self_collision(table)
         self._scene = None
 
     @property

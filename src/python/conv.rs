@@ -6,7 +6,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use super::errors::IntoPyResult;
-use crate::scene::Scene;
+use crate::scene::{Scene, SelfCollisionSpec};
 use crate::soa::Vec3s;
 
 /// How deeply lists and tables may nest in a scene. The deepest key of the schema is a mesh
@@ -24,6 +24,15 @@ pub fn scene_from_dict(obj: &Bound<'_, PyAny>) -> PyResult<Scene> {
 /// `Simulation::new`, which validates it.
 pub fn unvalidated_scene_from_dict(obj: &Bound<'_, PyAny>) -> PyResult<Scene> {
     Scene::read_toml_value(to_toml(obj)?).py()
+}
+
+/// A `[self_collision]` table as a dict (missing keys take their defaults), read as the
+/// scene's own table is read, with its errors (`self_collision.thickness`, unknown keys).
+pub fn self_collision_from_dict(obj: &Bound<'_, PyAny>) -> PyResult<SelfCollisionSpec> {
+    let table = PyDict::new(obj.py());
+    table.set_item("self_collision", obj)?;
+    let scene = Scene::read_toml_value(to_toml(table.as_any())?).py()?;
+    Ok(scene.self_collision.unwrap_or_default())
 }
 
 /// A scene as a dict with every key spelled out, absent optional tables as `None`, and each

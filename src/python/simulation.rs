@@ -7,7 +7,9 @@ use numpy::PyReadonlyArray1;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use super::conv::{unvalidated_scene_from_dict, Floats, Plain, Rows, SceneDict};
+use super::conv::{
+    self_collision_from_dict, unvalidated_scene_from_dict, Floats, Plain, Rows, SceneDict,
+};
 use super::errors::IntoPyResult;
 use super::shared::{Held, Shared};
 use super::state;
@@ -128,6 +130,11 @@ methods! {
     #[setter] fn set_dt(dt: f64) -> () = call |sim| sim.set_dt(dt);
     #[setter] fn set_substeps(substeps: i64) -> () = call |sim| sim.set_substeps(substeps);
     #[setter] fn set_integrator(name: &str) -> () = call |sim| sim.set_integrator(name);
+    /// Self-collision on with the settings of a `[self_collision]` dict, or off with None.
+    fn set_self_collision(settings: Option<&Bound<'_, PyAny>>) -> () = with |h| {
+        let spec = settings.map(self_collision_from_dict).transpose()?;
+        h.sim.set_self_collision(spec).py()
+    };
     fn set_positions(positions: Floats<'_>) -> () =
         with |h| h.sim.set_positions(&positions.vec3s()?).py();
     fn set_velocities(velocities: Floats<'_>) -> () =

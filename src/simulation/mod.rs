@@ -18,7 +18,7 @@ use crate::particles::Particles;
 use crate::picking::Picker;
 use crate::profile::Profile;
 use crate::render_mesh::{CutVertex, RenderMesh};
-use crate::scene::{check_substep, Scene};
+use crate::scene::{check_substep, Scene, SelfCollisionSpec};
 use crate::snapshot::Snapshot;
 use crate::soa::Vec3s;
 use crate::springs::Springs;
@@ -465,6 +465,21 @@ impl Simulation {
         let kind = IntegratorKind::by_name(name, "integrator")?;
         self.model.scene.integrator = kind;
         self.stepper.set_integrator(&self.model);
+        Ok(())
+    }
+
+    /// Turns self-collision on with `spec`'s settings, or off with `None`, at run time. The
+    /// state carries over bit for bit (positions, velocities, pins, the grip, tears, the
+    /// clock, the watchdog, the integrator's history: the simulation goes on as one restored
+    /// from its snapshot with the scene's `[self_collision]` changed), so turning it off and
+    /// on again leaves the run as it would have been with it on. The profile and the
+    /// self-collision statistics start afresh. Settings the scene would refuse (a thickness
+    /// past half the grid spacing, or a mesh cloth's limit) are refused the same way, naming
+    /// the `self_collision` key, changing nothing.
+    pub fn set_self_collision(&mut self, spec: Option<SelfCollisionSpec>) -> Result<()> {
+        let mut snapshot = self.snapshot();
+        snapshot.scene.self_collision = spec;
+        *self = Simulation::restore(snapshot)?;
         Ok(())
     }
 

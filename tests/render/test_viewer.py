@@ -275,3 +275,53 @@ def test_a_long_notice_wraps_into_a_block_instead_of_spanning_the_window(ctx: An
     width, height = viewer.renderer.panels["status"].texture.size
     assert width <= OVERLAY_MAX_WIDTH and width < 0.6 * size[0]
     assert height > 3 * 13  # wrapped onto several lines, all of it kept
+
+
+def test_c_turns_self_collision_off_and_on_and_the_step_follows(ctx: Any) -> None:
+    """C toggles the pile's self-collision live. Off, the viewer's cloth steps exactly as a
+    simulation of the scene without ``[self_collision]`` from the same state; on again, with
+    the scene's own settings, exactly as the scene does; the details and the help say so."""
+    viewer, fbo = _viewer(ctx, "pile")
+    sim = viewer.sim
+    viewer.frame(fbo, 0.2)
+    own = sim.self_collision
+    assert own is not None and "self_collision" in sim.effects
+
+    def reference(settings: Any) -> rustcloth.Simulation:
+        state = sim.get_state()
+        return rustcloth.Simulation.from_state(
+            {**state, "scene": {**state["scene"], "self_collision": settings}})
+
+    def follows(ref: rustcloth.Simulation) -> None:
+        start = sim.steps
+        viewer.frame(fbo, 0.3)
+        ref.step(sim.steps - start)
+        assert sim.steps > start and np.array_equal(sim.positions, ref.positions)
+
+    with_pass, without = reference(own), reference(None)
+    viewer.key("C")
+    assert sim.self_collision is None and "self_collision" not in sim.effects
+    assert "self-collision off" in viewer.notices[-1][0]
+    viewer.key("D")
+    assert "self-collision off (C)" in _text(viewer)
+    follows(without)
+    with_pass.step(without.steps - with_pass.steps)
+    assert not np.array_equal(with_pass.positions, without.positions), "the pass did nothing"
+    back_on = reference(own)
+    viewer.key("C")
+    assert sim.self_collision == own and "self-collision on (C)" in _text(viewer)
+    follows(back_on)
+    viewer.key("H")
+    assert "C: self-collision on / off" in _text(viewer)
+
+
+def test_c_says_why_when_the_cloth_cannot_take_self_collision(ctx: Any) -> None:
+    # A cloth 1 mm between particles: the default gap (2 mm) would start it in contact.
+    sim = rustcloth.Simulation(rustcloth.Scene(cloth={"nx": 4, "ny": 4, "size": [0.003, 0.003]}))
+    viewer = Viewer(ctx, sim, SIZE, name="tiny", realtime=False)
+    before = sim.get_state()
+    viewer.key("C")
+    assert sim.self_collision is None and "self_collision" not in sim.effects
+    text, _, warning = viewer.notices[-1]
+    assert warning and "self-collision stays off" in text and "self_collision.thickness" in text
+    assert np.array_equal(sim.positions, before["positions"])

@@ -11,6 +11,7 @@ KEYS: dict[str, tuple[str, str]] = {
     "EQUAL": ("more_substeps", "more substeps (+)"),
     "MINUS": ("fewer_substeps", "fewer substeps (-)"),
     "V": ("next_view", "next debug view"),
+    "C": ("toggle_self_collision", "self-collision on / off"),
     "O": ("toggle_ssao", "ambient occlusion on / off"),
     "L": ("next_lights", "next light preset"),
     "Q": ("next_tier", "quality tier: full / software"),

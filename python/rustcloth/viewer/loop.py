@@ -13,6 +13,7 @@ import moderngl
 from .. import INTEGRATORS, Simulation, load_scene, scenes
 from ..camera import Camera
 from ..drivers import driver_for
+from ..errors import ParameterError
 from ..render.constants import VIEWS
 from ..render.overlay import Line, legend, text_panel
 from ..render.renderer import Renderer
@@ -103,6 +104,8 @@ class Viewer:
         """Start showing ``sim``: camera, gestures and stepping for it."""
         self.sim = sim
         self.name = name
+        # The scene's own settings, which C turns back on (the defaults where it had none).
+        self.scene_self_collision = sim.self_collision
         self.stepper = Stepper(sim, driver_for(name, sim))
         layout = self.renderer.layout
         self.camera: Camera = layout.camera(self.size[0] / max(self.size[1], 1))
@@ -234,7 +237,8 @@ class Viewer:
                 f"{1e3 * physics.seconds:.1f} ms/frame ({physics.steps} steps, "
                 f"{per_step:.2f} ms/step)",
                 f"{sim.num_particles} particles  {self._pieces()} pieces  {sim.integrator}  "
-                f"dt {sim.dt:g} s  {substeps}  "
+                f"dt {sim.dt:g} s  {substeps}  self-collision "
+                f"{'off' if sim.self_collision is None else 'on'} (C)  "
                 f"view {r.view}  lights {r.lights.name}  SSAO {ssao}",
                 f"effects: {', '.join(sim.effects)}",
             ]
@@ -308,6 +312,19 @@ class Viewer:
 
     def _cmd_fewer_substeps(self) -> None:
         self.stepper.recovery.chose_substeps(max(1, self.sim.substeps - 1))
+
+    def _cmd_toggle_self_collision(self) -> None:
+        sim = self.sim
+        if sim.self_collision is not None:
+            sim.self_collision = None
+            self.notify("self-collision off: layers pass through each other")
+            return
+        try:
+            sim.self_collision = self.scene_self_collision or True
+        except ParameterError as err:
+            self.notify(f"self-collision stays off: {err}", warning=True)
+            return
+        self.notify("self-collision on")
 
     def _cmd_next_view(self) -> None:
         r = self.renderer
