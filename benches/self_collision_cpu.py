@@ -1,12 +1,26 @@
 """CPU time per 1/60 s frame of newton's 50 x 50 twist (benches/peers/impl_rustcloth_twist.py),
-for comparing two builds on a loaded machine, where wall times are not steady.
+or per step of the 64 x 64 pile (benches/self_collision.py's ``pile``), for comparing two builds
+on a loaded machine, where wall times are not steady.
 
     RAYON_NUM_THREADS=1 PYTHONPATH=BUILD python benches/self_collision_cpu.py [--settle 2.0]
-        [--frames 10]
+        [--frames 10] [--case twist50|pile64] [--no-pass]
 
-Steps to ``--settle`` s, then times ``--frames`` frames by ``time.process_time()``. Prints
-the state hash after them (equal for two builds whose pass gives the same result) and the CPU
-and wall milliseconds per frame.
+Steps to ``--settle`` s (the pile: 1.0 s unless given), then times ``--frames`` frames (the
+pile: steps, of two substeps each) by ``time.process_time()``. Prints the state hash after
+them (equal for two builds whose pass gives the same result), the CPU and wall milliseconds per
+frame, and the pass's search per substep over the timed window: its milliseconds, boxes
+tested, candidates, pairs, and the share of substeps on the swept search. ``--no-pass`` times
+the same scene without ``[self_collision]``.
+
+Two builds alternated in one session (what docs/contact.md's comparisons come from):
+
+    for t in 1 2; do for c in "twist50 --frames 5" "pile64 --frames 100"; do
+        for b in BEFORE AFTER; do
+            RAYON_NUM_THREADS=$t PYTHONPATH=$b python benches/self_collision_cpu.py --case $c
+        done
+        RAYON_NUM_THREADS=$t PYTHONPATH=BEFORE python benches/self_collision_cpu.py --case $c \
+            --no-pass
+    done; done
 """
 
 from __future__ import annotations
@@ -18,30 +32,55 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent / "peers"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import impl_rustcloth_twist as peer  # noqa: E402
 import rustcloth  # noqa: E402
 from rustcloth.drivers import TwistDriver  # noqa: E402
 
+import self_collision as bench  # noqa: E402
+
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--settle", type=float, default=2.0)
+    parser.add_argument("--case", choices=("twist50", "pile64"), default="twist50")
+    parser.add_argument("--settle", type=float, default=None)
     parser.add_argument("--frames", type=int, default=10)
+    parser.add_argument("--no-pass", action="store_true")
     args = parser.parse_args()
-    sim = rustcloth.Simulation(peer.scene("implicit_euler", (1000.0, 250.0, 10.0)))
-    driver = TwistDriver(sim, turns=peer.RATE_TURNS * peer.END, seconds=peer.END)
-    while sim.time < args.settle - 0.5 * sim.dt:
-        driver.before_step(sim)
+    if args.case == "twist50":
+        scene = peer.scene("implicit_euler", (1000.0, 250.0, 10.0))
+        if args.no_pass:
+            scene = scene.replace(self_collision=None)
+        sim = rustcloth.Simulation(scene)
+        driver: TwistDriver | None = TwistDriver(
+            sim, turns=peer.RATE_TURNS * peer.END, seconds=peer.END)
+        steps_per_frame, settle, unit = peer.STEPS_PER_FRAME, 2.0, "frame"
+    else:
+        sim = rustcloth.Simulation(bench.scene("pile", 64, not args.no_pass))
+        driver, steps_per_frame, settle, unit = None, 1, 1.0, "step"
+    settle = settle if args.settle is None else args.settle
+
+    def step() -> None:
+        if driver is not None:
+            driver.before_step(sim)
         sim.step()
+
+    while sim.time < settle - 0.5 * sim.dt:
+        step()
+    before = dict(sim.self_collision_stats() or {})
     cpu, wall = time.process_time(), time.perf_counter()
-    for _ in range(args.frames * peer.STEPS_PER_FRAME):
-        driver.before_step(sim)
-        sim.step()
+    for _ in range(args.frames * steps_per_frame):
+        step()
     cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
+    split = bench.per_substep(before, dict(sim.self_collision_stats() or {}))
     digest = hashlib.sha1(sim.positions.tobytes()).hexdigest()[:12]
-    print(f"state {digest} cpu {1e3 * cpu / args.frames:.1f} ms per frame "
-          f"wall {1e3 * wall / args.frames:.1f} ms per frame")
+    print(f"{args.case}{' without the pass' if args.no_pass else ''}: state {digest} "
+          f"cpu {1e3 * cpu / args.frames:.1f} ms per {unit} "
+          f"wall {1e3 * wall / args.frames:.1f} ms per {unit}; per substep: "
+          f"search {split['search']:.2f} ms, boxes tested {split['boxes_tested']:.0f}, "
+          f"candidates {split['candidates']:.0f}, pairs {split['pairs']:.0f}, "
+          f"swept {100 * split['swept_substeps']:.0f} %")
 
 
 if __name__ == "__main__":
