@@ -241,6 +241,15 @@ impl Model {
         )
     }
 
+    /// The vertex pairs a garment's seams sew together (each seam spring's ends): one point
+    /// once sewn, so self-collision takes them as neighbours. None on the grid.
+    pub fn sewn(&self) -> Box<dyn Iterator<Item = [u32; 2]> + '_> {
+        match self.mesh() {
+            Some(mesh) => Box::new(mesh.seam_pairs()),
+            None => Box::new(std::iter::empty()),
+        }
+    }
+
     /// The smaller of the two grid spacings at rest, in m; a mesh cloth's mean edge length at
     /// rest (the distance between neighbouring particles, as the grid spacing is).
     pub fn min_spacing(&self) -> f64 {

@@ -53,6 +53,8 @@ def test_sewing_closes_the_gap_between_two_hanging_panels():
     x = sim.positions
     gaps = np.linalg.norm(x[pairs[:, 0]] - x[pairs[:, 1]], axis=1)
     assert np.isfinite(gaps).all() and (gaps < 1e-3).all(), gaps.max()
+    # The simulation's own measure of how far the sewing has come, in float32.
+    assert sim.seam_gap() == pytest.approx(gaps.max(), abs=1e-7)
     # No outside force: the centre of mass has not moved.
     m = sim.masses
     centre = (m[:, None] * x).sum(0) / m.sum()

@@ -704,6 +704,12 @@ class Simulation:
         triangle, or two edges, at the start of a substep (``min_distance``, m)."""
         return self._core.self_collision_stats()
 
+    def seam_gap(self) -> float | None:
+        """How far a garment's seams are from closed: the largest distance (m) between two
+        vertices sewn together, or None when the cloth has no seams. The seams close over
+        their ``sew_time``, then hold the gap to about a millimetre (docs/garments.md)."""
+        return self._core.seam_gap()
+
     def watchdog_stats(self) -> dict[str, int]:
         """What the watchdog caught (``caught``), saved by retrying (``retried``), the
         substeps those retries cost (``retry_substeps``), the most a saved step needed

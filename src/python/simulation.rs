@@ -210,6 +210,7 @@ methods! {
         read |h| Plain(h.sim.watchdog_stats());
     fn self_collision_stats() -> Option<Plain<crate::self_collision::SelfCollisionStats>> =
         read |h| h.sim.self_collision_stats().map(Plain);
+    fn seam_gap() -> Option<f32> = read |h| h.sim.seam_gap();
     /// The largest stable `dt` (s) now, or None when any `dt` is.
     fn stable_dt() -> Option<f64> = read |h| h.sim.stable_dt();
     fn memory_bytes() -> usize = read |h| h.sim.memory_bytes();

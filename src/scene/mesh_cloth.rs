@@ -199,6 +199,14 @@ impl MeshCloth {
         }
     }
 
+    /// The vertex pairs sewn together: each seam spring's ends, lower index first.
+    pub fn seam_pairs(&self) -> impl Iterator<Item = [u32; 2]> + '_ {
+        let s = &self.springs;
+        (0..s.len())
+            .filter(|&k| s.kind[k] == EdgeKind::Seam)
+            .map(|k| [s.a[k], s.b[k]])
+    }
+
     pub fn len(&self) -> usize {
         self.rest.len()
     }

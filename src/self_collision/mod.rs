@@ -214,6 +214,7 @@ impl SelfCollision {
             let triangles = model.triangles().collect();
             self.topology
                 .rebuild(model.topology_version, model.grid.len(), triangles);
+            self.topology.sew(model.sewn());
             self.list.clear();
             self.marked = vec![false; model.grid.len()];
         }

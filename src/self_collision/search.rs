@@ -97,7 +97,7 @@ impl Broad {
         let vertex_triangle_pair = |k: u32, t: u32, out: &mut Vec<(u64, Pair)>| {
             let v = topo.vertices[k as usize];
             let [a, b, c] = topo.triangles[t as usize];
-            if v == a || v == b || v == c {
+            if topo.joined(v, a) || topo.joined(v, b) || topo.joined(v, c) {
                 return false;
             }
             let key = (v as u64) << 32 | t as u64;
@@ -112,7 +112,8 @@ impl Broad {
         let edge_edge_pair = |e: u32, f: u32, out: &mut Vec<(u64, Pair)>| {
             let (e, f) = (e.min(f), e.max(f));
             let ([a, b], [c, d]) = (topo.edges[e as usize], topo.edges[f as usize]);
-            if a == c || a == d || b == c || b == d {
+            let joined = |p: u32| topo.joined(p, c) || topo.joined(p, d);
+            if joined(a) || joined(b) {
                 return false;
             }
             let key = (e as u64) << 32 | f as u64;

@@ -226,6 +226,16 @@ impl Simulation {
         self.stepper.self_collision_stats()
     }
 
+    /// How far a garment's seams are from closed: the largest distance between two vertices
+    /// sewn together (m), in float32 as the positions are. None without seams.
+    pub fn seam_gap(&self) -> Option<f32> {
+        let pos = &self.state.kin.pos;
+        self.model
+            .sewn()
+            .map(|[a, b]| pos.get(a as usize).distance(pos.get(b as usize)))
+            .reduce(f32::max)
+    }
+
     /// Increments whenever positions change.
     pub fn state_version(&self) -> u64 {
         self.state.version

@@ -225,8 +225,10 @@ class Viewer:
         # their asking (a raised substep count, a SLOW or PAUSED state).
         raised = f"  {substeps}" if self.stepper.recovery.raised else ""
         tier = "  software tier (Q)" if r.tier == "software" else ""
+        gap = sim.seam_gap()  # how far a garment's sewing has come
+        seams = "" if gap is None else f"  seam gap {1e3 * gap:.1f} mm"
         lines: list[Line] = [
-            f"{self.name}  t = {sim.time:.2f} s  {self.fps:.1f} fps{tier}{raised}  "
+            f"{self.name}  t = {sim.time:.2f} s  {self.fps:.1f} fps{tier}{raised}{seams}  "
             f"H help  D details  {state}".rstrip()]
         if self.show_details:
             ssao = "on" if r.ssao else "off"
