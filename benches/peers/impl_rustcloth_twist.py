@@ -47,11 +47,11 @@ THICKNESS = 0.002  # m
 FRICTION = 0.2
 
 
-def scene(integrator: str, k: tuple[float, float, float]) -> rustcloth.Scene:
+def scene(integrator: str, k: tuple[float, float, float], steps_per_frame: int) -> rustcloth.Scene:
     base = rustcloth.load_scene("twist")
     return base.replace(
         integrator=integrator,
-        dt=1.0 / (60 * STEPS_PER_FRAME),
+        dt=1.0 / (60 * steps_per_frame),
         substeps=1,
         cloth={"nx": N, "ny": N, "size": list(SIZE), "particle_mass": MASS / (N * N),
                "k_structural": k[0], "k_shear": k[1], "k_bend": k[2]},
@@ -66,9 +66,11 @@ def main() -> None:
     p.add_argument("--integrator", default="implicit_euler")
     p.add_argument("--k", type=float, nargs=3, default=(1000.0, 250.0, 10.0),
                    help="structural, shear, bending (N/m)")
+    p.add_argument("--steps-per-frame", type=int, default=STEPS_PER_FRAME,
+                   help="steps per 1/60 s frame (default 10, newton's substeps)")
     args = p.parse_args()
     t0 = time.perf_counter()
-    s = scene(args.integrator, tuple(args.k))
+    s = scene(args.integrator, tuple(args.k), args.steps_per_frame)
     sim = rustcloth.Simulation(s)
     driver = TwistDriver(sim, turns=RATE_TURNS * END, seconds=END)
     setup = time.perf_counter() - t0
@@ -78,7 +80,7 @@ def main() -> None:
     for frame in range(1, args.frames + 1):
         stepping = driving = 0.0
         w0 = time.perf_counter()
-        for _ in range(STEPS_PER_FRAME):
+        for _ in range(args.steps_per_frame):
             d0 = time.perf_counter()
             driver.before_step(sim)
             d1 = time.perf_counter()
@@ -94,7 +96,7 @@ def main() -> None:
     x = sim.positions
     stats = sim.self_collision_stats() or {}
     profile = sim.profile()
-    frames = max(profile.steps / STEPS_PER_FRAME, 1)
+    frames = max(profile.steps / args.steps_per_frame, 1)
     min_distance = stats.get("min_distance")
     substeps = max(stats.get("substeps", 1), 1)
     emit({
@@ -110,7 +112,7 @@ def main() -> None:
         "samples": samples,
         "particles": sim.num_particles,
         "triangles": len(triangles),
-        "substeps": STEPS_PER_FRAME,
+        "substeps": args.steps_per_frame,
         "integrator": args.integrator,
         "k": list(args.k),
         "pairs_per_substep": stats.get("pairs", 0) / substeps,
