@@ -135,10 +135,10 @@ fn counters(sim: &Simulation) -> Counters {
         passes,
         stages: sc.map_or([0.0; 4], |s| {
             [
-                s.search_seconds,
-                s.repulsion_seconds,
-                s.cap_seconds,
-                s.redo_seconds,
+                s.effort.search_seconds,
+                s.effort.repulsion_seconds,
+                s.effort.cap_seconds,
+                s.effort.redo_seconds,
             ]
         }),
         swept: sc.map_or(0, |s| s.swept_substeps),

@@ -104,6 +104,15 @@ pub struct SelfCollisionStats {
     /// Smallest distance at the start of a substep between a vertex and a triangle without it,
     /// or two edges with no shared vertex, among the pairs looked at (m; infinite if none).
     pub min_distance: f64,
+    /// The work the searches did and the time each stage took (flattened into the same
+    /// dict in Python): a substep redone keeps its abandoned attempt's, not its counts.
+    #[serde(flatten)]
+    pub effort: SelfCollisionEffort,
+}
+
+/// The work the pass did and the time it took, summed over substeps.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct SelfCollisionEffort {
     /// Boxes the searches tested (tree nodes and primitives), summed over searches.
     pub boxes_tested: u64,
     /// Pairs whose boxes overlapped in a search (the primitives' tight boxes then pass over
@@ -132,12 +141,7 @@ impl Default for SelfCollisionStats {
             stopped: 0,
             max_cap_rounds: 0,
             min_distance: f64::INFINITY,
-            boxes_tested: 0,
-            candidates: 0,
-            search_seconds: 0.0,
-            repulsion_seconds: 0.0,
-            cap_seconds: 0.0,
-            redo_seconds: 0.0,
+            effort: SelfCollisionEffort::default(),
         }
     }
 }
@@ -244,7 +248,7 @@ impl SelfCollision {
                 drift = eps;
             }
             self.listed_pairs(x0, needed, drift);
-            self.stats.search_seconds += clock.elapsed().as_secs_f64();
+            self.stats.effort.search_seconds += clock.elapsed().as_secs_f64();
             if self.pairs.is_empty() {
                 return true;
             }
@@ -263,14 +267,14 @@ impl SelfCollision {
                 // The repulsion or the cap moved a vertex farther than the list allowed for.
                 let clock = Instant::now();
                 let finite = self.redo_loose(x0, next, inv_mass, eps, before);
-                self.stats.redo_seconds += clock.elapsed().as_secs_f64();
+                self.stats.effort.redo_seconds += clock.elapsed().as_secs_f64();
                 finite
             }
         } else {
             self.stats.swept_substeps += 1;
             self.sweep_boxes(x0, &next.pos, eps as f32);
             self.swept_pairs(x0, eps);
-            self.stats.search_seconds += clock.elapsed().as_secs_f64();
+            self.stats.effort.search_seconds += clock.elapsed().as_secs_f64();
             self.resolve(x0, next, inv_mass, eps)
         };
         self.stats.pairs += self.pairs.len() as u64;
@@ -349,8 +353,8 @@ impl SelfCollision {
     }
 
     fn count(&mut self, looked: Looked) {
-        self.stats.boxes_tested += looked.boxes;
-        self.stats.candidates += looked.candidates;
+        self.stats.effort.boxes_tested += looked.boxes;
+        self.stats.effort.candidates += looked.candidates;
     }
 
     /// Redoes the substep from where the integrator left it with the swept search (`before`:
@@ -368,12 +372,7 @@ impl SelfCollision {
         // it took; the redo's own time counts as `redo_seconds` alone.
         let tried = self.stats;
         self.stats = SelfCollisionStats {
-            boxes_tested: tried.boxes_tested,
-            candidates: tried.candidates,
-            search_seconds: tried.search_seconds,
-            repulsion_seconds: tried.repulsion_seconds,
-            cap_seconds: tried.cap_seconds,
-            redo_seconds: tried.redo_seconds,
+            effort: tried.effort,
             ..before
         };
         self.stats.substeps += 1;
@@ -381,8 +380,8 @@ impl SelfCollision {
         self.stats.redone += 1;
         self.swept_pairs(x0, eps);
         let finite = self.resolve(x0, next, inv_mass, eps);
-        self.stats.repulsion_seconds = tried.repulsion_seconds;
-        self.stats.cap_seconds = tried.cap_seconds;
+        self.stats.effort.repulsion_seconds = tried.effort.repulsion_seconds;
+        self.stats.effort.cap_seconds = tried.effort.cap_seconds;
         finite
     }
 
@@ -425,9 +424,9 @@ impl SelfCollision {
             }
         }
         let capping = Instant::now();
-        self.stats.repulsion_seconds += (capping - clock).as_secs_f64();
+        self.stats.effort.repulsion_seconds += (capping - clock).as_secs_f64();
         self.cap(x0, next, eps);
-        self.stats.cap_seconds += capping.elapsed().as_secs_f64();
+        self.stats.effort.cap_seconds += capping.elapsed().as_secs_f64();
         finite
     }
 
