@@ -73,7 +73,7 @@ def main() -> None:
         sim.advance(args.seconds)
         area, height = pile_shape(sim)
         print(f"| {name} | {area:.3f} | {area / (width * depth):.2f} | {height:.3f} | "
-              f"{time.perf_counter() - t:.0f} |", flush=True)
+              f"{time.perf_counter() - t:.1f} |", flush=True)
 
 
 if __name__ == "__main__":
