@@ -26,8 +26,9 @@ import subprocess
 import sys
 from pathlib import Path
 
-# name: (builtin scene, integrator, the pile's lower edge above the floor in m (None: the scene
-# as shipped), seconds)
+# name: (builtin scene, integrator, the pile's square dropped edge first with its lower edge this
+# far above the floor in m (tests/test_contact_energy.py's ``pile``; None: the scene as shipped),
+# seconds)
 CASES: dict[str, tuple[str, str, float | None, float]] = {
     "pd pile 10 cm": ("pile", "projective_dynamics", 0.1, 0.8),
     "ie pile 10 cm": ("pile", "implicit_euler", 0.1, 0.8),

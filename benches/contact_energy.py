@@ -1,7 +1,8 @@
 """Energy of cloth landing on contacts at display-frame steps: the table in docs/contact.md.
 
-The ``pile`` scene (floor, its 4 cm ball, self-collision) dropped with its lower edge 10 cm,
-40 cm and 1 m above the floor, and the 16 x 16 cloth of tests/test_contact_energy.py falling
+The ``pile`` scene's square dropped edge first (floor, a 4 cm ball, self-collision;
+tests/test_contact_energy.py's ``pile``) with its lower edge 10 cm, 40 cm and 1 m above the
+floor, and the 16 x 16 cloth of tests/test_contact_energy.py falling
 onto a bare 2 cm ball, for every integrator at 1/60, 1/120 and 1/240 s (explicit schemes take
 the substeps their stability report asks for). Nothing does work on the cloth, so its total
 energy (kinetic + gravitational + elastic) may only fall: the table gives the start, the

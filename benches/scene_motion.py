@@ -14,12 +14,22 @@ between pins along its top and bottom edges, its springs' rest lengths along the
 shortened so that it starts at rest at a uniform vertical ``pre-strain`` (a background tension
 across the path a rip would take), for tear strains of 0.2, 0.3 and 0.4; and whether a gentle drag
 (3 and 10 cm over a second) rips it too.
+
+The fourth table frees the dragged corner (a pinned corner peels its pinned neighbours off under
+any tug): frames of pins that stay clear of it, pre-strained at half the tear strain along the
+height, the width or both, each dragged down and out fast and slow and tugged 10 cm.
+
+The fifth table hangs a weighted hem on the free corner instead: ``tear``'s cloth pinned along its
+top only, pre-strained along the height, its lower row given the mass whose weight the springs
+above it carry at the start (so that it starts at rest under the tension of the hem, without the
+swing of a hem let go), dragged and tugged as in the fourth.
 """
 
 from __future__ import annotations
 
 import argparse
 import time
+from typing import Any
 
 import numpy as np
 import rustcloth
@@ -67,17 +77,106 @@ def taut_tear(prestrain: float, max_strain: float) -> rustcloth.Simulation:
     """``tear``'s cloth pinned along its top and bottom edges, its rest height shortened by
     ``1 + prestrain`` and its particles put back at full height, so that it starts at rest
     (but for its free side edges) under a uniform vertical strain ``prestrain``."""
+    return framed_tear(["top_edge", "bottom_edge"], (0.0, prestrain), max_strain)
+
+
+def framed_tear(pins: list[Any], prestrain: tuple[float, float],
+                max_strain: float) -> rustcloth.Simulation:
+    """``tear``'s cloth held by ``pins``, its rest width and height shortened by ``1 +
+    prestrain`` and its particles put back at full size (the top edge where it was, the width
+    about its middle), tearing at ``max_strain``."""
     scene = rustcloth.load_scene("tear")
     cloth = dict(scene.cloth)
     width, height = cloth["size"]
-    cloth.update(size=[width, height / (1.0 + prestrain)], pins=["top_edge", "bottom_edge"])
+    cloth.update(size=[width / (1.0 + prestrain[0]), height / (1.0 + prestrain[1])], pins=pins)
     tearing = {**scene.tearing, "max_strain": max_strain}
     sim = rustcloth.Simulation(scene.replace(cloth=cloth, tearing=tearing))
     x = sim.positions.copy()
-    top = x[:, 1].max()
-    x[:, 1] = top - (top - x[:, 1]) * (1.0 + prestrain)
+    mid, top = 0.5 * (x[:, 0].max() + x[:, 0].min()), x[:, 1].max()
+    x[:, 0] = mid + (x[:, 0] - mid) * (1.0 + prestrain[0])
+    x[:, 1] = top - (top - x[:, 1]) * (1.0 + prestrain[1])
     sim.set_positions(x)
     return sim
+
+
+NX = 40
+FRAMES: dict[str, list[Any]] = {
+    "top and right edges, left edge from row 6 up": ["top_edge", "right_edge"]
+    + [[0, j] for j in range(6, NX)],
+    "top edge, bottom row from column 5 on": ["top_edge"] + [[i, 0] for i in range(5, NX)],
+    "top and right edges, bottom and left from 8 on": ["top_edge", "right_edge"]
+    + [[i, 0] for i in range(8, NX)] + [[0, j] for j in range(8, NX)],
+}
+ALONG = {"height": (0.0, 1.0), "width": (1.0, 0.0), "both": (1.0, 1.0)}
+
+
+def free_corner_table(strains: list[float]) -> None:
+    print("| frame (pins) | pre-strain along | tear strain | untouched 3 s: pieces | second piece "
+          "after a down-out drag (0.2 s, 1.5 s) | 10 cm tug: second piece, peak strain |")
+    print("|---|---|---|---|---|---|")
+    for name, pins in FRAMES.items():
+        for along, (ax, ay) in ALONG.items():
+            for max_strain in strains:
+                pre = (0.5 * max_strain * ax, 0.5 * max_strain * ay)
+                idle = framed_tear(pins, pre, max_strain)
+                idle.advance(3.0)
+                second = [(drag(framed_tear(pins, pre, max_strain), s, MOVES["down-out"])[1]
+                           + [0])[1] for s in (0.2, 1.5)]
+                tug = framed_tear(pins, pre, max_strain)
+                peak = max_stretch_during(tug, GENTLE["10 cm"])
+                sizes = np.sort(np.bincount(tug.piece_labels()[tug.alive]))[::-1]
+                print(f"| {name} | {along} | {max_strain:g} | {idle.pieces()} | "
+                      f"{second[0]}, {second[1]} | {(list(sizes[sizes > 0]) + [0])[1]}, "
+                      f"{peak:.2f} |", flush=True)
+
+
+def hemmed_tear(prestrain: float, max_strain: float) -> tuple[rustcloth.Simulation, float]:
+    """``tear``'s cloth pinned along its top, pre-strained by ``prestrain`` along the height,
+    with each particle of its lower row as heavy as the springs above it pull up at the start
+    (found by one step without gravity); returns it and the hem's mass (kg)."""
+    probe = framed_tear(["top_edge"], (0.0, prestrain), max_strain)
+    weightless = rustcloth.Simulation(probe.scene.replace(gravity=[0.0, 0.0, 0.0]))
+    weightless.set_positions(probe.positions)
+    mass = weightless.masses.copy()
+    weightless.step(1)
+    pull = weightless.velocities[:NX, 1] * mass[:NX] / weightless.scene.dt
+    mass[:NX] = np.maximum(mass[:NX], pull / 9.81)
+    probe.set_masses(mass)
+    return probe, float(mass[:NX].sum())
+
+
+def hem_table(cases: list[tuple[float, float]]) -> None:
+    print("| pre-strain | tear strain | hem (kg) | untouched 3 s: pieces, largest strain | second "
+          "piece after a down-out drag (0.2 s, 1.5 s) | 10 cm tug: second piece, peak strain |")
+    print("|---|---|---|---|---|---|")
+    for prestrain, max_strain in cases:
+        idle, hem = hemmed_tear(prestrain, max_strain)
+        idle.advance(3.0)
+        second = [(drag(hemmed_tear(prestrain, max_strain)[0], s, MOVES["down-out"])[1]
+                   + [0])[1] for s in (0.2, 1.5)]
+        tug = hemmed_tear(prestrain, max_strain)[0]
+        peak = max_stretch_during(tug, GENTLE["10 cm"])
+        sizes = np.sort(np.bincount(tug.piece_labels()[tug.alive]))[::-1]
+        print(f"| {prestrain:g} | {max_strain:g} | {hem:.1f} | {idle.pieces()}, "
+              f"{idle.max_stretch():.2f} | {second[0]}, {second[1]} | "
+              f"{(list(sizes[sizes > 0]) + [0])[1]}, {peak:.2f} |", flush=True)
+
+
+def max_stretch_during(sim: rustcloth.Simulation, move: tuple[float, float, float]) -> float:
+    """Drags ``sim``'s lower-left corner by ``move`` over a second after half a second's settle,
+    holds it a second and releases it; returns the largest strain seen while held."""
+    sim.advance(0.5)
+    hit = sim.pick(sim.positions[0] + [0.0, 0.0, 3.0], [0.0, 0.0, -1.0])
+    assert hit is not None
+    sim.grab(hit[0])
+    start = sim.positions[hit[0]].copy()
+    peak = 0.0
+    for f in range(1, round(2 * FPS) + 1):
+        sim.drag_to(start + np.asarray(move) * min(f / FPS, 1.0))
+        sim.advance(1 / FPS)
+        peak = max(peak, sim.max_stretch())
+    sim.release()
+    return peak
 
 
 def background_table(prestrains: list[float], speeds: list[float]) -> None:
@@ -139,6 +238,10 @@ def main() -> None:
                       flush=True)
     print()
     background_table([0.0, 0.1] if args.quick else [0.0, 0.05, 0.1, 0.15, 0.2], speeds)
+    print()
+    free_corner_table([0.3, 0.5])
+    print()
+    hem_table([(0.15, 0.3), (0.2, 0.4), (0.25, 0.5)])
     print()
     print("| curtain | lower edge z after 1 s (m) | rms speed (m/s) | sphere clearance (m) |")
     print("|---|---|---|---|")

@@ -13,7 +13,8 @@ a flat cloth's own neighbours are not in contact at rest):
 - ``twist``: the built-in scene turned by its driver (``rustcloth.drivers.TwistDriver``, half
   a turn per second each edge in opposite directions); timed over ``--window`` steps from
   2.0 s in, when the cloth is wound onto itself in heavy contact;
-- ``pile``: the built-in scene dropped on the floor, timed from 1.0 s in, crumpled;
+- ``pile``: the built-in scene (lowered onto the floor on its sinking ball), timed from 1.0 s
+  in, folded on itself;
 - ``quiet``: the twist scene left at rest, where nothing is close: what the pass costs when it
   finds no pair.
 

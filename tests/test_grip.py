@@ -80,10 +80,10 @@ def test_a_drag_of_tear_pulls_out_a_patch_not_a_pinhole(seconds):
 
 @pytest.mark.xfail(
     strict=True,
-    reason="missed: a one-handed drag rips round the grip, where a pulled sheet's tension "
-    "concentrates, and plucks the grip out; a rip runs across only a sheet already under a "
-    "tension about half its tear strain, which tear's cloth (pinned along its top, at rest) is "
-    "not (benches/scene_motion.py, docs/cutting.md)",
+    reason="missed: a rip runs across only a sheet under a tension about half its tear strain "
+    "at the grip; a pinned corner peels its pinned row off under any tug, a free corner has no "
+    "tension round it (pre-strained frames pluck the grip), and a weighted hem rips off along "
+    "itself, 1 to 3 rows (benches/scene_motion.py, docs/cutting.md)",
 )
 @pytest.mark.parametrize("seconds", [0.2, 1.5], ids=["fast", "slow"])
 def test_a_drag_of_tear_rips_it_into_two_large_pieces(seconds):

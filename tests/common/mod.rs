@@ -64,6 +64,28 @@ pub fn builtin_scene(name: &str, integrator: IntegratorKind, nx: u32, ny: u32) -
     scene
 }
 
+/// The built-in `pile`'s square dropped edge first instead of lowered on its sinking ball:
+/// upright (`xy`), its lower edge 15 cm above the floor, beside a 4 cm ball that tips it out of
+/// its plane, with stiffer bending (10 N/m) and a less grippy floor (0.5): the hard landing the
+/// contact and self-collision tests were built on, with no collider doing work on the cloth.
+pub fn edge_first_pile() -> Scene {
+    let mut scene = Scene::builtin("pile").unwrap();
+    scene.cloth.plane = Plane::Xy;
+    scene.cloth.center = [0.0, 0.65, 0.0];
+    scene.cloth.k_bend = 10.0;
+    scene.colliders.clear();
+    scene.spheres = vec![SphereSpec {
+        center: [0.1, 0.04, 0.03],
+        radius: 0.04,
+        friction: 0.3,
+        thickness: 0.003,
+    }];
+    if let Some(floor) = scene.floor.as_mut() {
+        floor.friction = 0.5;
+    }
+    scene
+}
+
 /// The built-in drape (with its own integrator) on an `n` x `n` grid, hung by the two corners
 /// of its top edge instead of falling free.
 pub fn hung_drape(n: u32) -> Scene {
