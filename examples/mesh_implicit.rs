@@ -93,7 +93,7 @@ fn measure(label: &str, scene: Scene, steps: usize) {
     let stats = sim.solver_stats().unwrap();
     println!(
         "{label:>34}  {:>6} particles  {:>7.2} ms/step  {:>6.1} iterations/solve (most {:>4})  \
-         {} factorisations  not converged {}  max stretch {:.3}",
+         {} factorisations  not converged {}  max stretch {:.3}  setup {:.0} %",
         sim.particles().mass.len(),
         best * 1e3,
         stats.iterations as f64 / stats.solves as f64,
@@ -101,6 +101,7 @@ fn measure(label: &str, scene: Scene, steps: usize) {
         stats.factorizations,
         stats.not_converged,
         sim.max_stretch(),
+        100.0 * stats.setup_seconds / (stats.setup_seconds + stats.solve_seconds),
     );
 }
 
@@ -112,8 +113,11 @@ fn main() {
         "mesh {n} x {n}, grid {g} x {g}, 1/60 s, mesh stiffest k h^2/m = {:.0}",
         stiffness_ratio(&mesh_scene(n))
     );
+    let only = std::env::var("ONLY").ok();
     for preconditioner in Preconditioner::ALL {
+        if only.as_deref().is_some_and(|o| o != preconditioner.to_string()) { continue; }
         for (label, mut scene) in [("grid", grid_scene(g)), ("mesh", mesh_scene(n))] {
+            if std::env::var("MESHONLY").is_ok() && label == "grid" { continue; }
             scene.integrator = IntegratorKind::ImplicitEuler;
             scene.preconditioner = preconditioner;
             scene.cg_max_iterations = 2000;
@@ -125,6 +129,7 @@ fn main() {
         }
     }
     for (label, mut scene) in [("grid", grid_scene(g)), ("mesh", mesh_scene(n))] {
+        if only.is_some() { continue; }
         scene.integrator = IntegratorKind::ProjectiveDynamics;
         measure(&format!("{label} projective_dynamics"), scene, steps);
     }

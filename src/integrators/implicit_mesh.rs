@@ -34,7 +34,7 @@ use super::StepContext;
 use crate::collisions::PredictedContacts;
 use crate::linear::cg::{diagonal_blocks, ConjugateGradient};
 use crate::linear::stencil::SlotArrays;
-use crate::linear::{dissect_points, SparseCholesky, SpringMatrix, Sym3};
+use crate::linear::{dissect_points, Amg, SparseCholesky, SpringMatrix, Sym3};
 use crate::mesh_cloth::MeshCloth;
 use crate::soa::{Floats, Vec3s};
 
@@ -58,6 +58,8 @@ pub(super) struct MeshSystem {
     order: Vec<usize>,
     /// The factor of `P` and what it was built from.
     factor: Option<(FactorKey, SparseCholesky)>,
+    /// The aggregation hierarchy built on `P` and what it was built from.
+    amg: Option<(FactorKey, Amg)>,
 }
 
 /// Everything `P` is built from.
@@ -102,6 +104,7 @@ impl MeshSystem {
             jacobi: std::array::from_fn(|_| Floats::zeros(n)),
             order: Vec::new(),
             factor: None,
+            amg: None,
         }
     }
 
@@ -142,6 +145,26 @@ impl MeshSystem {
                     }
                 }
             }
+            Preconditioner::Multigrid if aggregation() => {
+                if self.amg.as_ref().is_some_and(|f| f.0.matches(h, drag, ctx)) {
+                    let amg = &mut self.amg.as_mut().unwrap().1;
+                    if reuse() {
+                        amg.update_smoother(&self.matrix);
+                    } else {
+                        amg.update(&self.matrix);
+                    }
+                } else {
+                    let reference = self.isotropic_matrix(mesh, h, drag, ctx);
+                    let mut amg = Amg::new(&reference);
+                    if !reuse() {
+                        amg.update(&self.matrix);
+                    } else {
+                        amg.update_smoother(&self.matrix);
+                    }
+                    self.amg = Some((FactorKey::of(h, drag, ctx), amg));
+                    stats.factorizations += 1;
+                }
+            }
             Preconditioner::Multigrid => {
                 for (p, d) in self.matrix.diagonal.iter().enumerate() {
                     for (out, v) in self.jacobi.iter_mut().zip(d.inverse_or_zero().0) {
@@ -169,6 +192,7 @@ impl MeshSystem {
             jacobi,
             factor,
             extra,
+            amg,
             ..
         } = self;
         let (iterations, residual) = cg.solve(
@@ -178,6 +202,9 @@ impl MeshSystem {
             settings.tolerance as f64,
             settings.max_iterations,
             |r, z| match (settings.preconditioner, factor.as_mut()) {
+                (Preconditioner::Multigrid, _) if aggregation() => {
+                    amg.as_mut().unwrap().1.apply(matrix, r, z)
+                }
                 (Preconditioner::Multigrid, Some((_, factor))) => {
                     // Held vertices are not unknowns of the factor: their z stays zero.
                     diagonal_blocks(jacobi, r, extra);
@@ -293,6 +320,40 @@ impl MeshSystem {
         }
     }
 
+    /// The isotropic part `P` as a matrix of the system's pattern: `w_s I` blocks
+    /// (`w_s = h c_s + h^2 k_s`), zero rows and columns at held vertices.
+    fn isotropic_matrix(
+        &self,
+        mesh: &MeshCloth,
+        h: f32,
+        drag: f32,
+        ctx: &StepContext,
+    ) -> SpringMatrix {
+        let s = &mesh.springs;
+        let (mass, w) = (&ctx.particles.mass, &ctx.particles.inv_mass);
+        let mut p = self.matrix.clone();
+        let weight = |e: usize| h * s.c[e] + h * h * s.k[e];
+        for (v, d) in p.diagonal.iter_mut().enumerate() {
+            let m = mass[v] + h * drag;
+            *d = Sym3([m, m, m, 0.0, 0.0, 0.0]);
+        }
+        for e in 0..s.len() {
+            let (a, b) = (s.a[e] as usize, s.b[e] as usize);
+            let we = weight(e);
+            p.diagonal[a].add_scaled(1.0, &Sym3::outer(0.0, Vec3::ZERO, we));
+            p.diagonal[b].add_scaled(1.0, &Sym3::outer(0.0, Vec3::ZERO, we));
+            let coupled = w[a] != 0.0 && w[b] != 0.0;
+            p.off[e] = Sym3::outer(0.0, Vec3::ZERO, live_or_zero(coupled, -we));
+        }
+        for (v, d) in p.diagonal.iter_mut().enumerate() {
+            if w[v] == 0.0 {
+                *d = Sym3::ZERO;
+            }
+        }
+        p.gather();
+        p
+    }
+
     /// The factor of the isotropic part `P` over the free vertices.
     fn factor_isotropic(
         &mut self,
@@ -339,4 +400,12 @@ pub(super) fn mesh_order(mesh: &MeshCloth) -> Vec<usize> {
     dissect_points(&mesh.rest, |p| {
         &neighbours[offsets[p] as usize..offsets[p + 1] as usize]
     })
+}
+
+fn aggregation() -> bool {
+    std::env::var("AMG_OFF").is_err()
+}
+
+fn reuse() -> bool {
+    std::env::var("AMG_REUSE").is_ok()
 }

@@ -10,6 +10,7 @@
 //! Everything else works on grids of `nx` x `ny` nodes indexed `p = j * nx + i`, the particle
 //! numbering of [`crate::grid::Grid`], and on per-node 3-vectors stored as [`crate::soa::Vec3s`].
 
+pub mod amg;
 pub mod cg;
 pub mod cholesky;
 pub mod dense;
@@ -18,6 +19,7 @@ pub mod reduce;
 pub mod spring_matrix;
 pub mod stencil;
 
+pub use amg::Amg;
 pub use cg::ConjugateGradient;
 pub use cholesky::{dissect_points, ScalarStencil, SparseCholesky};
 pub use multigrid::Multigrid;
