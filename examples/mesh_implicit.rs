@@ -113,11 +113,8 @@ fn main() {
         "mesh {n} x {n}, grid {g} x {g}, 1/60 s, mesh stiffest k h^2/m = {:.0}",
         stiffness_ratio(&mesh_scene(n))
     );
-    let only = std::env::var("ONLY").ok();
     for preconditioner in Preconditioner::ALL {
-        if only.as_deref().is_some_and(|o| o != preconditioner.to_string()) { continue; }
         for (label, mut scene) in [("grid", grid_scene(g)), ("mesh", mesh_scene(n))] {
-            if std::env::var("MESHONLY").is_ok() && label == "grid" { continue; }
             scene.integrator = IntegratorKind::ImplicitEuler;
             scene.preconditioner = preconditioner;
             scene.cg_max_iterations = 2000;
@@ -129,7 +126,6 @@ fn main() {
         }
     }
     for (label, mut scene) in [("grid", grid_scene(g)), ("mesh", mesh_scene(n))] {
-        if only.is_some() { continue; }
         scene.integrator = IntegratorKind::ProjectiveDynamics;
         measure(&format!("{label} projective_dynamics"), scene, steps);
     }

@@ -4,25 +4,24 @@
 //!
 //! **Preconditioners.** `jacobi` and `block_jacobi` are the grid's. The grid's default,
 //! `multigrid`, is a geometric hierarchy of the stencil; a mesh has none, so on a mesh it is
-//! block Jacobi plus the sparse Cholesky factor of the matrix's isotropic part, added
-//! (`z = D^-1 r + P^-1 r`, symmetric positive definite as each term is),
+//! smoothed-aggregation algebraic multigrid ([`crate::linear::amg`]). Its aggregates and
+//! prolongators are built on the matrix's isotropic part,
 //!
 //! ```text
 //! P = M + h c_d I + sum_s (h c_s + h^2 k_s) A_s^T A_s        (one scalar for x, y and z)
 //! ```
 //!
-//! over the free vertices, ordered by nested dissection of the rest shape
-//! ([`crate::linear::dissect_points`]). Each spring's block of the true matrix,
-//! `C_s = (h c_s + h^2 k_s (1 - g)) u u^T + h^2 k_s g I`, lies between zero and its block of `P`:
-//! `P` holds the stiff in-plane stretching the Jacobi preconditioners leave to CG, but overstates
-//! the out-of-plane stiffness of a slack cloth (`g` near 0, where the matrix is near `M`), which
-//! the block-Jacobi term covers (alone, `P` took 93 iterations a solve on a stiff 1k-vertex
-//! mesh; with block Jacobi, 23). `P` depends only on the step, the masses, the pins and the
-//! material: it is factored once and refactored only when one of those changes. Predicted
-//! contacts (`k_c n n^T` on a vertex's diagonal) are in the block-Jacobi term only.
+//! over the free vertices, which depends only on the step, the masses, the pins and the
+//! material: the hierarchy is rebuilt only when one of those changes. The coarse operators are
+//! the Galerkin products of the step's own matrix, rebuilt every step: reusing those of `P`
+//! instead saves their products (about a fifth of a step) but `P` overstates the
+//! out-of-plane stiffness of a slack cloth, and CG then takes about twice the iterations
+//! (`reusing_the_reference_coarse_operators_costs_iterations` in the tests). Predicted
+//! contacts (`k_c n n^T` on a vertex's diagonal) are in the step's matrix, so in its smoother
+//! and its coarse operators alike.
 //!
 //! Every sum has a fixed order (per spring, then per vertex over its springs in spring order;
-//! the factor's solve is serial), so a step is bitwise the same for any number of threads.
+//! the multigrid's as its module says), so a step is bitwise the same for any number of threads.
 
 use std::time::Instant;
 
@@ -34,7 +33,7 @@ use super::StepContext;
 use crate::collisions::PredictedContacts;
 use crate::linear::cg::{diagonal_blocks, ConjugateGradient};
 use crate::linear::stencil::SlotArrays;
-use crate::linear::{dissect_points, Amg, SparseCholesky, SpringMatrix, Sym3};
+use crate::linear::{dissect_points, Amg, SpringMatrix, Sym3};
 use crate::mesh_cloth::MeshCloth;
 use crate::soa::{Floats, Vec3s};
 
@@ -49,20 +48,14 @@ pub(super) struct MeshSystem {
     kv: Vec<Vec3>,
     pub(super) rhs: Vec3s,
     pub(super) dv: Vec3s,
-    /// Scratch for the preconditioner.
-    extra: Vec3s,
     cg: ConjugateGradient,
     /// The Jacobi preconditioners' inverse diagonal blocks.
     jacobi: SlotArrays,
-    /// The rest shape's nested-dissection order, made with the first factor.
-    order: Vec<usize>,
-    /// The factor of `P` and what it was built from.
-    factor: Option<(FactorKey, SparseCholesky)>,
     /// The aggregation hierarchy built on `P` and what it was built from.
     amg: Option<(FactorKey, Amg)>,
 }
 
-/// Everything `P` is built from.
+/// Everything `P` is built from (the topology is the system's own).
 #[derive(PartialEq)]
 struct FactorKey {
     h: u32,
@@ -99,11 +92,8 @@ impl MeshSystem {
             kv: vec![Vec3::ZERO; s.len()],
             rhs: Vec3s::zeros(n),
             dv: Vec3s::zeros(n),
-            extra: Vec3s::zeros(n),
             cg: ConjugateGradient::new(n),
             jacobi: std::array::from_fn(|_| Floats::zeros(n)),
-            order: Vec::new(),
-            factor: None,
             amg: None,
         }
     }
@@ -145,42 +135,16 @@ impl MeshSystem {
                     }
                 }
             }
-            Preconditioner::Multigrid if aggregation() => {
-                if self.amg.as_ref().is_some_and(|f| f.0.matches(h, drag, ctx)) {
-                    let amg = &mut self.amg.as_mut().unwrap().1;
-                    if reuse() {
-                        amg.update_smoother(&self.matrix);
-                    } else {
-                        amg.update(&self.matrix);
-                    }
-                } else {
+            Preconditioner::Multigrid => match self.amg.as_mut() {
+                Some((key, amg)) if key.matches(h, drag, ctx) => amg.update(&self.matrix),
+                _ => {
                     let reference = self.isotropic_matrix(mesh, h, drag, ctx);
                     let mut amg = Amg::new(&reference);
-                    if !reuse() {
-                        amg.update(&self.matrix);
-                    } else {
-                        amg.update_smoother(&self.matrix);
-                    }
+                    amg.update(&self.matrix);
                     self.amg = Some((FactorKey::of(h, drag, ctx), amg));
                     stats.factorizations += 1;
                 }
-            }
-            Preconditioner::Multigrid => {
-                for (p, d) in self.matrix.diagonal.iter().enumerate() {
-                    for (out, v) in self.jacobi.iter_mut().zip(d.inverse_or_zero().0) {
-                        out[p] = v;
-                    }
-                }
-                if !self
-                    .factor
-                    .as_ref()
-                    .is_some_and(|f| f.0.matches(h, drag, ctx))
-                {
-                    let factor = self.factor_isotropic(mesh, h, drag, ctx);
-                    self.factor = Some((FactorKey::of(h, drag, ctx), factor));
-                    stats.factorizations += 1;
-                }
-            }
+            },
         }
         let solving = Instant::now();
         stats.setup_seconds += (solving - started).as_secs_f64();
@@ -190,39 +154,21 @@ impl MeshSystem {
             dv,
             cg,
             jacobi,
-            factor,
-            extra,
             amg,
             ..
         } = self;
-        let (iterations, residual) = cg.solve(
-            &*matrix,
-            rhs,
-            dv,
-            settings.tolerance as f64,
-            settings.max_iterations,
-            |r, z| match (settings.preconditioner, factor.as_mut()) {
-                (Preconditioner::Multigrid, _) if aggregation() => {
-                    amg.as_mut().unwrap().1.apply(matrix, r, z)
-                }
-                (Preconditioner::Multigrid, Some((_, factor))) => {
-                    // Held vertices are not unknowns of the factor: their z stays zero.
-                    diagonal_blocks(jacobi, r, extra);
-                    z.fill(Vec3::ZERO);
-                    factor.solve(r, z);
-                    for (z, e) in [
-                        (&mut z.x, &extra.x),
-                        (&mut z.y, &extra.y),
-                        (&mut z.z, &extra.z),
-                    ] {
-                        for (z, e) in z.iter_mut().zip(e.iter()) {
-                            *z += e;
-                        }
-                    }
-                }
-                _ => diagonal_blocks(jacobi, r, z),
-            },
-        );
+        let (tolerance, most) = (settings.tolerance as f64, settings.max_iterations);
+        let matrix = &*matrix;
+        let (iterations, residual) = match (settings.preconditioner, amg.as_mut()) {
+            (Preconditioner::Multigrid, Some((_, amg))) => {
+                cg.solve(matrix, rhs, dv, tolerance, most, |r, z| {
+                    amg.apply(matrix, r, z)
+                })
+            }
+            _ => cg.solve(matrix, rhs, dv, tolerance, most, |r, z| {
+                diagonal_blocks(jacobi, r, z)
+            }),
+        };
         stats.solve_seconds += solving.elapsed().as_secs_f64();
         stats.record(iterations, residual, settings.tolerance as f64);
     }
@@ -353,31 +299,6 @@ impl MeshSystem {
         p.gather();
         p
     }
-
-    /// The factor of the isotropic part `P` over the free vertices.
-    fn factor_isotropic(
-        &mut self,
-        mesh: &MeshCloth,
-        h: f32,
-        drag: f32,
-        ctx: &StepContext,
-    ) -> SparseCholesky {
-        if self.order.is_empty() {
-            self.order = mesh_order(mesh);
-        }
-        let (h, drag) = (h as f64, drag as f64);
-        let (mass, w) = (&ctx.particles.mass, &ctx.particles.inv_mass);
-        let s = &mesh.springs;
-        let weight = |e: usize| h * s.c[e] as f64 + h * h * s.k[e] as f64;
-        let mut diagonal: Vec<f64> = mass.iter().map(|&m| m as f64 + h * drag).collect();
-        for e in 0..s.len() {
-            diagonal[s.a[e] as usize] += weight(e);
-            diagonal[s.b[e] as usize] += weight(e);
-        }
-        let order = self.order.iter().copied().filter(|&p| w[p] > 0.0).collect();
-        let entries = (0..s.len()).map(|e| (s.a[e] as usize, s.b[e] as usize, -weight(e)));
-        SparseCholesky::factor_ordered(order, &diagonal, entries)
-    }
 }
 
 /// The nested-dissection order of a mesh's vertices by their rest positions, with the springs
@@ -400,12 +321,4 @@ pub(super) fn mesh_order(mesh: &MeshCloth) -> Vec<usize> {
     dissect_points(&mesh.rest, |p| {
         &neighbours[offsets[p] as usize..offsets[p + 1] as usize]
     })
-}
-
-fn aggregation() -> bool {
-    std::env::var("AMG_OFF").is_err()
-}
-
-fn reuse() -> bool {
-    std::env::var("AMG_REUSE").is_ok()
 }

@@ -40,7 +40,6 @@ fn scalar(b: &Sym3) -> f64 {
 
 /// Each node's aggregate (`u32::MAX` for a held node) and the number of aggregates.
 pub fn aggregate<A: BlockRows>(a: &A) -> (Vec<u32>, usize) {
-    let strength: f32 = std::env::var("AMG_STRENGTH").map_or(STRENGTH, |v| v.parse().unwrap());
     let n = a.rows();
     let free: Vec<bool> = (0..n).map(|v| scalar(&a.diagonal(v)) > 0.0).collect();
     let mut largest = vec![0.0f32; n];
@@ -62,7 +61,7 @@ pub fn aggregate<A: BlockRows>(a: &A) -> (Vec<u32>, usize) {
                 if c != v
                     && free[c]
                     && s > 0.0
-                    && (s >= strength * largest[v] || s >= strength * largest[c])
+                    && (s >= STRENGTH * largest[v] || s >= STRENGTH * largest[c])
                     && !strong[start..].contains(&(c as u32))
                 {
                     strong.push(c as u32);
@@ -111,7 +110,13 @@ pub fn spectral_radius<A: BlockRows>(a: &A) -> f64 {
     let n = a.rows();
     let d: Vec<f64> = (0..n).map(|v| scalar(&a.diagonal(v))).collect();
     let mut x: Vec<f64> = (0..n)
-        .map(|v| if d[v] > 0.0 { 1.0 + (v % 7) as f64 / 7.0 } else { 0.0 })
+        .map(|v| {
+            if d[v] > 0.0 {
+                1.0 + (v % 7) as f64 / 7.0
+            } else {
+                0.0
+            }
+        })
         .collect();
     let mut y = vec![0.0; n];
     let mut rho = 0.0;

@@ -106,7 +106,8 @@ impl Galerkin {
         for_row_chunks(ap, ap_offsets, 0..a.rows(), ROW_CHUNK, &|rows, values| {
             let base = ap_offsets[rows.start] as usize;
             for i in rows {
-                let out = &mut values[ap_offsets[i] as usize - base..ap_offsets[i + 1] as usize - base];
+                let out =
+                    &mut values[ap_offsets[i] as usize - base..ap_offsets[i + 1] as usize - base];
                 out.fill(Sym3::ZERO);
                 let mut term = ap_term_offsets[i] as usize;
                 a.for_each_entry(i, |j, block| {
@@ -121,20 +122,27 @@ impl Galerkin {
         let BlockCsr {
             offsets, values, ..
         } = out;
-        for_row_chunks(values, offsets, 0..offsets.len() - 1, ROW_CHUNK, &|rows, values| {
-            let base = offsets[rows.start] as usize;
-            for c in rows {
-                let out = &mut values[offsets[c] as usize - base..offsets[c + 1] as usize - base];
-                out.fill(Sym3::ZERO);
-                let mut term = ac_term_offsets[c] as usize;
-                for (i, w) in p.r_row(c) {
-                    for block in &ap[ap_offsets[i] as usize..ap_offsets[i + 1] as usize] {
-                        out[ac_terms[term] as usize].add_scaled(w, block);
-                        term += 1;
+        for_row_chunks(
+            values,
+            offsets,
+            0..offsets.len() - 1,
+            ROW_CHUNK,
+            &|rows, values| {
+                let base = offsets[rows.start] as usize;
+                for c in rows {
+                    let out =
+                        &mut values[offsets[c] as usize - base..offsets[c + 1] as usize - base];
+                    out.fill(Sym3::ZERO);
+                    let mut term = ac_term_offsets[c] as usize;
+                    for (i, w) in p.r_row(c) {
+                        for block in &ap[ap_offsets[i] as usize..ap_offsets[i + 1] as usize] {
+                            out[ac_terms[term] as usize].add_scaled(w, block);
+                            term += 1;
+                        }
                     }
                 }
-            }
-        });
+            },
+        );
     }
 }
 

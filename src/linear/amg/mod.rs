@@ -71,6 +71,8 @@ struct Level {
 #[derive(Clone, Debug, Default)]
 pub struct Amg {
     levels: Vec<Level>,
+    /// The finest level's smoother when there is no coarser level.
+    smoother: Vec<Sym3>,
     coarsest: DenseCholesky,
     dense: Vec<f64>,
     rhs: Vec<f64>,
@@ -82,12 +84,14 @@ impl Amg {
     pub fn new(reference: &SpringMatrix) -> Self {
         let mut amg = Amg::default();
         let (agg, count) = aggregate::aggregate(reference);
-        if count == 0 || count as f64 > STALLED * reference.rows() as f64 {
-            return amg;
+        if count > 0 && count as f64 <= STALLED * reference.rows() as f64 {
+            amg.push_level(
+                reference,
+                aggregate::smoothed_prolongator(reference, &agg, count),
+            );
         }
-        amg.push_level(reference, aggregate::smoothed_prolongator(reference, &agg, count));
-        loop {
-            let a = &amg.levels.last().unwrap().coarse;
+        while let Some(level) = amg.levels.last() {
+            let a = &level.coarse;
             if a.rows() <= COARSEST {
                 break;
             }
@@ -100,10 +104,6 @@ impl Amg {
             amg.push_level(&a, p);
         }
         amg.update(reference);
-        if std::env::var("AMG_DEBUG").is_ok() {
-            let nnz: Vec<usize> = amg.levels.iter().map(|l| l.coarse.columns.len()).collect();
-            eprintln!("amg sizes {:?} coarse nnz {:?}", amg.sizes(), nnz);
-        }
         amg
     }
 
@@ -132,12 +132,18 @@ impl Amg {
     /// The coarse operators, smoothers and coarsest factor for `fine`, which must have the
     /// pattern of the reference the hierarchy was built on.
     pub fn update(&mut self, fine: &SpringMatrix) {
+        if self.levels.is_empty() {
+            self.update_smoother(fine);
+            return;
+        }
         let mut above: Option<&BlockCsr> = None;
         for level in self.levels.iter_mut() {
             match above {
                 None => {
                     set_smoother(fine, &mut level.smoother);
-                    level.galerkin.apply(fine, &level.transfer, &mut level.coarse);
+                    level
+                        .galerkin
+                        .apply(fine, &level.transfer, &mut level.coarse);
                 }
                 Some(a) => {
                     set_smoother(a, &mut level.smoother);
@@ -155,8 +161,12 @@ impl Amg {
     /// The finest level's smoother for `fine`, keeping the coarse operators as they are (those
     /// of the reference, or of an earlier update).
     pub fn update_smoother(&mut self, fine: &SpringMatrix) {
-        if let Some(level) = self.levels.first_mut() {
-            set_smoother(fine, &mut level.smoother);
+        match self.levels.first_mut() {
+            Some(level) => set_smoother(fine, &mut level.smoother),
+            None => {
+                self.smoother.resize(fine.rows(), Sym3::ZERO);
+                set_smoother(fine, &mut self.smoother);
+            }
         }
     }
 
@@ -170,9 +180,7 @@ impl Amg {
         } = self;
         if levels.is_empty() {
             // No coarsening (every node held, or no coupling): block Jacobi alone.
-            let mut smoother = vec![Sym3::ZERO; fine.rows()];
-            set_smoother(fine, &mut smoother);
-            jacobi_start(&smoother, r, z);
+            jacobi_start(&self.smoother, r, z);
             return;
         }
         cycle(fine, r, z, levels, coarsest, rhs);
@@ -199,7 +207,7 @@ fn cycle<A: BlockOperator>(
         ..
     } = level;
     jacobi_start(smoother, b, x);
-    for _ in 1..sweeps() {
+    for _ in 1..SWEEPS {
         jacobi_sweep(a, smoother, b, x, r);
     }
     residual(a, b, x, r);
@@ -210,7 +218,7 @@ fn cycle<A: BlockOperator>(
         cycle(&*coarse, coarse_b, coarse_x, below, coarsest, rhs);
     }
     transfer.prolong_add(coarse_x, x);
-    for _ in 0..sweeps() {
+    for _ in 0..SWEEPS {
         jacobi_sweep(a, smoother, b, x, r);
     }
 }
@@ -222,8 +230,7 @@ fn set_smoother<A: BlockRows + Sync>(a: &A, out: &mut [Sym3]) {
         .for_each(|(c, out)| {
             for (k, o) in out.iter_mut().enumerate() {
                 let inv = a.diagonal(c * REDUCE_CHUNK + k).inverse_or_zero();
-                let om: f32 = std::env::var("AMG_OMEGA").map_or(OMEGA, |v| v.parse().unwrap());
-                *o = Sym3(inv.0.map(|x| om * x));
+                *o = Sym3(inv.0.map(|x| OMEGA * x));
             }
         });
 }
@@ -246,10 +253,15 @@ fn residual<A: BlockOperator>(a: &A, b: &Vec3s, x: &Vec3s, r: &mut Vec3s) {
         .enumerate()
         .for_each(|(c, mut r)| {
             let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + r.len();
-            a.apply_range(x, range.clone(), &mut r);
-            for (k, v) in range.enumerate() {
-                r.set(k, b.get(v) - r.get(k));
-            }
+            crate::simd::dispatch!({
+                a.apply_range(x, range.clone(), &mut r);
+                let b = b.slices(range.clone());
+                for (r, b) in [(&mut *r.x, b.x), (&mut *r.y, b.y), (&mut *r.z, b.z)] {
+                    for (r, b) in r.iter_mut().zip(b) {
+                        *r = b - *r;
+                    }
+                }
+            })
         });
 }
 
@@ -283,12 +295,14 @@ fn solve_dense(factor: &DenseCholesky, b: &Vec3s, x: &mut Vec3s, rhs: &mut Vec<f
     for v in 0..x.len() {
         x.set(
             v,
-            glam::Vec3::new(rhs[3 * v] as f32, rhs[3 * v + 1] as f32, rhs[3 * v + 2] as f32),
+            glam::Vec3::new(
+                rhs[3 * v] as f32,
+                rhs[3 * v + 1] as f32,
+                rhs[3 * v + 2] as f32,
+            ),
         );
     }
 }
 
 #[cfg(test)]
 mod tests;
-
-fn sweeps() -> usize { std::env::var("AMG_SWEEPS").map_or(SWEEPS, |v| v.parse().unwrap()) }
