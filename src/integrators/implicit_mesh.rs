@@ -14,7 +14,7 @@
 //! over the free vertices, which depends only on the step, the masses, the pins and the
 //! material: the hierarchy is rebuilt only when one of those changes. The coarse operators are
 //! the Galerkin products of the step's own matrix, rebuilt every step: reusing those of `P`
-//! instead saves their products (about a fifth of a step) but `P` overstates the
+//! instead saves their products (about a seventh of a step) but `P` overstates the
 //! out-of-plane stiffness of a slack cloth, and CG then takes about twice the iterations
 //! (`reusing_the_reference_coarse_operators_costs_iterations` in the tests). Predicted
 //! contacts (`k_c n n^T` on a vertex's diagonal) are in the step's matrix, so in its smoother

@@ -14,7 +14,10 @@
 //!   standing for a 3 x 3 identity block: the three translations are the near-null space).
 //! - **Smoothed prolongator** `P = (I - omega D^-1 A) T`, `omega = 4/3 / rho(D^-1 A)`, with
 //!   `A`'s blocks taken by their mean eigenvalue (trace / 3; the reference is isotropic, so
-//!   this is exact there) and `rho` from [`POWER_ITERATIONS`] power iterations.
+//!   this is exact there) and `rho` from [`POWER_ITERATIONS`] power iterations. The smoothing
+//!   uses every connection, the bending springs too: smoothing with the strong ones only (the
+//!   weak lumped onto the diagonal, PyAMG's filtered smoother) makes sparser prolongators but
+//!   took CG from 12.1 to 16.9 iterations a solve on the 4k stiff drape.
 
 use super::csr::{BlockRows, Transfer};
 use crate::linear::Sym3;
