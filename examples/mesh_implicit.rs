@@ -93,7 +93,7 @@ fn measure(label: &str, scene: Scene, steps: usize) {
     let stats = sim.solver_stats().unwrap();
     println!(
         "{label:>34}  {:>6} particles  {:>7.2} ms/step  {:>6.1} iterations/solve (most {:>4})  \
-         {} factorisations  not converged {}  max stretch {:.3}",
+         {} factorisations  not converged {}  max stretch {:.3}  setup {:.0} %",
         sim.particles().mass.len(),
         best * 1e3,
         stats.iterations as f64 / stats.solves as f64,
@@ -101,6 +101,7 @@ fn measure(label: &str, scene: Scene, steps: usize) {
         stats.factorizations,
         stats.not_converged,
         sim.max_stretch(),
+        100.0 * stats.setup_seconds / (stats.setup_seconds + stats.solve_seconds),
     );
 }
 

@@ -4,25 +4,24 @@
 //!
 //! **Preconditioners.** `jacobi` and `block_jacobi` are the grid's. The grid's default,
 //! `multigrid`, is a geometric hierarchy of the stencil; a mesh has none, so on a mesh it is
-//! block Jacobi plus the sparse Cholesky factor of the matrix's isotropic part, added
-//! (`z = D^-1 r + P^-1 r`, symmetric positive definite as each term is),
+//! smoothed-aggregation algebraic multigrid ([`crate::linear::amg`]). Its aggregates and
+//! prolongators are built on the matrix's isotropic part,
 //!
 //! ```text
 //! P = M + h c_d I + sum_s (h c_s + h^2 k_s) A_s^T A_s        (one scalar for x, y and z)
 //! ```
 //!
-//! over the free vertices, ordered by nested dissection of the rest shape
-//! ([`crate::linear::dissect_points`]). Each spring's block of the true matrix,
-//! `C_s = (h c_s + h^2 k_s (1 - g)) u u^T + h^2 k_s g I`, lies between zero and its block of `P`:
-//! `P` holds the stiff in-plane stretching the Jacobi preconditioners leave to CG, but overstates
-//! the out-of-plane stiffness of a slack cloth (`g` near 0, where the matrix is near `M`), which
-//! the block-Jacobi term covers (alone, `P` took 93 iterations a solve on a stiff 1k-vertex
-//! mesh; with block Jacobi, 23). `P` depends only on the step, the masses, the pins and the
-//! material: it is factored once and refactored only when one of those changes. Predicted
-//! contacts (`k_c n n^T` on a vertex's diagonal) are in the block-Jacobi term only.
+//! over the free vertices, which depends only on the step, the masses, the pins and the
+//! material: the hierarchy is rebuilt only when one of those changes. The coarse operators are
+//! the Galerkin products of the step's own matrix, rebuilt every step: reusing those of `P`
+//! instead saves their products (about a seventh of a step) but `P` overstates the
+//! out-of-plane stiffness of a slack cloth, and CG then takes about twice the iterations
+//! (`reusing_the_reference_coarse_operators_costs_iterations` in the tests). Predicted
+//! contacts (`k_c n n^T` on a vertex's diagonal) are in the step's matrix, so in its smoother
+//! and its coarse operators alike.
 //!
 //! Every sum has a fixed order (per spring, then per vertex over its springs in spring order;
-//! the factor's solve is serial), so a step is bitwise the same for any number of threads.
+//! the multigrid's as its module says), so a step is bitwise the same for any number of threads.
 
 use std::time::Instant;
 
@@ -34,7 +33,7 @@ use super::StepContext;
 use crate::collisions::PredictedContacts;
 use crate::linear::cg::{diagonal_blocks, ConjugateGradient};
 use crate::linear::stencil::SlotArrays;
-use crate::linear::{dissect_points, SparseCholesky, SpringMatrix, Sym3};
+use crate::linear::{dissect_points, Amg, SpringMatrix, Sym3};
 use crate::mesh_cloth::MeshCloth;
 use crate::soa::{Floats, Vec3s};
 
@@ -49,18 +48,14 @@ pub(super) struct MeshSystem {
     kv: Vec<Vec3>,
     pub(super) rhs: Vec3s,
     pub(super) dv: Vec3s,
-    /// Scratch for the preconditioner.
-    extra: Vec3s,
     cg: ConjugateGradient,
     /// The Jacobi preconditioners' inverse diagonal blocks.
     jacobi: SlotArrays,
-    /// The rest shape's nested-dissection order, made with the first factor.
-    order: Vec<usize>,
-    /// The factor of `P` and what it was built from.
-    factor: Option<(FactorKey, SparseCholesky)>,
+    /// The aggregation hierarchy built on `P` and what it was built from.
+    amg: Option<(FactorKey, Amg)>,
 }
 
-/// Everything `P` is built from.
+/// Everything `P` is built from (the topology is the system's own).
 #[derive(PartialEq)]
 struct FactorKey {
     h: u32,
@@ -97,11 +92,9 @@ impl MeshSystem {
             kv: vec![Vec3::ZERO; s.len()],
             rhs: Vec3s::zeros(n),
             dv: Vec3s::zeros(n),
-            extra: Vec3s::zeros(n),
             cg: ConjugateGradient::new(n),
             jacobi: std::array::from_fn(|_| Floats::zeros(n)),
-            order: Vec::new(),
-            factor: None,
+            amg: None,
         }
     }
 
@@ -142,22 +135,16 @@ impl MeshSystem {
                     }
                 }
             }
-            Preconditioner::Multigrid => {
-                for (p, d) in self.matrix.diagonal.iter().enumerate() {
-                    for (out, v) in self.jacobi.iter_mut().zip(d.inverse_or_zero().0) {
-                        out[p] = v;
-                    }
-                }
-                if !self
-                    .factor
-                    .as_ref()
-                    .is_some_and(|f| f.0.matches(h, drag, ctx))
-                {
-                    let factor = self.factor_isotropic(mesh, h, drag, ctx);
-                    self.factor = Some((FactorKey::of(h, drag, ctx), factor));
+            Preconditioner::Multigrid => match self.amg.as_mut() {
+                Some((key, amg)) if key.matches(h, drag, ctx) => amg.update(&self.matrix),
+                _ => {
+                    let reference = self.isotropic_matrix(mesh, h, drag, ctx);
+                    let mut amg = Amg::new(&reference);
+                    amg.update(&self.matrix);
+                    self.amg = Some((FactorKey::of(h, drag, ctx), amg));
                     stats.factorizations += 1;
                 }
-            }
+            },
         }
         let solving = Instant::now();
         stats.setup_seconds += (solving - started).as_secs_f64();
@@ -167,35 +154,21 @@ impl MeshSystem {
             dv,
             cg,
             jacobi,
-            factor,
-            extra,
+            amg,
             ..
         } = self;
-        let (iterations, residual) = cg.solve(
-            &*matrix,
-            rhs,
-            dv,
-            settings.tolerance as f64,
-            settings.max_iterations,
-            |r, z| match (settings.preconditioner, factor.as_mut()) {
-                (Preconditioner::Multigrid, Some((_, factor))) => {
-                    // Held vertices are not unknowns of the factor: their z stays zero.
-                    diagonal_blocks(jacobi, r, extra);
-                    z.fill(Vec3::ZERO);
-                    factor.solve(r, z);
-                    for (z, e) in [
-                        (&mut z.x, &extra.x),
-                        (&mut z.y, &extra.y),
-                        (&mut z.z, &extra.z),
-                    ] {
-                        for (z, e) in z.iter_mut().zip(e.iter()) {
-                            *z += e;
-                        }
-                    }
-                }
-                _ => diagonal_blocks(jacobi, r, z),
-            },
-        );
+        let (tolerance, most) = (settings.tolerance as f64, settings.max_iterations);
+        let matrix = &*matrix;
+        let (iterations, residual) = match (settings.preconditioner, amg.as_mut()) {
+            (Preconditioner::Multigrid, Some((_, amg))) => {
+                cg.solve(matrix, rhs, dv, tolerance, most, |r, z| {
+                    amg.apply(matrix, r, z)
+                })
+            }
+            _ => cg.solve(matrix, rhs, dv, tolerance, most, |r, z| {
+                diagonal_blocks(jacobi, r, z)
+            }),
+        };
         stats.solve_seconds += solving.elapsed().as_secs_f64();
         stats.record(iterations, residual, settings.tolerance as f64);
     }
@@ -293,29 +266,38 @@ impl MeshSystem {
         }
     }
 
-    /// The factor of the isotropic part `P` over the free vertices.
-    fn factor_isotropic(
-        &mut self,
+    /// The isotropic part `P` as a matrix of the system's pattern: `w_s I` blocks
+    /// (`w_s = h c_s + h^2 k_s`), zero rows and columns at held vertices.
+    fn isotropic_matrix(
+        &self,
         mesh: &MeshCloth,
         h: f32,
         drag: f32,
         ctx: &StepContext,
-    ) -> SparseCholesky {
-        if self.order.is_empty() {
-            self.order = mesh_order(mesh);
-        }
-        let (h, drag) = (h as f64, drag as f64);
-        let (mass, w) = (&ctx.particles.mass, &ctx.particles.inv_mass);
+    ) -> SpringMatrix {
         let s = &mesh.springs;
-        let weight = |e: usize| h * s.c[e] as f64 + h * h * s.k[e] as f64;
-        let mut diagonal: Vec<f64> = mass.iter().map(|&m| m as f64 + h * drag).collect();
-        for e in 0..s.len() {
-            diagonal[s.a[e] as usize] += weight(e);
-            diagonal[s.b[e] as usize] += weight(e);
+        let (mass, w) = (&ctx.particles.mass, &ctx.particles.inv_mass);
+        let mut p = self.matrix.clone();
+        let weight = |e: usize| h * s.c[e] + h * h * s.k[e];
+        for (v, d) in p.diagonal.iter_mut().enumerate() {
+            let m = mass[v] + h * drag;
+            *d = Sym3([m, m, m, 0.0, 0.0, 0.0]);
         }
-        let order = self.order.iter().copied().filter(|&p| w[p] > 0.0).collect();
-        let entries = (0..s.len()).map(|e| (s.a[e] as usize, s.b[e] as usize, -weight(e)));
-        SparseCholesky::factor_ordered(order, &diagonal, entries)
+        for e in 0..s.len() {
+            let (a, b) = (s.a[e] as usize, s.b[e] as usize);
+            let we = weight(e);
+            p.diagonal[a].add_scaled(1.0, &Sym3::outer(0.0, Vec3::ZERO, we));
+            p.diagonal[b].add_scaled(1.0, &Sym3::outer(0.0, Vec3::ZERO, we));
+            let coupled = w[a] != 0.0 && w[b] != 0.0;
+            p.off[e] = Sym3::outer(0.0, Vec3::ZERO, live_or_zero(coupled, -we));
+        }
+        for (v, d) in p.diagonal.iter_mut().enumerate() {
+            if w[v] == 0.0 {
+                *d = Sym3::ZERO;
+            }
+        }
+        p.gather();
+        p
     }
 }
 

@@ -88,6 +88,16 @@ impl SpringMatrix {
             .map(|(&s, &c)| (s as usize, c as usize))
     }
 
+    /// The stored off-diagonal entries of row `v`, as [`SpringMatrix::gather`] left them:
+    /// `(column, block)`.
+    pub fn row_blocks(&self, v: usize) -> impl Iterator<Item = (usize, &Sym3)> + '_ {
+        let r = self.offsets[v] as usize..self.offsets[v + 1] as usize;
+        self.column[r.clone()]
+            .iter()
+            .zip(&self.values[r])
+            .map(|(&c, b)| (c as usize, b))
+    }
+
     pub fn heap_bytes(&self) -> usize {
         self.offsets.capacity() * 4
             + self.spring.capacity() * 4
