@@ -67,11 +67,14 @@ struct FactorKey {
     drag: u32,
     mass: Vec<f32>,
     inv_mass: Vec<f32>,
+    /// Which springs hold: a cut or a tear changes `P`.
+    active: Vec<bool>,
 }
 
 impl FactorKey {
     fn of(h: f32, drag: f32, ctx: &StepContext) -> Self {
         FactorKey {
+            active: ctx.mesh.map_or_else(Vec::new, |m| m.springs.active.clone()),
             h: h.to_bits(),
             drag: drag.to_bits(),
             mass: ctx.particles.mass.to_vec(),
@@ -84,6 +87,7 @@ impl FactorKey {
             && self.drag == drag.to_bits()
             && self.mass[..] == ctx.particles.mass[..]
             && self.inv_mass[..] == ctx.particles.inv_mass[..]
+            && ctx.mesh.is_some_and(|m| self.active[..] == m.springs.active[..])
     }
 }
 

@@ -27,7 +27,7 @@ pub use specs::{
 };
 pub use stability::stable_substep;
 use validate::require_tables;
-pub(crate) use validate::{check_substep, not_on_mesh};
+pub(crate) use validate::check_substep;
 pub use validate::{validations, MAX_COLLIDER_VALUE, MAX_ITERATIONS, MAX_PARTICLES, MIN_SUBSTEP};
 
 use crate::error::{Error, Result};

@@ -168,7 +168,6 @@ impl Simulation {
     /// Cuts the particle [`Simulation::pick`] finds along the ray; returns it, or `None` if the
     /// ray hits nothing.
     pub fn cut_ray(&mut self, origin: Vec3, direction: Vec3) -> Result<Option<usize>> {
-        self.model.grid_only("cut_ray")?;
         let ray = Ray::new(origin, direction)?;
         Ok(self.cut_along(&ray, Queries::One))
     }
@@ -178,7 +177,6 @@ impl Simulation {
     /// Every ray is checked before anything is cut, so bad input changes nothing. Sample the
     /// stroke densely enough (about one ray per grid spacing on screen) to leave no gaps.
     pub fn cut_stroke(&mut self, rays: &[(Vec3, Vec3)]) -> Result<Vec<usize>> {
-        self.model.grid_only("cut_stroke")?;
         let rays = checked_rays(rays)?;
         let queries = if rays.len() >= STROKE_TREE_MIN_RAYS {
             Queries::Many
@@ -214,9 +212,21 @@ impl Simulation {
         rays: &[(Vec3, Vec3)],
         interrupted: &mut dyn FnMut() -> bool,
     ) -> Result<usize> {
-        self.model.grid_only("sever_stroke")?;
         let rays = checked_rays(rays)?;
         let model = &self.model;
+        if let Some(mesh) = model.mesh() {
+            let crossings = self.cutter.mesh_crossings(
+                &mesh.springs,
+                &model.particles.alive,
+                &self.state.kin.pos,
+                &rays,
+                interrupted,
+            );
+            return match crossings {
+                Some(springs) => Ok(self.model.sever_mesh(springs)),
+                None => Err(Error::Interrupted { steps: 0 }),
+            };
+        }
         let crossings = self.cutter.crossings(
             model.grid,
             &model.springs,
@@ -235,8 +245,9 @@ impl Simulation {
     /// joined by live springs (`O(n)`).
     pub fn pieces(&self) -> usize {
         let model = &self.model;
-        if let Some(mesh) = model.mesh() {
-            let mut labels = mesh.piece_labels();
+        if let Some(topology) = model.mesh_topology() {
+            let mut labels = topology.piece_labels(&model.particles.alive);
+            labels.retain(|&l| l != u32::MAX);
             labels.sort_unstable();
             labels.dedup();
             return labels.len();
@@ -248,8 +259,8 @@ impl Simulation {
     /// (`u32::MAX` for a removed particle).
     pub fn piece_labels(&self) -> Vec<u32> {
         let model = &self.model;
-        if let Some(mesh) = model.mesh() {
-            return mesh.piece_labels();
+        if let Some(topology) = model.mesh_topology() {
+            return topology.piece_labels(&model.particles.alive);
         }
         crate::cutting::piece_labels(model.grid, &model.springs, &model.particles.alive)
     }
