@@ -1,7 +1,9 @@
 //! Cuts that sever springs: a mouse stroke (a sequence of rays) sweeps a surface, and every live
 //! spring whose segment crosses it is severed. No particle is removed, so mass is conserved to
 //! the bit; the pieces fall apart because nothing joins them any more. Also here: which of the
-//! mesh's triangles a severed cell still draws, and how many pieces the cloth is in.
+//! mesh's triangles a severed cell still draws, and how many pieces the cloth is in. A mesh
+//! cloth's springs are swept the same way ([`StrokeCutter::mesh_crossings`]); what a severed
+//! mesh spring takes with it is [`crate::mesh_cloth::topology`]'s.
 //!
 //! **Representation.** Physics stays on the grid: a severed spring is a slot whose `active`
 //! flag is 0, which every pass already reads (forces, implicit solvers, strain limiting, the
@@ -124,10 +126,10 @@ impl StrokeCutter {
     ) -> Option<&[Crossing]> {
         self.out.clear();
         let out = &mut self.out;
-        let swept = sweep(&mut self.code, (pos, alive), rays, interrupted, |code, tri| {
+        let test = |code: &[u8], tri| {
             grid_springs_crossing(code, out, (grid, springs), (pos, alive), tri);
-        });
-        swept.then_some(&self.out)
+        };
+        sweep(&mut self.code, (pos, alive), rays, interrupted, test).then_some(&self.out)
     }
 
     /// The live springs of a mesh cloth (seams aside: two sewn vertices are one point) whose
@@ -138,38 +140,14 @@ impl StrokeCutter {
     pub fn mesh_crossings(
         &mut self,
         springs: &EdgeSprings,
-        alive: &[bool],
-        pos: &Vec3s,
+        (pos, alive): (&Vec3s, &[bool]),
         rays: &[Ray],
         interrupted: &mut dyn FnMut() -> bool,
     ) -> Option<&[u32]> {
         self.mesh_out.clear();
         let out = &mut self.mesh_out;
-        let swept = sweep(&mut self.code, (pos, alive), rays, interrupted, |code, tri| {
-            for start in (0..springs.len()).step_by(BLOCK) {
-                let block = start..(start + BLOCK).min(springs.len());
-                let (a, b) = (&springs.a[block.clone()], &springs.b[block.clone()]);
-                let shared = (a.iter().zip(b))
-                    .fold(u8::MAX, |m, (&x, &y)| m.min(code[x as usize] & code[y as usize]));
-                if shared != 0 {
-                    continue;
-                }
-                for e in block {
-                    let (a, b) = (springs.a[e] as usize, springs.b[e] as usize);
-                    if code[a] & code[b] != 0
-                        || !springs.active[e]
-                        || springs.kind[e] == EdgeKind::Seam
-                    {
-                        continue;
-                    }
-                    let (pa, pb) = (pos.get(a).as_dvec3(), pos.get(b).as_dvec3());
-                    if segment_crossing(pa, pb, tri).is_some() {
-                        out.push(e as u32);
-                    }
-                }
-            }
-        });
-        swept.then_some(&self.mesh_out)
+        let test = |code: &[u8], tri| mesh_springs_crossing(code, out, springs, pos, tri);
+        sweep(&mut self.code, (pos, alive), rays, interrupted, test).then_some(&self.mesh_out)
     }
 
     pub fn heap_bytes(&self) -> usize {
@@ -223,7 +201,7 @@ fn sweep(
     true
 }
 
-    /// Appends the springs whose ends' codes share no bit and that cross `tri` exactly.
+/// Appends the springs whose ends' codes share no bit and that cross `tri` exactly.
 fn grid_springs_crossing(
     code: &[u8],
     out: &mut Vec<Crossing>,
@@ -231,37 +209,67 @@ fn grid_springs_crossing(
     (pos, alive): (&Vec3s, &[bool]),
     tri: [DVec3; 3],
 ) {
-        for kind in SpringKind::ALL {
-            let (k, o) = (kind.index(), grid.offset(kind));
-            let n = grid.len().saturating_sub(o);
-            let (ca, cb) = (&code[..n], &code[o..o + n]);
-            for start in (0..n).step_by(BLOCK) {
-                let end = (start + BLOCK).min(n);
-                // Branch-free over the block (it vectorises): the smallest shared bit set.
-                let shared = ca[start..end]
-                    .iter()
-                    .zip(&cb[start..end])
-                    .fold(u8::MAX, |m, (&x, &y)| m.min(x & y));
-                if shared != 0 {
+    for kind in SpringKind::ALL {
+        let (k, o) = (kind.index(), grid.offset(kind));
+        let n = grid.len().saturating_sub(o);
+        let (ca, cb) = (&code[..n], &code[o..o + n]);
+        for start in (0..n).step_by(BLOCK) {
+            let end = (start + BLOCK).min(n);
+            // Branch-free over the block (it vectorises): the smallest shared bit set.
+            let shared = ca[start..end]
+                .iter()
+                .zip(&cb[start..end])
+                .fold(u8::MAX, |m, (&x, &y)| m.min(x & y));
+            if shared != 0 {
+                continue;
+            }
+            for a in start..end {
+                let b = a + o;
+                if ca[a] & cb[a] != 0 || springs.active[k][a] == 0.0 || !(alive[a] && alive[b]) {
                     continue;
                 }
-                for a in start..end {
-                    let b = a + o;
-                    if ca[a] & cb[a] != 0 || springs.active[k][a] == 0.0 || !(alive[a] && alive[b])
-                    {
-                        continue;
-                    }
-                    let (pa, pb) = (pos.get(a).as_dvec3(), pos.get(b).as_dvec3());
-                    // A spring on two quads or on both halves of one is listed twice;
-                    // severing it the second time finds it severed and counts nothing.
-                    if let Some(t) = segment_crossing(pa, pb, tri) {
-                        out.push(((kind, a), t as f32));
-                    }
+                let (pa, pb) = (pos.get(a).as_dvec3(), pos.get(b).as_dvec3());
+                // A spring on two quads or on both halves of one is listed twice;
+                // severing it the second time finds it severed and counts nothing.
+                if let Some(t) = segment_crossing(pa, pb, tri) {
+                    out.push(((kind, a), t as f32));
                 }
             }
         }
     }
+}
 
+/// Appends the live springs of a mesh cloth, seams aside, whose ends' codes share no bit and
+/// that cross `tri` exactly, as indices into the spring list.
+fn mesh_springs_crossing(
+    code: &[u8],
+    out: &mut Vec<u32>,
+    springs: &EdgeSprings,
+    pos: &Vec3s,
+    tri: [DVec3; 3],
+) {
+    for start in (0..springs.len()).step_by(BLOCK) {
+        let block = start..(start + BLOCK).min(springs.len());
+        let (a, b) = (&springs.a[block.clone()], &springs.b[block.clone()]);
+        // Branch-free over the block (it vectorises): the smallest shared bit set.
+        let shared = (a.iter().zip(b)).fold(u8::MAX, |m, (&x, &y)| {
+            m.min(code[x as usize] & code[y as usize])
+        });
+        if shared != 0 {
+            continue;
+        }
+        for e in block {
+            let (a, b) = (springs.a[e] as usize, springs.b[e] as usize);
+            if code[a] & code[b] != 0 || !springs.active[e] || springs.kind[e] == EdgeKind::Seam {
+                continue;
+            }
+            let (pa, pb) = (pos.get(a).as_dvec3(), pos.get(b).as_dvec3());
+            if segment_crossing(pa, pb, tri).is_some() {
+                out.push(e as u32);
+            }
+        }
+    }
+}
 
 /// Each particle's code against the triangle with the given plane and edge planes (see
 /// [`StrokeCutter`]).

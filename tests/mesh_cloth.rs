@@ -196,7 +196,9 @@ fn tearing_and_cuts_run_on_a_mesh_cloth() {
     assert!(sim.triangles().len() < 2);
     sim.cut(0).unwrap();
     assert!(!sim.particles().alive[0]);
-    let cut = sim.cut_stroke(&[(Vec3::new(1.0, 1.0, 1.0), -Vec3::Z)]).unwrap();
+    let cut = sim
+        .cut_stroke(&[(Vec3::new(1.0, 1.0, 1.0), -Vec3::Z)])
+        .unwrap();
     assert_eq!(cut.len(), 1);
     assert_eq!(sim.scene().integrator, IntegratorKind::SymplecticEuler);
 }

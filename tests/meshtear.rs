@@ -121,7 +121,11 @@ fn a_mesh_pulled_apart_by_its_top_tears_in_two_and_the_released_piece_falls_free
     let torn_at = torn_at.expect("the cloth never tore apart");
     assert!(torn_at > 10, "tore at once, at step {torn_at}");
     let mesh = sim.model().mesh().unwrap();
-    assert_eq!(mesh.springs.len(), springs, "the spring list never reallocates");
+    assert_eq!(
+        mesh.springs.len(),
+        springs,
+        "the spring list never reallocates"
+    );
     let severed: Vec<usize> = (0..springs).filter(|&e| !mesh.springs.active[e]).collect();
     assert!(!severed.is_empty());
     assert!(severed
@@ -131,7 +135,9 @@ fn a_mesh_pulled_apart_by_its_top_tears_in_two_and_the_released_piece_falls_free
     // Every drawn triangle has its three edges live, and one piece.
     let labels = sim.piece_labels();
     for t in sim.triangles().to_vec() {
-        assert!(t.iter().all(|&v| labels[v as usize] == labels[t[0] as usize]));
+        assert!(t
+            .iter()
+            .all(|&v| labels[v as usize] == labels[t[0] as usize]));
     }
     let all = sim.model().mesh().unwrap().triangles.len();
     assert!(sim.triangles().len() < all);
@@ -143,7 +149,12 @@ fn a_mesh_pulled_apart_by_its_top_tears_in_two_and_the_released_piece_falls_free
     let left: Vec<usize> = pins.iter().copied().filter(|&p| side(p)).collect();
     let mut sizes: Vec<(usize, u32)> = right
         .iter()
-        .map(|&p| (right.iter().filter(|&&q| labels[q] == labels[p]).count(), labels[p]))
+        .map(|&p| {
+            (
+                right.iter().filter(|&&q| labels[q] == labels[p]).count(),
+                labels[p],
+            )
+        })
         .collect();
     sizes.sort_unstable();
     let released = sizes.last().unwrap().1;
@@ -153,7 +164,11 @@ fn a_mesh_pulled_apart_by_its_top_tears_in_two_and_the_released_piece_falls_free
         sim.unpin(p as i64).unwrap();
     }
     let body = piece(&sim, released);
-    assert!(body.len() > 20, "the released piece has {} vertices", body.len());
+    assert!(
+        body.len() > 20,
+        "the released piece has {} vertices",
+        body.len()
+    );
     falls_freely(&mut sim, &body, 300, 1e-3);
 }
 
@@ -172,14 +187,22 @@ fn a_cut_across_gives_two_pieces_and_the_lower_falls(integrator: IntegratorKind,
     let factorizations = |sim: &Simulation| sim.solver_stats().map(|s| s.factorizations);
     let settled = factorizations(&sim);
     sim.step(1).unwrap();
-    assert_eq!(factorizations(&sim), settled, "refactored with nothing changed");
+    assert_eq!(
+        factorizations(&sim),
+        settled,
+        "refactored with nothing changed"
+    );
     let version = sim.topology_version();
     let severed = sim.sever_stroke(&across(1.02)).unwrap();
     assert!(severed > 0);
     sim.step(1).unwrap();
     if integrator != IntegratorKind::SymplecticEuler {
         // The factor keys on which springs hold: the step after the cut refactors.
-        assert_eq!(factorizations(&sim), settled.map(|f| f + 1), "{integrator:?}");
+        assert_eq!(
+            factorizations(&sim),
+            settled.map(|f| f + 1),
+            "{integrator:?}"
+        );
     }
     assert_eq!(sim.topology_version(), version + 1);
     assert_eq!(sim.pieces(), 2);
@@ -188,7 +211,12 @@ fn a_cut_across_gives_two_pieces_and_the_lower_falls(integrator: IntegratorKind,
     assert_eq!(sim.topology_version(), version + 1);
     let labels = sim.piece_labels();
     let lowest = (0..labels.len())
-        .min_by(|&a, &b| sim.positions().get(a).y.total_cmp(&sim.positions().get(b).y))
+        .min_by(|&a, &b| {
+            sim.positions()
+                .get(a)
+                .y
+                .total_cmp(&sim.positions().get(b).y)
+        })
         .unwrap();
     let lower = piece(&sim, labels[lowest]);
     assert!(lower.iter().all(|&p| !sim.particles().pinned[p]));
@@ -270,7 +298,10 @@ fn the_energy_at_a_tear_drops_by_what_the_broken_springs_held() {
     whole.step(1).unwrap();
     // The tear runs after the step: the positions are the same to the bit.
     assert_eq!(state_hash(&torn), state_hash(&whole));
-    let (before, after) = (&whole.model().mesh().unwrap().springs, &torn.model().mesh().unwrap().springs);
+    let (before, after) = (
+        &whole.model().mesh().unwrap().springs,
+        &torn.model().mesh().unwrap().springs,
+    );
     let broken: Vec<usize> = (0..before.len())
         .filter(|&e| before.active[e] && !after.active[e])
         .collect();
@@ -279,7 +310,10 @@ fn the_energy_at_a_tear_drops_by_what_the_broken_springs_held() {
         .filter(|&&e| before.kind[e] == EdgeKind::Stretch)
         .count();
     assert_eq!(stretch, 16, "at most max_per_step stretch springs tear");
-    assert!(broken.len() > stretch, "the bend springs of the torn triangles go too");
+    assert!(
+        broken.len() > stretch,
+        "the bend springs of the torn triangles go too"
+    );
     let dropped = whole.energy().elastic - torn.energy().elastic;
     let held = energy_of(&whole, &broken);
     assert!(held > 0.0);
@@ -319,7 +353,10 @@ fn tear_run() -> Vec<(u64, Vec<bool>, Vec<u32>)> {
 #[test]
 fn a_tear_is_the_same_for_any_number_of_threads() {
     let one = with_threads(1, tear_run);
-    assert!(one.last().unwrap().1.iter().any(|&live| !live), "nothing tore");
+    assert!(
+        one.last().unwrap().1.iter().any(|&live| !live),
+        "nothing tore"
+    );
     for threads in [2, 5] {
         assert!(with_threads(threads, tear_run) == one, "{threads} threads");
     }
@@ -334,7 +371,10 @@ fn a_snapshot_after_a_tear_continues_bitwise() {
     let snapshot = sim.snapshot();
     assert_eq!(snapshot.mesh_springs, active);
     let mut copy = Simulation::restore(snapshot).unwrap();
-    assert_eq!(copy.model().mesh().unwrap().springs, sim.model().mesh().unwrap().springs);
+    assert_eq!(
+        copy.model().mesh().unwrap().springs,
+        sim.model().mesh().unwrap().springs
+    );
     assert_eq!(copy.triangles(), sim.triangles());
     assert_eq!(copy.piece_labels(), sim.piece_labels());
     assert_eq!(copy.topology_version(), sim.topology_version());
@@ -343,7 +383,10 @@ fn a_snapshot_after_a_tear_continues_bitwise() {
         pull_apart(&mut copy, 20, |_| {});
         assert_eq!(state_hash(&copy), state_hash(&sim));
     }
-    assert_eq!(copy.model().mesh().unwrap().springs, sim.model().mesh().unwrap().springs);
+    assert_eq!(
+        copy.model().mesh().unwrap().springs,
+        sim.model().mesh().unwrap().springs
+    );
 }
 
 #[test]
@@ -372,4 +415,3 @@ fn self_collision_keeps_a_tearing_mesh_free_of_intersections() {
     assert!(sim.pieces() > 1, "nothing tore");
     assert_eq!(checked, 100);
 }
-

@@ -14,11 +14,9 @@ from rustcloth.errors import ParameterError
 from test_mesh_cloth import jittered_square
 
 
-def held_by_its_top(n: int = 12, **keys: object) -> rustcloth.Scene:
+def held_by_its_top(n: int = 12) -> rustcloth.Scene:
     vertices, triangles = jittered_square(n)
-    return rustcloth.Scene(dt=0.0005).with_cloth_mesh(
-        vertices, triangles, pins=[{"top": 1e-9}], **keys
-    )
+    return rustcloth.Scene(dt=0.0005).with_cloth_mesh(vertices, triangles, pins=[{"top": 1e-9}])
 
 
 def across(y: float) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -50,7 +48,7 @@ def test_a_stroke_across_a_mesh_cloth_gives_two_pieces_and_the_lower_falls() -> 
 
 
 def test_a_torn_mesh_cloth_restores_and_unpickles_bitwise() -> None:
-    sim = rustcloth.Simulation(held_by_its_top(10, tearing={"max_strain": 0.2}))
+    sim = rustcloth.Simulation(held_by_its_top(10).replace(tearing={"max_strain": 0.2}))
     pos = sim.positions.copy()
     pos[:, 0] *= 1.3
     sim.set_positions(pos)

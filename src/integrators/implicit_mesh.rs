@@ -87,7 +87,9 @@ impl FactorKey {
             && self.drag == drag.to_bits()
             && self.mass[..] == ctx.particles.mass[..]
             && self.inv_mass[..] == ctx.particles.inv_mass[..]
-            && ctx.mesh.is_some_and(|m| self.active[..] == m.springs.active[..])
+            && ctx
+                .mesh
+                .is_some_and(|m| self.active[..] == m.springs.active[..])
     }
 }
 

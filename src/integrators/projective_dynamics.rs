@@ -166,10 +166,9 @@ impl Key {
         self.contact.clear();
         self.contact
             .extend((0..ctx.grid.len()).map(|p| in_contact(ctx, p)));
+        let live = ctx.mesh.map_or(&[][..], |m| &m.springs.active[..]);
         self.mesh_active.clear();
-        if let Some(mesh) = ctx.mesh {
-            self.mesh_active.extend_from_slice(&mesh.springs.active);
-        }
+        self.mesh_active.extend_from_slice(live);
     }
 }
 

@@ -69,9 +69,7 @@ impl MeshTopology {
         let edges: Vec<[u32; 3]> = (mesh.triangles.iter().enumerate())
             .map(|(t, tri)| {
                 std::array::from_fn(|k| {
-                    let e = *stretch
-                        .get(&key(tri[k], tri[(k + 1) % 3]))
-                        .unwrap_or(&NONE);
+                    let e = *stretch.get(&key(tri[k], tri[(k + 1) % 3])).unwrap_or(&NONE);
                     if e != NONE {
                         let slot = &mut faces[e as usize];
                         slot[usize::from(slot[0] != NONE)] = t as u32;
@@ -83,9 +81,7 @@ impl MeshTopology {
         // The bend spring across an edge joins the corners opposite it in its two triangles,
         // visited in the order the mesh built them (edges in order of their ends).
         let mut edge_faces: Vec<((u32, u32), u32, usize)> = (mesh.triangles.iter().enumerate())
-            .flat_map(|(t, tri)| {
-                (0..3).map(move |k| (key(tri[k], tri[(k + 1) % 3]), t as u32, k))
-            })
+            .flat_map(|(t, tri)| (0..3).map(move |k| (key(tri[k], tri[(k + 1) % 3]), t as u32, k)))
             .collect();
         edge_faces.sort_unstable();
         let mut bends = vec![[NONE; 3]; mesh.triangles.len()];
@@ -113,7 +109,9 @@ impl MeshTopology {
     pub fn drawn(&self, alive: &[bool], t: usize) -> bool {
         let active = &self.mesh.springs.active;
         self.triangles[t].iter().all(|&v| alive[v as usize])
-            && self.edges[t].iter().all(|&e| e == NONE || active[e as usize])
+            && self.edges[t]
+                .iter()
+                .all(|&e| e == NONE || active[e as usize])
     }
 
     /// Severs `springs` (indices into the spring list) and what goes with them; returns how
@@ -142,9 +140,7 @@ impl MeshTopology {
     /// Severs every spring touching vertex `v` (seams included: the vertex leaves the cloth);
     /// returns how many were live.
     pub fn sever_vertex(&mut self, v: usize) -> usize {
-        let touching: Vec<u32> = (self.mesh.springs_at(v).iter())
-            .map(|&e| e >> 1)
-            .collect();
+        let touching: Vec<u32> = (self.mesh.springs_at(v).iter()).map(|&e| e >> 1).collect();
         self.sever(touching)
     }
 

@@ -34,9 +34,8 @@ pub use crate::grid::{cell_triangle, triangle_slots};
 pub use bvh::{ParticleBvh, TriangleBvh};
 pub use ray::{
     hit_particle, pick_particle_brute_force, pick_particle_scan, pick_triangle_brute_force,
-    pick_triangle_brute_force_where,
-    pick_triangle_scan, pick_triangle_scan_where, ray_aabb, ray_triangle, ParticleHit, Ray,
-    TriangleHit,
+    pick_triangle_brute_force_where, pick_triangle_scan, pick_triangle_scan_where, ray_aabb,
+    ray_triangle, ParticleHit, Ray, TriangleHit,
 };
 
 use crate::error::{Error, Result};

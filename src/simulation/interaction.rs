@@ -194,6 +194,8 @@ impl Simulation {
     /// reaching through the whole cloth) is severed, and the mesh's triangles across it go.
     /// Returns how many springs were severed. No particle is removed, so the cloth's mass is
     /// exactly what it was, and a grabbed particle stays grabbed on whichever piece it is now.
+    /// On a mesh cloth the springs are its list's edge and bend springs: an edge severed takes
+    /// the bend springs of its triangles with it, uncounted ([`crate::mesh_cloth::topology`]).
     ///
     /// Every ray is checked before anything changes (an error names `rays[k].origin` or
     /// `rays[k].direction`). Documented no-ops, returning 0 with nothing changed (not even the
@@ -215,13 +217,10 @@ impl Simulation {
         let rays = checked_rays(rays)?;
         let model = &self.model;
         if let Some(mesh) = model.mesh() {
-            let crossings = self.cutter.mesh_crossings(
-                &mesh.springs,
-                &model.particles.alive,
-                &self.state.kin.pos,
-                &rays,
-                interrupted,
-            );
+            let at = (&self.state.kin.pos, &model.particles.alive[..]);
+            let crossings = self
+                .cutter
+                .mesh_crossings(&mesh.springs, at, &rays, interrupted);
             return match crossings {
                 Some(springs) => Ok(self.model.sever_mesh(springs)),
                 None => Err(Error::Interrupted { steps: 0 }),
