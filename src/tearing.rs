@@ -132,25 +132,23 @@ impl Tearing {
         };
         let s = &mesh.springs;
         let limit = 1.0 + self.max_strain;
+        // The list is sorted by kind, stretch springs first: only they tear.
+        let n = s.kind.partition_point(|&kind| kind == EdgeKind::Stretch);
         let over = |e: usize| {
             let d = pos.get(s.b[e] as usize) - pos.get(s.a[e] as usize);
             let l2 = d.length_squared();
             let bound = limit * s.rest[e];
-            let tears = s.active[e] && s.kind[e] == EdgeKind::Stretch && s.k[e] > 0.0;
-            (tears && l2 > bound * bound, l2)
+            (s.active[e] && s.k[e] > 0.0 && l2 > bound * bound, l2)
         };
-        let blocks = s.len().div_ceil(BLOCK);
-        self.mesh_blocks.resize(blocks, false);
+        let block = |k: usize| k * BLOCK..((k + 1) * BLOCK).min(n);
+        self.mesh_blocks.resize(n.div_ceil(BLOCK), false);
         self.mesh_blocks
             .par_iter_mut()
             .enumerate()
-            .for_each(|(k, any)| {
-                let block = k * BLOCK..((k + 1) * BLOCK).min(s.len());
-                *any = block.fold(false, |any, e| any | over(e).0);
-            });
+            .for_each(|(k, any)| *any = block(k).fold(false, |any, e| any | over(e).0));
         self.mesh_over.clear();
         for (k, _) in self.mesh_blocks.iter().enumerate().filter(|(_, &any)| any) {
-            for e in k * BLOCK..((k + 1) * BLOCK).min(s.len()) {
+            for e in block(k) {
                 if let (true, l2) = over(e) {
                     self.mesh_over.push((l2.sqrt() / s.rest[e] - 1.0, e as u32));
                 }
