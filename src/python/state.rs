@@ -129,10 +129,11 @@ pub fn restore(obj: &Bound<'_, PyDict>) -> PyResult<Simulation> {
     for (k, flags) in springs.iter().enumerate() {
         s.springs[k] = array(flags, (&format!("state.springs[{k}]"), "bool"), &[n])?;
     }
-    // Optional: a state without it has no mesh spring severed.
+    // Optional: a state without it has no mesh spring severed. With it, one flag per spring
+    // of a mesh cloth (none on the grid).
     if let Ok(flags) = obj.get_item("mesh_springs") {
-        let len = flags.len()?;
-        s.mesh_springs = array(&flags, ("state.mesh_springs", "bool"), &[len])?;
+        let springs = sim.model().mesh().map_or(0, |m| m.springs.len());
+        s.mesh_springs = array(&flags, ("state.mesh_springs", "bool"), &[springs])?;
     }
     let name = "state.watchdog.previous";
     let previous = item(&get("watchdog")?, "previous", name)?;
