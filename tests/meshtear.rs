@@ -12,7 +12,9 @@ use common::crossings::intersecting_pairs;
 use common::{state_hash, with_threads};
 use glam::Vec3;
 use rustcloth::mesh_cloth::{jittered_square, EdgeKind};
-use rustcloth::scene::{ClothSpec, MeshSpec, PinBox, PinSpec, SelfCollisionSpec, TearingSpec};
+use rustcloth::scene::{
+    ClothSpec, MeshSpec, PinBox, PinSpec, SelfCollisionSpec, StrainLimitSpec, TearingSpec,
+};
 use rustcloth::{IntegratorKind, Scene, Simulation};
 
 const G: f64 = 9.81;
@@ -414,4 +416,33 @@ fn self_collision_keeps_a_tearing_mesh_free_of_intersections() {
     });
     assert!(sim.pieces() > 1, "nothing tore");
     assert_eq!(checked, 100);
+}
+
+/// The pieces of a cut fall apart, stretching their severed springs without bound: the
+/// watchdog's stretch check, strain limiting and the strain view must not read them, or the
+/// step would be refused, the pieces held together, or the cut's edge shown as torn.
+#[test]
+fn severed_springs_are_skipped_by_the_watchdog_strain_limiting_and_the_strain_view() {
+    let mut scene = hanging(16, None);
+    scene.watchdog.max_stretch = Some(2.0);
+    scene.strain_limit = Some(StrainLimitSpec::default());
+    let mut sim = Simulation::new(scene).unwrap();
+    sim.step(20).unwrap();
+    assert!(sim.sever_stroke(&across(1.02)).unwrap() > 0);
+    let labels = sim.piece_labels();
+    let lowest = (0..labels.len())
+        .min_by(|&a, &b| {
+            sim.positions()
+                .get(a)
+                .y
+                .total_cmp(&sim.positions().get(b).y)
+        })
+        .unwrap();
+    let lower = piece(&sim, labels[lowest]);
+    let top = centre(&sim, &lower).y;
+    sim.step(600).unwrap(); // 0.33 s: the lower piece falls about 0.5 m
+    assert!(top - centre(&sim, &lower).y > 0.4);
+    let strain = sim.spring_strain();
+    let worst = strain.iter().copied().fold(0.0f32, f32::max);
+    assert!(worst < 0.2, "the strain view shows {worst}");
 }
