@@ -45,8 +45,8 @@ def stable(scene: rustcloth.Scene) -> rustcloth.Scene:
 
 def mesh_scene(n: int) -> rustcloth.Scene:
     vertices, triangles = jittered_square(n)
-    scene = rustcloth.Scene(tearing=TEARING).with_cloth_mesh(vertices, triangles, pins=[{"top": 1e-9}])
-    return stable(scene)
+    scene = rustcloth.Scene(tearing=TEARING)
+    return stable(scene.with_cloth_mesh(vertices, triangles, pins=[{"top": 1e-9}]))
 
 
 def grid_scene(n: int) -> rustcloth.Scene:
