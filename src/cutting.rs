@@ -1,7 +1,9 @@
 //! Cuts that sever springs: a mouse stroke (a sequence of rays) sweeps a surface, and every live
 //! spring whose segment crosses it is severed. No particle is removed, so mass is conserved to
 //! the bit; the pieces fall apart because nothing joins them any more. Also here: which of the
-//! mesh's triangles a severed cell still draws, and how many pieces the cloth is in.
+//! mesh's triangles a severed cell still draws, and how many pieces the cloth is in. A mesh
+//! cloth's springs are swept the same way ([`StrokeCutter::mesh_crossings`]); what a severed
+//! mesh spring takes with it is [`crate::mesh_cloth::topology`]'s.
 //!
 //! **Representation.** Physics stays on the grid: a severed spring is a slot whose `active`
 //! flag is 0, which every pass already reads (forces, implicit solvers, strain limiting, the
@@ -20,6 +22,7 @@
 use glam::DVec3;
 
 use crate::grid::{cell_triangle, triangle_alive, Grid, SpringKind, SpringSlot};
+use crate::mesh_cloth::{EdgeKind, EdgeSprings};
 use crate::ray::Ray;
 use crate::soa::Vec3s;
 use crate::springs::Springs;
@@ -66,6 +69,7 @@ const INTERRUPT_QUADS: usize = 64;
 pub struct StrokeCutter {
     code: Vec<u8>,
     out: Vec<Crossing>,
+    mesh_out: Vec<u32>,
 }
 
 /// Strictly above the plane.
@@ -121,83 +125,149 @@ impl StrokeCutter {
         interrupted: &mut dyn FnMut() -> bool,
     ) -> Option<&[Crossing]> {
         self.out.clear();
-        if rays.len() < 2 {
-            return Some(&self.out);
-        }
-        let Some((lo, hi)) = live_bounds(pos, alive) else {
-            return Some(&self.out); // nothing alive
+        let out = &mut self.out;
+        let test = |code: &[u8], tri| {
+            grid_springs_crossing(code, out, (grid, springs), (pos, alive), tri);
         };
-        let far = far_from_bounds(lo, hi, rays);
-        let reach = lo.abs().max(hi.abs()).max_element();
-        self.code.resize(grid.len(), 0);
-        for (k, pair) in rays.windows(2).enumerate() {
-            if k % INTERRUPT_QUADS == INTERRUPT_QUADS - 1 && interrupted() {
-                return None;
-            }
-            let (o0, d0) = (pair[0].origin.as_dvec3(), pair[0].dir.as_dvec3());
-            let (o1, d1) = (pair[1].origin.as_dvec3(), pair[1].dir.as_dvec3());
-            let quad = [o0, o1, o1 + far * d1, o0 + far * d0];
-            for tri in [[quad[0], quad[1], quad[2]], [quad[0], quad[2], quad[3]]] {
-                let normal = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
-                if normal == DVec3::ZERO {
-                    continue; // a degenerate triangle: no surface
-                }
-                let n = normal.normalize();
-                let plane = Plane32::new(n, tri[0], reach.max(far));
-                let edges: [Plane32; 3] = std::array::from_fn(|e| {
-                    let (p, q) = (tri[e], tri[(e + 1) % 3]);
-                    Plane32::new((q - p).cross(n).normalize(), p, reach.max(far))
-                });
-                classify(&mut self.code, pos, alive, plane, edges);
-                self.test_springs(grid, springs, alive, pos, tri);
-            }
-        }
-        Some(&self.out)
+        sweep(&mut self.code, (pos, alive), rays, interrupted, test).then_some(&self.out)
     }
 
-    /// Appends the springs whose ends' codes share no bit and that cross `tri` exactly.
-    fn test_springs(
+    /// The live springs of a mesh cloth (seams aside: two sewn vertices are one point) whose
+    /// segments cross the surface the rays sweep, as indices into the spring list in order of
+    /// (quad, triangle, spring); a spring crossing twice is listed twice. The same sweep and
+    /// the same conservative codes as [`StrokeCutter::crossings`], over the spring list: the
+    /// codes of each block of springs are compared branch-free before any exact test.
+    pub fn mesh_crossings(
         &mut self,
-        grid: Grid,
-        springs: &Springs,
-        alive: &[bool],
-        pos: &Vec3s,
-        tri: [DVec3; 3],
-    ) {
-        let code = &self.code;
-        for kind in SpringKind::ALL {
-            let (k, o) = (kind.index(), grid.offset(kind));
-            let n = grid.len().saturating_sub(o);
-            let (ca, cb) = (&code[..n], &code[o..o + n]);
-            for start in (0..n).step_by(BLOCK) {
-                let end = (start + BLOCK).min(n);
-                // Branch-free over the block (it vectorises): the smallest shared bit set.
-                let shared = ca[start..end]
-                    .iter()
-                    .zip(&cb[start..end])
-                    .fold(u8::MAX, |m, (&x, &y)| m.min(x & y));
-                if shared != 0 {
-                    continue;
-                }
-                for a in start..end {
-                    let b = a + o;
-                    if ca[a] & cb[a] != 0 || springs.active[k][a] == 0.0 || !(alive[a] && alive[b])
-                    {
-                        continue;
-                    }
-                    let (pa, pb) = (pos.get(a).as_dvec3(), pos.get(b).as_dvec3());
-                    // A spring on two quads or on both halves of one is listed twice;
-                    // severing it the second time finds it severed and counts nothing.
-                    if let Some(t) = segment_crossing(pa, pb, tri) {
-                        self.out.push(((kind, a), t as f32));
-                    }
-                }
-            }
-        }
+        springs: &EdgeSprings,
+        (pos, alive): (&Vec3s, &[bool]),
+        rays: &[Ray],
+        interrupted: &mut dyn FnMut() -> bool,
+    ) -> Option<&[u32]> {
+        self.mesh_out.clear();
+        let out = &mut self.mesh_out;
+        let test = |code: &[u8], tri| mesh_springs_crossing(code, out, springs, pos, tri);
+        sweep(&mut self.code, (pos, alive), rays, interrupted, test).then_some(&self.mesh_out)
     }
 
     pub fn heap_bytes(&self) -> usize {
-        self.code.capacity() + self.out.capacity() * size_of::<Crossing>()
+        self.code.capacity()
+            + self.out.capacity() * size_of::<Crossing>()
+            + self.mesh_out.capacity() * size_of::<u32>()
+    }
+}
+
+/// Sweeps the stroke's quads, two triangles each: for each triangle, the particles' codes
+/// against it ([`classify`]), then `test` on those codes and the triangle. False if
+/// `interrupted` said stop.
+fn sweep(
+    code: &mut Vec<u8>,
+    (pos, alive): (&Vec3s, &[bool]),
+    rays: &[Ray],
+    interrupted: &mut dyn FnMut() -> bool,
+    mut test: impl FnMut(&[u8], [DVec3; 3]),
+) -> bool {
+    if rays.len() < 2 {
+        return true;
+    }
+    let Some((lo, hi)) = live_bounds(pos, alive) else {
+        return true; // nothing alive
+    };
+    let far = far_from_bounds(lo, hi, rays);
+    let reach = lo.abs().max(hi.abs()).max_element();
+    code.resize(pos.len(), 0);
+    for (k, pair) in rays.windows(2).enumerate() {
+        if k % INTERRUPT_QUADS == INTERRUPT_QUADS - 1 && interrupted() {
+            return false;
+        }
+        let (o0, d0) = (pair[0].origin.as_dvec3(), pair[0].dir.as_dvec3());
+        let (o1, d1) = (pair[1].origin.as_dvec3(), pair[1].dir.as_dvec3());
+        let quad = [o0, o1, o1 + far * d1, o0 + far * d0];
+        for tri in [[quad[0], quad[1], quad[2]], [quad[0], quad[2], quad[3]]] {
+            let normal = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+            if normal == DVec3::ZERO {
+                continue; // a degenerate triangle: no surface
+            }
+            let n = normal.normalize();
+            let plane = Plane32::new(n, tri[0], reach.max(far));
+            let edges: [Plane32; 3] = std::array::from_fn(|e| {
+                let (p, q) = (tri[e], tri[(e + 1) % 3]);
+                Plane32::new((q - p).cross(n).normalize(), p, reach.max(far))
+            });
+            classify(code, pos, alive, plane, edges);
+            test(code, tri);
+        }
+    }
+    true
+}
+
+/// Appends the springs whose ends' codes share no bit and that cross `tri` exactly.
+fn grid_springs_crossing(
+    code: &[u8],
+    out: &mut Vec<Crossing>,
+    (grid, springs): (Grid, &Springs),
+    (pos, alive): (&Vec3s, &[bool]),
+    tri: [DVec3; 3],
+) {
+    for kind in SpringKind::ALL {
+        let (k, o) = (kind.index(), grid.offset(kind));
+        let n = grid.len().saturating_sub(o);
+        let (ca, cb) = (&code[..n], &code[o..o + n]);
+        for start in (0..n).step_by(BLOCK) {
+            let end = (start + BLOCK).min(n);
+            // Branch-free over the block (it vectorises): the smallest shared bit set.
+            let shared = ca[start..end]
+                .iter()
+                .zip(&cb[start..end])
+                .fold(u8::MAX, |m, (&x, &y)| m.min(x & y));
+            if shared != 0 {
+                continue;
+            }
+            for a in start..end {
+                let b = a + o;
+                if ca[a] & cb[a] != 0 || springs.active[k][a] == 0.0 || !(alive[a] && alive[b]) {
+                    continue;
+                }
+                let (pa, pb) = (pos.get(a).as_dvec3(), pos.get(b).as_dvec3());
+                // A spring on two quads or on both halves of one is listed twice;
+                // severing it the second time finds it severed and counts nothing.
+                if let Some(t) = segment_crossing(pa, pb, tri) {
+                    out.push(((kind, a), t as f32));
+                }
+            }
+        }
+    }
+}
+
+/// Appends the live springs of a mesh cloth, seams aside, whose ends' codes share no bit and
+/// that cross `tri` exactly, as indices into the spring list.
+fn mesh_springs_crossing(
+    code: &[u8],
+    out: &mut Vec<u32>,
+    springs: &EdgeSprings,
+    pos: &Vec3s,
+    tri: [DVec3; 3],
+) {
+    for start in (0..springs.len()).step_by(BLOCK) {
+        let block = start..(start + BLOCK).min(springs.len());
+        let (a, b) = (&springs.a[block.clone()], &springs.b[block.clone()]);
+        // Branch-free over the block (it vectorises): the smallest shared bit set.
+        let shared = (a.iter().zip(b)).fold(u8::MAX, |m, (&x, &y)| {
+            m.min(code[x as usize] & code[y as usize])
+        });
+        if shared != 0 {
+            continue;
+        }
+        for e in block {
+            let (a, b) = (springs.a[e] as usize, springs.b[e] as usize);
+            if code[a] & code[b] != 0 || !springs.active[e] || springs.kind[e] == EdgeKind::Seam {
+                continue;
+            }
+            let (pa, pb) = (pos.get(a).as_dvec3(), pos.get(b).as_dvec3());
+            if segment_crossing(pa, pb, tri).is_some() {
+                out.push(e as u32);
+            }
+        }
     }
 }
 

@@ -154,7 +154,7 @@ impl Mesh {
             let fallback = e1.cross(e2);
             let (grid, pos) = (model.grid, &state.kin.pos);
             if let Some(mesh) = model.mesh() {
-                self.normals = mesh.vertex_normals(pos, Vec3::Y);
+                self.normals = mesh.vertex_normals(model.triangles(), pos, Vec3::Y);
                 self.normals_for = Some(now);
                 return &self.normals;
             }

@@ -9,7 +9,7 @@ use std::sync::Arc;
 
 use crate::error::{check_scalar, Bound, Error, Result};
 use crate::grid::{Grid, SpringSlot};
-use crate::mesh_cloth::MeshCloth;
+use crate::mesh_cloth::{MeshCloth, MeshTopology};
 use crate::scene::{Plane, Scene};
 use crate::soa::Vec3s;
 use crate::springs::Springs;
@@ -24,7 +24,7 @@ pub enum Topology {
     /// A triangle mesh with its springs as an explicit list ([`crate::mesh_cloth`]); the
     /// particles are laid out as one row ([`Model::grid`] is `vertices x 1`) and the stencil
     /// holds no spring.
-    Mesh(Arc<MeshCloth>),
+    Mesh(MeshTopology),
 }
 
 /// Where each stable triangle id's corners are: the grid's cells ([`crate::grid::cell_triangle`],
@@ -33,7 +33,7 @@ pub enum Topology {
 #[derive(Clone, Debug)]
 pub enum TriangleIds {
     Grid(Grid),
-    Mesh(Arc<MeshCloth>),
+    Mesh(Arc<[[u32; 3]]>),
 }
 
 impl TriangleIds {
@@ -41,7 +41,7 @@ impl TriangleIds {
     pub fn slots(&self) -> usize {
         match self {
             TriangleIds::Grid(grid) => crate::grid::triangle_slots(*grid),
-            TriangleIds::Mesh(mesh) => mesh.triangles.len(),
+            TriangleIds::Mesh(triangles) => triangles.len(),
         }
     }
 
@@ -50,7 +50,7 @@ impl TriangleIds {
     pub fn corners(&self, id: usize) -> [usize; 3] {
         match self {
             TriangleIds::Grid(grid) => crate::grid::cell_triangle(*grid, id),
-            TriangleIds::Mesh(mesh) => mesh.triangles[id].map(|q| q as usize),
+            TriangleIds::Mesh(triangles) => triangles[id].map(|q| q as usize),
         }
     }
 }
@@ -69,7 +69,7 @@ pub struct Model {
     /// have none; the drawn mesh puts their cut at the midpoint. Nothing in a step reads it.
     pub crossings: HashMap<SpringSlot, f32>,
     /// Increments whenever the springs or the particles that make up the cloth change (a cut,
-    /// a severed spring, a tear), and with them the triangle list.
+    /// a severed spring, a tear), and with them the triangle list, on the grid and on a mesh.
     pub topology_version: u64,
 }
 
@@ -117,7 +117,7 @@ impl Model {
         let model = Model {
             springs: Springs::none(grid.len()),
             scene,
-            topology: Topology::Mesh(Arc::new(mesh)),
+            topology: Topology::Mesh(MeshTopology::new(mesh)),
             grid,
             particles,
             crossings: HashMap::new(),
@@ -128,17 +128,14 @@ impl Model {
 
     /// The mesh of a mesh cloth; None on the grid.
     pub fn mesh(&self) -> Option<&MeshCloth> {
-        match &self.topology {
-            Topology::Grid => None,
-            Topology::Mesh(mesh) => Some(mesh),
-        }
+        self.mesh_topology().map(|topology| &*topology.mesh)
     }
 
-    /// Refuses `feature` (an operation, named as the error names it) on a mesh cloth.
-    pub fn grid_only(&self, feature: &str) -> Result<()> {
-        match self.topology {
-            Topology::Grid => Ok(()),
-            Topology::Mesh(_) => Err(crate::scene::not_on_mesh(feature, feature)),
+    /// The mesh of a mesh cloth with the tables its cuts read; None on the grid.
+    pub fn mesh_topology(&self) -> Option<&MeshTopology> {
+        match &self.topology {
+            Topology::Grid => None,
+            Topology::Mesh(topology) => Some(topology),
         }
     }
 
@@ -170,8 +167,26 @@ impl Model {
     /// Removes particle `p` and its springs; its triangles leave the mesh.
     pub fn cut(&mut self, p: usize) {
         self.particles.cut(p);
-        self.springs.remove_particle(self.grid, p);
+        match &mut self.topology {
+            Topology::Grid => self.springs.remove_particle(self.grid, p),
+            Topology::Mesh(topology) => _ = topology.sever_vertex(p),
+        }
         self.topology_version += 1;
+    }
+
+    /// Severs the mesh cloth's springs `springs` (indices into its spring list) and the bend
+    /// springs that go with them ([`crate::mesh_cloth::topology`]); those already severed are
+    /// skipped. Returns how many were live; the topology version moves only if one was. No
+    /// particle changes. Does nothing on the grid.
+    pub fn sever_mesh(&mut self, springs: &[u32]) -> usize {
+        let Topology::Mesh(topology) = &mut self.topology else {
+            return 0;
+        };
+        let severed = topology.sever(springs.iter().copied());
+        if severed > 0 {
+            self.topology_version += 1;
+        }
+        severed
     }
 
     /// Severs the springs `slots` (kind, anchor) without a stroke (a tear: the drawn mesh
@@ -207,14 +222,14 @@ impl Model {
         severed
     }
 
-    /// Whether triangle `id` of the grid's cells is drawn (see [`crate::cutting::triangle_drawn`]);
-    /// every triangle of a mesh cloth is.
+    /// Whether triangle `id` is drawn: of the grid's cells, see
+    /// [`crate::cutting::triangle_drawn`]; of a mesh, [`MeshTopology::drawn`].
     pub fn triangle_drawn(&self, id: usize) -> bool {
-        match self.topology {
+        match &self.topology {
             Topology::Grid => {
                 crate::cutting::triangle_drawn(self.grid, &self.springs, &self.particles.alive, id)
             }
-            Topology::Mesh(_) => true,
+            Topology::Mesh(topology) => topology.drawn(&self.particles.alive, id),
         }
     }
 
@@ -222,17 +237,22 @@ impl Model {
     pub fn triangle_ids(&self) -> TriangleIds {
         match &self.topology {
             Topology::Grid => TriangleIds::Grid(self.grid),
-            Topology::Mesh(mesh) => TriangleIds::Mesh(Arc::clone(mesh)),
+            Topology::Mesh(topology) => TriangleIds::Mesh(Arc::clone(&topology.triangles)),
         }
     }
 
     /// The triangles of the cloth: two per grid cell, less those a cut or a tear runs through
     /// ([`Model::triangle_drawn`]), in the order of their ids ([`crate::grid::cell_triangle`]). What
     /// the renderer draws and what self-collision keeps apart are the same surface.
-    /// A mesh cloth's are its mesh's, in their order.
+    /// A mesh cloth's are its mesh's, in their order, less those a cut or a tear opened.
     pub fn triangles(&self) -> Box<dyn Iterator<Item = [u32; 3]> + '_> {
-        if let Some(mesh) = self.mesh() {
-            return Box::new(mesh.triangles.iter().copied());
+        if let Some(topology) = self.mesh_topology() {
+            let alive = &self.particles.alive;
+            return Box::new(
+                (0..topology.triangles.len())
+                    .filter(move |&t| topology.drawn(alive, t))
+                    .map(|t| topology.triangles[t]),
+            );
         }
         Box::new(
             (0..crate::grid::triangle_slots(self.grid))
@@ -277,7 +297,7 @@ impl Model {
             + self.particles.heap_bytes()
             + self.springs.heap_bytes()
             + self.crossings.capacity() * size_of::<(SpringSlot, f32)>()
-            + self.mesh().map_or(0, MeshCloth::heap_bytes)
+            + self.mesh_topology().map_or(0, MeshTopology::heap_bytes)
     }
 }
 

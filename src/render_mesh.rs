@@ -195,9 +195,9 @@ impl RenderMesh {
         self.triangles.clear();
         self.cut.clear();
         self.index.clear();
-        if let Some(mesh) = model.mesh() {
-            // Nothing cuts a mesh cloth yet: the drawn mesh is the mesh.
-            self.triangles.extend_from_slice(&mesh.triangles);
+        if model.mesh().is_some() {
+            // A mesh cloth's cut runs along its edges: its drawn triangles, not clipped.
+            self.triangles.extend(model.triangles());
             self.topology_for = Some(model.topology_version);
             return;
         }

@@ -3,7 +3,8 @@
 //! process (pickling) and resumed bitwise.
 //!
 //! It holds what a step reads and what the calls between steps remember: positions,
-//! velocities, masses, pins and kinematic targets, cuts (as particles and as live springs), the
+//! velocities, masses, pins and kinematic targets, cuts (as particles and as live springs, a
+//! mesh cloth's included), the
 //! step count and clock, the `advance` remainder, the integrator's history and the watchdog's
 //! state, and the interaction settings. Caches (picking trees, normals, scratch buffers) and
 //! timings are not state: a restored simulation rebuilds them on request.
@@ -57,6 +58,10 @@ pub struct Snapshot {
     /// particle is live.
     #[serde(skip)]
     pub springs: [Vec<bool>; 6],
+    /// A mesh cloth's springs, whether each (in the mesh's spring list) is live; empty on the
+    /// grid, and on a mesh for "none severed".
+    #[serde(skip)]
+    pub mesh_springs: Vec<bool>,
     /// Kinematic pins: `(particle, target in m)`, in the order they were set.
     pub targets: Vec<(usize, Vec3)>,
     pub grab: Option<GrabRecord>,
@@ -109,6 +114,9 @@ impl Snapshot {
                     .map(|&a| a != 0.0)
                     .collect()
             }),
+            mesh_springs: model
+                .mesh()
+                .map_or_else(Vec::new, |m| m.springs.active.clone()),
             targets: state.targets.targets().to_vec(),
             grab: grab.map(|g| {
                 let h = g.held[0];
@@ -192,6 +200,17 @@ impl Snapshot {
                     format!("particle {p} has no partner for a live spring of {kind:?}"),
                 ));
             }
+        }
+        let mesh_springs = model.mesh().map_or(0, |m| m.springs.len());
+        if !self.mesh_springs.is_empty() && self.mesh_springs.len() != mesh_springs {
+            return Err(Error::value(
+                "mesh_springs",
+                format!(
+                    "must hold one flag per spring of the mesh cloth ({mesh_springs}), or none, \
+                     got {}",
+                    self.mesh_springs.len()
+                ),
+            ));
         }
         for &(p, target) in &self.targets {
             if p >= n || !self.pinned[p] || !target.is_finite() {
@@ -302,6 +321,9 @@ impl Snapshot {
             for (slot, &live) in self.springs[kind.index()].iter().enumerate() {
                 active[slot] = if live { 1.0 } else { 0.0 };
             }
+        }
+        if let crate::model::Topology::Mesh(topology) = &mut model.topology {
+            topology.sever_as_saved(&self.mesh_springs);
         }
         for (p, target) in self.targets {
             state.targets.set(p, target);

@@ -7,8 +7,19 @@
 //! (most strained first; equal strains by kind, then anchor), and at most `max_per_step` of
 //! them, so a tear is the same for any number of threads and a pull rips along the cloth
 //! spring after spring instead of a whole stretched region letting go in one step.
+//!
+//! On a mesh cloth the stretch springs of the spring list tear ([`Model::sever_mesh`]: the bend
+//! springs of the triangles on a torn edge go with it). Bend springs never tear on their own: a
+//! bend spring holds the fold between two whole triangles, not material, and is at most as
+//! strained as the edges around it. Seams never tear (a seam's rest length closes to zero).
+//! The check runs in parallel over blocks of springs, each block marking only whether it holds
+//! a spring past the limit; the springs are then listed block after block in spring order, so
+//! the result does not depend on the number of threads.
+
+use rayon::prelude::*;
 
 use crate::grid::{Family, SpringKind};
+use crate::mesh_cloth::EdgeKind;
 use crate::model::Model;
 use crate::soa::Vec3s;
 
@@ -25,6 +36,11 @@ pub struct Tearing {
     /// so that a step does not allocate once it has seen its largest tear.
     over: Vec<(f32, SpringKind, usize)>,
     slots: Vec<(SpringKind, usize)>,
+    /// A mesh cloth's springs over the limit as `(strain, spring)`, per block whether it has
+    /// one, and the springs to sever.
+    mesh_over: Vec<(f32, u32)>,
+    mesh_blocks: Vec<bool>,
+    mesh_springs: Vec<u32>,
 }
 
 impl Tearing {
@@ -36,6 +52,9 @@ impl Tearing {
             max_per_step: max_per_step as usize,
             over: Vec::new(),
             slots: Vec::new(),
+            mesh_over: Vec::new(),
+            mesh_blocks: Vec::new(),
+            mesh_springs: Vec::new(),
         }
     }
 
@@ -43,6 +62,9 @@ impl Tearing {
     /// `max_per_step`); returns how many broke. Only the families that carry a force (non-zero
     /// stiffness) tear: a spring of a family with no stiffness holds nothing.
     pub fn apply(&mut self, model: &mut Model, pos: &Vec3s) -> usize {
+        if model.mesh().is_some() {
+            return self.apply_mesh(model, pos);
+        }
         self.over.clear();
         let limit = 1.0 + self.max_strain;
         let (grid, springs) = (model.grid, &model.springs);
@@ -102,8 +124,52 @@ impl Tearing {
         model.sever(&self.slots)
     }
 
+    /// [`Tearing::apply`] on a mesh cloth: its stretch springs past the limit, the most
+    /// strained first (equal strains by spring index), at most `max_per_step`.
+    fn apply_mesh(&mut self, model: &mut Model, pos: &Vec3s) -> usize {
+        let Some(mesh) = model.mesh() else {
+            return 0;
+        };
+        let s = &mesh.springs;
+        let limit = 1.0 + self.max_strain;
+        // The list is sorted by kind, stretch springs first: only they tear.
+        let n = s.kind.partition_point(|&kind| kind == EdgeKind::Stretch);
+        let over = |e: usize| {
+            let d = pos.get(s.b[e] as usize) - pos.get(s.a[e] as usize);
+            let l2 = d.length_squared();
+            let bound = limit * s.rest[e];
+            (s.active[e] && s.k[e] > 0.0 && l2 > bound * bound, l2)
+        };
+        let block = |k: usize| k * BLOCK..((k + 1) * BLOCK).min(n);
+        self.mesh_blocks.resize(n.div_ceil(BLOCK), false);
+        self.mesh_blocks
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(k, any)| *any = block(k).fold(false, |any, e| any | over(e).0));
+        self.mesh_over.clear();
+        for (k, _) in self.mesh_blocks.iter().enumerate().filter(|(_, &any)| any) {
+            for e in block(k) {
+                if let (true, l2) = over(e) {
+                    self.mesh_over.push((l2.sqrt() / s.rest[e] - 1.0, e as u32));
+                }
+            }
+        }
+        if self.mesh_over.is_empty() {
+            return 0;
+        }
+        self.mesh_over
+            .sort_unstable_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
+        let take = self.mesh_over.len().min(self.max_per_step);
+        self.mesh_springs.clear();
+        (self.mesh_springs).extend(self.mesh_over[..take].iter().map(|&(_, e)| e));
+        model.sever_mesh(&self.mesh_springs)
+    }
+
     pub fn heap_bytes(&self) -> usize {
         self.over.capacity() * size_of::<(f32, SpringKind, usize)>()
             + self.slots.capacity() * size_of::<(SpringKind, usize)>()
+            + self.mesh_over.capacity() * size_of::<(f32, u32)>()
+            + self.mesh_blocks.capacity()
+            + self.mesh_springs.capacity() * size_of::<u32>()
     }
 }

@@ -213,7 +213,7 @@ fn chains_that_start_on_each_other_are_merged_into_one_piece() {
     let sim = Simulation::new(scene.clone()).unwrap();
     let again = Scene::from_toml_str(&scene.to_toml_string()).unwrap();
     assert_eq!(&again, sim.scene());
-    let labels = sim.model().mesh().unwrap().piece_labels();
+    let labels = sim.piece_labels();
     assert!(labels.iter().all(|&l| l == 0), "more than one piece");
 }
 

@@ -84,16 +84,14 @@ def test_bad_meshes_name_the_element() -> None:
         rustcloth.Scene().with_cloth_mesh(vertices, triangles, pins=["top_corners"])
 
 
-@pytest.mark.parametrize("feature", [
-    {"tearing": {}},
-])
-def test_features_not_yet_on_a_mesh_cloth_are_refused(feature: dict[str, object]) -> None:
-    name = next(iter(feature))
-    with pytest.raises(ParameterError, match=rf"^{name}: .*not yet supported on a mesh cloth"):
-        hanging(4).replace(**feature)
-    sim = rustcloth.Simulation(hanging(4))
-    with pytest.raises(ParameterError, match="not yet supported on a mesh cloth"):
-        sim.cut(0)
+def test_tearing_and_cuts_once_refused_on_a_mesh_cloth_now_run() -> None:
+    # Both were refused on a mesh cloth while only the grid's stencil could be cut.
+    sim = rustcloth.Simulation(hanging(4).replace(tearing={}))
+    assert "tearing" in sim.effects
+    sim.step(10)
+    sim.cut(0)
+    assert not sim.alive[0]
+    assert sim.pieces() == 1
 
 
 def test_a_mesh_cloth_restores_and_unpickles_bitwise() -> None:
@@ -157,7 +155,7 @@ def test_a_mesh_cloths_settings_have_the_typed_keys() -> None:
     assert scene.cloth["mesh"]["density"] == 0.3
 
 
-def test_the_demos_mouse_drags_a_mesh_cloth_and_its_cut_does_nothing() -> None:
+def test_the_demos_mouse_drags_a_mesh_cloth_and_cuts_it() -> None:
     pytest.importorskip("moderngl")  # rustcloth.viewer needs the viewer extra
     from rustcloth.viewer.interaction import Interaction
 
@@ -165,8 +163,10 @@ def test_the_demos_mouse_drags_a_mesh_cloth_and_its_cut_does_nothing() -> None:
     before = sim.positions.copy()
     mouse = Interaction(sim)
     ray = (np.array([0.0, 1.0, 2.0]), np.array([0.0, 0.0, -1.0]))
-    assert mouse.cut([ray]) == 0
-    assert mouse.cut([(ray[0] + [0.3, 0, 0], ray[1])]) == 0
+    # A stroke sample alone sweeps nothing; the next one cuts from it.
+    assert mouse.cut([(ray[0] + [0.0, 0.3, 0], ray[1])]) == 0
+    assert mouse.cut([(ray[0] + [0.3, 0.3, 0], ray[1])]) > 0
+    mouse.end_stroke()
     assert np.array_equal(sim.positions, before)
     assert mouse.grab(ray) is True
     held = sim.grabbed()

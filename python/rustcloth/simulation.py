@@ -364,7 +364,9 @@ class Simulation:
     def get_state(self) -> dict[str, Any]:
         """The whole state as a dict of numpy arrays and plain values: scene, positions,
         velocities, masses, pins and targets, cuts, step count and clock, the ``advance``
-        remainder, the integrator's history, the watchdog's memory and the picking settings.
+        remainder, the integrator's history, the watchdog's memory and the picking settings;
+        a mesh cloth's severed springs as ``mesh_springs`` (a bool per spring, empty on the
+        grid).
         :meth:`set_state` or :meth:`from_state` continue it bit for bit; it pickles."""
         return self._core.get_state()
 
@@ -487,7 +489,10 @@ class Simulation:
         """Cut the cloth along a mouse stroke, like scissors: every live spring whose segment
         crosses the surface swept between consecutive rays (from each ray's origin through the
         whole cloth) is severed, and the drawn mesh (:meth:`render_mesh`) is clipped along
-        where the stroke crossed them. ``rays`` is a
+        where the stroke crossed them. On a mesh cloth the springs are the mesh's edge and
+        bend springs (a severed edge takes the bend springs of its triangles with it; only
+        the springs the stroke crossed are counted) and the drawn mesh opens along the mesh's
+        edges, unclipped. ``rays`` is a
         sequence of ``(origin, direction)`` pairs (or an ``(M, 2, 3)`` array; directions need
         not be unit). Returns the number of springs severed. No particle is removed: the
         cloth's mass is unchanged to the bit, and a grabbed particle stays grabbed.
@@ -500,7 +505,7 @@ class Simulation:
 
     def pieces(self) -> int:
         """The number of pieces the cloth is in: connected components of the live particles
-        joined by live springs (O(n))."""
+        joined by live springs (O(n)); on a mesh cloth a garment's seams do not join pieces."""
         return self._core.pieces()
 
     def piece_labels(self) -> npt.NDArray[np.uint32]:

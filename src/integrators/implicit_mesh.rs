@@ -11,8 +11,9 @@
 //! P = M + h c_d I + sum_s (h c_s + h^2 k_s) A_s^T A_s        (one scalar for x, y and z)
 //! ```
 //!
-//! over the free vertices, which depends only on the step, the masses, the pins and the
-//! material: the hierarchy is rebuilt only when one of those changes. The coarse operators are
+//! over the free vertices, which depends only on the step, the masses, the pins, the material
+//! and which springs hold: the hierarchy is rebuilt only when one of those changes (a cut or a
+//! tear among them). The coarse operators are
 //! the Galerkin products of the step's own matrix, rebuilt every step: reusing those of `P`
 //! instead saves their products (about a seventh of a step) but `P` overstates the
 //! out-of-plane stiffness of a slack cloth, and CG then takes about twice the iterations
@@ -62,11 +63,14 @@ struct FactorKey {
     drag: u32,
     mass: Vec<f32>,
     inv_mass: Vec<f32>,
+    /// Which springs hold: a cut or a tear changes `P`.
+    active: Vec<bool>,
 }
 
 impl FactorKey {
     fn of(h: f32, drag: f32, ctx: &StepContext) -> Self {
         FactorKey {
+            active: ctx.mesh.map_or_else(Vec::new, |m| m.springs.active.clone()),
             h: h.to_bits(),
             drag: drag.to_bits(),
             mass: ctx.particles.mass.to_vec(),
@@ -79,6 +83,9 @@ impl FactorKey {
             && self.drag == drag.to_bits()
             && self.mass[..] == ctx.particles.mass[..]
             && self.inv_mass[..] == ctx.particles.inv_mass[..]
+            && ctx
+                .mesh
+                .is_some_and(|m| self.active[..] == m.springs.active[..])
     }
 }
 

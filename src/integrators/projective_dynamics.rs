@@ -112,6 +112,8 @@ struct Key {
     active: Vec<f32>,
     /// Which particles are in a predicted contact.
     contact: Vec<bool>,
+    /// A mesh cloth's live springs (empty on the grid): a cut or a tear changes `Q`.
+    mesh_active: Vec<bool>,
 }
 
 impl Key {
@@ -139,6 +141,7 @@ impl Key {
             })
             && self.contact.len() == ctx.grid.len()
             && (0..ctx.grid.len()).all(|p| self.contact[p] == in_contact(ctx, p))
+            && ctx.mesh.map_or(&[][..], |m| &m.springs.active[..]) == &self.mesh_active[..]
     }
 
     fn store(&mut self, h: f32, drag: f32, kinds: &[(SpringKind, f32, f32)], ctx: &StepContext) {
@@ -163,6 +166,9 @@ impl Key {
         self.contact.clear();
         self.contact
             .extend((0..ctx.grid.len()).map(|p| in_contact(ctx, p)));
+        let live = ctx.mesh.map_or(&[][..], |m| &m.springs.active[..]);
+        self.mesh_active.clear();
+        self.mesh_active.extend_from_slice(live);
     }
 }
 

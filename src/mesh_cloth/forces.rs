@@ -45,7 +45,8 @@ impl MeshCloth {
                     let rest = if s.kind[e] == EdgeKind::Seam {
                         s.rest[e] * sewing
                     } else {
-                        over |= overstretched(l, s.rest[e], 1.0, limit);
+                        // A severed spring's ends part freely.
+                        over |= s.active[e] && overstretched(l, s.rest[e], 1.0, limit);
                         s.rest[e]
                     };
                     let u = if l > 0.0 { d / l } else { d * 0.0 };
@@ -105,7 +106,7 @@ impl MeshCloth {
     pub fn first_overstretched(&self, pos: &Vec3s, limit: f32) -> Option<(usize, f32)> {
         let s = &self.springs;
         (0..s.len())
-            .filter(|&e| s.kind[e] != EdgeKind::Seam)
+            .filter(|&e| s.kind[e] != EdgeKind::Seam && s.active[e])
             .find_map(|e| {
                 let (a, b) = (s.a[e] as usize, s.b[e] as usize);
                 let l = (pos.get(b) - pos.get(a)).length();
@@ -113,11 +114,12 @@ impl MeshCloth {
             })
     }
 
-    /// Per vertex, the largest strain `(l - L) / L` of the stretch springs that touch it.
+    /// Per vertex, the largest strain `(l - L) / L` of the live stretch springs that touch it
+    /// (0 for a vertex with none).
     pub fn vertex_strain(&self, pos: &Vec3s) -> Vec<f32> {
         let s = &self.springs;
         let mut strain = vec![0.0f32; self.len()];
-        for e in (0..s.len()).filter(|&e| s.kind[e] == EdgeKind::Stretch) {
+        for e in (0..s.len()).filter(|&e| s.kind[e] == EdgeKind::Stretch && s.active[e]) {
             let (a, b) = (s.a[e] as usize, s.b[e] as usize);
             let value = (pos.get(b) - pos.get(a)).length() / s.rest[e] - 1.0;
             strain[a] = strain[a].max(value);
@@ -126,14 +128,19 @@ impl MeshCloth {
         strain
     }
 
-    /// Area-weighted vertex normals of the triangles at `pos` (unit; `fallback` where they
-    /// cancel).
-    pub fn vertex_normals(&self, pos: &Vec3s, fallback: glam::Vec3) -> Vec3s {
+    /// Area-weighted vertex normals of `triangles` (the drawn ones) at `pos` (unit;
+    /// `fallback` where they cancel or none touches the vertex).
+    pub fn vertex_normals(
+        &self,
+        triangles: impl Iterator<Item = [u32; 3]>,
+        pos: &Vec3s,
+        fallback: glam::Vec3,
+    ) -> Vec3s {
         let mut normals = Vec3s::zeros(self.len());
-        for t in &self.triangles {
+        for t in triangles {
             let [a, b, c] = t.map(|v| pos.get(v as usize));
             let n = (b - a).cross(c - a);
-            for &v in t {
+            for v in t {
                 let v = v as usize;
                 normals.set(v, normals.get(v) + n);
             }

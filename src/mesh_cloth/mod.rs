@@ -15,9 +15,8 @@
 //! passes (normals, energy, strain, the drawn mesh, self-collision, wind, picking) read the
 //! mesh's triangles. The implicit solvers assemble their matrices from the spring list
 //! (`src/integrators/implicit_mesh.rs`, `src/integrators/projective_mesh.rs`) and strain
-//! limiting walks it (`src/strain_limit/mesh.rs`). Passes still written only for the stencil
-//! (cutting, tearing) are refused on a mesh cloth when the scene is validated, or
-//! when the call is made, with an error that names them.
+//! limiting walks it (`src/strain_limit/mesh.rs`). Cuts and tears sever springs of the list and
+//! the triangles on them stop being drawn ([`topology`]).
 //!
 //! # Springs
 //!
@@ -70,6 +69,9 @@
 //! the solver, with one set of equations for every pass.
 
 pub mod forces;
+pub mod topology;
+
+pub use topology::MeshTopology;
 
 // The compiled mesh (its checks, masses and springs) lives with the scene that validates it,
 // so that the scene's checks and stability estimate need nothing from here.

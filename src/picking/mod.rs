@@ -34,8 +34,8 @@ pub use crate::grid::{cell_triangle, triangle_slots};
 pub use bvh::{ParticleBvh, TriangleBvh};
 pub use ray::{
     hit_particle, pick_particle_brute_force, pick_particle_scan, pick_triangle_brute_force,
-    pick_triangle_scan, pick_triangle_scan_where, ray_aabb, ray_triangle, ParticleHit, Ray,
-    TriangleHit,
+    pick_triangle_brute_force_where, pick_triangle_scan, pick_triangle_scan_where, ray_aabb,
+    ray_triangle, ParticleHit, Ray, TriangleHit,
 };
 
 use crate::error::{Error, Result};
@@ -202,12 +202,17 @@ impl Picker {
             self.triangles.as_ref()?.tree.cast(ray, &state.kin.pos)?
         } else {
             self.stats.triangle_scans += 1;
-            match model.mesh() {
+            match model.mesh_topology() {
                 None => pick_triangle_scan_where(ray, model.grid, &state.kin.pos, |id| {
                     model.triangle_drawn(id)
                 })?,
                 // A mesh has no rows to bound in strips: every triangle is tested.
-                Some(mesh) => pick_triangle_brute_force(ray, &state.kin.pos, &mesh.triangles)?,
+                Some(topology) => pick_triangle_brute_force_where(
+                    ray,
+                    &state.kin.pos,
+                    &topology.triangles,
+                    |id| model.triangle_drawn(id),
+                )?,
             }
         };
         hit.index = self.triangle_rank(model, hit.index);

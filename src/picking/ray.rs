@@ -257,9 +257,21 @@ pub fn pick_triangle_brute_force(
     pos: &Vec3s,
     triangles: &[[u32; 3]],
 ) -> Option<TriangleHit> {
+    pick_triangle_brute_force_where(ray, pos, triangles, |_| true)
+}
+
+/// [`pick_triangle_brute_force`] over the triangles whose position in `triangles` passes
+/// `drawn` (a mesh cloth's drawn triangles, by id), `index` being that position.
+pub fn pick_triangle_brute_force_where(
+    ray: &Ray,
+    pos: &Vec3s,
+    triangles: &[[u32; 3]],
+    drawn: impl Fn(usize) -> bool,
+) -> Option<TriangleHit> {
     triangles
         .iter()
         .enumerate()
+        .filter(|&(index, _)| drawn(index))
         .filter_map(|(index, tri)| {
             let [a, b, c] = tri.map(|q| pos.get(q as usize));
             let (distance, barycentric) = ray_triangle(ray, a, b, c)?;

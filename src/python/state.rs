@@ -35,6 +35,7 @@ pub fn to_dict<'py>(py: Python<'py>, s: &Snapshot) -> PyResult<Bound<'py, PyDict
     d.set_item("alive", PyArray1::from_slice(py, &s.alive))?;
     let springs = s.springs.iter().map(|f| PyArray1::from_slice(py, f));
     d.set_item("springs", PyList::new(py, springs)?)?;
+    d.set_item("mesh_springs", PyArray1::from_slice(py, &s.mesh_springs))?;
     let previous = match &s.watchdog.previous {
         Some((pos, vel, history)) => {
             Some((Rows::vec3s(pos), Rows::vec3s(vel), pythonize(py, history)?))
@@ -127,6 +128,12 @@ pub fn restore(obj: &Bound<'_, PyDict>) -> PyResult<Simulation> {
     let springs = items(&get("springs")?, "state.springs", 6)?;
     for (k, flags) in springs.iter().enumerate() {
         s.springs[k] = array(flags, (&format!("state.springs[{k}]"), "bool"), &[n])?;
+    }
+    // Optional: a state without it has no mesh spring severed. With it, one flag per spring
+    // of a mesh cloth (none on the grid).
+    if let Ok(flags) = obj.get_item("mesh_springs") {
+        let springs = sim.model().mesh().map_or(0, |m| m.springs.len());
+        s.mesh_springs = array(&flags, ("state.mesh_springs", "bool"), &[springs])?;
     }
     let name = "state.watchdog.previous";
     let previous = item(&get("watchdog")?, "previous", name)?;

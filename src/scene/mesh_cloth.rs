@@ -42,6 +42,9 @@ pub struct EdgeSprings {
     /// Damping along the spring in N s/m.
     pub c: Vec<f32>,
     pub kind: Vec<EdgeKind>,
+    /// Whether the spring holds: false once a cut or a tear severed it, and then its `k` and
+    /// `c` are 0 ([`crate::mesh_cloth::topology`]).
+    pub active: Vec<bool>,
 }
 
 impl EdgeSprings {
@@ -60,6 +63,7 @@ impl EdgeSprings {
         self.k.push(k as f32);
         self.c.push(c as f32);
         self.kind.push(kind);
+        self.active.push(true);
     }
 
     pub fn heap_bytes(&self) -> usize {
@@ -69,6 +73,7 @@ impl EdgeSprings {
             + self.k.capacity() * 4
             + self.c.capacity() * 4
             + self.kind.capacity() * size_of::<EdgeKind>()
+            + self.active.capacity()
     }
 }
 
@@ -232,9 +237,10 @@ impl MeshCloth {
         &self.incident[self.offsets[v] as usize..self.offsets[v + 1] as usize]
     }
 
-    /// The other end of each spring touching vertex `v` (edge and bend neighbours).
+    /// The other end of each live spring touching vertex `v` (edge and bend neighbours).
     pub fn neighbours(&self, v: usize) -> impl Iterator<Item = usize> + '_ {
-        self.springs_at(v).iter().map(|&e| {
+        let live = |&&e: &&u32| self.springs.active[(e >> 1) as usize];
+        self.springs_at(v).iter().filter(live).map(|&e| {
             let s = (e >> 1) as usize;
             let other = if e & 1 == 0 {
                 self.springs.b[s]
@@ -254,29 +260,6 @@ impl MeshCloth {
                 2.0 * around / self.masses[v]
             })
             .fold(0.0, f64::max)
-    }
-
-    /// The piece each vertex belongs to (vertices joined through triangles), named by the
-    /// smallest vertex index in it.
-    pub fn piece_labels(&self) -> Vec<u32> {
-        let mut parent: Vec<u32> = (0..self.len() as u32).collect();
-        fn root(parent: &mut [u32], mut v: u32) -> u32 {
-            while parent[v as usize] != v {
-                parent[v as usize] = parent[parent[v as usize] as usize];
-                v = parent[v as usize];
-            }
-            v
-        }
-        for t in &self.triangles {
-            for k in 1..3 {
-                let (a, b) = (root(&mut parent, t[0]), root(&mut parent, t[k]));
-                // The smaller index as the root, so that a root is its piece's smallest vertex.
-                parent[a.max(b) as usize] = a.min(b);
-            }
-        }
-        (0..self.len() as u32)
-            .map(|v| root(&mut parent, v))
-            .collect()
     }
 
     pub fn heap_bytes(&self) -> usize {

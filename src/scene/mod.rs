@@ -26,8 +26,8 @@ pub use specs::{
     WatchdogSpec, WindSpec,
 };
 pub use stability::stable_substep;
+pub(crate) use validate::check_substep;
 use validate::require_tables;
-pub(crate) use validate::{check_substep, not_on_mesh};
 pub use validate::{validations, MAX_COLLIDER_VALUE, MAX_ITERATIONS, MAX_PARTICLES, MIN_SUBSTEP};
 
 use crate::error::{Error, Result};

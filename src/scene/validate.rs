@@ -48,7 +48,6 @@ impl Scene {
             ));
         }
         self.cloth.validate()?;
-        self.refuse_on_mesh()?;
         if let Some(floor) = &self.floor {
             check_scalar("floor.height", floor.height, Bound::Any)?;
             check_scalar("floor.friction", floor.friction, Bound::NonNegative)?;
@@ -407,29 +406,6 @@ impl ClothSpec {
         }
         Ok(())
     }
-}
-
-impl Scene {
-    /// Refuses what a mesh cloth does not support yet, naming the feature: every pass that is
-    /// still written for the grid's stencil.
-    fn refuse_on_mesh(&self) -> Result<()> {
-        if self.cloth.mesh.is_none() {
-            return Ok(());
-        }
-        let present = [("tearing", self.tearing.is_some())];
-        match present.iter().find(|(_, on)| *on) {
-            Some((name, _)) => Err(not_on_mesh(name, name)),
-            None => Ok(()),
-        }
-    }
-}
-
-/// The error for `feature` set at `name` on a mesh cloth.
-pub(crate) fn not_on_mesh(name: &str, feature: &str) -> Error {
-    Error::value(
-        name,
-        format!("{feature} is not yet supported on a mesh cloth (cloth.mesh); it runs on the grid cloth"),
-    )
 }
 
 /// The scene's tables (`cloth`, `floor`, ..., each sphere) must be tables: serde would also

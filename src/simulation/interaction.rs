@@ -168,7 +168,6 @@ impl Simulation {
     /// Cuts the particle [`Simulation::pick`] finds along the ray; returns it, or `None` if the
     /// ray hits nothing.
     pub fn cut_ray(&mut self, origin: Vec3, direction: Vec3) -> Result<Option<usize>> {
-        self.model.grid_only("cut_ray")?;
         let ray = Ray::new(origin, direction)?;
         Ok(self.cut_along(&ray, Queries::One))
     }
@@ -178,7 +177,6 @@ impl Simulation {
     /// Every ray is checked before anything is cut, so bad input changes nothing. Sample the
     /// stroke densely enough (about one ray per grid spacing on screen) to leave no gaps.
     pub fn cut_stroke(&mut self, rays: &[(Vec3, Vec3)]) -> Result<Vec<usize>> {
-        self.model.grid_only("cut_stroke")?;
         let rays = checked_rays(rays)?;
         let queries = if rays.len() >= STROKE_TREE_MIN_RAYS {
             Queries::Many
@@ -196,6 +194,8 @@ impl Simulation {
     /// reaching through the whole cloth) is severed, and the mesh's triangles across it go.
     /// Returns how many springs were severed. No particle is removed, so the cloth's mass is
     /// exactly what it was, and a grabbed particle stays grabbed on whichever piece it is now.
+    /// On a mesh cloth the springs are its list's edge and bend springs: an edge severed takes
+    /// the bend springs of its triangles with it, uncounted ([`crate::mesh_cloth::topology`]).
     ///
     /// Every ray is checked before anything changes (an error names `rays[k].origin` or
     /// `rays[k].direction`). Documented no-ops, returning 0 with nothing changed (not even the
@@ -214,9 +214,18 @@ impl Simulation {
         rays: &[(Vec3, Vec3)],
         interrupted: &mut dyn FnMut() -> bool,
     ) -> Result<usize> {
-        self.model.grid_only("sever_stroke")?;
         let rays = checked_rays(rays)?;
         let model = &self.model;
+        if let Some(mesh) = model.mesh() {
+            let at = (&self.state.kin.pos, &model.particles.alive[..]);
+            let crossings = self
+                .cutter
+                .mesh_crossings(&mesh.springs, at, &rays, interrupted);
+            return match crossings {
+                Some(springs) => Ok(self.model.sever_mesh(springs)),
+                None => Err(Error::Interrupted { steps: 0 }),
+            };
+        }
         let crossings = self.cutter.crossings(
             model.grid,
             &model.springs,
@@ -235,8 +244,9 @@ impl Simulation {
     /// joined by live springs (`O(n)`).
     pub fn pieces(&self) -> usize {
         let model = &self.model;
-        if let Some(mesh) = model.mesh() {
-            let mut labels = mesh.piece_labels();
+        if let Some(topology) = model.mesh_topology() {
+            let mut labels = topology.piece_labels(&model.particles.alive);
+            labels.retain(|&l| l != u32::MAX);
             labels.sort_unstable();
             labels.dedup();
             return labels.len();
@@ -248,8 +258,8 @@ impl Simulation {
     /// (`u32::MAX` for a removed particle).
     pub fn piece_labels(&self) -> Vec<u32> {
         let model = &self.model;
-        if let Some(mesh) = model.mesh() {
-            return mesh.piece_labels();
+        if let Some(topology) = model.mesh_topology() {
+            return topology.piece_labels(&model.particles.alive);
         }
         crate::cutting::piece_labels(model.grid, &model.springs, &model.particles.alive)
     }

@@ -314,7 +314,6 @@ impl Simulation {
     /// mass leaves the cloth. [`Simulation::sever_stroke`] cuts
     /// without removing anything.
     pub fn cut(&mut self, index: i64) -> Result<()> {
-        self.model.grid_only("cut")?;
         let p = self.check_index("index", index)?;
         if self.model.particles.alive[p] {
             self.cut_live(p);

@@ -14,13 +14,13 @@ use crate::mesh_cloth::{EdgeKind, MeshCloth};
 use crate::soa::Vec3s;
 use crate::state::Kinematics;
 
-/// The stretch springs touching vertex `v`, each as `(spring, other end)`.
+/// The live stretch springs touching vertex `v`, each as `(spring, other end)`.
 fn stretch_springs(mesh: &MeshCloth, v: usize) -> impl Iterator<Item = (usize, usize)> + '_ {
     let s = &mesh.springs;
     mesh.incident[mesh.offsets[v] as usize..mesh.offsets[v + 1] as usize]
         .iter()
         .map(|&e| (e >> 1) as usize)
-        .filter(|&e| s.kind[e] == EdgeKind::Stretch)
+        .filter(|&e| s.kind[e] == EdgeKind::Stretch && s.active[e])
         .map(move |e| {
             let other = if s.a[e] as usize == v { s.b[e] } else { s.a[e] };
             (e, other as usize)

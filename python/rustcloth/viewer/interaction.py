@@ -11,7 +11,6 @@ import numpy as np
 import numpy.typing as npt
 
 from ..camera import Camera
-from ..errors import ParameterError
 from ..render.meshes import bounding_radius, collider_mesh, rotation_matrix
 
 F32 = npt.NDArray[np.float32]
@@ -115,10 +114,7 @@ class Interaction:
         sample's."""
         stroke = rays if self._last_ray is None else [self._last_ray, *rays]
         self._last_ray = rays[-1]
-        try:
-            severed = self.sim.sever_stroke(stroke) if len(stroke) >= 2 else 0
-        except ParameterError:  # not yet supported on a mesh cloth: the stroke does nothing
-            return 0
+        severed = self.sim.sever_stroke(stroke) if len(stroke) >= 2 else 0
         hits: list[F32] = []
         for origin, direction in rays:
             hit = self.sim.pick(origin, direction)
