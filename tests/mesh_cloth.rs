@@ -7,7 +7,7 @@ use common::{state_hash, with_threads};
 use glam::{DVec3, Vec3};
 use rustcloth::mesh_cloth::{jittered_square, EdgeKind, MeshCloth};
 use rustcloth::scene::{
-    ClothSpec, ColliderSpec, FloorSpec, MeshSpec, PinBoundary, PinBox, PinSpec, PinTop, ShapeKind,
+    ClothSpec, ColliderSpec, FloorSpec, PinBoundary, PinBox, PinSpec, PinTop, ShapeKind,
     TearingSpec,
 };
 use rustcloth::soa::Vec3s;
@@ -22,18 +22,8 @@ fn hanging_square(n: usize, pin: f64, seed: u64) -> Scene {
             corners: [[x - pin, 1.5 - 2.0 * pin, -0.1], [x + pin, 1.5, 0.1]],
         })
     };
-    let mut scene = Scene {
-        cloth: ClothSpec {
-            mesh: Some(MeshSpec {
-                vertices,
-                triangles,
-                ..MeshSpec::default()
-            }),
-            pins: vec![corner(-0.5 + pin), corner(0.5 - pin)],
-            ..ClothSpec::default()
-        },
-        ..Scene::default()
-    };
+    let pins = vec![corner(-0.5 + pin), corner(0.5 - pin)];
+    let mut scene = common::mesh_cloth_scene(vertices, triangles, pins);
     scene.dt = 0.7 * scene.stable_dt(IntegratorKind::SymplecticEuler).unwrap();
     scene
 }

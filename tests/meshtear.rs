@@ -12,9 +12,7 @@ use common::crossings::intersecting_pairs;
 use common::{state_hash, with_threads};
 use glam::Vec3;
 use rustcloth::mesh_cloth::{jittered_square, EdgeKind};
-use rustcloth::scene::{
-    ClothSpec, MeshSpec, PinBox, PinSpec, SelfCollisionSpec, StrainLimitSpec, TearingSpec,
-};
+use rustcloth::scene::{PinBox, PinSpec, SelfCollisionSpec, StrainLimitSpec, TearingSpec};
 use rustcloth::{IntegratorKind, Scene, Simulation};
 
 const G: f64 = 9.81;
@@ -23,21 +21,11 @@ const G: f64 = 9.81;
 /// springs), centre at y = 1, held by its whole top edge, with `tearing` if given.
 fn hanging(n: usize, tearing: Option<TearingSpec>) -> Scene {
     let (vertices, triangles) = jittered_square(n, 1.0, [0.0, 1.0, 0.0], 0.3, 7);
-    let mut scene = Scene {
-        cloth: ClothSpec {
-            mesh: Some(MeshSpec {
-                vertices,
-                triangles,
-                ..MeshSpec::default()
-            }),
-            pins: vec![PinSpec::Region(PinBox {
-                corners: [[-0.6, 1.49, -0.1], [0.6, 1.6, 0.1]],
-            })],
-            ..ClothSpec::default()
-        },
-        tearing,
-        ..Scene::default()
-    };
+    let top = PinSpec::Region(PinBox {
+        corners: [[-0.6, 1.49, -0.1], [0.6, 1.6, 0.1]],
+    });
+    let mut scene = common::mesh_cloth_scene(vertices, triangles, vec![top]);
+    scene.tearing = tearing;
     scene.dt = 0.7 * scene.stable_dt(IntegratorKind::SymplecticEuler).unwrap();
     scene
 }
@@ -89,6 +77,16 @@ fn velocity(sim: &Simulation, of: &[usize]) -> glam::DVec3 {
 fn piece(sim: &Simulation, label: u32) -> Vec<usize> {
     let labels = sim.piece_labels();
     (0..labels.len()).filter(|&p| labels[p] == label).collect()
+}
+
+/// The piece holding the lowest particle.
+fn lowest_piece(sim: &Simulation) -> Vec<usize> {
+    let labels = sim.piece_labels();
+    let y = |p: usize| sim.positions().get(p).y;
+    let lowest = (0..labels.len())
+        .min_by(|&a, &b| y(a).total_cmp(&y(b)))
+        .unwrap();
+    piece(sim, labels[lowest])
 }
 
 /// Checks that the particles `of`, free of pins and of every other piece, fall for `steps`
@@ -211,16 +209,7 @@ fn a_cut_across_gives_two_pieces_and_the_lower_falls(integrator: IntegratorKind,
     // Cutting again along the same line finds nothing live: a no-op, the version unmoved.
     assert_eq!(sim.sever_stroke(&across(1.02)).unwrap(), 0);
     assert_eq!(sim.topology_version(), version + 1);
-    let labels = sim.piece_labels();
-    let lowest = (0..labels.len())
-        .min_by(|&a, &b| {
-            sim.positions()
-                .get(a)
-                .y
-                .total_cmp(&sim.positions().get(b).y)
-        })
-        .unwrap();
-    let lower = piece(&sim, labels[lowest]);
+    let lower = lowest_piece(&sim);
     assert!(lower.iter().all(|&p| !sim.particles().pinned[p]));
     assert!(lower.len() > 50 && lower.len() < 200, "{}", lower.len());
     falls_freely(&mut sim, &lower, 100, tol);
@@ -429,16 +418,7 @@ fn severed_springs_are_skipped_by_the_watchdog_strain_limiting_and_the_strain_vi
     let mut sim = Simulation::new(scene).unwrap();
     sim.step(20).unwrap();
     assert!(sim.sever_stroke(&across(1.02)).unwrap() > 0);
-    let labels = sim.piece_labels();
-    let lowest = (0..labels.len())
-        .min_by(|&a, &b| {
-            sim.positions()
-                .get(a)
-                .y
-                .total_cmp(&sim.positions().get(b).y)
-        })
-        .unwrap();
-    let lower = piece(&sim, labels[lowest]);
+    let lower = lowest_piece(&sim);
     let top = centre(&sim, &lower).y;
     sim.step(600).unwrap(); // 0.33 s: the lower piece falls about 0.5 m
     assert!(top - centre(&sim, &lower).y > 0.4);
