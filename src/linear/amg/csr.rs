@@ -160,20 +160,14 @@ impl Transfer {
         self.r_offsets.len() - 1
     }
 
+    /// Row `i` of `P`: its coarse columns and weights.
     pub fn p_row(&self, i: usize) -> impl Iterator<Item = (usize, f32)> + '_ {
-        let r = self.p_offsets[i] as usize..self.p_offsets[i + 1] as usize;
-        self.p_columns[r.clone()]
-            .iter()
-            .zip(&self.p_values[r])
-            .map(|(&c, &w)| (c as usize, w))
+        sparse_row(&self.p_offsets, &self.p_columns, &self.p_values, i)
     }
 
+    /// Row `c` of `R = P^T`: its fine columns and weights.
     pub fn r_row(&self, c: usize) -> impl Iterator<Item = (usize, f32)> + '_ {
-        let r = self.r_offsets[c] as usize..self.r_offsets[c + 1] as usize;
-        self.r_columns[r.clone()]
-            .iter()
-            .zip(&self.r_values[r])
-            .map(|(&i, &w)| (i as usize, w))
+        sparse_row(&self.r_offsets, &self.r_columns, &self.r_values, c)
     }
 
     /// `coarse = P^T fine`, each coarse row summed over its fine rows in increasing order.
@@ -208,25 +202,46 @@ impl Transfer {
     }
 }
 
-/// Runs `f(rows, values)` in parallel over consecutive row ranges of a compressed-row array
-/// (`offsets[v]..offsets[v + 1]` of `values` belong to row `v`), splitting in halves down to
-/// `chunk` rows, so that each call writes only its own rows' values and allocates nothing.
-pub fn for_row_chunks<T: Send>(
+/// Runs `f(row, values)` for each row of a compressed-row array (`offsets[v]..offsets[v + 1]`
+/// of `values` belong to row `v`) in `rows`, in parallel over consecutive ranges split in halves
+/// down to `chunk` rows, so that each call writes only its own row's values and nothing is
+/// allocated.
+pub fn for_each_row<T: Send>(
     values: &mut [T],
     offsets: &[u32],
     rows: std::ops::Range<usize>,
     chunk: usize,
-    f: &(impl Fn(std::ops::Range<usize>, &mut [T]) + Sync),
+    f: &(impl Fn(usize, &mut [T]) + Sync),
 ) {
     if rows.len() <= chunk {
-        f(rows, values);
+        let base = offsets[rows.start] as usize;
+        for v in rows {
+            f(
+                v,
+                &mut values[offsets[v] as usize - base..offsets[v + 1] as usize - base],
+            );
+        }
         return;
     }
     let mid = rows.start + rows.len() / 2;
     let split = (offsets[mid] - offsets[rows.start]) as usize;
     let (left, right) = values.split_at_mut(split);
     rayon::join(
-        || for_row_chunks(left, offsets, rows.start..mid, chunk, f),
-        || for_row_chunks(right, offsets, mid..rows.end, chunk, f),
+        || for_each_row(left, offsets, rows.start..mid, chunk, f),
+        || for_each_row(right, offsets, mid..rows.end, chunk, f),
     );
+}
+
+/// Row `i` of a scalar compressed-row matrix: its columns and values.
+fn sparse_row<'a>(
+    offsets: &[u32],
+    columns: &'a [u32],
+    values: &'a [f32],
+    i: usize,
+) -> impl Iterator<Item = (usize, f32)> + 'a {
+    let r = offsets[i] as usize..offsets[i + 1] as usize;
+    columns[r.clone()]
+        .iter()
+        .zip(&values[r])
+        .map(|(&c, &w)| (c as usize, w))
 }

@@ -7,7 +7,7 @@
 //! order (the entries of `A`'s row, then `P`'s), and the rows are split among threads, so the
 //! products are bitwise the same for any number of threads.
 
-use super::csr::{for_row_chunks, BlockCsr, BlockRows, Transfer};
+use super::csr::{for_each_row, BlockCsr, BlockRows, Transfer};
 use crate::linear::Sym3;
 
 /// Rows per parallel work item of both products.
@@ -103,46 +103,31 @@ impl Galerkin {
             ac_term_offsets,
             ac_terms,
         } = self;
-        for_row_chunks(ap, ap_offsets, 0..a.rows(), ROW_CHUNK, &|rows, values| {
-            let base = ap_offsets[rows.start] as usize;
-            for i in rows {
-                let out =
-                    &mut values[ap_offsets[i] as usize - base..ap_offsets[i + 1] as usize - base];
-                out.fill(Sym3::ZERO);
-                let mut term = ap_term_offsets[i] as usize;
-                a.for_each_entry(i, |j, block| {
-                    for (_, w) in p.p_row(j) {
-                        out[ap_terms[term] as usize].add_scaled(w, block);
-                        term += 1;
-                    }
-                });
-            }
+        for_each_row(ap, ap_offsets, 0..a.rows(), ROW_CHUNK, &|i, out| {
+            out.fill(Sym3::ZERO);
+            let mut term = ap_term_offsets[i] as usize;
+            a.for_each_entry(i, |j, block| {
+                for (_, w) in p.p_row(j) {
+                    out[ap_terms[term] as usize].add_scaled(w, block);
+                    term += 1;
+                }
+            });
         });
         let ap = &*ap;
         let BlockCsr {
             offsets, values, ..
         } = out;
-        for_row_chunks(
-            values,
-            offsets,
-            0..offsets.len() - 1,
-            ROW_CHUNK,
-            &|rows, values| {
-                let base = offsets[rows.start] as usize;
-                for c in rows {
-                    let out =
-                        &mut values[offsets[c] as usize - base..offsets[c + 1] as usize - base];
-                    out.fill(Sym3::ZERO);
-                    let mut term = ac_term_offsets[c] as usize;
-                    for (i, w) in p.r_row(c) {
-                        for block in &ap[ap_offsets[i] as usize..ap_offsets[i + 1] as usize] {
-                            out[ac_terms[term] as usize].add_scaled(w, block);
-                            term += 1;
-                        }
-                    }
+        let rows = 0..offsets.len() - 1;
+        for_each_row(values, offsets, rows, ROW_CHUNK, &|c, out| {
+            out.fill(Sym3::ZERO);
+            let mut term = ac_term_offsets[c] as usize;
+            for (i, w) in p.r_row(c) {
+                for block in &ap[ap_offsets[i] as usize..ap_offsets[i + 1] as usize] {
+                    out[ac_terms[term] as usize].add_scaled(w, block);
+                    term += 1;
                 }
-            },
-        );
+            }
+        });
     }
 }
 
