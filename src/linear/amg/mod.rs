@@ -65,6 +65,30 @@ struct Level {
     coarse_x: Vec3s,
 }
 
+impl Level {
+    /// The level that coarsens `a` by aggregation, with the Galerkin product of `a`; None when
+    /// `a` does not coarsen (no aggregate, or more than [`STALLED`] of its nodes kept).
+    fn below<A: BlockRows>(a: &A) -> Option<Level> {
+        let (agg, count) = aggregate::aggregate(a);
+        if count == 0 || count as f64 > STALLED * a.rows() as f64 {
+            return None;
+        }
+        let transfer = aggregate::smoothed_prolongator(a, &agg, count);
+        let (mut galerkin, mut coarse) = Galerkin::new(a, &transfer);
+        galerkin.apply(a, &transfer, &mut coarse);
+        let (n, nc) = (a.rows(), coarse.rows());
+        Some(Level {
+            transfer,
+            galerkin,
+            coarse,
+            smoother: vec![Sym3::ZERO; n],
+            r: Vec3s::zeros(n),
+            coarse_b: Vec3s::zeros(nc),
+            coarse_x: Vec3s::zeros(nc),
+        })
+    }
+}
+
 /// See the module docs.
 #[derive(Clone, Debug, Default)]
 pub struct Amg {
@@ -81,43 +105,15 @@ impl Amg {
     /// will precondition), with its Galerkin coarse operators.
     pub fn new(reference: &SpringMatrix) -> Self {
         let mut amg = Amg::default();
-        let (agg, count) = aggregate::aggregate(reference);
-        if count > 0 && count as f64 <= STALLED * reference.rows() as f64 {
-            amg.push_level(
-                reference,
-                aggregate::smoothed_prolongator(reference, &agg, count),
-            );
-        }
-        while let Some(level) = amg.levels.last() {
-            let a = &level.coarse;
-            if a.rows() <= COARSEST {
-                break;
-            }
-            let (agg, count) = aggregate::aggregate(a);
-            if count == 0 || count as f64 > STALLED * a.rows() as f64 {
-                break;
-            }
-            let p = aggregate::smoothed_prolongator(a, &agg, count);
-            let a = a.clone();
-            amg.push_level(&a, p);
+        amg.levels.extend(Level::below(reference));
+        while let Some(level) = (amg.levels.last())
+            .filter(|above| above.coarse.rows() > COARSEST)
+            .and_then(|above| Level::below(&above.coarse))
+        {
+            amg.levels.push(level);
         }
         amg.update(reference);
         amg
-    }
-
-    fn push_level<A: BlockRows>(&mut self, a: &A, transfer: Transfer) {
-        let (mut galerkin, mut coarse) = Galerkin::new(a, &transfer);
-        galerkin.apply(a, &transfer, &mut coarse);
-        let (n, nc) = (a.rows(), coarse.rows());
-        self.levels.push(Level {
-            transfer,
-            galerkin,
-            coarse,
-            smoother: vec![Sym3::ZERO; n],
-            r: Vec3s::zeros(n),
-            coarse_b: Vec3s::zeros(nc),
-            coarse_x: Vec3s::zeros(nc),
-        });
     }
 
     /// Nodes per level, finest first.
