@@ -34,7 +34,7 @@ use super::StepContext;
 use crate::collisions::PredictedContacts;
 use crate::linear::cg::{diagonal_blocks, ConjugateGradient};
 use crate::linear::stencil::SlotArrays;
-use crate::linear::{dissect_points, Amg, SpringMatrix, Sym3};
+use crate::linear::{Amg, SpringMatrix, Sym3};
 use crate::mesh_cloth::MeshCloth;
 use crate::soa::{Floats, Vec3s};
 
@@ -306,26 +306,4 @@ impl MeshSystem {
         p.gather();
         p
     }
-}
-
-/// The nested-dissection order of a mesh's vertices by their rest positions, with the springs
-/// (stretch and bend) as the graph.
-pub(super) fn mesh_order(mesh: &MeshCloth) -> Vec<usize> {
-    let s = &mesh.springs;
-    let neighbours: Vec<u32> = mesh
-        .incident
-        .iter()
-        .map(|&e| {
-            let i = (e >> 1) as usize;
-            if e & 1 == 0 {
-                s.b[i]
-            } else {
-                s.a[i]
-            }
-        })
-        .collect();
-    let offsets = &mesh.offsets;
-    dissect_points(&mesh.rest, |p| {
-        &neighbours[offsets[p] as usize..offsets[p + 1] as usize]
-    })
 }

@@ -9,11 +9,10 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::implicit_mesh::mesh_order;
 use super::solver::{contact_weight, depth, in_contact, live_or_zero};
 use super::StepContext;
 use crate::linear::reduce::{dot3, REDUCE_CHUNK};
-use crate::linear::SparseCholesky;
+use crate::linear::{dissect_points, SparseCholesky};
 use crate::mesh_cloth::MeshCloth;
 use crate::soa::Vec3s;
 
@@ -132,4 +131,26 @@ pub(super) fn local_step(
             *partial = dot3(gs, gs);
         });
     partials.iter().sum::<f64>().sqrt()
+}
+
+/// The nested-dissection order of a mesh's vertices by their rest positions, with the springs
+/// (stretch and bend) as the graph.
+fn mesh_order(mesh: &MeshCloth) -> Vec<usize> {
+    let s = &mesh.springs;
+    let neighbours: Vec<u32> = mesh
+        .incident
+        .iter()
+        .map(|&e| {
+            let i = (e >> 1) as usize;
+            if e & 1 == 0 {
+                s.b[i]
+            } else {
+                s.a[i]
+            }
+        })
+        .collect();
+    let offsets = &mesh.offsets;
+    dissect_points(&mesh.rest, |p| {
+        &neighbours[offsets[p] as usize..offsets[p + 1] as usize]
+    })
 }
