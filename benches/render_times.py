@@ -10,6 +10,8 @@ wall clock and by the CPU time of the whole process (alternate frames).
 
     python benches/render_times.py                             # print the tables (~2 min)
     python benches/render_times.py --write docs/rendering.md   # and replace them there
+    python benches/render_times.py --before none --section render-times-gpu \
+        --write docs/rendering.md   # on a GPU machine without git: the two tiers only
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ from rustcloth.render import Renderer, create_standalone_context
 ROOT = Path(__file__).resolve().parent.parent
 BEFORE = "6be6c0e"
 GROUPS = ("shadow", "geometry", "fill", "lighting", "forward", "post")
-START, END = "<!-- render-times:start -->", "<!-- render-times:end -->"
+SECTION = "render-times"
 
 
 def load_before(rev: str, into: Path) -> Any:
@@ -106,7 +108,9 @@ def measure(size: tuple[int, int], ssao: bool, frames: int, before_mod: Any, gri
     sim.advance(0.5)
     color = ctx.renderbuffer(size, 4)
     target = ctx.framebuffer(color_attachments=[color])
-    renderers: dict[str, Any] = {"before": before_mod.Renderer(ctx, sim, size)}
+    renderers: dict[str, Any] = {}
+    if before_mod is not None:
+        renderers["before"] = before_mod.Renderer(ctx, sim, size)
     for tier in ("full", "software"):
         renderers[tier] = Renderer(ctx, sim, size, tier=tier)
     names = list(renderers)
@@ -138,8 +142,11 @@ def measure(size: tuple[int, int], ssao: bool, frames: int, before_mod: Any, gri
 
 
 def table(results: list[tuple[str, Result]], clock: str) -> str:
+    """One row per renderer and case; the last column is the ratio to the first renderer
+    measured (the old one, or the full tier when the old one was left out)."""
+    base = next(iter(results[0][1][clock]))
     head = ("| output | configuration | renderer | " + " | ".join(GROUPS)
-            + " | total ms | frames/s | / before |")
+            + " | total ms | frames/s | / " + base + " |")
     rows = [head, "|" + " --- |" * (len(GROUPS) + 6)]
     for label, result in results:
         size, config = label.split(" ", 1)
@@ -149,24 +156,28 @@ def table(results: list[tuple[str, Result]], clock: str) -> str:
             total = r[which]["total"]
             rows.append(f"| {size} | {config} | {which} | " + " | ".join(cells)
                         + f" | **{total:.1f}** | {1e3 / total:.1f} | "
-                        + f"{total / r['before']['total']:.2f} |")
+                        + f"{total / r[base]['total']:.2f} |")
     return "\n".join(rows)
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0],
                                      formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    parser.add_argument("--before", default=BEFORE, help="git revision of the old renderer")
+    parser.add_argument("--before", default=BEFORE,
+                        help="git revision of the old renderer, or 'none' to leave it out")
     parser.add_argument("--frames", type=int, default=10, help="measured frames per case")
     parser.add_argument("--grid", type=int, default=64, help="cloth particles each way")
     parser.add_argument("--write", type=Path, default=None,
-                        help=f"replace the text between {START} and {END} in this file")
+                        help="replace the text between the section's markers in this file")
+    parser.add_argument("--section", default=SECTION,
+                        help="the markers' name: <!-- NAME:start --> ... <!-- NAME:end -->")
     args = parser.parse_args(argv)
+    start, end = f"<!-- {args.section}:start -->", f"<!-- {args.section}:end -->"
     cases = [((1280, 720), False, False, "lit"), ((1280, 720), False, True, "lit, paused"),
              ((1280, 720), True, False, "lit + SSAO (software: ignored)"),
              ((640, 480), False, False, "lit")]
     with tempfile.TemporaryDirectory() as tmp:
-        before = load_before(args.before, Path(tmp))
+        before = None if args.before == "none" else load_before(args.before, Path(tmp))
         load0 = os.getloadavg()[0]
         results = []
         for size, ssao, paused, config in cases:
@@ -178,30 +189,33 @@ def main(argv: list[str] | None = None) -> int:
     ctx = create_standalone_context()
     gl = ctx.info["GL_RENDERER"]
     ctx.release()
-    text = (f"Measured by `python benches/render_times.py --write docs/rendering.md` on "
+    old = ("" if before is None
+           else f"the renderer before the software tier (`{args.before}`) and ")
+    command = " ".join(["python benches/render_times.py", *(argv or sys.argv[1:])])
+    text = (f"Measured by `{command}` on "
             f"{gl}, {os.cpu_count()} cores (load average {load0:.1f} at the start, "
             f"{load1:.1f} at the end, from other work on the machine); `drape` with a "
             f"{args.grid} x {args.grid} cloth at t = 0.5 s, stepping 1/60 s between frames "
-            f"(paused: not stepping); the renderer before the software tier (`{args.before}`) "
-            f"and this one in its full and software tiers, interleaved frame by frame, each "
+            f"(paused: not stepping); {old}this renderer's full and software tiers, "
+            f"interleaved frame by frame, each "
             f"pass closed with `ctx.finish()`, the upload not counted; ms per frame, mean of "
             f"{args.frames} frames. Passes: shadow map; G-buffer (geometry); fill light and "
             f"SSAO at half size; lighting; the software tier's forward pass (surfaces, lit "
             f"per vertex, and the sky); post: FXAA or the software tier's copy. frames/s is "
-            f"1000 / total; / before is the ratio to the old renderer in the same run.\n\n"
+            f"1000 / total; the last column is the ratio to the first renderer in the same run.\n\n"
             f"Wall time (what a person waits for, but it moves with the machine's other "
             f"load):\n\n{table(results, 'wall')}\n\n"
-            f"CPU time of the process, llvmpipe's threads included (what the frame costs, "
-            f"much steadier under other load; with both cores free a frame's wall time "
-            f"approaches half of it):\n\n{table(results, 'cpu')}")
+            f"CPU time of the process, the GL driver's threads included (what the frame "
+            f"costs the CPU, much steadier under other load; on llvmpipe with both cores "
+            f"free a frame's wall time approaches half of it):\n\n{table(results, 'cpu')}")
     print(text)
     if args.write is not None:
         doc = args.write.read_text(encoding="utf-8")
-        if START not in doc or END not in doc:
-            raise SystemExit(f"{args.write} has no {START} ... {END} section")
-        head, rest = doc.split(START, 1)
-        _, tail = rest.split(END, 1)
-        args.write.write_text(f"{head}{START}\n{text}\n{END}{tail}", encoding="utf-8")
+        if start not in doc or end not in doc:
+            raise SystemExit(f"{args.write} has no {start} ... {end} section")
+        head, rest = doc.split(start, 1)
+        _, tail = rest.split(end, 1)
+        args.write.write_text(f"{head}{start}\n{text}\n{end}{tail}", encoding="utf-8")
     return 0
 
 

@@ -200,6 +200,21 @@ def test_an_error_in_an_included_file_names_that_file_and_line(ctx: Any, tmp_pat
         load_program(ctx, "fullscreen.vert", "main.frag", directory=tmp_path)
 
 
+def test_no_expanded_shader_ends_with_a_line_directive() -> None:
+    # NVIDIA's GLSL compiler refuses a #line with no source line after it (error C0115), which
+    # an #include on a shader's last line left, so no program of the renderer compiled on an
+    # NVIDIA GPU; Mesa takes it.
+    from rustcloth.render.shaders import SHADER_DIR, expand_includes
+
+    programs = [*SHADER_DIR.glob("*.vert"), *SHADER_DIR.glob("*.frag")]
+    last_line_includes = [p for p in programs
+                          if p.read_text().rstrip().split("\n")[-1].startswith("#include")]
+    assert last_line_includes, "no shader ends with an #include: the case tests nothing"
+    for path in programs:
+        text, _ = expand_includes(path.read_text(), SHADER_DIR)
+        assert not text.rstrip().split("\n")[-1].startswith("#line"), path.name
+
+
 def test_a_severed_cloth_grows_its_buffers_once_and_then_uploads_positions_only(
         ctx: Any) -> None:
     import rustcloth

@@ -55,7 +55,12 @@ def expand_includes(source: str, directory: Path) -> tuple[str, list[str]]:
                     f"#line {line_no + 1} {number}"]
         return out
 
-    return "\n".join(expand(source, 0, 0)), included
+    lines = expand(source, 0, 0)
+    # A #line with no line after it, as an include on a file's last line leaves, is refused by
+    # NVIDIA's compiler ("error C0115: #line source-string number invalid"); Mesa takes it.
+    while lines and (not lines[-1].strip() or lines[-1].startswith("#line")):
+        lines.pop()
+    return "\n".join([*lines, ""]), included
 
 
 def _locate(message: str, files: dict[str, list[str]]) -> str:
