@@ -118,3 +118,16 @@ def test_obj_groups_refuse_a_vertex_trimesh_renumbered_that_two_share(tmp_path):
     vertices, _ = mesh_arrays(path, "p")
     with pytest.raises(rustcloth.ParameterError, match=r"^p: .*twin.obj.* cannot be told"):
         group_vertices(path, vertices, "p")
+
+
+def test_obj_groups_read_a_vertex_written_after_its_face_and_refuse_one_not_written(tmp_path):
+    from rustcloth.obj_groups import group_vertices
+
+    path = tmp_path / "late.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\ng a\nf 1 2 3\nv 0 1 0\n")
+    vertices = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype=np.float64)
+    assert group_vertices(path, vertices, "p")["a"].tolist() == [0, 1, 2]
+    path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\ng a\nf 1 2 4\n")
+    with pytest.raises(rustcloth.ParameterError, match=r"^p: .*late.obj' line 5: a face names "
+                                                      r"vertex 4, and the file has 3 vertices"):
+        group_vertices(path, vertices, "p")

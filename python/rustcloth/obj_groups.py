@@ -48,7 +48,9 @@ def group_vertices(
 def _parse(text: str, name: str, parameter: str) -> tuple[np.ndarray, dict[str, set[int]]]:
     """The file's ``v`` positions in order, and each name's set of (0-based) file vertices."""
     positions: list[list[float]] = []
-    groups: dict[str, set[int]] = {}
+    # (names, corners, vertices read so far, line) per face, resolved once every vertex is read:
+    # a positive index may name a vertex written after the face, a negative one counts back.
+    faces: list[tuple[tuple[str, ...], list[str], int, int]] = []
     names: list[str] = []
     obj: list[str] = []
     for number, raw in enumerate(text.splitlines(), start=1):
@@ -69,17 +71,23 @@ def _parse(text: str, name: str, parameter: str) -> tuple[np.ndarray, dict[str, 
             names = rest
         elif key == "o":
             obj = rest[:1]
-        elif key == "f":
-            corners = [_vertex_index(token, len(positions), name, number, parameter)
-                       for token in rest]
-            for group in (*names, *obj):
-                groups.setdefault(group, set()).update(corners)
+        elif key == "f" and (names or obj):
+            faces.append(((*names, *obj), rest, len(positions), number))
+    groups: dict[str, set[int]] = {}
+    for members, corners, before, number in faces:
+        indices = [_vertex_index(c, before, len(positions), name, number, parameter)
+                   for c in corners]
+        for group in members:
+            groups.setdefault(group, set()).update(indices)
     return np.asarray(positions, dtype=np.float64).reshape(-1, 3), groups
 
 
-def _vertex_index(token: str, count: int, name: str, line: int, parameter: str) -> int:
-    """The 0-based file vertex of a face corner ``v``, ``v/vt``, ``v//vn`` or ``v/vt/vn``
-    (negative: counted back from the last vertex read so far)."""
+def _vertex_index(
+    token: str, before: int, count: int, name: str, line: int, parameter: str
+) -> int:
+    """The 0-based file vertex of a face corner ``v``, ``v/vt``, ``v//vn`` or ``v/vt/vn``: a
+    positive index counts from the file's first vertex, a negative one back from the last of
+    the ``before`` vertices written above the face."""
     try:
         index = int(token.split("/", 1)[0])
     except ValueError as err:
@@ -88,11 +96,11 @@ def _vertex_index(token: str, count: int, name: str, line: int, parameter: str) 
             "index",
             parameter,
         ) from err
-    at = index - 1 if index > 0 else count + index
-    if index == 0 or not 0 <= at < count:
+    at = index - 1 if index > 0 else before + index
+    if index == 0 or not 0 <= at < (count if index > 0 else before):
         raise ParameterError(
             f"{parameter}: {name!r} line {line}: a face names vertex {index}, and the file "
-            f"has {count} vertices before it",
+            f"has {count} vertices ({before} above the face)",
             parameter,
         )
     return at
