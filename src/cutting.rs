@@ -31,6 +31,10 @@ use crate::springs::Springs;
 /// the anchor.
 pub type Crossing = (SpringSlot, f32);
 
+/// A severed spring of a mesh cloth (its index in the spring list) and where the stroke crossed
+/// it: `t` in `[0, 1]` along its segment from its end `a`.
+pub type MeshCrossing = (u32, f32);
+
 /// The live springs whose segments cross the surface the rays sweep, each with where it
 /// crosses, in order of (quad, triangle, kind, anchor); a spring crossing twice is listed
 /// twice. Fewer than two rays sweep nothing; a quad of two equal rays (a mouse that did not
@@ -69,7 +73,7 @@ const INTERRUPT_QUADS: usize = 64;
 pub struct StrokeCutter {
     code: Vec<u8>,
     out: Vec<Crossing>,
-    mesh_out: Vec<u32>,
+    mesh_out: Vec<MeshCrossing>,
 }
 
 /// Strictly above the plane.
@@ -133,8 +137,9 @@ impl StrokeCutter {
     }
 
     /// The live springs of a mesh cloth (seams aside: two sewn vertices are one point) whose
-    /// segments cross the surface the rays sweep, as indices into the spring list in order of
-    /// (quad, triangle, spring); a spring crossing twice is listed twice. The same sweep and
+    /// segments cross the surface the rays sweep, as indices into the spring list with where
+    /// each crosses, in order of (quad, triangle, spring); a spring crossing twice is listed
+    /// twice. The same sweep and
     /// the same conservative codes as [`StrokeCutter::crossings`], over the spring list: the
     /// codes of each block of springs are compared branch-free before any exact test.
     pub fn mesh_crossings(
@@ -143,7 +148,7 @@ impl StrokeCutter {
         (pos, alive): (&Vec3s, &[bool]),
         rays: &[Ray],
         interrupted: &mut dyn FnMut() -> bool,
-    ) -> Option<&[u32]> {
+    ) -> Option<&[MeshCrossing]> {
         self.mesh_out.clear();
         let out = &mut self.mesh_out;
         let test = |code: &[u8], tri| mesh_springs_crossing(code, out, springs, pos, tri);
@@ -153,7 +158,7 @@ impl StrokeCutter {
     pub fn heap_bytes(&self) -> usize {
         self.code.capacity()
             + self.out.capacity() * size_of::<Crossing>()
-            + self.mesh_out.capacity() * size_of::<u32>()
+            + self.mesh_out.capacity() * size_of::<MeshCrossing>()
     }
 }
 
@@ -240,10 +245,10 @@ fn grid_springs_crossing(
 }
 
 /// Appends the live springs of a mesh cloth, seams aside, whose ends' codes share no bit and
-/// that cross `tri` exactly, as indices into the spring list.
+/// that cross `tri` exactly, as indices into the spring list with where each crosses.
 fn mesh_springs_crossing(
     code: &[u8],
-    out: &mut Vec<u32>,
+    out: &mut Vec<MeshCrossing>,
     springs: &EdgeSprings,
     pos: &Vec3s,
     tri: [DVec3; 3],
@@ -264,8 +269,8 @@ fn mesh_springs_crossing(
                 continue;
             }
             let (pa, pb) = (pos.get(a).as_dvec3(), pos.get(b).as_dvec3());
-            if segment_crossing(pa, pb, tri).is_some() {
-                out.push(e as u32);
+            if let Some(t) = segment_crossing(pa, pb, tri) {
+                out.push((e as u32, t as f32));
             }
         }
     }

@@ -189,6 +189,19 @@ impl Model {
         severed
     }
 
+    /// [`Model::sever_mesh`] for springs a stroke crossed, each with where it crossed (kept by
+    /// the topology for the drawn mesh). A spring listed twice keeps its first crossing.
+    pub fn sever_mesh_crossing(&mut self, crossings: &[crate::cutting::MeshCrossing]) -> usize {
+        let Topology::Mesh(topology) = &mut self.topology else {
+            return 0;
+        };
+        let severed = topology.sever_crossing(crossings);
+        if severed > 0 {
+            self.topology_version += 1;
+        }
+        severed
+    }
+
     /// Severs the springs `slots` (kind, anchor) without a stroke (a tear: the drawn mesh
     /// opens at their midpoints); those already severed are skipped. Returns how many were
     /// live; the topology version moves only if one was. No particle changes, so the cloth's

@@ -188,3 +188,73 @@ def test_a_mesh_cloth_is_pinned_by_its_boundary_or_its_top_row() -> None:
     assert np.array_equal(sim.pinned, ring)
     with pytest.raises(ParameterError, match=r"^cloth.pins\[0\]: .*selects nothing"):
         hanging(n).replace(cloth={"pins": [{"boundary": False}]})
+
+
+def write_grouped_square(path, n: int = 6) -> tuple[np.ndarray, set[int], set[int]]:
+    """An OBJ of ``jittered_square(n)`` laid flat (its y as -z, at 1 m) whose top row of cells
+    is group ``hem`` and whose left column is group ``side`` (the other triangles in neither);
+    returns the vertices and each group's vertices, from the triangles written under it."""
+    square, triangles = jittered_square(n)
+    vertices = np.stack([square[:, 0], np.ones(len(square)), 1.0 - square[:, 1]], axis=1)
+    row = (triangles // n).min(axis=1)  # the cell row of each triangle
+    column = (triangles % n).min(axis=1)
+    lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in vertices.tolist()]
+    groups: dict[str, set[int]] = {"hem": set(), "side": set()}
+    for name, chosen in (("hem", row == n - 2), ("side", (column == 0) & (row < n - 2)),
+                         ("", (column > 0) & (row < n - 2))):
+        lines.append(f"g {name}".rstrip())
+        for t in triangles[chosen]:
+            lines.append("f " + " ".join(str(k + 1) for k in t))
+            if name:
+                groups[name].update(t.tolist())
+    path.write_text("\n".join(lines) + "\n")
+    return vertices, groups["hem"], groups["side"]
+
+
+def test_a_mesh_cloth_hangs_from_its_files_vertex_group(tmp_path) -> None:
+    pytest.importorskip("trimesh")
+    vertices, hem, side = write_grouped_square(tmp_path / "flag.obj")
+    assert hem == set(range(24, 36))  # the two top rows of the 6 x 6 square
+    (tmp_path / "flag.toml").write_text('[cloth]\nmesh = "flag.obj"\npin_group = "hem"\n')
+    sim = rustcloth.Simulation(rustcloth.Scene.from_toml(tmp_path / "flag.toml").replace(dt=5e-4))
+    assert np.allclose(sim.positions, vertices.astype(np.float32))
+    assert set(np.flatnonzero(sim.pinned).tolist()) == hem
+    start = sim.positions.copy()
+    sim.advance(0.3)
+    x = sim.positions
+    pinned = sim.pinned
+    assert np.isfinite(x).all() and (np.abs(x) < 3).all()
+    assert np.array_equal(x[pinned], start[pinned])
+    # The hem holds while the rest swings down: every other vertex fell, the far edge most.
+    assert (x[~pinned, 1] < start[~pinned, 1] - 1e-3).all()
+    assert x[:, 1].min() < 0.8
+    # Several groups, and the indices given beside them, pin their union.
+    both = rustcloth.Scene().with_cloth_mesh(
+        path=tmp_path / "flag.obj", pin_group=["hem", "side"], pins=[1]
+    )
+    assert set(rustcloth.Simulation(both).pinned.nonzero()[0].tolist()) == hem | side | {1}
+
+
+def test_a_pin_group_the_file_lacks_is_named_with_the_files_groups(tmp_path) -> None:
+    trimesh = pytest.importorskip("trimesh")
+    write_grouped_square(tmp_path / "flag.obj")
+    scene = rustcloth.Scene()
+    with pytest.raises(ParameterError, match=r"^cloth\.pin_group: .*flag\.obj' has no group "
+                                             r"'hemline'; its groups: 'hem', 'side'$"):
+        scene.with_cloth_mesh(path=tmp_path / "flag.obj", pin_group="hemline")
+    plain = tmp_path / "plain.obj"
+    vertices, triangles = jittered_square(3)
+    plain.write_text("".join(f"v {x} {y} {z}\n" for x, y, z in vertices.tolist())
+                     + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in triangles))
+    with pytest.raises(ParameterError, match=r"^cloth\.pin_group: .*plain\.obj' has no vertex"):
+        scene.with_cloth_mesh(path=plain, pin_group="hem")
+    stl = tmp_path / "flag.stl"
+    trimesh.Trimesh(*jittered_square(3), process=False).export(stl)
+    with pytest.raises(ParameterError, match=r"^cloth\.pin_group: .*flag\.stl' is not an \.obj"):
+        scene.with_cloth_mesh(path=stl, pin_group="hem")
+    with pytest.raises(ParameterError, match=r"^cloth\.pin_group: names vertex groups"):
+        scene.with_cloth_mesh(*jittered_square(3), pin_group="hem")
+    with pytest.raises(ParameterError, match=r"^cloth\.pin_group: names vertex groups"):
+        rustcloth.Scene.from_toml_str('[cloth]\nnx = 4\nny = 4\npin_group = "hem"\n')
+    with pytest.raises(rustcloth.ParameterTypeError, match=r"^cloth\.pin_group: must be"):
+        scene.with_cloth_mesh(path=tmp_path / "flag.obj", pin_group=[])

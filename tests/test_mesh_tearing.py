@@ -47,6 +47,23 @@ def test_a_stroke_across_a_mesh_cloth_gives_two_pieces_and_the_lower_falls() -> 
         assert len(set(labels[tri])) == 1
 
 
+def test_a_mesh_cuts_drawn_mesh_has_its_cut_vertices_in_every_array(tmp_path) -> None:
+    # The drawn mesh of a cut mesh cloth has cut vertices past the particles: its positions,
+    # normals, texture coordinates and sources all have them, and the frame and export use them.
+    sim = rustcloth.Simulation(held_by_its_top())
+    assert sim.sever_stroke(across(1.02)) > 0
+    tris, uvs, sources = sim.render_topology()
+    positions, normals = sim.render_positions()
+    assert len(positions) > sim.num_particles
+    assert len(uvs) == len(normals) == len(sources) == len(positions)
+    assert tris.max() == len(positions) - 1
+    cut = positions[sim.num_particles:]
+    assert np.abs(cut[:, 1] - 1.02).max() < 1e-5  # on the stroke: the sheet is still flat
+    mesh = sim.to_mesh()
+    assert len(mesh.vertices) == len(positions) and np.isfinite(mesh.uvs).all()
+    assert ((0 <= mesh.uvs) & (mesh.uvs <= 1)).all()
+
+
 def test_a_torn_mesh_cloth_restores_and_unpickles_bitwise() -> None:
     sim = rustcloth.Simulation(held_by_its_top(10).replace(tearing={"max_strain": 0.2}))
     pos = sim.positions.copy()

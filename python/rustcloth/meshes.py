@@ -13,6 +13,7 @@ import numpy as np
 
 from ._extras import MissingExtra
 from .errors import ParameterError, ParameterTypeError
+from .obj_groups import group_vertices
 
 #: A triangle whose doubled area is at most this times its longest edge squared, in float32,
 #: has zero area: the core's own test (src/scene/mesh.rs, DEGENERATE), made here too so that
@@ -111,19 +112,28 @@ def wants_file(data: Mapping[str, Any]) -> bool:
     mesh = cloth.get("mesh") if isinstance(cloth, Mapping) else None
     return (isinstance(colliders, list | tuple) and any(
         isinstance(c, Mapping) and "path" in c for c in colliders
-    )) or isinstance(mesh, str | os.PathLike) or (isinstance(mesh, Mapping) and "path" in mesh)
+    )) or isinstance(mesh, str | os.PathLike) or (isinstance(mesh, Mapping) and "path" in mesh) or (
+        isinstance(cloth, Mapping) and "pin_group" in cloth  # refused here, by name, without one
+    )
 
 
 def _resolve_cloth_mesh(
     data: Mapping[str, Any], base: str | os.PathLike[str] | None
 ) -> dict[str, Any]:
     """``data`` with ``cloth.mesh``'s file (a path, or a table's ``path``) read into its
-    ``vertices``, ``triangles`` and, where the file has them, ``uvs``; relative to ``base``."""
+    ``vertices``, ``triangles`` and, where the file has them, ``uvs``; relative to ``base``.
+    ``cloth.pin_group`` names the file's groups whose vertices join ``cloth.pins``."""
     cloth = data.get("cloth")
     mesh = cloth.get("mesh") if isinstance(cloth, Mapping) else None
     if isinstance(mesh, str | os.PathLike):
         mesh = {"path": mesh}
     if not (isinstance(cloth, Mapping) and isinstance(mesh, Mapping) and "path" in mesh):
+        if isinstance(cloth, Mapping) and "pin_group" in cloth:
+            raise ParameterError(
+                f"{PIN_GROUP}: names vertex groups of the cloth's mesh file, and this cloth has "
+                'none: give cloth.mesh as an OBJ file (mesh = "flag.obj")',
+                PIN_GROUP,
+            )
         return dict(data)
     both = [key for key in ("vertices", "triangles", "uvs") if key in mesh]
     if both:
@@ -139,7 +149,47 @@ def _resolve_cloth_mesh(
     uvs = uv_array(path)
     if uvs is not None:
         resolved["uvs"] = uvs
+    if "pin_group" in cloth:
+        cloth = {key: value for key, value in cloth.items() if key != "pin_group"}
+        cloth["pins"] = _with_group_pins(
+            cloth.get("pins", []), data["cloth"]["pin_group"], path, vertices
+        )
     return {**data, "cloth": {**cloth, "mesh": resolved}}
+
+
+#: The scene key naming the mesh file's vertex groups to pin, as errors name it.
+PIN_GROUP = "cloth.pin_group"
+
+
+def _with_group_pins(
+    pins: Any, names: Any, path: str | os.PathLike[str], vertices: np.ndarray
+) -> Any:
+    """``pins`` followed by the vertices of the groups ``names`` (a name or a list of names) of
+    the OBJ file ``path``, whose vertices trimesh read as ``vertices``."""
+    listed = [names] if isinstance(names, str) else names
+    if not (isinstance(listed, list | tuple) and listed
+            and all(isinstance(n, str) for n in listed)):
+        raise ParameterTypeError(
+            f"{PIN_GROUP}: must be a group name or a non-empty list of names, got {names!r}",
+            PIN_GROUP,
+        )
+    groups = group_vertices(path, vertices, PIN_GROUP)
+    if not groups:
+        raise ParameterError(
+            f"{PIN_GROUP}: {os.fspath(path)!r} has no vertex groups (no face under a `g` or "
+            "`o` line)",
+            PIN_GROUP,
+        )
+    unknown = [n for n in listed if n not in groups]
+    if unknown:
+        raise ParameterError(
+            f"{PIN_GROUP}: {os.fspath(path)!r} has no group {unknown[0]!r}; its groups: "
+            + ", ".join(repr(g) for g in sorted(groups)),
+            PIN_GROUP,
+        )
+    chosen = sorted({int(k) for n in listed for k in groups[n]})
+    # A pins value that is not a list is the core's to refuse, by its own name.
+    return [*pins, *chosen] if isinstance(pins, list | tuple) else pins
 
 
 def resolve_paths(data: Mapping[str, Any], base: str | os.PathLike[str] | None) -> dict[str, Any]:

@@ -232,6 +232,7 @@ class Scene:
         *,
         path: str | os.PathLike[str] | None = None,
         pins: list[Any] | None = None,
+        pin_group: str | list[str] | None = None,
         **keys: Any,
     ) -> Scene:
         """A copy whose cloth is the triangle mesh ``vertices`` (``(N, 3)``, m, where the cloth
@@ -240,8 +241,10 @@ class Scene:
         (the ``export`` extra; its texture coordinates come along). ``keys`` are the mesh's
         material: ``density`` (kg/m^2), ``stretch``, ``bend`` (N/m), ``damping`` (N s/m);
         ``pins`` are vertex indices and selections: ``{"box": [[x0, y0, z0], [x1, y1, z1]]}``,
-        ``{"boundary": True}``, ``{"top": 0.001}`` (default none). The grid's keys go back to
-        their defaults. Errors name ``cloth.mesh.vertices[k]``, ``cloth.mesh.triangles[t]``,
+        ``{"boundary": True}``, ``{"top": 0.001}`` (default none). ``pin_group`` (with
+        ``path``, an OBJ file) names the file's vertex groups (``g`` or ``o`` names; a list for
+        several) whose faces' vertices are pinned too. The grid's keys go back to their
+        defaults. Errors name ``cloth.mesh.vertices[k]``, ``cloth.mesh.triangles[t]``,
         ... (docs/mesh_cloth.md)."""
         if path is not None:
             if vertices is not None or triangles is not None or uvs is not None:
@@ -263,6 +266,8 @@ class Scene:
                 mesh["uvs"] = _mesh_array(uvs, "cloth.mesh.uvs", columns=2)
         data = self.to_dict()
         data["cloth"] = {"mesh": mesh, "pins": [] if pins is None else pins}
+        if pin_group is not None:
+            data["cloth"]["pin_group"] = pin_group
         return Scene.from_dict(data)
 
     def to_dict(self) -> dict[str, Any]:

@@ -491,8 +491,8 @@ class Simulation:
         whole cloth) is severed, and the drawn mesh (:meth:`render_mesh`) is clipped along
         where the stroke crossed them. On a mesh cloth the springs are the mesh's edge and
         bend springs (a severed edge takes the bend springs of its triangles with it; only
-        the springs the stroke crossed are counted) and the drawn mesh opens along the mesh's
-        edges, unclipped. ``rays`` is a
+        the springs the stroke crossed are counted), and its drawn mesh is clipped the same
+        way. ``rays`` is a
         sequence of ``(origin, direction)`` pairs (or an ``(M, 2, 3)`` array; directions need
         not be unit). Returns the number of springs severed. No particle is removed: the
         cloth's mass is unchanged to the bit, and a grabbed particle stays grabbed.

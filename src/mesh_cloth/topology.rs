@@ -17,8 +17,8 @@
 //! * A piece is a set of live vertices joined by live springs other than seams, or by drawn
 //!   triangles: a seam pulls two panels of a garment together but does not make them one piece.
 //!
-//! The drawn edge of a cut runs along the mesh's edges (the triangles on a severed edge go): a
-//! mesh cloth's drawn mesh is not clipped at the stroke as the grid's is.
+//! The drawn mesh clips the triangles on a severed edge where the stroke crossed it
+//! ([`MeshTopology::crossings`], [`crate::render_mesh`]), as on the grid.
 
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -43,6 +43,10 @@ pub struct MeshTopology {
     bends: Vec<[u32; 3]>,
     /// Per spring, the triangles on its edge (a stretch spring's one or two), or [`NONE`].
     faces: Vec<[u32; 2]>,
+    /// Where a stroke crossed each spring it severed: `t` in `[0, 1]` from the spring's end
+    /// `a`. Springs severed without a stroke (a tear) have none; the drawn mesh opens them at
+    /// their midpoints. Nothing in a step reads it.
+    pub crossings: HashMap<u32, f32>,
 }
 
 impl MeshTopology {
@@ -101,7 +105,15 @@ impl MeshTopology {
             edges,
             bends,
             faces,
+            crossings: HashMap::new(),
         }
+    }
+
+    /// Triangle `t`'s stretch springs, edge `k` from corner `k` to corner `k + 1`, or [`NONE`]
+    /// where the mesh has none.
+    #[inline]
+    pub fn edge_springs(&self, t: usize) -> [u32; 3] {
+        self.edges[t]
     }
 
     /// Whether triangle `t` is drawn: its corners alive and its stretch springs holding.
@@ -117,17 +129,34 @@ impl MeshTopology {
     /// Severs `springs` (indices into the spring list) and what goes with them; returns how
     /// many of those listed were live (a spring listed twice counts once).
     pub fn sever(&mut self, springs: impl IntoIterator<Item = u32>) -> usize {
+        self.sever_each(springs.into_iter().map(|e| (e, None)))
+    }
+
+    /// [`MeshTopology::sever`] for springs a stroke crossed, each with where it crossed (kept
+    /// in [`MeshTopology::crossings`]); a spring listed twice keeps its first crossing.
+    pub fn sever_crossing(&mut self, crossings: &[(u32, f32)]) -> usize {
+        self.sever_each(crossings.iter().map(|&(e, t)| (e, Some(t))))
+    }
+
+    fn sever_each(&mut self, cuts: impl Iterator<Item = (u32, Option<f32>)>) -> usize {
         let Self {
-            mesh, faces, bends, ..
+            mesh,
+            faces,
+            bends,
+            crossings,
+            ..
         } = self;
         let s = &mut Arc::make_mut(mesh).springs;
         let mut severed = 0;
-        for e in springs {
+        for (e, t) in cuts {
             if !s.active[e as usize] {
                 continue;
             }
             severed += 1;
             cut_spring(s, e);
+            if let Some(t) = t {
+                crossings.insert(e, t);
+            }
             for t in faces[e as usize].into_iter().filter(|&t| t != NONE) {
                 for b in bends[t as usize].into_iter().filter(|&b| b != NONE) {
                     cut_spring(s, b);
@@ -196,6 +225,7 @@ impl MeshTopology {
             + self.triangles.len() * 12
             + (self.edges.capacity() + self.bends.capacity()) * 12
             + self.faces.capacity() * 8
+            + self.crossings.capacity() * size_of::<(u32, f32)>()
     }
 }
 

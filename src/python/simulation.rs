@@ -171,12 +171,15 @@ methods! {
     };
     /// The drawn mesh's `(triangles, uvs, sources)`: what changes only with the topology.
     fn render_topology() -> (Rows<u32>, Rows<f32>, Rows<u32>) = read |h| {
-        let mesh_uvs = h.sim.model().mesh().map(crate::render_mesh::mesh_uvs);
         let triangles = h.sim.render_triangles().as_flattened().to_vec();
-        let (grid, cut) = (h.sim.grid(), h.sim.render_cut_vertices());
-        let uvs = mesh_uvs.unwrap_or_else(|| crate::render_mesh::uvs(grid, cut));
+        let grid = h.sim.grid();
+        let cut = h.sim.render_cut_vertices().to_vec();
+        let uvs = match h.sim.model().mesh() {
+            Some(mesh) => crate::render_mesh::mesh_uvs(mesh, &cut),
+            None => crate::render_mesh::uvs(grid, &cut),
+        };
         let uvs = uvs.as_flattened().to_vec();
-        (Rows(triangles, 3), Rows(uvs, 2), Rows(crate::render_mesh::sources(grid, cut), 0))
+        (Rows(triangles, 3), Rows(uvs, 2), Rows(crate::render_mesh::sources(grid, &cut), 0))
     };
     /// The scene with the run-time settings as they are now.
     fn scene_dict() -> SceneDict = read |h| SceneDict(h.sim.scene().clone());

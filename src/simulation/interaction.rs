@@ -222,7 +222,7 @@ impl Simulation {
                 .cutter
                 .mesh_crossings(&mesh.springs, at, &rays, interrupted);
             return match crossings {
-                Some(springs) => Ok(self.model.sever_mesh(springs)),
+                Some(crossings) => Ok(self.model.sever_mesh_crossing(crossings)),
                 None => Err(Error::Interrupted { steps: 0 }),
             };
         }

@@ -248,13 +248,14 @@ pub fn proptest_config(cases: u32, seed: u64) -> proptest::test_runner::Config {
 
 /// The drawn mesh of a simulation ([`rustcloth::render_mesh`]) as plain arrays, with what the
 /// tests of the cut edge need: each vertex's particle (itself for a particle, the particle
-/// whose side it is on for a cut vertex) and its place on the cloth at rest, in m along the
-/// grid (`(i dx, j dy)`, a cut vertex where its edge was crossed).
+/// whose side it is on for a cut vertex) and its place on the cloth at rest, in m (a grid's
+/// particle at `(i dx, j dy, 0)`, a mesh's vertex where the mesh puts it, a cut vertex where
+/// its edge was crossed).
 pub struct Drawn {
     pub positions: Vec<Vec3>,
     pub triangles: Vec<[u32; 3]>,
     pub owner: Vec<usize>,
-    pub rest: Vec<glam::Vec2>,
+    pub rest: Vec<Vec3>,
     /// The number of particles: vertices from here on are cut vertices.
     pub particles: usize,
 }
@@ -263,17 +264,27 @@ impl Drawn {
     pub fn of(sim: &mut Simulation) -> Drawn {
         let grid = sim.grid();
         let size = sim.scene().cloth.size;
-        let spacing = glam::Vec2::new(
-            (size[0] / (grid.nx - 1) as f64) as f32,
-            (size[1] / (grid.ny - 1) as f64) as f32,
+        let spacing = Vec3::new(
+            (size[0] / (grid.nx - 1).max(1) as f64) as f32,
+            (size[1] / (grid.ny - 1).max(1) as f64) as f32,
+            0.0,
         );
-        let at_rest = |p: usize| {
-            let (i, j) = grid.coords(p);
-            glam::Vec2::new(i as f32, j as f32) * spacing
+        let mesh_rest: Option<Vec<Vec3>> = (sim.model().mesh()).map(|mesh| {
+            mesh.rest
+                .iter()
+                .map(|&v| glam::DVec3::from(v).as_vec3())
+                .collect()
+        });
+        let at_rest = |p: usize| match &mesh_rest {
+            Some(rest) => rest[p],
+            None => {
+                let (i, j) = grid.coords(p);
+                Vec3::new(i as f32, j as f32, 0.0) * spacing
+            }
         };
         let n = grid.len();
         let mut owner: Vec<usize> = (0..n).collect();
-        let mut rest: Vec<glam::Vec2> = (0..n).map(at_rest).collect();
+        let mut rest: Vec<Vec3> = (0..n).map(at_rest).collect();
         for v in sim.render_cut_vertices() {
             let from = v.from as usize;
             owner.push(from);

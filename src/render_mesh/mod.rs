@@ -27,6 +27,9 @@
 //! toward the other end ([`Frame::Toward`]): the direction is the only thing read from the
 //! other side, and the edge never grows past its rest length.
 //!
+//! A mesh cloth's triangles are clipped by the same cases ([`clip_pieces`]); its cut vertices
+//! are framed by the mesh's own neighbours (`mesh.rs`).
+//!
 //! **Cost.** Building the topology walks every triangle once (`O(n)`, as the grid's triangle
 //! list does) when the topology version moves. A frame copies the particles' positions and
 //! computes three-term sums for the cut vertices: `O(n + c)` for `c` cut vertices, no
@@ -40,6 +43,10 @@ use crate::grid::{cell_triangle, triangle_alive, triangle_slots, Grid, SpringKin
 use crate::model::Model;
 use crate::soa::Vec3s;
 use crate::state::State;
+
+mod mesh;
+
+pub use mesh::mesh_uvs;
 
 /// A vertex on a severed edge, on one side of it: `s` of the way from particle `from` to
 /// `toward`, at rest.
@@ -111,6 +118,8 @@ pub struct RenderMesh {
     cut: Vec<CutVertex>,
     /// `(kind, anchor, on the anchor's side)` -> vertex index, while building.
     index: HashMap<(SpringKind, usize, bool), u32>,
+    /// A mesh cloth's `(spring, on the side of its end a)` -> vertex index, while building.
+    mesh_index: HashMap<(u32, bool), u32>,
     positions: Vec3s,
     normals: Vec3s,
     /// The `(state, topology)` versions `positions` and `normals` were made for.
@@ -184,6 +193,7 @@ impl RenderMesh {
         self.triangles.capacity() * size_of::<[u32; 3]>()
             + self.cut.capacity() * size_of::<CutVertex>()
             + self.index.capacity() * size_of::<((SpringKind, usize, bool), u32)>()
+            + self.mesh_index.capacity() * size_of::<((u32, bool), u32)>()
             + self.positions.heap_bytes()
             + self.normals.heap_bytes()
     }
@@ -195,16 +205,15 @@ impl RenderMesh {
         self.triangles.clear();
         self.cut.clear();
         self.index.clear();
-        if model.mesh().is_some() {
-            // A mesh cloth's cut runs along its edges: its drawn triangles, not clipped.
-            self.triangles.extend(model.triangles());
-            self.topology_for = Some(model.topology_version);
-            return;
-        }
-        let (grid, alive) = (model.grid, &model.particles.alive);
-        for id in 0..triangle_slots(grid) {
-            if triangle_alive(grid, alive, id) {
-                self.clip(model, cell_triangle(grid, id));
+        self.mesh_index.clear();
+        if let Some(topology) = model.mesh_topology() {
+            self.clip_mesh(model, topology);
+        } else {
+            let (grid, alive) = (model.grid, &model.particles.alive);
+            for id in 0..triangle_slots(grid) {
+                if triangle_alive(grid, alive, id) {
+                    self.clip(model, cell_triangle(grid, id));
+                }
             }
         }
         self.topology_for = Some(model.topology_version);
@@ -221,31 +230,9 @@ impl RenderMesh {
             model.springs.active[kind.index()][anchor] == 0.0
         });
         let p = tri.map(|q| q as u32);
-        // The vertex on edge e (tri[e] -> tri[e + 1]) on the side of its end `end` (0 or 1).
-        let mut cut = |e: usize, end: usize| {
+        let (pieces, count) = clip_pieces(p, severed, |e, end| {
             self.cut_vertex(model, tri[(e + end) % 3], tri[(e + 1 - end) % 3])
-        };
-        let (pieces, count) = match severed.iter().filter(|&&s| s).count() {
-            0 => ([p, p, p], 1),
-            1 => {
-                let e = severed.iter().position(|&s| s).expect("one");
-                let (a, b, v) = (p[e], p[(e + 1) % 3], p[(e + 2) % 3]);
-                ([[a, cut(e, 0), v], [cut(e, 1), b, v], p], 2)
-            }
-            2 => {
-                // The live edge m joins the two corners on one side; corner c is alone.
-                let m = severed.iter().position(|&s| !s).expect("one live");
-                let (a, b, c) = (p[m], p[(m + 1) % 3], p[(m + 2) % 3]);
-                let (e1, e2) = ((m + 1) % 3, (m + 2) % 3);
-                let (x1_c, x2_c) = (cut(e1, 1), cut(e2, 0));
-                let (x1_b, x2_a) = (cut(e1, 0), cut(e2, 1));
-                ([[x1_c, c, x2_c], [a, b, x1_b], [a, x1_b, x2_a]], 3)
-            }
-            _ => (
-                std::array::from_fn(|k| [cut((k + 2) % 3, 1), p[k], cut(k, 0)]),
-                3,
-            ),
-        };
+        });
         self.triangles.extend_from_slice(&pieces[..count]);
     }
 
@@ -265,6 +252,37 @@ impl RenderMesh {
         self.cut.push(vertex);
         self.index.insert(key, v);
         v
+    }
+}
+
+/// The pieces (one to three triangles, counter-clockwise) triangle `p` leaves when its edges
+/// `severed` (edge `e` from corner `e` to corner `e + 1`) are cut; `cut(e, end)` is the cut
+/// vertex on edge `e` on the side of its end `end` (0: corner `e`, 1: corner `e + 1`).
+fn clip_pieces(
+    p: [u32; 3],
+    severed: [bool; 3],
+    mut cut: impl FnMut(usize, usize) -> u32,
+) -> ([[u32; 3]; 3], usize) {
+    match severed.iter().filter(|&&s| s).count() {
+        0 => ([p, p, p], 1),
+        1 => {
+            let e = severed.iter().position(|&s| s).expect("one");
+            let (a, b, v) = (p[e], p[(e + 1) % 3], p[(e + 2) % 3]);
+            ([[a, cut(e, 0), v], [cut(e, 1), b, v], p], 2)
+        }
+        2 => {
+            // The live edge m joins the two corners on one side; corner c is alone.
+            let m = severed.iter().position(|&s| !s).expect("one live");
+            let (a, b, c) = (p[m], p[(m + 1) % 3], p[(m + 2) % 3]);
+            let (e1, e2) = ((m + 1) % 3, (m + 2) % 3);
+            let (x1_c, x2_c) = (cut(e1, 1), cut(e2, 0));
+            let (x1_b, x2_a) = (cut(e1, 0), cut(e2, 1));
+            ([[x1_c, c, x2_c], [a, b, x1_b], [a, x1_b, x2_a]], 3)
+        }
+        _ => (
+            std::array::from_fn(|k| [cut((k + 2) % 3, 1), p[k], cut(k, 0)]),
+            3,
+        ),
     }
 }
 
@@ -387,36 +405,6 @@ pub fn uvs(grid: Grid, cut: &[CutVertex]) -> Vec<[f32; 2]> {
                 .map(|v| uv(v.from as usize).lerp(uv(v.toward as usize), v.s)),
         )
         .map(|x| x.to_array())
-        .collect()
-}
-
-/// Texture coordinates of a mesh cloth's vertices: the mesh's own, or without them the rest
-/// shape projected onto the two axes along which it extends furthest, each scaled to `[0, 1]`.
-pub fn mesh_uvs(mesh: &crate::mesh_cloth::MeshCloth) -> Vec<[f32; 2]> {
-    if let Some(uvs) = &mesh.uvs {
-        return uvs.clone();
-    }
-    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-    for v in &mesh.rest {
-        for c in 0..3 {
-            lo[c] = lo[c].min(v[c]);
-            hi[c] = hi[c].max(v[c]);
-        }
-    }
-    let mut axes = [0, 1, 2];
-    axes.sort_by(|&a, &b| (hi[b] - lo[b]).total_cmp(&(hi[a] - lo[a])));
-    let along = |v: &[f64; 3], c: usize| {
-        let extent = hi[c] - lo[c];
-        (if extent > 0.0 {
-            (v[c] - lo[c]) / extent
-        } else {
-            0.0
-        }) as f32
-    };
-    let (u, w) = (axes[0].min(axes[1]), axes[0].max(axes[1]));
-    mesh.rest
-        .iter()
-        .map(|v| [along(v, u), along(v, w)])
         .collect()
 }
 
