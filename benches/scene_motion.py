@@ -3,6 +3,14 @@ demo drives it, and how far ``curtain`` sways in its draught. Prints three table
 
     .venv/bin/python benches/scene_motion.py [--quick]
 
+The first table drags the scene as it is (its perforation, tear strain 0.5), against the same
+cloth without the perforation and with the tear strain of 0.3, each with the grip gliding
+between frames (``drag_time`` 1/60 s, the default) and jumping to each frame's target in a
+substep (``drag_time`` 0): the second piece after each drag.
+
+The tables after it study ``tear`` as it was before its perforation: the same cloth uncut,
+tearing at 0.3, its grip jumping to each frame's target (``plain_tear``).
+
 The drag: a ray from in front of the cloth picks the lower-left corner, ``grab`` takes the grip,
 ``drag_to`` moves it once per 60 Hz frame along a straight line (``advance(1/60)`` between),
 then the grip is held still for a second and released. For each grip radius, speed and
@@ -42,10 +50,37 @@ def drag_tear(radius: float | None, seconds: float, move: tuple[float, float, fl
               settle: float = 0.5, hold: float = 1.0) -> tuple[int, list[int], int]:
     """Drag ``tear``'s lower-left corner by ``move`` (m) over ``seconds``; returns the pieces,
     the two largest pieces' sizes, and the number of particles the grip held."""
-    sim = rustcloth.Simulation("tear")
+    sim = plain_tear()
     if radius is not None:
         sim.grip_radius = radius
     return drag(sim, seconds, move, settle, hold)
+
+
+def plain_tear(cuts: bool = False, max_strain: float = 0.3,
+               drag_time: float = 0.0) -> rustcloth.Simulation:
+    """``tear``'s curtain with or without its perforation, tearing at ``max_strain``, its grip
+    reaching each drag target over ``drag_time`` (by default as studied before the
+    perforation: uncut, 0.3, jumping)."""
+    scene = rustcloth.load_scene("tear")
+    cloth = scene.cloth if cuts else {**scene.cloth, "cuts": []}
+    tearing = {**scene.tearing, "max_strain": max_strain}
+    sim = rustcloth.Simulation(scene.replace(cloth=cloth, tearing=tearing))
+    sim.drag_time = drag_time
+    return sim
+
+
+def scene_table() -> None:
+    print("| cloth | drag time (s) | second piece after each drag (down, down-out, out; 0.2 s "
+          "then 1.5 s) |")
+    print("|---|---|---|")
+    cloths = {"the scene (perforated, tear strain 0.5)": (True, 0.5),
+              "without the perforation": (False, 0.5),
+              "perforated, tear strain 0.3": (True, 0.3)}
+    for name, (cuts, strain) in cloths.items():
+        for drag_time, shown in ((1 / 60, "1/60"), (0.0, "0")):
+            second = [(drag(plain_tear(cuts, strain, drag_time), s, m)[1] + [0])[1]
+                      for m in MOVES.values() for s in (0.2, 1.5)]
+            print(f"| {name} | {shown} | {', '.join(map(str, second))} |", flush=True)
 
 
 def drag(sim: rustcloth.Simulation, seconds: float, move: tuple[float, float, float],
@@ -85,12 +120,13 @@ def framed_tear(pins: list[Any], prestrain: tuple[float, float],
     """``tear``'s cloth held by ``pins``, its rest width and height shortened by ``1 +
     prestrain`` and its particles put back at full size (the top edge where it was, the width
     about its middle), tearing at ``max_strain``."""
-    scene = rustcloth.load_scene("tear")
+    scene = plain_tear().scene
     cloth = dict(scene.cloth)
     width, height = cloth["size"]
     cloth.update(size=[width / (1.0 + prestrain[0]), height / (1.0 + prestrain[1])], pins=pins)
     tearing = {**scene.tearing, "max_strain": max_strain}
     sim = rustcloth.Simulation(scene.replace(cloth=cloth, tearing=tearing))
+    sim.drag_time = 0.0
     x = sim.positions.copy()
     mid, top = 0.5 * (x[:, 0].max() + x[:, 0].min()), x[:, 1].max()
     x[:, 0] = mid + (x[:, 0] - mid) * (1.0 + prestrain[0])
@@ -225,6 +261,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer cases, a shorter sway")
     args = parser.parse_args()
+    scene_table()
+    print()
     radii: list[float | None] = [0.0, None] if args.quick else [0.0, None, 0.2, 0.3]
     speeds = [0.2, 1.5]
     print("| grip radius (m) | held | drag | over (s) | pieces | two largest |")

@@ -110,6 +110,7 @@ fn main() {
     // The tearing pass: per step, from the profile, on the tear scene at 128 and 512.
     for n in [128u32, 512] {
         let mut scene = Scene::builtin("tear").unwrap();
+        scene.cloth.cuts.clear(); // the sheet uncut, as the cuts measured here find it
         scene.cloth.nx = n;
         scene.cloth.ny = n;
         scene.integrator = rustcloth::IntegratorKind::ImplicitEuler;

@@ -20,6 +20,14 @@ use crate::state::State;
 /// particles across, some 13 to 21 particles on an even grid.
 pub const GRIP_SPACINGS: f64 = 2.5;
 
+/// The default drag time in s: one frame of a 60 Hz display, the rate a demo calls
+/// `drag_to` at. A grip that reaches each frame's target one frame later moves continuously at
+/// the hand's speed; a shorter time moves it in bursts (a frame's travel, then a stop), each
+/// jerking the springs round the grip by about the burst's speed over the cloth's wave speed,
+/// and a longer one lags further behind the hand. 0 puts the grip on each target in the next
+/// substep.
+pub const DRAG_TIME: f64 = 1.0 / 60.0;
+
 /// One particle held by a grip and the pin state to restore on release.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Held {
@@ -115,6 +123,17 @@ impl Held {
             start: state.kin.pos.get(p),
         }
     }
+}
+
+/// A drag time: finite and >= 0 (s).
+pub fn checked_drag_time(seconds: f64) -> Result<f64> {
+    if !(seconds.is_finite() && seconds >= 0.0) {
+        return Err(Error::value(
+            "drag_time",
+            format!("must be a finite number of seconds >= 0, got {seconds}"),
+        ));
+    }
+    Ok(seconds)
 }
 
 /// A grip radius: finite and >= 0 within float32's range.

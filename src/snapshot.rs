@@ -75,6 +75,14 @@ pub struct Snapshot {
     /// The grip radius if one was set (None: the default).
     #[serde(default)]
     pub grip_radius: Option<f32>,
+    /// The drag time in s if one was set (None: the default).
+    #[serde(default)]
+    pub drag_time: Option<f64>,
+    /// A drag's glide in progress: `(shift in m, from, until in s, the particles it moves)`
+    /// (see [`crate::pins::Glide`]; None when the grip is on its targets, or from a state saved
+    /// before glides).
+    #[serde(default)]
+    pub drag_glide: Option<(Vec3, f64, f64, Vec<usize>)>,
     pub pick_radius: Option<f32>,
     pub pick_strategy: PickStrategy,
     pub steps: u64,
@@ -99,7 +107,7 @@ impl Snapshot {
         stepper: &Stepper,
         picker: &Picker,
         grab: Option<&Grab>,
-        grip_radius: Option<f32>,
+        (grip_radius, drag_time): (Option<f32>, Option<f64>),
     ) -> Snapshot {
         Snapshot {
             scene: model.scene.clone(),
@@ -130,6 +138,11 @@ impl Snapshot {
             }),
             grip_origin: grab.map(|g| g.held[0].start),
             grip_radius,
+            drag_time,
+            drag_glide: state
+                .targets
+                .glide()
+                .map(|(g, moved)| (g.shift, g.from, g.until, moved)),
             pick_radius: picker.radius_setting(),
             pick_strategy: picker.strategy(),
             steps: state.clock.steps,
@@ -257,6 +270,20 @@ impl Snapshot {
         if let Some(r) = self.grip_radius {
             crate::interaction::checked_grip_radius(r as f64)?;
         }
+        if let Some(t) = self.drag_time {
+            crate::interaction::checked_drag_time(t)?;
+        }
+        if let Some((shift, from, until, moved)) = &self.drag_glide {
+            let has_target = |p: &usize| self.targets.iter().any(|(q, _)| q == p);
+            let finite = shift.is_finite() && from.is_finite() && until.is_finite();
+            if !(finite && until >= from && moved.iter().all(has_target)) {
+                return Err(Error::value(
+                    "drag_glide",
+                    "must be finite, end no earlier than it starts, and move particles with \
+                     targets",
+                ));
+            }
+        }
         if let Some(r) = self.pick_radius {
             picker.set_radius(r as f64)?;
         }
@@ -327,6 +354,10 @@ impl Snapshot {
         }
         for (p, target) in self.targets {
             state.targets.set(p, target);
+        }
+        if let Some((shift, from, until, moved)) = self.drag_glide {
+            let glide = crate::pins::Glide { shift, from, until };
+            state.targets.restore_glide(glide, &moved);
         }
         picker.set_strategy(self.pick_strategy);
         state.clock = Clock {

@@ -260,6 +260,7 @@ fn scene_any() -> BoxedStrategy<Scene> {
             k_bend: k[2],
             damping: k[3],
             pins,
+            cuts: Vec::new(),
             mesh: None,
             garment: None,
         });
@@ -408,6 +409,7 @@ fn scene_small() -> BoxedStrategy<Scene> {
                     None => PinSpec::Cell([(u * nx as f64) as i64, (v * ny as f64) as i64]),
                 })
                 .collect(),
+            cuts: Vec::new(),
             mesh: None,
             garment: None,
         });

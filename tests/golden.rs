@@ -151,10 +151,13 @@ fn cases() -> Vec<Case> {
                 let mut sim = Simulation::new(hanging(integrator)).unwrap();
                 let mut outcome = sim.step(50);
                 // Grab what a ray from the front hits, drag it, let go, cut a stroke. A grip of
-                // radius 0 holds the one particle, as a grab did before grips: bitwise the same.
+                // radius 0 holds the one particle, as a grab did before grips, and a drag time
+                // of 0 lands it on each target in the next substep, as a drag did before
+                // glides: bitwise the same.
                 let hit = sim.pick(Vec3::new(0.05, 3.0, 0.1), Vec3::NEG_Y).unwrap();
                 let p = hit.expect("the ray hits the cloth").index;
                 sim.set_grip_radius(0.0).unwrap();
+                sim.set_drag_time(0.0).unwrap();
                 sim.grab(p as i64).unwrap();
                 for k in 0..20 {
                     sim.drag_to(Vec3::new(0.05 + 0.01 * k as f32, 1.2, 0.3))

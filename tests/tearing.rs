@@ -10,8 +10,18 @@ use rustcloth::grid::{Family, SpringKind};
 use rustcloth::scene::TearingSpec;
 use rustcloth::{Error, Scene, Simulation};
 
+/// The built-in `tear` curtain as a plain sheet: without its perforation, tearing at 0.3
+/// strain, so that a pull rips where the pull alone puts the most strain (the scene itself
+/// rips along its perforation: tests/test_grip.py).
 fn tear_scene() -> Scene {
-    Scene::builtin("tear").unwrap()
+    let mut scene = Scene::builtin("tear").unwrap();
+    scene.cloth.cuts.clear();
+    let tearing = scene.tearing.take().expect("the tear scene tears");
+    scene.tearing = Some(TearingSpec {
+        max_strain: 0.3,
+        ..tearing
+    });
+    scene
 }
 
 /// Every live spring of the stiff families as `(kind, anchor, strain)`.

@@ -60,6 +60,14 @@ class MeshSettings(TypedDict):
     seams: NotRequired[SeamsSettings]
 
 
+class CutSettings(TypedDict):
+    """One of ``scene.cloth["cuts"]``: a polyline (m) severed as the cloth is built, whole or
+    in ``dash`` = ``[cut, gap]`` (m)."""
+
+    points: list[list[float]]
+    dash: NotRequired[list[float]]
+
+
 class ClothSettings(TypedDict):
     """``scene.cloth``: the grid, its placement, mass and springs."""
 
@@ -74,6 +82,7 @@ class ClothSettings(TypedDict):
     k_bend: float
     damping: float
     pins: list[Pin]
+    cuts: list[CutSettings]
     mesh: NotRequired[MeshSettings]
 
 

@@ -450,6 +450,20 @@ class Simulation:
     def grip_radius(self, radius: float) -> None:
         self._core.grip_radius = _args.real(radius, "grip_radius")
 
+    @property
+    def drag_time(self) -> float:
+        """Time in s a :meth:`drag_to` takes to carry the grip to its target, gliding from
+        where it is at a constant velocity (default 1/60, a 60 Hz frame: a demo calling
+        :meth:`drag_to` once a frame moves the grip continuously at the mouse's speed). A
+        shorter time moves it in bursts that jerk the springs round it, and tear them in a fast
+        drag; a longer one lags behind the mouse. Set it to a finite number ``>= 0``; 0 puts the
+        grip on each target in the next substep. It applies from the next :meth:`drag_to`."""
+        return self._core.drag_time
+
+    @drag_time.setter
+    def drag_time(self, seconds: float) -> None:
+        self._core.drag_time = _args.real(seconds, "drag_time")
+
     def grab(self, index: int) -> None:
         """Grab the cloth at particle ``index``, as a hand would: that particle and every live
         particle within :attr:`grip_radius` of it, joined to it by live springs inside that
@@ -459,7 +473,7 @@ class Simulation:
 
     def drag_to(self, target: Vector) -> None:
         """Move the grabbed particle's target (m), the rest of the grip keeping its offsets
-        from it; they get there over the next step. Does nothing without a grab."""
+        from it; they glide there over :attr:`drag_time`. Does nothing without a grab."""
         self._core.drag_to(_args.floats(target, "target", 3))
 
     def release(self) -> None:

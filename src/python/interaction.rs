@@ -37,6 +37,7 @@ methods! {
         call |sim| sim.cut_ray(origin.into(), direction.into());
     #[setter] fn set_pick_radius(radius: f64) -> () = call |sim| sim.set_pick_radius(radius);
     #[setter] fn set_grip_radius(radius: f64) -> () = call |sim| sim.set_grip_radius(radius);
+    #[setter] fn set_drag_time(seconds: f64) -> () = call |sim| sim.set_drag_time(seconds);
     fn grab(index: i64) -> () = call |sim| sim.grab(index);
     fn drag_to(target: [f32; 3]) -> () = call |sim| sim.drag_to(target.into());
     fn release() -> () = call |sim| {
@@ -51,6 +52,7 @@ methods! {
     #[getter] fn pick_radius() -> f32 = read |h| h.sim.pick_radius();
     #[getter] fn pick_strategy() -> &'static str = read |h| h.sim.pick_strategy().name();
     #[getter] fn grip_radius() -> f32 = read |h| h.sim.grip_radius();
+    #[getter] fn drag_time() -> f64 = read |h| h.sim.drag_time();
     fn grabbed() -> Option<usize> = read |h| h.sim.grabbed();
     fn gripped() -> Vec<usize> = read |h| h.sim.gripped();
     fn piece_labels() -> Rows<u32> = read |h| Rows(h.sim.piece_labels(), 0);

@@ -359,6 +359,9 @@ pub struct ClothSpec {
     /// Pinned particles. Default `["top_corners"]`. A mesh cloth has no named groups: give
     /// it vertex indices and boxes, or `pins = []`.
     pub pins: Vec<PinSpec>,
+    /// Cuts made in a grid cloth as it is built (`[[cloth.cuts]]`, [`super::cuts::CutSpec`]):
+    /// slits or perforations for a tear to run along. Default none.
+    pub cuts: Vec<super::cuts::CutSpec>,
     /// A cloth from a triangle mesh instead of the grid: `nx`, `ny`, `size`, `center`,
     /// `plane`, `particle_mass`, `mass`, the `k_*` and `damping` keys are the grid's and must
     /// keep their defaults (the mesh carries its own material). Absent (default): the grid.
@@ -410,6 +413,7 @@ impl Default for ClothSpec {
             k_bend: 10.0,
             damping: 0.01,
             pins: vec![PinSpec::Named("top_corners".into())],
+            cuts: Vec::new(),
             mesh: None,
             garment: None,
         }

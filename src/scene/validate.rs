@@ -337,6 +337,9 @@ impl ClothSpec {
         check_scalar("cloth.k_shear", self.k_shear, Bound::NonNegative)?;
         check_scalar("cloth.k_bend", self.k_bend, Bound::NonNegative)?;
         check_scalar("cloth.damping", self.damping, Bound::NonNegative)?;
+        for (k, cut) in self.cuts.iter().enumerate() {
+            cut.validate(&format!("cloth.cuts[{k}]"))?;
+        }
         self.check_pins()
     }
 }
@@ -380,6 +383,7 @@ impl ClothSpec {
             ("cloth.k_shear", self.k_shear != grid.k_shear),
             ("cloth.k_bend", self.k_bend != grid.k_bend),
             ("cloth.damping", self.damping != grid.damping),
+            ("cloth.cuts", !self.cuts.is_empty()),
         ];
         if let Some((name, _)) = grid_keys.iter().find(|(_, set)| *set) {
             return Err(Error::value(

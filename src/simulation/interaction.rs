@@ -6,7 +6,7 @@ use glam::Vec3;
 
 use super::Simulation;
 use crate::error::{Error, Result};
-use crate::interaction::{Grab, GRIP_SPACINGS};
+use crate::interaction::{Grab, DRAG_TIME, GRIP_SPACINGS};
 use crate::picking::STROKE_TREE_MIN_RAYS;
 use crate::picking::{BvhStats, ParticleHit, PickStrategy, Picker, Queries, TriangleHit};
 use crate::ray::Ray;
@@ -71,6 +71,19 @@ impl Simulation {
         Ok(())
     }
 
+    /// Time in s a [`Simulation::drag_to`] takes to carry the grip to its target (see
+    /// [`DRAG_TIME`], the default).
+    pub fn drag_time(&self) -> f64 {
+        self.drag_time.unwrap_or(DRAG_TIME)
+    }
+
+    /// Sets the drag time (s, finite and >= 0; 0 puts the grip on each target in the next
+    /// substep). It applies from the next `drag_to`.
+    pub fn set_drag_time(&mut self, seconds: f64) -> Result<()> {
+        self.drag_time = Some(crate::interaction::checked_drag_time(seconds)?);
+        Ok(())
+    }
+
     /// Grabs the cloth at particle `index`: that particle and every live particle within
     /// [`Simulation::grip_radius`] of it joined to it by live springs inside that ball (a
     /// patch of cloth, as a hand holds it) become kinematic pins where they are, which
@@ -94,8 +107,9 @@ impl Simulation {
     }
 
     /// Moves the grip so that the grabbed particle's target is `target` (m) and every other
-    /// particle of the grip moves by the same displacement from where it was grabbed: over the next step they move there, and
-    /// the cloth follows through its springs. Without a grab (or once the grabbed particle was
+    /// particle of the grip moves by the same displacement from where it was grabbed. The
+    /// grip glides there from where it is now at a constant velocity, arriving
+    /// [`Simulation::drag_time`] later, and the cloth follows through its springs. Without a grab (or once the grabbed particle was
     /// cut) this does nothing; particles of the grip cut since are skipped. Errors on a
     /// non-finite target.
     pub fn drag_to(&mut self, target: Vec3) -> Result<()> {
@@ -109,14 +123,20 @@ impl Simulation {
         let Some(grab) = self.grab.as_ref().filter(|g| alive[g.index()]) else {
             return Ok(());
         };
+        let first = grab.index();
+        let now = self.state.clock.time(self.model.scene.dt);
+        let here = (self.state.targets.at(first, now)).unwrap_or(self.state.kin.pos.get(first));
+        let mut moves = Vec::with_capacity(grab.held.len());
         for (p, to) in grab.targets(target) {
             if !self.model.particles.alive[p] || !to.is_finite() {
                 continue;
             }
             // Pinned again in case `unpin` was called during the drag.
             self.model.particles.set_pinned(p, true);
-            self.state.targets.set(p, to);
+            moves.push((p, to));
         }
+        let over = self.drag_time.unwrap_or(DRAG_TIME);
+        self.state.targets.glide_to(&moves, here, now, over);
         Ok(())
     }
 
@@ -187,6 +207,30 @@ impl Simulation {
             .iter()
             .filter_map(|ray| self.cut_along(ray, queries))
             .collect())
+    }
+
+    /// Makes the scene's `[[cloth.cuts]]` in the cloth as built, each dash a stroke (each one
+    /// counted in `topology_version`, as a user's strokes are). A cut that severs no spring
+    /// (it misses the cloth, or its dashes fall between springs) is an error naming it, as a
+    /// cut that does nothing is a mistake in the scene.
+    pub(super) fn make_scene_cuts(&mut self) -> Result<()> {
+        let cloth = &self.model.scene.cloth;
+        let strokes: Vec<_> = (cloth.cuts.iter())
+            .map(|cut| cut.strokes(cloth.plane, cloth.center))
+            .collect();
+        for (k, dashes) in strokes.iter().enumerate() {
+            let mut severed = 0;
+            for rays in dashes {
+                severed += self.sever_stroke(rays)?;
+            }
+            if severed == 0 {
+                return Err(Error::value(
+                    format!("cloth.cuts[{k}]"),
+                    "severs no spring of the cloth: its points must lie across the cloth as built",
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// Severs the cloth along a mouse stroke: every live spring whose segment crosses the

@@ -39,6 +39,8 @@ pub struct Simulation {
     grab: Option<Grab>,
     /// `None`: the default grip radius.
     grip_radius: Option<f32>,
+    /// `None`: the default drag time.
+    drag_time: Option<f64>,
     mesh: Mesh,
     render: RenderMesh,
     cutter: StrokeCutter,
@@ -48,17 +50,20 @@ impl Simulation {
     /// Builds the cloth the scene describes, at rest.
     pub fn new(scene: Scene) -> Result<Simulation> {
         let (model, pos) = Model::new(scene)?;
-        Ok(Simulation {
+        let mut sim = Simulation {
             stepper: Stepper::new(&model),
             state: State::new(pos),
             model,
             picker: Picker::default(),
             grab: None,
             grip_radius: None,
+            drag_time: None,
             mesh: Mesh::default(),
             render: RenderMesh::default(),
             cutter: StrokeCutter::default(),
-        })
+        };
+        sim.make_scene_cuts()?;
+        Ok(sim)
     }
 
     // ----- stepping -------------------------------------------------------------------------
@@ -433,7 +438,7 @@ impl Simulation {
             &self.stepper,
             &self.picker,
             self.grab.as_ref(),
-            self.grip_radius,
+            (self.grip_radius, self.drag_time),
         )
     }
 
@@ -455,6 +460,7 @@ impl Simulation {
             &mut self.picker,
         );
         self.grip_radius = snapshot.grip_radius;
+        self.drag_time = snapshot.drag_time;
         self.grab = snapshot.apply(model, state, stepper, picker)?;
         Ok(self)
     }

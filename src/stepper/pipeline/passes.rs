@@ -35,7 +35,7 @@ impl Pipeline {
         }
         let t = Instant::now();
         let next = &mut *s.next;
-        let finite = targets.apply(s.h, &s.state.kin.pos, &mut next.pos, &mut next.vel);
+        let finite = targets.apply(s.h, s.time, &s.state.kin.pos, &mut next.pos, &mut next.vel);
         s.profile.add(KinematicPins::NAME, t.elapsed());
         finite
     }
