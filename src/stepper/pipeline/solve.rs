@@ -312,6 +312,7 @@ impl Pipeline {
             let changed = contacts.correct(
                 &self.colliders,
                 (from, into),
+                self.integrator.contact_impulses(),
                 &job.model.particles,
                 (job.h, job.time),
                 job.chunk,
