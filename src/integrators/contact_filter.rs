@@ -89,9 +89,9 @@ impl ContactFilter {
         let Some(contacts) = contacts.filter(|c| c.count > 0) else {
             return;
         };
-        for p in 0..n {
+        for (p, &w) in inv_mass.iter().enumerate() {
             let normal = contacts.normal.get(p);
-            if normal == Vec3::ZERO || inv_mass[p] == 0.0 {
+            if normal == Vec3::ZERO || w == 0.0 {
                 continue;
             }
             let at = normal.dot(pos.get(p));
