@@ -11,8 +11,10 @@ say yes; a change of the physics says no, and the energy columns show what it di
     python benches/ab_contact.py --a /tmp/before --b python          # about two minutes
     python benches/ab_contact.py --a /tmp/before --b python --cases "pd pile 10 cm" --repeats 5
 
-Columns: solves and halved solves per step, self-collision reruns per step (substeps the pass
-ran beyond one per step), the highest total energy above the start over the start, ms per step.
+Columns: solves and halved solves per step, linear-solver iterations per step (implicit Euler:
+conjugate-gradient iterations; projective dynamics: local-global iterations), self-collision
+reruns per step (substeps the pass ran beyond one per step), the highest total energy above the
+start over the start, ms per step.
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ CASES: dict[str, tuple[str, str, float | None, float]] = {
     "pd pile 10 cm": ("pile", "projective_dynamics", 0.1, 0.8),
     "ie pile 10 cm": ("pile", "implicit_euler", 0.1, 0.8),
     "pd pile 40 cm": ("pile", "projective_dynamics", 0.4, 0.8),
+    "ie pile 40 cm": ("pile", "implicit_euler", 0.4, 0.8),
     "ie drape": ("drape", "implicit_euler", None, 2.0),
 }
 
@@ -57,6 +60,7 @@ def run_case(name: str, dt: float) -> dict[str, object]:
         "ms": 1e3 * step,
         "solves": solver.get("solves", 0) / steps,
         "halved": solver.get("halved", 0) / steps,
+        "iterations": solver.get("iterations", 0) / steps,
         "reruns": max(0, contact.get("substeps", steps) - steps) / steps,
         "gain": (highest - start) / abs(start),
         "digest": digest[:16],
@@ -92,9 +96,9 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if not (args.a and args.b):
         p.error("--a and --b are required")
-    print("| case | build | solves/step | halved/step | reruns/step | gain | ms/step | B / A "
-          "| same |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("| case | build | solves/step | halved/step | iterations/step | reruns/step | gain "
+          "| ms/step | B / A | same |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for name in args.cases:
         runs: dict[str, list[dict[str, object]]] = {"a": [], "b": []}
         for k in range(args.repeats):
@@ -107,7 +111,8 @@ def main(argv: list[str] | None = None) -> int:
             r = runs[key][0]
             ratio = f"{ms['b'] / ms['a']:.3f}" if key == "b" else ""
             print(f"| {name} | {key.upper()} | {r['solves']:.2f} | {r['halved']:.2f} "
-                  f"| {r['reruns']:.2f} | {float(str(r['gain'])):+.2e} | {ms[key]:.1f} | {ratio} "
+                  f"| {r['iterations']:.1f} | {r['reruns']:.2f} | {float(str(r['gain'])):+.2e} "
+                  f"| {ms[key]:.1f} | {ratio} "
                   f"| {same if key == 'b' else ''} |", flush=True)
     return 0
 

@@ -10,9 +10,15 @@
 //! `x + h v + h^2 g` of every particle; a particle they move is a contact, with the plane
 //! through the surface point they put it on, along the surface's outward normal there. The
 //! solver keeps such a particle on the outer side of its plane as part of the solve
-//! (`ImplicitEuler`: a stiff penalty along the normal in the linear system;
+//! (`ImplicitEuler`: exactly, its normal velocity change prescribed and filtered out of the
+//! conjugate gradient's search directions, `src/integrators/contact_filter.rs`;
 //! `ProjectiveDynamics`: a projection onto the plane's outer side, weighted in its global
-//! matrix), so the springs around it feel the contact within the same step.
+//! matrix), so the springs around it feel the contact within the same step. Implicit Euler's
+//! filtered solve costs about a tenth more CG iterations per solve than a stiff spring onto
+//! the plane did, and fewer contact rounds; `docs/contact.md` has the measurement
+//! (`benches/ab_contact.py`: on the `pile` dropped 40 cm at 1/60 s, 31.4 CG iterations and
+//! 3.08 solves per step against 32.0 and 3.46, step time ratio 1.01; on the `drape`, 37.6 and
+//! 2.89 against 34.7 and 2.97, ratio 0.90).
 //!
 //! The free motion follows gravity alone, so the prediction is corrected after the solve
 //! ([`PredictedContacts::correct`], run by the stepper until nothing changes, a few rounds at
@@ -137,15 +143,19 @@ impl PredictedContacts {
 
     /// Corrects the contacts after a solve wrote `solved` (from `current`, over a substep of
     /// length `h` ending at `time`) and returns how many changed. A contact holds only by
-    /// pushing: one whose particle the solve left ahead of its target (the plane, or its start
-    /// when it started behind it) was pulled in, and is released. A particle without one whose
-    /// solved motion ends inside a collider gets one, with the plane the collider puts it on:
-    /// the prediction follows only gravity, and the springs can carry a particle into a
-    /// collider its free motion missed.
+    /// pushing, and one that pulled is released: where the solver reports each contact's
+    /// normal `impulses` (N s; an exact constraint leaves its particle on its target, whichever
+    /// way it acted), one whose impulse is negative; elsewhere one whose particle the solve
+    /// left ahead of its target (the plane, or its start when it started behind it). A
+    /// particle without one whose solved motion ends inside a collider gets one, with the
+    /// plane the collider puts it on: the prediction follows only gravity, and the springs can
+    /// carry a particle into a collider its free motion missed. With `impulses`, not one that
+    /// started inside and moved out, which its contact could only pull back.
     pub fn correct(
         &mut self,
         colliders: &[Collider],
         (current, solved): (&Kinematics, &Kinematics),
+        impulses: Option<&[f32]>,
         particles: &Particles,
         (h, time): (f32, f64),
         chunk: usize,
@@ -160,7 +170,11 @@ impl PredictedContacts {
             let inside = normal != Vec3::ZERO && at.is_finite();
             if n != Vec3::ZERO {
                 let target = self.offset[p].min(n.dot(current.pos.get(p)));
-                if n.dot(x) > target {
+                let pulled = match impulses {
+                    Some(impulse) => impulse[p] < 0.0,
+                    None => n.dot(x) > target,
+                };
+                if pulled {
                     self.normal.set(p, Vec3::ZERO);
                     self.friction.set(p, Vec3::ZERO);
                     self.count -= 1;
@@ -175,7 +189,11 @@ impl PredictedContacts {
                 }
                 continue;
             }
-            if !inside {
+            // An exact constraint holds its particle on its target whichever way it must act:
+            // one that started inside and is moving out (never deeper than its start, the
+            // target then) would be pulled back in, and released again next round.
+            let outward = impulses.is_some() && normal.dot(x) >= normal.dot(current.pos.get(p));
+            if !inside || outward {
                 continue;
             }
             let dv = self.predicted.vel.get(p) - v;

@@ -6,6 +6,7 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
+use super::contact_filter::ContactFilter;
 use super::implicit_mesh::MeshSystem;
 use super::solver::{
     kind_slot, live_or_zero, Preconditioner, SolverSettings, SolverStats, CONTACT_STIFFNESS,
@@ -55,6 +56,8 @@ pub struct ImplicitEuler {
     work: Option<Work>,
     /// A mesh cloth's system ([`super::implicit_mesh`]), made on its first step.
     mesh: Option<MeshSystem>,
+    /// The predicted contacts held exactly inside the solve.
+    filter: ContactFilter,
 }
 
 /// The matrix `A = M + h drag I + sum_s C_s` (filtered), per-spring data and the solver's
@@ -102,6 +105,7 @@ impl ImplicitEuler {
             families: Vec::new(),
             work: None,
             mesh: None,
+            filter: ContactFilter::default(),
         }
     }
 }
@@ -109,6 +113,12 @@ impl ImplicitEuler {
 impl ImplicitEuler {
     pub fn solver_stats(&self) -> SolverStats {
         self.stats
+    }
+
+    /// Per particle, the normal impulse (N s) its predicted contact gave in the last solve:
+    /// positive where it pushed, zero without a contact.
+    pub fn contact_impulses(&self) -> &[f32] {
+        self.filter.impulses()
     }
 
     pub fn step(&mut self, h: f32, ctx: &mut StepContext) -> bool {
@@ -127,7 +137,8 @@ impl ImplicitEuler {
         }
         if let Some(mesh) = ctx.mesh {
             let system = self.mesh.get_or_insert_with(|| MeshSystem::new(mesh));
-            system.solve(mesh, (h, drag), self.settings, &mut self.stats, ctx);
+            let (settings, stats) = (self.settings, &mut self.stats);
+            system.solve(mesh, (h, drag), (settings, stats), &mut self.filter, ctx);
             return update(h, ctx, &system.dv);
         }
         let work = self.work.get_or_insert_with(|| {
@@ -145,9 +156,19 @@ impl ImplicitEuler {
         }
         assemble_diagonal_and_rhs(work, h, drag, ctx);
         if let Some(contacts) = ctx.contacts.filter(|c| c.count > 0) {
-            hold_contacts(work, h, contacts, ctx);
+            stiffen_contacts(work, contacts, ctx);
         }
         filter_couplings(work, ctx);
+        let (cur, w) = (ctx.current, &ctx.particles.inv_mass[..]);
+        let mass = &ctx.particles.mass;
+        let filter = &mut self.filter;
+        filter.gather(h, ctx.contacts, (&cur.pos, &cur.vel, w), |p| {
+            CONTACT_STIFFNESS * mass[p]
+        });
+        if !filter.is_empty() {
+            let (matrix, chunk) = (&work.matrix, ctx.chunk);
+            filter.reduce(&mut work.rhs, |x, y| matrix.apply(x, y, chunk));
+        }
 
         let settings = self.settings;
         match settings.preconditioner {
@@ -180,19 +201,18 @@ impl ImplicitEuler {
             ..
         } = work;
         let (matrix, chunk) = (&*matrix, ctx.chunk);
-        let (iterations, residual) = cg.solve(
-            matrix,
-            rhs,
-            dv,
-            settings.tolerance as f64,
-            settings.max_iterations,
-            |r, z| match settings.preconditioner {
-                Preconditioner::Multigrid => multigrid.apply(matrix, r, z, chunk),
-                Preconditioner::Jacobi | Preconditioner::BlockJacobi => {
-                    diagonal_blocks(jacobi, r, z)
-                }
-            },
-        );
+        let precondition = |r: &Vec3s, z: &mut Vec3s| match settings.preconditioner {
+            Preconditioner::Multigrid => multigrid.apply(matrix, r, z, chunk),
+            Preconditioner::Jacobi | Preconditioner::BlockJacobi => diagonal_blocks(jacobi, r, z),
+        };
+        let limits = (settings.tolerance as f64, settings.max_iterations);
+        // Without contacts the filter projects nothing: the plain preconditioned CG.
+        let filter = &self.filter;
+        let (iterations, residual) =
+            cg.solve_filtered(matrix, rhs, dv, limits, precondition, |v| filter.project(v));
+        if !self.filter.is_empty() {
+            self.filter.finish(dv, |x, y| matrix.apply(x, y, chunk));
+        }
         self.stats.solve_seconds += solving.elapsed().as_secs_f64();
         self.stats
             .record(iterations, residual, settings.tolerance as f64);
@@ -363,20 +383,19 @@ fn assemble_diagonal_and_rhs(work: &mut Work, h: f32, drag: f32, ctx: &StepConte
     *work.matrix.slot_mut(0) = diag;
 }
 
-/// Holds each predicted contact on its plane inside the solve: a stiff spring along the normal
-/// `n` pulling the particle's end position onto the plane, `f = -k_c n (n . x' - offset)` with
-/// `k_c = CONTACT_STIFFNESS m / h^2`, taken implicitly like every force here:
-/// `A += h^2 k_c n n^T`, `b -= h k_c n (max(n . x - offset, 0) + h n . v)`. Held (pinned,
-/// cut) particles have no contact.
-fn hold_contacts(work: &mut Work, h: f32, contacts: &PredictedContacts, ctx: &StepContext) {
-    let (mass, w, cur) = (&ctx.particles.mass, &ctx.particles.inv_mass, ctx.current);
-    let Work { matrix, rhs, .. } = work;
+/// Adds `k n n^T` (`k = CONTACT_STIFFNESS m`, the `h^2 k_c` of a stiff spring onto the plane)
+/// to the diagonal block of each free particle with a predicted contact. The contact itself is
+/// the [`ContactFilter`]'s, exact; `S (k n n^T) S = 0`, so this leaves the filtered system as it
+/// is, but the preconditioner built on the matrix then sees the particle as held along `n`,
+/// as the filtered system does.
+fn stiffen_contacts(work: &mut Work, contacts: &PredictedContacts, ctx: &StepContext) {
+    let (mass, w) = (&ctx.particles.mass, &ctx.particles.inv_mass);
+    let Work { matrix, .. } = work;
     let mut diag = std::mem::take(matrix.slot_mut(0));
     par_chunks6(&mut diag, ctx.chunk)
-        .zip(rhs.par_chunks_mut(ctx.chunk))
         .enumerate()
-        .for_each(|(ci, (mut d, mut b))| {
-            for i in 0..b.len() {
+        .for_each(|(ci, mut d)| {
+            for i in 0..d[0].len() {
                 let p = ci * ctx.chunk + i;
                 let n = contacts.normal.get(p);
                 if n == glam::Vec3::ZERO || w[p] == 0.0 {
@@ -394,13 +413,6 @@ fn hold_contacts(work: &mut Work, h: f32, contacts: &PredictedContacts, ctx: &St
                 for (column, v) in d.iter_mut().zip(block) {
                     column[i] += s * v;
                 }
-                // A particle that starts behind the plane (inside a collider) is held where it
-                // is along n, not pulled onto the plane within the step: that would turn the
-                // depth into speed. The collider pass after the step puts it out, as it puts
-                // out any particle, without velocity.
-                let ahead = (n.dot(cur.pos.get(p)) - contacts.offset[p]).max(0.0);
-                let gap = ahead + h * n.dot(cur.vel.get(p));
-                b.set(i, b.get(i) - (s / h) * gap * n);
             }
         });
     *matrix.slot_mut(0) = diag;

@@ -21,6 +21,11 @@
 //! contacts (`k_c n n^T` on a vertex's diagonal) are in the step's matrix, so in its smoother
 //! and its coarse operators alike.
 //!
+//! **Contacts** are held exactly by the grid's [`ContactFilter`]: the solve is the filtered
+//! conjugate gradient, preconditioned by the multigrid of the matrix with `k_c n n^T` on each
+//! contact's diagonal (which the filter removes from the operator, not from the
+//! preconditioner).
+//!
 //! Every sum has a fixed order (per spring, then per vertex over its springs in spring order;
 //! the multigrid's as its module says), so a step is bitwise the same for any number of threads.
 
@@ -29,6 +34,7 @@ use std::time::Instant;
 use glam::Vec3;
 use rayon::prelude::*;
 
+use super::contact_filter::ContactFilter;
 use super::solver::{live_or_zero, Preconditioner, SolverSettings, SolverStats, CONTACT_STIFFNESS};
 use super::StepContext;
 use crate::collisions::PredictedContacts;
@@ -105,14 +111,15 @@ impl MeshSystem {
         }
     }
 
-    /// Assembles the step's system (contacts held), builds the preconditioner and solves for
-    /// `dv` (in `self.dv`), booking the times and the solve in `stats`.
+    /// Assembles the step's system, builds the preconditioner and solves for `dv` (in
+    /// `self.dv`) with the predicted contacts held by `filter`, booking the times and the solve
+    /// in `stats`.
     pub(super) fn solve(
         &mut self,
         mesh: &MeshCloth,
         (h, drag): (f32, f32),
-        settings: SolverSettings,
-        stats: &mut SolverStats,
+        (settings, stats): (SolverSettings, &mut SolverStats),
+        filter: &mut ContactFilter,
         ctx: &StepContext,
     ) {
         let started = Instant::now();
@@ -120,7 +127,15 @@ impl MeshSystem {
         self.matrix.gather();
         self.assemble_diagonal_and_rhs(mesh, h, drag, ctx);
         if let Some(contacts) = ctx.contacts.filter(|c| c.count > 0) {
-            self.hold_contacts(h, contacts, ctx);
+            self.stiffen_contacts(contacts, ctx);
+        }
+        let (cur, w, mass) = (ctx.current, &ctx.particles.inv_mass, &ctx.particles.mass);
+        filter.gather(h, ctx.contacts, (&cur.pos, &cur.vel, w), |p| {
+            CONTACT_STIFFNESS * mass[p]
+        });
+        if !filter.is_empty() {
+            let matrix = &self.matrix;
+            filter.reduce(&mut self.rhs, |x, y| matrix.apply(x, y));
         }
         match settings.preconditioner {
             Preconditioner::Jacobi => {
@@ -166,16 +181,23 @@ impl MeshSystem {
         } = self;
         let (tolerance, most) = (settings.tolerance as f64, settings.max_iterations);
         let matrix = &*matrix;
+        let limits = (tolerance, most);
+        let held = &*filter;
+        let project = |v: &mut Vec3s| held.project(v);
+        // Without contacts the filter projects nothing: the plain preconditioned CG.
         let (iterations, residual) = match (settings.preconditioner, amg.as_mut()) {
             (Preconditioner::Multigrid, Some((_, amg))) => {
-                cg.solve(matrix, rhs, dv, tolerance, most, |r, z| {
-                    amg.apply(matrix, r, z)
-                })
+                let precondition = |r: &Vec3s, z: &mut Vec3s| amg.apply(matrix, r, z);
+                cg.solve_filtered(matrix, rhs, dv, limits, precondition, project)
             }
-            _ => cg.solve(matrix, rhs, dv, tolerance, most, |r, z| {
-                diagonal_blocks(jacobi, r, z)
-            }),
+            _ => {
+                let precondition = |r: &Vec3s, z: &mut Vec3s| diagonal_blocks(jacobi, r, z);
+                cg.solve_filtered(matrix, rhs, dv, limits, precondition, project)
+            }
         };
+        if !filter.is_empty() {
+            filter.finish(dv, |x, y| matrix.apply(x, y));
+        }
         stats.solve_seconds += solving.elapsed().as_secs_f64();
         stats.record(iterations, residual, settings.tolerance as f64);
     }
@@ -255,11 +277,10 @@ impl MeshSystem {
             });
     }
 
-    /// The grid's contact spring ([`super::implicit_euler`]'s `hold_contacts`) on each free
-    /// vertex with a predicted contact: `A += h^2 k_c n n^T`,
-    /// `b -= h k_c n (max(n . x - offset, 0) + h n . v)`, `k_c = CONTACT_STIFFNESS m / h^2`.
-    fn hold_contacts(&mut self, h: f32, contacts: &PredictedContacts, ctx: &StepContext) {
-        let (mass, w, cur) = (&ctx.particles.mass, &ctx.particles.inv_mass, ctx.current);
+    /// `k n n^T` (`k = CONTACT_STIFFNESS m`) on the diagonal block of each free vertex with a
+    /// predicted contact, for the preconditioner (the grid's `stiffen_contacts`).
+    fn stiffen_contacts(&mut self, contacts: &PredictedContacts, ctx: &StepContext) {
+        let (mass, w) = (&ctx.particles.mass, &ctx.particles.inv_mass);
         for p in 0..self.matrix.len() {
             let n = contacts.normal.get(p);
             if n == Vec3::ZERO || w[p] == 0.0 {
@@ -267,9 +288,6 @@ impl MeshSystem {
             }
             let s = CONTACT_STIFFNESS * mass[p];
             self.matrix.diagonal[p].add_scaled(s, &Sym3::outer(1.0, n, 0.0));
-            let ahead = (n.dot(cur.pos.get(p)) - contacts.offset[p]).max(0.0);
-            let gap = ahead + h * n.dot(cur.vel.get(p));
-            self.rhs.set(p, self.rhs.get(p) - (s / h) * gap * n);
         }
     }
 

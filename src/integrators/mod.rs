@@ -6,6 +6,7 @@
 //! its end into a second buffer (`next`). The stepper swaps the two only when the step came out
 //! finite, so rolling back a diverged step costs nothing.
 
+mod contact_filter;
 mod explicit_euler;
 mod implicit_euler;
 mod implicit_mesh;
@@ -165,6 +166,17 @@ impl Integrator {
     pub fn set_history(&mut self, history: History) {
         if let Integrator::Verlet(v) = self {
             v.set_history(history);
+        }
+    }
+
+    /// Per particle, the normal impulse (N s) its predicted contact gave inside the last solve,
+    /// for an integrator whose contacts are exact constraints (implicit Euler); None for the
+    /// others, whose contacts [`crate::collisions::PredictedContacts::correct`] judges by
+    /// where the solve left the particle.
+    pub fn contact_impulses(&self) -> Option<&[f32]> {
+        match self {
+            Integrator::ImplicitEuler(i) => Some(i.contact_impulses()),
+            _ => None,
         }
     }
 

@@ -146,8 +146,10 @@ pub(super) fn depth(n: Vec3, offset: f32, xn: Vec3, dx: Vec3) -> f32 {
     -ahead - n.dot(dx)
 }
 
-/// How much stiffer than its own inertia (`m / h^2`) the penalty holding a contact is. The
-/// predicted penetration left after the solve is `1 / (1 + CONTACT_STIFFNESS)` of the free
-/// motion's; larger also holds, but worsens the matrix's condition for nothing the collider
-/// pass after the step does not already correct.
+/// How much stiffer than its own inertia (`m / h^2`) implicit Euler makes a held particle along
+/// its contact normal in the matrix it builds its preconditioner on (`k n n^T`, `k` this times
+/// `m`, on the particle's diagonal block). The contact itself is exact (the conjugate gradient
+/// is filtered, `contact_filter.rs`), and the filter removes this term from the operator, so it
+/// only shapes the preconditioner, which then treats the particle as nearly fixed along `n`, as
+/// the filtered system does.
 pub(super) const CONTACT_STIFFNESS: f32 = 1000.0;

@@ -10,7 +10,14 @@
 //!
 //! until `|r| / |b|` is below the tolerance. The preconditioner `M^-1` is the caller's (block
 //! Jacobi through [`diagonal_blocks`], a multigrid V-cycle); it must be symmetric positive
-//! definite for the iteration to be CG. A direction along which `p . q` is not positive (the
+//! definite for the iteration to be CG.
+//!
+//! **Filtered.** [`ConjugateGradient::solve_filtered`] takes a projection `S` (symmetric,
+//! `S^2 = S`) and keeps every vector in its range: `r = S b`, `z = S M^-1 r`, `q = S A p`. It is
+//! then CG on `S A S` restricted to `range(S)`, preconditioned by `S M^-1 S`, both positive
+//! definite there when `A` and `M` are (Ascher and Boxerman, "On the modified conjugate
+//! gradient method in cloth simulation", 2003: the pre-filtered PPCG of Baraff and Witkin's
+//! constraint filtering), and `x` stays in `range(S)`. A direction along which `p . q` is not positive (the
 //! matrix is not positive definite there, or overflowed) ends the solve where it stands.
 //!
 //! Dot products are partial sums over fixed chunks added in order ([`super::reduce`]) and every
@@ -70,23 +77,41 @@ impl ConjugateGradient {
         x: &mut Vec3s,
         tolerance: f64,
         max_iterations: u32,
+        precondition: impl FnMut(&Vec3s, &mut Vec3s),
+    ) -> (u32, f64) {
+        let settings = (tolerance, max_iterations);
+        self.solve_filtered(a, b, x, settings, precondition, |_| {})
+    }
+
+    /// [`ConjugateGradient::solve`] with every vector kept in the range of the projection
+    /// `filter` (which projects its argument in place): solves `S A S x = S b` for `x` in
+    /// `range(S)`, stopping on `|r| / |S b|` at most `tolerance` or after `max_iterations`.
+    pub fn solve_filtered<A: BlockOperator>(
+        &mut self,
+        a: &A,
+        b: &Vec3s,
+        x: &mut Vec3s,
+        (tolerance, max_iterations): (f64, u32),
         mut precondition: impl FnMut(&Vec3s, &mut Vec3s),
+        mut filter: impl FnMut(&mut Vec3s),
     ) -> (u32, f64) {
         x.fill(glam::Vec3::ZERO);
         self.r.copy_from(b);
-        let b_dot_b = par_dot(b, b, &mut self.partials);
+        filter(&mut self.r);
+        let b_dot_b = par_dot(&self.r, &self.r, &mut self.partials);
         let b_norm = b_dot_b.sqrt();
         if !(b_norm > 0.0 && b_norm.is_finite()) {
             // Nothing to solve (every node held, or no load), or a non-finite right-hand side,
             // which the caller's finite check then reports.
             return (0, if b_norm == 0.0 { 0.0 } else { f64::NAN });
         }
-        let mut rz = self.precondition(&mut precondition);
+        let mut rz = self.precondition(&mut precondition, &mut filter);
         self.p.copy_from(&self.z);
         let mut residual = 1.0;
         let mut iterations = 0;
         while residual > tolerance && iterations < max_iterations {
             let pq = self.product(a);
+            filter(&mut self.q);
             if pq <= 0.0 || !pq.is_finite() {
                 break; // breakdown: the matrix is not positive definite along p
             }
@@ -96,7 +121,7 @@ impl ConjugateGradient {
             if residual <= tolerance {
                 break;
             }
-            let rz_new = self.precondition(&mut precondition);
+            let rz_new = self.precondition(&mut precondition, &mut filter);
             self.next_direction((rz_new / rz) as f32);
             rz = rz_new;
         }
@@ -107,9 +132,14 @@ impl ConjugateGradient {
         (iterations, residual)
     }
 
-    /// `z = M^-1 r`, returning `r . z`.
-    fn precondition(&mut self, precondition: &mut impl FnMut(&Vec3s, &mut Vec3s)) -> f64 {
+    /// `z = S M^-1 r`, returning `r . z`.
+    fn precondition(
+        &mut self,
+        precondition: &mut impl FnMut(&Vec3s, &mut Vec3s),
+        filter: &mut impl FnMut(&mut Vec3s),
+    ) -> f64 {
         precondition(&self.r, &mut self.z);
+        filter(&mut self.z);
         par_dot(&self.r, &self.z, &mut self.partials)
     }
 

@@ -10,6 +10,7 @@ use crate::integrators::Integrator;
 use crate::scene::{ColliderSpec, Scene, SphereSpec};
 use crate::self_collision::SelfCollision;
 use crate::soa::Vec3s;
+use crate::state::Kinematics;
 use crate::strain_limit::StrainLimit;
 use crate::tearing::Tearing;
 use crate::wind::Wind;
@@ -38,6 +39,8 @@ impl Pipeline {
                 .map(|t| Tearing::new(t.max_strain as f32, t.max_per_step)),
             wind: scene.wind.as_ref().map(|w| Wind::new(w, particles)),
             halves: Vec::new(),
+            last_piece: None,
+            piece_start: Kinematics::zeros(0),
             halved: 0,
             start_energy: None,
             unshortened: Vec3s::zeros(0),

@@ -69,6 +69,13 @@ pub(super) struct Pipeline {
     pub contacts: Option<PredictedContacts>,
     /// The midpoints of a solve split in halves, one per level (`solve.rs`).
     halves: Vec<Kinematics>,
+    /// Where the last piece of a substep's solve split in halves started, and its length (s);
+    /// None while the substep's solve was whole. The collider passes after the solve follow
+    /// that piece's path, the one its last contact rounds checked, not a straight path from
+    /// the substep's start: a particle that went round a ball over two halves would be taken
+    /// for one that went through it.
+    last_piece: Option<f32>,
+    piece_start: Kinematics,
     /// Solves split in halves since the pipeline was compiled.
     pub halved: u64,
     /// The energy at the substep's start, where a solver holds contacts and nothing does work
@@ -189,3 +196,6 @@ impl Pipeline {
             + self.unshortened.heap_bytes()
     }
 }
+
+#[cfg(test)]
+mod tests;

@@ -58,13 +58,17 @@ impl Pipeline {
         finite
     }
 
-    /// Puts the particles outside every collider, in the scene's order.
+    /// Puts the particles outside every collider, in the scene's order, along the path of
+    /// the last piece of the solve (`Pipeline::last_piece`).
     pub fn collide(&mut self, s: &mut Substep) -> bool {
         let mut finite = true;
         for collider in &self.colliders {
             let t = Instant::now();
             let particles = &s.model.particles;
-            let (start, time) = (&s.state.kin, (s.h, s.time));
+            let (start, time) = match self.last_piece {
+                Some(h) => (&self.piece_start, (h, s.time)),
+                None => (&s.state.kin, (s.h, s.time)),
+            };
             finite &= collider.resolve(start, s.next, None, particles, s.chunk, time);
             s.profile.add(collider.name(), t.elapsed());
         }

@@ -188,6 +188,7 @@ impl Pipeline {
         self.forces.arm_stretch_watch();
         self.forces.set_time(s.time - s.h as f64);
         let judge = self.start_energy;
+        self.last_piece = None;
         let (finite, _) = self.solve_judged(&mut job, (&s.state.kin, s.next), false, judge, 0);
         let own_time = started
             .elapsed()
@@ -251,6 +252,12 @@ impl Pipeline {
         let mut end = None;
         if finite {
             job.time = time;
+            // A second half halved again sets its own last piece after this.
+            self.last_piece = Some(job.h);
+            if self.piece_start.pos.len() != mid.pos.len() {
+                self.piece_start = Kinematics::zeros(mid.pos.len());
+            }
+            self.piece_start.copy_from(&mid);
             let second = judged.then(|| at_mid.unwrap_or_else(|| energy_of(job.model, &mid)));
             (finite, end) = self.solve_judged(job, (&mid, into), true, second, depth);
         }
@@ -312,6 +319,7 @@ impl Pipeline {
             let changed = contacts.correct(
                 &self.colliders,
                 (from, into),
+                self.integrator.contact_impulses(),
                 &job.model.particles,
                 (job.h, job.time),
                 job.chunk,
