@@ -13,12 +13,9 @@
 //! (`ImplicitEuler`: exactly, its normal velocity change prescribed and filtered out of the
 //! conjugate gradient's search directions, `src/integrators/contact_filter.rs`;
 //! `ProjectiveDynamics`: a projection onto the plane's outer side, weighted in its global
-//! matrix), so the springs around it feel the contact within the same step. Implicit Euler's
-//! filtered solve costs about a tenth more CG iterations per solve than a stiff spring onto
-//! the plane did, and fewer contact rounds; `docs/contact.md` has the measurement
-//! (`benches/ab_contact.py`: on the `pile` dropped 40 cm at 1/60 s, 31.4 CG iterations and
-//! 3.08 solves per step against 32.0 and 3.46, step time ratio 1.01; on the `drape`, 37.6 and
-//! 2.89 against 34.7 and 2.97, ratio 0.90).
+//! matrix), so the springs around it feel the contact within the same step. What the filtered
+//! solve costs against a stiff spring onto the plane is measured by `benches/ab_contact.py`
+//! (`docs/contact.md`).
 //!
 //! The free motion follows gravity alone, so the prediction is corrected after the solve
 //! ([`PredictedContacts::correct`], run by the stepper until nothing changes, a few rounds at
