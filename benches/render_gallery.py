@@ -1,16 +1,19 @@
 """Regenerates the pictures in docs/ from the current renderer, offscreen through EGL: one
 screenshot per built-in scene, a drag, a cut, a rollback on the overlay, the debug views, the
-light presets, the two quality tiers side by side, and the README's GIF of a drag and a cut.
-(It sits beside render_times.py, which regenerates the frame-time tables; neither is run by
-the tests.)
+light presets, the two quality tiers side by side, and the README's GIF of a drag and a cut;
+and the showcase: the scenes that do what their names say (a drag rips `tear`, `fold` stays
+over its bar, `pile` piles, `flag` and `curtain` in the wind, `twist` winds into a rope) as one
+contact sheet, and a GIF of the rip. (It sits beside render_times.py, which regenerates the
+frame-time tables; neither is run by the tests.)
 
-    python benches/render_gallery.py [--out docs]
+    python benches/render_gallery.py [--out docs] [--only showcase]
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -32,9 +35,11 @@ FPS = 30.0
 def run(ctx: Any, scene: str, seconds: float, size: tuple[int, int] = SIZE, *,
         script: list[dict[str, Any]] | None = None, keep: tuple[float, ...] = (),
         keys: dict[float, str] | None = None, title: str | None = None,
+        hand: Callable[[rustcloth.Simulation, float], None] | None = None,
         **options: Any) -> dict[float, Frame]:
     """Run ``scene`` for ``seconds`` at FPS, returning the frames at the times in ``keep``
-    (and the last one under ``seconds``); ``title`` replaces the overlay's status text."""
+    (and the last one under ``seconds``); ``title`` replaces the overlay's status text;
+    ``hand(sim, t)`` acts on the simulation through the API before the frame at time t."""
     sim = rustcloth.Simulation(rustcloth.load_scene(scene))
     viewer = Viewer(ctx, sim, size, name=scene, realtime=False, script=script,
                     overlay=title is not None or options.pop("overlay", False), **options)
@@ -49,6 +54,8 @@ def run(ctx: Any, scene: str, seconds: float, size: tuple[int, int] = SIZE, *,
     for k in range(frames + 1):
         if k in pending:
             viewer.key(pending[k])
+        if hand is not None:
+            hand(sim, k / FPS)
         viewer.frame(fbo, 0.0 if k == 0 else 1.0 / FPS)
         if k in wanted:
             fbo.read_into(image, components=3)
@@ -91,14 +98,64 @@ def drag_and_cut(scene: str) -> list[dict[str, Any]]:
     ]
 
 
+def corner_drag(move: tuple[float, float, float], start: float, seconds: float
+                ) -> Callable[[rustcloth.Simulation, float], None]:
+    """A hand that grabs the lower-left corner at ``start`` (picked by a ray from the viewer's
+    side), leads it by ``move`` (m) over ``seconds`` frame by frame, holds it a second and lets
+    go: the drag that tests/test_grip.py rips `tear` with."""
+    held: dict[str, Any] = {}
+
+    def act(sim: rustcloth.Simulation, t: float) -> None:
+        if t < start or held.get("released"):
+            return
+        if "from" not in held:
+            hit = sim.pick(sim.positions[0] + [0.0, 0.0, 3.0], [0.0, 0.0, -1.0])
+            assert hit is not None, "the corner is not under the ray"
+            sim.grab(hit[0])
+            held["from"] = sim.positions[hit[0]].copy()
+        if t - start <= seconds + 1.0:
+            sim.drag_to(held["from"] + np.asarray(move) * min(1.0, (t - start) / seconds))
+        else:
+            sim.release()
+            held["released"] = True
+
+    return act
+
+
+def showcase(ctx: Any, out: Path) -> None:
+    """The showcase scenes, each at a moment that shows what its name promises, as one contact
+    sheet (showcase.png), and the rip of `tear` as a GIF (tear.gif)."""
+    small = (480, 300)
+    rip = corner_drag((-0.6, -0.6, 0.0), 0.5, 0.2)
+    shots = [
+        run(ctx, "tear", 1.4, small, hand=rip, title="tear: a drag rips it")[1.4],
+        run(ctx, "fold", 5.0, small, title="fold: over the bar after 5 s")[5.0],
+        run(ctx, "pile", 4.0, small, title="pile: dropped on a ball, piled")[4.0],
+        run(ctx, "flag", 2.5, small, title="flag: in the wind")[2.5],
+        run(ctx, "curtain", 2.5, small, title="curtain: in a draught")[2.5],
+        run(ctx, "twist", 3.0, small, title="twist: winding into a rope")[3.0],
+    ]
+    _save(out / "showcase.png", montage(shots, 2))
+    gif = run(ctx, "tear", 3.0, small, hand=corner_drag((-0.6, -0.6, 0.0), 0.5, 0.2),
+              keep=tuple(k / 15.0 for k in range(45)))
+    write_gif(out / "tear.gif", [gif[t] for t in sorted(gif)][::2], 15.0 / 2)
+    print(f"wrote {out / 'tear.gif'}", file=sys.stderr)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0],
                                      formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     parser.add_argument("--out", type=Path, default=Path("docs"), help="where to write")
+    parser.add_argument("--only", choices=("showcase",), default=None,
+                        help="only these pictures (default: all)")
     args = parser.parse_args(argv)
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
     ctx = create_standalone_context()
+    showcase(ctx, out)
+    if args.only == "showcase":
+        ctx.release()
+        return 0
 
     for scene, t in (("drape", 3.0), ("hanging", 2.5), ("freefall", 1.6), ("curtain", 2.5)):
         _save(out / f"screenshot_{scene}.png", run(ctx, scene, t)[t])
