@@ -8,8 +8,6 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{check_vector, Bound, Error, Result};
 
-use super::specs::Plane;
-
 /// One cut: a polyline on the cloth as built, severed as a scissor stroke severs it
 /// (`Simulation::sever_stroke`, with rays along the cloth plane's normal through its points).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -51,11 +49,12 @@ impl CutSpec {
         Ok(())
     }
 
-    /// The strokes that make this cut on a cloth in `plane`: each the `(origin, direction)`
-    /// rays of one dash (the whole polyline without a dash), from one metre in front of the
-    /// plane through the point at `centre`'s depth.
-    pub(crate) fn strokes(&self, plane: Plane, centre: [f64; 3]) -> Vec<Vec<(Vec3, Vec3)>> {
-        let (ei, ej) = plane.axes();
+    /// The strokes that make this cut on a cloth whose starting plane has the in-plane `axes`
+    /// (`Plane::axes`): each the `(origin, direction)` rays of one dash (the whole polyline
+    /// without a dash), from one metre in front of the plane through the point at `centre`'s
+    /// depth.
+    pub(crate) fn strokes(&self, axes: (Vec3, Vec3), centre: [f64; 3]) -> Vec<Vec<(Vec3, Vec3)>> {
+        let (ei, ej) = axes;
         let normal = ei.cross(ej).as_dvec3();
         let c = glam::DVec3::from(centre);
         let on_plane = |p: glam::DVec3| p - normal * (p - c).dot(normal);

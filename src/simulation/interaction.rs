@@ -216,7 +216,7 @@ impl Simulation {
     pub(super) fn make_scene_cuts(&mut self) -> Result<()> {
         let cloth = &self.model.scene.cloth;
         let strokes: Vec<_> = (cloth.cuts.iter())
-            .map(|cut| cut.strokes(cloth.plane, cloth.center))
+            .map(|cut| cut.strokes(cloth.plane.axes(), cloth.center))
             .collect();
         for (k, dashes) in strokes.iter().enumerate() {
             let mut severed = 0;
