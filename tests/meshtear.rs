@@ -54,23 +54,24 @@ fn pull_apart(sim: &mut Simulation, steps: u32, mut each: impl FnMut(&mut Simula
     }
 }
 
-/// The mass-weighted centre of the particles `of`, in f64.
-fn centre(sim: &Simulation, of: &[usize]) -> glam::DVec3 {
+/// The mass-weighted mean of `field` (positions or velocities) over the particles `of`, in f64.
+fn mass_mean(sim: &Simulation, of: &[usize], field: &rustcloth::soa::Vec3s) -> glam::DVec3 {
     let mass = &sim.particles().mass;
     let total: f64 = of.iter().map(|&p| mass[p] as f64).sum();
     of.iter()
-        .map(|&p| sim.positions().get(p).as_dvec3() * mass[p] as f64)
+        .map(|&p| field.get(p).as_dvec3() * mass[p] as f64)
         .sum::<glam::DVec3>()
         / total
 }
 
+/// The centre of mass of the particles `of`.
+fn centre(sim: &Simulation, of: &[usize]) -> glam::DVec3 {
+    mass_mean(sim, of, sim.positions())
+}
+
+/// The velocity of the centre of mass of the particles `of`.
 fn velocity(sim: &Simulation, of: &[usize]) -> glam::DVec3 {
-    let mass = &sim.particles().mass;
-    let total: f64 = of.iter().map(|&p| mass[p] as f64).sum();
-    of.iter()
-        .map(|&p| sim.velocities().get(p).as_dvec3() * mass[p] as f64)
-        .sum::<glam::DVec3>()
-        / total
+    mass_mean(sim, of, sim.velocities())
 }
 
 /// The particles of the piece labelled `label`.
