@@ -91,13 +91,17 @@ impl KinematicPins {
 
     /// Where particle `p`'s target is at time `t` (on its way, while it glides).
     pub fn at(&self, p: usize, t: f64) -> Option<Vec3> {
-        let k = self.position(p)?;
-        let gap = if self.gliding[k] {
-            self.gap(t)
+        self.position(p).map(|k| self.placed(k, self.gap(t)))
+    }
+
+    /// Where target `k` is while the gliding ones are `gap` from theirs.
+    fn placed(&self, k: usize, gap: Vec3) -> Vec3 {
+        let target = self.targets[k].1;
+        if self.gliding[k] {
+            target + gap
         } else {
-            Vec3::ZERO
-        };
-        Some(self.targets[k].1 + gap)
+            target
+        }
     }
 
     fn position(&self, p: usize) -> Option<usize> {
@@ -160,8 +164,8 @@ impl KinematicPins {
     pub fn apply(&self, h: f32, t: f64, start: &Vec3s, pos: &mut Vec3s, vel: &mut Vec3s) -> bool {
         let mut finite = true;
         let gap = self.gap(t);
-        for (&(p, target), &glides) in self.targets.iter().zip(&self.gliding) {
-            let at = if glides { target + gap } else { target };
+        for (k, &(p, _)) in self.targets.iter().enumerate() {
+            let at = self.placed(k, gap);
             let v = (at - start.get(p)) / h;
             vel.set(p, v);
             pos.set(p, at);

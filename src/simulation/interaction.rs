@@ -135,7 +135,7 @@ impl Simulation {
             self.model.particles.set_pinned(p, true);
             moves.push((p, to));
         }
-        let over = self.drag_time.unwrap_or(DRAG_TIME);
+        let over = self.drag_time();
         self.state.targets.glide_to(&moves, here, now, over);
         Ok(())
     }
