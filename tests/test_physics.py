@@ -119,8 +119,13 @@ def test_divergence_restores_the_last_finite_state_and_names_the_step():
 DIGEST_SCRIPT = textwrap.dedent(
     """
     import hashlib, sys, rustcloth
-    scene = rustcloth.load_scene("drape")
-    scene = scene.replace(integrator=sys.argv[1], cloth={"nx": 96, "ny": 96, "pins": ["corners"]})
+    if len(sys.argv) > 2:
+        # A built-in scene as it is, 40 of its steps.
+        scene = rustcloth.load_scene(sys.argv[2])
+    else:
+        scene = rustcloth.load_scene("drape")
+        cloth = {"nx": 96, "ny": 96, "pins": ["corners"]}
+        scene = scene.replace(integrator=sys.argv[1], cloth=cloth)
     sim = rustcloth.Simulation(scene)
     sim.step(40)
     digest = hashlib.sha256(sim.positions.tobytes() + sim.velocities.tobytes()).hexdigest()
@@ -131,12 +136,15 @@ DIGEST_SCRIPT = textwrap.dedent(
 ISAS = ("baseline", "avx2", "avx512")
 
 
-def digest_with(env: dict[str, str], integrator: str = "symplectic_euler") -> tuple[str, str, int]:
-    """``(state digest, instruction set used, threads used)`` of a run in a fresh process."""
+def digest_with(
+    env: dict[str, str], integrator: str = "symplectic_euler", scene: str | None = None
+) -> tuple[str, str, int]:
+    """``(state digest, instruction set used, threads used)`` of a run in a fresh process: the
+    96 x 96 drape under ``integrator``, or the built-in ``scene`` as it is."""
     chosen = ("RUSTCLOTH_SIMD", "RAYON_NUM_THREADS")
     clean = {k: v for k, v in os.environ.items() if k not in chosen}
-    out = subprocess.run([sys.executable, "-c", DIGEST_SCRIPT, integrator],
-                         env=dict(clean, **env), check=True, capture_output=True, text=True)
+    args = [sys.executable, "-c", DIGEST_SCRIPT, integrator, *([scene] if scene else [])]
+    out = subprocess.run(args, env=dict(clean, **env), check=True, capture_output=True, text=True)
     digest, isa, threads = out.stdout.split()
     return digest, isa, int(threads)
 
@@ -151,6 +159,21 @@ def test_state_is_bitwise_identical_across_vector_instruction_sets(integrator):
     runs = {isa: digest_with({"RUSTCLOTH_SIMD": isa}, integrator) for isa in ISAS}
     for isa, (_, used, _) in runs.items():
         assert used == ISAS[min(ISAS.index(isa), ISAS.index(best))], (isa, used, best)
+    assert len({digest for digest, _, _ in runs.values()}) == 1, runs
+
+
+def test_mesh_cloth_state_is_bitwise_identical_across_instruction_sets_and_threads():
+    # The mesh's spring pass gathers its ends and vectorises the arithmetic per block; the
+    # shirt has stretch, bend and seam springs, the seams closing.
+    best = digest_with({}, scene="shirt")[1]
+    runs = {
+        (isa, threads): digest_with(
+            {"RUSTCLOTH_SIMD": isa, "RAYON_NUM_THREADS": str(threads)}, scene="shirt"
+        )
+        for isa, threads in (("baseline", 1), ("avx2", 2), ("avx512", 1), ("avx512", 3))
+    }
+    for (isa, threads), (_, used, used_threads) in runs.items():
+        assert used == ISAS[min(ISAS.index(isa), ISAS.index(best))] and used_threads == threads
     assert len({digest for digest, _, _ in runs.values()}) == 1, runs
 
 

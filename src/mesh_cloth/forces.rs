@@ -3,12 +3,16 @@
 //! vertex gathers `+F` or `-F` from the springs that touch it, in increasing spring order. The
 //! order of every sum is fixed by the mesh, so the result is bitwise the same for any number of
 //! threads, and each spring's two ends get bitwise opposite forces (momentum is conserved up to
-//! the order of summation).
+//! the order of summation). Both passes are written for the vector unit: the first gathers a
+//! block's differences before its arithmetic, the second sums a group of vertices at once
+//! ([`IncidenceLanes`]); neither reorders any operation, so every instruction set gives the
+//! same bits.
 
 use rayon::prelude::*;
 
-use super::{EdgeKind, MeshCloth};
-use crate::soa::Vec3s;
+use super::{EdgeKind, EdgeSprings, MeshCloth};
+use crate::scene::{IncidenceLanes, LANES};
+use crate::soa::{Vec3SliceMut, Vec3s};
 use crate::springs::overstretched;
 
 /// Springs per parallel work item of the first pass.
@@ -30,54 +34,25 @@ impl MeshCloth {
         watch: Option<f32>,
     ) -> bool {
         let s = &self.springs;
-        table.resize(s.len(), [0.0; 3]);
+        // One entry per spring, and the lanes' padding entry.
+        table.resize(s.len() + 1, [0.0; 3]);
         let limit = watch.unwrap_or(f32::INFINITY);
-        let over = table
+        let over = table[..s.len()]
             .par_chunks_mut(SPRING_CHUNK)
             .enumerate()
             .map(|(c, forces)| {
-                let mut over = false;
-                for (i, f) in forces.iter_mut().enumerate() {
-                    let e = c * SPRING_CHUNK + i;
-                    let (a, b) = (s.a[e] as usize, s.b[e] as usize);
-                    let d = pos.get(b) - pos.get(a);
-                    let l = d.length();
-                    let rest = if s.kind[e] == EdgeKind::Seam {
-                        s.rest[e] * sewing
-                    } else {
-                        // A severed spring's ends part freely.
-                        over |= s.active[e] && overstretched(l, s.rest[e], 1.0, limit);
-                        s.rest[e]
-                    };
-                    let u = if l > 0.0 { d / l } else { d * 0.0 };
-                    let closing = (vel.get(b) - vel.get(a)).dot(u);
-                    let magnitude = s.k[e] * (l - rest) + s.c[e] * closing;
-                    // A seam is a thread: it pulls its ends together, it never pushes them
-                    // apart (a pair that came closer than the seam's rest length is slack).
-                    let slack = s.kind[e] == EdgeKind::Seam && l <= rest;
-                    *f = if slack {
-                        [0.0; 3]
-                    } else {
-                        (magnitude * u).to_array()
-                    };
-                }
-                over
+                let first = c * SPRING_CHUNK;
+                crate::simd::dispatch!(spring_forces(s, first, (pos, vel), sewing, limit, forces))
             })
             .reduce(|| false, |x, y| x | y);
-        let table = &*table;
-        out.par_chunks_mut(chunk)
-            .enumerate()
-            .for_each(|(c, mut f)| {
-                for i in 0..f.len() {
-                    let v = c * chunk + i;
-                    let mut sum = f.get(i);
-                    for &e in self.springs_at(v) {
-                        let g = glam::Vec3::from_array(table[(e >> 1) as usize]);
-                        sum = if e & 1 == 0 { sum + g } else { sum - g };
-                    }
-                    f.set(i, sum);
-                }
-            });
+        table[s.len()] = [-0.0; 3];
+        let (table, lanes) = (&*table, &self.lanes);
+        // Whole groups of vertices per work item; each vertex's sum is the same in any split.
+        let per_item = chunk.next_multiple_of(LANES);
+        out.par_chunks_mut(per_item).enumerate().for_each(|(c, f)| {
+            let first = c * per_item / LANES;
+            crate::simd::dispatch!(gather_forces(lanes, first, table, f))
+        });
         watch.is_some() && over
     }
 
@@ -149,5 +124,138 @@ impl MeshCloth {
             normals.set(v, normals.get(v).try_normalize().unwrap_or(fallback));
         }
         normals
+    }
+}
+
+/// Springs per block of [`spring_forces`]: the block's gathered differences (six arrays of
+/// `f32`) stay in the first-level cache.
+const BLOCK: usize = 256;
+
+/// The force on the first end of springs `first..first + out.len()` into `out`; whether one of
+/// them other than a seam is longer than `limit` times its rest length. Block by block, the
+/// ends' position and velocity differences are gathered into contiguous arrays first, so that
+/// the arithmetic (a square root and three divisions a spring) runs as one loop with no branch
+/// and no bounds check, which each instruction set's build vectorises. The arithmetic is
+/// glam's, component by component in the same order, so every build gives the same bits.
+#[inline(always)]
+fn spring_forces(
+    s: &EdgeSprings,
+    first: usize,
+    (pos, vel): (&Vec3s, &Vec3s),
+    sewing: f32,
+    limit: f32,
+    out: &mut [[f32; 3]],
+) -> bool {
+    let mut over = false;
+    let mut gathered = [[0.0f32; BLOCK]; 6];
+    for (b, out) in out.chunks_mut(BLOCK).enumerate() {
+        let springs = first + b * BLOCK..first + b * BLOCK + out.len();
+        gather_differences(s, springs.clone(), (pos, vel), &mut gathered);
+        let n = out.len();
+        let (rest, k, c) = (
+            &s.rest[springs.clone()],
+            &s.k[springs.clone()],
+            &s.c[springs.clone()],
+        );
+        let (kind, active) = (&s.kind[springs.clone()], &s.active[springs]);
+        let [dx, dy, dz, wx, wy, wz] = &gathered;
+        let (dx, dy, dz, wx, wy, wz) = (&dx[..n], &dy[..n], &dz[..n], &wx[..n], &wy[..n], &wz[..n]);
+        for e in 0..n {
+            let d = [dx[e], dy[e], dz[e]];
+            let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            let seam = kind[e] == EdgeKind::Seam;
+            let rest = if seam { rest[e] * sewing } else { rest[e] };
+            // A severed spring's ends part freely.
+            over |= !seam & active[e] & overstretched(l, rest, 1.0, limit);
+            let u = if l > 0.0 {
+                [d[0] / l, d[1] / l, d[2] / l]
+            } else {
+                [d[0] * 0.0, d[1] * 0.0, d[2] * 0.0]
+            };
+            let closing = wx[e] * u[0] + wy[e] * u[1] + wz[e] * u[2];
+            let magnitude = k[e] * (l - rest) + c[e] * closing;
+            // A seam is a thread: it pulls its ends together, it never pushes them apart (a
+            // pair that came closer than the seam's rest length is slack).
+            let slack = seam & (l <= rest);
+            out[e] = if slack {
+                [0.0; 3]
+            } else {
+                [magnitude * u[0], magnitude * u[1], magnitude * u[2]]
+            };
+        }
+    }
+    over
+}
+
+/// `x_b - x_a` and `v_b - v_a` of springs `springs` into `into` (x, y, z of the position,
+/// then of the velocity), from the first entry on.
+#[inline(always)]
+fn gather_differences(
+    s: &EdgeSprings,
+    springs: std::ops::Range<usize>,
+    (pos, vel): (&Vec3s, &Vec3s),
+    into: &mut [[f32; BLOCK]; 6],
+) {
+    let (a, b) = (&s.a[springs.clone()], &s.b[springs]);
+    let coordinates = [
+        &pos.x[..],
+        &pos.y[..],
+        &pos.z[..],
+        &vel.x[..],
+        &vel.y[..],
+        &vel.z[..],
+    ];
+    // One check of the block's largest end lets the loads below go unchecked, and so become
+    // the vector unit's gathers.
+    let len = coordinates.iter().map(|x| x.len()).min().unwrap_or(0);
+    let top = a.iter().chain(b).fold(0, |t, &i| t.max(i as usize + 1));
+    assert!(
+        top <= len,
+        "a spring's end ({}) beyond the {len} particles",
+        top - 1
+    );
+    for (x, into) in coordinates.into_iter().zip(into.iter_mut()) {
+        for ((&i, &j), into) in a.iter().zip(b).zip(into.iter_mut()) {
+            // SAFETY: `i` and `j` are below `top <= len <= x.len()`.
+            *into = unsafe { x.get_unchecked(j as usize) - x.get_unchecked(i as usize) };
+        }
+    }
+}
+
+/// Adds to `f` (the forces of the vertices from group `first` on) each vertex's springs' forces
+/// from `table` (per spring, on its first end; the padding entry `-0.0`), `+F` at a spring's
+/// first end and `-F` at its second, in the order of the vertex's incidence list: a group's
+/// [`LANES`] sums advance together, one row of its layout at a time.
+#[inline(always)]
+fn gather_forces(lanes: &IncidenceLanes, first: usize, table: &[[f32; 3]], f: Vec3SliceMut<'_>) {
+    assert!(
+        lanes.pad() < table.len(),
+        "a force table without the padding entry"
+    );
+    let groups =
+        f.x.chunks_mut(LANES)
+            .zip(f.y.chunks_mut(LANES))
+            .zip(f.z.chunks_mut(LANES));
+    for (g, ((x, y), z)) in groups.enumerate() {
+        let m = x.len();
+        let mut sum = [[0.0f32; LANES]; 3];
+        for (sum, f) in sum.iter_mut().zip([&*x, &*y, &*z]) {
+            sum[..m].copy_from_slice(f);
+        }
+        for row in lanes.group(first + g).chunks_exact(LANES) {
+            for (lane, &e) in row.iter().enumerate() {
+                // SAFETY: every slot's spring is at most `lanes.pad()` (`IncidenceLanes::new`),
+                // below `table.len()`.
+                let force = unsafe { table.get_unchecked((e >> 1) as usize) };
+                // A multiply by +-1, not a branch; `sum + -1 * F` is bitwise `sum - F`.
+                let sign = 1.0 - 2.0 * (e & 1) as f32;
+                for c in 0..3 {
+                    sum[c][lane] += force[c] * sign;
+                }
+            }
+        }
+        for (f, sum) in [x, y, z].into_iter().zip(&sum) {
+            f.copy_from_slice(&sum[..m]);
+        }
     }
 }

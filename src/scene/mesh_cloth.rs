@@ -7,7 +7,7 @@ use std::collections::HashMap;
 use glam::DVec3;
 
 use super::mesh::{check_indices, has_zero_area};
-use super::{ClothSpec, MeshSpec, SeamsSpec};
+use super::{ClothSpec, IncidenceLanes, MeshSpec, SeamsSpec};
 use crate::error::{check_scalar, check_vector, Bound, Error, Result};
 
 /// Two vertices closer than this (m) are one point.
@@ -93,6 +93,8 @@ pub struct MeshCloth {
     /// increasing order, each as `spring << 1 | end` (`end` 1 at the spring's `b`).
     pub offsets: Vec<u32>,
     pub incident: Vec<u32>,
+    /// The same lists in groups of vertices, for the force pass's vector unit.
+    pub lanes: IncidenceLanes,
     /// The mean length of the mesh's edges at rest (m): its spacing, where the grid has one.
     pub mean_edge: f64,
     /// Seconds over which the seams close (0 without seams).
@@ -177,6 +179,7 @@ impl MeshCloth {
             None => 0.0,
         };
         let (offsets, incident) = incidence(n, &springs);
+        let lanes = IncidenceLanes::new(&offsets, &incident, springs.len());
         // Every edge has one stretch spring, at its rest length.
         let edges = (0..springs.len()).filter(|&s| springs.kind[s] == EdgeKind::Stretch);
         let (total, count) = edges.fold((0.0, 0), |(t, c), s| (t + springs.rest[s] as f64, c + 1));
@@ -190,6 +193,7 @@ impl MeshCloth {
             springs,
             offsets,
             incident,
+            lanes,
             sew_time,
         })
     }
@@ -269,6 +273,7 @@ impl MeshCloth {
             + self.masses.capacity() * 8
             + self.springs.heap_bytes()
             + (self.offsets.capacity() + self.incident.capacity()) * 4
+            + self.lanes.heap_bytes()
     }
 }
 

@@ -7,6 +7,7 @@
 //! Units are SI throughout: metres, kilograms, seconds, newtons.
 
 mod cuts;
+mod lanes;
 mod mesh;
 mod mesh_cloth;
 mod pins;
@@ -18,6 +19,7 @@ mod validate;
 use serde::{Deserialize, Serialize};
 
 pub use cuts::CutSpec;
+pub use lanes::{IncidenceLanes, LANES};
 pub use mesh::{is_closed, merged_indices};
 pub use mesh_cloth::{EdgeKind, EdgeSprings, MeshCloth};
 pub use pins::PIN_GROUPS;

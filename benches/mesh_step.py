@@ -1,0 +1,64 @@
+"""The explicit step of a mesh cloth against the grid of the same particle count.
+
+    RAYON_NUM_THREADS=1 python benches/mesh_step.py [--n 129] [--steps 100] [--repeat 3] [--wall]
+
+An `n` x `n` jittered square (``tests/test_mesh_cloth.py``'s ``jittered_square``: irregular, each
+quad split along its shorter diagonal; `stretch` 60 N/m, 0.2 kg/m^2, two corners pinned) and the
+`n` x `n` grid of the default material, both under symplectic Euler at 20 us (within both stable
+steps). Prints the best of `--repeat` runs of `--steps` steps after 5, per step: CPU time of
+this process (steady on a shared machine with one thread; ``--wall`` for wall time with
+several). Two builds compare by running this once with each on ``PYTHONPATH``, one after the
+other.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
+import rustcloth  # noqa: E402
+from test_mesh_cloth import jittered_square  # noqa: E402
+
+
+def per_step(scene: rustcloth.Scene, steps: int, wall: bool) -> float:
+    """Milliseconds per step of `steps` steps of a fresh simulation of `scene`, after 5."""
+    tick = time.perf_counter if wall else time.process_time
+    sim = rustcloth.Simulation(scene)
+    sim.step(5)
+    start = tick()
+    sim.step(steps)
+    return (tick() - start) / steps * 1e3
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--n", type=int, default=129, help="points along a side (default 129)")
+    parser.add_argument("--steps", type=int, default=100)
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--wall", action="store_true", help="wall time instead of CPU time")
+    args = parser.parse_args()
+    n = args.n
+    grid = rustcloth.Scene.from_dict({
+        "integrator": "symplectic_euler",
+        "dt": 2e-5,
+        "cloth": {"nx": n, "ny": n, "size": [1.0, 1.0], "pins": ["top_corners"]},
+    })
+    vertices, triangles = jittered_square(n)
+    mesh = grid.with_cloth_mesh(
+        vertices, triangles, stretch=60.0, density=0.2, pins=[n * n - n, n * n - 1]
+    )
+    runs = [(per_step(grid, args.steps, args.wall), per_step(mesh, args.steps, args.wall))
+            for _ in range(args.repeat)]
+    g, m = min(r[0] for r in runs), min(r[1] for r in runs)
+    kind = "wall" if args.wall else "CPU"
+    print(f"{rustcloth.__file__}: {rustcloth._core.instruction_set()}, "
+          f"{rustcloth._core.thread_count()} thread(s), {kind} time per step")
+    print(f"grid {n} x {n}: {g:.3f} ms   mesh {n * n} vertices: {m:.3f} ms   "
+          f"mesh / grid {m / g:.2f}")
+
+
+if __name__ == "__main__":
+    main()
