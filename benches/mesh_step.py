@@ -1,14 +1,18 @@
-"""The explicit step of a mesh cloth against the grid of the same particle count.
+"""The step of a mesh cloth against the grid of the same particle count.
 
     RAYON_NUM_THREADS=1 python benches/mesh_step.py [--n 129] [--steps 100] [--repeat 3] [--wall]
+        [--stiff]
 
 An `n` x `n` jittered square (``tests/test_mesh_cloth.py``'s ``jittered_square``: irregular, each
 quad split along its shorter diagonal; `stretch` 60 N/m, 0.2 kg/m^2, two corners pinned) and the
 `n` x `n` grid of the default material, both under symplectic Euler at 20 us (within both stable
-steps). Prints the best of `--repeat` runs of `--steps` steps after 5, per step: CPU time of
-this process (steady on a shared machine with one thread; ``--wall`` for wall time with
-several). Two builds compare by running this once with each on ``PYTHONPATH``, one after the
-other.
+steps). With ``--stiff``, both stiff at 1/60 s under implicit Euler with the multigrid
+preconditioner (smoothed aggregation on the mesh): the grid's `k_structural` 500, `k_shear` 125
+and `k_bend` 25 N/m, the mesh's `stretch` 1500 and `bend` 200 N/m, both 0.5 kg (as
+``examples/mesh_implicit.rs``), at most 20 steps. Prints the best of `--repeat` runs of `--steps`
+steps after 5, per step: CPU time of this process (steady on a shared machine with one thread;
+``--wall`` for wall time with several). Two builds compare by running this once with each on
+``PYTHONPATH``, one after the other.
 """
 
 from __future__ import annotations
@@ -39,17 +43,31 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=100)
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--wall", action="store_true", help="wall time instead of CPU time")
+    parser.add_argument("--stiff", action="store_true", help="implicit Euler, stiff, 1/60 s")
     args = parser.parse_args()
     n = args.n
-    grid = rustcloth.Scene.from_dict({
-        "integrator": "symplectic_euler",
-        "dt": 2e-5,
-        "cloth": {"nx": n, "ny": n, "size": [1.0, 1.0], "pins": ["top_corners"]},
-    })
     vertices, triangles = jittered_square(n)
-    mesh = grid.with_cloth_mesh(
-        vertices, triangles, stretch=60.0, density=0.2, pins=[n * n - n, n * n - 1]
-    )
+    pins = [n * n - n, n * n - 1]
+    if args.stiff:
+        grid = rustcloth.Scene.from_dict({
+            "integrator": "implicit_euler",
+            "dt": 1 / 60,
+            "preconditioner": "multigrid",
+            "cloth": {"nx": n, "ny": n, "size": [1.0, 1.0], "pins": ["top_corners"],
+                      "particle_mass": 0.5 / (n * n), "k_structural": 500.0,
+                      "k_shear": 125.0, "k_bend": 25.0},
+        })
+        mesh = grid.with_cloth_mesh(
+            vertices, triangles, stretch=1500.0, bend=200.0, density=0.5, pins=pins
+        )
+        args.steps = min(args.steps, 20)
+    else:
+        grid = rustcloth.Scene.from_dict({
+            "integrator": "symplectic_euler",
+            "dt": 2e-5,
+            "cloth": {"nx": n, "ny": n, "size": [1.0, 1.0], "pins": ["top_corners"]},
+        })
+        mesh = grid.with_cloth_mesh(vertices, triangles, stretch=60.0, density=0.2, pins=pins)
     runs = [(per_step(grid, args.steps, args.wall), per_step(mesh, args.steps, args.wall))
             for _ in range(args.repeat)]
     g, m = min(r[0] for r in runs), min(r[1] for r in runs)
