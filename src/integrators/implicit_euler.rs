@@ -168,8 +168,8 @@ impl ImplicitEuler {
         match ctx.self_pairs {
             Some(pairs) => {
                 self_contact.gather(h, pairs, (&cur.pos, &cur.vel, w));
-                self_contact.add_diagonal(work.matrix.slot_mut(0));
-                self_contact.add_rhs(h, &mut work.rhs);
+                self_contact.add_diagonal(0, work.matrix.slot_mut(0));
+                self_contact.add_rhs(0, h, &mut work.rhs);
             }
             None => self_contact.clear(),
         }

@@ -122,12 +122,8 @@ impl SelfContactTerm {
         }
         let added = self.held.len() - before;
         if added > 0 {
-            let new = SelfContactTerm {
-                held: self.held[before..].to_vec(),
-                ..Default::default()
-            };
-            new.add_diagonal(d);
-            new.add_rhs(h, b);
+            self.add_diagonal(before, d);
+            self.add_rhs(before, h, b);
             self.index_rows(pos.len());
         }
         added
@@ -176,9 +172,10 @@ impl SelfContactTerm {
         self.held.len()
     }
 
-    /// `h^2 k c_i^2 n n^T` onto each free vertex's diagonal block (`xx, yy, zz, xy, xz, yz`).
-    pub(super) fn add_diagonal(&self, d: &mut SlotArrays) {
-        for held in &self.held {
+    /// `h^2 k c_i^2 n n^T` of the held pairs from the `from`-th on, onto each free vertex's
+    /// diagonal block (`xx, yy, zz, xy, xz, yz`).
+    pub(super) fn add_diagonal(&self, from: usize, d: &mut SlotArrays) {
+        for held in &self.held[from..] {
             let block = outer(held.n);
             for k in 0..4 {
                 let p = held.verts[k] as usize;
@@ -190,9 +187,10 @@ impl SelfContactTerm {
         }
     }
 
-    /// `h k (delta - g_pred) c_i n` onto each free vertex's right-hand side.
-    pub(super) fn add_rhs(&self, h: f32, b: &mut Vec3s) {
-        for held in &self.held {
+    /// `h k (delta - g_pred) c_i n` of the held pairs from the `from`-th on, onto each free
+    /// vertex's right-hand side.
+    pub(super) fn add_rhs(&self, from: usize, h: f32, b: &mut Vec3s) {
+        for held in &self.held[from..] {
             let push = held.s / h * held.short * held.n;
             for k in 0..4 {
                 let p = held.verts[k] as usize;
@@ -369,7 +367,7 @@ mod tests {
         let term = held(&pairs, (&pos, &vel, &inv_mass));
         assert_eq!(term.len(), 2, "both pairs are ahead of the step");
         let mut b = Vec3s::zeros(8);
-        term.add_rhs(1.0 / 60.0, &mut b);
+        term.add_rhs(0, 1.0 / 60.0, &mut b);
         let total: DVec3 = (0..8).map(|p| b.get(p).as_dvec3()).sum();
         let scale: f64 = (0..8).map(|p| b.get(p).as_dvec3().length()).sum();
         assert!(scale > 0.0);
@@ -377,7 +375,7 @@ mod tests {
         // The whole matrix term (diagonal and couplings) applied to any vector sums to zero.
         let x = Vec3s::from_fn(8, |v| Vec3::new(v as f32 * 0.3 - 1.0, (v * v) as f32, -0.5));
         let mut d: SlotArrays = std::array::from_fn(|_| crate::soa::Floats::zeros(8));
-        term.add_diagonal(&mut d);
+        term.add_diagonal(0, &mut d);
         let mut y = Vec3s::zeros(8);
         for p in 0..8 {
             y.set(p, block_times(&d, p, x.get(p)));
