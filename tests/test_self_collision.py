@@ -19,7 +19,8 @@ def _pile(n: int = 12, **self_collision: object) -> Scene:
 
 def test_the_key_fills_its_defaults_and_round_trips():
     scene = Scene(self_collision={"thickness": 0.004})
-    assert scene.self_collision == {"thickness": 0.004, "friction": 0.2, "iterations": 4}
+    assert scene.self_collision == {"thickness": 0.004, "friction": 0.2, "iterations": 4,
+                                    "solve_stiffness": 0.0}
     assert Scene.from_toml_str(scene.to_toml()) == scene
     assert Scene().self_collision is None
 
@@ -53,6 +54,8 @@ def test_a_pile_stays_apart_and_finite():
         ("thickness", 0.5),  # beyond half the grid spacing
         ("friction", -0.1),
         ("iterations", 0),
+        ("solve_stiffness", -1.0),
+        ("solve_stiffness", float("nan")),
     ],
 )
 def test_bad_values_name_the_parameter(key: str, value: float):

@@ -19,7 +19,7 @@ def test_off_and_on_again_continues_bit_for_bit_and_survives_pickling():
     for s in (sim, untouched):
         s.advance(0.3)
     own = sim.self_collision
-    assert own == {"thickness": 0.003, "friction": 0.3, "iterations": 4}
+    assert own == {"thickness": 0.003, "friction": 0.3, "iterations": 4, "solve_stiffness": 0.0}
     sim.self_collision = None
     assert sim.self_collision is None and "self_collision" not in sim.effects
     assert sim.scene.self_collision is None

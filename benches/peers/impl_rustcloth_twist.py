@@ -47,7 +47,8 @@ THICKNESS = 0.002  # m
 FRICTION = 0.2
 
 
-def scene(integrator: str, k: tuple[float, float, float], steps_per_frame: int) -> rustcloth.Scene:
+def scene(integrator: str, k: tuple[float, float, float], steps_per_frame: int,
+          solve_stiffness: float = 0.0) -> rustcloth.Scene:
     base = rustcloth.load_scene("twist")
     return base.replace(
         integrator=integrator,
@@ -55,7 +56,8 @@ def scene(integrator: str, k: tuple[float, float, float], steps_per_frame: int) 
         substeps=1,
         cloth={"nx": N, "ny": N, "size": list(SIZE), "particle_mass": MASS / (N * N),
                "k_structural": k[0], "k_shear": k[1], "k_bend": k[2]},
-        self_collision={**base.self_collision, "thickness": THICKNESS, "friction": FRICTION},
+        self_collision={**base.self_collision, "thickness": THICKNESS, "friction": FRICTION,
+                        "solve_stiffness": solve_stiffness},
     )
 
 
@@ -68,18 +70,21 @@ def main() -> None:
                    help="structural, shear, bending (N/m)")
     p.add_argument("--steps-per-frame", type=int, default=STEPS_PER_FRAME,
                    help="steps per 1/60 s frame (default 10, newton's substeps)")
+    p.add_argument("--solve-stiffness", type=float, default=0.0,
+                   help="self_collision.solve_stiffness: implicit Euler holds the pairs ahead "
+                        "of its step apart inside its solve (default 0: off)")
     args = p.parse_args()
     t0 = time.perf_counter()
-    s = scene(args.integrator, tuple(args.k), args.steps_per_frame)
+    s = scene(args.integrator, tuple(args.k), args.steps_per_frame, args.solve_stiffness)
     sim = rustcloth.Simulation(s)
     driver = TwistDriver(sim, turns=RATE_TURNS * END, seconds=END)
     setup = time.perf_counter() - t0
     triangles = sim.triangles
-    walls, steps, drives = [], [], []
+    walls, steps, drives, cpus = [], [], [], []
     samples = [sample(0, sim.positions, triangles)]
     for frame in range(1, args.frames + 1):
         stepping = driving = 0.0
-        w0 = time.perf_counter()
+        w0, c0 = time.perf_counter(), time.process_time()
         for _ in range(args.steps_per_frame):
             d0 = time.perf_counter()
             driver.before_step(sim)
@@ -89,6 +94,7 @@ def main() -> None:
             driving += d1 - d0
             stepping += d2 - d1
         walls.append(time.perf_counter() - w0)
+        cpus.append(time.process_time() - c0)
         steps.append(stepping)
         drives.append(driving)
         if frame % args.every == 0 or frame == args.frames:
@@ -107,6 +113,9 @@ def main() -> None:
         "setup_s": setup,
         "first_frame_s": walls[0],
         "walls": walls,
+        # The process's CPU time (every thread's), steadier than the wall time on a shared
+        # machine; with RAYON_NUM_THREADS=1 it is the frame's cost on one core.
+        "cpu_ms_per_frame": 1e3 * float(np.mean(cpus[1:] or cpus)),
         "step_ms_per_frame": 1e3 * float(np.mean(steps[1:] or steps)),
         "driver_ms_per_frame": 1e3 * float(np.mean(drives[1:] or drives)),
         "samples": samples,
@@ -115,8 +124,11 @@ def main() -> None:
         "substeps": args.steps_per_frame,
         "integrator": args.integrator,
         "k": list(args.k),
+        "solve_stiffness": args.solve_stiffness,
         "pairs_per_substep": stats.get("pairs", 0) / substeps,
         "contacts_per_substep": stats.get("contacts", 0) / substeps,
+        "capped_per_substep": stats.get("capped", 0) / substeps,
+        "stopped_per_substep": stats.get("stopped", 0) / substeps,
         "swept_share": stats.get("swept_substeps", 0) / substeps,
         "min_distance": min_distance if min_distance is not None
         and np.isfinite(min_distance) else None,

@@ -125,6 +125,7 @@ class SelfCollisionSettings(TypedDict):
     thickness: float
     friction: float
     iterations: int
+    solve_stiffness: float
 
 
 class TearingSettings(TypedDict):

@@ -90,7 +90,9 @@ class Profile:
     ``worst_residual`` (relative), ``not_converged`` (solves that missed the tolerance),
     ``factorizations``, ``setup_seconds`` and ``solve_seconds``, and ``halved``: solves
     holding contacts that gained energy while nothing did work on the cloth, run again in
-    halves (README, "Contact at long steps"). For ``implicit_euler`` a solve
+    halves (README, "Contact at long steps"); ``self_pairs``: self-collision pairs
+    ``implicit_euler`` held apart inside its solves (``self_collision.solve_stiffness``,
+    docs/contact.md). For ``implicit_euler`` a solve
     is one conjugate-gradient solve and its residual ``|r| / |b|``; for
     ``projective_dynamics`` a solve is one substep's local-global iterations and its residual
     the relative gradient ``|g_k| / |g_0|``. None for the explicit integrators."""

@@ -8,6 +8,7 @@ use rayon::prelude::*;
 
 use super::contact_filter::ContactFilter;
 use super::implicit_mesh::MeshSystem;
+use super::self_contact::{outer, SelfContactTerm, WithSelfContacts};
 use super::solver::{
     kind_slot, live_or_zero, Preconditioner, SolverSettings, SolverStats, CONTACT_STIFFNESS,
 };
@@ -58,6 +59,8 @@ pub struct ImplicitEuler {
     mesh: Option<MeshSystem>,
     /// The predicted contacts held exactly inside the solve.
     filter: ContactFilter,
+    /// The self-collision pairs held apart inside the solve (grid cloth only).
+    self_contact: SelfContactTerm,
 }
 
 /// The matrix `A = M + h drag I + sum_s C_s` (filtered), per-spring data and the solver's
@@ -106,6 +109,7 @@ impl ImplicitEuler {
             work: None,
             mesh: None,
             filter: ContactFilter::default(),
+            self_contact: SelfContactTerm::default(),
         }
     }
 }
@@ -160,66 +164,77 @@ impl ImplicitEuler {
         }
         filter_couplings(work, ctx);
         let (cur, w) = (ctx.current, &ctx.particles.inv_mass[..]);
+        let self_contact = &mut self.self_contact;
+        match ctx.self_pairs {
+            Some(pairs) => {
+                self_contact.gather(h, pairs, (&cur.pos, &cur.vel, w));
+                self_contact.add_diagonal(0, work.matrix.slot_mut(0));
+                self_contact.add_rhs(0, h, &mut work.rhs);
+            }
+            None => self_contact.clear(),
+        }
+        self.stats.self_pairs += self_contact.len() as u64;
         let mass = &ctx.particles.mass;
         let filter = &mut self.filter;
         filter.gather(h, ctx.contacts, (&cur.pos, &cur.vel, w), |p| {
             CONTACT_STIFFNESS * mass[p]
         });
+        let term = (!self.self_contact.is_empty()).then_some(&self.self_contact);
         if !filter.is_empty() {
-            let (matrix, chunk) = (&work.matrix, ctx.chunk);
-            filter.reduce(&mut work.rhs, |x, y| matrix.apply(x, y, chunk));
+            let (operator, chunk) = (
+                WithSelfContacts {
+                    matrix: &work.matrix,
+                    term,
+                },
+                ctx.chunk,
+            );
+            filter.reduce(&mut work.rhs, |x, y| operator.apply(x, y, chunk));
         }
 
+        self.stats.setup_seconds += started.elapsed().as_secs_f64();
         let settings = self.settings;
-        match settings.preconditioner {
-            Preconditioner::Jacobi => {
-                let d = work.matrix.slot(0);
-                for (c, out) in work.jacobi.iter_mut().enumerate() {
-                    for (p, o) in out.iter_mut().enumerate() {
-                        *o = if c < 3 && d[c][p] > 0.0 {
-                            1.0 / d[c][p]
-                        } else {
-                            0.0
-                        };
-                    }
-                }
+        let mut round = 0;
+        loop {
+            let term = (!self.self_contact.is_empty()).then_some(&self.self_contact);
+            solve_once(
+                work,
+                term,
+                &mut self.filter,
+                (settings, &mut self.stats),
+                ctx.chunk,
+            );
+            round += 1;
+            // More rounds only for the self-contact pairs alone: a collider's filtered
+            // right-hand side is reduced once.
+            let Some(pairs) = ctx.self_pairs.filter(|_| self.filter.is_empty()) else {
+                break;
+            };
+            if round >= SELF_ROUNDS {
+                break;
             }
-            Preconditioner::BlockJacobi => {
-                work.matrix.diagonal_inverse(&mut work.jacobi, ctx.chunk)
+            let Work {
+                matrix, rhs, dv, ..
+            } = &mut *work;
+            let added = self.self_contact.extend(
+                h,
+                pairs,
+                (&cur.pos, &cur.vel, dv, w),
+                (matrix.slot_mut(0), rhs),
+            );
+            self.stats.self_pairs += added as u64;
+            if added == 0 {
+                break;
             }
-            Preconditioner::Multigrid => work.multigrid.build(&work.matrix, ctx.chunk),
         }
-        let solving = Instant::now();
-        self.stats.setup_seconds += (solving - started).as_secs_f64();
-        let Work {
-            matrix,
-            jacobi,
-            multigrid,
-            rhs,
-            dv,
-            cg,
-            ..
-        } = work;
-        let (matrix, chunk) = (&*matrix, ctx.chunk);
-        let precondition = |r: &Vec3s, z: &mut Vec3s| match settings.preconditioner {
-            Preconditioner::Multigrid => multigrid.apply(matrix, r, z, chunk),
-            Preconditioner::Jacobi | Preconditioner::BlockJacobi => diagonal_blocks(jacobi, r, z),
-        };
-        let limits = (settings.tolerance as f64, settings.max_iterations);
-        // Without contacts the filter projects nothing: the plain preconditioned CG.
-        let filter = &self.filter;
-        let (iterations, residual) =
-            cg.solve_filtered(matrix, rhs, dv, limits, precondition, |v| filter.project(v));
-        if !self.filter.is_empty() {
-            self.filter.finish(dv, |x, y| matrix.apply(x, y, chunk));
-        }
-        self.stats.solve_seconds += solving.elapsed().as_secs_f64();
-        self.stats
-            .record(iterations, residual, settings.tolerance as f64);
 
         update(h, ctx, &work.dv)
     }
 }
+
+/// How many times at most implicit Euler solves a step with self-contact pairs held inside it:
+/// after a solve, the pairs it brought within `thickness` are held too and the step is solved
+/// again.
+const SELF_ROUNDS: u32 = 2;
 
 /// `v' = v + dv`, `x' = x + h v'` for free particles; held ones keep their state bitwise.
 /// Returns whether everything written is finite.
@@ -402,14 +417,7 @@ fn stiffen_contacts(work: &mut Work, contacts: &PredictedContacts, ctx: &StepCon
                     continue;
                 }
                 let s = CONTACT_STIFFNESS * mass[p];
-                let block = [
-                    n.x * n.x,
-                    n.y * n.y,
-                    n.z * n.z,
-                    n.x * n.y,
-                    n.x * n.z,
-                    n.y * n.z,
-                ];
+                let block = outer(n);
                 for (column, v) in d.iter_mut().zip(block) {
                     column[i] += s * v;
                 }
@@ -441,4 +449,60 @@ fn filter_couplings(work: &mut Work, ctx: &StepContext) {
                 })
             });
     }
+}
+
+/// The preconditioner's setup and one CG solve of `work`'s system (with the self-contact
+/// couplings `term` in its product, and the collider contacts' `filter`) into `work.dv`.
+fn solve_once(
+    work: &mut Work,
+    term: Option<&SelfContactTerm>,
+    filter: &mut ContactFilter,
+    (settings, stats): (SolverSettings, &mut SolverStats),
+    chunk: usize,
+) {
+    let started = Instant::now();
+    match settings.preconditioner {
+        Preconditioner::Jacobi => {
+            let d = work.matrix.slot(0);
+            for (c, out) in work.jacobi.iter_mut().enumerate() {
+                for (p, o) in out.iter_mut().enumerate() {
+                    *o = if c < 3 && d[c][p] > 0.0 {
+                        1.0 / d[c][p]
+                    } else {
+                        0.0
+                    };
+                }
+            }
+        }
+        Preconditioner::BlockJacobi => work.matrix.diagonal_inverse(&mut work.jacobi, chunk),
+        Preconditioner::Multigrid => work.multigrid.build(&work.matrix, chunk),
+    }
+    let solving = Instant::now();
+    stats.setup_seconds += (solving - started).as_secs_f64();
+    let Work {
+        matrix,
+        jacobi,
+        multigrid,
+        rhs,
+        dv,
+        cg,
+        ..
+    } = work;
+    let matrix = &*matrix;
+    let operator = WithSelfContacts { matrix, term };
+    let precondition = |r: &Vec3s, z: &mut Vec3s| match settings.preconditioner {
+        Preconditioner::Multigrid => multigrid.apply(matrix, r, z, chunk),
+        Preconditioner::Jacobi | Preconditioner::BlockJacobi => diagonal_blocks(jacobi, r, z),
+    };
+    let limits = (settings.tolerance as f64, settings.max_iterations);
+    // Without contacts the filter projects nothing: the plain preconditioned CG.
+    let project = &*filter;
+    let (iterations, residual) = cg.solve_filtered(&operator, rhs, dv, limits, precondition, |v| {
+        project.project(v)
+    });
+    if !filter.is_empty() {
+        filter.finish(dv, |x, y| operator.apply(x, y, chunk));
+    }
+    stats.solve_seconds += solving.elapsed().as_secs_f64();
+    stats.record(iterations, residual, settings.tolerance as f64);
 }

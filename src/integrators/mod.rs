@@ -13,6 +13,7 @@ mod implicit_mesh;
 mod projective_dynamics;
 mod projective_mesh;
 mod rk4;
+mod self_contact;
 pub mod solver;
 mod symplectic_euler;
 mod verlet;
@@ -24,6 +25,7 @@ pub use crate::scene::IntegratorKind;
 pub use implicit_euler::ImplicitEuler;
 pub use projective_dynamics::ProjectiveDynamics;
 pub use rk4::Rk4;
+pub use self_contact::SelfPairs;
 pub use solver::{Preconditioner, SolverSettings, SolverStats};
 pub use verlet::Verlet;
 
@@ -55,6 +57,10 @@ pub struct StepContext<'a> {
     /// solve ([`IntegratorKind::holds_contacts`]); `None` without colliders and for the others,
     /// whose contacts the collider passes handle after the fact.
     pub contacts: Option<&'a PredictedContacts>,
+    /// The self-collision pairs ahead of the step, for implicit Euler to hold apart inside its
+    /// solve (`self_contact.rs`); `None` without `[self_collision]`, with the term off, and
+    /// for the other integrators.
+    pub self_pairs: Option<SelfPairs<'a>>,
 }
 
 impl StepContext<'_> {

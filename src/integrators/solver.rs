@@ -42,6 +42,9 @@ pub struct SolverStats {
     /// again in halves (a half that gains too is counted again), since the simulation was
     /// built. Kept by the stepper, not the integrator.
     pub halved: u64,
+    /// `implicit_euler` with `self_collision.solve_stiffness`: self-collision pairs held apart
+    /// inside its solves, summed over solves.
+    pub self_pairs: u64,
 }
 
 impl SolverStats {

@@ -118,6 +118,11 @@ impl Scene {
             }
             check_scalar("self_collision.friction", sc.friction, Bound::NonNegative)?;
             check_iterations("self_collision.iterations", sc.iterations)?;
+            check_scalar(
+                "self_collision.solve_stiffness",
+                sc.solve_stiffness,
+                Bound::NonNegative,
+            )?;
         }
         if let Some(tearing) = &self.tearing {
             check_scalar("tearing.max_strain", tearing.max_strain, Bound::Positive)?;

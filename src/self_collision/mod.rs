@@ -43,11 +43,14 @@ mod bvh;
 mod cap;
 mod capsule;
 mod geometry;
+mod in_solve;
 mod list;
 mod pair;
 mod repulsion;
 mod search;
 mod topology;
+
+pub use pair::Pair;
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -57,7 +60,6 @@ use crate::soa::Vec3s;
 use crate::state::Kinematics;
 use bvh::Aabb;
 use list::{PairList, Spread};
-use pair::Pair;
 use search::{Broad, Looked};
 use std::time::Instant;
 use topology::Topology;
@@ -154,6 +156,13 @@ pub struct SelfCollision {
     pub friction: f32,
     /// Repulsion sweeps per substep.
     pub iterations: u32,
+    /// The penalty implicit Euler's solve holds the pairs ahead of it apart with, as a multiple
+    /// of a pair's effective mass over the step squared; 0 without the term (`in_solve.rs`).
+    pub solve_stiffness: f32,
+    /// The pairs ahead of the solve (`in_solve.rs`), and where the inertial motion takes each
+    /// vertex.
+    ahead_pairs: Vec<Pair>,
+    ahead: Vec3s,
     topology: Topology,
     /// Each vertex's grown swept box this substep.
     vertex_boxes: Vec<Aabb>,
@@ -187,6 +196,9 @@ impl SelfCollision {
             thickness,
             friction,
             iterations,
+            solve_stiffness: 0.0,
+            ahead_pairs: Vec::new(),
+            ahead: Vec3s::zeros(0),
             topology: Topology::default(),
             vertex_boxes: Vec::new(),
             path_ends: Vec::new(),
@@ -213,15 +225,7 @@ impl SelfCollision {
     /// false, changing nothing, when `next` holds a non-finite position (the step then fails
     /// as any non-finite step does), and otherwise whether the velocities it wrote are finite.
     pub fn apply(&mut self, model: &Model, start: &Kinematics, next: &mut Kinematics) -> bool {
-        if self.topology.version != Some(model.topology_version) {
-            // The cut-aware surface: a triangle a cut or tear runs through is no surface.
-            let triangles = model.triangles().collect();
-            self.topology
-                .rebuild(model.topology_version, model.grid.len(), triangles);
-            self.topology.sew(model.sewn());
-            self.list.clear();
-            self.marked = vec![false; model.grid.len()];
-        }
+        self.follow_topology(model);
         let (x0, inv_mass) = (&start.pos, &model.particles.inv_mass);
         let verts = &self.topology.vertices;
         let Some(survey) = Survey::of(verts, x0, &next.pos, self.list.anchor()) else {
@@ -284,6 +288,19 @@ impl SelfCollision {
         finite
     }
 
+    /// The mesh's surface as `model` has it now.
+    fn follow_topology(&mut self, model: &Model) {
+        if self.topology.version != Some(model.topology_version) {
+            // The cut-aware surface: a triangle a cut or tear runs through is no surface.
+            let triangles = model.triangles().collect();
+            self.topology
+                .rebuild(model.topology_version, model.grid.len(), triangles);
+            self.topology.sew(model.sewn());
+            self.list.clear();
+            self.marked = vec![false; model.grid.len()];
+        }
+    }
+
     /// Lists every pair closer than `reach` at `x0`.
     fn rebuild_list(&mut self, x0: &Vec3s, reach: f64, eps: f32) {
         let grow = Vec3::splat(0.5 * reach as f32 + eps);
@@ -330,6 +347,15 @@ impl SelfCollision {
     /// vertices' capsules reach at most `l_a` and `l_b` from where they start stays
     /// `d0 - l_a - l_b` apart.
     fn swept_pairs(&mut self, x0: &Vec3s, eps: f64) {
+        let mut pairs = std::mem::take(&mut self.pairs);
+        let looked = self.swept_search(x0, eps, &mut pairs);
+        self.pairs = pairs;
+        self.count(looked);
+    }
+
+    /// The swept search of [`SelfCollision::swept_pairs`] into `out`, on the boxes and path
+    /// ends of the last [`SelfCollision::sweep_boxes`].
+    fn swept_search(&mut self, x0: &Vec3s, eps: f64, out: &mut Vec<Pair>) -> Looked {
         let (boxes, thickness) = (&self.vertex_boxes, self.thickness as f64);
         let (ends, radius) = (&self.path_ends, self.path_radius as f64);
         let reach = |v: u32| {
@@ -341,15 +367,8 @@ impl SelfCollision {
             let side = |s: &[u32]| s.iter().map(|&v| reach(v)).fold(0.0, f64::max);
             thickness + side(a) + side(b) + eps
         };
-        let looked = self.broad.search(
-            &self.topology,
-            boxes,
-            x0,
-            limit,
-            1e-3 * eps,
-            &mut self.pairs,
-        );
-        self.count(looked);
+        self.broad
+            .search(&self.topology, boxes, x0, limit, 1e-3 * eps, out)
     }
 
     fn count(&mut self, looked: Looked) {
@@ -436,7 +455,8 @@ impl SelfCollision {
             + self.path_ends.capacity() * size_of::<Vec3>()
             + self.broad.heap_bytes()
             + self.list.heap_bytes()
-            + self.pairs.capacity() * size_of::<Pair>()
+            + (self.pairs.capacity() + self.ahead_pairs.capacity()) * size_of::<Pair>()
+            + self.ahead.heap_bytes()
             + self.saved.capacity() * size_of::<(u32, Vec3, Vec3)>()
             + self.marked.capacity()
             + self.near.capacity() * 8

@@ -29,10 +29,12 @@ impl Pipeline {
             contacts: (!colliders.is_empty() || scene.self_collision.is_some())
                 .then(|| PredictedContacts::new(particles)),
             colliders,
-            self_collision: scene
-                .self_collision
-                .as_ref()
-                .map(|s| SelfCollision::new(s.thickness as f32, s.friction as f32, s.iterations)),
+            self_collision: scene.self_collision.as_ref().map(|s| {
+                let mut pass =
+                    SelfCollision::new(s.thickness as f32, s.friction as f32, s.iterations);
+                pass.solve_stiffness = s.solve_stiffness as f32;
+                pass
+            }),
             tearing: scene
                 .tearing
                 .as_ref()

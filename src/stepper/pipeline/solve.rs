@@ -22,10 +22,11 @@ use glam::{DVec3, Vec3};
 use super::{Pipeline, Substep};
 use crate::collisions::PredictedContacts;
 use crate::diagnostics::{energy_of, Energy};
-use crate::integrators::StepContext;
+use crate::integrators::{SelfPairs, StepContext};
 use crate::model::Model;
 use crate::profile::Profile;
 use crate::scene::IntegratorKind;
+use crate::self_collision::SelfCollision;
 use crate::soa::Vec3s;
 use crate::state::{Kinematics, State};
 
@@ -292,6 +293,8 @@ impl Pipeline {
             let span = (job.h, job.time);
             self.find_contacts(job.model, from, span, job.chunk, job.profile);
         }
+        let kind = self.integrator.kind();
+        let self_pairs = pairs_ahead(&mut self.self_collision, kind, job, from);
         let mut round = 0;
         let finite = loop {
             round += 1;
@@ -307,6 +310,7 @@ impl Pipeline {
                 chunk: job.chunk,
                 profile: job.profile,
                 contacts: self.contacts.as_ref().filter(|_| holds),
+                self_pairs,
             };
             let finite = self.integrator.step(job.h, &mut ctx);
             let Some(contacts) = self.contacts.as_mut().filter(|_| holds) else {
@@ -368,4 +372,28 @@ impl Pipeline {
         }
         held
     }
+}
+
+/// The self-collision pairs ahead of a solve from `from`, for implicit Euler (`kind`) on a grid
+/// cloth with `self_collision.solve_stiffness` (`src/integrators/self_contact.rs`); None
+/// otherwise. Timed as the self-collision pass.
+fn pairs_ahead<'p>(
+    pass: &'p mut Option<SelfCollision>,
+    kind: IntegratorKind,
+    job: &mut Solve,
+    from: &Kinematics,
+) -> Option<SelfPairs<'p>> {
+    let pass = pass.as_mut().filter(|p| p.in_solve())?;
+    if kind != IntegratorKind::ImplicitEuler || job.model.mesh().is_some() {
+        return None;
+    }
+    let t = Instant::now();
+    let (thickness, stiffness) = (pass.thickness, pass.solve_stiffness);
+    let pairs = pass.pairs_ahead(job.model, from, job.h);
+    job.profile.add(SelfCollision::NAME, t.elapsed());
+    Some(SelfPairs {
+        pairs,
+        thickness,
+        stiffness,
+    })
 }

@@ -1,0 +1,410 @@
+//! Self-contact as a penalty inside implicit Euler's linear solve.
+//!
+//! A pair (a vertex and a triangle without it, or two edges with no shared vertex) has, at the
+//! step's start, closest-point weights `c_i` (`sum c_i = 0`) and a unit normal `n`, so its gap
+//! is `g(x) = n . sum c_i x_i`, linear in the positions. Over the step the pair is held by the
+//! quadratic penalty
+//!
+//! ```text
+//! E = k/2 (delta - g(x))^2,   f_i = k (delta - g) c_i n,   df_i/dx_j = -k c_i c_j n n^T
+//! ```
+//!
+//! with `delta` the pass's `thickness`, taken where the inertial motion would bring the pair
+//! within it: `g_pred = g(x) + h n . sum c_i v_i < delta` (Baraff and Witkin 1998, section 6,
+//! and Bridson et al. 2002 hold contacts by such springs; newton's VBD and OGC by the same
+//! gradient and `k n n^T` Hessian on the pair's vertices). Backward Euler linearised at the
+//! step's start, `(M - h^2 df/dx) dv = h (f + h df/dx v)`, then gains
+//!
+//! ```text
+//! A_ij += h^2 k c_i c_j n n^T,   b_i += h k (delta - g_pred) c_i n
+//! ```
+//!
+//! exact for this quadratic. The stiffness is `h^2 k = beta m_eff`, `m_eff = 1 / sum w_i c_i^2`
+//! the pair's effective mass along `n` (`w` inverse masses): a lone pair ends
+//! `(delta - g_pred) / (1 + beta)` short of `delta`, for the pass after the solve. Weights summing
+//! to zero make every force and every matrix row pair sum to zero: the term exchanges momentum,
+//! it adds none. Held particles (`w = 0`) keep their rows and columns empty, as the springs'.
+//!
+//! The diagonal blocks go into the assembled matrix, where the preconditioner sees them; the
+//! couplings between a pair's vertices are applied matrix-free in CG's product, row by row
+//! over each vertex's pairs in pair order, so the product is the same for any thread count.
+
+use glam::Vec3;
+
+use crate::linear::cg::BlockOperator;
+use crate::linear::stencil::SlotArrays;
+use crate::self_collision::Pair;
+use crate::soa::{Vec3SliceMut, Vec3s};
+
+/// One pair held inside the solve.
+#[derive(Clone, Copy, Debug)]
+struct Held {
+    verts: [u32; 4],
+    /// Closest-point weights, zero at held particles.
+    c: [f32; 4],
+    n: Vec3,
+    /// `h^2 k`, kg.
+    s: f32,
+    /// `delta - g_pred`, m: how far short of `delta` the inertial motion ends.
+    short: f32,
+}
+
+/// The pairs of one solve, kept between steps so that their buffers are reused.
+#[derive(Default)]
+pub(super) struct SelfContactTerm {
+    held: Vec<Held>,
+    /// Per particle, its entries in `rows` (`start[p]..start[p + 1]`): (pair, slot in it).
+    start: Vec<u32>,
+    rows: Vec<(u32, u8)>,
+    /// Per pair handed in, whether it is held.
+    taken: Vec<bool>,
+    /// Where each particle's next entry goes while `rows` is filled.
+    fill: Vec<u32>,
+}
+
+/// What the pipeline hands the solve: the pairs ahead of it and the pass's settings.
+#[derive(Clone, Copy)]
+pub struct SelfPairs<'a> {
+    pub pairs: &'a [Pair],
+    /// The gap held, m.
+    pub thickness: f32,
+    /// `beta`: the penalty as a multiple of a pair's effective mass over `h^2`.
+    pub stiffness: f32,
+}
+
+impl SelfContactTerm {
+    /// The pairs of `pairs` a step of `h` s from `(pos, vel)` would bring within `thickness`.
+    pub(super) fn gather(
+        &mut self,
+        h: f32,
+        pairs: SelfPairs,
+        (pos, vel, inv_mass): (&Vec3s, &Vec3s, &[f32]),
+    ) {
+        self.held.clear();
+        self.taken.clear();
+        for pair in pairs.pairs {
+            let held = hold(h, pairs, pair, (pos, vel, inv_mass));
+            let ahead = held.filter(|held| held.short > 0.0);
+            self.taken.push(ahead.is_some());
+            self.held.extend(ahead);
+        }
+        self.index_rows(pos.len());
+    }
+
+    /// Adds the pairs of `pairs` not held yet that the solve's `dv` brought within `thickness`
+    /// (their closest points and normal still those at the step's start), with their diagonal
+    /// blocks into `d` and their loads into `b`. Returns how many.
+    pub(super) fn extend(
+        &mut self,
+        h: f32,
+        pairs: SelfPairs,
+        (pos, vel, dv, inv_mass): (&Vec3s, &Vec3s, &Vec3s, &[f32]),
+        (d, b): (&mut SlotArrays, &mut Vec3s),
+    ) -> usize {
+        let before = self.held.len();
+        for (pair, taken) in pairs.pairs.iter().zip(&mut self.taken) {
+            if *taken {
+                continue;
+            }
+            let Some(held) = hold(h, pairs, pair, (pos, vel, inv_mass)) else {
+                continue;
+            };
+            let mut end = 0.0;
+            for k in 0..4 {
+                let p = pair.verts[k] as usize;
+                let x = pos.get(p) + h * (vel.get(p) + dv.get(p));
+                end += pair.c[k] as f32 * held.n.dot(x);
+            }
+            if end < pairs.thickness {
+                *taken = true;
+                self.held.push(held);
+            }
+        }
+        let added = self.held.len() - before;
+        if added > 0 {
+            self.add_diagonal(before, d);
+            self.add_rhs(before, h, b);
+            self.index_rows(pos.len());
+        }
+        added
+    }
+
+    /// Each particle's entries, in pair order.
+    fn index_rows(&mut self, n: usize) {
+        self.start.clear();
+        self.start.resize(n + 1, 0);
+        for held in &self.held {
+            for k in 0..4 {
+                if held.c[k] != 0.0 {
+                    self.start[held.verts[k] as usize + 1] += 1;
+                }
+            }
+        }
+        for p in 0..n {
+            self.start[p + 1] += self.start[p];
+        }
+        self.rows.clear();
+        self.rows.resize(self.start[n] as usize, (0, 0));
+        self.fill.clear();
+        self.fill.extend_from_slice(&self.start[..n]);
+        for (i, held) in self.held.iter().enumerate() {
+            for k in 0..4 {
+                if held.c[k] != 0.0 {
+                    let p = held.verts[k] as usize;
+                    self.rows[self.fill[p] as usize] = (i as u32, k as u8);
+                    self.fill[p] += 1;
+                }
+            }
+        }
+    }
+
+    /// No pair held: the solve is the plain one.
+    pub(super) fn clear(&mut self) {
+        self.held.clear();
+    }
+
+    pub(super) fn is_empty(&self) -> bool {
+        self.held.is_empty()
+    }
+
+    /// Pairs held in the last solve.
+    pub(super) fn len(&self) -> usize {
+        self.held.len()
+    }
+
+    /// `h^2 k c_i^2 n n^T` of the held pairs from the `from`-th on, onto each free vertex's
+    /// diagonal block (`xx, yy, zz, xy, xz, yz`).
+    pub(super) fn add_diagonal(&self, from: usize, d: &mut SlotArrays) {
+        for held in &self.held[from..] {
+            let block = outer(held.n);
+            for k in 0..4 {
+                let p = held.verts[k] as usize;
+                let s = held.s * held.c[k] * held.c[k];
+                for (column, v) in d.iter_mut().zip(block) {
+                    column[p] += s * v;
+                }
+            }
+        }
+    }
+
+    /// `h k (delta - g_pred) c_i n` of the held pairs from the `from`-th on, onto each free
+    /// vertex's right-hand side.
+    pub(super) fn add_rhs(&self, from: usize, h: f32, b: &mut Vec3s) {
+        for held in &self.held[from..] {
+            let push = held.s / h * held.short * held.n;
+            for k in 0..4 {
+                let p = held.verts[k] as usize;
+                if held.c[k] != 0.0 {
+                    b.set(p, b.get(p) + held.c[k] * push);
+                }
+            }
+        }
+    }
+
+    /// `out_i += sum over i's pairs of h^2 k c_i n (n . sum_{j != i} c_j x_j)` for the rows
+    /// `range`: the couplings the diagonal leaves out.
+    fn couple_range(&self, x: &Vec3s, range: std::ops::Range<usize>, out: &mut Vec3SliceMut) {
+        for (i, p) in range.enumerate() {
+            let entries = &self.rows[self.start[p] as usize..self.start[p + 1] as usize];
+            if entries.is_empty() {
+                continue;
+            }
+            let mut sum = Vec3::new(out.x[i], out.y[i], out.z[i]);
+            for &(pair, slot) in entries {
+                let held = &self.held[pair as usize];
+                let mut along = 0.0;
+                for k in 0..4 {
+                    if k != slot as usize && held.c[k] != 0.0 {
+                        along += held.c[k] * held.n.dot(x.get(held.verts[k] as usize));
+                    }
+                }
+                sum += held.s * held.c[slot as usize] * along * held.n;
+            }
+            (out.x[i], out.y[i], out.z[i]) = (sum.x, sum.y, sum.z);
+        }
+    }
+}
+
+/// The components `xx, yy, zz, xy, xz, yz` of `n n^T`, in a block slot's order.
+pub(super) fn outer(n: Vec3) -> [f32; 6] {
+    [
+        n.x * n.x,
+        n.y * n.y,
+        n.z * n.z,
+        n.x * n.y,
+        n.x * n.z,
+        n.y * n.z,
+    ]
+}
+
+/// `pair` as a held pair of a step of `h` s from `(pos, vel)`, however far its inertial motion
+/// ends (`short` may be negative); None when its normal is degenerate or no vertex of it moves.
+fn hold(
+    h: f32,
+    given: SelfPairs,
+    pair: &Pair,
+    (pos, vel, inv_mass): (&Vec3s, &Vec3s, &[f32]),
+) -> Option<Held> {
+    let n = pair.n.as_vec3();
+    let mut c = [0.0f32; 4];
+    let (mut rel_x, mut rel_v, mut w) = (Vec3::ZERO, Vec3::ZERO, 0.0f32);
+    for ((ck, &v), &weight) in c.iter_mut().zip(&pair.verts).zip(&pair.c) {
+        let (p, weight) = (v as usize, weight as f32);
+        rel_x += weight * pos.get(p);
+        rel_v += weight * vel.get(p);
+        w += inv_mass[p] * weight * weight;
+        *ck = if inv_mass[p] > 0.0 { weight } else { 0.0 };
+    }
+    (n != Vec3::ZERO && w > 0.0).then(|| Held {
+        verts: pair.verts,
+        c,
+        n,
+        s: given.stiffness / w,
+        short: given.thickness - (n.dot(rel_x) + h * n.dot(rel_v)),
+    })
+}
+
+/// A matrix with the held pairs' couplings added to its product.
+pub(super) struct WithSelfContacts<'a, A> {
+    pub matrix: &'a A,
+    /// None: the matrix alone.
+    pub term: Option<&'a SelfContactTerm>,
+}
+
+impl<A: BlockOperator> BlockOperator for WithSelfContacts<'_, A> {
+    #[inline(always)]
+    fn apply_range(&self, x: &Vec3s, range: std::ops::Range<usize>, out: &mut Vec3SliceMut) {
+        self.matrix.apply_range(x, range.clone(), out);
+        if let Some(term) = self.term {
+            term.couple_range(x, range, out);
+        }
+    }
+}
+
+impl<A: BlockOperator> WithSelfContacts<'_, A> {
+    /// `y = A x`, in parallel over chunks of `chunk` rows.
+    pub(super) fn apply(&self, x: &Vec3s, y: &mut Vec3s, chunk: usize) {
+        use rayon::prelude::*;
+        y.par_chunks_mut(chunk)
+            .enumerate()
+            .for_each(|(c, mut out)| {
+                let range = c * chunk..c * chunk + out.x.len();
+                crate::simd::dispatch!(self.apply_range(x, range.clone(), &mut out));
+            });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::self_collision::Pair;
+    use glam::DVec3;
+
+    /// The pairs of `pairs` a 1/60 s step holds, 2 mm apart at 50 times their effective mass.
+    fn held(pairs: &[Pair], state: (&Vec3s, &Vec3s, &[f32])) -> SelfContactTerm {
+        let mut term = SelfContactTerm::default();
+        let given = SelfPairs {
+            pairs,
+            thickness: 0.002,
+            stiffness: 50.0,
+        };
+        term.gather(1.0 / 60.0, given, state);
+        term
+    }
+
+    /// Particle `p`'s diagonal block of `d` times `u`.
+    fn block_times(d: &SlotArrays, p: usize, u: Vec3) -> Vec3 {
+        let b = |i: usize| d[i][p];
+        Vec3::new(
+            Vec3::new(b(0), b(3), b(4)).dot(u),
+            Vec3::new(b(3), b(1), b(5)).dot(u),
+            Vec3::new(b(4), b(5), b(2)).dot(u),
+        )
+    }
+
+    /// A vertex 1 mm above a triangle, moving down at 1 m/s, and an edge pair beside it.
+    fn pairs() -> (Vec<Pair>, Vec3s, Vec3s) {
+        let pos = Vec3s::from_fn(8, |v| {
+            [
+                Vec3::new(0.2, 0.001, 0.2),
+                Vec3::ZERO,
+                Vec3::X,
+                Vec3::Z,
+                Vec3::new(2.0, 0.0, 0.0),
+                Vec3::new(3.0, 0.0, 0.0),
+                Vec3::new(2.5, 0.0015, -0.5),
+                Vec3::new(2.5, 0.0015, 0.5),
+            ][v]
+        });
+        let vel = Vec3s::from_fn(8, |v| match v {
+            0 => Vec3::new(0.3, -1.0, 0.1),
+            6 | 7 => Vec3::new(0.0, -0.5, 0.2),
+            _ => Vec3::new(0.1, 0.2, -0.1),
+        });
+        let vt = Pair {
+            verts: [0, 1, 2, 3],
+            split: 1,
+            c: [1.0, -0.6, -0.2, -0.2],
+            n: DVec3::Y,
+            d0: 0.001,
+        };
+        let ee = Pair {
+            verts: [6, 7, 4, 5],
+            split: 2,
+            c: [0.5, 0.5, -0.5, -0.5],
+            n: DVec3::Y,
+            d0: 0.0015,
+        };
+        (vec![vt, ee], pos, vel)
+    }
+
+    /// The term exchanges momentum and adds none: its forces, and each column of its matrix,
+    /// sum to zero over the pair's vertices, because the closest-point weights do.
+    #[test]
+    fn the_in_solve_contact_term_conserves_momentum() {
+        let (pairs, pos, vel) = pairs();
+        let inv_mass = vec![1.0f32, 2.0, 0.5, 1.0, 1.0, 3.0, 1.0, 0.25];
+        let term = held(&pairs, (&pos, &vel, &inv_mass));
+        assert_eq!(term.len(), 2, "both pairs are ahead of the step");
+        let mut b = Vec3s::zeros(8);
+        term.add_rhs(0, 1.0 / 60.0, &mut b);
+        let total: DVec3 = (0..8).map(|p| b.get(p).as_dvec3()).sum();
+        let scale: f64 = (0..8).map(|p| b.get(p).as_dvec3().length()).sum();
+        assert!(scale > 0.0);
+        assert!(total.length() < 1e-6 * scale, "{total} of {scale}");
+        // The whole matrix term (diagonal and couplings) applied to any vector sums to zero.
+        let x = Vec3s::from_fn(8, |v| Vec3::new(v as f32 * 0.3 - 1.0, (v * v) as f32, -0.5));
+        let mut d: SlotArrays = std::array::from_fn(|_| crate::soa::Floats::zeros(8));
+        term.add_diagonal(0, &mut d);
+        let mut y = Vec3s::zeros(8);
+        for p in 0..8 {
+            y.set(p, block_times(&d, p, x.get(p)));
+        }
+        let mut out = y.slices_mut(0..8);
+        term.couple_range(&x, 0..8, &mut out);
+        let total: DVec3 = (0..8).map(|p| y.get(p).as_dvec3()).sum();
+        let scale: f64 = (0..8).map(|p| y.get(p).as_dvec3().length()).sum();
+        assert!(scale > 0.0);
+        assert!(total.length() < 1e-5 * scale, "{total} of {scale}");
+    }
+
+    /// A pair moving apart, or one whose inertial motion stays outside the gap, exerts
+    /// nothing; a pinned vertex gets no row.
+    #[test]
+    fn only_pairs_ahead_of_the_step_are_held_and_pinned_vertices_get_no_row() {
+        let (pairs, pos, mut vel) = pairs();
+        let mut inv_mass = vec![1.0f32; 8];
+        inv_mass[1] = 0.0;
+        let term = held(&pairs, (&pos, &vel, &inv_mass));
+        assert_eq!(term.len(), 2);
+        assert_eq!(
+            term.start[2] - term.start[1],
+            0,
+            "the pinned vertex has no entry"
+        );
+        for p in [0, 6, 7] {
+            vel.set(p, Vec3::new(0.0, 1.0, 0.0));
+        }
+        assert!(held(&pairs, (&pos, &vel, &inv_mass)).is_empty());
+    }
+}
