@@ -9,7 +9,7 @@
 //! and a 1500 x 64 cloth on 16 threads only. The shapes below put the offsets on both sides of
 //! the chunk and block lengths; the property adds random wide and tall shapes.
 
-mod common;
+use crate::common;
 
 use common::{every_pass_scene, proptest_config, state_hash, with_threads, Passes};
 use glam::Vec3;
