@@ -77,9 +77,10 @@ test-wheel: wheel
 test-long: setup
 	$(PY) -m pytest -q
 
-# The property-based fuzz suite (tests/fuzz.rs) at length: `make test` runs it briefly with a
-# fixed seed; this runs FUZZ_CASES cases of each property in release mode with a fresh seed
-# (printed; FUZZ_SEED=... repeats a run). A failure prints the shrunk input.
+# The property-based fuzz suite (tests/fuzz.rs, the `fuzz` module of the `integration` test
+# binary) at length: `make test` runs it briefly with a fixed seed; this runs FUZZ_CASES cases
+# of each property in release mode with a fresh seed (printed; FUZZ_SEED=... repeats a run). A
+# failure prints the shrunk input.
 FUZZ_CASES ?= 20000
 ifndef FUZZ_SEED
 FUZZ_SEED := $(shell od -An -N4 -tu4 /dev/urandom | tr -d ' ')
@@ -87,7 +88,7 @@ endif
 
 fuzz:
 	@echo "fuzz: $(FUZZ_CASES) cases per property, seed $(FUZZ_SEED)"
-	PROPTEST_CASES=$(FUZZ_CASES) PROPTEST_RNG_SEED=$(FUZZ_SEED) cargo test --release --test fuzz
+	PROPTEST_CASES=$(FUZZ_CASES) PROPTEST_RNG_SEED=$(FUZZ_SEED) cargo test --release --test integration fuzz::
 
 # The module-cycle check: no Rust subsystem and no Python module imports one that imports it
 # back (scripts/module_cycles.py says what counts).

@@ -4,13 +4,20 @@
 # installed package (a file missing from the wheel fails a test instead of being picked up from
 # the source tree).
 #
-#   1. The core install only, the whole suite (tests needing an extra skip themselves), on the
-#      newest other CPython 3.12+ on the machine (NEWER_PYTHON, or found on PATH and under
-#      pyenv): the abi3 wheel on an interpreter it was not built with, and every file the
-#      package needs found in the wheel. On Python 3.11 (PYTHON) only where there is no newer
-#      one: `make test` has just run the suite on 3.11 against an editable build of the same
-#      sources, and the runs in 2 install this wheel on 3.11, so a whole second 3.11 run (four
-#      minutes) would test nothing that these miss.
+#   1. The core install only, on the newest other CPython 3.12+ on the machine (NEWER_PYTHON, or
+#      found on PATH and under pyenv; Python 3.11, PYTHON, only where there is none): the abi3
+#      wheel on an interpreter it was not built with, and every file the package needs found in
+#      the wheel. Not the whole suite: `make test` has just run it on 3.11 against an editable
+#      build of the same sources, and a physics test runs the same machine code through the
+#      same binding on any interpreter. What another Python can break is the binding and the
+#      package, which the files in CORE_TESTS cover: every public method, property and
+#      constructor with every type of argument (reliability_inputs, core_arguments,
+#      hostile_input), every error (bad_input, reliability_panics), pickling and copies across
+#      processes (scene_pickle, reliability_copies, sweep_local), threads around the binding's
+#      lock (reliability_threads), the installed metadata, stub and data files (packaging,
+#      typing), the console script and every command (cli), and each module that needs no
+#      extra imported and run (scene, simulation, watchdog, garment, meshes, drivers, export,
+#      reference, the sweep's). The files left out test physics, or features of an extra (2).
 #   2. One fresh Python 3.11 venv per extra (export, usd, viewer, study, ray), each with only
 #      `rustcloth[EXTRA]` installed, running the tests of that extra's features: an extra that
 #      lacks a dependency its feature imports fails here, where installing the extras together
@@ -85,12 +92,30 @@ EOF
     )
 }
 
+# The binding and the package on another interpreter (see 1. above for why these files).
+CORE_TESTS=(
+    tests/test_packaging.py tests/test_typing.py tests/test_core_arguments.py
+    tests/test_reliability_inputs.py tests/test_hostile_input.py tests/test_bad_input.py
+    tests/test_reliability_panics.py tests/test_reliability_copies.py
+    tests/test_reliability_threads.py tests/test_scene_pickle.py tests/test_scene.py
+    tests/test_simulation.py tests/test_watchdog.py tests/test_cli.py tests/test_garment.py
+    tests/test_meshes.py tests/test_drivers.py tests/test_export.py tests/test_reference.py
+    tests/test_sweep_spec.py tests/test_sweep_store.py tests/test_sweep_local.py
+    tests/test_sweep_cli.py
+    # The slowest of those files, physics or sweeps of a thousand runs rather than the binding,
+    # which the files' other tests call the same way.
+    --deselect tests/test_reliability_panics.py::test_grid_shapes_step_alike_at_every_thread_count
+    --deselect tests/test_garment.py::test_a_garment_shows_its_front_material_outside
+    --deselect tests/test_sweep_spec.py::test_runs_are_built_one_at_a_time
+    --deselect tests/test_sweep_spec.py::test_run_sweep_holds_no_scene_per_run
+)
 newer=${NEWER_PYTHON:-$(newer_python)}
 if [ -n "$newer" ]; then
-    run "py$("$newer" -c 'import sys; print(*sys.version_info[:2], sep="")')-core" "$newer" ""
+    run "py$("$newer" -c 'import sys; print(*sys.version_info[:2], sep="")')-core" "$newer" "" \
+        "${CORE_TESTS[@]}"
 else
-    echo "wheel: no CPython 3.12 or newer on this machine; the core suite on $("$python" -V)"
-    run py311-core "$python" ""
+    echo "wheel: no CPython 3.12 or newer on this machine; the core tests on $("$python" -V)"
+    run py311-core "$python" "" "${CORE_TESTS[@]}"
 fi
 
 # Each extra alone, and the tests of what it is for (those of another extra skip themselves).

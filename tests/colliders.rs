@@ -2,7 +2,7 @@
 //! shape (judged by signed-distance formulas written here, apart from parry), Coulomb friction
 //! on a slope, a moving surface carrying what rests on it, and determinism across threads.
 
-mod common;
+use crate::common;
 
 use common::*;
 use glam::{DQuat, DVec3, Vec3};

@@ -2,7 +2,7 @@
 //! the bit, the mesh follows the cut, and picking, dragging, the solvers and determinism keep
 //! working across cuts.
 
-mod common;
+use crate::common;
 
 use common::{state_hash, with_threads, Drawn};
 use glam::Vec3;

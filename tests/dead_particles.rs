@@ -2,7 +2,7 @@
 //! however it moves, the live cloth evolves bitwise the same, with every integrator and every
 //! optional pass.
 
-mod common;
+use crate::common;
 
 use common::{every_pass_scene, proptest_config, with_threads, Passes};
 use glam::Vec3;

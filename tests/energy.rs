@@ -2,7 +2,7 @@
 //! for any thread count and any repeated call, accumulated in f64, and finite for every finite
 //! state.
 
-mod common;
+use crate::common;
 
 use common::{edge_first_pile, proptest_config, scene_under_gravity, with_threads};
 use glam::Vec3;

@@ -7,13 +7,13 @@
 //!    velocities, step count, pins, cuts, settings, compared bit for bit). A step that returns
 //!    `Error::Diverged` leaves the state from before the step that diverged.
 //!
-//! `cargo test --test fuzz` runs a bounded number of cases with a fixed seed, a few seconds in
-//! a debug build, so `make test` stays quick and deterministic. For a long run:
+//! `cargo test --test integration fuzz::` runs a bounded number of cases with a fixed seed, a
+//! few seconds in a debug build, so `make test` stays quick and deterministic. For a long run:
 //!
 //! ```sh
 //! make fuzz                                   # PROPTEST_CASES=20000, release, a random seed
 //! make fuzz FUZZ_CASES=200000 FUZZ_SEED=42    # more cases, a chosen seed
-//! PROPTEST_CASES=5000 PROPTEST_RNG_SEED=7 cargo test --release --test fuzz
+//! PROPTEST_CASES=5000 PROPTEST_RNG_SEED=7 cargo test --release --test integration fuzz::
 //! ```
 //!
 //! A failure prints the shrunk input and the seed; rerunning with that `PROPTEST_RNG_SEED`
@@ -21,7 +21,7 @@
 //! mean nothing once a strategy changes, so each bug found becomes a named regression test at
 //! the end of this file instead, opening with its story.
 
-mod common;
+use crate::common;
 
 use glam::Vec3;
 use proptest::prelude::*;

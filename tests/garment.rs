@@ -2,7 +2,7 @@
 //! error, and the built-in shirt and skirt sewn on the mannequin (checked against the body's
 //! shapes by a distance test written here, apart from the solver's colliders).
 
-mod common;
+use crate::common;
 
 use common::crossings::intersecting_pairs;
 use common::{state_hash, with_threads};

@@ -5,9 +5,9 @@
 //! The digests pin the solver's behaviour to the bit. A refactor must leave every one unchanged;
 //! a change that is meant to alter behaviour updates the file in the same commit and says
 //! which digests moved and why. Regenerate with
-//! `GOLDEN_UPDATE=1 cargo test --release --test golden`.
+//! `GOLDEN_UPDATE=1 cargo test --release --test integration golden::`.
 
-mod common;
+use crate::common;
 
 use std::fmt::Write as _;
 

@@ -6,7 +6,7 @@
 //! put the whole pull on that particle's 12 springs, which tore first and plucked it out of
 //! the sheet (a pinhole, "2 pieces") while the sheet barely moved.
 
-mod common;
+use crate::common;
 
 use common::{bare_scene, builtin_scene, state_hash};
 use glam::Vec3;

@@ -1,6 +1,6 @@
 //! Every integrator: convergence order, energy behaviour, stability.
 
-mod common;
+use crate::common;
 
 use common::*;
 use rustcloth::scene::PinSpec;

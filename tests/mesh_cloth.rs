@@ -1,7 +1,7 @@
 //! A cloth from a triangle mesh: its checks, its material's resolution independence, and its
 //! physics (momentum, energy, equilibrium, determinism, snapshots) on the explicit integrators.
 
-mod common;
+use crate::common;
 
 use common::{state_hash, with_threads};
 use glam::{DVec3, Vec3};

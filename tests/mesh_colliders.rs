@@ -4,7 +4,7 @@
 //! speed, bad meshes and bad poses are refused naming the parameter and change nothing, and
 //! the same bits come out on any thread count and through a snapshot.
 
-mod common;
+use crate::common;
 
 use common::*;
 use glam::{DVec3, Vec3};

@@ -5,7 +5,7 @@
 //! drawn area on each side of it is the mesh's own area on that side (each triangle clipped by
 //! the stroke's half-plane, Sutherland-Hodgman).
 
-mod common;
+use crate::common;
 
 use common::Drawn;
 use glam::{DVec2, Vec3};

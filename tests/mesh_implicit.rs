@@ -1,7 +1,7 @@
 //! The implicit solvers and strain limiting on a mesh cloth: the physics tests the grid has for
 //! them (`tests/stiff.rs`, `tests/strain_limit.rs`, `tests/energy.rs`), on irregular meshes.
 
-mod common;
+use crate::common;
 
 use common::{bare_scene, state_hash, with_threads};
 use glam::DVec3;

@@ -6,7 +6,7 @@
 //! the same for any number of threads, and self-collision keeps the torn cloth free of
 //! intersections by the independent checker of tests/common/crossings.rs.
 
-mod common;
+use crate::common;
 
 use common::crossings::intersecting_pairs;
 use common::{state_hash, with_threads};

@@ -1,6 +1,6 @@
 //! The solver against analytic solutions and invariants of the model.
 
-mod common;
+use crate::common;
 
 use common::*;
 use glam::{Quat, Vec3};

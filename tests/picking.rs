@@ -1,6 +1,6 @@
 //! Picking, dragging and cutting (src/picking.rs, src/interaction.rs).
 
-mod common;
+use crate::common;
 
 use common::{bare_scene, position, scene_under_gravity, state_hash};
 use glam::Vec3;

@@ -9,7 +9,7 @@
 //! momentum is kept by a free cloth colliding with itself, and the result is bitwise the same
 //! for any thread count.
 
-mod common;
+use crate::common;
 
 use common::crossings::{intersecting_pairs, triangles_intersect};
 use common::{

@@ -3,7 +3,7 @@
 //! as one built from the scene with or without `[self_collision]`, and settings the scene would
 //! refuse change nothing.
 
-mod common;
+use crate::common;
 
 use common::{bare_scene, state_hash};
 use rustcloth::scene::SelfCollisionSpec;

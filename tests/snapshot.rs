@@ -3,7 +3,7 @@
 //! every integrator, substeps, the watchdog's retries and hold, strain limiting, kinematic
 //! pins, a grab, cuts and `advance`'s remainder.
 
-mod common;
+use crate::common;
 
 use common::{builtin_scene, state_hash};
 use glam::Vec3;

@@ -3,7 +3,7 @@
 //! explicit integrator cannot hold a case, the failure must be the reported, rolled-back
 //! `Error::Diverged`, never a NaN in the state or a panic.
 
-mod common;
+use crate::common;
 
 use common::*;
 use glam::Vec3;

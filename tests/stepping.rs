@@ -1,6 +1,6 @@
 //! Stepping: fixed steps, frame-rate independence, determinism and divergence handling.
 
-mod common;
+use crate::common;
 
 use common::*;
 use rustcloth::scene::{FloorSpec, SphereSpec};

@@ -2,7 +2,7 @@
 //! the preconditioner changes the answer only within the tolerance, both are deterministic for
 //! any number of threads, cut particles take no part, and no state survives between steps.
 
-mod common;
+use crate::common;
 
 use common::*;
 use glam::Vec3;

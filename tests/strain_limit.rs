@@ -2,7 +2,7 @@
 //! stretch of structural and shear springs is touched, fixed particles keep their bits, momentum
 //! is conserved, and the result is bitwise independent of threads, chunking and instruction set.
 
-mod common;
+use crate::common;
 
 use std::hash::{Hash, Hasher};
 
@@ -472,12 +472,15 @@ fn print_busy_digest() {
 
 #[test]
 fn the_result_is_bitwise_the_same_for_every_instruction_set() {
-    // The choice is made once per process (`RUSTCLOTH_SIMD`), so each runs in its own.
+    // The choice is made once per process (`RUSTCLOTH_SIMD`), so each runs in its own. The
+    // test's name in this binary is its module path less the crate's name.
+    let (_crate, module) = module_path!().split_once("::").unwrap();
+    let printer = format!("{module}::print_busy_digest");
     let digests: Vec<String> = ["baseline", "avx2", "avx512"]
         .iter()
         .map(|isa| {
             let out = std::process::Command::new(std::env::current_exe().unwrap())
-                .args(["--exact", "print_busy_digest", "--ignored", "--nocapture"])
+                .args(["--exact", &printer, "--ignored", "--nocapture"])
                 .env("RUSTCLOTH_SIMD", isa)
                 .output()
                 .unwrap();

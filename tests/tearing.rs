@@ -2,7 +2,7 @@
 //! first and at most `max_per_step`; a corner dragged far enough rips off; the pass is absent
 //! without `[tearing]`, and a tear is the same for any number of threads.
 
-mod common;
+use crate::common;
 
 use common::{bare_scene, state_hash, with_threads, Drawn};
 use glam::Vec3;

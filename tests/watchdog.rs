@@ -1,7 +1,7 @@
 //! The watchdog (src/watchdog.rs): trouble is caught before it reaches the state, rolled back to
 //! a good state and reported, or saved by retrying the step with more substeps.
 
-mod common;
+use crate::common;
 
 use std::collections::HashMap;
 

@@ -1,7 +1,7 @@
 //! Wind (`[wind]`, src/wind.rs): drag and lift of the air on each triangle, applied after the
 //! integrator as an implicit change of velocity.
 
-mod common;
+use crate::common;
 
 use common::{state_hash, with_threads};
 use rustcloth::scene::WindSpec;
