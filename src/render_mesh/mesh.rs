@@ -2,10 +2,12 @@
 //! are ([`clip_pieces`]), with a cut vertex on each side of a severed edge where the stroke
 //! crossed it ([`MeshTopology::crossings`]; a tear's at the midpoint).
 //!
-//! **Embedding.** A cut vertex of `p`'s side follows `p` and two neighbours `u`, `w` that live
-//! stretch springs join to `p`: `x_p + s (alpha (x_u - x_p) + beta (x_w - x_p))`, with
+//! **Embedding.** A cut vertex of `p`'s side lies `s` (the crossing's fraction of the edge from
+//! `p`) of the way from `p` to a ghost of `q` that follows `p` and two neighbours `u`, `w` that
+//! live stretch springs join to `p`: `x_p + alpha (x_u - x_p) + beta (x_w - x_p)`, with
 //! `(alpha, beta)` the rest edge from `p` to `q` in the frame of the rest edges to `u` and `w`
-//! (least squares, exact on a flat mesh) and `s` the crossing's fraction of the edge from `p`.
+//! (least squares, exact on a flat mesh). As on the grid, a severed edge whose ends have not
+//! parted puts both sides' vertices at its crossing.
 //! Of the pairs, the one with the smallest `|alpha| + |beta|` plus the part of the edge out of
 //! their plane (relative to its length), so interpolated where it can be and in the plane the
 //! edge lies in. A vertex whose live neighbours are all in line follows the strip they make,
@@ -65,8 +67,8 @@ impl RenderMesh {
     }
 }
 
-/// The cut vertex at fraction `s` of the way from `from` to `to`, framed by `from`'s live
-/// neighbours at rest (see the module's documentation).
+/// The cut vertex at fraction `s` of the way from `from` to the ghost of `to` that `from`'s
+/// live neighbours frame at rest (see the module's documentation).
 fn embed(model: &Model, topology: &MeshTopology, from: usize, to: usize, s: f32) -> CutVertex {
     let mesh = &topology.mesh;
     let rest = |v: usize| DVec3::from(mesh.rest[v]);
@@ -99,17 +101,13 @@ fn embed(model: &Model, topology: &MeshTopology, from: usize, to: usize, s: f32)
             }
         }
     }
-    let s64 = s as f64;
     let frame = match (best, live.first()) {
-        (Some((_, pair, [alpha, beta])), _) => {
-            let (wu, ww) = (s64 * alpha, s64 * beta);
-            Frame::Affine {
-                neighbours: pair.map(|q| q as u32),
-                weights: [(1.0 - wu - ww) as f32, wu as f32, ww as f32],
-            }
-        }
+        (Some((_, pair, [wu, ww])), _) => Frame::Affine {
+            neighbours: pair.map(|q| q as u32),
+            weights: [(1.0 - wu - ww) as f32, wu as f32, ww as f32],
+        },
         (None, Some(&u)) => {
-            let offset = s64 * edge;
+            let offset = edge;
             let tangent = (rest(u) - origin).normalize();
             let along = offset.dot(tangent);
             Frame::Strip {
@@ -119,13 +117,14 @@ fn embed(model: &Model, topology: &MeshTopology, from: usize, to: usize, s: f32)
             }
         }
         (None, None) => Frame::Toward {
-            reach: (s64 * edge.length()) as f32,
+            reach: edge.length() as f32,
         },
     };
     CutVertex {
         from: from as u32,
         toward: to as u32,
         s,
+        rest: edge.length() as f32,
         frame,
     }
 }

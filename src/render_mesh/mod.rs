@@ -14,15 +14,21 @@
 //! corner. Every drawn triangle's vertices belong to particles joined by live edges, so the
 //! triangles of two pieces never share a vertex.
 //!
-//! **Embedding.** A cut vertex of `p`'s side moves with `p`'s side only: its position is an
-//! affine combination `x_p + s (alpha (x_u - x_p) + beta (x_w - x_p))` of `p` and two
-//! neighbours `u`, `w` that `p` still has live structural or shear springs to, with
-//! `(alpha, beta)` the grid step from `p` to `q` in the frame of the steps to `u` and `w`
-//! (the smallest such combination, so interpolated where it can be) and `s` the crossing's
-//! distance from `p` as a fraction of the spring. On an undeformed or uniformly strained
-//! cloth that is exactly the crossing point; as the pieces part, each side's edge goes with
-//! it and no triangle reaches across the gap. A particle left with one live neighbour in
-//! line with the edge extrapolates along it. One with no such frame (on a strip one particle
+//! **Embedding.** A cut vertex of `p`'s side moves with `p`'s side only: it lies `s` of the way
+//! (the crossing's distance from `p` as a fraction of the spring) from `p` to a *ghost* of `q`,
+//! where `p`'s side would have `q` if it had kept it: an affine combination
+//! `x_p + alpha (x_u - x_p) + beta (x_w - x_p)` of `p` and two neighbours `u`, `w` that `p`
+//! still has live structural or shear springs to, with `(alpha, beta)` the grid step from `p`
+//! to `q` in the frame of the steps to `u` and `w` (the smallest such combination, so
+//! interpolated where it can be). On an undeformed or uniformly strained cloth that is exactly
+//! the crossing point; as the pieces part, each side's edge goes with it and no triangle
+//! reaches across the gap. While the two ends of a severed edge have not moved apart (the
+//! cloth is cut but its sides still touch), both sides' cut vertices go to the crossing on
+//! the edge itself, `s` of the way from `p` to `q`: one point, so the cut shows as a closed
+//! seam, not as two edges each extrapolated by its own side's frame, which part wherever the
+//! cloth bends and let what is behind show through as specks along the cut. As the ends part
+//! the vertices move over to the ghosts ([`OPEN_STRAIN`]). A particle left
+//! with one live neighbour in line with the edge extrapolates along it. One with no such frame (on a strip one particle
 //! wide, as a tear along a row leaves, or alone) puts its cut vertex at its rest distance
 //! toward the other end ([`Frame::Toward`]): the direction is the only thing read from the
 //! other side, and the edge never grows past its rest length.
@@ -46,20 +52,33 @@ use crate::state::State;
 
 mod mesh;
 
+/// How far the ends of a severed edge must have moved apart (its strain, the length over the
+/// rest length less 1) for the two sides of the cut to be drawn apart: below 0 the cut vertices
+/// of both sides lie on the edge, at the crossing, one point; above this each is on its own
+/// side's ghost; between, a smooth blend. 0.25: the cut opens once its sides have parted by a
+/// quarter of a spacing. Lower shows a cut opening sooner but lets a bending cloth crack along
+/// it (each side's ghost is an extrapolation, and they disagree where the cloth bends); higher
+/// keeps the seam closed longer and stretches the drawn triangles across a widening gap.
+pub const OPEN_STRAIN: f32 = 0.25;
+
 pub use mesh::mesh_uvs;
 
 /// A vertex on a severed edge, on one side of it: `s` of the way from particle `from` to
-/// `toward`, at rest.
+/// `toward`, at rest; as the cloth moves, `s` of the way from `from` to the edge's far end, or
+/// to the ghost of `toward` that `frame` places once the ends have parted (see the module's
+/// documentation).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CutVertex {
     /// The particle whose side the vertex is on.
     pub from: u32,
     pub toward: u32,
     pub s: f32,
+    /// The edge's rest length (m).
+    pub rest: f32,
     pub frame: Frame,
 }
 
-/// How a cut vertex follows its side.
+/// How a ghost of a cut vertex's `toward` follows the side of its `from`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Frame {
     /// `w[0] x_from + w[1] x_u + w[2] x_w` for two live neighbours `u`, `w` of `from`.
@@ -80,7 +99,26 @@ pub enum Frame {
 }
 
 impl CutVertex {
-    pub fn position(&self, pos: &Vec3s) -> Vec3 {
+    /// Where the vertex is drawn while the severed edges at `toward` have parted by `apart`
+    /// (0: not at all, 1: by [`OPEN_STRAIN`] or more; see [`RenderMesh::frame`]).
+    pub fn position(&self, pos: &Vec3s, apart: f32) -> Vec3 {
+        let (from, to) = (pos.get(self.from as usize), pos.get(self.toward as usize));
+        let end = if apart > 0.0 {
+            to.lerp(self.ghost(pos), apart * apart * (3.0 - 2.0 * apart))
+        } else {
+            to
+        };
+        from.lerp(end, self.s)
+    }
+
+    /// How far the edge's ends have moved apart, in units of [`OPEN_STRAIN`] (<= 0: not).
+    fn parted(&self, pos: &Vec3s) -> f32 {
+        let (from, to) = (pos.get(self.from as usize), pos.get(self.toward as usize));
+        (from.distance(to) / self.rest - 1.0) / OPEN_STRAIN
+    }
+
+    /// Where `from`'s side would have `toward`.
+    fn ghost(&self, pos: &Vec3s) -> Vec3 {
         let from = pos.get(self.from as usize);
         match self.frame {
             Frame::Affine {
@@ -121,6 +159,11 @@ pub struct RenderMesh {
     /// A mesh cloth's `(spring, on the side of its end a)` -> vertex index, while building.
     mesh_index: HashMap<(u32, bool), u32>,
     positions: Vec3s,
+    /// Per particle, how far the severed edges ending there have parted (the largest,
+    /// [`CutVertex::parted`], in `[0, 1]`): every cut vertex toward one particle goes over to
+    /// its ghost together, so two vertices toward it on one side never sit one on the particle
+    /// and one on a ghost, stretching the drawn edge between them.
+    apart: Vec<f32>,
     normals: Vec3s,
     /// The `(state, topology)` versions `positions` and `normals` were made for.
     frame_for: Option<(u64, u64)>,
@@ -179,8 +222,15 @@ impl RenderMesh {
                 out.y[..n].copy_from_slice(&src.y[..n]);
                 out.z[..n].copy_from_slice(&src.z[..n]);
             }
+            self.apart.clear();
+            self.apart.resize(n, 0.0);
+            for v in &self.cut {
+                let apart = &mut self.apart[v.toward as usize];
+                *apart = apart.max(v.parted(pos).min(1.0));
+            }
             for (k, v) in self.cut.iter().enumerate() {
-                self.positions.set(n + k, v.position(pos));
+                let apart = self.apart[v.toward as usize];
+                self.positions.set(n + k, v.position(pos, apart));
                 self.normals
                     .set(n + k, particle_normals.get(v.from as usize));
             }
@@ -195,6 +245,7 @@ impl RenderMesh {
             + self.index.capacity() * size_of::<((SpringKind, usize, bool), u32)>()
             + self.mesh_index.capacity() * size_of::<((u32, bool), u32)>()
             + self.positions.heap_bytes()
+            + self.apart.capacity() * size_of::<f32>()
             + self.normals.heap_bytes()
     }
 
@@ -286,8 +337,8 @@ fn clip_pieces(
     }
 }
 
-/// The cut vertex at fraction `s` of the way from `from` to `to`, framed by `from`'s live
-/// neighbours (see the module's documentation).
+/// The cut vertex at fraction `s` of the way from `from` to the ghost of `to` that `from`'s
+/// live neighbours frame (see the module's documentation).
 fn embed(model: &Model, from: usize, to: usize, s: f32) -> CutVertex {
     let grid = model.grid;
     let step = |q: usize| {
@@ -295,6 +346,13 @@ fn embed(model: &Model, from: usize, to: usize, s: f32) -> CutVertex {
         (i1 as i64 - i0 as i64, j1 as i64 - j0 as i64)
     };
     let g = step(to);
+    // Rest offsets in m: the grid steps scaled by the spacing.
+    let size = model.scene.cloth.size;
+    let h = glam::DVec2::new(
+        size[0] / (grid.nx - 1) as f64,
+        size[1] / (grid.ny - 1) as f64,
+    );
+    let offset = glam::DVec2::new(g.0 as f64, g.1 as f64) * h;
     let mut live = [(0usize, (0i64, 0i64)); STEPS.len()];
     let mut count = 0;
     for d in STEPS {
@@ -333,43 +391,31 @@ fn embed(model: &Model, from: usize, to: usize, s: f32) -> CutVertex {
                 ([u, from], [alpha, 0.0])
             })
     };
-    let s64 = s as f64;
     let frame = match best.map(|b| (b.1, b.2)).or_else(collinear) {
-        Some((frame, coef)) => {
-            let (wu, ww) = (s64 * coef[0], s64 * coef[1]);
-            Frame::Affine {
-                neighbours: frame.map(|q| q as u32),
-                weights: [(1.0 - wu - ww) as f32, wu as f32, ww as f32],
-            }
-        }
-        None => {
-            // Rest offsets in m: the grid steps scaled by the spacing.
-            let size = model.scene.cloth.size;
-            let h = glam::DVec2::new(
-                size[0] / (grid.nx - 1) as f64,
-                size[1] / (grid.ny - 1) as f64,
-            );
-            let offset = s64 * glam::DVec2::new(g.0 as f64, g.1 as f64) * h;
-            match live.first() {
-                Some(&(u, du)) => {
-                    let tangent = (glam::DVec2::new(du.0 as f64, du.1 as f64) * h).normalize();
-                    let along = offset.dot(tangent);
-                    Frame::Strip {
-                        neighbour: u as u32,
-                        along: along as f32,
-                        across: (offset - along * tangent).length() as f32,
-                    }
+        Some((frame, [wu, ww])) => Frame::Affine {
+            neighbours: frame.map(|q| q as u32),
+            weights: [(1.0 - wu - ww) as f32, wu as f32, ww as f32],
+        },
+        None => match live.first() {
+            Some(&(u, du)) => {
+                let tangent = (glam::DVec2::new(du.0 as f64, du.1 as f64) * h).normalize();
+                let along = offset.dot(tangent);
+                Frame::Strip {
+                    neighbour: u as u32,
+                    along: along as f32,
+                    across: (offset - along * tangent).length() as f32,
                 }
-                None => Frame::Toward {
-                    reach: offset.length() as f32,
-                },
             }
-        }
+            None => Frame::Toward {
+                reach: offset.length() as f32,
+            },
+        },
     };
     CutVertex {
         from: from as u32,
         toward: to as u32,
         s,
+        rest: offset.length() as f32,
         frame,
     }
 }

@@ -126,6 +126,10 @@ impl Simulation {
         let first = grab.index();
         let now = self.state.clock.time(self.model.scene.dt);
         let here = (self.state.targets.at(first, now)).unwrap_or(self.state.kin.pos.get(first));
+        let target = self.above_floor(target);
+        let Some(grab) = self.grab.as_ref() else {
+            return Ok(());
+        };
         let mut moves = Vec::with_capacity(grab.held.len());
         for (p, to) in grab.targets(target) {
             if !self.model.particles.alive[p] || !to.is_finite() {
@@ -138,6 +142,22 @@ impl Simulation {
         let over = self.drag_time();
         self.state.targets.glide_to(&moves, here, now, over);
         Ok(())
+    }
+
+    /// `target` for the grabbed particle, raised as far as it takes to keep every particle of
+    /// the grip on or above the floor: a hand cannot pull cloth through the floor, and a grip
+    /// held under it while the floor holds the cloth round it up tears the grip's rim, plucking
+    /// the patch out of the sheet (a straight-down drag of `tear`, taken past the floor).
+    fn above_floor(&self, target: Vec3) -> Vec3 {
+        let (Some(floor), Some(grab)) = (&self.model.scene.floor, &self.grab) else {
+            return target;
+        };
+        let level = (floor.height + floor.thickness) as f32;
+        let lowest = grab
+            .targets(target)
+            .map(|(_, to)| to.y)
+            .fold(f32::INFINITY, f32::min);
+        target + Vec3::Y * (level - lowest).max(0.0)
     }
 
     /// Lets go of the grip, restoring the pin state each of its particles had before the
