@@ -27,11 +27,11 @@
 //! the edge itself, `s` of the way from `p` to `q`: one point, so the cut shows as a closed
 //! seam, not as two edges each extrapolated by its own side's frame, which part wherever the
 //! cloth bends and let what is behind show through as specks along the cut. As the ends part
-//! the vertices move over to the ghosts ([`OPEN_STRAIN`]). A particle left
-//! with one live neighbour in line with the edge extrapolates along it. One with no such frame (on a strip one particle
-//! wide, as a tear along a row leaves, or alone) puts its cut vertex at its rest distance
-//! toward the other end ([`Frame::Toward`]): the direction is the only thing read from the
-//! other side, and the edge never grows past its rest length.
+//! the vertices move over to the ghosts ([`OPEN_STRAIN`]). A particle left with one live
+//! neighbour in line with the edge extrapolates along it. One with no such frame (on a strip
+//! one particle wide, as a tear along a row leaves, or alone) puts its cut vertex at its rest
+//! distance toward the other end ([`Frame::Toward`]): the direction is the only thing read
+//! from the other side, and the edge never grows past its rest length.
 //!
 //! A mesh cloth's triangles are clipped by the same cases ([`clip_pieces`]); its cut vertices
 //! are framed by the mesh's own neighbours (`mesh.rs`).
