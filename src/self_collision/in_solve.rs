@@ -6,7 +6,7 @@
 use rayon::prelude::*;
 
 use super::pair::Pair;
-use super::SelfCollision;
+use super::{SelfCollision, Survey};
 use crate::model::Model;
 use crate::soa::Vec3s;
 use crate::state::Kinematics;
@@ -39,16 +39,13 @@ impl SelfCollision {
                     (out.x[i], out.y[i], out.z[i]) = (x.x, x.y, x.z);
                 }
             });
-        // The round-off margin of `apply`, from the largest coordinate at either end.
-        let reach = (0..n)
-            .map(|p| {
-                x0.get(p)
-                    .abs()
-                    .max_element()
-                    .max(self.ahead.get(p).abs().max_element())
-            })
-            .fold(0.0f32, f32::max) as f64;
-        let eps = 1e-6 * (1.0 + reach);
+        // The round-off margin of `apply`, from the largest coordinate at either end; with a
+        // non-finite position the step fails anyway, and nothing is held.
+        let Some(survey) = Survey::of(&self.topology.vertices, x0, &self.ahead, None) else {
+            self.ahead_pairs.clear();
+            return &self.ahead_pairs;
+        };
+        let eps = 1e-6 * (1.0 + survey.reach);
         let ahead = std::mem::replace(&mut self.ahead, Vec3s::zeros(0));
         self.sweep_boxes(x0, &ahead, eps as f32);
         self.ahead = ahead;
