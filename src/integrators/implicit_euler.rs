@@ -16,7 +16,7 @@ use super::{par_update, FiniteCheck, StepContext};
 use crate::collisions::PredictedContacts;
 use crate::forces::Force;
 use crate::grid::SpringKind;
-use crate::linear::cg::{diagonal_blocks, ConjugateGradient};
+use crate::linear::cg::{diagonal_blocks, BlockOperator, ConjugateGradient};
 use crate::linear::stencil::{par_chunks6, SlotArrays};
 use crate::linear::{BlockStencil, Multigrid};
 use crate::soa::{Floats, Vec3s};

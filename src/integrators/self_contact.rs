@@ -281,19 +281,6 @@ impl<A: BlockOperator> BlockOperator for WithSelfContacts<'_, A> {
     }
 }
 
-impl<A: BlockOperator> WithSelfContacts<'_, A> {
-    /// `y = A x`, in parallel over chunks of `chunk` rows.
-    pub(super) fn apply(&self, x: &Vec3s, y: &mut Vec3s, chunk: usize) {
-        use rayon::prelude::*;
-        y.par_chunks_mut(chunk)
-            .enumerate()
-            .for_each(|(c, mut out)| {
-                let range = c * chunk..c * chunk + out.x.len();
-                crate::simd::dispatch!(self.apply_range(x, range.clone(), &mut out));
-            });
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -34,6 +34,16 @@ use crate::soa::{Vec3SliceMut, Vec3s};
 pub trait BlockOperator: Sync {
     /// `out = A x` over the rows `range` (`out` covers exactly `range`).
     fn apply_range(&self, x: &Vec3s, range: std::ops::Range<usize>, out: &mut Vec3SliceMut);
+
+    /// `y = A x`, in parallel over chunks of `chunk` rows.
+    fn apply(&self, x: &Vec3s, y: &mut Vec3s, chunk: usize) {
+        y.par_chunks_mut(chunk)
+            .enumerate()
+            .for_each(|(c, mut out)| {
+                let range = c * chunk..c * chunk + out.len();
+                crate::simd::dispatch!(self.apply_range(x, range.clone(), &mut out));
+            });
+    }
 }
 
 impl BlockOperator for BlockStencil {

@@ -323,16 +323,6 @@ impl BlockStencil {
         }
     }
 
-    /// `y = A x`, in parallel over chunks of `chunk` rows.
-    pub fn apply(&self, x: &Vec3s, y: &mut Vec3s, chunk: usize) {
-        y.par_chunks_mut(chunk)
-            .enumerate()
-            .for_each(|(c, mut out)| {
-                let range = c * chunk..c * chunk + out.len();
-                crate::simd::dispatch!(self.apply_range(x, range.clone(), &mut out));
-            });
-    }
-
     /// The inverse of every diagonal block ([`Sym3::inverse_or_zero`]) into `out`.
     pub fn diagonal_inverse(&self, out: &mut SlotArrays, chunk: usize) {
         let n = self.len();
@@ -423,6 +413,7 @@ fn product<const ADD: bool>(b: [&[f32]; 6], x: Vec3Slice, out: &mut Vec3SliceMut
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::linear::cg::BlockOperator;
 
     /// A random symmetric matrix with the stencil's shape and zero blocks off the grid.
     pub(crate) fn random_stencil(nx: usize, ny: usize, seed: u32) -> BlockStencil {

@@ -344,6 +344,7 @@ fn dense_of(a: &BlockStencil, out: &mut Vec<f64>) {
 
 #[cfg(test)]
 mod tests {
+    use super::super::cg::BlockOperator;
     use super::super::stencil::{BlockStencil, OFFSETS};
     use super::*;
     use glam::Vec3;
