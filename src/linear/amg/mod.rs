@@ -112,7 +112,8 @@ impl Amg {
         {
             amg.levels.push(level);
         }
-        amg.update(reference);
+        // Building the levels took the reference's Galerkin products already.
+        amg.refresh_smoothers_and_coarsest(reference);
         amg
     }
 
@@ -126,25 +127,26 @@ impl Amg {
     /// The coarse operators, smoothers and coarsest factor for `fine`, which must have the
     /// pattern of the reference the hierarchy was built on.
     pub fn update(&mut self, fine: &SpringMatrix) {
-        if self.levels.is_empty() {
-            self.update_smoother(fine);
-            return;
-        }
         let mut above: Option<&BlockCsr> = None;
         for level in self.levels.iter_mut() {
             match above {
-                None => {
-                    set_smoother(fine, &mut level.smoother);
-                    level
-                        .galerkin
-                        .apply(fine, &level.transfer, &mut level.coarse);
-                }
-                Some(a) => {
-                    set_smoother(a, &mut level.smoother);
-                    level.galerkin.apply(a, &level.transfer, &mut level.coarse);
-                }
+                None => level
+                    .galerkin
+                    .apply(fine, &level.transfer, &mut level.coarse),
+                Some(a) => level.galerkin.apply(a, &level.transfer, &mut level.coarse),
             }
             above = Some(&level.coarse);
+        }
+        self.refresh_smoothers_and_coarsest(fine);
+    }
+
+    /// Every level's smoother and the coarsest level's factor, from `fine` and the coarse
+    /// operators as they are.
+    fn refresh_smoothers_and_coarsest(&mut self, fine: &SpringMatrix) {
+        self.update_smoother(fine);
+        for pair in 1..self.levels.len() {
+            let (above, below) = self.levels.split_at_mut(pair);
+            set_smoother(&above[pair - 1].coarse, &mut below[0].smoother);
         }
         if let Some(last) = self.levels.last() {
             last.coarse.to_dense(&mut self.dense);
