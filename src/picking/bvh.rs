@@ -120,6 +120,44 @@ pub struct TriangleBvh {
     bvh: Bvh,
     in_tree: Vec<bool>,
     leaves: usize,
+    /// A mesh's triangles by corner, so that a cut finds those around a particle without a
+    /// scan of every triangle (the grid's are found from the particle's cell).
+    around: Option<VertexTriangles>,
+}
+
+/// Each vertex's triangles: `ids[offsets[v]..offsets[v + 1]]`, in increasing order.
+struct VertexTriangles {
+    offsets: Vec<u32>,
+    ids: Vec<u32>,
+}
+
+impl VertexTriangles {
+    fn new(triangles: &[[u32; 3]]) -> Self {
+        let vertices = triangles.iter().flatten().map(|&v| v as usize + 1).max();
+        let mut offsets = vec![0u32; vertices.unwrap_or(0) + 1];
+        for &v in triangles.iter().flatten() {
+            offsets[v as usize + 1] += 1;
+        }
+        for v in 1..offsets.len() {
+            offsets[v] += offsets[v - 1];
+        }
+        let mut next = offsets.clone();
+        let mut ids = vec![0u32; 3 * triangles.len()];
+        for (id, tri) in triangles.iter().enumerate() {
+            for &v in tri {
+                ids[next[v as usize] as usize] = id as u32;
+                next[v as usize] += 1;
+            }
+        }
+        VertexTriangles { offsets, ids }
+    }
+
+    fn of(&self, v: usize) -> &[u32] {
+        match (self.offsets.get(v), self.offsets.get(v + 1)) {
+            (Some(&lo), Some(&hi)) => &self.ids[lo as usize..hi as usize],
+            _ => &[],
+        }
+    }
 }
 
 fn triangle_box(pos: &Vec3s, tri: [usize; 3]) -> Aabb {
@@ -143,11 +181,16 @@ impl TriangleBvh {
             .filter(|&id| in_tree[id])
             .map(|id| (id, triangle_box(pos, ids.corners(id))));
         let bvh = build_bvh(leaves);
+        let around = match &ids {
+            TriangleIds::Grid(_) => None,
+            TriangleIds::Mesh(triangles) => Some(VertexTriangles::new(triangles)),
+        };
         TriangleBvh {
             ids,
             bvh,
             leaves: in_tree.iter().filter(|&&t| t).count(),
             in_tree,
+            around,
         }
     }
 
@@ -190,13 +233,17 @@ impl TriangleBvh {
 
     /// Removes the triangles around particle `p` (at most six on the grid); returns how many.
     pub fn remove_around(&mut self, p: usize) -> usize {
-        let grid = match &self.ids {
-            TriangleIds::Grid(grid) => *grid,
-            TriangleIds::Mesh(_) => {
-                let around: Vec<usize> = (0..self.in_tree.len())
-                    .filter(|&id| self.ids.corners(id).contains(&p))
-                    .collect();
-                return around.into_iter().filter(|&id| self.remove(id)).count();
+        let grid = match (&self.ids, &self.around) {
+            (TriangleIds::Grid(grid), _) => *grid,
+            (TriangleIds::Mesh(_), around) => {
+                let ids = around
+                    .as_ref()
+                    .map_or(&[][..], |around| around.of(p))
+                    .to_vec();
+                return ids
+                    .into_iter()
+                    .filter(|&id| self.remove(id as usize))
+                    .count();
             }
         };
         let (i, j) = grid.coords(p);
@@ -238,5 +285,47 @@ impl TriangleBvh {
                 barycentric,
             })
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A fan of six triangles around vertex 0 and a strip beside it.
+    fn mesh() -> (TriangleIds, Vec3s) {
+        let mut tris: Vec<[u32; 3]> = (0..6).map(|k| [0, 1 + k, 1 + (k + 1) % 6]).collect();
+        tris.extend([[1, 7, 2], [2, 7, 8]]);
+        let mut pos = Vec3s::zeros(9);
+        for v in 1..9 {
+            let a = v as f32;
+            pos.set(v, glam::Vec3::new(a.cos() * a, a.sin() * a, 0.1 * a));
+        }
+        (TriangleIds::Mesh(tris.into()), pos)
+    }
+
+    #[test]
+    fn a_cut_removes_exactly_the_mesh_triangles_with_the_particle_as_a_corner() {
+        let (ids, pos) = mesh();
+        for p in 0..9 {
+            let mut tree = TriangleBvh::build_where(ids.clone(), &pos, |_| true);
+            let around: Vec<usize> = (0..ids.slots())
+                .filter(|&id| ids.corners(id).contains(&p))
+                .collect();
+            assert_eq!(tree.remove_around(p), around.len(), "particle {p}");
+            for id in 0..ids.slots() {
+                assert_eq!(
+                    tree.contains(id),
+                    !around.contains(&id),
+                    "particle {p}, triangle {id}"
+                );
+            }
+            assert_eq!(tree.len(), ids.slots() - around.len());
+            assert_eq!(
+                tree.remove_around(p),
+                0,
+                "a second cut of {p} finds nothing left"
+            );
+        }
     }
 }
