@@ -205,6 +205,13 @@ impl ForceModel {
         self.time = time;
     }
 
+    /// The fraction of its starting length each seam of `mesh` has at the evaluations' time
+    /// ([`MeshCloth::sewing`]): the implicit solvers take a seam's rest length from it, as the
+    /// force pass does.
+    pub fn sewing(&self, mesh: &MeshCloth) -> f32 {
+        mesh.sewing(self.time)
+    }
+
     /// Makes the next evaluation (only) check every live spring against the stretch limit, in
     /// the same loop that computes its force: one compare per spring, no extra pass.
     pub fn arm_stretch_watch(&mut self) {

@@ -209,6 +209,7 @@ impl MeshSystem {
     fn build_blocks(&mut self, mesh: &MeshCloth, h: f32, ctx: &StepContext) {
         let s = &mesh.springs;
         let (pos, vel, w) = (&ctx.current.pos, &ctx.current.vel, &ctx.particles.inv_mass);
+        let sewing = ctx.forces.sewing(mesh);
         self.blocks
             .par_chunks_mut(SPRING_CHUNK)
             .zip(self.kv.par_chunks_mut(SPRING_CHUNK))
@@ -218,11 +219,17 @@ impl MeshSystem {
                 for i in 0..blocks.len() {
                     let e = ci * SPRING_CHUNK + i;
                     let (a, b) = (s.a[e] as usize, s.b[e] as usize);
-                    let (k, c) = (s.k[e], s.c[e]);
                     let d = pos.get(b) - pos.get(a);
                     let l = d.length();
+                    // The force's own rest length: a closing seam's shrinks with the clock, and
+                    // a slack seam exerts nothing (its matrix would be the seam's starting
+                    // length's, missing the sewn seam's stiffness across it).
+                    let (k, c, rest) = match s.taut_rest(e, l, sewing) {
+                        Some(rest) => (s.k[e], s.c[e], rest),
+                        None => (0.0, 0.0, 0.0),
+                    };
                     let inv_l = if l > 0.0 { 1.0 / l } else { 0.0 };
-                    let g = (1.0 - s.rest[e] * inv_l).max(0.0) * (l > 0.0) as u32 as f32;
+                    let g = (1.0 - rest * inv_l).max(0.0) * (l > 0.0) as u32 as f32;
                     let alpha = h * c + h * h * k * (1.0 - g);
                     let beta = h * h * k * g;
                     let u = d * inv_l;

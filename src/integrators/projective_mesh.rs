@@ -72,6 +72,7 @@ pub(super) fn local_step(
     let s = &mesh.springs;
     let cur = &ctx.current.pos;
     let inv_h = 1.0 / h;
+    let sewing = ctx.forces.sewing(mesh);
     spring_force
         .par_chunks_mut(SPRING_CHUNK)
         .enumerate()
@@ -85,9 +86,14 @@ pub(super) fn local_step(
                 let l = d.length();
                 let inv_l = if l > 0.0 { 1.0 / l } else { 0.0 };
                 let u = d * inv_l;
-                // A zero-length spring has no direction and exerts no force.
-                let magnitude = s.k[e] * (l - s.rest[e]) * (l > 0.0) as u32 as f32
-                    + s.c[e] * inv_h * u.dot(ext);
+                // A zero-length spring has no direction and exerts no force; a seam takes its
+                // rest length from the clock, and a slack one exerts nothing.
+                let magnitude = match s.taut_rest(e, l, sewing) {
+                    Some(rest) => {
+                        s.k[e] * (l - rest) * (l > 0.0) as u32 as f32 + s.c[e] * inv_h * u.dot(ext)
+                    }
+                    None => 0.0,
+                };
                 f.set(i, magnitude * u);
             }
         });

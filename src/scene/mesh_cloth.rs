@@ -66,6 +66,18 @@ impl EdgeSprings {
         self.active.push(true);
     }
 
+    /// Spring `e`'s rest length when the seams are at `sewing` of their starting length
+    /// ([`MeshCloth::sewing`]), or None when it is a seam that is slack at length `l`: a seam is
+    /// a thread, it pulls its ends together and never pushes them apart. The force pass applies
+    /// the same rule, written for the vector unit.
+    #[inline]
+    pub fn taut_rest(&self, e: usize, l: f32, sewing: f32) -> Option<f32> {
+        match self.kind[e] {
+            EdgeKind::Seam => Some(self.rest[e] * sewing).filter(|&rest| l > rest),
+            _ => Some(self.rest[e]),
+        }
+    }
+
     pub fn heap_bytes(&self) -> usize {
         self.a.capacity() * 4
             + self.b.capacity() * 4
