@@ -141,6 +141,12 @@ class Renderer:
         # One unit sphere for every ``[[spheres]]`` sphere, scaled by its model matrix.
         (self.sphere_vbo, self.sphere_ibo, self.sphere_vao, self.sphere_shadow_vao,
          self.sphere_forward_vao) = self._solid_buffers(meshes.uv_sphere(32, 64))
+        # Its shadow from a quarter of the vertices, which every redraw of the map pays for:
+        # the outline is off by r (1 - cos(pi / 32)) = 0.5 % of the radius, under a texel.
+        shadow_v, shadow_i = meshes.uv_sphere(16, 32)
+        self.sphere_shadow_vbo, self.sphere_shadow_ibo = ctx.buffer(shadow_v), ctx.buffer(shadow_i)
+        self.sphere_shadow_vao = self._mesh_vao(self.shadow_prog, self.sphere_shadow_vbo,
+                                                self.sphere_shadow_ibo)
         self._collider_buffers: list[moderngl.Buffer] = []
         # Markers are a few pixels across: a coarse sphere (vertex work is not free here).
         marker_v, marker_i = meshes.uv_sphere(8, 16)
