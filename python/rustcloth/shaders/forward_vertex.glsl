@@ -29,6 +29,7 @@ uniform float exposure;
 uniform sampler2DShadow shadow_map;
 uniform bool shadows_enabled;
 uniform float shadow_texel; // 1 / the shadow map's size
+uniform float depth_push;   // m (see depth_push.glsl)
 
 in vec3 in_position;
 in vec3 in_normal;
@@ -53,6 +54,7 @@ out vec2 v_floor;   // world x, z: where the floor's tiles are
 #endif
 
 #include "tonemap.glsl"
+#include "depth_push.glsl"
 
 // What the side with normal n shows, unshadowed, unfogged: the light on the albedo from the
 // ambient and point lights (diffuse), and the key light's: on the albedo (key) and added
@@ -142,5 +144,5 @@ void main() {
     float white = max(dot(key_color, vec3(1.0)), 1e-6);
     v_key_a = vec2(dot(key, vec3(1.0)), dot(gloss, vec3(1.0))) * (clear / white);
 #endif
-    gl_Position = view_proj * world;
+    gl_Position = depth_pushed(view_proj * world, p, pushed_by(p, n));
 }
