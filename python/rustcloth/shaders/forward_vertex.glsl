@@ -57,8 +57,8 @@ out vec2 v_floor;   // world x, z: where the floor's tiles are
 #include "depth_push.glsl"
 
 // What the side with normal n shows, unshadowed, unfogged: the light on the albedo from the
-// ambient and point lights (diffuse), and the key light's: on the albedo (key) and added
-// (gloss).
+// ambient (diffuse; the caller adds the point lights), and the key light's: on the albedo
+// (key) and added (gloss).
 void side(vec3 n, vec3 p, vec3 v, bool cloth, bool front, out vec3 diffuse, out vec3 key,
           out vec3 gloss) {
     vec3 l = -key_dir;
@@ -83,14 +83,21 @@ void side(vec3 n, vec3 p, vec3 v, bool cloth, bool front, out vec3 diffuse, out 
         float n_h = max(dot(n, normalize(l + v)), 0.0);
         if (n_l > 0.0) gloss = vec3(0.04 * (power + 8.0) / 8.0 * pow(n_h, power) * n_l) * key_color;
     }
+}
+
+// The point lights' irradiance at p on the side normal n faces (facing) and on the other
+// (away): one loop for both sides of the cloth.
+void point_lights(vec3 n, vec3 p, out vec3 facing, out vec3 away) {
+    facing = away = vec3(0.0);
     for (int i = 0; i < num_points; ++i) {
         vec3 d = point_pos[i] - p;
         float dist2 = dot(d, d);
         float r2 = point_reach[i] * point_reach[i];
         float window = max(1.0 - (dist2 / r2) * (dist2 / r2), 0.0);
         float pn_l = dot(n, d) * inversesqrt(dist2);
-        float lit = pn_l > 0.0 ? pn_l : (cloth ? -0.12 * pn_l : 0.0);
-        diffuse += point_color[i] * (lit * window * window / (dist2 + 0.01));
+        vec3 e = point_color[i] * (window * window / (dist2 + 0.01));
+        facing += e * max(pn_l, 0.0);
+        away += e * max(-pn_l, 0.0);
     }
 }
 
@@ -128,17 +135,22 @@ void main() {
 #ifdef TWO_SIDED
     v_uv = in_uv;
     float shadow = key_visibility(shadow_at);
+    // Thin cloth lets 12 % of the light on the other side through, as the full tier's.
+    vec3 facing, away;
+    point_lights(n, p, facing, away);
     side(n, p, v, true, front_is_winding, diffuse, key, gloss);
-    v_light_a = (diffuse + key * shadow) * clear;
+    v_light_a = (diffuse + facing + 0.12 * away + key * shadow) * clear;
     v_add_a = gloss * (shadow * clear) + fogged;
     side(-n, p, v, true, !front_is_winding, diffuse, key, gloss);
-    v_light_b = (diffuse + key * shadow) * clear;
+    v_light_b = (diffuse + away + 0.12 * facing + key * shadow) * clear;
     v_add_b = gloss * (shadow * clear) + fogged;
 #else
     v_floor = p.xz;
     v_shadow = shadow_at;
+    vec3 facing, away;
+    point_lights(n, p, facing, away);
     side(n, p, v, false, false, diffuse, key, gloss);
-    v_light_a = diffuse * clear;
+    v_light_a = (diffuse + facing) * clear;
     v_add_a = fogged;
     // key and gloss are key_color times a scalar here: the fragment stage takes the scalars.
     float white = max(dot(key_color, vec3(1.0)), 1e-6);
