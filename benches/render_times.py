@@ -12,6 +12,8 @@ wall clock and by the CPU time of the whole process (alternate frames).
     python benches/render_times.py --write docs/rendering.md   # and replace them there
     python benches/render_times.py --before none --section render-times-gpu \
         --write docs/rendering.md   # on a GPU machine without git: the two tiers only
+    python benches/render_times.py --before REV --before-tier software \
+        --section render-times-software --write docs/rendering.md   # a tier against itself
 """
 
 from __future__ import annotations
@@ -100,7 +102,7 @@ def drape(grid: int) -> rustcloth.Scene:
 
 
 def measure(size: tuple[int, int], ssao: bool, frames: int, before_mod: Any, grid: int,
-            paused: bool = False) -> Result:
+            paused: bool = False, before_tier: str | None = None) -> Result:
     """Mean ms per pass group for each renderer, interleaved (the order rotates every
     frame), by wall clock and by CPU time (alternate frames)."""
     ctx = create_standalone_context()
@@ -110,7 +112,8 @@ def measure(size: tuple[int, int], ssao: bool, frames: int, before_mod: Any, gri
     target = ctx.framebuffer(color_attachments=[color])
     renderers: dict[str, Any] = {}
     if before_mod is not None:
-        renderers["before"] = before_mod.Renderer(ctx, sim, size)
+        old_tier = {} if before_tier is None else {"tier": before_tier}
+        renderers["before"] = before_mod.Renderer(ctx, sim, size, **old_tier)
     for tier in ("full", "software"):
         renderers[tier] = Renderer(ctx, sim, size, tier=tier)
     names = list(renderers)
@@ -165,6 +168,8 @@ def main(argv: list[str] | None = None) -> int:
                                      formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     parser.add_argument("--before", default=BEFORE,
                         help="git revision of the old renderer, or 'none' to leave it out")
+    parser.add_argument("--before-tier", default=None,
+                        help="the old renderer's tier (it must have tiers), else its default")
     parser.add_argument("--frames", type=int, default=10, help="measured frames per case")
     parser.add_argument("--grid", type=int, default=64, help="cloth particles each way")
     parser.add_argument("--write", type=Path, default=None,
@@ -183,14 +188,16 @@ def main(argv: list[str] | None = None) -> int:
         for size, ssao, paused, config in cases:
             label = f"{size[0]}x{size[1]} {config}"
             results.append((label, measure(size, ssao, args.frames, before, args.grid,
-                                           paused=paused)))
+                                           paused=paused, before_tier=args.before_tier)))
             print(f"measured {label}", file=sys.stderr)
         load1 = os.getloadavg()[0]
     ctx = create_standalone_context()
     gl = ctx.info["GL_RENDERER"]
     ctx.release()
     old = ("" if before is None
-           else f"the renderer before the software tier (`{args.before}`) and ")
+           else f"the renderer before the software tier (`{args.before}`) and "
+           if args.before_tier is None
+           else f"the renderer at `{args.before}` in its {args.before_tier} tier (before) and ")
     command = " ".join(["python benches/render_times.py", *(argv or sys.argv[1:])])
     text = (f"Measured by `{command}` on "
             f"{gl}, {os.cpu_count()} cores (load average {load0:.1f} at the start, "

@@ -233,3 +233,36 @@ def test_a_straight_down_drag_rips_along_the_perforation_and_keeps_the_grip_in(s
     assert (labels[held] == labels[held[0]]).all() and sim.pieces() == 1
     y = sim.positions[:, 1]
     assert np.isfinite(y).all() and (y > level - 0.01).all() and (y < 3.0).all()
+
+
+def test_a_grip_dragged_into_a_sphere_stays_outside_it_and_keeps_the_cloth_whole():
+    # A grip's targets were kept above the floor only: dragged down into the ball under
+    # drape, the grip went inside it (colliders leave pinned particles where they are) while
+    # the ball pushed the cloth round it out, stretching the grip's rim across the ball's
+    # surface; with tearing on, the rim tore and the grip was plucked out of the sheet. Each
+    # target is now put where the ball would put a particle resting there.
+    data = rustcloth.load_scene("drape").to_dict()
+    data["tearing"] = {"max_strain": 0.5, "max_per_step": 8}
+    sim = Simulation(rustcloth.Scene.from_dict(data))
+    ball = sim.scene.spheres[0]
+    center, reach = np.asarray(ball["center"]), ball["radius"] + ball["thickness"]
+    sim.advance(1.0)
+    top = int(np.argmax(sim.positions[:, 1]))
+    hit = sim.pick(sim.positions[top] + [0.0, 2.0, 0.0], [0.0, -1.0, 0.0])
+    assert hit is not None
+    sim.grab(hit[0])
+    held = sim.gripped()
+    assert len(held) > 1
+    start = sim.positions[hit[0]].copy()
+    frames = round(0.5 * FPS)
+    for f in range(1, frames + 1):
+        sim.drag_to(start + (center - start) * f / frames)  # to the ball's centre
+        sim.advance(1 / FPS)
+    for _ in range(round(FPS)):
+        sim.advance(1 / FPS)
+    p = sim.positions
+    assert np.isfinite(p).all() and (np.abs(p) < 10.0).all()
+    distance = np.linalg.norm(p[held] - center, axis=1)
+    assert (distance > reach - 1e-4).all(), distance.min() - reach
+    assert sim.grabbed() == hit[0] and sorted(sim.gripped()) == sorted(held)
+    assert sim.pieces() == 1

@@ -17,6 +17,12 @@ pub struct Floor {
 }
 
 impl Floor {
+    /// `p` raised onto the floor's offset plane when below it, however it got there (see
+    /// [`super::Collider::push_out`]).
+    pub fn push_out(&self, p: Vec3) -> Vec3 {
+        Vec3::new(p.x, p.y.max(self.height + self.thickness), p.z)
+    }
+
     /// Moves every dynamic particle of `next` below the floor onto it; see
     /// [`super::Collider::resolve`]; writes `+y` into `normals` (when given) for each.
     pub fn resolve(

@@ -85,6 +85,17 @@ impl Collider {
         }
     }
 
+    /// Where this collider, posed at `time` (s), puts a particle that moved from `from` to `to`
+    /// and stays: by the same contact test the step runs, the entry point of a path that went
+    /// into it or through it, the nearest point of the offset surface (`thickness` outside) for
+    /// one that ended inside or within `thickness` of it without, else `to`.
+    pub fn push_out(&self, from: Vec3, to: Vec3, time: f64) -> Vec3 {
+        match self {
+            Collider::Spheres(s) | Collider::Shapes(s) => s.push_out(from, to, time),
+            Collider::Floor(f) => f.push_out(to),
+        }
+    }
+
     /// Moves every dynamic particle of `next` that ended inside the collider out of it.
     /// `start` holds the positions at the start of the step, `h` is its length and `time` the
     /// simulated time at its end (s), where moving colliders are posed. Returns whether every

@@ -109,9 +109,15 @@ impl Simulation {
     /// Moves the grip so that the grabbed particle's target is `target` (m) and every other
     /// particle of the grip moves by the same displacement from where it was grabbed. The
     /// grip glides there from where it is now at a constant velocity, arriving
-    /// [`Simulation::drag_time`] later, and the cloth follows through its springs. Without a grab (or once the grabbed particle was
-    /// cut) this does nothing; particles of the grip cut since are skipped. Errors on a
-    /// non-finite target.
+    /// [`Simulation::drag_time`] later, and the cloth follows through its springs. A hand cannot
+    /// push cloth into a solid: the grip is raised as a whole above the floor, and stopped as a
+    /// whole where the grabbed particle's path (from where it is now to its target) enters a
+    /// collider posed at the arrival time; then each particle of the grip goes where that
+    /// collider would put a particle taking its own path, by the contact test the step runs.
+    /// Colliders skip pinned particles, so a target left inside one would hold the grip there
+    /// while the collider pushed the cloth round it out, tearing the grip's rim. Without a grab
+    /// (or once the grabbed particle was cut) this does nothing; particles of the grip cut since
+    /// are skipped. Errors on a non-finite target.
     pub fn drag_to(&mut self, target: Vec3) -> Result<()> {
         if !target.is_finite() {
             return Err(Error::value(
@@ -126,7 +132,11 @@ impl Simulation {
         let first = grab.index();
         let now = self.state.clock.time(self.model.scene.dt);
         let here = (self.state.targets.at(first, now)).unwrap_or(self.state.kin.pos.get(first));
+        let over = self.drag_time();
+        // The grip as a whole stops where the grabbed particle's path enters a collider; then
+        // each of its particles where its own path does (round a curved surface, say).
         let target = self.above_floor(target);
+        let target = self.stepper.push_out(here, target, now + over);
         let Some(grab) = self.grab.as_ref() else {
             return Ok(());
         };
@@ -137,9 +147,9 @@ impl Simulation {
             }
             // Pinned again in case `unpin` was called during the drag.
             self.model.particles.set_pinned(p, true);
-            moves.push((p, to));
+            let from = (self.state.targets.at(p, now)).unwrap_or(self.state.kin.pos.get(p));
+            moves.push((p, self.stepper.push_out(from, to, now + over)));
         }
-        let over = self.drag_time();
         self.state.targets.glide_to(&moves, here, now, over);
         Ok(())
     }

@@ -16,6 +16,8 @@ mod watchdog;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::time::{Duration, Instant};
 
+use glam::Vec3;
+
 pub use watchdog::{WatchdogSnapshot, WatchdogStats};
 
 use crate::collisions::Shapes;
@@ -446,6 +448,12 @@ impl Stepper {
     }
 
     // ----- saving and restoring -------------------------------------------------------------
+
+    /// Where the colliders posed at `time` (s) put a particle that moved from `from` to `to` and
+    /// stays.
+    pub fn push_out(&self, from: Vec3, to: Vec3, time: f64) -> Vec3 {
+        self.pipeline.push_out(from, to, time)
+    }
 
     /// The scene's `[[colliders]]` (None without any), with the poses set between steps.
     pub fn shapes(&self) -> Option<&Shapes> {

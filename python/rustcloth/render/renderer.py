@@ -83,6 +83,10 @@ class _Solid:
     model: F32
     material: K.Material
     collider: int | None = None
+    # Whether its depth is pushed back (Renderer.depth_push): not a plane, on which cloth
+    # lies flat, and whose two triangles span metres (a push interpolated across them would
+    # be far from depth_push inside).
+    pushed: bool = True
 
 
 class Renderer:
@@ -94,7 +98,10 @@ class Renderer:
     buffer and the texture coordinates are rewritten only when ``topology_version`` changes
     (the vertex buffers grow then, if the cut vertices need more room). :meth:`render` then
     runs the passes. ``pass_timer``, when set, is called with each pass's name as it finishes
-    (benches use it to time passes).
+    (benches use it to time passes). ``depth_push`` (m, set per simulation: three quarters
+    of the cloth's mean edge) is how far behind their surface the spheres' and colliders'
+    depth is written, so that cloth bent over a solid's edge, whose flat triangles cut its
+    corner, still covers it (``depth_push.glsl``).
 
     ``tier`` (one of :data:`TIERS`, settable at any time): ``software`` draws the lit view
     in one forward pass, lit per vertex, with a shadow map of :data:`SOFTWARE_SHADOW_SIZE`,
@@ -141,6 +148,12 @@ class Renderer:
         # One unit sphere for every ``[[spheres]]`` sphere, scaled by its model matrix.
         (self.sphere_vbo, self.sphere_ibo, self.sphere_vao, self.sphere_shadow_vao,
          self.sphere_forward_vao) = self._solid_buffers(meshes.uv_sphere(32, 64))
+        # Its shadow from a quarter of the vertices, which every redraw of the map pays for:
+        # the outline is off by r (1 - cos(pi / 32)) = 0.5 % of the radius, under a texel.
+        shadow_v, shadow_i = meshes.uv_sphere(16, 32)
+        self.sphere_shadow_vbo, self.sphere_shadow_ibo = ctx.buffer(shadow_v), ctx.buffer(shadow_i)
+        self.sphere_shadow_vao = self._mesh_vao(self.shadow_prog, self.sphere_shadow_vbo,
+                                                self.sphere_shadow_ibo)
         self._collider_buffers: list[moderngl.Buffer] = []
         # Markers are a few pixels across: a coarse sphere (vertex work is not free here).
         marker_v, marker_i = meshes.uv_sphere(8, 16)
@@ -161,6 +174,7 @@ class Renderer:
         self.scale = 1.0
         self._lit_key: tuple[Any, ...] | None = None
         self._inv_view_proj = np.identity(4, dtype=np.float32)
+        self._eye = np.zeros(3)
         self.resize(size)
         self.set_simulation(sim)
 
@@ -243,7 +257,8 @@ class Renderer:
                 meshes.collider_mesh(collider, _FLOOR_HALF_SIZE))
             self._collider_buffers += [vbo, ibo]
             self.solids.append(_Solid(vao, shadow_vao, forward_vao,
-                                      np.identity(4, dtype=np.float32), K.COLLIDER, k))
+                                      np.identity(4, dtype=np.float32), K.COLLIDER, k,
+                                      pushed=collider["shape"] != "plane"))
         self._poses: tuple[npt.NDArray[np.float64], ...] | None = None
 
     def _pose_colliders(self) -> None:
@@ -347,6 +362,11 @@ class Renderer:
         )
         self._topology = -1
         self.index_count = 0
+        # Three quarters of the cloth's mean edge: deeper than a triangle bent over a solid's
+        # edge cuts in (up to a third of an edge at a right-angled fold over a sharp edge);
+        # round_tablecloth's table still showed through in a pixel at half.
+        edges = sim.positions[sim.triangles] - sim.positions[np.roll(sim.triangles, 1, axis=1)]
+        self.depth_push = 0.75 * float(np.linalg.norm(edges, axis=2).mean()) if edges.size else 0.0
         self.positions = np.zeros((n, 3), dtype=np.float32)
         self._shadow_positions = None
         self._state_serial = 0
@@ -562,10 +582,11 @@ class Renderer:
         fbo.clear(0.0, 0.0, 0.0, alpha, depth=1.0)
         view_proj = camera.view_projection
         self._inv_view_proj = np.linalg.inv(view_proj.astype(np.float64)).astype(np.float32)
+        self._eye = np.asarray(camera.eye, dtype=np.float64)
         lay = self.layout
         for prog in progs:
             _uniforms(prog, view_proj=view_proj, front_is_winding=lay.front_is_winding,
-                      cloth_size=lay.cloth_size)
+                      cloth_size=lay.cloth_size, eye=tuple(camera.eye))
 
     def _draw_surfaces(self, cloth_prog: moderngl.Program, prog: moderngl.Program,
                        cloth: moderngl.VertexArray, solids: list[moderngl.VertexArray],
@@ -580,8 +601,10 @@ class Renderer:
             cloth.render(vertices=self.index_count)
         for solid, vao in zip(self.solids, solids, strict=True):
             if self.show_colliders:
+                _uniforms(prog, depth_push=self.depth_push if solid.pushed else 0.0)
                 self._draw_mesh(prog, vao, solid.model, solid.material.id,
                                 K.srgb_to_linear(solid.material.color))
+        _uniforms(prog, depth_push=0.0)
         if self.highlight is not None and 0 <= self.highlight < len(self.positions):
             model = meshes.translate_scale(self.positions[self.highlight], 0.9 * lay.spacing)
             self._draw_mesh(prog, marker, model, K.MARKER.id, K.srgb_to_linear(K.MARKER.color))
@@ -757,7 +780,13 @@ class Renderer:
         ndc = np.stack(np.broadcast_arrays(u[None, :], v[:, None], depth * 2.0 - 1.0,
                                            np.ones((h, w))), axis=-1)
         world = ndc @ self._inv_view_proj.astype(np.float64).T
-        out["position"] = (world[..., :3] / world[..., 3:]).astype(np.float32)
+        position = world[..., :3] / world[..., 3:]
+        push = np.frombuffer(self.g_normal.read(), dtype=np.float16).reshape(h, w, 4)[..., 3]
+        pushed = push > 0.0
+        ray = position[pushed] - self._eye
+        position[pushed] -= (ray / np.linalg.norm(ray, axis=1, keepdims=True)
+                             * push[pushed, None].astype(np.float64))
+        out["position"] = position.astype(np.float32)
         return out
 
 

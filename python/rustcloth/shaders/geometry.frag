@@ -1,7 +1,8 @@
 #version 330 core
-// Geometry pass: writes each surface's unit normal (facing the viewer) and its albedo
-// (stored as its square root, gamma 2, for precision in the darks at the cost of one sqrt)
-// with the material id in alpha; the depth buffer gives the position. The
+// Geometry pass: writes each surface's unit normal (facing the viewer; in alpha, how far its
+// depth was pushed back, see depth_push.glsl) and its albedo (stored as its square root,
+// gamma 2, for precision in the darks at the cost of one sqrt) with the material id in
+// alpha; the depth buffer gives the position. The
 // cloth's fabric is procedural, in metres of cloth, so its scale has nothing to do with the
 // particle grid. MAT_*, VIEW_* and the colours come from the generated header.
 
@@ -17,6 +18,7 @@ in vec3 v_normal;
 in vec2 v_uv;
 in float v_scalar;
 
+in float v_push;
 layout(location = 0) out vec4 g_normal;
 layout(location = 1) out vec4 g_albedo;
 
@@ -68,6 +70,6 @@ void main() {
     } else if (mat == MAT_FLOOR) {
         albedo = floor_color(v_world.xz);
     }
-    g_normal = vec4(n, 0.0);
+    g_normal = vec4(n, v_push);  // how far to bring the position back (depth_push.glsl)
     g_albedo = vec4(sqrt(clamp(albedo, 0.0, 1.0)), float(mat) / 255.0);
 }

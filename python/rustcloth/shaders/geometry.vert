@@ -3,6 +3,8 @@
 // and the markers share this program; `model` places the static meshes.
 uniform mat4 view_proj;
 uniform mat4 model;
+uniform vec3 eye;
+uniform float depth_push;  // m (see depth_push.glsl)
 
 in vec3 in_position;
 in vec3 in_normal;
@@ -13,6 +15,9 @@ out vec3 v_world;
 out vec3 v_normal;
 out vec2 v_uv;
 out float v_scalar;
+out float v_push;  // m further along the view ray the depth was written
+
+#include "depth_push.glsl"
 
 void main() {
     vec4 world = model * vec4(in_position, 1.0);
@@ -22,5 +27,6 @@ void main() {
     v_normal = mat3(model) * in_normal;
     v_uv = in_uv;
     v_scalar = in_scalar;
-    gl_Position = view_proj * world;
+    v_push = pushed_by(world.xyz, normalize(v_normal));
+    gl_Position = depth_pushed(view_proj * world, world.xyz, v_push);
 }

@@ -162,6 +162,7 @@ void main() {
     vec3 view_dir = normalize(p - eye);
     vec4 albedo_mat = texture(g_albedo, v_uv);
     int mat = int(albedo_mat.a * 255.0 + 0.5);
+    p -= view_dir * texture(g_normal, v_uv).a;  // a solid's depth was pushed (depth_push.glsl)
     vec3 color;
     float dither = dither8(gl_FragCoord.xy);
     if (mat == 0) {

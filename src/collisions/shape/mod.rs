@@ -170,6 +170,20 @@ impl Shapes {
         self.keys = keys;
     }
 
+    /// Where the shapes posed at `time` (s), in order, put a particle that moved from `from` to
+    /// `to` and stays (see [`super::Collider::push_out`]).
+    pub fn push_out(&self, from: Vec3, to: Vec3, time: f64) -> Vec3 {
+        self.shapes
+            .iter()
+            .zip(&self.keys)
+            .fold(to, |to, (shape, key)| {
+                let posed = shape.posed(time, key.as_ref());
+                shape
+                    .contact(&posed, &posed, from, to)
+                    .map_or(to, |(_, at)| at)
+            })
+    }
+
     /// Moves every dynamic particle of `next` that ended inside a shape (posed at `time`, the
     /// end of the substep of length `h`, in s) or within its thickness onto the offset surface;
     /// with `normals`, a prediction: see [`super::Collider::resolve`].

@@ -36,6 +36,8 @@ mod compile;
 mod passes;
 mod solve;
 
+use glam::Vec3;
+
 use crate::collisions::{Collider, PredictedContacts, Shapes};
 use crate::diagnostics::Energy;
 use crate::forces::{Force, ForceModel};
@@ -150,6 +152,14 @@ impl Pipeline {
             out.push(Tearing::NAME);
         }
         out
+    }
+
+    /// Where the colliders posed at `time` (s), in the order the step runs them (the floor
+    /// last), put a particle that moved from `from` to `to` and stays.
+    pub fn push_out(&self, from: Vec3, to: Vec3, time: f64) -> Vec3 {
+        self.colliders
+            .iter()
+            .fold(to, |to, c| c.push_out(from, to, time))
     }
 
     /// The `[[colliders]]`, when the scene has any.
