@@ -403,6 +403,62 @@ mod tests {
         assert!(total.length() < 1e-5 * scale, "{total} of {scale}");
     }
 
+    /// The couplings as the product takes them (each pair's sum once, a row subtracting its
+    /// own part) against the plain sum over each row's pairs of `s c_i c_j n (n . x_j)`,
+    /// `j != i`, with a vertex in three pairs and a pinned vertex in one.
+    #[test]
+    fn the_couplings_are_the_sum_over_each_rows_pairs_of_the_other_vertices() {
+        let (mut pairs, pos, vel) = pairs();
+        let n = glam::DVec3::new(0.6, 0.8, 0.0);
+        for (verts, split, c) in [
+            ([0, 4, 5, 6], 1, [1.0, -0.3, -0.3, -0.4]),
+            ([0, 6, 2, 3], 2, [-0.5, -0.5, 0.25, 0.75]),
+        ] {
+            let d0 = 0.0005;
+            pairs.push(Pair {
+                verts,
+                split,
+                c,
+                n,
+                d0,
+            });
+        }
+        let mut inv_mass = vec![1.0f32; 8];
+        inv_mass[2] = 0.0;
+        let mut vel = vel;
+        vel.set(0, Vec3::new(0.0, -3.0, 0.0));
+        let term = held(&pairs, (&pos, &vel, &inv_mass));
+        assert_eq!(term.len(), 4, "every pair is ahead of the step");
+        let x = Vec3s::from_fn(8, |v| {
+            Vec3::new(v as f32 * 0.7 - 2.0, 1.0 / (1.0 + v as f32), 0.3)
+        });
+        let mut y = Vec3s::zeros(8);
+        let mut out = y.slices_mut(0..8);
+        term.prepare(&x);
+        term.couple_range(&x, 0..8, &mut out);
+        let mut plain = [DVec3::ZERO; 8];
+        for held in &term.held {
+            let nn = held.n.as_dvec3();
+            for i in 0..4 {
+                for j in (0..4).filter(|&j| j != i) {
+                    let (vi, vj) = (held.verts[i] as usize, held.verts[j] as usize);
+                    let cc = (held.s * held.c[i] * held.c[j]) as f64;
+                    plain[vi] += cc * nn * nn.dot(x.get(vj).as_dvec3());
+                }
+            }
+        }
+        let scale: f64 = plain.iter().map(|v| v.length()).sum();
+        assert!(scale > 0.0);
+        for (p, want) in plain.iter().enumerate() {
+            let got = y.get(p).as_dvec3();
+            assert!(
+                (got - want).length() < 1e-5 * scale,
+                "{p}: {got} against {want}"
+            );
+        }
+        assert_eq!(y.get(2), Vec3::ZERO, "the pinned vertex gets nothing");
+    }
+
     /// A pair moving apart, or one whose inertial motion stays outside the gap, exerts
     /// nothing; a pinned vertex gets no row.
     #[test]
