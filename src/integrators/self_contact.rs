@@ -26,10 +26,14 @@
 //! it adds none. Held particles (`w = 0`) keep their rows and columns empty, as the springs'.
 //!
 //! The diagonal blocks go into the assembled matrix, where the preconditioner sees them; the
-//! couplings between a pair's vertices are applied matrix-free in CG's product, row by row
-//! over each vertex's pairs in pair order, so the product is the same for any thread count.
+//! couplings between a pair's vertices are applied matrix-free in CG's product: first each
+//! pair's `n . sum_k c_k x_k` (once a pair, not once for each of its vertices), then row by
+//! row over each vertex's pairs in pair order, so the product is the same for any thread count.
+
+use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use crate::linear::cg::BlockOperator;
 use crate::linear::stencil::SlotArrays;
@@ -60,6 +64,9 @@ pub(super) struct SelfContactTerm {
     taken: Vec<bool>,
     /// Where each particle's next entry goes while `rows` is filled.
     fill: Vec<u32>,
+    /// Per held pair, `n . sum_k c_k x_k` of the product being taken (f32 bits; written by
+    /// [`SelfContactTerm::prepare`], one pair a slot, read by the rows).
+    along: Vec<AtomicU32>,
 }
 
 /// What the pipeline hands the solve: the pairs ahead of it and the pass's settings.
@@ -131,6 +138,7 @@ impl SelfContactTerm {
 
     /// Each particle's entries, in pair order.
     fn index_rows(&mut self, n: usize) {
+        self.along.resize_with(self.held.len(), AtomicU32::default);
         self.start.clear();
         self.start.resize(n + 1, 0);
         for held in &self.held {
@@ -201,24 +209,36 @@ impl SelfContactTerm {
         }
     }
 
+    /// Each held pair's `n . sum_k c_k x_k`, for the rows of the product with `x`.
+    fn prepare(&self, x: &Vec3s) {
+        (self.held.par_iter().zip(&self.along))
+            .with_min_len(1024)
+            .for_each(|(held, along)| {
+                let mut sum = 0.0;
+                for k in 0..4 {
+                    if held.c[k] != 0.0 {
+                        sum += held.c[k] * held.n.dot(x.get(held.verts[k] as usize));
+                    }
+                }
+                along.store(f32::to_bits(sum), Relaxed);
+            });
+    }
+
     /// `out_i += sum over i's pairs of h^2 k c_i n (n . sum_{j != i} c_j x_j)` for the rows
-    /// `range`: the couplings the diagonal leaves out.
+    /// `range`, after [`SelfContactTerm::prepare`] with `x`: the couplings the diagonal leaves
+    /// out.
     fn couple_range(&self, x: &Vec3s, range: std::ops::Range<usize>, out: &mut Vec3SliceMut) {
         for (i, p) in range.enumerate() {
             let entries = &self.rows[self.start[p] as usize..self.start[p + 1] as usize];
             if entries.is_empty() {
                 continue;
             }
-            let mut sum = Vec3::new(out.x[i], out.y[i], out.z[i]);
+            let (mut sum, x_p) = (Vec3::new(out.x[i], out.y[i], out.z[i]), x.get(p));
             for &(pair, slot) in entries {
                 let held = &self.held[pair as usize];
-                let mut along = 0.0;
-                for k in 0..4 {
-                    if k != slot as usize && held.c[k] != 0.0 {
-                        along += held.c[k] * held.n.dot(x.get(held.verts[k] as usize));
-                    }
-                }
-                sum += held.s * held.c[slot as usize] * along * held.n;
+                let c = held.c[slot as usize];
+                let all = f32::from_bits(self.along[pair as usize].load(Relaxed));
+                sum += held.s * c * (all - c * held.n.dot(x_p)) * held.n;
             }
             (out.x[i], out.y[i], out.z[i]) = (sum.x, sum.y, sum.z);
         }
@@ -277,6 +297,13 @@ impl<A: BlockOperator> BlockOperator for WithSelfContacts<'_, A> {
         self.matrix.apply_range(x, range.clone(), out);
         if let Some(term) = self.term {
             term.couple_range(x, range, out);
+        }
+    }
+
+    fn prepare(&self, x: &Vec3s) {
+        self.matrix.prepare(x);
+        if let Some(term) = self.term {
+            term.prepare(x);
         }
     }
 }
@@ -368,11 +395,68 @@ mod tests {
             y.set(p, block_times(&d, p, x.get(p)));
         }
         let mut out = y.slices_mut(0..8);
+        term.prepare(&x);
         term.couple_range(&x, 0..8, &mut out);
         let total: DVec3 = (0..8).map(|p| y.get(p).as_dvec3()).sum();
         let scale: f64 = (0..8).map(|p| y.get(p).as_dvec3().length()).sum();
         assert!(scale > 0.0);
         assert!(total.length() < 1e-5 * scale, "{total} of {scale}");
+    }
+
+    /// The couplings as the product takes them (each pair's sum once, a row subtracting its
+    /// own part) against the plain sum over each row's pairs of `s c_i c_j n (n . x_j)`,
+    /// `j != i`, with a vertex in three pairs and a pinned vertex in one.
+    #[test]
+    fn the_couplings_are_the_sum_over_each_rows_pairs_of_the_other_vertices() {
+        let (mut pairs, pos, vel) = pairs();
+        let n = glam::DVec3::new(0.6, 0.8, 0.0);
+        for (verts, split, c) in [
+            ([0, 4, 5, 6], 1, [1.0, -0.3, -0.3, -0.4]),
+            ([0, 6, 2, 3], 2, [-0.5, -0.5, 0.25, 0.75]),
+        ] {
+            let d0 = 0.0005;
+            pairs.push(Pair {
+                verts,
+                split,
+                c,
+                n,
+                d0,
+            });
+        }
+        let mut inv_mass = vec![1.0f32; 8];
+        inv_mass[2] = 0.0;
+        let mut vel = vel;
+        vel.set(0, Vec3::new(0.0, -3.0, 0.0));
+        let term = held(&pairs, (&pos, &vel, &inv_mass));
+        assert_eq!(term.len(), 4, "every pair is ahead of the step");
+        let x = Vec3s::from_fn(8, |v| {
+            Vec3::new(v as f32 * 0.7 - 2.0, 1.0 / (1.0 + v as f32), 0.3)
+        });
+        let mut y = Vec3s::zeros(8);
+        let mut out = y.slices_mut(0..8);
+        term.prepare(&x);
+        term.couple_range(&x, 0..8, &mut out);
+        let mut plain = [DVec3::ZERO; 8];
+        for held in &term.held {
+            let nn = held.n.as_dvec3();
+            for i in 0..4 {
+                for j in (0..4).filter(|&j| j != i) {
+                    let (vi, vj) = (held.verts[i] as usize, held.verts[j] as usize);
+                    let cc = (held.s * held.c[i] * held.c[j]) as f64;
+                    plain[vi] += cc * nn * nn.dot(x.get(vj).as_dvec3());
+                }
+            }
+        }
+        let scale: f64 = plain.iter().map(|v| v.length()).sum();
+        assert!(scale > 0.0);
+        for (p, want) in plain.iter().enumerate() {
+            let got = y.get(p).as_dvec3();
+            assert!(
+                (got - want).length() < 1e-5 * scale,
+                "{p}: {got} against {want}"
+            );
+        }
+        assert_eq!(y.get(2), Vec3::ZERO, "the pinned vertex gets nothing");
     }
 
     /// A pair moving apart, or one whose inertial motion stays outside the gap, exerts

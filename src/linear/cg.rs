@@ -33,10 +33,16 @@ use crate::soa::{Vec3SliceMut, Vec3s};
 /// A symmetric matrix of 3 x 3 blocks that CG can multiply by, a range of rows at a time.
 pub trait BlockOperator: Sync {
     /// `out = A x` over the rows `range` (`out` covers exactly `range`).
+    /// Called after [`BlockOperator::prepare`] with the same `x`.
     fn apply_range(&self, x: &Vec3s, range: std::ops::Range<usize>, out: &mut Vec3SliceMut);
+
+    /// Readies a product with `x`, once before its ranges of rows: what many rows share is
+    /// computed here once (nothing by default).
+    fn prepare(&self, _x: &Vec3s) {}
 
     /// `y = A x`, in parallel over chunks of `chunk` rows.
     fn apply(&self, x: &Vec3s, y: &mut Vec3s, chunk: usize) {
+        self.prepare(x);
         y.par_chunks_mut(chunk)
             .enumerate()
             .for_each(|(c, mut out)| {
@@ -157,6 +163,7 @@ impl ConjugateGradient {
     fn product<A: BlockOperator>(&mut self, a: &A) -> f64 {
         let ConjugateGradient { p, q, partials, .. } = self;
         let p = &*p;
+        a.prepare(p);
         q.par_chunks_mut(REDUCE_CHUNK)
             .zip(partials.par_iter_mut())
             .enumerate()
