@@ -240,6 +240,7 @@ fn jacobi_start(smoother: &[Sym3], b: &Vec3s, x: &mut Vec3s) {
 
 /// `r = b - a x`.
 fn residual<A: BlockOperator>(a: &A, b: &Vec3s, x: &Vec3s, r: &mut Vec3s) {
+    a.prepare(x);
     r.par_chunks_mut(REDUCE_CHUNK)
         .enumerate()
         .for_each(|(c, mut r)| {
