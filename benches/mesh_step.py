@@ -28,15 +28,22 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
 import rustcloth  # noqa: E402
 from test_mesh_cloth import jittered_square  # noqa: E402
 
+ITERATIONS: dict[int, float] = {}
+"""CG iterations per solve of the last run of each scene (by position), with ``--stiff``."""
 
-def per_step(scene: rustcloth.Scene, steps: int, wall: bool) -> float:
+
+def per_step(scene: rustcloth.Scene, steps: int, wall: bool, key: int = 0) -> float:
     """Milliseconds per step of `steps` steps of a fresh simulation of `scene`, after 5."""
     tick = time.perf_counter if wall else time.process_time
     sim = rustcloth.Simulation(scene)
     sim.step(5)
     start = tick()
     sim.step(steps)
-    return (tick() - start) / steps * 1e3
+    elapsed = (tick() - start) / steps * 1e3
+    stats = sim.solver_stats()
+    if stats:
+        ITERATIONS[key] = stats["iterations"] / max(stats["solves"], 1)
+    return elapsed
 
 
 def main() -> None:
@@ -77,7 +84,8 @@ def main() -> None:
         data = mesh.to_dict()
         data["cloth"]["mesh"]["membrane"] = "triangle"
         scenes.append(rustcloth.Scene.from_dict(data))
-    runs = [[per_step(s, args.steps, args.wall) for s in scenes] for _ in range(args.repeat)]
+    runs = [[per_step(s, args.steps, args.wall, k) for k, s in enumerate(scenes)]
+            for _ in range(args.repeat)]
     g, m = min(r[0] for r in runs), min(r[1] for r in runs)
     kind = "wall" if args.wall else "CPU"
     print(f"{rustcloth.__file__}: {rustcloth._core.instruction_set()}, "
@@ -88,6 +96,9 @@ def main() -> None:
         t = min(r[2] for r in runs)
         print(f"mesh with the triangle membrane: {t:.3f} ms   triangle / springs {t / m:.2f}   "
               f"triangle / grid {t / g:.2f}")
+    if ITERATIONS:
+        print("CG iterations a solve (grid, mesh, triangle membrane):",
+              ", ".join(f"{ITERATIONS[k]:.1f}" for k in sorted(ITERATIONS)))
 
 
 if __name__ == "__main__":
