@@ -60,9 +60,6 @@ pub struct Membrane {
     pub proxy_k: Vec<f32>,
 }
 
-/// One triangle's corners' positions, as `f32`.
-type Corners = [Vec3; 3];
-
 /// The gradients of `F`'s two columns with respect to each corner: `g[i][j] = dF_j / dx_i`
 /// (a scalar times the identity).
 #[inline(always)]
@@ -70,38 +67,47 @@ fn column_gradients(b: &[f32; 4]) -> [[f32; 2]; 3] {
     [[-(b[0] + b[2]), -(b[1] + b[3])], [b[0], b[1]], [b[2], b[3]]]
 }
 
-/// A unit vector perpendicular to `u` (any, for a degenerate triangle's frame).
+/// `v / |v|`, or `fallback` where `v` is zero; written as selects, not branches, so that a
+/// loop of them vectorises.
 #[inline(always)]
-fn any_perpendicular(u: Vec3) -> Vec3 {
-    u.any_orthonormal_vector()
+fn unit_or(v: Vec3, fallback: Vec3) -> Vec3 {
+    let l = v.length();
+    let nonzero = l > 0.0;
+    let inv = 1.0 / if nonzero { l } else { 1.0 };
+    Vec3::new(
+        if nonzero { v.x * inv } else { fallback.x },
+        if nonzero { v.y * inv } else { fallback.y },
+        if nonzero { v.z * inv } else { fallback.z },
+    )
 }
 
-/// `F`'s columns and its rotation `R`'s columns.
+/// `F`'s columns and its rotation `R`'s columns, from the edges `d1 = x1 - x0`,
+/// `d2 = x2 - x0`. Without a branch, so that a block of triangles vectorises.
 #[inline(always)]
-fn rotation(x: &Corners, b: &[f32; 4]) -> ([Vec3; 2], [Vec3; 2]) {
-    let (d1, d2) = (x[1] - x[0], x[2] - x[0]);
+fn rotation(d1: Vec3, d2: Vec3, b: &[f32; 4]) -> ([Vec3; 2], [Vec3; 2]) {
     let f = [d1 * b[0] + d2 * b[2], d1 * b[1] + d2 * b[3]];
-    // QR: the frame of the plane of F's columns, F = [e1 e2] [[a, c], [0, d]], d >= 0.
+    // QR: the frame of the plane of F's columns, F = [e1 e2] [[a, c], [0, d]], d >= 0. A
+    // degenerate triangle (a column of zero length, or both along one line) gets any frame:
+    // its energy does not depend on which.
     let a = f[0].length();
-    let e1 = if a > 0.0 { f[0] / a } else { Vec3::X };
+    let e1 = unit_or(f[0], Vec3::X);
     let c = f[1].dot(e1);
     let rest = f[1] - c * e1;
     let d = rest.length();
-    let e2 = if d > 0.0 {
-        rest / d
-    } else {
-        any_perpendicular(e1)
-    };
+    let across = if e1.x.abs() < 0.9 { Vec3::X } else { Vec3::Y };
+    let e2 = unit_or(rest, unit_or(e1.cross(across), Vec3::Y));
     // The polar rotation of [[a, c], [0, d]]: the angle of (a + d, -c).
     let (cos, sin) = (a + d, -c);
     let r = (cos * cos + sin * sin).sqrt();
-    let (cos, sin) = if r > 0.0 {
-        (cos / r, sin / r)
-    } else {
-        (1.0, 0.0)
-    };
+    let turn = r > 0.0;
+    let inv = 1.0 / if turn { r } else { 1.0 };
+    let (cos, sin) = (if turn { cos * inv } else { 1.0 }, sin * inv);
     (f, [cos * e1 + sin * e2, cos * e2 - sin * e1])
 }
+
+/// Triangles per block of [`Membrane::element_forces`]: the block's gathered edges and
+/// forces stay in the first-level cache.
+const BLOCK: usize = 128;
 
 impl Membrane {
     /// The elements of `triangles` at rest in `rest`, with Young's-like modulus `stretch` (N/m)
@@ -191,16 +197,44 @@ impl Membrane {
         self.edges[t].iter().all(|&e| active[e as usize])
     }
 
+    /// Triangle `t`'s edges `x1 - x0`, `x2 - x0` at `pos`.
     #[inline(always)]
-    fn corners(&self, pos: &Vec3s, t: usize) -> Corners {
-        self.triangles[t].map(|v| pos.get(v as usize))
+    fn edges_at(&self, pos: &Vec3s, t: usize) -> (Vec3, Vec3) {
+        let [x0, x1, x2] = self.triangles[t].map(|v| pos.get(v as usize));
+        (x1 - x0, x2 - x0)
     }
 
-    /// The forces on triangle `t`'s corners at `x`.
+    /// The forces on the corners of triangles `first..first + out.len()` at `pos` into `out`
+    /// (zero for one that does not hold). Block by block, the edges are gathered into
+    /// contiguous arrays first, so that the arithmetic runs as one loop without a branch,
+    /// which each instruction set's build vectorises; every build gives the same bits (no
+    /// fused multiply-add; square roots and divisions are exact).
     #[inline(always)]
-    fn element_forces(&self, x: &Corners, t: usize) -> [Vec3; 3] {
-        let b = &self.inv_rest[t];
-        let (f, r) = rotation(x, b);
+    fn element_forces(&self, pos: &Vec3s, active: &[bool], first: usize, out: &mut [[Vec3; 3]]) {
+        for (k, out) in out.chunks_mut(BLOCK).enumerate() {
+            let start = first + k * BLOCK;
+            let n = out.len();
+            let mut edges = [[Vec3::ZERO; BLOCK]; 2];
+            let mut holds = [0.0f32; BLOCK];
+            for i in 0..n {
+                (edges[0][i], edges[1][i]) = self.edges_at(pos, start + i);
+                holds[i] = self.holds(active, start + i) as u32 as f32;
+            }
+            let inv_rest = &self.inv_rest[start..start + n];
+            let area = &self.area[start..start + n];
+            for i in 0..n {
+                let [f1, f2] = self.corner_forces(edges[0][i], edges[1][i], &inv_rest[i], area[i]);
+                let (f1, f2) = (f1 * holds[i], f2 * holds[i]);
+                out[i] = [-(f1 + f2), f1, f2];
+            }
+        }
+    }
+
+    /// The forces on corners 1 and 2 of a triangle with edges `d1`, `d2`, inverse rest matrix
+    /// `b` and rest area `area` (corner 0 takes minus their sum).
+    #[inline(always)]
+    fn corner_forces(&self, d1: Vec3, d2: Vec3, b: &[f32; 4], area: f32) -> [Vec3; 2] {
+        let (f, r) = rotation(d1, d2, b);
         // S = R^T F, symmetric up to round-off; its symmetric part is the strain's.
         let s01 = 0.5 * (r[0].dot(f[1]) + r[1].dot(f[0]));
         let e = [r[0].dot(f[0]) - 1.0, r[1].dot(f[1]) - 1.0];
@@ -214,10 +248,10 @@ impl Membrane {
             r[0] * sigma[0][0] + r[1] * sigma[1][0],
             r[0] * sigma[0][1] + r[1] * sigma[1][1],
         ];
-        let a = self.area[t];
-        let f1 = -a * (p[0] * b[0] + p[1] * b[1]);
-        let f2 = -a * (p[0] * b[2] + p[1] * b[3]);
-        [-(f1 + f2), f1, f2]
+        [
+            -area * (p[0] * b[0] + p[1] * b[1]),
+            -area * (p[0] * b[2] + p[1] * b[3]),
+        ]
     }
 
     /// Adds every holding element's forces at `pos` into `out`, using `table` (three entries
@@ -237,14 +271,8 @@ impl Membrane {
             .par_chunks_mut(TRIANGLE_CHUNK)
             .enumerate()
             .for_each(|(c, forces)| {
-                for (i, out) in forces.iter_mut().enumerate() {
-                    let t = c * TRIANGLE_CHUNK + i;
-                    *out = if self.holds(active, t) {
-                        self.element_forces(&self.corners(pos, t), t)
-                    } else {
-                        [Vec3::ZERO; 3]
-                    };
-                }
+                let first = c * TRIANGLE_CHUNK;
+                crate::simd::dispatch!(self.element_forces(pos, active, first, forces))
             });
         let table = &*table;
         out.par_chunks_mut(chunk)
@@ -267,7 +295,8 @@ impl Membrane {
         (0..self.len())
             .filter(|&t| self.holds(active, t))
             .map(|t| {
-                let (f, r) = rotation(&self.corners(pos, t), &self.inv_rest[t]);
+                let (d1, d2) = self.edges_at(pos, t);
+                let (f, r) = rotation(d1, d2, &self.inv_rest[t]);
                 let dot = |u: Vec3, w: Vec3| u.as_dvec3().dot(w.as_dvec3());
                 let (e0, e1) = (dot(r[0], f[0]) - 1.0, dot(r[1], f[1]) - 1.0);
                 let s01 = 0.5 * (dot(r[0], f[1]) + dot(r[1], f[0]));
@@ -284,7 +313,8 @@ impl Membrane {
     /// semidefinite).
     pub fn stiffness(&self, pos: &Vec3s, t: usize) -> [[Mat3; 3]; 3] {
         let b = &self.inv_rest[t];
-        let (_, r) = rotation(&self.corners(pos, t), b);
+        let (d1, d2) = self.edges_at(pos, t);
+        let (_, r) = rotation(d1, d2, b);
         let g = column_gradients(b);
         // Per corner, the gradients of E_00, E_11 and E_01 (3-vectors).
         let de: [[Vec3; 3]; 3] =
