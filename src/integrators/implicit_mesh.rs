@@ -31,10 +31,12 @@
 //! vertices' diagonal blocks, its off-diagonal blocks (`K_ij`, not symmetric, `K_ji = K_ij^T`)
 //! are applied per row from the triangle's own table ([`WithMembrane`]), and `h^2 K_t v` joins
 //! the right-hand side. The whole stays symmetric positive definite, so CG converges. The
-//! multigrid cannot hold a non-symmetric block, so it is built on a proxy of the same pattern:
-//! the step's spring blocks plus, on each edge, the stretch spring the springs membrane would
-//! put there (`h^2 Y A_e / L^2 u u^T`, [`Membrane::proxy_k`]): a symmetric positive definite
-//! preconditioner whose stiffness the elements' matches for an isotropic spread of edges.
+//! multigrid cannot hold a non-symmetric block, so it is built on a proxy of the same pattern
+//! ([`build_proxy`]): on each edge the symmetric part of the elements' blocks between its ends,
+//! with the skew part's norm moved onto the two ends' diagonals, which keeps it at least the
+//! system (symmetric positive definite) and close to it. Its aggregates come from the
+//! isotropic `P` with each stretch spring weighted as the springs membrane would weight it
+//! ([`Membrane::proxy_k`]).
 //!
 //! Every sum has a fixed order (per spring, then per vertex over its springs in spring order;
 //! the multigrid's as its module says), so a step is bitwise the same for any number of threads.
@@ -180,52 +182,61 @@ fn element_blocks(
         });
 }
 
-/// The multigrid's proxy under the triangle membrane: each spring's block `C_s` (from
-/// `blocks`) plus `h^2 k_p u u^T` with `k_p` the proxy stiffness of a stretch spring
-/// ([`Membrane::proxy_k`]), on `M + h drag I` as the diagonal, the system's pattern and held
-/// rows and columns, then the contacts' `k n n^T` as the system has them.
+/// The multigrid's proxy under the triangle membrane, in the system's pattern: on each edge
+/// the spring's `-C_s` plus the symmetric part of the elements' blocks between its ends (summed
+/// over its one or two triangles); on the diagonal the system's own blocks plus, for each edge
+/// at the vertex, the norm of the skew part those edge blocks dropped (`|x_i^T W x_j|` is at
+/// most `|W| (|x_i|^2 + |x_j|^2) / 2` for each of the pair's two terms), so the proxy is at
+/// least the system: symmetric positive definite, and close to it where the skew parts are
+/// small. Held rows and columns as the system's; the contacts are added after.
 fn build_proxy(
     proxy: &mut SpringMatrix,
-    blocks: &[Sym3],
+    (matrix, blocks, elements): (&SpringMatrix, &[Sym3], &[[[Mat3; 3]; 3]]),
     mesh: &MeshCloth,
     membrane: &Membrane,
-    (h, drag): (f32, f32),
-    ctx: &StepContext,
+    w: &[f32],
 ) {
     let s = &mesh.springs;
-    let (pos, mass, w) = (
-        &ctx.current.pos,
-        &ctx.particles.mass,
-        &ctx.particles.inv_mass,
-    );
-    let h2 = h * h;
-    let full: Vec<Sym3> = (0..s.len())
-        .into_par_iter()
-        .map(|e| {
-            let (a, b) = (s.a[e] as usize, s.b[e] as usize);
-            let u = (pos.get(b) - pos.get(a)).normalize_or_zero();
-            let mut block = blocks[e];
-            let kp = membrane.proxy_k[e] * s.active[e] as u32 as f32;
-            block.add_scaled(1.0, &Sym3::outer(h2 * kp, u, 0.0));
-            block
-        })
-        .collect();
-    for (e, block) in full.iter().enumerate() {
+    let mut coupling = vec![Sym3::ZERO; s.len()];
+    let mut shift = vec![0.0f32; s.len()];
+    for (t, k) in elements.iter().enumerate() {
+        let corners = membrane.triangles[t];
+        for (c, &e) in membrane.edges[t].iter().enumerate() {
+            let e = e as usize;
+            let (i, j) = if corners[c] == s.a[e] {
+                (c, (c + 1) % 3)
+            } else {
+                ((c + 1) % 3, c)
+            };
+            let block = k[i][j];
+            coupling[e].add_scaled(1.0, &sym(block));
+            let skew = [
+                block.y_axis.x - block.x_axis.y,
+                block.z_axis.x - block.x_axis.z,
+                block.z_axis.y - block.y_axis.z,
+            ];
+            shift[e] += 0.5 * (skew[0] * skew[0] + skew[1] * skew[1] + skew[2] * skew[2]).sqrt();
+        }
+    }
+    for e in 0..s.len() {
         let (a, b) = (s.a[e] as usize, s.b[e] as usize);
         let coupled = w[a] != 0.0 && w[b] != 0.0;
-        proxy.off[e] = Sym3(block.0.map(|x| live_or_zero(coupled, -x)));
+        let (spring, element) = (blocks[e].0, coupling[e].0);
+        proxy.off[e] = Sym3(std::array::from_fn(|x| {
+            live_or_zero(coupled, element[x] - spring[x])
+        }));
     }
     for (v, d) in proxy.diagonal.iter_mut().enumerate() {
+        *d = matrix.diagonal[v];
         if w[v] == 0.0 {
-            *d = Sym3::ZERO;
             continue;
         }
-        let m = mass[v] + h * drag;
-        let mut block = Sym3([m, m, m, 0.0, 0.0, 0.0]);
-        for &e in mesh.springs_at(v) {
-            block.add_scaled(1.0, &full[(e >> 1) as usize]);
-        }
-        *d = block;
+        let around: f32 = mesh
+            .springs_at(v)
+            .iter()
+            .map(|&e| shift[(e >> 1) as usize])
+            .sum();
+        d.add_scaled(around, &Sym3::outer(0.0, Vec3::ZERO, 1.0));
     }
     proxy.gather();
 }
@@ -314,8 +325,15 @@ impl MeshSystem {
             element_blocks(membrane, &mesh.springs.active, h, &ctx.current.pos, blocks);
         }
         self.assemble_diagonal_and_rhs(mesh, h, drag, ctx);
-        if let (Some(membrane), Some((_, proxy))) = (&mesh.membrane, &mut self.membrane) {
-            build_proxy(proxy, &self.blocks, mesh, membrane, (h, drag), ctx);
+        if let (Some(membrane), Some((blocks, proxy))) = (&mesh.membrane, &mut self.membrane) {
+            let w = &ctx.particles.inv_mass[..];
+            build_proxy(
+                proxy,
+                (&self.matrix, &self.blocks, blocks),
+                mesh,
+                membrane,
+                w,
+            );
         }
         if let Some(contacts) = ctx.contacts.filter(|c| c.count > 0) {
             self.stiffen_contacts(contacts, ctx);

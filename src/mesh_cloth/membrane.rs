@@ -56,7 +56,8 @@ pub struct Membrane {
     pub offsets: Vec<u32>,
     pub incident: Vec<u32>,
     /// Per spring, the stiffness (N/m) the springs membrane would give it, `Y A_e / L^2` on
-    /// a stretch spring, 0 on the others: implicit Euler's multigrid is built on it.
+    /// a stretch spring, 0 on the others: implicit Euler's multigrid grows its aggregates from
+    /// it.
     pub proxy_k: Vec<f32>,
 }
 
