@@ -1,7 +1,7 @@
 """The step of a mesh cloth against the grid of the same particle count.
 
     RAYON_NUM_THREADS=1 python benches/mesh_step.py [--n 129] [--steps 100] [--repeat 3] [--wall]
-        [--stiff]
+        [--stiff] [--membrane]
 
 An `n` x `n` jittered square (``tests/test_mesh_cloth.py``'s ``jittered_square``: irregular, each
 quad split along its shorter diagonal; `stretch` 60 N/m, 0.2 kg/m^2, two corners pinned) and the
@@ -11,7 +11,9 @@ preconditioner (smoothed aggregation on the mesh): the grid's `k_structural` 500
 and `k_bend` 25 N/m, the mesh's `stretch` 1500 and `bend` 200 N/m, both 0.5 kg (as
 ``examples/mesh_implicit.rs``), at most 20 steps. Prints the best of `--repeat` runs of `--steps`
 steps after 5, per step: CPU time of this process (steady on a shared machine with one thread;
-``--wall`` for wall time with several). Two builds compare by running this once with each on
+``--wall`` for wall time with several). With ``--membrane``, the same mesh with
+``membrane = "triangle"`` too, and its cost against the springs' in the same runs. Two builds
+compare by running this once with each on
 ``PYTHONPATH``, one after the other.
 """
 
@@ -26,15 +28,22 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
 import rustcloth  # noqa: E402
 from test_mesh_cloth import jittered_square  # noqa: E402
 
+ITERATIONS: dict[int, float] = {}
+"""CG iterations per solve of the last run of each scene (by position), with ``--stiff``."""
 
-def per_step(scene: rustcloth.Scene, steps: int, wall: bool) -> float:
+
+def per_step(scene: rustcloth.Scene, steps: int, wall: bool, key: int = 0) -> float:
     """Milliseconds per step of `steps` steps of a fresh simulation of `scene`, after 5."""
     tick = time.perf_counter if wall else time.process_time
     sim = rustcloth.Simulation(scene)
     sim.step(5)
     start = tick()
     sim.step(steps)
-    return (tick() - start) / steps * 1e3
+    elapsed = (tick() - start) / steps * 1e3
+    stats = sim.solver_stats()
+    if stats:
+        ITERATIONS[key] = stats["iterations"] / max(stats["solves"], 1)
+    return elapsed
 
 
 def main() -> None:
@@ -44,6 +53,8 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--wall", action="store_true", help="wall time instead of CPU time")
     parser.add_argument("--stiff", action="store_true", help="implicit Euler, stiff, 1/60 s")
+    parser.add_argument("--membrane", action="store_true",
+                        help='also the mesh with membrane = "triangle"')
     args = parser.parse_args()
     n = args.n
     vertices, triangles = jittered_square(n)
@@ -68,7 +79,12 @@ def main() -> None:
             "cloth": {"nx": n, "ny": n, "size": [1.0, 1.0], "pins": ["top_corners"]},
         })
         mesh = grid.with_cloth_mesh(vertices, triangles, stretch=60.0, density=0.2, pins=pins)
-    runs = [(per_step(grid, args.steps, args.wall), per_step(mesh, args.steps, args.wall))
+    scenes = [grid, mesh]
+    if args.membrane:
+        data = mesh.to_dict()
+        data["cloth"]["mesh"]["membrane"] = "triangle"
+        scenes.append(rustcloth.Scene.from_dict(data))
+    runs = [[per_step(s, args.steps, args.wall, k) for k, s in enumerate(scenes)]
             for _ in range(args.repeat)]
     g, m = min(r[0] for r in runs), min(r[1] for r in runs)
     kind = "wall" if args.wall else "CPU"
@@ -76,6 +92,13 @@ def main() -> None:
           f"{rustcloth._core.thread_count()} thread(s), {kind} time per step")
     print(f"grid {n} x {n}: {g:.3f} ms   mesh {n * n} vertices: {m:.3f} ms   "
           f"mesh / grid {m / g:.2f}")
+    if args.membrane:
+        t = min(r[2] for r in runs)
+        print(f"mesh with the triangle membrane: {t:.3f} ms   triangle / springs {t / m:.2f}   "
+              f"triangle / grid {t / g:.2f}")
+    if ITERATIONS:
+        print("CG iterations a solve (grid, mesh, triangle membrane):",
+              ", ".join(f"{ITERATIONS[k]:.1f}" for k in sorted(ITERATIONS)))
 
 
 if __name__ == "__main__":

@@ -5,15 +5,20 @@
 //! mass dropped), the drop of its lowest point, and the largest stretch `l / L - 1` (over all
 //! springs, and away from the clamps).
 //!
-//! `cargo run --release --example mesh_resolution -- [SIZES] [SECONDS]`, SIZES points per side
-//! (default `17,33`, about 300 and 1k vertices: seconds), SECONDS simulated (default 3).
+//! `cargo run --release --example mesh_resolution -- [SIZES] [SECONDS] [CLOTHS] [TOP] [SEEDS]`,
+//! SIZES points per side (default `17,33`, about 300 and 1k vertices: seconds), SECONDS
+//! simulated (default 3), CLOTHS which to hang (default `springs,grid`; `triangle` is the mesh
+//! with `membrane = "triangle"`), TOP `jittered` (default: the top edge's vertices slide along
+//! it as the interior's move, so a clamp's end moves by up to 0.3 spacing from one mesh to the
+//! next) or `even` (the top row evenly spaced: every mesh holds exactly the same clamps), SEEDS
+//! the meshes' seeds (default `1`; `1,2` hangs two triangulations of each size).
 //! docs/mesh_cloth.md quotes `-- 33,65,129 4` (1k, 4k and 16k vertices; about ten minutes on
-//! two shared cores, most of it the 16k mesh).
+//! two shared cores, most of it the 16k mesh) and the membrane's runs.
 
 use std::time::Instant;
 
 use rustcloth::mesh_cloth::jittered_square;
-use rustcloth::scene::{ClothSpec, MeshSpec, PinBox, PinSpec, Plane};
+use rustcloth::scene::{ClothSpec, MembraneKind, MeshSpec, PinBox, PinSpec, Plane};
 use rustcloth::{IntegratorKind, Scene, Simulation};
 
 /// Length of each clamp along the top edge from a corner, m.
@@ -34,8 +39,13 @@ fn pins() -> Vec<PinSpec> {
         .to_vec()
 }
 
-fn mesh_scene(n: usize) -> Scene {
-    let (vertices, triangles) = jittered_square(n, 1.0, [0.0, 1.0, 0.0], 0.3, 1);
+fn mesh_scene(n: usize, membrane: MembraneKind, even_top: bool, seed: u64) -> Scene {
+    let (mut vertices, triangles) = jittered_square(n, 1.0, [0.0, 1.0, 0.0], 0.3, seed);
+    if even_top {
+        for (i, v) in vertices[n * (n - 1)..].iter_mut().enumerate() {
+            v[0] = i as f64 / (n - 1) as f64 - 0.5;
+        }
+    }
     let mut scene = Scene {
         air_drag: DRAG_RATE * DENSITY / (n * n) as f64,
         cloth: ClothSpec {
@@ -46,6 +56,7 @@ fn mesh_scene(n: usize) -> Scene {
                 stretch: STRETCH,
                 bend: 0.8,
                 damping: 0.01,
+                membrane,
                 ..MeshSpec::default()
             }),
             pins: pins(),
@@ -103,7 +114,7 @@ fn measure(label: &str, scene: Scene, seconds: f64) {
         .fold(0.0f32, f32::max);
     let e = sim.energy();
     println!(
-        "{label:>16} {:>6} particles  sag {:.5} m  lowest drop {:.5} m  max stretch {:.5}  \
+        "{label:>22} {:>6} particles  sag {:.5} m  lowest drop {:.5} m  max stretch {:.5}  \
          away from pins {:.5}  kinetic {:.2e} J  dt {:.2e} s  {wall:.1} s wall",
         m.len(),
         1.0 - centroid,
@@ -124,11 +135,44 @@ fn main() {
         .map(|s| s.parse().expect("SIZES: points per side, comma separated"))
         .collect();
     let seconds: f64 = args.get(2).map_or(3.0, |s| s.parse().expect("SECONDS"));
-    println!("density {DENSITY} kg/m^2, stretch {STRETCH} N/m, clamps {CLAMP} m, {seconds} s");
-    for &n in &sizes {
-        measure(&format!("mesh {n}x{n}"), mesh_scene(n), seconds);
-    }
-    for &n in &sizes {
-        measure(&format!("grid {n}x{n}"), grid_scene(n as u32), seconds);
+    let cloths: Vec<&str> = args
+        .get(3)
+        .map_or("springs,grid", String::as_str)
+        .split(',')
+        .collect();
+    let even_top = match args.get(4).map_or("jittered", String::as_str) {
+        "jittered" => false,
+        "even" => true,
+        other => panic!("TOP: jittered or even, got {other}"),
+    };
+    let seeds: Vec<u64> = args
+        .get(5)
+        .map_or("1", String::as_str)
+        .split(',')
+        .map(|s| s.parse().expect("SEEDS: comma separated"))
+        .collect();
+    println!(
+        "density {DENSITY} kg/m^2, stretch {STRETCH} N/m, clamps {CLAMP} m, {seconds} s, \
+         top edge {}",
+        if even_top { "even" } else { "jittered" }
+    );
+    for cloth in cloths {
+        let membrane = match cloth {
+            "springs" => MembraneKind::Springs,
+            "triangle" => MembraneKind::Triangle,
+            "grid" => {
+                for &n in &sizes {
+                    measure(&format!("grid {n}x{n}"), grid_scene(n as u32), seconds);
+                }
+                continue;
+            }
+            other => panic!("CLOTHS: springs, triangle or grid, got {other}"),
+        };
+        for &n in &sizes {
+            for &seed in &seeds {
+                let scene = mesh_scene(n, membrane, even_top, seed);
+                measure(&format!("{cloth} {n}x{n} #{seed}"), scene, seconds);
+            }
+        }
     }
 }

@@ -40,6 +40,8 @@ mod mesh_colliders;
 mod mesh_cut_edge;
 #[path = "mesh_implicit.rs"]
 mod mesh_implicit;
+#[path = "mesh_membrane.rs"]
+mod mesh_membrane;
 #[path = "meshtear.rs"]
 mod meshtear;
 #[path = "physics.rs"]

@@ -400,32 +400,7 @@ fn the_watchdog_catches_an_overstretched_mesh_cloth() {
 /// 6 %). Measured in docs/mesh_cloth.md with `examples/mesh_resolution.rs`.
 #[test]
 fn irregular_meshes_of_the_same_square_hang_alike() {
-    let settle = |n: usize, seed: u64| {
-        let mut scene = hanging_square(n, 0.06, seed);
-        scene.cloth.pins = [[-0.5, -0.375], [0.375, 0.5]]
-            .map(|[x0, x1]| {
-                PinSpec::Region(PinBox {
-                    corners: [[x0, 1.5 - 1e-9, -0.1], [x1, 1.5, 0.1]],
-                })
-            })
-            .to_vec();
-        let spec = scene.cloth.mesh.as_mut().unwrap();
-        (spec.stretch, spec.bend, spec.damping) = (60.0, 0.8, 0.01);
-        scene.air_drag = 4.0 * 0.2 / (n * n) as f64;
-        scene.dt = 0.7 * scene.stable_dt(IntegratorKind::SymplecticEuler).unwrap();
-        let mut sim = Simulation::new(scene).unwrap();
-        sim.advance(3.0).unwrap();
-        assert!(sim.energy().kinetic < 1e-5, "not settled");
-        let (y, m) = (&sim.positions().y, &sim.particles().mass);
-        let centroid: f64 = (0..m.len()).map(|p| m[p] as f64 * y[p] as f64).sum::<f64>()
-            / m.iter().map(|&m| m as f64).sum::<f64>();
-        let strain = sim.spring_strain();
-        let away = (0..m.len())
-            .filter(|&p| y[p] < 1.25)
-            .map(|p| strain[p])
-            .fold(0.0f32, f32::max);
-        (1.0 - centroid, away as f64)
-    };
+    let settle = |n: usize, seed: u64| common::settle_clamped(hanging_square(n, 0.06, seed), n);
     let (a, b, coarse) = (settle(33, 1), settle(33, 2), settle(17, 3));
     assert!((0.03..0.2).contains(&a.0), "it hangs: sag {} m", a.0);
     assert!((b.0 / a.0 - 1.0).abs() < 0.08, "sag {} m vs {} m", a.0, b.0);

@@ -155,6 +155,31 @@ def test_a_mesh_cloths_settings_have_the_typed_keys() -> None:
     assert scene.cloth["mesh"]["density"] == 0.3
 
 
+def test_the_triangle_membrane_runs_from_python_and_its_keys_are_checked() -> None:
+    # The hanging sheet falls and stays bounded; the membrane's pass is in the profile (the
+    # physics is tested in tests/mesh_membrane.rs).
+    sim = rustcloth.Simulation(hanging(8, membrane="triangle", stretch=60.0))
+    y0 = sim.positions[:, 1].mean()
+    sim.advance(0.5)
+    assert np.isfinite(sim.positions).all() and (np.abs(sim.positions) < 3).all()
+    assert 0 < y0 - sim.positions[:, 1].mean() < 0.5
+    assert "mesh_membrane" in sim.profile().passes
+    bad = [({"membrane": "bogus"}, "cloth.mesh.membrane"),
+           ({"membrane": "triangle", "poisson": 1.0}, "cloth.mesh.poisson"),
+           ({"poisson": 0.2}, "cloth.mesh.poisson"),
+           ({"membrane": "triangle", "integrator": "projective_dynamics"}, "cloth.mesh.membrane")]
+    for keys, name in bad:
+        integrator = keys.pop("integrator", None)
+        scene = rustcloth.Scene(integrator=integrator) if integrator else rustcloth.Scene()
+        with pytest.raises(ParameterError, match=r"^" + re.escape(name)):
+            vertices, triangles = jittered_square(4)
+            scene.with_cloth_mesh(vertices, triangles, **keys)
+    sim = rustcloth.Simulation(hanging(4, membrane="triangle"))
+    with pytest.raises(ParameterError, match=r"^cloth\.mesh\.membrane"):
+        sim.integrator = "projective_dynamics"
+    assert sim.integrator == "symplectic_euler"
+
+
 def test_the_demos_mouse_drags_a_mesh_cloth_and_cuts_it() -> None:
     pytest.importorskip("moderngl")  # rustcloth.viewer needs the viewer extra
     from rustcloth.viewer.interaction import Interaction

@@ -239,7 +239,9 @@ class Scene:
         starts, at rest) and ``triangles`` (``(M, 3)`` indices, wound consistently), with
         optional per-vertex ``uvs`` (``(N, 2)``), or ``path``, a mesh file read with trimesh
         (the ``export`` extra; its texture coordinates come along). ``keys`` are the mesh's
-        material: ``density`` (kg/m^2), ``stretch``, ``bend`` (N/m), ``damping`` (N s/m);
+        material: ``density`` (kg/m^2), ``stretch``, ``bend`` (N/m), ``damping`` (N s/m),
+        ``membrane`` (``"springs"``, default, or ``"triangle"``) and ``poisson`` (the
+        triangle membrane's Poisson ratio, default 1/3);
         ``pins`` are vertex indices and selections: ``{"box": [[x0, y0, z0], [x1, y1, z1]]}``,
         ``{"boundary": True}``, ``{"top": 0.001}`` (default none). ``pin_group`` (with
         ``path``, an OBJ file) names the file's vertex groups (``g`` or ``o`` names; a list for

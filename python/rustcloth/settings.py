@@ -57,6 +57,8 @@ class MeshSettings(TypedDict):
     stretch: float
     bend: float
     damping: float
+    membrane: Literal["springs", "triangle"]
+    poisson: float
     seams: NotRequired[SeamsSettings]
 
 

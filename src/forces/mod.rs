@@ -138,12 +138,18 @@ pub struct ForceModel {
     panic_next: bool,
     /// A mesh cloth's per-spring forces, scratch for [`MeshCloth::add_spring_forces`].
     mesh_table: Vec<[f32; 3]>,
+    /// A mesh cloth's per-triangle forces, scratch for
+    /// [`crate::mesh_cloth::membrane::Membrane::add_forces`].
+    membrane_table: Vec<[glam::Vec3; 3]>,
     /// The simulated time (s) the seams' rest lengths are taken at ([`MeshCloth::sewing`]).
     time: f64,
 }
 
 /// The pass name of a mesh cloth's springs in `effects` and `profile()`.
 pub const MESH_SPRINGS: &str = "mesh_springs";
+
+/// The pass name of a mesh cloth's triangle membrane in `effects` and `profile()`.
+pub const MESH_MEMBRANE: &str = "mesh_membrane";
 
 impl ForceModel {
     pub fn new(forces: Vec<Force>) -> Self {
@@ -179,6 +185,7 @@ impl ForceModel {
             overstretched: AtomicBool::new(false),
             panic_next: false,
             mesh_table: Vec::new(),
+            membrane_table: Vec::new(),
             time: 0.0,
         }
     }
@@ -249,6 +256,7 @@ impl ForceModel {
             .map(SpringTable::heap_bytes)
             .sum::<usize>()
             + self.mesh_table.capacity() * size_of::<[f32; 3]>()
+            + self.membrane_table.capacity() * size_of::<[glam::Vec3; 3]>()
     }
 
     /// One table per work item, each long enough for a block and the springs before it.
@@ -299,6 +307,7 @@ impl ForceModel {
             cpu_nanos,
             overstretched,
             mesh_table,
+            membrane_table,
             ..
         } = self;
         let clocked = |work: &mut dyn FnMut()| {
@@ -386,6 +395,12 @@ impl ForceModel {
                 overstretched.store(true, Ordering::Relaxed);
             }
             profile.add(MESH_SPRINGS, clock.elapsed());
+            if let Some(membrane) = &mesh.membrane {
+                let clock = Instant::now();
+                let active = &mesh.springs.active;
+                membrane.add_forces(state.pos, active, out, membrane_table, chunk);
+                profile.add(MESH_MEMBRANE, clock.elapsed());
+            }
         }
         let wall = start.elapsed();
         profile.force_time += wall;

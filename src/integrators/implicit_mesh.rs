@@ -26,23 +26,37 @@
 //! contact's diagonal (which the filter removes from the operator, not from the
 //! preconditioner).
 //!
+//! **The triangle membrane** (`membrane = "triangle"`) adds each element's stiffness with its
+//! rotation held fixed, `h^2 K_t` ([`Membrane::stiffness`]): its diagonal blocks join the
+//! vertices' diagonal blocks, its off-diagonal blocks (`K_ij`, not symmetric, `K_ji = K_ij^T`)
+//! are applied per row from the triangle's own table ([`WithMembrane`]), and `h^2 K_t v` joins
+//! the right-hand side. The whole stays symmetric positive definite, so CG converges. The
+//! multigrid cannot hold a non-symmetric block, so it is built on a proxy of the same pattern
+//! ([`build_proxy`]): on each edge the symmetric part of the elements' blocks between its ends,
+//! with the skew part's norm moved onto the two ends' diagonals, which keeps it at least the
+//! system (symmetric positive definite) and close to it. Its aggregates come from the
+//! isotropic `P` with each stretch spring weighted as the springs membrane would weight it
+//! ([`Membrane::proxy_k`]).
+//!
 //! Every sum has a fixed order (per spring, then per vertex over its springs in spring order;
 //! the multigrid's as its module says), so a step is bitwise the same for any number of threads.
 
 use std::time::Instant;
 
-use glam::Vec3;
+use glam::{Mat3, Vec3};
 use rayon::prelude::*;
 
 use super::contact_filter::ContactFilter;
 use super::solver::{live_or_zero, Preconditioner, SolverSettings, SolverStats, CONTACT_STIFFNESS};
 use super::StepContext;
 use crate::collisions::PredictedContacts;
+use crate::linear::cg::BlockOperator;
 use crate::linear::cg::{diagonal_blocks, ConjugateGradient};
 use crate::linear::stencil::SlotArrays;
 use crate::linear::{Amg, SpringMatrix, Sym3};
+use crate::mesh_cloth::membrane::Membrane;
 use crate::mesh_cloth::MeshCloth;
-use crate::soa::{Floats, Vec3s};
+use crate::soa::{Floats, Vec3SliceMut, Vec3s};
 
 /// Springs per parallel work item of the per-spring pass.
 const SPRING_CHUNK: usize = 4096;
@@ -60,6 +74,184 @@ pub(super) struct MeshSystem {
     jacobi: SlotArrays,
     /// The aggregation hierarchy built on `P` and what it was built from.
     amg: Option<(FactorKey, Amg)>,
+    /// With the triangle membrane: each triangle's `h^2 K_t` (zero when it does not hold),
+    /// and the multigrid's proxy matrix.
+    membrane: Option<(Vec<[[Mat3; 3]; 3]>, SpringMatrix)>,
+}
+
+/// Triangles per parallel work item of the stiffness pass.
+const TRIANGLE_CHUNK: usize = 2048;
+
+/// The system's matrix with the triangle elements' off-diagonal blocks, applied row by row:
+/// vertex `v`'s row adds `K_t[i][j] x_j` over its triangles (as corner `i`) in increasing order
+/// and their other corners `j`, skipping a held row or column as the springs' blocks do.
+struct WithMembrane<'a> {
+    matrix: &'a SpringMatrix,
+    membrane: &'a Membrane,
+    blocks: &'a [[[Mat3; 3]; 3]],
+    inv_mass: &'a [f32],
+}
+
+impl BlockOperator for WithMembrane<'_> {
+    #[inline(always)]
+    fn apply_range(&self, x: &Vec3s, range: std::ops::Range<usize>, out: &mut Vec3SliceMut) {
+        self.matrix.apply_range(x, range.clone(), out);
+        let m = self.membrane;
+        for (i, v) in range.enumerate() {
+            if self.inv_mass[v] == 0.0 {
+                continue;
+            }
+            let mut acc = out.get(i);
+            for &e in &m.incident[m.offsets[v] as usize..m.offsets[v + 1] as usize] {
+                let (t, corner) = (e as usize / 3, e as usize % 3);
+                for (j, &u) in m.triangles[t].iter().enumerate() {
+                    if j != corner && self.inv_mass[u as usize] != 0.0 {
+                        acc += self.blocks[t][corner][j] * x.get(u as usize);
+                    }
+                }
+            }
+            out.set(i, acc);
+        }
+    }
+}
+
+/// The system's operator for the contact filter: the spring matrix, with the elements' blocks
+/// under the triangle membrane.
+enum Operator<'a> {
+    Springs(&'a SpringMatrix),
+    Membrane(WithMembrane<'a>),
+}
+
+impl BlockOperator for Operator<'_> {
+    #[inline(always)]
+    fn apply_range(&self, x: &Vec3s, range: std::ops::Range<usize>, out: &mut Vec3SliceMut) {
+        match self {
+            Operator::Springs(m) => m.apply_range(x, range, out),
+            Operator::Membrane(a) => a.apply_range(x, range, out),
+        }
+    }
+}
+
+impl<'a> Operator<'a> {
+    /// The spring matrix `matrix`, with the elements' `blocks` under the triangle membrane.
+    fn of(
+        matrix: &'a SpringMatrix,
+        elements: &'a Option<(Vec<[[Mat3; 3]; 3]>, SpringMatrix)>,
+        mesh: &'a MeshCloth,
+        inv_mass: &'a [f32],
+    ) -> Self {
+        match (&mesh.membrane, elements) {
+            (Some(membrane), Some((blocks, _))) => Operator::Membrane(WithMembrane {
+                matrix,
+                membrane,
+                blocks,
+                inv_mass,
+            }),
+            _ => Operator::Springs(matrix),
+        }
+    }
+
+    /// `y = A x` over every row, serially.
+    fn apply_all(&self, x: &Vec3s, y: &mut Vec3s) {
+        let n = x.len();
+        self.apply_range(x, 0..n, &mut y.slices_mut(0..n));
+    }
+}
+
+/// Each holding triangle's `h^2 K_t` at `pos` into `blocks` (zero for one that does not hold).
+fn element_blocks(
+    membrane: &Membrane,
+    active: &[bool],
+    h: f32,
+    pos: &Vec3s,
+    blocks: &mut [[[Mat3; 3]; 3]],
+) {
+    let h2 = h * h;
+    blocks
+        .par_chunks_mut(TRIANGLE_CHUNK)
+        .enumerate()
+        .for_each(|(c, blocks)| {
+            for (i, out) in blocks.iter_mut().enumerate() {
+                let t = c * TRIANGLE_CHUNK + i;
+                *out = if membrane.holds(active, t) {
+                    membrane.stiffness(pos, t).map(|row| row.map(|k| k * h2))
+                } else {
+                    [[Mat3::ZERO; 3]; 3]
+                };
+            }
+        });
+}
+
+/// The multigrid's proxy under the triangle membrane, in the system's pattern: on each edge
+/// the spring's `-C_s` plus the symmetric part of the elements' blocks between its ends (summed
+/// over its one or two triangles); on the diagonal the system's own blocks plus, for each edge
+/// at the vertex, the norm of the skew part those edge blocks dropped (`|x_i^T W x_j|` is at
+/// most `|W| (|x_i|^2 + |x_j|^2) / 2` for each of the pair's two terms), so the proxy is at
+/// least the system: symmetric positive definite, and close to it where the skew parts are
+/// small. Held rows and columns as the system's; the contacts are added after.
+fn build_proxy(
+    proxy: &mut SpringMatrix,
+    (matrix, blocks, elements): (&SpringMatrix, &[Sym3], &[[[Mat3; 3]; 3]]),
+    mesh: &MeshCloth,
+    membrane: &Membrane,
+    w: &[f32],
+) {
+    let s = &mesh.springs;
+    let mut coupling = vec![Sym3::ZERO; s.len()];
+    let mut shift = vec![0.0f32; s.len()];
+    for (t, k) in elements.iter().enumerate() {
+        let corners = membrane.triangles[t];
+        for (c, &e) in membrane.edges[t].iter().enumerate() {
+            let e = e as usize;
+            let (i, j) = if corners[c] == s.a[e] {
+                (c, (c + 1) % 3)
+            } else {
+                ((c + 1) % 3, c)
+            };
+            let block = k[i][j];
+            coupling[e].add_scaled(1.0, &sym(block));
+            let skew = [
+                block.y_axis.x - block.x_axis.y,
+                block.z_axis.x - block.x_axis.z,
+                block.z_axis.y - block.y_axis.z,
+            ];
+            shift[e] += 0.5 * (skew[0] * skew[0] + skew[1] * skew[1] + skew[2] * skew[2]).sqrt();
+        }
+    }
+    for e in 0..s.len() {
+        let (a, b) = (s.a[e] as usize, s.b[e] as usize);
+        let coupled = w[a] != 0.0 && w[b] != 0.0;
+        let (spring, element) = (blocks[e].0, coupling[e].0);
+        proxy.off[e] = Sym3(std::array::from_fn(|x| {
+            live_or_zero(coupled, element[x] - spring[x])
+        }));
+    }
+    for (v, d) in proxy.diagonal.iter_mut().enumerate() {
+        *d = matrix.diagonal[v];
+        if w[v] == 0.0 {
+            continue;
+        }
+        let around: f32 = mesh
+            .springs_at(v)
+            .iter()
+            .map(|&e| shift[(e >> 1) as usize])
+            .sum();
+        d.add_scaled(around, &Sym3::outer(0.0, Vec3::ZERO, 1.0));
+    }
+    proxy.gather();
+}
+
+/// The symmetric part of a block known to be symmetric (a diagonal block of `K_t`).
+fn sym(m: Mat3) -> Sym3 {
+    let (c0, c1, c2) = (m.x_axis, m.y_axis, m.z_axis);
+    Sym3([
+        c0.x,
+        c1.y,
+        c2.z,
+        0.5 * (c1.x + c0.y),
+        0.5 * (c2.x + c0.z),
+        0.5 * (c2.y + c1.z),
+    ])
 }
 
 /// Everything `P` is built from (the topology is the system's own).
@@ -108,6 +300,10 @@ impl MeshSystem {
             cg: ConjugateGradient::new(n),
             jacobi: std::array::from_fn(|_| Floats::zeros(n)),
             amg: None,
+            membrane: mesh.membrane.as_ref().map(|m| {
+                let proxy = SpringMatrix::new(&s.a, &s.b, &mesh.offsets, &mesh.incident);
+                (vec![[[Mat3::ZERO; 3]; 3]; m.len()], proxy)
+            }),
         }
     }
 
@@ -125,7 +321,20 @@ impl MeshSystem {
         let started = Instant::now();
         self.build_blocks(mesh, h, ctx);
         self.matrix.gather();
+        if let (Some(membrane), Some((blocks, _))) = (&mesh.membrane, &mut self.membrane) {
+            element_blocks(membrane, &mesh.springs.active, h, &ctx.current.pos, blocks);
+        }
         self.assemble_diagonal_and_rhs(mesh, h, drag, ctx);
+        if let (Some(membrane), Some((blocks, proxy))) = (&mesh.membrane, &mut self.membrane) {
+            let w = &ctx.particles.inv_mass[..];
+            build_proxy(
+                proxy,
+                (&self.matrix, &self.blocks, blocks),
+                mesh,
+                membrane,
+                w,
+            );
+        }
         if let Some(contacts) = ctx.contacts.filter(|c| c.count > 0) {
             self.stiffen_contacts(contacts, ctx);
         }
@@ -133,9 +342,10 @@ impl MeshSystem {
         filter.gather(h, ctx.contacts, (&cur.pos, &cur.vel, w), |p| {
             CONTACT_STIFFNESS * mass[p]
         });
+        let w = &ctx.particles.inv_mass[..];
         if !filter.is_empty() {
-            let matrix = &self.matrix;
-            filter.reduce(&mut self.rhs, |x, y| matrix.apply(x, y));
+            let operator = Operator::of(&self.matrix, &self.membrane, mesh, w);
+            filter.reduce(&mut self.rhs, |x, y| operator.apply_all(x, y));
         }
         match settings.preconditioner {
             Preconditioner::Jacobi => {
@@ -158,11 +368,13 @@ impl MeshSystem {
                 }
             }
             Preconditioner::Multigrid => match self.amg.as_mut() {
-                Some((key, amg)) if key.matches(h, drag, ctx) => amg.update(&self.matrix),
+                Some((key, amg)) if key.matches(h, drag, ctx) => {
+                    amg.update(self.membrane.as_ref().map_or(&self.matrix, |m| &m.1))
+                }
                 _ => {
                     let reference = self.isotropic_matrix(mesh, h, drag, ctx);
                     let mut amg = Amg::new(&reference);
-                    amg.update(&self.matrix);
+                    amg.update(self.membrane.as_ref().map_or(&self.matrix, |m| &m.1));
                     self.amg = Some((FactorKey::of(h, drag, ctx), amg));
                     stats.factorizations += 1;
                 }
@@ -177,26 +389,31 @@ impl MeshSystem {
             cg,
             jacobi,
             amg,
+            membrane,
             ..
         } = self;
         let (tolerance, most) = (settings.tolerance as f64, settings.max_iterations);
-        let matrix = &*matrix;
         let limits = (tolerance, most);
         let held = &*filter;
         let project = |v: &mut Vec3s| held.project(v);
+        let (matrix, membrane) = (&*matrix, &*membrane);
+        // The multigrid's matrix: the proxy under the triangle membrane.
+        let coarse = membrane.as_ref().map_or(matrix, |m| &m.1);
         // Without contacts the filter projects nothing: the plain preconditioned CG.
+        let a = Operator::of(matrix, membrane, mesh, w);
         let (iterations, residual) = match (settings.preconditioner, amg.as_mut()) {
             (Preconditioner::Multigrid, Some((_, amg))) => {
-                let precondition = |r: &Vec3s, z: &mut Vec3s| amg.apply(matrix, r, z);
-                cg.solve_filtered(matrix, rhs, dv, limits, precondition, project)
+                let precondition = |r: &Vec3s, z: &mut Vec3s| amg.apply(coarse, r, z);
+                cg.solve_filtered(&a, rhs, dv, limits, precondition, project)
             }
             _ => {
                 let precondition = |r: &Vec3s, z: &mut Vec3s| diagonal_blocks(jacobi, r, z);
-                cg.solve_filtered(matrix, rhs, dv, limits, precondition, project)
+                cg.solve_filtered(&a, rhs, dv, limits, precondition, project)
             }
         };
         if !filter.is_empty() {
-            filter.finish(dv, |x, y| matrix.apply(x, y));
+            let operator = Operator::of(&self.matrix, &self.membrane, mesh, w);
+            filter.finish(&mut self.dv, |x, y| operator.apply_all(x, y));
         }
         stats.solve_seconds += solving.elapsed().as_secs_f64();
         stats.record(iterations, residual, settings.tolerance as f64);
@@ -256,6 +473,11 @@ impl MeshSystem {
         let chunk = ctx.chunk;
         let (force, mass, w) = (&*ctx.force, &ctx.particles.mass, &ctx.particles.inv_mass);
         let (blocks, kv) = (&self.blocks, &self.kv);
+        let elements = mesh
+            .membrane
+            .as_ref()
+            .zip(self.membrane.as_ref().map(|m| &m.0));
+        let vel = &ctx.current.vel;
         self.matrix
             .diagonal
             .par_chunks_mut(chunk)
@@ -278,6 +500,16 @@ impl MeshSystem {
                         block.add_scaled(1.0, &blocks[s]);
                         r = if e & 1 == 0 { r - kv[s] } else { r + kv[s] };
                     }
+                    // The elements' diagonal blocks and `- h^2 K_t v` from each triangle.
+                    if let Some((m, k)) = elements {
+                        for &e in &m.incident[m.offsets[v] as usize..m.offsets[v + 1] as usize] {
+                            let (t, corner) = (e as usize / 3, e as usize % 3);
+                            block.add_scaled(1.0, &sym(k[t][corner][corner]));
+                            for (j, &u) in m.triangles[t].iter().enumerate() {
+                                r -= k[t][corner][j] * vel.get(u as usize);
+                            }
+                        }
+                    }
                     *di = block;
                     b.set(i, r);
                 }
@@ -285,7 +517,8 @@ impl MeshSystem {
     }
 
     /// `k n n^T` (`k = CONTACT_STIFFNESS m`) on the diagonal block of each free vertex with a
-    /// predicted contact, for the preconditioner (the grid's `stiffen_contacts`).
+    /// predicted contact, for the preconditioner (the grid's `stiffen_contacts`), in the proxy
+    /// too under the triangle membrane.
     fn stiffen_contacts(&mut self, contacts: &PredictedContacts, ctx: &StepContext) {
         let (mass, w) = (&ctx.particles.mass, &ctx.particles.inv_mass);
         for p in 0..self.matrix.len() {
@@ -295,6 +528,9 @@ impl MeshSystem {
             }
             let s = CONTACT_STIFFNESS * mass[p];
             self.matrix.diagonal[p].add_scaled(s, &Sym3::outer(1.0, n, 0.0));
+            if let Some((_, proxy)) = &mut self.membrane {
+                proxy.diagonal[p].add_scaled(s, &Sym3::outer(1.0, n, 0.0));
+            }
         }
     }
 
@@ -310,7 +546,8 @@ impl MeshSystem {
         let s = &mesh.springs;
         let (mass, w) = (&ctx.particles.mass, &ctx.particles.inv_mass);
         let mut p = self.matrix.clone();
-        let weight = |e: usize| h * s.c[e] + h * h * s.k[e];
+        let proxy = |e: usize| mesh.membrane.as_ref().map_or(0.0, |m| m.proxy_k[e]);
+        let weight = |e: usize| h * s.c[e] + h * h * (s.k[e] + proxy(e));
         for (v, d) in p.diagonal.iter_mut().enumerate() {
             let m = mass[v] + h * drag;
             *d = Sym3([m, m, m, 0.0, 0.0, 0.0]);

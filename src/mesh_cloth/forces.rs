@@ -56,7 +56,8 @@ impl MeshCloth {
         watch.is_some() && over
     }
 
-    /// Elastic energy of the springs at `pos`, `sum k (l - L)^2 / 2`, in J (f64); a seam
+    /// Elastic energy of the springs at `pos`, `sum k (l - L)^2 / 2`, and of the triangle
+    /// membrane's elements where the cloth has them, in J (f64); a seam
     /// counts at the zero rest length it holds once sewn (while it closes, its rest length is
     /// driven by the clock and the energy is not conserved).
     pub fn elastic_energy(&self, pos: &Vec3s) -> f64 {
@@ -72,7 +73,8 @@ impl MeshCloth {
                 let stretch = l - rest;
                 0.5 * s.k[e] as f64 * stretch * stretch
             })
-            .sum()
+            .sum::<f64>()
+            + (self.membrane.as_ref()).map_or(0.0, |m| m.energy(pos, &s.active))
     }
 
     /// The first spring (in list order) longer than `limit` times its rest length at `pos`,

@@ -69,6 +69,7 @@
 //! the solver, with one set of equations for every pass.
 
 pub mod forces;
+pub mod membrane;
 pub mod topology;
 
 pub use topology::MeshTopology;

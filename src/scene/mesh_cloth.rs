@@ -9,6 +9,7 @@ use glam::DVec3;
 use super::mesh::{check_indices, has_zero_area};
 use super::{ClothSpec, IncidenceLanes, MeshSpec, SeamsSpec};
 use crate::error::{check_scalar, check_vector, Bound, Error, Result};
+use crate::mesh_cloth::membrane::Membrane;
 
 /// Two vertices closer than this (m) are one point.
 const DEGENERATE: f64 = f32::EPSILON as f64;
@@ -111,6 +112,9 @@ pub struct MeshCloth {
     pub mean_edge: f64,
     /// Seconds over which the seams close (0 without seams).
     pub sew_time: f64,
+    /// The triangle elements of `membrane = "triangle"`, which then hold the stretch and
+    /// shear (the stretch springs keep only their damping); None with `"springs"`.
+    pub membrane: Option<Membrane>,
 }
 
 impl MeshCloth {
@@ -152,6 +156,7 @@ impl MeshCloth {
         check_scalar(&format!("{AT}.stretch"), spec.stretch, Bound::NonNegative)?;
         check_scalar(&format!("{AT}.bend"), spec.bend, Bound::NonNegative)?;
         check_scalar(&format!("{AT}.damping"), spec.damping, Bound::NonNegative)?;
+        check_poisson(spec)?;
         let triangles = check_triangles(rest, &spec.triangles)?;
         let uvs = check_uvs(spec.uvs.as_deref(), n)?;
         let at = |k: u32| DVec3::from(rest[k as usize]);
@@ -196,7 +201,10 @@ impl MeshCloth {
         let edges = (0..springs.len()).filter(|&s| springs.kind[s] == EdgeKind::Stretch);
         let (total, count) = edges.fold((0.0, 0), |(t, c), s| (t + springs.rest[s] as f64, c + 1));
         let mean_edge = total / count as f64;
+        let membrane = (spec.membrane == super::MembraneKind::Triangle)
+            .then(|| Membrane::new(rest, &triangles, &springs, spec.stretch, spec.poisson));
         Ok(MeshCloth {
+            membrane,
             mean_edge,
             rest: rest.clone(),
             triangles,
@@ -239,8 +247,22 @@ impl MeshCloth {
     /// The largest squared angular frequency (rad^2/s^2) of the springs alone, bounded by
     /// Gershgorin's theorem on the mass-scaled stiffness at rest: `2 sum_e k_e / m_v` at the
     /// worst vertex. An upper bound, so a step chosen from it is on the safe side.
+    /// With the triangle membrane, each vertex adds its elements' largest row sum of `|K|`
+    /// at rest ([`Membrane::row_sums`]), bounded the same way.
     pub fn max_omega2(&self) -> f64 {
-        self.per_vertex_max(|s| self.springs.k[s] as f64)
+        let Some(membrane) = &self.membrane else {
+            return self.per_vertex_max(|s| self.springs.k[s] as f64);
+        };
+        let rest = crate::soa::Vec3s::from_fn(self.len(), |v| DVec3::from(self.rest[v]).as_vec3());
+        let rows = membrane.row_sums(&rest);
+        (0..self.len())
+            .map(|v| {
+                let springs = (self.springs_at(v).iter())
+                    .map(|&e| self.springs.k[(e >> 1) as usize] as f64)
+                    .sum::<f64>();
+                (2.0 * springs + rows[v] as f64) / self.masses[v]
+            })
+            .fold(0.0, f64::max)
     }
 
     /// The largest damping rate (1/s) of the springs, `2 sum_e c_e / m_v`, bounded the same way.
@@ -286,6 +308,7 @@ impl MeshCloth {
             + self.springs.heap_bytes()
             + (self.offsets.capacity() + self.incident.capacity()) * 4
             + self.lanes.heap_bytes()
+            + self.membrane.as_ref().map_or(0, Membrane::heap_bytes)
     }
 }
 
@@ -389,6 +412,28 @@ fn check_edges(triangles: &[[u32; 3]]) -> Result<()> {
     Ok(())
 }
 
+/// `poisson` in `[0, 1)`, and left at its default unless `membrane = "triangle"` reads it.
+fn check_poisson(spec: &MeshSpec) -> Result<()> {
+    let name = format!("{AT}.poisson");
+    if spec.membrane == super::MembraneKind::Springs {
+        if spec.poisson != MeshSpec::default().poisson {
+            return Err(Error::value(
+                name,
+                "is the triangle membrane's Poisson ratio; set cloth.mesh.membrane = \"triangle\" \
+                 or remove it",
+            ));
+        }
+        return Ok(());
+    }
+    if !(0.0..1.0).contains(&spec.poisson) {
+        return Err(Error::value(
+            name,
+            format!("must be in [0, 1), got {}", spec.poisson),
+        ));
+    }
+    Ok(())
+}
+
 fn check_uvs(uvs: Option<&[[f64; 2]]>, n: usize) -> Result<Option<Vec<[f32; 2]>>> {
     let Some(uvs) = uvs else { return Ok(None) };
     if uvs.len() != n {
@@ -416,13 +461,17 @@ fn springs_of(
     let runs: Vec<&[(u64, u32, u8)]> = uses.chunk_by(|x, y| x.0 == y.0).collect();
     let mut springs = EdgeSprings::default();
     let ends = |key: u64| ((key >> 32) as u32, key as u32);
+    // Under the triangle membrane the elements hold the stretch and shear: every edge keeps a
+    // stretch spring for its damping, for strain limiting, cuts and tears, with no stiffness.
+    let triangle = spec.membrane == super::MembraneKind::Triangle;
     let add = |springs: &mut EdgeSprings, (a, b): (u32, u32), share: f64, kind| {
         let (modulus, damping) = match kind {
+            EdgeKind::Stretch if triangle => (0.0, spec.damping),
             EdgeKind::Stretch => (spec.stretch, spec.damping),
             EdgeKind::Bend => (spec.bend, spec.damping),
             EdgeKind::Seam => unreachable!("seams are added apart"),
         };
-        if modulus == 0.0 {
+        if modulus == 0.0 && !(triangle && kind == EdgeKind::Stretch) {
             return;
         }
         let rest = (at(b) - at(a)).length();
@@ -516,6 +565,8 @@ impl ClothSpec {
             stretch: garment.stretch,
             bend: garment.bend,
             damping: garment.damping,
+            membrane: super::MembraneKind::Springs,
+            poisson: 1.0 / 3.0,
             seams: (!sewn.seams.is_empty()).then_some(SeamsSpec {
                 pairs: sewn.seams,
                 sew_time: garment.sew_time,

@@ -25,13 +25,13 @@ pub use mesh_cloth::{EdgeKind, EdgeSprings, MeshCloth};
 pub use pins::PIN_GROUPS;
 pub use solvers::{IntegratorKind, Preconditioner, SolverSettings};
 pub use specs::{
-    ClothSpec, ColliderSpec, FloorSpec, MeshSpec, OnTrouble, PinBoundary, PinBox, PinSpec, PinTop,
-    Plane, SeamsSpec, SelfCollisionSpec, ShapeKind, SphereSpec, StrainLimitSpec, TearingSpec,
-    WatchdogSpec, WindSpec,
+    ClothSpec, ColliderSpec, FloorSpec, MembraneKind, MeshSpec, OnTrouble, PinBoundary, PinBox,
+    PinSpec, PinTop, Plane, SeamsSpec, SelfCollisionSpec, ShapeKind, SphereSpec, StrainLimitSpec,
+    TearingSpec, WatchdogSpec, WindSpec,
 };
 pub use stability::stable_substep;
-pub(crate) use validate::check_substep;
 use validate::require_tables;
+pub(crate) use validate::{check_membrane_integrator, check_substep};
 pub use validate::{validations, MAX_COLLIDER_VALUE, MAX_ITERATIONS, MAX_PARTICLES, MIN_SUBSTEP};
 
 use crate::error::{Error, Result};

@@ -288,9 +288,35 @@ pub struct MeshSpec {
     /// families) at any resolution. Default 0.07: the default grid cloth's springs dissipate
     /// `14 c r^2 = 0.14 r^2`.
     pub damping: f64,
+    /// What resists stretch and shear: `"springs"` (default), a spring on every edge with
+    /// `k = stretch A_e / L^2`, or `"triangle"`, a co-rotational linear element on every
+    /// triangle (docs/mesh_cloth.md, "The triangle membrane"). The element stores exactly
+    /// `A Psi(strain)` for any uniform strain, so its response does not depend on how the
+    /// triangles' edges line up with the load; it costs more a step, and `projective_dynamics`
+    /// is refused with it. The bend springs, the damping along every edge, strain limiting,
+    /// cuts and tears are the same under either.
+    pub membrane: MembraneKind,
+    /// Poisson's ratio of the `"triangle"` membrane (`0 <= poisson < 1`, dimensionless).
+    /// Default 1/3, the ratio of an isotropic spread of edge springs, so that `stretch` means
+    /// the same under either membrane. The Lame parameters are `mu = stretch (1 - poisson) /
+    /// (4 (1 + poisson))`, `lambda = stretch poisson / (2 (1 + poisson))`: a uniform strain `e`
+    /// in every direction stores `stretch e^2 / 2` J per m^2 at any ratio. Higher keeps the
+    /// cloth's width as it is pulled; lower lets it narrow less. Only read by `"triangle"`
+    /// (another value with `"springs"` is refused).
+    pub poisson: f64,
     /// Vertices sewn together (a garment's seams, `cloth.garment` fills it in). Default none.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub seams: Option<SeamsSpec>,
+}
+
+/// What resists a mesh cloth's stretch and shear (`cloth.mesh.membrane`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum MembraneKind {
+    /// A spring on every edge, `k = stretch A_e / L^2`.
+    Springs,
+    /// A co-rotational linear constant-strain element on every triangle.
+    Triangle,
 }
 
 /// Seams of a mesh cloth: pairs of vertices pulled together by springs whose rest length goes
@@ -329,6 +355,8 @@ impl Default for MeshSpec {
             stretch: 600.0,
             bend: 80.0,
             damping: 0.07,
+            membrane: MembraneKind::Springs,
+            poisson: 1.0 / 3.0,
             seams: None,
         }
     }

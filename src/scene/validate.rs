@@ -48,6 +48,7 @@ impl Scene {
             ));
         }
         self.cloth.validate()?;
+        check_membrane_integrator(self.cloth.mesh.as_ref(), self.integrator)?;
         if let Some(floor) = &self.floor {
             check_scalar("floor.height", floor.height, Bound::Any)?;
             check_scalar("floor.friction", floor.friction, Bound::NonNegative)?;
@@ -400,6 +401,23 @@ impl ClothSpec {
         super::MeshCloth::new(mesh)?;
         self.check_pins()
     }
+}
+
+/// Projective dynamics' global matrix is the springs' constant Laplacian, which has no place
+/// for a triangle element's rotated stiffness: the triangle membrane refuses it.
+pub(crate) fn check_membrane_integrator(
+    mesh: Option<&super::MeshSpec>,
+    integrator: super::IntegratorKind,
+) -> Result<()> {
+    let triangle = mesh.is_some_and(|m| m.membrane == super::MembraneKind::Triangle);
+    if triangle && integrator == super::IntegratorKind::ProjectiveDynamics {
+        return Err(Error::value(
+            "cloth.mesh.membrane",
+            "\"triangle\" does not run under integrator = \"projective_dynamics\"; use \
+             \"implicit_euler\" or an explicit integrator, or membrane = \"springs\"",
+        ));
+    }
+    Ok(())
 }
 
 impl ClothSpec {

@@ -460,3 +460,52 @@ pub fn check_slides_iff_the_slope_beats_friction(
         }
     }
 }
+
+/// A 1 m mesh square (`scene`, `n` x `n` vertices, hanging in xy with its top edge at y = 1.5)
+/// hung by the first and last 12.5 cm of its top edge, `stretch` 60 N/m, `bend` 0.8 N/m,
+/// `damping` 0.01 N s/m, settled 3 s under drag proportional to mass at 0.7 of symplectic
+/// Euler's stable step: its sag (m, how far the centre of mass dropped from y = 1) and its
+/// largest edge strain below y = 1.25 (away from the clamps' singular ends).
+pub fn settle_clamped(mut scene: Scene, n: usize) -> (f64, f64) {
+    scene.cloth.pins = [[-0.5, -0.375], [0.375, 0.5]]
+        .map(|[x0, x1]| {
+            PinSpec::Region(rustcloth::scene::PinBox {
+                corners: [[x0, 1.5 - 1e-9, -0.1], [x1, 1.5, 0.1]],
+            })
+        })
+        .to_vec();
+    let spec = scene.cloth.mesh.as_mut().unwrap();
+    (spec.stretch, spec.bend, spec.damping) = (60.0, 0.8, 0.01);
+    scene.air_drag = 4.0 * 0.2 / (n * n) as f64;
+    scene.dt = 0.7 * scene.stable_dt(IntegratorKind::SymplecticEuler).unwrap();
+    let mut sim = Simulation::new(scene).unwrap();
+    sim.advance(3.0).unwrap();
+    assert!(sim.energy().kinetic < 1e-5, "not settled");
+    let (y, m) = (&sim.positions().y, &sim.particles().mass);
+    let centroid: f64 = (0..m.len()).map(|p| m[p] as f64 * y[p] as f64).sum::<f64>()
+        / m.iter().map(|&m| m as f64).sum::<f64>();
+    let strain = sim.spring_strain();
+    let away = (0..m.len())
+        .filter(|&p| y[p] < 1.25)
+        .map(|p| strain[p])
+        .fold(0.0f32, f32::max);
+    (1.0 - centroid, away as f64)
+}
+
+/// Steps `sim` one step a frame for `frames` frames, asserting that its total energy never
+/// rises from one frame to the next (beyond 1e-6 of where it started) and that it ends below
+/// where it started; `label` names the case.
+pub fn assert_energy_never_rises(sim: &mut Simulation, frames: u32, label: &str) {
+    let mut last = sim.energy().total();
+    let start = last;
+    for frame in 0..frames {
+        sim.step(1).unwrap();
+        let e = sim.energy().total();
+        assert!(
+            e <= last + 1e-6 * start.abs().max(1e-3),
+            "{label}: frame {frame} rose {last} -> {e}"
+        );
+        last = e;
+    }
+    assert!(last < start, "{label}: nothing dissipated");
+}

@@ -131,8 +131,11 @@ impl Pipeline {
     /// cloth's springs are added after the force model's sweep.
     pub fn effects(&self, model: &Model, state: &State) -> Vec<&'static str> {
         let mut out: Vec<&'static str> = self.forces.forces().iter().map(Force::name).collect();
-        if model.mesh().is_some() {
+        if let Some(mesh) = model.mesh() {
             out.push(crate::forces::MESH_SPRINGS);
+            if mesh.membrane.is_some() {
+                out.push(crate::forces::MESH_MEMBRANE);
+            }
         }
         out.push(self.integrator.name());
         if self.wind.is_some() {
