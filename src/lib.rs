@@ -27,6 +27,7 @@ pub mod error;
 pub mod forces;
 pub mod garment;
 pub mod grid;
+pub mod incidence;
 pub mod integrators;
 pub mod interaction;
 pub mod linear;

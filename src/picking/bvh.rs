@@ -9,6 +9,7 @@ use super::ray::{
     ParticleHit, Ray, TriangleHit,
 };
 use crate::grid::{triangle_alive, Grid};
+use crate::incidence::Corners;
 use crate::model::TriangleIds;
 use crate::soa::Vec3s;
 
@@ -122,42 +123,7 @@ pub struct TriangleBvh {
     leaves: usize,
     /// A mesh's triangles by corner, so that a cut finds those around a particle without a
     /// scan of every triangle (the grid's are found from the particle's cell).
-    around: Option<VertexTriangles>,
-}
-
-/// Each vertex's triangles: `ids[offsets[v]..offsets[v + 1]]`, in increasing order.
-struct VertexTriangles {
-    offsets: Vec<u32>,
-    ids: Vec<u32>,
-}
-
-impl VertexTriangles {
-    fn new(triangles: &[[u32; 3]]) -> Self {
-        let vertices = triangles.iter().flatten().map(|&v| v as usize + 1).max();
-        let mut offsets = vec![0u32; vertices.unwrap_or(0) + 1];
-        for &v in triangles.iter().flatten() {
-            offsets[v as usize + 1] += 1;
-        }
-        for v in 1..offsets.len() {
-            offsets[v] += offsets[v - 1];
-        }
-        let mut next = offsets.clone();
-        let mut ids = vec![0u32; 3 * triangles.len()];
-        for (id, tri) in triangles.iter().enumerate() {
-            for &v in tri {
-                ids[next[v as usize] as usize] = id as u32;
-                next[v as usize] += 1;
-            }
-        }
-        VertexTriangles { offsets, ids }
-    }
-
-    fn of(&self, v: usize) -> &[u32] {
-        match (self.offsets.get(v), self.offsets.get(v + 1)) {
-            (Some(&lo), Some(&hi)) => &self.ids[lo as usize..hi as usize],
-            _ => &[],
-        }
-    }
+    around: Option<Corners>,
 }
 
 fn triangle_box(pos: &Vec3s, tri: [usize; 3]) -> Aabb {
@@ -183,7 +149,14 @@ impl TriangleBvh {
         let bvh = build_bvh(leaves);
         let around = match &ids {
             TriangleIds::Grid(_) => None,
-            TriangleIds::Mesh(triangles) => Some(VertexTriangles::new(triangles)),
+            TriangleIds::Mesh(triangles) => {
+                let vertices = triangles
+                    .iter()
+                    .flatten()
+                    .max()
+                    .map_or(0, |&v| v as usize + 1);
+                Some(Corners::new(triangles, vertices))
+            }
         };
         TriangleBvh {
             ids,
@@ -236,13 +209,12 @@ impl TriangleBvh {
         let grid = match (&self.ids, &self.around) {
             (TriangleIds::Grid(grid), _) => *grid,
             (TriangleIds::Mesh(_), around) => {
-                let ids = around
+                let corners = around
                     .as_ref()
-                    .map_or(&[][..], |around| around.of(p))
+                    .map_or(&[][..], |around| around.at(p))
                     .to_vec();
-                return ids
-                    .into_iter()
-                    .filter(|&id| self.remove(id as usize))
+                return (corners.into_iter())
+                    .filter(|&c| self.remove(c as usize / 3))
                     .count();
             }
         };

@@ -7,9 +7,9 @@ use std::collections::HashMap;
 use glam::DVec3;
 
 use super::mesh::{check_indices, has_zero_area};
+use super::Membrane;
 use super::{ClothSpec, IncidenceLanes, MeshSpec, SeamsSpec};
 use crate::error::{check_scalar, check_vector, Bound, Error, Result};
-use crate::mesh_cloth::membrane::Membrane;
 
 /// Two vertices closer than this (m) are one point.
 const DEGENERATE: f64 = f32::EPSILON as f64;

@@ -8,6 +8,7 @@
 
 mod cuts;
 mod lanes;
+mod membrane;
 mod mesh;
 mod mesh_cloth;
 mod pins;
@@ -20,6 +21,7 @@ use serde::{Deserialize, Serialize};
 
 pub use cuts::CutSpec;
 pub use lanes::{IncidenceLanes, LANES};
+pub use membrane::Membrane;
 pub use mesh::{is_closed, merged_indices};
 pub use mesh_cloth::{EdgeKind, EdgeSprings, MeshCloth};
 pub use pins::PIN_GROUPS;
