@@ -284,3 +284,18 @@ def test_a_pin_group_the_file_lacks_is_named_with_the_files_groups(tmp_path) -> 
         rustcloth.Scene.from_toml_str('[cloth]\nnx = 4\nny = 4\npin_group = "hem"\n')
     with pytest.raises(rustcloth.ParameterTypeError, match=r"^cloth\.pin_group: must be"):
         scene.with_cloth_mesh(path=tmp_path / "flag.obj", pin_group=[])
+
+
+def test_implicit_euler_on_a_mesh_builds_the_multigrid_of_each_step_once():
+    # An energy-judged step split into halves and back alternates two steps: each step's
+    # hierarchy is kept and found again, not rebuilt at every change (as a garment held by
+    # friction at rest did, twice a step).
+    vertices, triangles = jittered_square(12)
+    scene = rustcloth.Scene(integrator="implicit_euler", dt=1 / 120,
+                            preconditioner="multigrid").with_cloth_mesh(
+        vertices, triangles, pins=[{"top": 0.001}])
+    sim = rustcloth.Simulation(scene)
+    for k in range(8):
+        sim.dt = 1 / 120 if k % 2 == 0 else 1 / 240
+        sim.step(1)
+    assert sim.solver_stats()["factorizations"] == 2

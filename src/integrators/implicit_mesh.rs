@@ -13,7 +13,8 @@
 //!
 //! over the free vertices, which depends only on the step, the masses, the pins, the material
 //! and which springs hold: the hierarchy is rebuilt only when one of those changes (a cut or a
-//! tear among them). The coarse operators are
+//! tear among them), and the last few are kept ([`HIERARCHIES_KEPT`]), so that a step split
+//! into halves and back finds its own again. The coarse operators are
 //! the Galerkin products of the step's own matrix, rebuilt every step: reusing those of `P`
 //! instead saves their products (about a seventh of a step) but `P` overstates the
 //! out-of-plane stiffness of a slack cloth, and CG then takes about twice the iterations
@@ -58,6 +59,12 @@ use crate::mesh_cloth::membrane::Membrane;
 use crate::mesh_cloth::MeshCloth;
 use crate::soa::{Floats, Vec3SliceMut, Vec3s};
 
+/// How many multigrid hierarchies a system keeps, the latest first: a step's and those of the
+/// halves an energy-judged step is split into (down to an eighth), so that a step halved in
+/// every substep (a garment held by friction at rest) rebuilds none. Each is as large as the
+/// matrix.
+const HIERARCHIES_KEPT: usize = 4;
+
 /// Springs per parallel work item of the per-spring pass.
 const SPRING_CHUNK: usize = 4096;
 
@@ -72,8 +79,9 @@ pub(super) struct MeshSystem {
     cg: ConjugateGradient,
     /// The Jacobi preconditioners' inverse diagonal blocks.
     jacobi: SlotArrays,
-    /// The aggregation hierarchy built on `P` and what it was built from.
-    amg: Option<(FactorKey, Amg)>,
+    /// The aggregation hierarchies built on `P` and what each was built from, the one in use
+    /// first.
+    amg: Vec<(FactorKey, Amg)>,
     /// With the triangle membrane: each triangle's `h^2 K_t` (zero when it does not hold),
     /// and the multigrid's proxy matrix.
     membrane: Option<(Vec<[[Mat3; 3]; 3]>, SpringMatrix)>,
@@ -299,7 +307,7 @@ impl MeshSystem {
             dv: Vec3s::zeros(n),
             cg: ConjugateGradient::new(n),
             jacobi: std::array::from_fn(|_| Floats::zeros(n)),
-            amg: None,
+            amg: Vec::new(),
             membrane: mesh.membrane.as_ref().map(|m| {
                 let proxy = SpringMatrix::new(&s.a, &s.b, &mesh.offsets, &mesh.incident);
                 (vec![[[Mat3::ZERO; 3]; 3]; m.len()], proxy)
@@ -367,18 +375,24 @@ impl MeshSystem {
                     }
                 }
             }
-            Preconditioner::Multigrid => match self.amg.as_mut() {
-                Some((key, amg)) if key.matches(h, drag, ctx) => {
-                    amg.update(self.membrane.as_ref().map_or(&self.matrix, |m| &m.1))
+            Preconditioner::Multigrid => {
+                match self
+                    .amg
+                    .iter()
+                    .position(|(key, _)| key.matches(h, drag, ctx))
+                {
+                    Some(kept) => self.amg[..=kept].rotate_right(1),
+                    None => {
+                        let reference = self.isotropic_matrix(mesh, h, drag, ctx);
+                        self.amg
+                            .insert(0, (FactorKey::of(h, drag, ctx), Amg::new(&reference)));
+                        self.amg.truncate(HIERARCHIES_KEPT);
+                        stats.factorizations += 1;
+                    }
                 }
-                _ => {
-                    let reference = self.isotropic_matrix(mesh, h, drag, ctx);
-                    let mut amg = Amg::new(&reference);
-                    amg.update(self.membrane.as_ref().map_or(&self.matrix, |m| &m.1));
-                    self.amg = Some((FactorKey::of(h, drag, ctx), amg));
-                    stats.factorizations += 1;
-                }
-            },
+                let fine = self.membrane.as_ref().map_or(&self.matrix, |m| &m.1);
+                self.amg[0].1.update(fine);
+            }
         }
         let solving = Instant::now();
         stats.setup_seconds += (solving - started).as_secs_f64();
@@ -401,7 +415,7 @@ impl MeshSystem {
         let coarse = membrane.as_ref().map_or(matrix, |m| &m.1);
         // Without contacts the filter projects nothing: the plain preconditioned CG.
         let a = Operator::of(matrix, membrane, mesh, w);
-        let (iterations, residual) = match (settings.preconditioner, amg.as_mut()) {
+        let (iterations, residual) = match (settings.preconditioner, amg.first_mut()) {
             (Preconditioner::Multigrid, Some((_, amg))) => {
                 let precondition = |r: &Vec3s, z: &mut Vec3s| amg.apply(coarse, r, z);
                 cg.solve_filtered(&a, rhs, dv, limits, precondition, project)
