@@ -3,7 +3,7 @@
 
 use crate::common;
 
-use common::{state_hash, with_threads};
+use common::{momentum, state_hash, with_threads};
 use glam::{DVec3, Vec3};
 use rustcloth::mesh_cloth::{jittered_square, EdgeKind, MeshCloth};
 use rustcloth::scene::{
@@ -228,13 +228,6 @@ fn uniform_strain_stores_the_modulus_energy_at_any_resolution() {
     }
 }
 
-fn total_momentum(sim: &Simulation) -> DVec3 {
-    let (v, m) = (sim.velocities(), &sim.particles().mass);
-    (0..m.len())
-        .map(|p| m[p] as f64 * v.get(p).as_dvec3())
-        .sum()
-}
-
 /// A free mesh cloth, no gravity, no drag, thrown spinning and stretched: its springs push
 /// each pair of ends with bitwise opposite forces, so the momentum stays what it was.
 #[test]
@@ -251,17 +244,10 @@ fn a_free_mesh_cloth_keeps_its_momentum() {
         scene.integrator = integrator;
         scene.dt = 2e-4;
         let mut sim = Simulation::new(scene).unwrap();
-        let n = sim.positions().len();
-        let pos = Vec3s::from_fn(n, |p| sim.positions().get(p) * 1.05);
-        let vel = Vec3s::from_fn(n, |p| {
-            let x = sim.positions().get(p);
-            Vec3::new(0.3, -0.2, 0.1) + Vec3::Z.cross(x) * 2.0
-        });
-        sim.set_positions(&pos).unwrap();
-        sim.set_velocities(&vel).unwrap();
-        let p0 = total_momentum(&sim);
+        common::throw_spinning_and_stretched(&mut sim);
+        let p0 = momentum(&sim);
         sim.step(500).unwrap();
-        let drift = (total_momentum(&sim) - p0).length();
+        let drift = (momentum(&sim) - p0).length();
         assert!(drift < 1e-6, "{integrator:?}: momentum moved by {drift}");
     }
 }

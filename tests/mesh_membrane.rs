@@ -5,8 +5,8 @@
 
 use crate::common;
 
-use common::{state_hash, with_threads};
-use glam::{DMat2, DQuat, DVec2, DVec3, Vec3};
+use common::{assert_bitwise_on_1_2_3_threads, momentum, state_hash};
+use glam::{DMat2, DQuat, DVec2, DVec3};
 use rustcloth::mesh_cloth::{jittered_square, MeshCloth};
 use rustcloth::scene::{MembraneKind, MeshSpec, PinSpec, Preconditioner};
 use rustcloth::soa::Vec3s;
@@ -228,22 +228,8 @@ fn free(integrator: IntegratorKind) -> Simulation {
     };
     scene.cg_tolerance = 1e-6;
     let mut sim = Simulation::new(scene).unwrap();
-    let n = sim.positions().len();
-    let pos = Vec3s::from_fn(n, |p| sim.positions().get(p) * 1.05);
-    let vel = Vec3s::from_fn(n, |p| {
-        let x = sim.positions().get(p);
-        Vec3::new(0.3, -0.2, 0.1) + Vec3::Z.cross(x) * 2.0
-    });
-    sim.set_positions(&pos).unwrap();
-    sim.set_velocities(&vel).unwrap();
+    common::throw_spinning_and_stretched(&mut sim);
     sim
-}
-
-fn momentum(sim: &Simulation) -> DVec3 {
-    let (v, m) = (sim.velocities(), &sim.particles().mass);
-    (0..m.len())
-        .map(|p| m[p] as f64 * v.get(p).as_dvec3())
-        .sum()
 }
 
 /// With damping and nothing doing work on it, a free membrane cloth thrown spinning and
@@ -324,20 +310,11 @@ fn a_membrane_cloth_steps_bitwise_alike_on_any_thread_count() {
             IntegratorKind::ImplicitEuler => 1.0 / 60.0,
             _ => 0.7 * scene.stable_dt(integrator).unwrap(),
         };
-        let hashes: Vec<u64> = [1, 2, 3]
-            .into_iter()
-            .map(|threads| {
-                with_threads(threads, || {
-                    let mut sim = Simulation::new(scene.clone()).unwrap();
-                    sim.step(4).unwrap();
-                    state_hash(&sim)
-                })
-            })
-            .collect();
-        assert!(
-            hashes.windows(2).all(|w| w[0] == w[1]),
-            "{integrator}: {hashes:?}"
-        );
+        assert_bitwise_on_1_2_3_threads(&format!("{integrator}"), || {
+            let mut sim = Simulation::new(scene.clone()).unwrap();
+            sim.step(4).unwrap();
+            state_hash(&sim)
+        });
     }
 }
 

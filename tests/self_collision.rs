@@ -13,7 +13,8 @@ use crate::common;
 
 use common::crossings::{intersecting_pairs, triangles_intersect};
 use common::{
-    bare_scene, builtin_scene, edge_first_pile, scene_under_gravity, state_hash, with_threads,
+    bare_scene, builtin_scene, edge_first_pile, momentum, scene_under_gravity, state_hash,
+    with_threads,
 };
 use glam::{DVec3, Vec3};
 use rustcloth::scene::SelfCollisionSpec;
@@ -284,14 +285,6 @@ fn a_substep_the_list_does_not_cover_is_redone_and_still_keeps_apart() {
     }
     let stats = sim.self_collision_stats().unwrap();
     assert!(stats.contacts > 0 && stats.min_distance > 0.0, "{stats:?}");
-}
-
-fn momentum(sim: &Simulation) -> DVec3 {
-    let (vel, particles) = (sim.velocities(), sim.particles());
-    (0..vel.len())
-        .filter(|&p| particles.alive[p])
-        .map(|p| vel.get(p).as_dvec3() * particles.mass[p] as f64)
-        .sum()
 }
 
 #[test]

@@ -220,6 +220,41 @@ pub fn position(sim: &Simulation, p: usize) -> Vec3 {
     sim.positions().get(p)
 }
 
+/// Asserts that `run` (a fresh simulation, stepped, hashed with [`state_hash`]) gives the same
+/// hash on 1, 2 and 3 threads; `label` names the case in the message.
+pub fn assert_bitwise_on_1_2_3_threads(label: &str, run: impl Fn() -> u64 + Sync) {
+    let hashes: Vec<u64> = [1, 2, 3]
+        .into_iter()
+        .map(|threads| with_threads(threads, &run))
+        .collect();
+    assert!(
+        hashes.windows(2).all(|w| w[0] == w[1]),
+        "{label}: {hashes:?}"
+    );
+}
+
+/// Stretches `sim`'s cloth by 5 % about the origin and throws it: drifting at (0.3, -0.2, 0.1)
+/// m/s and spinning about z at 2 rad/s.
+pub fn throw_spinning_and_stretched(sim: &mut Simulation) {
+    let n = sim.positions().len();
+    let pos = Vec3s::from_fn(n, |p| sim.positions().get(p) * 1.05);
+    let vel = Vec3s::from_fn(n, |p| {
+        let x = sim.positions().get(p);
+        Vec3::new(0.3, -0.2, 0.1) + Vec3::Z.cross(x) * 2.0
+    });
+    sim.set_positions(&pos).unwrap();
+    sim.set_velocities(&vel).unwrap();
+}
+
+/// `sum m v` over the live particles, in kg m/s.
+pub fn momentum(sim: &Simulation) -> glam::DVec3 {
+    let (vel, particles) = (sim.velocities(), sim.particles());
+    (0..vel.len())
+        .filter(|&p| particles.alive[p])
+        .map(|p| vel.get(p).as_dvec3() * particles.mass[p] as f64)
+        .sum()
+}
+
 /// Runs `f` on a rayon pool of `threads` threads.
 pub fn with_threads<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> R {
     rayon::ThreadPoolBuilder::new()
