@@ -8,7 +8,7 @@ use rayon::prelude::*;
 
 use super::contact_filter::ContactFilter;
 use super::implicit_mesh::MeshSystem;
-use super::self_contact::{outer, SelfContactTerm, WithSelfContacts};
+use super::self_contact::{SelfContactTerm, WithSelfContacts};
 use super::solver::{
     kind_slot, live_or_zero, Preconditioner, SolverSettings, SolverStats, CONTACT_STIFFNESS,
 };
@@ -18,7 +18,7 @@ use crate::forces::Force;
 use crate::grid::SpringKind;
 use crate::linear::cg::{diagonal_blocks, BlockOperator, ConjugateGradient};
 use crate::linear::stencil::{par_chunks6, SlotArrays};
-use crate::linear::{BlockStencil, Multigrid};
+use crate::linear::{BlockStencil, Multigrid, Sym3};
 use crate::soa::{Floats, Vec3s};
 use crate::springs::{anchored_run, neighbour_runs};
 
@@ -417,7 +417,7 @@ fn stiffen_contacts(work: &mut Work, contacts: &PredictedContacts, ctx: &StepCon
                     continue;
                 }
                 let s = CONTACT_STIFFNESS * mass[p];
-                let block = outer(n);
+                let block = Sym3::outer(1.0, n, 0.0).0;
                 for (column, v) in d.iter_mut().zip(block) {
                     column[i] += s * v;
                 }

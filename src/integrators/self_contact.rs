@@ -37,6 +37,7 @@ use rayon::prelude::*;
 
 use crate::linear::cg::BlockOperator;
 use crate::linear::stencil::SlotArrays;
+use crate::linear::Sym3;
 use crate::self_collision::Pair;
 use crate::soa::{Vec3SliceMut, Vec3s};
 
@@ -184,7 +185,7 @@ impl SelfContactTerm {
     /// diagonal block (`xx, yy, zz, xy, xz, yz`).
     pub(super) fn add_diagonal(&self, from: usize, d: &mut SlotArrays) {
         for held in &self.held[from..] {
-            let block = outer(held.n);
+            let block = Sym3::outer(1.0, held.n, 0.0).0;
             for k in 0..4 {
                 let p = held.verts[k] as usize;
                 let s = held.s * held.c[k] * held.c[k];
@@ -243,18 +244,6 @@ impl SelfContactTerm {
             (out.x[i], out.y[i], out.z[i]) = (sum.x, sum.y, sum.z);
         }
     }
-}
-
-/// The components `xx, yy, zz, xy, xz, yz` of `n n^T`, in a block slot's order.
-pub(super) fn outer(n: Vec3) -> [f32; 6] {
-    [
-        n.x * n.x,
-        n.y * n.y,
-        n.z * n.z,
-        n.x * n.y,
-        n.x * n.z,
-        n.y * n.z,
-    ]
 }
 
 /// `pair` as a held pair of a step of `h` s from `(pos, vel)`, however far its inertial motion
