@@ -331,3 +331,57 @@ fn mesh_and_plane_colliders_and_set_poses_allocate_nothing_while_stepping() {
         assert!(y > 0.935, "at {y}, from {}", before.get(middle));
     });
 }
+
+#[test]
+fn a_mesh_cloth_allocates_nothing_while_stepping() {
+    // A 12 x 12 square of triangles under both membranes: the springs' force pass, the
+    // triangle elements' and their implicit blocks and multigrid proxy.
+    use rustcloth::scene::{MembraneKind, MeshSpec};
+    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let n = 12usize;
+    let vertices: Vec<[f64; 3]> = (0..n * n)
+        .map(|k| [(k % n) as f64 / n as f64, 1.0, (k / n) as f64 / n as f64])
+        .collect();
+    let triangles: Vec<[i64; 3]> = (0..n - 1)
+        .flat_map(|j| (0..n - 1).map(move |i| (j * n + i) as i64))
+        .flat_map(|a| {
+            [
+                [a, a + n as i64, a + 1],
+                [a + 1, a + n as i64, a + n as i64 + 1],
+            ]
+        })
+        .collect();
+    with_threads(2, || {
+        rayon::broadcast(|_| WATCHED.with(|w| w.set(true)));
+        for (membrane, integrators) in [
+            (MembraneKind::Springs, &IntegratorKind::ALL[..]),
+            (
+                MembraneKind::Triangle,
+                &[
+                    IntegratorKind::SymplecticEuler,
+                    IntegratorKind::ImplicitEuler,
+                ][..],
+            ),
+        ] {
+            for &integrator in integrators {
+                let mut scene = Scene {
+                    integrator,
+                    dt: if integrator == IntegratorKind::ImplicitEuler {
+                        1.0 / 120.0
+                    } else {
+                        1e-4
+                    },
+                    ..Scene::default()
+                };
+                scene.cloth.pins = vec![];
+                scene.cloth.mesh = Some(MeshSpec {
+                    vertices: vertices.clone(),
+                    triangles: triangles.clone(),
+                    membrane,
+                    ..MeshSpec::default()
+                });
+                check_stepping(integrator, scene);
+            }
+        }
+    });
+}

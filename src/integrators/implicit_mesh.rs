@@ -82,9 +82,20 @@ pub(super) struct MeshSystem {
     /// The aggregation hierarchies built on `P` and what each was built from, the one in use
     /// first.
     amg: Vec<(FactorKey, Amg)>,
-    /// With the triangle membrane: each triangle's `h^2 K_t` (zero when it does not hold),
-    /// and the multigrid's proxy matrix.
-    membrane: Option<(Vec<[[Mat3; 3]; 3]>, SpringMatrix)>,
+    /// With the triangle membrane: its elements' blocks and the multigrid's proxy.
+    membrane: Option<Elements>,
+}
+
+/// The triangle membrane's part of the system.
+struct Elements {
+    /// Each triangle's `h^2 K_t` (zero when it does not hold).
+    blocks: Vec<[[Mat3; 3]; 3]>,
+    /// The multigrid's matrix ([`build_proxy`]).
+    proxy: SpringMatrix,
+    /// Per spring, scratch of [`build_proxy`]: the symmetric part of the elements' blocks
+    /// along it, and the norm of their skew part.
+    coupling: Vec<Sym3>,
+    shift: Vec<f32>,
 }
 
 /// Triangles per parallel work item of the stiffness pass.
@@ -144,15 +155,15 @@ impl<'a> Operator<'a> {
     /// The spring matrix `matrix`, with the elements' `blocks` under the triangle membrane.
     fn of(
         matrix: &'a SpringMatrix,
-        elements: &'a Option<(Vec<[[Mat3; 3]; 3]>, SpringMatrix)>,
+        elements: &'a Option<Elements>,
         mesh: &'a MeshCloth,
         inv_mass: &'a [f32],
     ) -> Self {
         match (&mesh.membrane, elements) {
-            (Some(membrane), Some((blocks, _))) => Operator::Membrane(WithMembrane {
+            (Some(membrane), Some(elements)) => Operator::Membrane(WithMembrane {
                 matrix,
                 membrane,
-                blocks,
+                blocks: &elements.blocks,
                 inv_mass,
             }),
             _ => Operator::Springs(matrix),
@@ -198,16 +209,25 @@ fn element_blocks(
 /// least the system: symmetric positive definite, and close to it where the skew parts are
 /// small. Held rows and columns as the system's; the contacts are added after.
 fn build_proxy(
-    proxy: &mut SpringMatrix,
-    (matrix, blocks, elements): (&SpringMatrix, &[Sym3], &[[[Mat3; 3]; 3]]),
+    elements: &mut Elements,
+    (matrix, blocks): (&SpringMatrix, &[Sym3]),
     mesh: &MeshCloth,
     membrane: &Membrane,
     w: &[f32],
 ) {
     let s = &mesh.springs;
-    let mut coupling = vec![Sym3::ZERO; s.len()];
-    let mut shift = vec![0.0f32; s.len()];
-    for (t, k) in elements.iter().enumerate() {
+    let Elements {
+        blocks: element_blocks,
+        proxy,
+        coupling,
+        shift,
+    } = elements;
+    // Sized once; no allocation in a step.
+    coupling.clear();
+    coupling.resize(s.len(), Sym3::ZERO);
+    shift.clear();
+    shift.resize(s.len(), 0.0);
+    for (t, k) in element_blocks.iter().enumerate() {
         let corners = membrane.triangles[t];
         for (c, &e) in membrane.edges[t].iter().enumerate() {
             let e = e as usize;
@@ -249,7 +269,8 @@ fn build_proxy(
     proxy.gather();
 }
 
-/// The symmetric part of a block known to be symmetric (a diagonal block of `K_t`).
+/// The symmetric part `(M + M^T) / 2` of a block (exact for a diagonal block of `K_t`, which
+/// is symmetric).
 fn sym(m: Mat3) -> Sym3 {
     let (c0, c1, c2) = (m.x_axis, m.y_axis, m.z_axis);
     Sym3([
@@ -308,9 +329,11 @@ impl MeshSystem {
             cg: ConjugateGradient::new(n),
             jacobi: std::array::from_fn(|_| Floats::zeros(n)),
             amg: Vec::new(),
-            membrane: mesh.membrane.as_ref().map(|m| {
-                let proxy = SpringMatrix::new(&s.a, &s.b, &mesh.offsets, &mesh.incident);
-                (vec![[[Mat3::ZERO; 3]; 3]; m.len()], proxy)
+            membrane: mesh.membrane.as_ref().map(|m| Elements {
+                blocks: vec![[[Mat3::ZERO; 3]; 3]; m.len()],
+                proxy: SpringMatrix::new(&s.a, &s.b, &mesh.offsets, &mesh.incident),
+                coupling: vec![Sym3::ZERO; s.len()],
+                shift: vec![0.0; s.len()],
             }),
         }
     }
@@ -329,19 +352,14 @@ impl MeshSystem {
         let started = Instant::now();
         self.build_blocks(mesh, h, ctx);
         self.matrix.gather();
-        if let (Some(membrane), Some((blocks, _))) = (&mesh.membrane, &mut self.membrane) {
+        if let (Some(membrane), Some(elements)) = (&mesh.membrane, &mut self.membrane) {
+            let blocks = &mut elements.blocks;
             element_blocks(membrane, &mesh.springs.active, h, &ctx.current.pos, blocks);
         }
         self.assemble_diagonal_and_rhs(mesh, h, drag, ctx);
-        if let (Some(membrane), Some((blocks, proxy))) = (&mesh.membrane, &mut self.membrane) {
+        if let (Some(membrane), Some(elements)) = (&mesh.membrane, &mut self.membrane) {
             let w = &ctx.particles.inv_mass[..];
-            build_proxy(
-                proxy,
-                (&self.matrix, &self.blocks, blocks),
-                mesh,
-                membrane,
-                w,
-            );
+            build_proxy(elements, (&self.matrix, &self.blocks), mesh, membrane, w);
         }
         if let Some(contacts) = ctx.contacts.filter(|c| c.count > 0) {
             self.stiffen_contacts(contacts, ctx);
@@ -390,7 +408,7 @@ impl MeshSystem {
                         stats.factorizations += 1;
                     }
                 }
-                let fine = self.membrane.as_ref().map_or(&self.matrix, |m| &m.1);
+                let fine = self.membrane.as_ref().map_or(&self.matrix, |m| &m.proxy);
                 self.amg[0].1.update(fine);
             }
         }
@@ -412,7 +430,7 @@ impl MeshSystem {
         let project = |v: &mut Vec3s| held.project(v);
         let (matrix, membrane) = (&*matrix, &*membrane);
         // The multigrid's matrix: the proxy under the triangle membrane.
-        let coarse = membrane.as_ref().map_or(matrix, |m| &m.1);
+        let coarse = membrane.as_ref().map_or(matrix, |m| &m.proxy);
         // Without contacts the filter projects nothing: the plain preconditioned CG.
         let a = Operator::of(matrix, membrane, mesh, w);
         let (iterations, residual) = match (settings.preconditioner, amg.first_mut()) {
@@ -490,7 +508,7 @@ impl MeshSystem {
         let elements = mesh
             .membrane
             .as_ref()
-            .zip(self.membrane.as_ref().map(|m| &m.0));
+            .zip(self.membrane.as_ref().map(|m| &m.blocks));
         let vel = &ctx.current.vel;
         self.matrix
             .diagonal
@@ -542,7 +560,7 @@ impl MeshSystem {
             }
             let s = CONTACT_STIFFNESS * mass[p];
             self.matrix.diagonal[p].add_scaled(s, &Sym3::outer(1.0, n, 0.0));
-            if let Some((_, proxy)) = &mut self.membrane {
+            if let Some(Elements { proxy, .. }) = &mut self.membrane {
                 proxy.diagonal[p].add_scaled(s, &Sym3::outer(1.0, n, 0.0));
             }
         }
