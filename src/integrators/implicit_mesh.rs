@@ -169,12 +169,6 @@ impl<'a> Operator<'a> {
             _ => Operator::Springs(matrix),
         }
     }
-
-    /// `y = A x` over every row, serially.
-    fn apply_all(&self, x: &Vec3s, y: &mut Vec3s) {
-        let n = x.len();
-        self.apply_range(x, 0..n, &mut y.slices_mut(0..n));
-    }
 }
 
 /// Each holding triangle's `h^2 K_t` at `pos` into `blocks` (zero for one that does not hold).
@@ -371,7 +365,7 @@ impl MeshSystem {
         let w = &ctx.particles.inv_mass[..];
         if !filter.is_empty() {
             let operator = Operator::of(&self.matrix, &self.membrane, mesh, w);
-            filter.reduce(&mut self.rhs, |x, y| operator.apply_all(x, y));
+            filter.reduce(&mut self.rhs, |x, y| operator.apply(x, y, ctx.chunk));
         }
         match settings.preconditioner {
             Preconditioner::Jacobi => {
@@ -445,7 +439,7 @@ impl MeshSystem {
         };
         if !filter.is_empty() {
             let operator = Operator::of(&self.matrix, &self.membrane, mesh, w);
-            filter.finish(&mut self.dv, |x, y| operator.apply_all(x, y));
+            filter.finish(&mut self.dv, |x, y| operator.apply(x, y, ctx.chunk));
         }
         stats.solve_seconds += solving.elapsed().as_secs_f64();
         stats.record(iterations, residual, settings.tolerance as f64);
