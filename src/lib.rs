@@ -31,6 +31,7 @@ pub mod incidence;
 pub mod integrators;
 pub mod interaction;
 pub mod linear;
+pub mod material;
 pub mod mesh_cloth;
 pub mod model;
 pub mod parallel;

@@ -9,7 +9,7 @@ use common::{state_hash, with_threads};
 use glam::DVec3;
 use rustcloth::garment::{Garment, GarmentSpec, PanelSpec, Placement, SeamSpec};
 use rustcloth::mesh_cloth::EdgeKind;
-use rustcloth::scene::ShapeKind;
+use rustcloth::scene::{IntegratorKind, MembraneKind, ShapeKind};
 use rustcloth::{Scene, Simulation};
 
 /// A `w` x `h` rectangle with its sides named `bottom`, `right`, `top`, `left`.
@@ -493,42 +493,131 @@ fn sewing_is_bitwise_the_same_for_any_thread_count() {
     assert_eq!(run(1), run(2));
 }
 
+/// Square `b` hanging from square `a` (its top held) by their seam alone, so the sewn seam
+/// carries b's weight and holds it against swinging; stepped 1 s at 1/120 s.
+fn hang_by_the_seam(garment: GarmentSpec, integrator: IntegratorKind) -> Simulation {
+    use rustcloth::scene::{ClothSpec, PinBox, PinSpec};
+    let scene = Scene {
+        integrator,
+        dt: 1.0 / 120.0,
+        substeps: 1,
+        cloth: ClothSpec {
+            garment: Some(GarmentSpec {
+                sew_time: 0.2,
+                ..garment
+            }),
+            pins: vec![PinSpec::Region(PinBox {
+                corners: [[-0.01, 0.299, -0.01], [0.301, 0.301, 0.01]],
+            })],
+            ..Default::default()
+        },
+        ..Scene::default()
+    };
+    let mut sim = Simulation::new(scene).unwrap();
+    sim.advance(1.0).unwrap();
+    sim
+}
+
+fn assert_sewn_and_still(sim: &Simulation, what: &str) {
+    let gap = sim.seam_gap().unwrap();
+    let kinetic = sim.energy().kinetic;
+    assert!(gap < 1e-3, "{what}: seam gap {gap} m after 1 s");
+    assert!(
+        kinetic < MAX_KINETIC,
+        "{what}: kinetic energy {kinetic} J after 1 s"
+    );
+}
+
 #[test]
 fn the_implicit_solvers_sew_a_hanging_panel_shut_and_hold_it_still() {
-    // Square `b` hangs from square `a` (its top held) by their seam alone, so the sewn seam
-    // carries b's weight and holds it against swinging. The implicit solvers must take the
-    // seam as the force pass does: its rest length closing with the clock to zero. Taking the
-    // starting 5 cm instead, projective dynamics held the seam 5 cm open, and implicit Euler's
-    // matrix lacked the sewn seam's stiffness across it: at 1 s the seam was 3.5 mm open and b
-    // still moving with 1.4e-4 J.
-    use rustcloth::scene::{ClothSpec, IntegratorKind, PinBox, PinSpec};
+    // The implicit solvers must take the seam as the force pass does: its rest length closing
+    // with the clock to zero. Taking the starting 5 cm instead, projective dynamics held the
+    // seam 5 cm open, and implicit Euler's matrix lacked the sewn seam's stiffness across it:
+    // at 1 s the seam was 3.5 mm open and b still moving with 1.4e-4 J.
     for integrator in [
         IntegratorKind::ImplicitEuler,
         IntegratorKind::ProjectiveDynamics,
     ] {
-        let mut garment = two_squares(0.3);
-        garment.sew_time = 0.2;
+        let sim = hang_by_the_seam(two_squares(0.3), integrator);
+        assert_sewn_and_still(&sim, &integrator.to_string());
+    }
+}
+
+#[test]
+fn a_garment_on_the_triangle_membrane_sews_shut_and_holds_still() {
+    // The triangle elements, not edge springs, then hold the panels' stretch and shear; the
+    // seams are springs under either membrane.
+    let garment = GarmentSpec {
+        membrane: MembraneKind::Triangle,
+        poisson: 0.3,
+        ..two_squares(0.3)
+    };
+    let scene = Scene {
+        cloth: rustcloth::scene::ClothSpec {
+            garment: Some(garment.clone()),
+            ..Default::default()
+        },
+        ..Scene::default()
+    };
+    let mesh = scene.sewn().unwrap().cloth.mesh.unwrap();
+    assert_eq!((mesh.membrane, mesh.poisson), (MembraneKind::Triangle, 0.3));
+    let sim = hang_by_the_seam(garment, IntegratorKind::ImplicitEuler);
+    assert_sewn_and_still(&sim, "triangle membrane");
+}
+
+#[test]
+fn a_garment_material_out_of_range_is_refused_naming_the_garment_key() {
+    let cases = [
+        (
+            GarmentSpec {
+                density: -1.0,
+                ..two_squares(0.3)
+            },
+            IntegratorKind::SymplecticEuler,
+            "cloth.garment.density",
+        ),
+        (
+            GarmentSpec {
+                poisson: 0.3,
+                ..two_squares(0.3)
+            },
+            IntegratorKind::SymplecticEuler,
+            "cloth.garment.poisson",
+        ),
+        (
+            GarmentSpec {
+                membrane: MembraneKind::Triangle,
+                poisson: 1.0,
+                ..two_squares(0.3)
+            },
+            IntegratorKind::SymplecticEuler,
+            "cloth.garment.poisson",
+        ),
+        (
+            GarmentSpec {
+                membrane: MembraneKind::Triangle,
+                ..two_squares(0.3)
+            },
+            IntegratorKind::ProjectiveDynamics,
+            "cloth.garment.membrane",
+        ),
+    ];
+    for (garment, integrator, name) in cases {
         let scene = Scene {
             integrator,
-            dt: 1.0 / 120.0,
-            substeps: 1,
-            cloth: ClothSpec {
+            cloth: rustcloth::scene::ClothSpec {
                 garment: Some(garment),
-                pins: vec![PinSpec::Region(PinBox {
-                    corners: [[-0.01, 0.299, -0.01], [0.301, 0.301, 0.01]],
-                })],
                 ..Default::default()
             },
             ..Scene::default()
         };
-        let mut sim = Simulation::new(scene).unwrap();
-        sim.advance(1.0).unwrap();
-        let gap = sim.seam_gap().unwrap();
-        let kinetic = sim.energy().kinetic;
-        assert!(gap < 1e-3, "{integrator}: seam gap {gap} m after 1 s");
-        assert!(
-            kinetic < MAX_KINETIC,
-            "{integrator}: kinetic energy {kinetic} J after 1 s"
-        );
+        let err = Simulation::new(scene).err().expect("refused").to_string();
+        assert!(err.starts_with(name), "{err}");
     }
+    // Read from TOML, the garment is compiled as it is read.
+    let text = "integrator = \"projective_dynamics\"\n[cloth]\npins = []\n[cloth.garment]\n\
+                membrane = \"triangle\"\n[[cloth.garment.panels]]\nname = \"a\"\n\
+                outline = [[0, 0], [1, 0], [1, 1]]\n";
+    let err = Scene::from_toml_str(text).unwrap_err().to_string();
+    assert!(err.starts_with("cloth.garment.membrane"), "{err}");
 }

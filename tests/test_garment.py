@@ -23,6 +23,16 @@ def test_a_garment_scene_round_trips_as_its_compiled_mesh():
     assert rustcloth.Scene.from_dict(scene.to_dict()) == scene
 
 
+def test_a_garment_takes_the_mesh_cloths_membrane_and_names_its_material_keys():
+    square = garment.panel("a", [[0, 0], [0.3, 0], [0.3, 0.3], [0, 0.3]])
+    scene = garment.scene([square], membrane="triangle", poisson=0.25)
+    assert (scene.cloth["mesh"]["membrane"], scene.cloth["mesh"]["poisson"]) == ("triangle", 0.25)
+    with pytest.raises(ParameterError, match=r"^cloth\.garment\.density"):
+        garment.scene([square], density=0.0)
+    with pytest.raises(ParameterError, match=r"^cloth\.garment\.poisson"):
+        garment.scene([square], poisson=0.25)
+
+
 def test_a_self_intersecting_panel_is_refused_naming_it():
     bow = garment.panel("bow", [[0, 0], [0.3, 0.3], [0.3, 0], [0, 0.3]])
     with pytest.raises(ParameterError, match=r"cloth\.garment\.panels\[0\]\.outline.*itself"):

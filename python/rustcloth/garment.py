@@ -77,10 +77,11 @@ def seam(a: str, b: str, reverse: bool = False) -> dict[str, Any]:
 def scene(panels: Sequence[Mapping[str, Any]], seams: Sequence[Mapping[str, Any]] = (), *,
           body: Scene | None = None, edge_length: float = 0.03, sew_time: float = 1.0,
           seam_stiffness: float = 500.0, seam_damping: float = 0.05,
-          **material: float) -> Scene:
+          **material: float | str) -> Scene:
     """The scene of a garment: ``body``'s floor and colliders (default none) and stepping
     (its ``dt``, ``substeps``, ...), with the garment as its cloth. ``material`` is the
-    cloth's ``density``, ``stretch``, ``bend`` and ``damping`` (default the mesh cloth's)."""
+    cloth's ``density``, ``stretch``, ``bend``, ``damping``, ``membrane`` (``"springs"`` or
+    ``"triangle"``) and ``poisson`` (default the mesh cloth's, docs/mesh_cloth.md)."""
     data = body.to_dict() if body is not None else {}
     data["cloth"] = {"pins": [], "garment": {
         "panels": [dict(p) for p in panels], "seams": [dict(s) for s in seams],

@@ -5,6 +5,8 @@ use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
+use crate::material::MembraneKind;
+
 /// A garment: panels and the seams that join them, compiled into a mesh cloth.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -23,11 +25,15 @@ pub struct GarmentSpec {
     pub seam_stiffness: f64,
     /// Damping along each seam spring in N s/m (>= 0). Default 0.05.
     pub seam_damping: f64,
-    /// The material, as `cloth.mesh`'s: density (kg/m^2), stretch, bend (N/m), damping (N s/m).
+    /// The material, as `cloth.mesh`'s (same units, defaults and meaning): density (kg/m^2),
+    /// stretch, bend (N/m), damping (N s/m), the membrane (`"springs"` or `"triangle"`) and the
+    /// triangle membrane's Poisson ratio.
     pub density: f64,
     pub stretch: f64,
     pub bend: f64,
     pub damping: f64,
+    pub membrane: MembraneKind,
+    pub poisson: f64,
 }
 
 impl Default for GarmentSpec {
@@ -43,6 +49,8 @@ impl Default for GarmentSpec {
             stretch: 600.0,
             bend: 80.0,
             damping: 0.07,
+            membrane: MembraneKind::Springs,
+            poisson: 1.0 / 3.0,
         }
     }
 }

@@ -152,11 +152,7 @@ impl MeshCloth {
                 ));
             }
         }
-        check_scalar(&format!("{AT}.density"), spec.density, Bound::Positive)?;
-        check_scalar(&format!("{AT}.stretch"), spec.stretch, Bound::NonNegative)?;
-        check_scalar(&format!("{AT}.bend"), spec.bend, Bound::NonNegative)?;
-        check_scalar(&format!("{AT}.damping"), spec.damping, Bound::NonNegative)?;
-        check_poisson(spec)?;
+        check_material(AT, spec)?;
         let triangles = check_triangles(rest, &spec.triangles)?;
         let uvs = check_uvs(spec.uvs.as_deref(), n)?;
         let at = |k: u32| DVec3::from(rest[k as usize]);
@@ -412,15 +408,22 @@ fn check_edges(triangles: &[[u32; 3]]) -> Result<()> {
     Ok(())
 }
 
-/// `poisson` in `[0, 1)`, and left at its default unless `membrane = "triangle"` reads it.
-fn check_poisson(spec: &MeshSpec) -> Result<()> {
-    let name = format!("{AT}.poisson");
+/// The material's keys, named under `at`: the density, the moduli, and `poisson` in `[0, 1)`,
+/// left at its default unless `membrane = "triangle"` reads it.
+fn check_material(at: &str, spec: &MeshSpec) -> Result<()> {
+    check_scalar(&format!("{at}.density"), spec.density, Bound::Positive)?;
+    check_scalar(&format!("{at}.stretch"), spec.stretch, Bound::NonNegative)?;
+    check_scalar(&format!("{at}.bend"), spec.bend, Bound::NonNegative)?;
+    check_scalar(&format!("{at}.damping"), spec.damping, Bound::NonNegative)?;
+    let name = format!("{at}.poisson");
     if spec.membrane == super::MembraneKind::Springs {
         if spec.poisson != MeshSpec::default().poisson {
             return Err(Error::value(
                 name,
-                "is the triangle membrane's Poisson ratio; set cloth.mesh.membrane = \"triangle\" \
-                 or remove it",
+                format!(
+                    "is the triangle membrane's Poisson ratio; set {at}.membrane = \"triangle\" \
+                     or remove it"
+                ),
             ));
         }
         return Ok(());
@@ -556,23 +559,28 @@ impl ClothSpec {
                 "a cloth is a garment or a mesh (cloth.mesh), not both",
             ));
         }
+        let material = MeshSpec {
+            density: garment.density,
+            stretch: garment.stretch,
+            bend: garment.bend,
+            damping: garment.damping,
+            membrane: garment.membrane,
+            poisson: garment.poisson,
+            ..MeshSpec::default()
+        };
+        check_material("cloth.garment", &material)?;
         let sewn = garment.compile()?;
         self.mesh = Some(MeshSpec {
             vertices: sewn.vertices,
             triangles: sewn.triangles,
             uvs: Some(sewn.uvs),
-            density: garment.density,
-            stretch: garment.stretch,
-            bend: garment.bend,
-            damping: garment.damping,
-            membrane: super::MembraneKind::Springs,
-            poisson: 1.0 / 3.0,
             seams: (!sewn.seams.is_empty()).then_some(SeamsSpec {
                 pairs: sewn.seams,
                 sew_time: garment.sew_time,
                 stiffness: garment.seam_stiffness,
                 damping: garment.seam_damping,
             }),
+            ..material
         });
         Ok(())
     }

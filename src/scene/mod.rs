@@ -231,7 +231,7 @@ impl Scene {
             }
         })?;
         let mut scene = scene;
-        scene.cloth.sew_garment()?;
+        scene.sew_garment()?;
         Ok(scene)
     }
 
@@ -245,8 +245,18 @@ impl Scene {
     /// TOML or a dict already is).
     pub fn sewn(&self) -> Result<Scene> {
         let mut scene = self.clone();
-        scene.cloth.sew_garment()?;
+        scene.sew_garment()?;
         Ok(scene)
+    }
+
+    /// Compiles the cloth's garment, if any, into its mesh cloth, the errors naming the
+    /// garment's keys (`cloth.garment.membrane` under an integrator it does not run on).
+    fn sew_garment(&mut self) -> Result<()> {
+        if let Some(garment) = &self.cloth.garment {
+            let membrane = Some(garment.membrane);
+            check_membrane_integrator("cloth.garment", membrane, self.integrator)?;
+        }
+        self.cloth.sew_garment()
     }
 
     /// The built-in scene called `name`.

@@ -3,6 +3,8 @@
 
 use serde::{Deserialize, Serialize};
 
+pub use crate::material::MembraneKind;
+
 /// What a step does on trouble: a non-finite value, or (with `max_stretch`) a spring stretched
 /// beyond the limit.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -307,16 +309,6 @@ pub struct MeshSpec {
     /// Vertices sewn together (a garment's seams, `cloth.garment` fills it in). Default none.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub seams: Option<SeamsSpec>,
-}
-
-/// What resists a mesh cloth's stretch and shear (`cloth.mesh.membrane`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum MembraneKind {
-    /// A spring on every edge, `k = stretch A_e / L^2`.
-    Springs,
-    /// A co-rotational linear constant-strain element on every triangle.
-    Triangle,
 }
 
 /// Seams of a mesh cloth: pairs of vertices pulled together by springs whose rest length goes

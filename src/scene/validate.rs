@@ -48,7 +48,11 @@ impl Scene {
             ));
         }
         self.cloth.validate()?;
-        check_membrane_integrator(self.cloth.mesh.as_ref(), self.integrator)?;
+        check_membrane_integrator(
+            "cloth.mesh",
+            self.cloth.mesh.as_ref().map(|m| m.membrane),
+            self.integrator,
+        )?;
         if let Some(floor) = &self.floor {
             check_scalar("floor.height", floor.height, Bound::Any)?;
             check_scalar("floor.friction", floor.friction, Bound::NonNegative)?;
@@ -405,14 +409,16 @@ impl ClothSpec {
 
 /// Projective dynamics' global matrix is the springs' constant Laplacian, which has no place
 /// for a triangle element's rotated stiffness: the triangle membrane refuses it.
+/// The error names `{at}.membrane` (`cloth.mesh` or `cloth.garment`).
 pub(crate) fn check_membrane_integrator(
-    mesh: Option<&super::MeshSpec>,
+    at: &str,
+    membrane: Option<super::MembraneKind>,
     integrator: super::IntegratorKind,
 ) -> Result<()> {
-    let triangle = mesh.is_some_and(|m| m.membrane == super::MembraneKind::Triangle);
+    let triangle = membrane == Some(super::MembraneKind::Triangle);
     if triangle && integrator == super::IntegratorKind::ProjectiveDynamics {
         return Err(Error::value(
-            "cloth.mesh.membrane",
+            format!("{at}.membrane"),
             "\"triangle\" does not run under integrator = \"projective_dynamics\"; use \
              \"implicit_euler\" or an explicit integrator, or membrane = \"springs\"",
         ));

@@ -336,7 +336,8 @@ impl Simulation {
     /// Switches the integrator at run time; the state carries over.
     pub fn set_integrator(&mut self, name: &str) -> Result<()> {
         let kind = IntegratorKind::by_name(name, "integrator")?;
-        crate::scene::check_membrane_integrator(self.model.scene.cloth.mesh.as_ref(), kind)?;
+        let membrane = self.model.scene.cloth.mesh.as_ref().map(|m| m.membrane);
+        crate::scene::check_membrane_integrator("cloth.mesh", membrane, kind)?;
         self.model.scene.integrator = kind;
         self.stepper.set_integrator(&self.model);
         Ok(())
