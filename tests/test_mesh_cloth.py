@@ -276,7 +276,7 @@ def test_a_pin_group_the_file_lacks_is_named_with_the_files_groups(tmp_path) -> 
         scene.with_cloth_mesh(path=plain, pin_group="hem")
     stl = tmp_path / "flag.stl"
     trimesh.Trimesh(*jittered_square(3), process=False).export(stl)
-    with pytest.raises(ParameterError, match=r"^cloth\.pin_group: .*flag\.stl' is not an \.obj"):
+    with pytest.raises(ParameterError, match=r"^cloth\.pin_group: .*flag\.stl' has no vertex"):
         scene.with_cloth_mesh(path=stl, pin_group="hem")
     with pytest.raises(ParameterError, match=r"^cloth\.pin_group: names vertex groups"):
         scene.with_cloth_mesh(*jittered_square(3), pin_group="hem")
@@ -284,6 +284,41 @@ def test_a_pin_group_the_file_lacks_is_named_with_the_files_groups(tmp_path) -> 
         rustcloth.Scene.from_toml_str('[cloth]\nnx = 4\nny = 4\npin_group = "hem"\n')
     with pytest.raises(rustcloth.ParameterTypeError, match=r"^cloth\.pin_group: must be"):
         scene.with_cloth_mesh(path=tmp_path / "flag.obj", pin_group=[])
+
+
+def write_two_part_gltf(path, hem_node: str = "hem") -> tuple[np.ndarray, set[int]]:
+    """A cloth of two named parts, as a modelling tool writes a glTF: the body (a 6 x 6
+    jittered 1 m square, its mesh named "cloth") and a separate strip above it, placed by its
+    node (moved 0.2 m up) named ``hem_node``, its mesh named "strip". Returns the placed
+    vertices in the order trimesh concatenates the parts, and the strip's."""
+    trimesh = pytest.importorskip("trimesh")
+    body = trimesh.Trimesh(*jittered_square(6), process=False)
+    strip = trimesh.Trimesh(vertices=[[0, 1.5, 0], [1, 1.5, 0], [1, 1.7, 0], [0, 1.7, 0]],
+                            faces=[[0, 1, 2], [0, 2, 3]], process=False)
+    scene = trimesh.Scene()
+    scene.add_geometry(body, node_name="body", geom_name="cloth")
+    scene.add_geometry(strip, node_name=hem_node, geom_name="strip",
+                       transform=trimesh.transformations.translation_matrix([0, 0.2, 0]))
+    scene.export(path)
+    parts = trimesh.load_scene(path, process=False).dump()
+    placed = np.concatenate([p.vertices for p in parts])
+    start = sum(len(p.vertices) for p in parts[:[p.metadata["node"] for p in parts].index(
+        hem_node)])
+    return placed, set(range(start, start + 4))
+
+
+def test_a_mesh_cloth_pins_a_named_part_of_a_gltf_file(tmp_path) -> None:
+    placed, hem = write_two_part_gltf(tmp_path / "flag.glb")
+    for group in ("hem", "strip"):  # the node's name and the mesh's
+        scene = rustcloth.Scene().with_cloth_mesh(path=tmp_path / "flag.glb", pin_group=group)
+        sim = rustcloth.Simulation(scene.replace(dt=5e-4))
+        assert np.allclose(sim.positions, placed.astype(np.float32))
+        assert set(np.flatnonzero(sim.pinned).tolist()) == hem
+        assert np.allclose(sim.positions[sim.pinned][:, 1], [1.7, 1.7, 1.9, 1.9])
+    with pytest.raises(ParameterError, match=r"^cloth\.pin_group: .*flag\.glb' has no group "
+                                             r"'hemline'; its groups: 'body', 'cloth', 'hem', "
+                                             r"'strip'$"):
+        rustcloth.Scene().with_cloth_mesh(path=tmp_path / "flag.glb", pin_group="hemline")
 
 
 def test_implicit_euler_on_a_mesh_builds_the_multigrid_of_each_step_once():

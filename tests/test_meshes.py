@@ -70,7 +70,7 @@ f 6 8 7
 
 def test_an_obj_files_groups_are_the_vertices_of_their_faces(tmp_path):
     from rustcloth.meshes import mesh_arrays
-    from rustcloth.obj_groups import group_vertices
+    from rustcloth.vertex_groups import group_vertices
 
     path = tmp_path / "grouped.obj"
     path.write_text(GROUPED)
@@ -88,7 +88,7 @@ def test_obj_group_vertices_are_numbered_as_trimesh_numbers_them(tmp_path):
     # positions, which the file gives each vertex once.
     import trimesh
     from rustcloth.meshes import mesh_arrays
-    from rustcloth.obj_groups import group_vertices
+    from rustcloth.vertex_groups import group_vertices
 
     path = tmp_path / "seam.obj"
     path.write_text(
@@ -110,7 +110,7 @@ def test_obj_group_vertices_are_numbered_as_trimesh_numbers_them(tmp_path):
 
 def test_obj_groups_refuse_a_vertex_trimesh_renumbered_that_two_share(tmp_path):
     from rustcloth.meshes import mesh_arrays
-    from rustcloth.obj_groups import group_vertices
+    from rustcloth.vertex_groups import group_vertices
 
     path = tmp_path / "twin.obj"
     path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 0 0\nv 1 1 0\n"
@@ -121,7 +121,7 @@ def test_obj_groups_refuse_a_vertex_trimesh_renumbered_that_two_share(tmp_path):
 
 
 def test_obj_groups_read_a_vertex_written_after_its_face_and_refuse_one_not_written(tmp_path):
-    from rustcloth.obj_groups import group_vertices
+    from rustcloth.vertex_groups import group_vertices
 
     path = tmp_path / "late.obj"
     path.write_text("v 0 0 0\nv 1 0 0\ng a\nf 1 2 3\nv 0 1 0\n")

@@ -13,7 +13,7 @@ import numpy as np
 
 from ._extras import MissingExtra
 from .errors import ParameterError, ParameterTypeError
-from .obj_groups import group_vertices
+from .vertex_groups import group_vertices
 
 #: A triangle whose doubled area is at most this times its longest edge squared, in float32,
 #: has zero area: the core's own test (src/scene/mesh.rs, DEGENERATE), made here too so that
@@ -131,7 +131,7 @@ def _resolve_cloth_mesh(
         if isinstance(cloth, Mapping) and "pin_group" in cloth:
             raise ParameterError(
                 f"{PIN_GROUP}: names vertex groups of the cloth's mesh file, and this cloth has "
-                'none: give cloth.mesh as an OBJ file (mesh = "flag.obj")',
+                'none: give cloth.mesh as a file (mesh = "flag.obj")',
                 PIN_GROUP,
             )
         return dict(data)
@@ -165,7 +165,8 @@ def _with_group_pins(
     pins: Any, names: Any, path: str | os.PathLike[str], vertices: np.ndarray
 ) -> Any:
     """``pins`` followed by the vertices of the groups ``names`` (a name or a list of names) of
-    the OBJ file ``path``, whose vertices trimesh read as ``vertices``."""
+    the mesh file ``path`` (:mod:`rustcloth.vertex_groups`), whose vertices trimesh read as
+    ``vertices``."""
     listed = [names] if isinstance(names, str) else names
     if not (isinstance(listed, list | tuple) and listed
             and all(isinstance(n, str) for n in listed)):
@@ -176,8 +177,8 @@ def _with_group_pins(
     groups = group_vertices(path, vertices, PIN_GROUP)
     if not groups:
         raise ParameterError(
-            f"{PIN_GROUP}: {os.fspath(path)!r} has no vertex groups (no face under a `g` or "
-            "`o` line)",
+            f"{PIN_GROUP}: {os.fspath(path)!r} has no vertex groups (an OBJ file: no face "
+            "under a `g` or `o` line; a scene file such as glTF: fewer than two named parts)",
             PIN_GROUP,
         )
     unknown = [n for n in listed if n not in groups]

@@ -244,10 +244,10 @@ class Scene:
         triangle membrane's Poisson ratio, default 1/3);
         ``pins`` are vertex indices and selections: ``{"box": [[x0, y0, z0], [x1, y1, z1]]}``,
         ``{"boundary": True}``, ``{"top": 0.001}`` (default none). ``pin_group`` (with
-        ``path``, an OBJ file) names the file's vertex groups (``g`` or ``o`` names; a list for
-        several) whose faces' vertices are pinned too. The grid's keys go back to their
-        defaults. Errors name ``cloth.mesh.vertices[k]``, ``cloth.mesh.triangles[t]``,
-        ... (docs/mesh_cloth.md)."""
+        ``path``) names the file's vertex groups (an OBJ file's ``g`` or ``o`` names, a glTF
+        file's named parts; a list for several) whose vertices are pinned too. The grid's
+        keys go back to their defaults. Errors name ``cloth.mesh.vertices[k]``,
+        ``cloth.mesh.triangles[t]``, ... (docs/mesh_cloth.md)."""
         if path is not None:
             if vertices is not None or triangles is not None or uvs is not None:
                 raise ParameterError(

@@ -1,11 +1,16 @@
-"""Named vertex groups of an OBJ file, for pinning a mesh cloth by a group its author marked in
+"""Named vertex groups of a mesh file, for pinning a mesh cloth by a group its author marked in
 a modelling tool (``pin_group = "hem"``). trimesh reads the faces but, loading one mesh, drops
-the ``g`` (group) and ``o`` (object) names, so this reads them from the file itself.
+the names, so this reads them apart, in the numbering :func:`rustcloth.meshes.mesh_arrays`
+gives the vertices (trimesh's order, which the cloth keeps):
 
-A group is the vertices of its faces: a face belongs to the names of the ``g`` line above it
-(``g a b`` names two groups) and to the object of the ``o`` line above it. A name with no face
-under it holds no vertex and is not a group. Vertices are numbered as
-:func:`rustcloth.meshes.mesh_arrays` numbers them (trimesh's order, which the cloth keeps)."""
+- **OBJ**: a group is the vertices of its faces: a face belongs to the names of the ``g`` line
+  above it (``g a b`` names two groups) and to the object of the ``o`` line above it. A name
+  with no face under it holds no vertex and is not a group. Read from the file itself.
+- **A scene file** (glTF/GLB, and any other format trimesh loads as a scene of several
+  meshes): a group is the vertices of one named part, by its node's name and by its mesh's
+  name (a mesh placed by two nodes is one group of both copies). A file of one part (STL, PLY,
+  a glTF of one mesh) has no groups: the one part would pin the whole cloth.
+"""
 
 from __future__ import annotations
 
@@ -19,17 +24,14 @@ from .errors import ParameterError
 def group_vertices(
     path: str | os.PathLike[str], vertices: np.ndarray, parameter: str
 ) -> dict[str, np.ndarray]:
-    """For each group of the OBJ file ``path``, the sorted indices into ``vertices`` (the
-    file's vertices as trimesh read them) of the vertices its faces use. Errors name
-    ``parameter`` and the file: not an OBJ file, unreadable, a face that names a vertex the
-    file does not have, a vertex trimesh renumbered that cannot be told from another."""
+    """For each group of the mesh file ``path`` (module docstring), the sorted indices into
+    ``vertices`` (the file's vertices as trimesh read them) of its vertices. Errors name
+    ``parameter`` and the file: unreadable, a face that names a vertex the file does not have
+    (OBJ), a vertex trimesh renumbered that cannot be told from another (OBJ), a scene whose
+    parts do not make up the vertices read."""
     name = os.fspath(path)
     if not name.lower().endswith(".obj"):
-        raise ParameterError(
-            f"{parameter}: vertex groups are read from an OBJ file's `g` and `o` lines; "
-            f"{name!r} is not an .obj file",
-            parameter,
-        )
+        return _part_groups(name, vertices, parameter)
     try:
         with open(name, encoding="utf-8") as file:
             text = file.read()
@@ -131,3 +133,35 @@ def _trimesh_numbers(
             )
         number[j] = found[0]
     return number
+
+
+def _part_groups(name: str, vertices: np.ndarray, parameter: str) -> dict[str, np.ndarray]:
+    """The groups of a file trimesh loads as a scene: each part's vertex range in the mesh
+    trimesh concatenates from the parts (``Scene.to_mesh``, the order of ``Scene.dump``), under
+    its node's and its mesh's names. The parts' placed vertices must be ``vertices`` exactly,
+    or the numbering is not the cloth's and the groups are refused."""
+    import trimesh  # read_mesh has already needed it for the same file
+
+    try:
+        parts = [p for p in trimesh.load_scene(name, process=False).dump()
+                 if isinstance(p, trimesh.Trimesh)]
+    except Exception as err:  # trimesh raises many kinds on a malformed file
+        raise ParameterError(f"{parameter}: cannot read {name!r}: {err}", parameter) from err
+    if len(parts) < 2:
+        return {}
+    placed = np.concatenate([np.asarray(p.vertices, dtype=np.float64) for p in parts])
+    if not np.array_equal(placed, np.asarray(vertices, dtype=np.float64)):
+        raise ParameterError(
+            f"{parameter}: {name!r}: its {len(parts)} parts do not make up the "
+            f"{len(vertices)} vertices read from it in order, so its groups cannot be told",
+            parameter,
+        )
+    ranges: dict[str, list[np.ndarray]] = {}
+    start = 0
+    for part in parts:
+        span = np.arange(start, start + len(part.vertices))
+        start += len(part.vertices)
+        names = {part.metadata.get("node"), part.metadata.get("name")}
+        for group in names - {None, ""}:
+            ranges.setdefault(str(group), []).append(span)
+    return {group: np.concatenate(spans) for group, spans in ranges.items()}
