@@ -95,3 +95,24 @@ def test_a_cut_swinging_cloth_has_slivers_wound_backwards_and_draws_them_lit(ctx
     cloth = np.isin(g["material"], CLOTH)
     assert _facing_away(g, camera).sum() < 0.02 * cloth.sum(), (_facing_away(g, camera).sum(),
                                                                  cloth.sum())
+
+
+def test_the_software_tier_draws_triangles_wound_against_their_normals_as_the_sheet(
+        standin_cls: Any, ctx: Any) -> None:
+    camera = Camera(eye=(0.4, 2.6, 1.8), target=(0.0, 1.0, 0.0), aspect=SIZE[0] / SIZE[1])
+    sim = standin_cls(amp=0.05)
+
+    def image() -> np.ndarray:
+        r = Renderer(ctx, sim, SIZE, shadow_size=512, tier="software")
+        fbo = ctx.simple_framebuffer(SIZE)
+        r.update()
+        r.render(fbo, camera)
+        return np.frombuffer(fbo.read(components=3), dtype=np.uint8).reshape(-1, 3)
+
+    plain = image()
+    band = np.abs(sim.positions[sim._tris].mean(axis=1)[:, 0]) < 0.15
+    sim._tris[band] = sim._tris[band][:, ::-1]
+    sim.topology_version += 1
+    flipped = image()
+    differ = np.abs(flipped.astype(int) - plain.astype(int)).max(axis=1) > 2
+    assert differ.sum() == 0, f"{differ.sum()} of {len(differ)} pixels differ"
