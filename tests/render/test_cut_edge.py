@@ -87,7 +87,7 @@ def test_a_cut_swinging_cloth_has_slivers_wound_backwards_and_draws_them_lit(ctx
     for _ in range(90):
         sim.advance(1 / 60)
         flipped += flipped_cut_triangles(sim)
-    # The drawn mesh still has them (the geometry is unchanged: docs/cutting.md) ...
+    # The drawn mesh has backwards triangles to draw (else this checks nothing) ...
     assert flipped > 0
     # ... and no cloth pixel of the frame is shaded against the side it shows, bar grazing
     # silhouettes, where a smooth normal tilts past the eye.
