@@ -48,6 +48,8 @@ mod meshtear;
 mod physics;
 #[path = "picking.rs"]
 mod picking;
+#[path = "scene_folds.rs"]
+mod scene_folds;
 #[path = "self_collision.rs"]
 mod self_collision;
 #[path = "self_collision_toggle.rs"]

@@ -23,6 +23,8 @@ in vec3 v_add_a;
 in vec2 v_uv;
 in vec3 v_light_b;
 in vec3 v_add_b;
+in vec3 v_position;
+flat in vec3 v_flat_normal;
 #else
 in vec2 v_key_a;
 in vec3 v_shadow;
@@ -45,10 +47,14 @@ float shadow_factor() {
 void main() {
     vec3 albedo = base_color;
 #ifdef TWO_SIDED
-    // The side the vertex normal faces is the triangles' front.
-    albedo = fabric(v_uv, gl_FrontFacing == front_is_winding);
-    vec3 color = albedo * (gl_FrontFacing ? v_light_a : v_light_b)
-               + (gl_FrontFacing ? v_add_a : v_add_b);
+    // The side the vertex normal faces is the triangles' front. Which side the viewer sees
+    // the winding says, unless the triangle winds against its vertex normals (a sliver along
+    // a cut whose cut vertices crossed): then the normals say, as in geometry.frag.
+    vec3 to_viewer = cross(dFdx(v_position), dFdy(v_position));
+    bool against = dot(v_flat_normal, gl_FrontFacing ? to_viewer : -to_viewer) < 0.0;
+    bool seen = gl_FrontFacing != against;
+    albedo = fabric(v_uv, seen == front_is_winding);
+    vec3 color = albedo * (seen ? v_light_a : v_light_b) + (seen ? v_add_a : v_add_b);
 #else
     if (material == MAT_FLOOR) {
         albedo = floor_color(v_floor);

@@ -47,6 +47,11 @@ out vec3 v_add_a;
 out vec2 v_uv;
 out vec3 v_light_b;
 out vec3 v_add_b;
+// For the side a triangle shows where its winding disagrees with its vertex normals (see
+// forward_fragment.glsl): the position, whose screen derivatives give the face's normal, and
+// the provoking vertex's normal, not interpolated.
+out vec3 v_position;
+flat out vec3 v_flat_normal;
 #else
 out vec2 v_key_a;
 out vec3 v_shadow;  // shadow-map coordinates in [0, 1] (x, y, depth)
@@ -134,6 +139,8 @@ void main() {
     vec3 diffuse, key, gloss;
 #ifdef TWO_SIDED
     v_uv = in_uv;
+    v_position = p;
+    v_flat_normal = n;
     float shadow = key_visibility(shadow_at);
     // Thin cloth lets 12 % of the light on the other side through, as the full tier's.
     vec3 facing, away;

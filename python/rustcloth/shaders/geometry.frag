@@ -58,9 +58,17 @@ void main() {
     int mat = material;
     vec3 albedo = base_color;  // linear
     if (mat == MAT_CLOTH_FRONT) {
-        // Two-sided cloth: the side facing the viewer shades with the normal facing it.
-        if (!gl_FrontFacing) n = -n;
-        bool front = gl_FrontFacing == front_is_winding;
+        // Two-sided cloth: the side facing the viewer shades with the normal facing it. Which
+        // side that is the winding says, unless the triangle winds against its own vertex
+        // normals (a sliver along a cut whose two cut vertices, following two particles'
+        // frames, crossed): then the normals say, so that it shades as the cloth round it
+        // and not as a dark speck. The face's normal from the position's derivatives points
+        // to the viewer; on any other triangle this is the winding's choice, bit for bit.
+        vec3 to_viewer = cross(dFdx(v_world), dFdy(v_world));
+        bool against = dot(n, gl_FrontFacing ? to_viewer : -to_viewer) < 0.0;
+        bool seen = gl_FrontFacing != against;  // the side the vertex normals face is seen
+        if (!seen) n = -n;
+        bool front = seen == front_is_winding;
         mat = front ? MAT_CLOTH_FRONT : MAT_CLOTH_BACK;
         if (view == VIEW_STRAIN || view == VIEW_SPEED || view == VIEW_PINNED) {
             albedo = srgb_decode(scalar_color(v_uv, v_scalar));
