@@ -7,9 +7,9 @@
 //! in row order, each computed as [`Sym3::mul`] or `w * x` computes it, so a product is bitwise
 //! what a row-by-row product gives; a slot past a row's end is masked, not added.
 //!
-//! The layout is what a product reads: a product streams the blocks once, and gathering its
-//! operand by column runs [`LANES`] rows at a time, about twice as fast as row by row on a
-//! 16k-vertex mesh (docs/mesh_cloth.md, "Speed").
+//! A product streams the blocks once and gathers its operand by column [`LANES`] rows at a
+//! time, which row by row it could not (measured in docs/mesh_cloth.md, "Implicit solvers").
+//! The copy is laid out once per pattern and refilled when the values change.
 
 use glam::Vec3;
 
