@@ -1,7 +1,7 @@
 """The step of a mesh cloth against the grid of the same particle count.
 
     RAYON_NUM_THREADS=1 python benches/mesh_step.py [--n 129] [--steps 100] [--repeat 3] [--wall]
-        [--stiff] [--membrane]
+        [--stiff] [--membrane] [--shuffle]
 
 An `n` x `n` jittered square (``tests/test_mesh_cloth.py``'s ``jittered_square``: irregular, each
 quad split along its shorter diagonal; `stretch` 60 N/m, 0.2 kg/m^2, two corners pinned) and the
@@ -14,7 +14,9 @@ steps after 5, per step: CPU time of this process (steady on a shared machine wi
 ``--wall`` for wall time with several). With ``--membrane``, the same mesh with
 ``membrane = "triangle"`` too, and its cost against the springs' in the same runs. Two builds
 compare by running this once with each on
-``PYTHONPATH``, one after the other.
+``PYTHONPATH``, one after the other. With ``--shuffle``, the mesh's vertices are numbered in a
+random order (as a Delaunay mesh of dart-thrown points, or a file, may number them) instead
+of row by row: the cost of a vertex order that gathers far apart.
 """
 
 from __future__ import annotations
@@ -23,6 +25,8 @@ import argparse
 import os
 import sys
 import time
+
+import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
 import rustcloth  # noqa: E402
@@ -55,10 +59,19 @@ def main() -> None:
     parser.add_argument("--stiff", action="store_true", help="implicit Euler, stiff, 1/60 s")
     parser.add_argument("--membrane", action="store_true",
                         help='also the mesh with membrane = "triangle"')
+    parser.add_argument("--shuffle", action="store_true",
+                        help="number the mesh's vertices in a random order")
     args = parser.parse_args()
     n = args.n
     vertices, triangles = jittered_square(n)
     pins = [n * n - n, n * n - 1]
+    if args.shuffle:
+        # `old[k]` is the vertex numbered `k` in the shuffled mesh, `new` the inverse.
+        old = np.random.default_rng(1).permutation(n * n)
+        new = np.empty_like(old)
+        new[old] = np.arange(n * n)
+        vertices, triangles = vertices[old], new[triangles]
+        pins = [int(new[v]) for v in pins]
     if args.stiff:
         grid = rustcloth.Scene.from_dict({
             "integrator": "implicit_euler",

@@ -12,6 +12,7 @@
 //! numbering of [`crate::grid::Grid`], and on per-node 3-vectors stored as [`crate::soa::Vec3s`].
 
 pub mod amg;
+pub mod block_lanes;
 pub mod cg;
 pub mod cholesky;
 pub mod dense;

@@ -4,9 +4,11 @@
 //! (`C_s = alpha u u^T + beta I` is its own transpose), written once per spring ([`SpringMatrix::off`])
 //! and copied into each of its two rows by [`SpringMatrix::gather`], so that a product streams
 //! each row's blocks instead of looking them up by spring; two springs joining the same pair
-//! are two entries that add up. Each row's product sums its entries in a
+//! are two entries that add up. The rows are stored for the vector unit, sixteen at a time
+//! ([`BlockLanes`]). Each row's product sums its entries in a
 //! fixed order, so `A x` is bitwise the same for any number of threads.
 
+use super::block_lanes::BlockLanes;
 use super::cg::BlockOperator;
 use super::stencil::Sym3;
 use crate::soa::{Vec3SliceMut, Vec3s};
@@ -22,8 +24,9 @@ pub struct SpringMatrix {
     pub diagonal: Vec<Sym3>,
     /// The off-diagonal block of each spring.
     pub off: Vec<Sym3>,
-    /// The off-diagonal blocks in row order, as [`SpringMatrix::gather`] copied them.
-    values: Vec<Sym3>,
+    /// The off-diagonal blocks in row order, as [`SpringMatrix::gather`] copied them, laid out
+    /// for the product.
+    values: BlockLanes,
 }
 
 impl SpringMatrix {
@@ -33,7 +36,7 @@ impl SpringMatrix {
     pub fn new(a: &[u32], b: &[u32], offsets: &[u32], incident: &[u32]) -> Self {
         let n = offsets.len() - 1;
         let spring: Vec<u32> = incident.iter().map(|&e| e >> 1).collect();
-        let column = incident
+        let column: Vec<u32> = incident
             .iter()
             .map(|&e| {
                 let s = (e >> 1) as usize;
@@ -45,29 +48,19 @@ impl SpringMatrix {
             })
             .collect();
         SpringMatrix {
+            values: BlockLanes::new(offsets, &column, &spring, n),
             offsets: offsets.to_vec(),
             spring,
             column,
             diagonal: vec![Sym3::ZERO; n],
             off: vec![Sym3::ZERO; a.len()],
-            values: vec![Sym3::ZERO; incident.len()],
         }
     }
 
     /// Copies each spring's block [`SpringMatrix::off`] into its two rows: call after writing
     /// `off`, before a product.
     pub fn gather(&mut self) {
-        use rayon::prelude::*;
-        let (off, spring) = (&self.off, &self.spring);
-        self.values
-            .par_chunks_mut(1 << 14)
-            .enumerate()
-            .for_each(|(c, values)| {
-                let start = c << 14;
-                for (i, v) in values.iter_mut().enumerate() {
-                    *v = off[spring[start + i] as usize];
-                }
-            });
+        self.values.refill(&self.off, |b| b.0);
     }
 
     /// Rows (vertices).
@@ -90,34 +83,24 @@ impl SpringMatrix {
 
     /// The stored off-diagonal entries of row `v`, as [`SpringMatrix::gather`] left them:
     /// `(column, block)`.
-    pub fn row_blocks(&self, v: usize) -> impl Iterator<Item = (usize, &Sym3)> + '_ {
-        let r = self.offsets[v] as usize..self.offsets[v + 1] as usize;
-        self.column[r.clone()]
-            .iter()
-            .zip(&self.values[r])
-            .map(|(&c, b)| (c as usize, b))
+    pub fn row_blocks(&self, v: usize) -> impl Iterator<Item = (usize, Sym3)> + '_ {
+        self.values.entries(v).map(|(c, b)| (c, Sym3(b)))
     }
 
     pub fn heap_bytes(&self) -> usize {
         self.offsets.capacity() * 4
             + self.spring.capacity() * 4
             + self.column.capacity() * 4
-            + (self.diagonal.capacity() + self.off.capacity() + self.values.capacity())
-                * size_of::<Sym3>()
+            + (self.diagonal.capacity() + self.off.capacity()) * size_of::<Sym3>()
+            + self.values.heap_bytes()
     }
 }
 
 impl BlockOperator for SpringMatrix {
     #[inline(always)]
     fn apply_range(&self, x: &Vec3s, range: std::ops::Range<usize>, out: &mut Vec3SliceMut) {
-        for (i, v) in range.enumerate() {
-            let mut acc = self.diagonal[v].mul(x.get(v));
-            let r = self.offsets[v] as usize..self.offsets[v + 1] as usize;
-            for (block, &c) in self.values[r.clone()].iter().zip(&self.column[r]) {
-                acc += block.mul(x.get(c as usize));
-            }
-            out.set(i, acc);
-        }
+        let diagonal = |v: usize, _| self.diagonal[v].mul(x.get(v));
+        self.values.apply_blocks(x, range, out, diagonal);
     }
 }
 

@@ -212,14 +212,17 @@ fn gather_differences(
     let len = coordinates.iter().map(|x| x.len()).min().unwrap_or(0);
     let top = a.iter().chain(b).fold(0, |t, &i| t.max(i as usize + 1));
     assert!(
-        top <= len,
+        top <= len && top <= i32::MAX as usize,
         "a spring's end ({}) beyond the {len} particles",
         top - 1
     );
     for (x, into) in coordinates.into_iter().zip(into.iter_mut()) {
         for ((&i, &j), into) in a.iter().zip(b).zip(into.iter_mut()) {
-            // SAFETY: `i` and `j` are below `top <= len <= x.len()`.
-            *into = unsafe { x.get_unchecked(j as usize) - x.get_unchecked(i as usize) };
+            // As signed 32-bit offsets, which the vector unit's gathers take directly (an
+            // unsigned index is widened to 64 bits, and gathered half as wide).
+            let (i, j) = (i as i32 as isize, j as i32 as isize);
+            // SAFETY: `i` and `j` are below `top <= len <= x.len()` and `i32::MAX`.
+            *into = unsafe { *x.as_ptr().offset(j) - *x.as_ptr().offset(i) };
         }
     }
 }
@@ -231,7 +234,7 @@ fn gather_differences(
 #[inline(always)]
 fn gather_forces(lanes: &IncidenceLanes, first: usize, table: &[[f32; 3]], f: Vec3SliceMut<'_>) {
     assert!(
-        lanes.pad() < table.len(),
+        lanes.pad() < table.len() && table.len() <= i32::MAX as usize,
         "a force table without the padding entry"
     );
     let groups =
@@ -247,8 +250,8 @@ fn gather_forces(lanes: &IncidenceLanes, first: usize, table: &[[f32; 3]], f: Ve
         for row in lanes.group(first + g).chunks_exact(LANES) {
             for (lane, &e) in row.iter().enumerate() {
                 // SAFETY: every slot's spring is at most `lanes.pad()` (`IncidenceLanes::new`),
-                // below `table.len()`.
-                let force = unsafe { table.get_unchecked((e >> 1) as usize) };
+                // below `table.len()` and `i32::MAX` (a signed 32-bit offset, as above).
+                let force = unsafe { &*table.as_ptr().offset((e >> 1) as i32 as isize) };
                 // A multiply by +-1, not a branch; `sum + -1 * F` is bitwise `sum - F`.
                 let sign = 1.0 - 2.0 * (e & 1) as f32;
                 for c in 0..3 {

@@ -1,11 +1,13 @@
 //! The matrices of the aggregation hierarchy: the coarse levels' block-CSR matrix
 //! ([`BlockCsr`]), the scalar prolongator between two levels with its transpose ([`Transfer`]),
 //! and the row visitor ([`BlockRows`]) that lets the Galerkin product read the fine level's
-//! [`SpringMatrix`] and a coarse [`BlockCsr`] alike.
+//! [`SpringMatrix`] and a coarse [`BlockCsr`] alike. Each keeps a copy of its rows laid out for
+//! the vector unit ([`crate::linear::block_lanes`]) for its products in the cycle.
 
 use glam::Vec3;
 use rayon::prelude::*;
 
+use crate::linear::block_lanes::{BlockLanes, WeightLanes};
 use crate::linear::cg::BlockOperator;
 use crate::linear::reduce::REDUCE_CHUNK;
 use crate::linear::{SpringMatrix, Sym3};
@@ -31,7 +33,7 @@ impl BlockRows for SpringMatrix {
     fn for_each_entry(&self, v: usize, mut f: impl FnMut(usize, &Sym3)) {
         f(v, &self.diagonal[v]);
         for (column, block) in self.row_blocks(v) {
-            f(column, block);
+            f(column, &block);
         }
     }
 
@@ -49,9 +51,28 @@ pub struct BlockCsr {
     pub(super) offsets: Vec<u32>,
     pub(super) columns: Vec<u32>,
     pub(super) values: Vec<Sym3>,
+    /// `values` laid out for the product ([`BlockCsr::lay_out`]).
+    lanes: BlockLanes,
 }
 
 impl BlockCsr {
+    /// The matrix of the pattern `offsets`, `columns` (the diagonal first in each row), zero.
+    pub fn zeros(offsets: Vec<u32>, columns: Vec<u32>) -> Self {
+        let entries: Vec<u32> = (0..columns.len() as u32).collect();
+        let n = offsets.len().saturating_sub(1);
+        BlockCsr {
+            lanes: BlockLanes::new(&offsets, &columns, &entries, n),
+            values: vec![Sym3::ZERO; columns.len()],
+            offsets,
+            columns,
+        }
+    }
+
+    /// Copies `values` into the product's layout: call after writing them, before a product.
+    pub fn lay_out(&mut self) {
+        self.lanes.refill(&self.values, |b| b.0);
+    }
+
     pub fn range(&self, v: usize) -> std::ops::Range<usize> {
         self.offsets[v] as usize..self.offsets[v + 1] as usize
     }
@@ -95,13 +116,7 @@ impl BlockRows for BlockCsr {
 impl BlockOperator for BlockCsr {
     #[inline(always)]
     fn apply_range(&self, x: &Vec3s, range: std::ops::Range<usize>, out: &mut Vec3SliceMut) {
-        for (i, v) in range.enumerate() {
-            let mut acc = Vec3::ZERO;
-            for k in self.range(v) {
-                acc += self.values[k].mul(x.get(self.columns[k] as usize));
-            }
-            out.set(i, acc);
-        }
+        self.lanes.apply_blocks(x, range, out, |_, _| Vec3::ZERO);
     }
 }
 
@@ -117,6 +132,9 @@ pub struct Transfer {
     pub(super) r_offsets: Vec<u32>,
     pub(super) r_columns: Vec<u32>,
     pub(super) r_values: Vec<f32>,
+    /// `P` and `P^T` laid out for their products.
+    p_lanes: WeightLanes,
+    r_lanes: WeightLanes,
 }
 
 impl Transfer {
@@ -149,6 +167,11 @@ impl Transfer {
                 *k += 1;
             }
         }
+        let entries: Vec<u32> = (0..t.p_columns.len() as u32).collect();
+        t.p_lanes = WeightLanes::new(&t.p_offsets, &t.p_columns, &entries, coarse);
+        t.p_lanes.refill(&t.p_values, |&w| [w]);
+        t.r_lanes = WeightLanes::new(&t.r_offsets, &t.r_columns, &entries, rows.len());
+        t.r_lanes.refill(&t.r_values, |&w| [w]);
         t
     }
 
@@ -176,13 +199,13 @@ impl Transfer {
             .par_chunks_mut(REDUCE_CHUNK)
             .enumerate()
             .for_each(|(ci, mut out)| {
-                for k in 0..out.len() {
-                    let mut acc = Vec3::ZERO;
-                    for (i, w) in self.r_row(ci * REDUCE_CHUNK + k) {
-                        acc += w * fine.get(i);
-                    }
-                    out.set(k, acc);
-                }
+                let range = ci * REDUCE_CHUNK..ci * REDUCE_CHUNK + out.len();
+                crate::simd::dispatch!((self.r_lanes).apply_weights(
+                    fine,
+                    range.clone(),
+                    &mut out,
+                    |_, _| Vec3::ZERO
+                ))
             });
     }
 
@@ -191,13 +214,13 @@ impl Transfer {
         fine.par_chunks_mut(REDUCE_CHUNK)
             .enumerate()
             .for_each(|(ci, mut out)| {
-                for k in 0..out.len() {
-                    let mut acc = out.get(k);
-                    for (c, w) in self.p_row(ci * REDUCE_CHUNK + k) {
-                        acc += w * coarse.get(c);
-                    }
-                    out.set(k, acc);
-                }
+                let range = ci * REDUCE_CHUNK..ci * REDUCE_CHUNK + out.len();
+                crate::simd::dispatch!((self.p_lanes).apply_weights(
+                    coarse,
+                    range.clone(),
+                    &mut out,
+                    |_, current| current
+                ))
             });
     }
 }

@@ -63,10 +63,7 @@ impl Galerkin {
             g.ap_term_offsets.push(g.ap_terms.len() as u32);
         }
         g.ap = vec![Sym3::ZERO; ap_columns.len()];
-        let mut ac = BlockCsr {
-            offsets: vec![0],
-            ..BlockCsr::default()
-        };
+        let (mut ac_offsets, mut ac_columns) = (vec![0u32], Vec::new());
         for c in 0..nc {
             row.clear();
             for (i, _) in p.r_row(c) {
@@ -74,23 +71,22 @@ impl Galerkin {
                 row.extend(&ap_columns[r]);
             }
             // The diagonal first, then the rest increasing.
-            let start = ac.columns.len();
-            ac.columns.push(c as u32);
-            ac.columns.extend(row.iter().filter(|&&j| j as usize != c));
-            ac.columns[start + 1..].sort_unstable();
-            dedup_tail(&mut ac.columns, start + 1);
-            for (k, &j) in ac.columns[start..].iter().enumerate() {
+            let start = ac_columns.len();
+            ac_columns.push(c as u32);
+            ac_columns.extend(row.iter().filter(|&&j| j as usize != c));
+            ac_columns[start + 1..].sort_unstable();
+            dedup_tail(&mut ac_columns, start + 1);
+            for (k, &j) in ac_columns[start..].iter().enumerate() {
                 slot[j as usize] = k as u32;
             }
             g.ac_terms.extend(row.iter().map(|&j| slot[j as usize]));
-            for &j in &ac.columns[start..] {
+            for &j in &ac_columns[start..] {
                 slot[j as usize] = u32::MAX;
             }
-            ac.offsets.push(ac.columns.len() as u32);
+            ac_offsets.push(ac_columns.len() as u32);
             g.ac_term_offsets.push(g.ac_terms.len() as u32);
         }
-        ac.values = vec![Sym3::ZERO; ac.columns.len()];
-        (g, ac)
+        (g, BlockCsr::zeros(ac_offsets, ac_columns))
     }
 
     /// `out = P^T a P`, `a` with the pattern and `out` as [`Galerkin::new`] made them.
@@ -116,7 +112,7 @@ impl Galerkin {
         let ap = &*ap;
         let BlockCsr {
             offsets, values, ..
-        } = out;
+        } = &mut *out;
         let rows = 0..offsets.len() - 1;
         for_each_row(values, offsets, rows, ROW_CHUNK, &|c, out| {
             out.fill(Sym3::ZERO);
@@ -128,6 +124,7 @@ impl Galerkin {
                 }
             }
         });
+        out.lay_out();
     }
 }
 
