@@ -31,10 +31,9 @@ mod pose;
 
 use glam::{DQuat, DVec3, Quat, Vec3};
 
-use super::contact_velocity;
+use super::{contact_velocity, Surfaces};
 use crate::particles::Particles;
 use crate::scene::{ColliderSpec, ShapeKind};
-use crate::soa::Vec3s;
 use crate::state::Kinematics;
 use geometry::{Geometry, Projection};
 pub use pose::{Pose, PoseKey, ROTATION_TOLERANCE};
@@ -186,22 +185,22 @@ impl Shapes {
 
     /// Moves every dynamic particle of `next` that ended inside a shape (posed at `time`, the
     /// end of the substep of length `h`, in s) or within its thickness onto the offset surface;
-    /// with `normals`, a prediction: see [`super::Collider::resolve`].
+    /// with `surfaces`, a prediction: see [`super::Collider::resolve`].
     pub fn resolve(
         &self,
         start: &Kinematics,
         next: &mut Kinematics,
-        normals: Option<&mut Vec3s>,
+        surfaces: Option<&mut Surfaces>,
         particles: &Particles,
         chunk: usize,
         (h, time): (f32, f64),
     ) -> bool {
-        let slide = normals.is_none();
+        let slide = surfaces.is_none();
         super::resolve_chunks(
             next,
-            normals,
+            surfaces,
             chunk,
-            |first, mut pos, mut vel, mut normals| {
+            |first, mut pos, mut vel, mut surfaces| {
                 let mut finite = true;
                 for (shape, key) in self.shapes.iter().zip(&self.keys) {
                     // Posed once per chunk: a few dozen flops, and no buffer to keep.
@@ -236,8 +235,10 @@ impl Shapes {
                             } else {
                                 at
                             };
-                            if let Some(normals) = &mut normals {
+                            if let Some((normals, velocity, friction)) = &mut surfaces {
                                 normals.set(i, n);
+                                velocity.set(i, surface);
+                                friction[i] = shape.friction;
                             }
                             pos.set(i, at);
                             vel.set(i, v);
