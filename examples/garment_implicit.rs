@@ -6,7 +6,7 @@
 //!
 //! `cargo run --release --example garment_implicit -- [SCENE] [STEP] [SECONDS] [FRICTION]
 //! [SELF]`: SCENE default `shirt`; STEP the implicit step in s (default 1/120); SECONDS
-//! simulated (default 4); FRICTION (default the scene's own); SELF `1` keeps the scene's
+//! simulated (default 4); FRICTION (default, or `scene`: the scene's own); SELF `1` keeps the scene's
 //! self-collision (default `0`, without). Runs on a one-thread pool; CPU time is the process's
 //! (`/proc/self/task/*/schedstat`, ns), so other threads' work would count too.
 
@@ -42,7 +42,9 @@ fn main() {
         .get(2)
         .map_or(1.0 / 120.0, |s| s.parse().expect("STEP"));
     let seconds: f64 = args.get(3).map_or(4.0, |s| s.parse().expect("SECONDS"));
-    let friction: Option<f64> = args.get(4).map(|s| s.parse().expect("FRICTION"));
+    let friction: Option<f64> = (args.get(4))
+        .filter(|s| *s != "scene")
+        .map(|s| s.parse().expect("FRICTION"));
     let keep_self = args.get(5).is_some_and(|s| s == "1");
     let mut scene = Scene::builtin(name).expect("a built-in garment");
     scene.integrator = IntegratorKind::ImplicitEuler;
