@@ -30,6 +30,8 @@ mod garment;
 mod golden;
 #[path = "grip.rs"]
 mod grip;
+#[path = "implicit_friction.rs"]
+mod implicit_friction;
 #[path = "integrators.rs"]
 mod integrators;
 #[path = "mesh_cloth.rs"]

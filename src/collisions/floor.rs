@@ -1,8 +1,7 @@
 use glam::Vec3;
 
-use super::contact_velocity;
+use super::{contact_velocity, Surfaces};
 use crate::particles::Particles;
-use crate::soa::Vec3s;
 use crate::state::Kinematics;
 
 /// The half-space `y < height + thickness`. A half-space cannot be tunnelled through: a particle
@@ -24,30 +23,38 @@ impl Floor {
     }
 
     /// Moves every dynamic particle of `next` below the floor onto it; see
-    /// [`super::Collider::resolve`]; writes `+y` into `normals` (when given) for each.
+    /// [`super::Collider::resolve`]; writes `+y`, zero velocity and the floor's friction into `surfaces` (when
+    /// given) for each.
     pub fn resolve(
         &self,
         _start: &Kinematics,
         next: &mut Kinematics,
-        normals: Option<&mut Vec3s>,
+        surfaces: Option<&mut Surfaces>,
         particles: &Particles,
         chunk: usize,
     ) -> bool {
         let top = self.height + self.thickness;
-        super::resolve_chunks(next, normals, chunk, |first, pos, mut vel, mut normals| {
-            let mut finite = true;
-            for i in 0..pos.len() {
-                if pos.y[i] < top && particles.is_dynamic(first + i) {
-                    pos.y[i] = top;
-                    let v = contact_velocity(vel.get(i), Vec3::Y, self.friction);
-                    vel.set(i, v);
-                    if let Some(normals) = &mut normals {
-                        normals.set(i, Vec3::Y);
+        super::resolve_chunks(
+            next,
+            surfaces,
+            chunk,
+            |first, pos, mut vel, mut surfaces| {
+                let mut finite = true;
+                for i in 0..pos.len() {
+                    if pos.y[i] < top && particles.is_dynamic(first + i) {
+                        pos.y[i] = top;
+                        let v = contact_velocity(vel.get(i), Vec3::Y, self.friction);
+                        vel.set(i, v);
+                        if let Some((normals, velocity, friction)) = &mut surfaces {
+                            normals.set(i, Vec3::Y);
+                            velocity.set(i, Vec3::ZERO);
+                            friction[i] = self.friction;
+                        }
+                        finite &= v.is_finite();
                     }
-                    finite &= v.is_finite();
                 }
-            }
-            finite
-        })
+                finite
+            },
+        )
     }
 }

@@ -14,22 +14,50 @@ mod shape;
 use glam::Vec3;
 
 pub use floor::Floor;
-pub use predict::PredictedContacts;
+pub use predict::{Impulses, PredictedContacts};
 pub use shape::{Pose, PoseKey, Shapes, ROTATION_TOLERANCE};
 
 use crate::particles::Particles;
 use crate::soa::{Vec3SliceMut, Vec3s};
 use crate::state::Kinematics;
 
+/// What a collider's prediction of contacts writes per particle, where it makes one: the
+/// surface's outward normal, its velocity (m/s) there, and its Coulomb friction coefficient.
+pub struct Surfaces {
+    pub normal: Vec3s,
+    pub velocity: Vec3s,
+    pub friction: Vec<f32>,
+}
+
+impl Surfaces {
+    pub fn zeros(n: usize) -> Self {
+        Surfaces {
+            normal: Vec3s::zeros(n),
+            velocity: Vec3s::zeros(n),
+            friction: vec![0.0; n],
+        }
+    }
+
+    pub fn heap_bytes(&self) -> usize {
+        self.normal.heap_bytes()
+            + self.velocity.heap_bytes()
+            + self.friction.capacity() * size_of::<f32>()
+    }
+}
+
+/// One chunk of [`Surfaces`]: the normals, velocities and friction coefficients of its
+/// particles.
+type SurfacesChunk<'a> = (Vec3SliceMut<'a>, Vec3SliceMut<'a>, &'a mut [f32]);
+
 /// Runs `contact` on each parallel chunk of `next` (given the chunk's first particle index, its
-/// positions, its velocities, and the chunk of `normals` when given, where a contact writes the
-/// surface's outward normal) and returns whether every chunk reported finite output: the
-/// traversal every collider shares, so each writes only its contact test.
+/// positions, its velocities, and the chunk of `surfaces` when given, where a contact writes the
+/// surface's outward normal, velocity and friction) and returns whether every chunk reported finite
+/// output: the traversal every collider shares, so each writes only its contact test.
 fn resolve_chunks(
     next: &mut Kinematics,
-    normals: Option<&mut Vec3s>,
+    surfaces: Option<&mut Surfaces>,
     chunk: usize,
-    contact: impl Fn(usize, Vec3SliceMut<'_>, Vec3SliceMut<'_>, Option<Vec3SliceMut<'_>>) -> bool
+    contact: impl Fn(usize, Vec3SliceMut<'_>, Vec3SliceMut<'_>, Option<SurfacesChunk<'_>>) -> bool
         + Sync
         + Send,
 ) -> bool {
@@ -39,13 +67,19 @@ fn resolve_chunks(
         .par_chunks_mut(chunk)
         .zip(vel.par_chunks_mut(chunk))
         .enumerate();
-    match normals {
+    match surfaces {
         None => chunks
             .map(|(c, (pos, vel))| contact(c * chunk, pos, vel, None))
             .reduce(|| true, |a, b| a & b),
-        Some(normals) => chunks
-            .zip(normals.par_chunks_mut(chunk))
-            .map(|((c, (pos, vel)), n)| contact(c * chunk, pos, vel, Some(n)))
+        Some(Surfaces {
+            normal,
+            velocity,
+            friction,
+        }) => chunks
+            .zip(normal.par_chunks_mut(chunk))
+            .zip(velocity.par_chunks_mut(chunk))
+            .zip(friction.par_chunks_mut(chunk))
+            .map(|((((c, (pos, vel)), n), u), mu)| contact(c * chunk, pos, vel, Some((n, u, mu))))
             .reduce(|| true, |a, b| a & b),
     }
 }
@@ -101,26 +135,27 @@ impl Collider {
     /// simulated time at its end (s), where moving colliders are posed. Returns whether every
     /// value it wrote is finite (a contact at speeds near float32's limit can overflow).
     ///
-    /// With `normals`, a prediction of contacts for an implicit solve: a particle is left where
+    /// With `surfaces`, a prediction of contacts for an implicit solve: a particle is left where
     /// its contact put it, on the surface, without the friction slide along it, and the
-    /// surface's outward normal there is written into `normals` (its velocity changes as
-    /// without). The contact's plane is the one through that point along that normal; the move
+    /// surface's outward normal there, its velocity and friction coefficient are written into
+    /// `surfaces`
+    /// (its velocity changes as without). The contact's plane is the one through that point along that normal; the move
     /// from where the particle was is not along the normal where the contact took the entry
     /// point of a path through a shape, and a slid point is off the surface.
     pub fn resolve(
         &self,
         start: &Kinematics,
         next: &mut Kinematics,
-        normals: Option<&mut Vec3s>,
+        surfaces: Option<&mut Surfaces>,
         particles: &Particles,
         chunk: usize,
         (h, time): (f32, f64),
     ) -> bool {
         match self {
             Collider::Spheres(s) | Collider::Shapes(s) => {
-                s.resolve(start, next, normals, particles, chunk, (h, time))
+                s.resolve(start, next, surfaces, particles, chunk, (h, time))
             }
-            Collider::Floor(f) => f.resolve(start, next, normals, particles, chunk),
+            Collider::Floor(f) => f.resolve(start, next, surfaces, particles, chunk),
         }
     }
 }

@@ -28,13 +28,23 @@
 //! motion behind the plane for the collider pass to push out (and that push adds energy to
 //! the springs around it), the particle ends on its plane to rounding.
 //!
-//! What the contact did is the residual along `n` of the unfiltered system, its impulse
-//! `n . (A dv - b)` (N s): positive where it pushes. One that pulls (the springs lifted the
-//! particle off its plane) is released by [`crate::collisions::PredictedContacts::correct`].
+//! A sticking contact (`PredictedContacts::stuck`) is held in all three directions: `S = 0` at
+//! its particle, and `z` prescribes its tangential velocity too, to the surface's own (the
+//! particle stays put on a still collider), so the solve balances its neighbours against it
+//! instead of friction moving it back after the solve. A sliding contact's friction is a
+//! damper on its tangential velocity relative to the surface's (`c = slide_damping`): `c P_t`
+//! on its diagonal block (`P_t = I - n n^T`, added by the integrator with the contact's `k`)
+//! and `-c P_t (v - u)` in `b`.
+//!
+//! What the contact did is the residual of the unfiltered system at its particle, its impulse
+//! `A dv - b` (N s): along `n` positive where it pushes, across `n` the friction a sticking
+//! contact needed. One that pulls (the springs lifted the particle off its plane) is released,
+//! and one that needed more friction than Coulomb allows slides, by
+//! [`crate::collisions::PredictedContacts::correct`].
 
 use glam::Vec3;
 
-use crate::collisions::PredictedContacts;
+use crate::collisions::{Impulses, PredictedContacts};
 use crate::soa::Vec3s;
 
 /// One particle held on its plane.
@@ -43,12 +53,20 @@ struct Held {
     p: usize,
     /// Outward unit normal of its contact plane.
     n: Vec3,
+    /// Whether it sticks: held in all three directions.
+    stuck: bool,
     /// Prescribed normal velocity change, m/s.
-    z: f32,
-    /// `n . b` of the unfiltered right-hand side, N s.
-    b: f32,
-    /// The stiffness `k` of the `k n n^T` the matrix holds on its diagonal block (kg): it
-    /// does not change the filtered system (`S n = 0`) but shapes the preconditioner.
+    z_n: f32,
+    /// Prescribed velocity change, m/s: `z_n n`, plus the tangential change where it sticks.
+    z: Vec3,
+    /// The friction damper's impulse at the start velocity, `-c P_t (v - u)` (N s), added to
+    /// `b`.
+    friction: Vec3,
+    /// The unfiltered right-hand side at the particle, N s.
+    b: Vec3,
+    /// The stiffness `k` of the `k n n^T` (`k I` where it sticks) the matrix holds on its
+    /// diagonal block (kg): it does not change the filtered system (`S n = 0`) but shapes the
+    /// preconditioner.
     k: f32,
 }
 
@@ -60,6 +78,8 @@ pub(super) struct ContactFilter {
     /// Per particle, the normal impulse (N s) its contact gave in the last solve; zero without
     /// one.
     impulse: Vec<f32>,
+    /// Per particle, the tangential impulse (N s) its sticking contact gave; zero elsewhere.
+    tangential: Vec3s,
     /// `z`, then `A z`; then `A dv`.
     prescribed: Vec3s,
     product: Vec3s,
@@ -82,10 +102,12 @@ impl ContactFilter {
             // Room for every particle held: a step allocates nothing however many land.
             self.held = Vec::with_capacity(n);
             self.impulse = vec![0.0; n];
+            self.tangential = Vec3s::zeros(n);
             self.prescribed = Vec3s::zeros(n);
             self.product = Vec3s::zeros(n);
         }
         self.impulse.fill(0.0);
+        self.tangential.fill(Vec3::ZERO);
         let Some(contacts) = contacts.filter(|c| c.count > 0) else {
             return;
         };
@@ -94,16 +116,22 @@ impl ContactFilter {
             if normal == Vec3::ZERO || w == 0.0 {
                 continue;
             }
-            let at = normal.dot(pos.get(p));
+            let (at, v) = (normal.dot(pos.get(p)), vel.get(p));
             let target = contacts.offset[p].min(at);
-            let z = (target - at) / h - normal.dot(vel.get(p));
-            let k = stiffness(p);
+            let z_n = (target - at) / h - normal.dot(v);
+            let stuck = contacts.stuck[p];
+            let slip = contacts.surface_velocity.get(p) - (v - normal.dot(v) * normal);
+            let across = if stuck { slip } else { Vec3::ZERO };
+            let c = contacts.slide_damping[p];
             self.held.push(Held {
                 p,
                 n: normal,
-                z,
-                b: 0.0,
-                k,
+                stuck,
+                z_n,
+                z: z_n * normal + across,
+                friction: if c > 0.0 { c * slip } else { Vec3::ZERO },
+                b: Vec3::ZERO,
+                k: stiffness(p),
             });
         }
     }
@@ -113,21 +141,30 @@ impl ContactFilter {
         self.held.is_empty()
     }
 
-    /// `v = S v`: the normal part of each held particle's vector removed.
+    /// `v = S v`: the normal part of each held particle's vector removed, all of it where it
+    /// sticks.
     pub(super) fn project(&self, v: &mut Vec3s) {
         for h in &self.held {
             let x = v.get(h.p);
-            v.set(h.p, x - h.n.dot(x) * h.n);
+            let free = if h.stuck {
+                Vec3::ZERO
+            } else {
+                x - h.n.dot(x) * h.n
+            };
+            v.set(h.p, free);
         }
     }
 
-    /// `b = S (b - A z)`, where `apply(x, y)` sets `y = A x`; keeps `n . b` of each held
+    /// `b = S (b - A z)`, where `apply(x, y)` sets `y = A x`; keeps `b` at each held
     /// particle for its impulse.
     pub(super) fn reduce(&mut self, b: &mut Vec3s, apply: impl FnOnce(&Vec3s, &mut Vec3s)) {
         self.prescribed.fill(Vec3::ZERO);
         for h in &mut self.held {
-            h.b = h.n.dot(b.get(h.p));
-            self.prescribed.set(h.p, h.z * h.n);
+            h.b = b.get(h.p);
+            if h.friction != Vec3::ZERO {
+                b.set(h.p, h.b + h.friction);
+            }
+            self.prescribed.set(h.p, h.z);
         }
         apply(&self.prescribed, &mut self.product);
         for i in 0..b.len() {
@@ -137,22 +174,30 @@ impl ContactFilter {
     }
 
     /// `dv = S y + z` from the filtered solution `y` in `dv`, then each held particle's
-    /// impulse `n . (A dv - b)` (`apply` as for [`ContactFilter::reduce`]).
+    /// impulse `A dv - b` (`apply` as for [`ContactFilter::reduce`]).
     pub(super) fn finish(&mut self, dv: &mut Vec3s, apply: impl FnOnce(&Vec3s, &mut Vec3s)) {
+        self.project(dv);
         for h in &self.held {
-            let y = dv.get(h.p);
-            dv.set(h.p, y - h.n.dot(y) * h.n + h.z * h.n);
+            dv.set(h.p, dv.get(h.p) + h.z);
         }
         apply(dv, &mut self.product);
         for h in &self.held {
-            // The diagonal's `k n n^T` is not part of the contact-free system.
-            self.impulse[h.p] = h.n.dot(self.product.get(h.p)) - h.k * h.z - h.b;
+            // The diagonal's `k n n^T` (`k I`) is not part of the contact-free system; it acts
+            // on `z` alone, which lies in the held directions.
+            let product = self.product.get(h.p);
+            self.impulse[h.p] = h.n.dot(product) - h.k * h.z_n - h.n.dot(h.b);
+            if h.stuck {
+                let impulse = product - h.k * h.z - h.b;
+                self.tangential.set(h.p, impulse - h.n.dot(impulse) * h.n);
+            }
         }
     }
 
-    /// Per particle, the normal impulse (N s) its contact gave in the last solve; zero without
-    /// one.
-    pub(super) fn impulses(&self) -> &[f32] {
-        &self.impulse
+    /// Per particle, what its contact did in the last solve; zero without one.
+    pub(super) fn impulses(&self) -> Impulses<'_> {
+        Impulses {
+            normal: &self.impulse,
+            tangential: &self.tangential,
+        }
     }
 }

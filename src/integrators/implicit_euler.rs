@@ -13,12 +13,12 @@ use super::solver::{
     kind_slot, live_or_zero, Preconditioner, SolverSettings, SolverStats, CONTACT_STIFFNESS,
 };
 use super::{par_update, FiniteCheck, StepContext};
-use crate::collisions::PredictedContacts;
+use crate::collisions::{Impulses, PredictedContacts};
 use crate::forces::Force;
 use crate::grid::SpringKind;
 use crate::linear::cg::{diagonal_blocks, BlockOperator, ConjugateGradient};
 use crate::linear::stencil::{par_chunks6, SlotArrays};
-use crate::linear::{BlockStencil, Multigrid, Sym3};
+use crate::linear::{BlockStencil, Multigrid};
 use crate::soa::{Floats, Vec3s};
 use crate::springs::{anchored_run, neighbour_runs};
 
@@ -119,9 +119,9 @@ impl ImplicitEuler {
         self.stats
     }
 
-    /// Per particle, the normal impulse (N s) its predicted contact gave in the last solve:
-    /// positive where it pushed, zero without a contact.
-    pub fn contact_impulses(&self) -> &[f32] {
+    /// Per particle, what its predicted contact did in the last solve: the normal impulse (N s,
+    /// positive where it pushed) and a sticking contact's tangential one; zero without one.
+    pub fn contact_impulses(&self) -> Impulses<'_> {
         self.filter.impulses()
     }
 
@@ -398,11 +398,11 @@ fn assemble_diagonal_and_rhs(work: &mut Work, h: f32, drag: f32, ctx: &StepConte
     *work.matrix.slot_mut(0) = diag;
 }
 
-/// Adds `k n n^T` (`k = CONTACT_STIFFNESS m`, the `h^2 k_c` of a stiff spring onto the plane)
-/// to the diagonal block of each free particle with a predicted contact. The contact itself is
-/// the [`ContactFilter`]'s, exact; `S (k n n^T) S = 0`, so this leaves the filtered system as it
-/// is, but the preconditioner built on the matrix then sees the particle as held along `n`,
-/// as the filtered system does.
+/// Adds `k n n^T` (`k = CONTACT_STIFFNESS m`, the `h^2 k_c` of a stiff spring onto the plane;
+/// `k I` for a sticking contact) to the diagonal block of each free particle with a predicted
+/// contact, and a sliding contact's friction damper (part of the system, unlike `k`). The contact itself is the [`ContactFilter`]'s, exact; `S (k n n^T) S = 0`, so this
+/// leaves the filtered system as it is, but the preconditioner built on the matrix then sees the
+/// particle as held where the filtered system holds it.
 fn stiffen_contacts(work: &mut Work, contacts: &PredictedContacts, ctx: &StepContext) {
     let (mass, w) = (&ctx.particles.mass, &ctx.particles.inv_mass);
     let Work { matrix, .. } = work;
@@ -412,14 +412,18 @@ fn stiffen_contacts(work: &mut Work, contacts: &PredictedContacts, ctx: &StepCon
         .for_each(|(ci, mut d)| {
             for i in 0..d[0].len() {
                 let p = ci * ctx.chunk + i;
-                let n = contacts.normal.get(p);
-                if n == glam::Vec3::ZERO || w[p] == 0.0 {
+                if contacts.normal.get(p) == glam::Vec3::ZERO || w[p] == 0.0 {
                     continue;
                 }
                 let s = CONTACT_STIFFNESS * mass[p];
-                let block = Sym3::outer(1.0, n, 0.0).0;
+                let block = contacts.held_directions(p).0;
                 for (column, v) in d.iter_mut().zip(block) {
                     column[i] += s * v;
+                }
+                if let Some(damper) = contacts.slide_block(p) {
+                    for (column, v) in d.iter_mut().zip(damper.0) {
+                        column[i] += v;
+                    }
                 }
             }
         });

@@ -542,20 +542,26 @@ impl MeshSystem {
             });
     }
 
-    /// `k n n^T` (`k = CONTACT_STIFFNESS m`) on the diagonal block of each free vertex with a
-    /// predicted contact, for the preconditioner (the grid's `stiffen_contacts`), in the proxy
+    /// `k n n^T` (`k = CONTACT_STIFFNESS m`; `k I` for a sticking contact) on the diagonal
+    /// block of each free vertex with a predicted contact, and a sliding contact's friction
+    /// damper (part of the system), for the preconditioner (the grid's `stiffen_contacts`), in the proxy
     /// too under the triangle membrane.
     fn stiffen_contacts(&mut self, contacts: &PredictedContacts, ctx: &StepContext) {
         let (mass, w) = (&ctx.particles.mass, &ctx.particles.inv_mass);
         for p in 0..self.matrix.len() {
-            let n = contacts.normal.get(p);
-            if n == Vec3::ZERO || w[p] == 0.0 {
+            if contacts.normal.get(p) == Vec3::ZERO || w[p] == 0.0 {
                 continue;
             }
-            let s = CONTACT_STIFFNESS * mass[p];
-            self.matrix.diagonal[p].add_scaled(s, &Sym3::outer(1.0, n, 0.0));
+            let (s, held) = (CONTACT_STIFFNESS * mass[p], contacts.held_directions(p));
+            self.matrix.diagonal[p].add_scaled(s, &held);
             if let Some(Elements { proxy, .. }) = &mut self.membrane {
-                proxy.diagonal[p].add_scaled(s, &Sym3::outer(1.0, n, 0.0));
+                proxy.diagonal[p].add_scaled(s, &held);
+            }
+            if let Some(damper) = contacts.slide_block(p) {
+                self.matrix.diagonal[p].add_scaled(1.0, &damper);
+                if let Some(Elements { proxy, .. }) = &mut self.membrane {
+                    proxy.diagonal[p].add_scaled(1.0, &damper);
+                }
             }
         }
     }

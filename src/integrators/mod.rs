@@ -29,7 +29,7 @@ pub use self_contact::SelfPairs;
 pub use solver::{Preconditioner, SolverSettings, SolverStats};
 pub use verlet::Verlet;
 
-use crate::collisions::PredictedContacts;
+use crate::collisions::{Impulses, PredictedContacts};
 use crate::forces::{ForceModel, StateRef};
 use crate::grid::Grid;
 use crate::particles::Particles;
@@ -175,11 +175,12 @@ impl Integrator {
         }
     }
 
-    /// Per particle, the normal impulse (N s) its predicted contact gave inside the last solve,
-    /// for an integrator whose contacts are exact constraints (implicit Euler); None for the
-    /// others, whose contacts [`crate::collisions::PredictedContacts::correct`] judges by
-    /// where the solve left the particle.
-    pub fn contact_impulses(&self) -> Option<&[f32]> {
+    /// Per particle, the impulses (N s) its predicted contact gave inside the last solve, for
+    /// an integrator whose contacts are exact constraints (implicit Euler), which holds a
+    /// sticking contact in all three directions; None for the others, whose contacts
+    /// [`crate::collisions::PredictedContacts::correct`] judges by where the solve left the
+    /// particle, and whose friction acts after the solve.
+    pub fn contact_impulses(&self) -> Option<Impulses<'_>> {
         match self {
             Integrator::ImplicitEuler(i) => Some(i.contact_impulses()),
             _ => None,

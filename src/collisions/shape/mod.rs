@@ -31,10 +31,9 @@ mod pose;
 
 use glam::{DQuat, DVec3, Quat, Vec3};
 
-use super::contact_velocity;
+use super::{contact_velocity, Surfaces};
 use crate::particles::Particles;
 use crate::scene::{ColliderSpec, ShapeKind};
-use crate::soa::Vec3s;
 use crate::state::Kinematics;
 use geometry::{Geometry, Projection};
 pub use pose::{Pose, PoseKey, ROTATION_TOLERANCE};
@@ -55,7 +54,13 @@ struct ShapeCollider {
     angular_velocity: DVec3,
     friction: f32,
     thickness: f32,
-    /// Radius of a ball around the centre holding the shape, plus thickness: the screen
+    /// Half the length of the segment along the shape's local y axis, through its centre, that
+    /// [`ShapeCollider::reach`] is measured from: a capsule's half height, 0 (the centre) for
+    /// the others. A long capsule's bounding ball holds much that is far from it (the
+    /// mannequin's torso's holds the whole shirt), and a particle near it passes the screen to
+    /// the costly nearest-point query.
+    core: f32,
+    /// Radius of a tube around the core segment holding the shape, plus thickness: the screen
     /// (infinite for a plane).
     reach: f32,
     /// The shape's size (m, finite; 0 for a plane), which scales the rounding margin.
@@ -89,9 +94,13 @@ impl Shapes {
             .iter()
             .map(|s| {
                 let (geometry, bound) = Geometry::of(s);
+                let core = match s.shape {
+                    ShapeKind::Capsule => s.half_height.unwrap_or(0.0) as f32,
+                    _ => 0.0,
+                };
                 let reach = match s.shape {
                     ShapeKind::Plane => f32::INFINITY,
-                    _ => (bound + s.thickness as f32) * (1.0 + 1e-4) + 1e-6,
+                    _ => (bound - core + s.thickness as f32) * (1.0 + 1e-4) + 1e-6,
                 };
                 let rotation = DVec3::from(s.rotation);
                 let floor = match (s.shape, floor) {
@@ -106,6 +115,7 @@ impl Shapes {
                     angular_velocity: DVec3::from(s.angular_velocity),
                     friction: s.friction as f32,
                     thickness: s.thickness as f32,
+                    core,
                     reach,
                     scale: bound + s.thickness as f32,
                     floor,
@@ -186,22 +196,22 @@ impl Shapes {
 
     /// Moves every dynamic particle of `next` that ended inside a shape (posed at `time`, the
     /// end of the substep of length `h`, in s) or within its thickness onto the offset surface;
-    /// with `normals`, a prediction: see [`super::Collider::resolve`].
+    /// with `surfaces`, a prediction: see [`super::Collider::resolve`].
     pub fn resolve(
         &self,
         start: &Kinematics,
         next: &mut Kinematics,
-        normals: Option<&mut Vec3s>,
+        surfaces: Option<&mut Surfaces>,
         particles: &Particles,
         chunk: usize,
         (h, time): (f32, f64),
     ) -> bool {
-        let slide = normals.is_none();
+        let slide = surfaces.is_none();
         super::resolve_chunks(
             next,
-            normals,
+            surfaces,
             chunk,
-            |first, mut pos, mut vel, mut normals| {
+            |first, mut pos, mut vel, mut surfaces| {
                 let mut finite = true;
                 for (shape, key) in self.shapes.iter().zip(&self.keys) {
                     // Posed once per chunk: a few dozen flops, and no buffer to keep.
@@ -209,17 +219,21 @@ impl Shapes {
                     let before = shape.posed(time - h as f64, key.as_ref());
                     let drift = (posed.center - before.center).length();
                     let turn = posed.angular_velocity.length() * h;
+                    let axis = posed.rotation * Vec3::Y;
                     for i in 0..pos.len() {
                         let (p0, p1) = (start.pos.get(first + i), pos.get(i));
                         // As in `contact`: where the floor will leave it.
                         let lifted = Vec3::new(p1.x, p1.y.max(shape.floor), p1.z);
                         // A cheap screen: the path relative to the shape moves at most
-                        // |x1 - x0| + |c1 - c0| + |w| h |x0 - c0|, so only a particle that
-                        // ends within that of the shape's bounding ball can touch it.
+                        // |x1 - x0| + |c1 - c0| + |w| h |x0 - c0|, and the distance to the
+                        // core segment changes no faster than the point, so only a particle
+                        // that ends within that of the tube round the core can touch it.
                         let travel =
                             (p1 - p0).length() + drift + turn * (p0 - before.center).length();
-                        let limit = (shape.reach + travel) * (1.0 + 1e-4);
-                        if (lifted - posed.center).length_squared() >= limit * limit
+                        let limit = (shape.reach + posed.margin + travel) * (1.0 + 1e-4);
+                        let q = lifted - posed.center;
+                        let along = q.dot(axis).clamp(-shape.core, shape.core);
+                        if (q - along * axis).length_squared() >= limit * limit
                             || !particles.is_dynamic(first + i)
                         {
                             continue;
@@ -236,8 +250,10 @@ impl Shapes {
                             } else {
                                 at
                             };
-                            if let Some(normals) = &mut normals {
+                            if let Some((normals, velocity, friction)) = &mut surfaces {
                                 normals.set(i, n);
+                                velocity.set(i, surface);
+                                friction[i] = shape.friction;
                             }
                             pos.set(i, at);
                             vel.set(i, v);

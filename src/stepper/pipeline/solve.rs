@@ -131,7 +131,11 @@ impl Pipeline {
         };
         let t = Instant::now();
         let g = DVec3::from(model.scene.gravity).as_vec3();
-        contacts.find(&self.colliders, from, &model.particles, g, span, chunk);
+        // An exact constraint (one that reports its impulses) can hold a sticking contact in
+        // all three directions inside the solve.
+        let sticks = self.integrator.contact_impulses().is_some();
+        let particles = &model.particles;
+        contacts.find(&self.colliders, from, particles, g, span, chunk, sticks);
         profile.add(PredictedContacts::NAME, t.elapsed());
     }
 
@@ -280,7 +284,7 @@ impl Pipeline {
     /// One solve of the integrator from `from` over `job.h` into `into` (contacts predicted
     /// first when `predict`), in rounds while the contacts change, `job.rounds` at most: after
     /// each, the contacts the solve pulled in are released and the particles it carried into a
-    /// collider are held ([`PredictedContacts::correct`]). Then the contacts' friction.
+    /// collider are held ([`PredictedContacts::correct`]). Then the sliding contacts' friction.
     fn solve(
         &mut self,
         job: &mut Solve,
