@@ -16,7 +16,7 @@ use super::{par_update, FiniteCheck, StepContext};
 use crate::collisions::{Impulses, PredictedContacts};
 use crate::forces::Force;
 use crate::grid::SpringKind;
-use crate::linear::cg::{diagonal_blocks, BlockOperator, ConjugateGradient};
+use crate::linear::cg::{diagonal_blocks, BlockOperator, ConjugateGradient, Start};
 use crate::linear::stencil::{par_chunks6, SlotArrays};
 use crate::linear::{BlockStencil, Multigrid};
 use crate::soa::{Floats, Vec3s};
@@ -254,15 +254,6 @@ const SELF_ROUNDS: u32 = 2;
 /// pairs from a rougher `dv`, and the step's result moves with the pairs found (measured in
 /// `docs/contact.md`, "Where a frame goes"); at `cg_tolerance` it is two full solves.
 const PAIR_FINDING_TOLERANCE: f32 = 3e-2;
-
-/// Where a solve's CG starts.
-#[derive(Clone, Copy, PartialEq)]
-enum Start {
-    /// From `dv = 0`, after the preconditioner's setup for the matrix as it stands.
-    Zero,
-    /// From the last solve's `dv`, on the same matrix and preconditioner.
-    Guess,
-}
 
 /// `v' = v + dv`, `x' = x + h v'` for free particles; held ones keep their state bitwise.
 /// Returns whether everything written is finite.
@@ -532,15 +523,15 @@ fn solve_once(
     let limits = (settings.tolerance as f64, settings.max_iterations);
     // Without contacts the filter projects nothing: the plain preconditioned CG.
     let project = &*filter;
-    let (iterations, residual) = if start == Start::Guess {
-        cg.solve_filtered_from(&operator, rhs, dv, limits, precondition, |v| {
-            project.project(v)
-        })
-    } else {
-        cg.solve_filtered(&operator, rhs, dv, limits, precondition, |v| {
-            project.project(v)
-        })
-    };
+    let (iterations, residual) = cg.solve_filtered(
+        &operator,
+        rhs,
+        dv,
+        limits,
+        precondition,
+        |v| project.project(v),
+        start,
+    );
     if !filter.is_empty() {
         filter.finish(dv, |x, y| operator.apply(x, y, chunk));
     }

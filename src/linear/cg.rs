@@ -9,7 +9,7 @@
 //! ```
 //!
 //! until `|r| / |b|` is below the tolerance. Started from a guess `x` instead
-//! ([`ConjugateGradient::solve_filtered_from`]), `r = b - A x` and the same stop on `|r| / |b|`.
+//! ([`Start::Guess`]), `r = b - A x` and the same stop on `|r| / |b|`.
 //! The preconditioner `M^-1` is the caller's (block
 //! Jacobi through [`diagonal_blocks`], a multigrid V-cycle); it must be symmetric positive
 //! definite for the iteration to be CG.
@@ -61,6 +61,15 @@ impl BlockOperator for BlockStencil {
     }
 }
 
+/// Where a solve starts: from `x = 0`, or from the guess `x` holds (in `range(S)`), whose
+/// residual `S (b - A x)` starts the iteration; either way it stops on `|r| / |S b|`, so a
+/// close guess takes only the iterations its own error needs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Start {
+    Zero,
+    Guess,
+}
+
 /// The vectors of a CG solve, kept between solves so that a solve allocates nothing.
 #[derive(Clone, Debug, Default)]
 pub struct ConjugateGradient {
@@ -98,42 +107,15 @@ impl ConjugateGradient {
         precondition: impl FnMut(&Vec3s, &mut Vec3s),
     ) -> (u32, f64) {
         let settings = (tolerance, max_iterations);
-        self.solve_filtered(a, b, x, settings, precondition, |_| {})
+        self.solve_filtered(a, b, x, settings, precondition, |_| {}, Start::Zero)
     }
 
     /// [`ConjugateGradient::solve`] with every vector kept in the range of the projection
     /// `filter` (which projects its argument in place): solves `S A S x = S b` for `x` in
-    /// `range(S)`, stopping on `|r| / |S b|` at most `tolerance` or after `max_iterations`.
-    pub fn solve_filtered<A: BlockOperator>(
-        &mut self,
-        a: &A,
-        b: &Vec3s,
-        x: &mut Vec3s,
-        limits: (f64, u32),
-        precondition: impl FnMut(&Vec3s, &mut Vec3s),
-        filter: impl FnMut(&mut Vec3s),
-    ) -> (u32, f64) {
-        x.fill(glam::Vec3::ZERO);
-        self.iterate(a, b, x, limits, precondition, filter, false)
-    }
-
-    /// [`ConjugateGradient::solve_filtered`] from the guess `x` (in `range(S)`) instead of
-    /// zero: the residual starts at `S (b - A x)`, and the solve still stops on `|r| / |S b|`,
-    /// so a close guess takes only the iterations its own error needs.
-    pub fn solve_filtered_from<A: BlockOperator>(
-        &mut self,
-        a: &A,
-        b: &Vec3s,
-        x: &mut Vec3s,
-        limits: (f64, u32),
-        precondition: impl FnMut(&Vec3s, &mut Vec3s),
-        filter: impl FnMut(&mut Vec3s),
-    ) -> (u32, f64) {
-        self.iterate(a, b, x, limits, precondition, filter, true)
-    }
-
+    /// `range(S)`, from `start`, stopping on `|r| / |S b|` at most `tolerance` or after
+    /// `max_iterations`.
     #[allow(clippy::too_many_arguments)]
-    fn iterate<A: BlockOperator>(
+    pub fn solve_filtered<A: BlockOperator>(
         &mut self,
         a: &A,
         b: &Vec3s,
@@ -141,8 +123,12 @@ impl ConjugateGradient {
         (tolerance, max_iterations): (f64, u32),
         mut precondition: impl FnMut(&Vec3s, &mut Vec3s),
         mut filter: impl FnMut(&mut Vec3s),
-        warm: bool,
+        start: Start,
     ) -> (u32, f64) {
+        let warm = start == Start::Guess;
+        if !warm {
+            x.fill(glam::Vec3::ZERO);
+        }
         self.r.copy_from(b);
         filter(&mut self.r);
         let b_dot_b = par_dot(&self.r, &self.r, &mut self.partials);
@@ -323,13 +309,13 @@ mod tests {
         let mut warm = cold.clone();
         let limits = (1e-5, 500);
         let (iterations, residual) =
-            cg.solve_filtered_from(&Chain, &b, &mut warm, limits, jacobi, |_| {});
+            cg.solve_filtered(&Chain, &b, &mut warm, limits, jacobi, |_| {}, Start::Guess);
         assert_eq!((iterations, warm == cold), (0, true), "{residual}");
         let mut rough = Vec3s::zeros(n);
         cg.solve(&Chain, &b, &mut rough, 1e-2, 500, jacobi);
         let limits = (1e-6, 500);
         let (iterations, residual) =
-            cg.solve_filtered_from(&Chain, &b, &mut rough, limits, jacobi, |_| {});
+            cg.solve_filtered(&Chain, &b, &mut rough, limits, jacobi, |_| {}, Start::Guess);
         assert!(residual <= 1e-6, "{residual}");
         assert!(
             (1..cold_iterations).contains(&iterations),
