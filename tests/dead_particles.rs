@@ -70,8 +70,11 @@ fn check(nx: u32, ny: u32, integrator: IntegratorKind, cut: &[usize], far: &[f32
     // The same external change for the twin, so both integrators restart alike.
     still.set_positions(&still.positions().clone()).unwrap();
     still.set_velocities(&still.velocities().clone()).unwrap();
-    let a = still.step(40).map(|()| live_bits(&still));
-    let b = moved.step(40).map(|()| live_bits(&moved));
+    // A cut particle that reached a computation spoils the live cloth on the first step after
+    // the move (a NaN force, an infinite spring direction in the solve); a dozen steps also
+    // carry the moved particle's velocity through the colliders' and strain limit's passes.
+    let a = still.step(12).map(|()| live_bits(&still));
+    let b = moved.step(12).map(|()| live_bits(&moved));
     match (&a, &b) {
         (Ok(a), Ok(b)) => assert!(
             a == b,
