@@ -81,10 +81,12 @@ impl SpringMatrix {
             .map(|(&s, &c)| (s as usize, c as usize))
     }
 
-    /// The stored off-diagonal entries of row `v`, as [`SpringMatrix::gather`] left them:
-    /// `(column, block)`.
+    /// The off-diagonal entries of row `v`, `(column, block)`: the blocks [`SpringMatrix::off`]
+    /// holds, which the product's copy holds too after [`SpringMatrix::gather`]. Read from
+    /// `off` (a block's six components together) rather than from the product's layout (each
+    /// component in a line of its own).
     pub fn row_blocks(&self, v: usize) -> impl Iterator<Item = (usize, Sym3)> + '_ {
-        self.values.entries(v).map(|(c, b)| (c, Sym3(b)))
+        self.row(v).map(|(s, c)| (c, self.off[s]))
     }
 
     pub fn heap_bytes(&self) -> usize {

@@ -232,12 +232,33 @@ fn set_smoother<A: BlockRows + Sync>(a: &A, out: &mut [Sym3]) {
 fn jacobi_start(smoother: &[Sym3], b: &Vec3s, x: &mut Vec3s) {
     x.par_chunks_mut(REDUCE_CHUNK)
         .enumerate()
-        .for_each(|(c, mut x)| {
-            for k in 0..x.len() {
-                let v = c * REDUCE_CHUNK + k;
-                x.set(k, smoother[v].mul(b.get(v)));
-            }
+        .for_each(|(c, x)| {
+            let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + x.len();
+            let (s, b) = (&smoother[range.clone()], b.slices(range));
+            crate::simd::dispatch!(smooth(s, &b, x, |_, sb| sb))
         });
+}
+
+/// `out_k = add(out_k, S_k b_k)` for each node `k` of a chunk (`S_k b_k` as [`Sym3::mul`]
+/// computes it), written a component at a time over slices of one length, so that the
+/// compiler runs it across the vector unit's lanes (the nodes' blocks are read six apart).
+#[inline(always)]
+fn smooth(
+    s: &[Sym3],
+    b: &crate::soa::Vec3Slice,
+    out: crate::soa::Vec3SliceMut,
+    add: impl Fn(f32, f32) -> f32,
+) {
+    let n = s.len();
+    let (bx, by, bz) = (&b.x[..n], &b.y[..n], &b.z[..n]);
+    let (ox, oy, oz) = (&mut out.x[..n], &mut out.y[..n], &mut out.z[..n]);
+    for k in 0..n {
+        let m = &s[k].0;
+        let (u, v, w) = (bx[k], by[k], bz[k]);
+        ox[k] = add(ox[k], m[0] * u + m[3] * v + m[4] * w);
+        oy[k] = add(oy[k], m[3] * u + m[1] * v + m[5] * w);
+        oz[k] = add(oz[k], m[4] * u + m[5] * v + m[2] * w);
+    }
 }
 
 /// `r = b - a x`.
@@ -270,11 +291,10 @@ fn jacobi_sweep<A: BlockOperator>(
     residual(a, b, x, r);
     x.par_chunks_mut(REDUCE_CHUNK)
         .enumerate()
-        .for_each(|(c, mut x)| {
-            for k in 0..x.len() {
-                let v = c * REDUCE_CHUNK + k;
-                x.set(k, x.get(k) + smoother[v].mul(r.get(v)));
-            }
+        .for_each(|(c, x)| {
+            let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + x.len();
+            let (s, r) = (&smoother[range.clone()], r.slices(range));
+            crate::simd::dispatch!(smooth(s, &r, x, |x, sr| x + sr))
         });
 }
 
