@@ -315,19 +315,13 @@ impl SelfCollision {
                 max: p + grow,
             }
         }));
-        let limit = |_: &[u32; 4], _: usize| reach;
-        let looked = self.broad.search(
-            &self.topology,
-            &boxes,
-            x0,
-            limit,
-            1e-3 * eps as f64,
-            Order::Vertices,
-            &mut self.pairs,
-        );
+        let margin = 1e-3 * eps as f64;
+        let looked = self
+            .broad
+            .search_near(&self.topology, &boxes, x0, reach, margin);
         self.count(looked);
         self.search_boxes = boxes;
-        let found = self.pairs.iter().map(|p| (p.candidate(), p.d0));
+        let found = self.broad.near_found(&self.topology);
         self.list.rebuild(x0, reach, found);
         self.stats.rebuilds += 1;
     }
