@@ -29,12 +29,14 @@ pub struct Broad {
     /// thousand.
     near_vertex_triangles: Vec<(u64, f64)>,
     near_edge_edges: Vec<(u64, f64)>,
-    /// What orders each found pair and where it is, in that order; for the pair list, its
-    /// vertex-triangle pairs' then its edge-edge pairs'.
+    /// What orders each found pair and where it is, in that order.
     sorted: Vec<(u64, u32)>,
-    sorted_near: Vec<(u64, u32)>,
-    /// Where each key's first vertex or edge starts in `sorted`, and where the next pair of it
-    /// goes.
+    /// The pair list's pairs found, each under its key with its distance, in that order: the
+    /// first `near_split` vertex-triangle pairs, then the edge-edge pairs.
+    sorted_near: Vec<(u64, f64)>,
+    near_split: usize,
+    /// Where each key's first vertex or edge starts among the sorted pairs, and where its next
+    /// pair goes.
     starts: Vec<u32>,
     cursor: Vec<u32>,
     /// Each triangle's place among the triangles ordered by their vertices (for
@@ -107,9 +109,13 @@ impl Broad {
             std::mem::take(&mut self.edge_edges),
         );
         let looked = self.find(topo, x, &limit, margin, order, closest, &mut vt, &mut ee);
+        // The keys are sorted with where each pair is, not with the pairs (six times larger).
         out.clear();
         for (found, buckets) in [(&vt, topo.same.len()), (&ee, topo.edges.len())] {
-            self.in_key_order(found, buckets);
+            let at = found.iter().enumerate().map(|(k, p)| (p.0, k as u32));
+            self.sorted.clear();
+            let (starts, cursor) = (&mut self.starts, &mut self.cursor);
+            in_key_order(at, buckets, starts, cursor, &mut self.sorted);
             out.extend(self.sorted.iter().map(|&(_, k)| found[k as usize].1));
         }
         (self.vertex_triangles, self.edge_edges) = (vt, ee);
@@ -139,13 +145,13 @@ impl Broad {
         );
         let order = Order::Vertices;
         let looked = self.find(topo, x, &limit, margin, order, measure, &mut vt, &mut ee);
-        self.in_key_order(&vt, topo.same.len());
-        let mut sorted = std::mem::take(&mut self.sorted_near);
+        // Sorted with their distances, as small as where each is, so that the list reads them
+        // in order.
+        let (starts, cursor, sorted) = (&mut self.starts, &mut self.cursor, &mut self.sorted_near);
         sorted.clear();
-        sorted.extend_from_slice(&self.sorted);
-        self.in_key_order(&ee, topo.edges.len());
-        sorted.extend_from_slice(&self.sorted);
-        self.sorted_near = sorted;
+        in_key_order(vt.iter().copied(), topo.same.len(), starts, cursor, sorted);
+        in_key_order(ee.iter().copied(), topo.edges.len(), starts, cursor, sorted);
+        self.near_split = vt.len();
         (self.near_vertex_triangles, self.near_edge_edges) = (vt, ee);
         looked
     }
@@ -156,22 +162,20 @@ impl Broad {
         &'a self,
         topo: &'a Topology,
     ) -> impl Iterator<Item = (Candidate, f64)> + 'a {
-        let (vt, ee) = (&self.near_vertex_triangles, &self.near_edge_edges);
-        let (triangles, by_rank) = (&topo.triangles, &self.by_rank);
+        let (split, by_rank) = (self.near_split, &self.by_rank);
         self.sorted_near
             .iter()
             .enumerate()
-            .map(move |(i, &(key, k))| {
-                let (first, second) = ((key >> 32) as u32, key as u32);
-                if i < vt.len() {
-                    let [a, b, c] = triangles[by_rank[second as usize] as usize];
-                    let verts = [first, a, b, c];
-                    (Candidate { verts, split: 1 }, vt[k as usize].1)
+            .map(move |(i, &(key, d))| {
+                let (first, second) = ((key >> 32) as usize, key as u32 as usize);
+                if i < split {
+                    let [a, b, c] = topo.triangles[by_rank[second] as usize];
+                    let verts = [first as u32, a, b, c];
+                    (Candidate { verts, split: 1 }, d)
                 } else {
-                    let ([a, b], [c, d]) =
-                        (topo.edges[first as usize], topo.edges[second as usize]);
-                    let verts = [a, b, c, d];
-                    (Candidate { verts, split: 2 }, ee[k as usize].1)
+                    let ([a, b], [c, d_]) = (topo.edges[first], topo.edges[second]);
+                    let verts = [a, b, c, d_];
+                    (Candidate { verts, split: 2 }, d)
                 }
             })
     }
@@ -275,34 +279,6 @@ impl Broad {
         })
     }
 
-    /// Into `sorted`, the keys of `found` with where each is, in key order: an order of the
-    /// pairs alone, whatever the trees' shape or the thread count. A counting sort by the key's
-    /// first vertex or edge (one of `buckets`), then each bucket sorted: the keys are distinct,
-    /// so the order is exact, and a bucket holds a vertex's or an edge's few dozen pairs.
-    fn in_key_order<R>(&mut self, found: &[(u64, R)], buckets: usize) {
-        let (starts, cursor) = (&mut self.starts, &mut self.cursor);
-        starts.clear();
-        starts.resize(buckets + 1, 0);
-        for &(key, _) in found {
-            starts[(key >> 32) as usize + 1] += 1;
-        }
-        for b in 0..buckets {
-            starts[b + 1] += starts[b];
-        }
-        cursor.clear();
-        cursor.extend_from_slice(&starts[..buckets]);
-        self.sorted.clear();
-        self.sorted.resize(found.len(), (0, 0));
-        for (k, &(key, _)) in found.iter().enumerate() {
-            let at = &mut cursor[(key >> 32) as usize];
-            self.sorted[*at as usize] = (key, k as u32);
-            *at += 1;
-        }
-        self.sorted
-            .par_chunk_by_mut(|p, q| p.0 >> 32 == q.0 >> 32)
-            .for_each(|bucket| bucket.sort_unstable());
-    }
-
     pub fn heap_bytes(&self) -> usize {
         (self.tri_boxes.capacity() + self.edge_boxes.capacity()) * size_of::<Aabb>()
             + self.vert_boxes.capacity() * size_of::<Aabb>()
@@ -316,6 +292,42 @@ impl Broad {
             + self.tri_tree.heap_bytes()
             + self.edge_tree.heap_bytes()
     }
+}
+
+/// Appends `items`, each under its key, to `out` in key order: an order of the pairs alone,
+/// whatever the trees' shape or the thread count. A counting sort by the key's first vertex or
+/// edge (one of `buckets`, counted in `starts` and placed by `cursor`), then each bucket sorted:
+/// the keys are distinct, so the order is exact, and a bucket holds a vertex's or an edge's few
+/// dozen pairs.
+fn in_key_order<T: Copy + Default + Send>(
+    items: impl Iterator<Item = (u64, T)> + Clone,
+    buckets: usize,
+    starts: &mut Vec<u32>,
+    cursor: &mut Vec<u32>,
+    out: &mut Vec<(u64, T)>,
+) {
+    let bucket = |key: u64| (key >> 32) as usize;
+    starts.clear();
+    starts.resize(buckets + 1, 0);
+    for (key, _) in items.clone() {
+        starts[bucket(key) + 1] += 1;
+    }
+    for b in 0..buckets {
+        starts[b + 1] += starts[b];
+    }
+    cursor.clear();
+    cursor.extend_from_slice(&starts[..buckets]);
+    let first = out.len();
+    out.resize(first + starts[buckets] as usize, Default::default());
+    let placed = &mut out[first..];
+    for item in items {
+        let at = &mut cursor[bucket(item.0)];
+        placed[*at as usize] = item;
+        *at += 1;
+    }
+    placed
+        .par_chunk_by_mut(|p, q| bucket(p.0) == bucket(q.0))
+        .for_each(|b| b.sort_unstable_by_key(|p| p.0));
 }
 
 /// The distance between the boxes of `verts[..split]` and `verts[split..]` at `x` (m), a lower
