@@ -125,6 +125,40 @@ fn check_stepping(integrator: IntegratorKind, scene: Scene) {
     assert!(allocations > 0 && !strain.is_empty());
 }
 
+/// A substep on a kept pair list that finds no pair near enough allocates nothing: the list's
+/// filter and each vertex's stray from the cloth's common motion work in buffers sized when the
+/// list is built. A flat cloth at rest, its cells (7.7 mm) close enough to its `thickness`
+/// (3 mm) that the list holds its neighbours, built on the first substep and then kept.
+#[test]
+fn a_quiet_substep_on_a_kept_pair_list_allocates_nothing() {
+    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    with_threads(2, || {
+        rayon::broadcast(|_| WATCHED.with(|w| w.set(true)));
+        let mut scene = Scene::builtin("twist").unwrap();
+        (scene.cloth.nx, scene.cloth.ny, scene.cloth.size) = (40, 40, [0.3, 0.3]);
+        let allocations = fewest(|| {
+            let mut sim = Simulation::new(scene.clone()).unwrap();
+            sim.step(3).unwrap();
+            let before = sim.self_collision_stats().unwrap();
+            let (allocations, ()) = counted(|| sim.step(20).unwrap());
+            let after = sim.self_collision_stats().unwrap();
+            assert_eq!(before.rebuilds, 1, "the list is built once");
+            assert!(
+                before.effort.candidates > 0,
+                "the list holds no pair to filter"
+            );
+            assert_eq!(
+                (after.rebuilds, after.pairs),
+                (1, 0),
+                "the substeps were not quiet"
+            );
+            assert_eq!(after.substeps, before.substeps + 20);
+            allocations
+        });
+        assert_eq!(allocations, 0, "a quiet substep allocated");
+    });
+}
+
 #[test]
 fn the_watchdog_retry_path_does_not_allocate() {
     // The allocation test armed the watchdog with a limit that never tripped, so the retry

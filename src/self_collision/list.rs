@@ -31,6 +31,10 @@ pub struct PairList {
     /// Where in `candidates` the last [`PairList::within`] found its pairs; as long as the
     /// list, so that taking pairs from a kept list never allocates.
     near: Vec<u32>,
+    /// Each particle's own stray from the cloth's common displacement since the anchor, as the
+    /// last [`PairList::strayed`] found it (m; zero at a rebuild), and the most of them.
+    strays: Vec<f64>,
+    most_strayed: f64,
 }
 
 impl PairList {
@@ -39,6 +43,8 @@ impl PairList {
         self.anchor = None;
         self.candidates.clear();
         self.distances.clear();
+        self.strays.clear();
+        self.most_strayed = 0.0;
     }
 
     /// Where the list was built, if it was.
@@ -59,20 +65,28 @@ impl PairList {
     /// `drift.radius()`, and below it when no vertex sits in a corner of the box (a cloth whose
     /// rim falls while its middle rests: about three quarters of it in the pile). An exact
     /// reduction (max), so the same for any thread count. None without an anchor.
-    pub fn strayed(&self, verts: &[u32], x: &Vec3s, drift: Spread) -> Option<f64> {
+    ///
+    /// Each vertex's own stray is kept for [`PairList::within`]: a pair's distance has changed
+    /// by at most the most either of its primitives' vertices strayed, and most of a settling
+    /// cloth's vertices stray far less than its farthest.
+    pub fn strayed(&mut self, verts: &[u32], x: &Vec3s, drift: Spread) -> Option<f64> {
         let anchor = self.anchor.as_ref()?;
         let centre = 0.5 * (drift.lo + drift.hi);
-        let from_centre = |&v: &u32| {
-            let v = v as usize;
-            (x.get(v).as_dvec3() - anchor.get(v).as_dvec3() - centre).length()
+        let from_centre = |(v, stray): (usize, &mut f64)| {
+            *stray = (x.get(v).as_dvec3() - anchor.get(v).as_dvec3() - centre).length();
         };
-        Some(
-            verts
-                .par_iter()
-                .with_min_len(4096)
-                .map(from_centre)
-                .reduce(|| 0.0, f64::max),
-        )
+        self.strays
+            .par_iter_mut()
+            .with_min_len(4096)
+            .enumerate()
+            .for_each(from_centre);
+        let strays = &self.strays;
+        self.most_strayed = verts
+            .par_iter()
+            .with_min_len(4096)
+            .map(|&v| strays[v as usize])
+            .reduce(|| 0.0, f64::max);
+        Some(self.most_strayed)
     }
 
     /// Takes `found`, every pair closer than `reach` at `x` with its distance there, in the
@@ -88,6 +102,9 @@ impl PairList {
             anchor => *anchor = Some(x.clone()),
         }
         self.reach = reach;
+        self.strays.clear();
+        self.strays.resize(x.len(), 0.0);
+        self.most_strayed = 0.0;
         self.candidates.clear();
         self.distances.clear();
         for (c, d) in found {
@@ -99,12 +116,31 @@ impl PairList {
         self.near.reserve(self.candidates.len());
     }
 
-    /// The listed pairs that were closer than `d` at the anchor, in the order of their keys.
-    pub fn within(&mut self, d: f64) -> impl IndexedParallelIterator<Item = Candidate> + '_ {
+    /// The listed pairs that may be closer than `d` now, in the order of their keys: those
+    /// whose distance at the anchor, less the most any vertex of each of their two primitives
+    /// strayed since ([`PairList::strayed`], or nothing since a rebuild) and `eps` for each, is
+    /// below `d`.
+    pub fn within(
+        &mut self,
+        d: f64,
+        eps: f64,
+    ) -> impl IndexedParallelIterator<Item = Candidate> + '_ {
         self.near.clear();
-        let near = self.distances.iter().enumerate().filter(|(_, &e)| e < d);
-        self.near.extend(near.map(|(k, _)| k as u32));
+        let strays = &self.strays;
+        let side = |s: &[u32]| s.iter().map(|&v| strays[v as usize]).fold(0.0, f64::max);
+        // The farthest vertex's stray first: it passes over most pairs by their distance
+        // alone, without reading the pair.
+        let loose = d + 2.0 * (self.most_strayed + eps);
         let candidates = &self.candidates;
+        let near = |&(k, &e): &(usize, &f64)| {
+            e < loose && {
+                let c = &candidates[k];
+                let (a, b) = c.verts.split_at(usize::from(c.split).min(4));
+                e < d + side(a) + side(b) + 2.0 * eps
+            }
+        };
+        let listed = self.distances.iter().enumerate().filter(near);
+        self.near.extend(listed.map(|(k, _)| k as u32));
         self.near.par_iter().map(move |&k| candidates[k as usize])
     }
 
@@ -113,6 +149,7 @@ impl PairList {
             + self.candidates.capacity() * size_of::<Candidate>()
             + self.distances.capacity() * 8
             + self.near.capacity() * 4
+            + self.strays.capacity() * 8
     }
 }
 
@@ -208,12 +245,13 @@ mod tests {
         assert!(!list.covers(None, 0.0, 0.0));
         assert_eq!(list.strayed(&[0, 1], &a, Spread::default()), None);
         list.rebuild(&a, 0.01, std::iter::empty());
-        let strayed = |x: &Vec3s| list.strayed(&[0, 1], x, displacements(&[0, 1], &a, x));
-        assert!(list.covers(strayed(&a), 0.01, 0.0));
-        let mut b = a.clone();
+        let mut strayed = |x: &Vec3s| list.strayed(&[0, 1], x, displacements(&[0, 1], &a, x));
+        let (at_a, mut b) = (strayed(&a), a.clone());
         b.set(1, Vec3::new(1.002, 0.0, 0.0)); // spread 0.001
-        assert!(list.covers(strayed(&b), 0.0079, 0.0));
-        assert!(!list.covers(strayed(&b), 0.0081, 0.0));
+        let at_b = strayed(&b);
+        assert!(list.covers(at_a, 0.01, 0.0));
+        assert!(list.covers(at_b, 0.0079, 0.0));
+        assert!(!list.covers(at_b, 0.0081, 0.0));
         list.clear();
         assert!(list.anchor().is_none());
     }
@@ -241,9 +279,39 @@ mod tests {
         assert!(!list.covers(Some(drift.radius()), 0.0055, 0.0));
     }
 
+    /// A substep looks at the listed pairs that its own vertices' strays could have brought
+    /// within reach, not all those the farthest vertex's could: a settling cloth's farthest
+    /// vertex strays several times as far as most, and each pair looked at costs its closest
+    /// points.
+    #[test]
+    fn a_pair_is_near_by_its_own_vertices_stray_not_the_farthest() {
+        let a = Vec3s::from_fn(8, |v| Vec3::new(v as f32, 0.0, 0.0));
+        let pair = |v: u32, d: f64| {
+            let verts = [v, v + 1, v + 2, v + 3];
+            (Candidate { verts, split: 1 }, d)
+        };
+        let mut list = PairList::default();
+        list.rebuild(&a, 0.01, [pair(0, 0.005), pair(4, 0.005)].into_iter());
+        assert_eq!(list.within(0.004, 0.0).count(), 0);
+        // Vertices 6 and 7 (of the second pair's triangle) stray 0.002 either way from the
+        // common displacement (zero: the others stay); the first pair's vertices do not stray.
+        let mut b = a.clone();
+        b.set(6, a.get(6) - Vec3::new(0.0, 0.002, 0.0));
+        b.set(7, a.get(7) + Vec3::new(0.0, 0.002, 0.0));
+        let verts: Vec<u32> = (0..8).collect();
+        let strayed = list.strayed(&verts, &b, displacements(&verts, &a, &b));
+        assert!((strayed.unwrap() - 0.002).abs() < 1e-6, "{strayed:?}");
+        // The second pair may be 0.005 - 0.002 apart now, the first is still 0.005 apart
+        // (twice the farthest stray would let both through below 0.0035).
+        let near: Vec<u32> = list.within(0.0035, 0.0).map(|c| c.verts[0]).collect();
+        assert_eq!(near, [4]);
+        assert_eq!(list.within(0.0029, 0.0).count(), 0);
+        assert_eq!(list.within(0.0051, 0.0).count(), 2);
+    }
+
     #[test]
     fn the_nearest_come_in_the_order_of_their_keys() {
-        let a = Vec3s::zeros(1);
+        let a = Vec3s::zeros(4);
         let at = |d: f64, v: u32| {
             (
                 Candidate {
@@ -256,9 +324,9 @@ mod tests {
         let mut list = PairList::default();
         let found = [at(0.005, 0), at(0.001, 1), at(0.003, 2), at(0.001, 3)];
         list.rebuild(&a, 0.01, found.into_iter());
-        let first: Vec<u32> = list.within(0.004).map(|c| c.verts[0]).collect();
+        let first: Vec<u32> = list.within(0.004, 0.0).map(|c| c.verts[0]).collect();
         assert_eq!(first, [1, 2, 3]);
-        assert_eq!(list.within(0.001).count(), 0);
-        assert_eq!(list.within(1.0).count(), 4);
+        assert_eq!(list.within(0.001, 0.0).count(), 0);
+        assert_eq!(list.within(1.0, 0.0).count(), 4);
     }
 }

@@ -248,12 +248,10 @@ impl SelfCollision {
         let clock = Instant::now();
         let finite = if needed <= LIST_LIMIT * thickness {
             let strayed = survey.drift.and_then(|d| self.list.strayed(verts, x0, d));
-            let mut drift = strayed.unwrap_or(0.0) + eps;
             if !self.list.covers(strayed, needed, eps) {
                 self.rebuild_list(x0, needed + SKIN * thickness, eps as f32);
-                drift = eps;
             }
-            self.listed_pairs(x0, needed, drift);
+            self.listed_pairs(x0, needed, eps);
             self.stats.effort.search_seconds += clock.elapsed().as_secs_f64();
             if self.pairs.is_empty() {
                 return true;
@@ -315,29 +313,24 @@ impl SelfCollision {
                 max: p + grow,
             }
         }));
-        let limit = |_: &[u32; 4], _: usize| reach;
-        let looked = self.broad.search(
-            &self.topology,
-            &boxes,
-            x0,
-            limit,
-            1e-3 * eps as f64,
-            Order::Vertices,
-            &mut self.pairs,
-        );
+        let margin = 1e-3 * eps as f64;
+        let looked = self
+            .broad
+            .search_near(&self.topology, &boxes, x0, reach, margin);
         self.count(looked);
         self.search_boxes = boxes;
-        let found = self.pairs.iter().map(|p| (p.candidate(), p.d0));
+        let found = self.broad.near_found(&self.topology);
         self.list.rebuild(x0, reach, found);
         self.stats.rebuilds += 1;
     }
 
     /// The listed pairs closer than `needed` at `x0`, with their closest points there, ordered
     /// by their vertices (the list's order: the same whenever the list was built, so the result
-    /// depends on the substep alone). A pair that was `d` apart at the anchor is at least
-    /// `d - 2 drift` apart now, so only the list's nearest need a look.
-    fn listed_pairs(&mut self, x0: &Vec3s, needed: f64, drift: f64) {
-        let near = self.list.within(needed + 2.0 * drift);
+    /// depends on the substep alone). A pair that was `d` apart at the anchor is at least `d`
+    /// less its vertices' strays apart now ([`PairList::within`]; `eps` allows for round-off),
+    /// so only the list's nearest need a look.
+    fn listed_pairs(&mut self, x0: &Vec3s, needed: f64, eps: f64) {
+        let near = self.list.within(needed, eps);
         self.pairs.clear();
         self.pairs.par_extend(near.map(|c| c.at(x0)));
         self.pairs.retain(|p| p.d0 < needed);

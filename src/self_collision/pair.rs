@@ -70,20 +70,43 @@ pub fn inverse_mass(pair: &Pair, inv_mass: &[f32]) -> Option<f64> {
 
 /// Vertex `q[0]` against triangle `q[1..]` at positions `x`.
 pub fn vertex_triangle(x: &Vec3s, q: [u32; 4]) -> Pair {
-    let [p, a, b, c] = q.map(|v| x.get(v as usize).as_dvec3());
-    let w = geometry::point_triangle(p, a, b, c);
-    let gap = p - (w[0] * a + w[1] * b + w[2] * c);
+    let ([_, a, b, c], w, gap) = vertex_triangle_gap(x, q);
     let fallback = || (b - a).cross(c - a).normalize_or_zero();
     finish(q, 1, [1.0, -w[0], -w[1], -w[2]], gap, fallback)
 }
 
 /// Edge `q[0..2]` against edge `q[2..]` at positions `x`.
 pub fn edge_edge(x: &Vec3s, q: [u32; 4]) -> Pair {
+    let ([a, b, c, d], (s, t), gap) = edge_edge_gap(x, q);
+    let fallback = || (b - a).cross(d - c).normalize_or_zero();
+    finish(q, 2, [1.0 - s, s, t - 1.0, -t], gap, fallback)
+}
+
+/// The distance of the pair `q` split at `split` at positions `x` (m): bitwise the `d0` of its
+/// [`vertex_triangle`] or [`edge_edge`], without the weights and the normal.
+pub fn distance(x: &Vec3s, q: [u32; 4], split: usize) -> f64 {
+    match split {
+        1 => vertex_triangle_gap(x, q).2.length(),
+        _ => edge_edge_gap(x, q).2.length(),
+    }
+}
+
+/// The positions of `q`, the closest point's weights on the triangle and the gap vector.
+#[inline]
+fn vertex_triangle_gap(x: &Vec3s, q: [u32; 4]) -> ([DVec3; 4], [f64; 3], DVec3) {
+    let [p, a, b, c] = q.map(|v| x.get(v as usize).as_dvec3());
+    let w = geometry::point_triangle(p, a, b, c);
+    let gap = p - (w[0] * a + w[1] * b + w[2] * c);
+    ([p, a, b, c], w, gap)
+}
+
+/// The positions of `q`, the closest points' parameters on the two edges and the gap vector.
+#[inline]
+fn edge_edge_gap(x: &Vec3s, q: [u32; 4]) -> ([DVec3; 4], (f64, f64), DVec3) {
     let [a, b, c, d] = q.map(|v| x.get(v as usize).as_dvec3());
     let (s, t) = geometry::segment_segment(a, b, c, d);
     let gap = (a + s * (b - a)) - (c + t * (d - c));
-    let fallback = || (b - a).cross(d - c).normalize_or_zero();
-    finish(q, 2, [1.0 - s, s, t - 1.0, -t], gap, fallback)
+    ([a, b, c, d], (s, t), gap)
 }
 
 fn finish(

@@ -7,7 +7,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::self_collision::bvh::{Aabb, Bvh};
-use crate::self_collision::pair::{edge_edge, vertex_triangle, Pair};
+use crate::self_collision::pair::{distance, edge_edge, vertex_triangle, Candidate, Pair};
 use crate::self_collision::topology::Topology;
 use crate::soa::Vec3s;
 
@@ -21,13 +21,28 @@ pub struct Broad {
     vert_tree: Bvh,
     tri_tree: Bvh,
     edge_tree: Bvh,
-    /// The pairs found, each with what orders it.
+    /// The pairs found with their closest points, each with what orders it.
     vertex_triangles: Vec<(u64, Pair)>,
     edge_edges: Vec<(u64, Pair)>,
+    /// The pairs found for the pair list, each with what orders it and its distance (m): a
+    /// sixth of a pair with its closest points, which a list rebuild finds by the hundred
+    /// thousand.
+    near_vertex_triangles: Vec<(u64, f64)>,
+    near_edge_edges: Vec<(u64, f64)>,
+    /// What orders each found pair and where it is, in that order.
     sorted: Vec<(u64, u32)>,
+    /// The pair list's pairs found, each under its key with its distance, in that order: the
+    /// first `near_split` vertex-triangle pairs, then the edge-edge pairs.
+    sorted_near: Vec<(u64, f64)>,
+    near_split: usize,
+    /// Where each key's first vertex or edge starts among the sorted pairs, and where its next
+    /// pair goes.
+    starts: Vec<u32>,
+    cursor: Vec<u32>,
     /// Each triangle's place among the triangles ordered by their vertices (for
-    /// [`Order::Vertices`]).
+    /// [`Order::Vertices`]), and the triangle at each place.
     tri_rank: Vec<u32>,
+    by_rank: Vec<u32>,
     /// The topology version the trees were shaped for.
     shaped_for: Option<u64>,
 }
@@ -53,13 +68,22 @@ pub struct Looked {
     pub candidates: u64,
 }
 
+impl Looked {
+    fn and(self, other: Looked) -> Looked {
+        Looked {
+            boxes: self.boxes + other.boxes,
+            candidates: self.candidates + other.candidates,
+        }
+    }
+}
+
 impl Broad {
     /// Into `out`, in vertex then triangle (as `order` says) and edge then edge order (so the
-    /// same for any thread count): every pair whose boxes overlap, given each vertex's box, and which is
-    /// closer than `limit(verts, split)` at `x`, with its closest points there. A primitive's
-    /// box is the union of its vertices'. `margin` (m) bounds the round-off of a distance at
-    /// `x`: a pair whose primitives' tight boxes at `x` are farther apart than `limit` and
-    /// `margin` is passed over without its closest points.
+    /// same for any thread count): every pair whose boxes overlap, given each vertex's box, and
+    /// which is closer than `limit(verts, split)` at `x`, with its closest points there. A
+    /// primitive's box is the union of its vertices'. `margin` (m) bounds the round-off of a
+    /// distance at `x`: a pair whose primitives' tight boxes at `x` are farther apart than
+    /// `limit` and `margin` is passed over without its closest points.
     // Each argument is a separate input of the one search both ways of finding pairs share.
     #[allow(clippy::too_many_arguments)]
     pub fn search(
@@ -72,6 +96,93 @@ impl Broad {
         order: Order,
         out: &mut Vec<Pair>,
     ) -> Looked {
+        self.fit(topo, vertex_boxes);
+        let closest = |verts: [u32; 4], split: usize| {
+            let pair = match split {
+                1 => vertex_triangle(x, verts),
+                _ => edge_edge(x, verts),
+            };
+            (pair.d0, pair)
+        };
+        let (mut vt, mut ee) = (
+            std::mem::take(&mut self.vertex_triangles),
+            std::mem::take(&mut self.edge_edges),
+        );
+        let looked = self.find(topo, x, &limit, margin, order, closest, &mut vt, &mut ee);
+        // The keys are sorted with where each pair is, not with the pairs (six times larger).
+        out.clear();
+        for (found, buckets) in [(&vt, topo.same.len()), (&ee, topo.edges.len())] {
+            let at = found.iter().enumerate().map(|(k, p)| (p.0, k as u32));
+            self.sorted.clear();
+            let (starts, cursor) = (&mut self.starts, &mut self.cursor);
+            in_key_order(at, buckets, starts, cursor, &mut self.sorted);
+            out.extend(self.sorted.iter().map(|&(_, k)| found[k as usize].1));
+        }
+        (self.vertex_triangles, self.edge_edges) = (vt, ee);
+        looked
+    }
+
+    /// For the pair list: every pair whose boxes overlap and which is closer than `reach` at
+    /// `x`, as [`Broad::search`] with [`Order::Vertices`] finds them, but with its distance
+    /// alone; [`Broad::near_found`] then gives them in that order.
+    pub fn search_near(
+        &mut self,
+        topo: &Topology,
+        vertex_boxes: &[Aabb],
+        x: &Vec3s,
+        reach: f64,
+        margin: f64,
+    ) -> Looked {
+        self.fit(topo, vertex_boxes);
+        let limit = |_: &[u32; 4], _: usize| reach;
+        let measure = |verts: [u32; 4], split: usize| {
+            let d = distance(x, verts, split);
+            (d, d)
+        };
+        let (mut vt, mut ee) = (
+            std::mem::take(&mut self.near_vertex_triangles),
+            std::mem::take(&mut self.near_edge_edges),
+        );
+        let order = Order::Vertices;
+        let looked = self.find(topo, x, &limit, margin, order, measure, &mut vt, &mut ee);
+        // Sorted with their distances, as small as where each is, so that the list reads them
+        // in order.
+        let (starts, cursor, sorted) = (&mut self.starts, &mut self.cursor, &mut self.sorted_near);
+        sorted.clear();
+        in_key_order(vt.iter().copied(), topo.same.len(), starts, cursor, sorted);
+        in_key_order(ee.iter().copied(), topo.edges.len(), starts, cursor, sorted);
+        self.near_split = vt.len();
+        (self.near_vertex_triangles, self.near_edge_edges) = (vt, ee);
+        looked
+    }
+
+    /// The pairs the last [`Broad::search_near`] found, each with its distance, in the order of
+    /// their keys ([`Candidate::key`]): the vertex-triangle pairs, then the edge-edge pairs.
+    pub fn near_found<'a>(
+        &'a self,
+        topo: &'a Topology,
+    ) -> impl Iterator<Item = (Candidate, f64)> + 'a {
+        let (split, by_rank) = (self.near_split, &self.by_rank);
+        self.sorted_near
+            .iter()
+            .enumerate()
+            .map(move |(i, &(key, d))| {
+                let (first, second) = ((key >> 32) as usize, key as u32 as usize);
+                if i < split {
+                    let [a, b, c] = topo.triangles[by_rank[second] as usize];
+                    let verts = [first as u32, a, b, c];
+                    (Candidate { verts, split: 1 }, d)
+                } else {
+                    let ([a, b], [c, d_]) = (topo.edges[first], topo.edges[second]);
+                    let verts = [a, b, c, d_];
+                    (Candidate { verts, split: 2 }, d)
+                }
+            })
+    }
+
+    /// Refits the trees to `vertex_boxes` (each vertex's box), shaping them first for a new
+    /// topology.
+    fn fit(&mut self, topo: &Topology, vertex_boxes: &[Aabb]) {
         let vb = vertex_boxes;
         self.tri_boxes.clear();
         self.tri_boxes
@@ -96,29 +207,44 @@ impl Broad {
             for (rank, &t) in by_vertices.iter().enumerate() {
                 self.tri_rank[t as usize] = rank as u32;
             }
+            self.by_rank = by_vertices;
             self.shaped_for = topo.version;
         } else {
             self.vert_tree.refit(&self.vert_boxes);
             self.tri_tree.refit(&self.tri_boxes);
             self.edge_tree.refit(&self.edge_boxes);
         }
-        // A candidate's closest points, kept under `key` when closer than its limit; its tight
-        // boxes pass over it first when they are already farther apart than that.
-        let keep_close = |verts: [u32; 4],
-                          split: usize,
-                          key: u64,
-                          closest: fn(&Vec3s, [u32; 4]) -> Pair,
-                          out: &mut Vec<(u64, Pair)>| {
+    }
+
+    /// Into `vt` and `ee`, in an order fixed by the trees: every vertex-triangle and edge-edge
+    /// pair whose boxes overlap and whose `measure` (its distance at `x` and what is kept of
+    /// it) is below `limit`, under its key (as `order` says for the vertex-triangle pairs). A
+    /// pair's tight boxes at `x` pass over it first when they are farther apart than `limit`
+    /// and `margin`.
+    // The two searches differ only in what they keep of a pair.
+    #[allow(clippy::too_many_arguments)]
+    fn find<R: Send>(
+        &self,
+        topo: &Topology,
+        x: &Vec3s,
+        limit: &(impl Fn(&[u32; 4], usize) -> f64 + Sync),
+        margin: f64,
+        order: Order,
+        measure: impl Fn([u32; 4], usize) -> (f64, R) + Sync,
+        vt: &mut Vec<(u64, R)>,
+        ee: &mut Vec<(u64, R)>,
+    ) -> Looked {
+        let keep_close = |verts: [u32; 4], split: usize, key: u64, out: &mut Vec<(u64, R)>| {
             let most = limit(&verts, split);
             if apart(x, &verts, split) <= most + margin {
-                let pair = closest(x, verts);
-                if pair.d0 < most {
-                    out.push((key, pair));
+                let (d, kept) = measure(verts, split);
+                if d < most {
+                    out.push((key, kept));
                 }
             }
         };
         let tri_rank = &self.tri_rank;
-        let vertex_triangle_pair = |k: u32, t: u32, out: &mut Vec<(u64, Pair)>| {
+        let vertex_triangle_pair = |k: u32, t: u32, out: &mut Vec<(u64, R)>| {
             let v = topo.vertices[k as usize];
             let [a, b, c] = topo.triangles[t as usize];
             if topo.joined(v, a) || topo.joined(v, b) || topo.joined(v, c) {
@@ -129,15 +255,13 @@ impl Broad {
                 Order::Vertices => tri_rank[t as usize],
             };
             let key = (v as u64) << 32 | place as u64;
-            keep_close([v, a, b, c], 1, key, vertex_triangle, out);
+            keep_close([v, a, b, c], 1, key, out);
             true
         };
-        let (boxes, candidates) = self.vert_tree.overlapping_pairs(
-            Some(&self.tri_tree),
-            vertex_triangle_pair,
-            &mut self.vertex_triangles,
-        );
-        let edge_edge_pair = |e: u32, f: u32, out: &mut Vec<(u64, Pair)>| {
+        let (boxes, candidates) =
+            self.vert_tree
+                .overlapping_pairs(Some(&self.tri_tree), vertex_triangle_pair, vt);
+        let edge_edge_pair = |e: u32, f: u32, out: &mut Vec<(u64, R)>| {
             let (e, f) = (e.min(f), e.max(f));
             let ([a, b], [c, d]) = (topo.edges[e as usize], topo.edges[f as usize]);
             let joined = |p: u32| topo.joined(p, c) || topo.joined(p, d);
@@ -145,28 +269,14 @@ impl Broad {
                 return false;
             }
             let key = (e as u64) << 32 | f as u64;
-            keep_close([a, b, c, d], 2, key, edge_edge, out);
+            keep_close([a, b, c, d], 2, key, out);
             true
         };
-        let more = self
-            .edge_tree
-            .overlapping_pairs(None, edge_edge_pair, &mut self.edge_edges);
-        // Vertex then triangle, then edge then edge: an order of the pairs alone, whatever the
-        // trees' shape or the thread count (the keys are distinct, so an unstable sort is
-        // exact).
-        // The keys are sorted with where each pair is, not with the pairs (ten times larger).
-        out.clear();
-        for found in [&self.vertex_triangles, &self.edge_edges] {
-            self.sorted.clear();
-            self.sorted
-                .extend(found.iter().enumerate().map(|(k, p)| (p.0, k as u32)));
-            self.sorted.par_sort_unstable();
-            out.extend(self.sorted.iter().map(|&(_, k)| found[k as usize].1));
-        }
-        Looked {
-            boxes: boxes + more.0,
-            candidates: candidates + more.1,
-        }
+        let more = self.edge_tree.overlapping_pairs(None, edge_edge_pair, ee);
+        Looked { boxes, candidates }.and(Looked {
+            boxes: more.0,
+            candidates: more.1,
+        })
     }
 
     pub fn heap_bytes(&self) -> usize {
@@ -174,12 +284,50 @@ impl Broad {
             + self.vert_boxes.capacity() * size_of::<Aabb>()
             + (self.vertex_triangles.capacity() + self.edge_edges.capacity())
                 * size_of::<(u64, Pair)>()
-            + self.sorted.capacity() * 16
-            + self.tri_rank.capacity() * 4
+            + (self.near_vertex_triangles.capacity() + self.near_edge_edges.capacity()) * 16
+            + (self.sorted.capacity() + self.sorted_near.capacity()) * 16
+            + (self.starts.capacity() + self.cursor.capacity()) * 4
+            + (self.tri_rank.capacity() + self.by_rank.capacity()) * 4
             + self.vert_tree.heap_bytes()
             + self.tri_tree.heap_bytes()
             + self.edge_tree.heap_bytes()
     }
+}
+
+/// Appends `items`, each under its key, to `out` in key order: an order of the pairs alone,
+/// whatever the trees' shape or the thread count. A counting sort by the key's first vertex or
+/// edge (one of `buckets`, counted in `starts` and placed by `cursor`), then each bucket sorted:
+/// the keys are distinct, so the order is exact, and a bucket holds a vertex's or an edge's few
+/// dozen pairs.
+fn in_key_order<T: Copy + Default + Send>(
+    items: impl Iterator<Item = (u64, T)> + Clone,
+    buckets: usize,
+    starts: &mut Vec<u32>,
+    cursor: &mut Vec<u32>,
+    out: &mut Vec<(u64, T)>,
+) {
+    let bucket = |key: u64| (key >> 32) as usize;
+    starts.clear();
+    starts.resize(buckets + 1, 0);
+    for (key, _) in items.clone() {
+        starts[bucket(key) + 1] += 1;
+    }
+    for b in 0..buckets {
+        starts[b + 1] += starts[b];
+    }
+    cursor.clear();
+    cursor.extend_from_slice(&starts[..buckets]);
+    let first = out.len();
+    out.resize(first + starts[buckets] as usize, Default::default());
+    let placed = &mut out[first..];
+    for item in items {
+        let at = &mut cursor[bucket(item.0)];
+        placed[*at as usize] = item;
+        *at += 1;
+    }
+    placed
+        .par_chunk_by_mut(|p, q| bucket(p.0) == bucket(q.0))
+        .for_each(|b| b.sort_unstable_by_key(|p| p.0));
 }
 
 /// The distance between the boxes of `verts[..split]` and `verts[split..]` at `x` (m), a lower
@@ -220,7 +368,8 @@ mod tests {
     /// The pair list keeps its pairs in the order a substep looks at them and takes them with a
     /// filter, so a search for it must find them in that order, `Candidate::key`'s: by vertex,
     /// then by the triangle's vertices, which is not the triangles' index order here. Both
-    /// orders must hold the same pairs.
+    /// orders must hold the same pairs, and so must the list's own search, which keeps less of
+    /// each.
     #[test]
     fn ordered_by_vertices_the_pairs_come_in_the_order_of_their_keys() {
         // Two layers of four triangles 1 mm apart, the second layer's triangles listed with
@@ -269,5 +418,19 @@ mod tests {
             .zip(&by_vertices)
             .all(|(p, q)| key(p) == key(q)));
         assert_eq!(by_index.len(), by_vertices.len());
+        // The pair list's search keeps a pair's distance alone, and must find the same pairs,
+        // in the same order, with the same distances to the bit.
+        let mut near = Broad::default();
+        near.search_near(&topo, &boxes, &x, 0.004, 0.0);
+        let found: Vec<(Candidate, f64)> = near.near_found(&topo).collect();
+        assert_eq!(found.len(), by_vertices.len());
+        for ((c, d), p) in found.iter().zip(&by_vertices) {
+            assert_eq!(*c, p.candidate());
+            assert_eq!(d.to_bits(), p.d0.to_bits());
+        }
+        assert!(
+            found.iter().any(|(c, _)| c.split == 2),
+            "no edge-edge pair to test"
+        );
     }
 }
