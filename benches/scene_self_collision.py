@@ -11,14 +11,19 @@ scene's spacing), over two windows:
   ``--hold`` seconds, so that the cloth folds onto itself.
 
 It also counts, by the independent checker ``benches/peers/tri_check.py``, the pairs of
-triangles crossing at the end of the fold, with and without the pass. The two builds of a scene
-(without, with) run one after the other, so a load on the machine falls on both.
+triangles crossing at the end of the fold, with and without the pass, and prints what a user
+sees of the drag: how far the grabbed particle is from the target of its frame at the end of a
+frame (the worst over the fold, and at its end, in mm; a pass that stops the grip leaves it
+behind), and the largest stretch ``l / L - 1`` of the triangles' edges over the fold (``L`` as
+loaded). The two builds of a scene (without, with) run one after the other, so a load on the
+machine falls on both. A scene with a ``[self_collision]`` of its own runs with it.
 
     RAYON_NUM_THREADS=1 PYTHONPATH=python python benches/scene_self_collision.py
 
 writes its table into docs/contact.md between the markers (``--no-write`` prints it only).
 All twelve scenes take about nine minutes on a loaded two-core machine, most of it the folds
-with the pass of the scenes that are left off; ``--scenes`` picks some.
+with the pass of the scenes that are left off; ``--scenes`` picks some, and their rows replace
+theirs in the table, the other rows kept.
 """
 
 from __future__ import annotations
@@ -64,8 +69,30 @@ def fold_drag(sim: rustcloth.Simulation) -> tuple[int, np.ndarray, np.ndarray]:
     return grab, x[grab], target
 
 
-def frames(sim: rustcloth.Simulation, n: int, drag=None) -> list[float]:
-    """CPU ms of each of ``n`` frames; ``drag(f)`` gives frame ``f``'s grab target."""
+class Drag:
+    """What a user sees of a drag, frame by frame: the grabbed particle's distance from its
+    frame's target, and the largest stretch of the triangles' edges against the cloth as
+    loaded."""
+
+    def __init__(self, rest: np.ndarray) -> None:
+        self.rest = rest
+        self.off: list[float] = []
+        self.stretch = 0.0
+
+    def frame(self, sim: rustcloth.Simulation, grab: int, target: np.ndarray) -> None:
+        x = sim.positions.astype(np.float64)
+        self.off.append(float(np.linalg.norm(x[grab] - target)))
+        t = sim.triangles.astype(np.int64)
+        a, b = t.ravel(), np.roll(t, -1, axis=1).ravel()
+        length = np.linalg.norm(x[a] - x[b], axis=1)
+        rest = np.linalg.norm(self.rest[a] - self.rest[b], axis=1)
+        self.stretch = max(self.stretch, float((length / rest - 1.0).max()))
+
+
+def frames(sim: rustcloth.Simulation, n: int, drag=None, seen: Drag | None = None,
+           grab: int = 0) -> list[float]:
+    """CPU ms of each of ``n`` frames; ``drag(f)`` gives frame ``f``'s grab target, and
+    ``seen`` notes each frame (outside the timing)."""
     out = []
     for f in range(n):
         if drag is not None:
@@ -73,27 +100,54 @@ def frames(sim: rustcloth.Simulation, n: int, drag=None) -> list[float]:
         t0 = time.process_time()
         sim.advance(1 / FPS)
         out.append((time.process_time() - t0) * 1e3)
+        if seen is not None:
+            seen.frame(sim, grab, drag(f))
     return out
 
 
 def run(name: str, with_pass: bool, opening: float, drag: float, hold: float) -> dict:
     scene = rustcloth.load_scene(name)
-    scene = scene.replace(self_collision={"thickness": THICKNESS} if with_pass else None)
+    own = scene.self_collision
+    scene = scene.replace(self_collision=(own or {"thickness": THICKNESS}) if with_pass else None)
     sim = rustcloth.Simulation(scene)
+    seen = Drag(sim.positions.astype(np.float64))
     open_ms = frames(sim, round(opening * FPS))
     grab, start, target = fold_drag(sim)
     sim.grab(grab)
     n = max(1, round(drag * FPS))
-    fold_ms = frames(sim, n, lambda f: start + (target - start) * (f + 1) / n)
-    fold_ms += frames(sim, round(hold * FPS))
+
+    def to(f: int) -> np.ndarray:
+        return start + (target - start) * min(f + 1, n) / n
+
+    fold_ms = frames(sim, n, to, seen, grab)
+    fold_ms += frames(sim, round(hold * FPS), lambda f: to(n + f), seen, grab)
     sim.release()
     crossings = tri_check.count(sim.positions, sim.triangles)
     finite = bool(np.isfinite(sim.positions).all())
     return {"open": float(np.mean(open_ms)), "fold": float(np.mean(fold_ms)),
-            "fold_max": float(np.max(fold_ms)), "crossings": crossings, "finite": finite}
+            "fold_max": float(np.max(fold_ms)), "crossings": crossings, "finite": finite,
+            "grip_worst_mm": 1e3 * max(seen.off), "grip_end_mm": 1e3 * seen.off[-1],
+            "stretch": seen.stretch}
 
 
-def table(rows: list[tuple[str, dict, dict]], args: argparse.Namespace) -> str:
+def row(name: str, off: dict, on: dict) -> str:
+    fits = max(on["open"], on["fold"]) <= BUDGET_MS and on["finite"]
+    return (f"| {name} | {off['open']:.1f} | {on['open']:.1f} | {off['fold']:.1f} | "
+            f"{on['fold']:.1f} ({on['fold_max']:.0f}) | {off['crossings']} / {on['crossings']} "
+            f"| {'on' if fits else 'off'} |")
+
+
+def kept_rows(rerun: list[str]) -> dict[str, str]:
+    """The rows of the table in the docs for the scenes not rerun, by scene."""
+    rows = {}
+    for line in DOC.read_text().splitlines():
+        name = line.split("|")[1].strip() if line.startswith("| ") else ""
+        if name in SCENES and name not in rerun:
+            rows[name] = line
+    return rows
+
+
+def table(rows: dict[str, str], args: argparse.Namespace) -> str:
     lines = [
         f"Measured on {platform.machine()}, {os.cpu_count()} cores, one thread "
         f"(`RAYON_NUM_THREADS={os.environ.get('RAYON_NUM_THREADS', 'unset')}`), "
@@ -106,12 +160,7 @@ def table(rows: list[tuple[str, dict, dict]], args: argparse.Namespace) -> str:
         "| crossings without / with | on? |",
         "| --- | ---: | ---: | ---: | ---: | ---: | --- |",
     ]
-    for name, off, on in rows:
-        fits = max(on["open"], on["fold"]) <= BUDGET_MS and on["finite"]
-        lines.append(
-            f"| {name} | {off['open']:.1f} | {on['open']:.1f} | {off['fold']:.1f} | "
-            f"{on['fold']:.1f} ({on['fold_max']:.0f}) | {off['crossings']} / {on['crossings']} "
-            f"| {'on' if fits else 'off'} |")
+    lines += [rows[name] for name in SCENES if name in rows]
     return "\n".join(lines)
 
 
@@ -123,15 +172,15 @@ def main() -> None:
     parser.add_argument("--scenes", nargs="*", default=SCENES, help="scenes to run (all)")
     parser.add_argument("--no-write", action="store_true", help="print, leave the docs")
     args = parser.parse_args()
-    rows = []
+    rows = {}
     for name in args.scenes:
         off = run(name, False, args.opening, args.drag, args.hold)
         on = run(name, True, args.opening, args.drag, args.hold)
         print(name, off, on, flush=True)
-        rows.append((name, off, on))
-    text = table(rows, args)
-    print(text)
+        rows[name] = row(name, off, on)
+    print(table(rows, args))
     if not args.no_write:
+        text = table({**kept_rows(args.scenes), **rows}, args)
         write_between_markers(DOC, "benches/scene_self_collision.py", text)
 
 

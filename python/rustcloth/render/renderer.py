@@ -96,7 +96,9 @@ class Renderer:
     particles, then the cut vertices along severed edges). Per frame, :meth:`update` uploads
     positions and normals into persistent vertex buffers with ``buffer.write``; the index
     buffer and the texture coordinates are rewritten only when ``topology_version`` changes
-    (the vertex buffers grow then, if the cut vertices need more room). :meth:`render` then
+    (the vertex buffers grow then, if the cut vertices need more room), and the index buffer
+    also when a sliver along a cut comes to wind against its vertex normals or stops
+    (``_Slivers``). :meth:`render` then
     runs the passes. ``pass_timer``, when set, is called with each pass's name as it finishes
     (benches use it to time passes). ``depth_push`` (m, set per simulation: three quarters
     of the cloth's mean edge) is how far behind their surface the spheres' and colliders'
@@ -362,6 +364,7 @@ class Renderer:
         )
         self._topology = -1
         self.index_count = 0
+        self._slivers = _Slivers(np.zeros((0, 3), dtype=np.uint32), n)
         # Three quarters of the cloth's mean edge: deeper than a triangle bent over a solid's
         # edge cuts in (up to a third of an edge at a right-angled fold over a sharp edge);
         # round_tablecloth's table still showed through in a pixel at half.
@@ -421,7 +424,8 @@ class Renderer:
         sim = self.sim
         if sim.topology_version != self._topology:
             tris, uvs, self._sources = sim.render_topology()
-            _write_growing(self.cloth_ibo, tris)
+            self._slivers = _Slivers(tris, sim.num_particles)
+            _write_growing(self.cloth_ibo, self._slivers.triangles)
             _write_growing(self.cloth_uv, uvs)
             for buffer, width in ((self.cloth_pos, 12), (self.cloth_nrm, 12),
                                   (self.cloth_scalar, 4)):
@@ -437,6 +441,8 @@ class Renderer:
             self.positions = positions
             self.cloth_pos.write(positions)
             self.cloth_nrm.write(normals)
+            if self._slivers.mark(positions, normals):
+                self.cloth_ibo.write(self._slivers.triangles)
             self._state_serial += 1
         if self.view in K.SCALAR_VIEWS:
             self.cloth_scalar.write(self._scalar(self.view))
@@ -597,7 +603,8 @@ class Renderer:
         lay = self.layout
         if self.index_count:
             _uniforms(cloth_prog, model=np.identity(4, dtype=np.float32),
-                      material=K.CLOTH_FRONT.id, base_color=K.srgb_to_linear(K.CLOTH_FRONT.color))
+                      material=K.CLOTH_FRONT.id, base_color=K.srgb_to_linear(K.CLOTH_FRONT.color),
+                      first_cut_vertex=self.sim.num_particles)
             cloth.render(vertices=self.index_count)
         for solid, vao in zip(self.solids, solids, strict=True):
             if self.show_colliders:
@@ -788,6 +795,52 @@ class Renderer:
                              * push[pushed, None].astype(np.float64))
         out["position"] = position.astype(np.float32)
         return out
+
+
+class _Slivers:
+    """The drawn triangles along cuts whose winding disagrees with some of their vertex
+    normals, marked for the cloth's shaders by their provoking (last) vertex: a cut vertex
+    (index ``>= first_cut``) where it disagrees, a particle where it agrees.
+
+    Where a stroke passes near a triangle's corner, the quad beyond it is drawn as two
+    triangles, one a sliver whose two cut vertices follow two particles' frames; as the
+    cloth bends they can cross, and the sliver then stands at any angle to the cloth round it,
+    its face saying nothing of which side of the cloth the viewer sees there: its vertex
+    normals (its particles') do, taken toward the eye, and a marked triangle shows the side
+    they face toward it (geometry.frag). Its winding is kept (each triangle is only turned),
+    so the rasteriser draws the same pixels, and a triangle off the cuts is drawn as before."""
+
+    def __init__(self, triangles: npt.NDArray[np.uint32], first_cut: int) -> None:
+        self.triangles = triangles.copy()
+        cut = triangles >= first_cut
+        self.rows = np.flatnonzero(cut.any(axis=1) & ~cut.all(axis=1))
+        tris, cut = triangles[self.rows], cut[self.rows]
+        # Each row turned to end on a cut vertex, and on a particle.
+        self.on_cut = _turned_to_end_on(tris, np.argmax(cut, axis=1))
+        self.on_particle = _turned_to_end_on(tris, np.argmin(cut, axis=1))
+        self.triangles[self.rows] = self.on_particle
+        self.marked = np.zeros(len(self.rows), dtype=bool)
+
+    def mark(self, positions: F32, normals: F32) -> bool:
+        """Mark the triangles that disagree with their normals now; True if any changed."""
+        if not len(self.rows):
+            return False
+        tris = self.on_cut
+        x = positions[tris]
+        face = np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0])
+        marked = (np.einsum("ij,ikj->ik", face, normals[tris]) <= 0.0).any(axis=1)
+        if np.array_equal(marked, self.marked):
+            return False
+        self.marked = marked
+        self.triangles[self.rows] = np.where(marked[:, None], self.on_cut, self.on_particle)
+        return True
+
+
+def _turned_to_end_on(triangles: npt.NDArray[np.uint32],
+                      last: npt.NDArray[np.intp]) -> npt.NDArray[np.uint32]:
+    """Each triangle's vertices turned (its winding kept) so that column ``last`` ends it."""
+    order = (np.arange(3)[None, :] + last[:, None] + 1) % 3
+    return np.take_along_axis(triangles, order, axis=1)
 
 
 def _write_growing(buffer: moderngl.Buffer, data: npt.NDArray[Any]) -> None:

@@ -9,6 +9,7 @@
 uniform int material;
 uniform vec3 base_color;   // linear; static meshes and markers
 uniform bool front_is_winding;
+uniform vec3 eye;
 uniform vec2 cloth_size;   // m along i and j
 uniform vec3 sky_zenith;    // linear
 uniform vec3 sky_horizon;
@@ -25,6 +26,7 @@ in vec3 v_light_b;
 in vec3 v_add_b;
 in vec3 v_position;
 flat in vec3 v_flat_normal;
+flat in int v_sliver;
 #else
 in vec2 v_key_a;
 in vec3 v_shadow;
@@ -49,10 +51,12 @@ void main() {
 #ifdef TWO_SIDED
     // The side the vertex normal faces is the triangles' front. Which side the viewer sees
     // the winding says, unless the triangle winds against its vertex normals (a sliver along
-    // a cut whose cut vertices crossed): then the normals say, as in geometry.frag.
+    // a cut whose cut vertices crossed): then the normals say, as in geometry.frag; on a
+    // sliver the renderer marked, the side its cut vertex's normal faces toward the eye.
     vec3 to_viewer = cross(dFdx(v_position), dFdy(v_position));
     bool against = dot(v_flat_normal, gl_FrontFacing ? to_viewer : -to_viewer) < 0.0;
-    bool seen = gl_FrontFacing != against;
+    bool seen = v_sliver != 0 ? dot(v_flat_normal, eye - v_position) >= 0.0
+                              : gl_FrontFacing != against;
     albedo = fabric(v_uv, seen == front_is_winding);
     vec3 color = albedo * (seen ? v_light_a : v_light_b) + (seen ? v_add_a : v_add_b);
 #else

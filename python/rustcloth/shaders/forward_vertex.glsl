@@ -13,6 +13,7 @@ uniform mat4 model;
 uniform mat4 light_view_proj;
 uniform int material;
 uniform bool front_is_winding;  // the cloth's front side is the triangles' front face
+uniform int first_cut_vertex;  // the cloth's vertices from here on lie on cuts
 uniform vec3 eye;
 uniform vec3 key_dir;       // direction the key light travels, unit
 uniform vec3 key_color;     // linear, times its intensity
@@ -52,6 +53,7 @@ out vec3 v_add_b;
 // the provoking vertex's normal, not interpolated.
 out vec3 v_position;
 flat out vec3 v_flat_normal;
+flat out int v_sliver;  // a sliver wound against its normals (geometry.vert)
 #else
 out vec2 v_key_a;
 out vec3 v_shadow;  // shadow-map coordinates in [0, 1] (x, y, depth)
@@ -141,6 +143,7 @@ void main() {
     v_uv = in_uv;
     v_position = p;
     v_flat_normal = n;
+    v_sliver = gl_VertexID >= first_cut_vertex ? 1 : 0;
     float shadow = key_visibility(shadow_at);
     // Thin cloth lets 12 % of the light on the other side through, as the full tier's.
     vec3 facing, away;

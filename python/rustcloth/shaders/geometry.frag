@@ -12,6 +12,7 @@ uniform bool front_is_winding;  // the cloth's front side is the triangles' fron
 uniform vec2 cloth_size;   // m along i and j: uv * cloth_size is a point of the cloth in m
 uniform vec2 grid_cells;   // nx - 1, ny - 1: the particle grid, drawn in the scalar views
 uniform int view;          // VIEW_*: the strain, speed and pinned views colour the cloth
+uniform vec3 eye;
 
 in vec3 v_world;
 in vec3 v_normal;
@@ -19,6 +20,7 @@ in vec2 v_uv;
 in float v_scalar;
 
 in float v_push;
+flat in int v_sliver;
 layout(location = 0) out vec4 g_normal;
 layout(location = 1) out vec4 g_albedo;
 
@@ -60,13 +62,17 @@ void main() {
     if (mat == MAT_CLOTH_FRONT) {
         // Two-sided cloth: the side facing the viewer shades with the normal facing it. Which
         // side that is the winding says, unless the triangle winds against its own vertex
-        // normals (a sliver along a cut whose two cut vertices, following two particles'
-        // frames, crossed): then the normals say, so that it shades as the cloth round it
-        // and not as a dark speck. The face's normal from the position's derivatives points
-        // to the viewer; on any other triangle this is the winding's choice, bit for bit.
+        // normals: then the normals say, so that it shades as the cloth round it. The face's
+        // normal from the position's derivatives points to the viewer; on a triangle that
+        // agrees with its normals this is the winding's choice, bit for bit. A sliver along a
+        // cut whose cut vertices crossed stands at any angle to the cloth round it, so that
+        // some of its normals can be on either side of its face (which split it into the two
+        // sides, a lining-coloured speck in the fabric): there the side the normal faces
+        // toward the eye is seen.
         vec3 to_viewer = cross(dFdx(v_world), dFdy(v_world));
         bool against = dot(n, gl_FrontFacing ? to_viewer : -to_viewer) < 0.0;
-        bool seen = gl_FrontFacing != against;  // the side the vertex normals face is seen
+        bool seen = v_sliver != 0 ? dot(n, eye - v_world) >= 0.0  // the normal's side is seen
+                                  : gl_FrontFacing != against;
         if (!seen) n = -n;
         bool front = seen == front_is_winding;
         mat = front ? MAT_CLOTH_FRONT : MAT_CLOTH_BACK;

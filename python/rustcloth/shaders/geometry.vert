@@ -5,6 +5,7 @@ uniform mat4 view_proj;
 uniform mat4 model;
 uniform vec3 eye;
 uniform float depth_push;  // m (see depth_push.glsl)
+uniform int first_cut_vertex;  // the cloth's vertices from here on lie on cuts
 
 in vec3 in_position;
 in vec3 in_normal;
@@ -16,6 +17,9 @@ out vec3 v_normal;
 out vec2 v_uv;
 out float v_scalar;
 out float v_push;  // m further along the view ray the depth was written
+// A sliver along a cut whose winding disagrees with its vertex normals: the renderer marks
+// it by ending it on a cut vertex (the provoking one), any other triangle on a particle.
+flat out int v_sliver;
 
 #include "depth_push.glsl"
 
@@ -27,6 +31,7 @@ void main() {
     v_normal = mat3(model) * in_normal;
     v_uv = in_uv;
     v_scalar = in_scalar;
+    v_sliver = gl_VertexID >= first_cut_vertex ? 1 : 0;
     v_push = pushed_by(world.xyz, normalize(v_normal));
     gl_Position = depth_pushed(view_proj * world, world.xyz, v_push);
 }
