@@ -25,10 +25,11 @@
 //! to zero make every force and every matrix row pair sum to zero: the term exchanges momentum,
 //! it adds none. Held particles (`w = 0`) keep their rows and columns empty, as the springs'.
 //!
-//! The diagonal blocks go into the assembled matrix, where the preconditioner sees them; the
-//! couplings between a pair's vertices are applied matrix-free in CG's product: first each
-//! pair's `n . sum_k c_k x_k` (once a pair, not once for each of its vertices), then row by
-//! row over each vertex's pairs in pair order, so the product is the same for any thread count.
+//! The diagonal blocks go into the assembled matrix, where the preconditioner sees them (the
+//! grid's six slot columns or a mesh's blocks, [`DiagonalBlocks`]); the couplings between a
+//! pair's vertices are applied matrix-free in CG's product: first each pair's
+//! `n . sum_k c_k x_k` (once a pair, not once for each of its vertices), then row by row over
+//! each vertex's pairs in pair order, so the product is the same for any thread count.
 
 use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
 
@@ -40,6 +41,33 @@ use crate::linear::stencil::SlotArrays;
 use crate::linear::Sym3;
 use crate::self_collision::Pair;
 use crate::soa::{Vec3SliceMut, Vec3s};
+
+/// How many times at most a step with pairs held is solved: after a solve, the pairs it brought
+/// within `thickness` are held too and the step is solved again: the springs carry vertices
+/// into contact that their inertia alone does not.
+pub(super) const SOLVES: u32 = 2;
+
+/// A matrix's diagonal blocks, as the term adds to them.
+pub(super) trait DiagonalBlocks {
+    /// `block * s` onto particle `p`'s diagonal block.
+    fn add(&mut self, p: usize, s: f32, block: &Sym3);
+}
+
+/// The grid's: six columns `xx, yy, zz, xy, xz, yz`.
+impl DiagonalBlocks for SlotArrays {
+    fn add(&mut self, p: usize, s: f32, block: &Sym3) {
+        for (column, v) in self.iter_mut().zip(block.0) {
+            column[p] += s * v;
+        }
+    }
+}
+
+/// A mesh's: one block a vertex.
+impl DiagonalBlocks for [Sym3] {
+    fn add(&mut self, p: usize, s: f32, block: &Sym3) {
+        self[p].add_scaled(s, block);
+    }
+}
 
 /// One pair held inside the solve.
 #[derive(Clone, Copy, Debug)]
@@ -102,12 +130,12 @@ impl SelfContactTerm {
     /// Adds the pairs of `pairs` not held yet that the solve's `dv` brought within `thickness`
     /// (their closest points and normal still those at the step's start), with their diagonal
     /// blocks into `d` and their loads into `b`. Returns how many.
-    pub(super) fn extend(
+    pub(super) fn extend<D: DiagonalBlocks + ?Sized>(
         &mut self,
         h: f32,
         pairs: SelfPairs,
         (pos, vel, dv, inv_mass): (&Vec3s, &Vec3s, &Vec3s, &[f32]),
-        (d, b): (&mut SlotArrays, &mut Vec3s),
+        (d, b): (&mut D, &mut Vec3s),
     ) -> usize {
         let before = self.held.len();
         for (pair, taken) in pairs.pairs.iter().zip(&mut self.taken) {
@@ -182,16 +210,13 @@ impl SelfContactTerm {
     }
 
     /// `h^2 k c_i^2 n n^T` of the held pairs from the `from`-th on, onto each free vertex's
-    /// diagonal block (`xx, yy, zz, xy, xz, yz`).
-    pub(super) fn add_diagonal(&self, from: usize, d: &mut SlotArrays) {
+    /// diagonal block.
+    pub(super) fn add_diagonal<D: DiagonalBlocks + ?Sized>(&self, from: usize, d: &mut D) {
         for held in &self.held[from..] {
-            let block = Sym3::outer(1.0, held.n, 0.0).0;
+            let block = Sym3::outer(1.0, held.n, 0.0);
             for k in 0..4 {
                 let p = held.verts[k] as usize;
-                let s = held.s * held.c[k] * held.c[k];
-                for (column, v) in d.iter_mut().zip(block) {
-                    column[p] += s * v;
-                }
+                d.add(p, held.s * held.c[k] * held.c[k], &block);
             }
         }
     }
@@ -446,6 +471,25 @@ mod tests {
             );
         }
         assert_eq!(y.get(2), Vec3::ZERO, "the pinned vertex gets nothing");
+    }
+
+    /// A mesh's diagonal blocks get what the grid's six columns get, entry for entry.
+    #[test]
+    fn the_diagonal_blocks_are_the_same_on_a_grid_and_on_a_mesh() {
+        let (pairs, pos, vel) = pairs();
+        let inv_mass = vec![1.0f32, 2.0, 0.0, 1.0, 1.0, 3.0, 1.0, 0.25];
+        let term = held(&pairs, (&pos, &vel, &inv_mass));
+        assert_eq!(term.len(), 2);
+        let mut columns: SlotArrays = std::array::from_fn(|_| crate::soa::Floats::zeros(8));
+        let mut blocks = vec![Sym3::ZERO; 8];
+        term.add_diagonal(0, &mut columns);
+        term.add_diagonal(0, &mut blocks[..]);
+        for (p, block) in blocks.iter().enumerate() {
+            let column = std::array::from_fn(|c| columns[c][p]);
+            assert_eq!(block.0, column, "vertex {p}");
+        }
+        assert_eq!(blocks[2], Sym3::ZERO, "the pinned vertex gets nothing");
+        assert_ne!(blocks[0], Sym3::ZERO);
     }
 
     /// A pair moving apart, or one whose inertial motion stays outside the gap, exerts
