@@ -481,7 +481,7 @@ mod tests {
         let term = held(&pairs, (&pos, &vel, &inv_mass));
         assert_eq!(term.len(), 2);
         let mut columns: SlotArrays = std::array::from_fn(|_| crate::soa::Floats::zeros(8));
-        let mut blocks = vec![Sym3::ZERO; 8];
+        let mut blocks = [Sym3::ZERO; 8];
         term.add_diagonal(0, &mut columns);
         term.add_diagonal(0, &mut blocks[..]);
         for (p, block) in blocks.iter().enumerate() {
