@@ -7,7 +7,7 @@ use common::{momentum, state_hash, with_threads};
 use glam::{DVec3, Vec3};
 use rustcloth::mesh_cloth::{jittered_square, EdgeKind, MeshCloth};
 use rustcloth::scene::{
-    ClothSpec, ColliderSpec, FloorSpec, PinBoundary, PinBox, PinSpec, PinTop, ShapeKind,
+    ClothSpec, ColliderSpec, FloorSpec, MeshSpec, PinBoundary, PinBox, PinSpec, PinTop, ShapeKind,
     TearingSpec,
 };
 use rustcloth::soa::Vec3s;
@@ -637,4 +637,61 @@ fn the_flag_with_a_hole_hangs_from_its_pole() {
         .fold(f32::MAX, f32::min);
     eprintln!("flag_hole: far edge dropped at least {dropped} m");
     assert!(dropped > 0.05, "the far edge dropped only {dropped} m");
+}
+
+/// A mesh numbered in a scattered order (as a file may number it) gets a local numbering that
+/// the force pass works in, gathering the state into it and the forces back; each vertex's
+/// springs are summed in the same order, so the forces must be bitwise those of the pass in
+/// the user's numbering. A mesh numbered row by row is local already and keeps its own.
+#[test]
+fn the_force_pass_in_a_local_numbering_gives_bitwise_the_forces_of_the_users() {
+    let n = 24;
+    let m = n * n;
+    let (vertices, triangles) = jittered_square(n, 1.0, [0.0, 1.0, 0.0], 0.3, 3);
+    // Vertex `old[k]` of the row-by-row mesh is numbered `k` (7919 is prime to 576).
+    let old: Vec<usize> = (0..m).map(|k| k * 7919 % m).collect();
+    let mut new = vec![0; m];
+    for (k, &v) in old.iter().enumerate() {
+        new[v] = k;
+    }
+    let spec = |vertices, triangles| MeshSpec {
+        vertices,
+        triangles,
+        ..MeshSpec::default()
+    };
+    let ordered = MeshCloth::new(&spec(vertices.clone(), triangles.clone())).unwrap();
+    assert!(ordered.local.is_none(), "a row-by-row mesh renumbered");
+    let scattered = MeshCloth::new(&spec(
+        old.iter().map(|&v| vertices[v]).collect(),
+        (triangles.iter())
+            .map(|t| t.map(|v| new[v as usize] as i64))
+            .collect(),
+    ))
+    .unwrap();
+    assert!(
+        scattered.local.is_some(),
+        "a scattered mesh kept its numbering"
+    );
+    let mut plain = scattered.clone();
+    plain.local = None;
+    // Stretched, rippled and moving, so that every spring pulls or pushes and damps.
+    let pos = Vec3s::from_fn(m, |v| {
+        let [x, y, _] = scattered.rest[v].map(|c| c as f32);
+        Vec3::new(1.05 * x, y + 0.02 * (9.0 * x).sin(), 0.03 * (7.0 * y).cos())
+    });
+    let vel = Vec3s::from_fn(m, |v| {
+        Vec3::new((v % 7) as f32 * 0.1, -0.2, (v % 3) as f32 * 0.05)
+    });
+    let forces = |mesh: &MeshCloth| {
+        let mut out = Vec3s::from_fn(m, |v| Vec3::new(0.0, -9.81 * mesh.masses[v] as f32, 0.0));
+        let mut table = Vec::new();
+        let over = mesh.add_spring_forces((&pos, &vel), 0.0, &mut out, &mut table, 64, Some(1.5));
+        (out, over)
+    };
+    let ((local, over_local), (user, over_user)) = (forces(&scattered), forces(&plain));
+    assert_eq!(over_local, over_user);
+    for v in 0..m {
+        let bits = |f: &Vec3s| f.get(v).to_array().map(f32::to_bits);
+        assert_eq!(bits(&local), bits(&user), "vertex {v}");
+    }
 }

@@ -870,3 +870,36 @@ fn the_in_solve_term_steps_the_same_for_any_thread_count_and_after_a_restore() {
     assert_eq!(a.snapshot(), b.snapshot());
     assert_eq!(state_hash(&a), state_hash(&one));
 }
+
+/// The first solve of a step holding self-contact pairs stops at a loose tolerance: it only
+/// finds the pairs its `dv` brings within `thickness`. Every step must still end on a solve
+/// at the scene's `cg_tolerance`: the second, holding the new pairs, or, where the first brought
+/// none, the first finished from where it stopped.
+#[test]
+fn every_step_holding_self_contact_ends_on_a_solve_at_the_scenes_tolerance() {
+    let scene = long_step_twist(30.0);
+    let tolerance = scene.cg_tolerance as f32;
+    let mut sim = Simulation::new(scene).unwrap();
+    let turner = EdgeTurner::new(&sim, 2.0 * std::f64::consts::TAU / 3.0);
+    let (mut holding, mut free) = (0, 0);
+    for step in 1..=120 {
+        let before = sim.solver_stats().unwrap();
+        turner.turn(&mut sim, step);
+        sim.step(1).unwrap();
+        let after = sim.solver_stats().unwrap();
+        assert!(
+            after.last_residual <= tolerance,
+            "step {step}: the last solve ended at {}",
+            after.last_residual
+        );
+        assert_eq!(after.solves - before.solves, 2, "step {step}");
+        if after.self_pairs > before.self_pairs {
+            holding += 1;
+        } else {
+            free += 1;
+        }
+    }
+    assert_eq!(sim.solver_stats().unwrap().not_converged, 0);
+    // Steps before the rope winds hold no pair; the wound ones hold many.
+    assert!(holding > 10 && free > 10, "{holding} holding, {free} not");
+}

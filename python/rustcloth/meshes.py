@@ -36,6 +36,15 @@ def mesh_arrays(path: str | os.PathLike[str], parameter: str) -> tuple[np.ndarra
     the file's own triangles. Errors name ``parameter`` and the file: a missing file, one
     trimesh cannot read, one without triangles, a triangle with zero area (a repeated or
     collinear corner, with its index)."""
+    vertices, faces, _ = mesh_file(path, parameter)
+    return vertices, faces
+
+
+def mesh_file(
+    path: str | os.PathLike[str], parameter: str
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """:func:`mesh_arrays` and the per-vertex texture coordinates (float64, ``(n, 2)``, in the
+    vertices' order) where the file has them, else None, from one reading of the file."""
     if not isinstance(path, str | os.PathLike):
         raise ParameterTypeError(
             f"{parameter}: must be a str or os.PathLike, got {type(path).__name__} {path!r}",
@@ -74,7 +83,9 @@ def mesh_arrays(path: str | os.PathLike[str], parameter: str) -> tuple[np.ndarra
             + (f", and {bad.size - 1} more" if bad.size > 1 else "") + "; remove it",
             parameter,
         )
-    return vertices, faces
+    uv = getattr(getattr(mesh, "visual", None), "uv", None)
+    uvs = None if uv is None or len(uv) != len(vertices) else np.asarray(uv, dtype=np.float64)
+    return vertices, faces, uvs
 
 
 def _degenerate(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -87,21 +98,6 @@ def _degenerate(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
                       np.sum((a - c) ** 2, axis=1)], axis=0)
     with np.errstate(invalid="ignore"):
         return np.flatnonzero(~(doubled > DEGENERATE * longest))
-
-
-def uv_array(path: str | os.PathLike[str]) -> np.ndarray | None:
-    """The per-vertex texture coordinates trimesh reads from ``path`` (in the order of
-    :func:`mesh_arrays`' vertices), or None when the file has none."""
-    import trimesh
-
-    extra: dict[str, Any] = (
-        {"maintain_order": True} if os.fspath(path).lower().endswith(".obj") else {}
-    )
-    mesh = trimesh.load(os.fspath(path), force="mesh", process=False, **extra)
-    uv = getattr(getattr(mesh, "visual", None), "uv", None)
-    if uv is None or len(uv) != len(getattr(mesh, "vertices", ())):
-        return None
-    return np.asarray(uv, dtype=np.float64)
 
 
 def wants_file(data: Mapping[str, Any]) -> bool:
@@ -143,10 +139,9 @@ def _resolve_cloth_mesh(
     path = mesh["path"]
     if base is not None and isinstance(path, str) and not os.path.isabs(path):
         path = os.path.join(base, path)
-    vertices, triangles = mesh_arrays(path, "cloth.mesh.path")
+    vertices, triangles, uvs = mesh_file(path, "cloth.mesh.path")
     resolved = {key: value for key, value in mesh.items() if key != "path"}
     resolved.update(vertices=vertices, triangles=triangles)
-    uvs = uv_array(path)
     if uvs is not None:
         resolved["uvs"] = uvs
     if "pin_group" in cloth:

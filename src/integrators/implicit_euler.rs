@@ -16,7 +16,7 @@ use super::{par_update, FiniteCheck, StepContext};
 use crate::collisions::{Impulses, PredictedContacts};
 use crate::forces::Force;
 use crate::grid::SpringKind;
-use crate::linear::cg::{diagonal_blocks, BlockOperator, ConjugateGradient};
+use crate::linear::cg::{diagonal_blocks, BlockOperator, ConjugateGradient, Start};
 use crate::linear::stencil::{par_chunks6, SlotArrays};
 use crate::linear::{BlockStencil, Multigrid};
 use crate::soa::{Floats, Vec3s};
@@ -193,16 +193,19 @@ impl ImplicitEuler {
 
         self.stats.setup_seconds += started.elapsed().as_secs_f64();
         let settings = self.settings;
+        // The first solve of a step that may hold more pairs after it only finds which pairs
+        // its `dv` brings within `thickness`: loose, unless it turns out to be the last.
+        let more_rounds = ctx.self_pairs.is_some() && self.filter.is_empty();
+        let mut first = settings;
+        if more_rounds {
+            first.tolerance = settings.tolerance.max(PAIR_FINDING_TOLERANCE);
+        }
         let mut round = 0;
         loop {
             let term = (!self.self_contact.is_empty()).then_some(&self.self_contact);
-            solve_once(
-                work,
-                term,
-                &mut self.filter,
-                (settings, &mut self.stats),
-                ctx.chunk,
-            );
+            let this = if round == 0 { first } else { settings };
+            let stats = (this, &mut self.stats);
+            solve_once(work, term, &mut self.filter, stats, ctx.chunk, Start::Zero);
             round += 1;
             // More rounds only for the self-contact pairs alone: a collider's filtered
             // right-hand side is reduced once.
@@ -223,6 +226,12 @@ impl ImplicitEuler {
             );
             self.stats.self_pairs += added as u64;
             if added == 0 {
+                // The loose solve's system is the step's: finish it from where it stopped.
+                if this.tolerance > settings.tolerance {
+                    let term = (!self.self_contact.is_empty()).then_some(&self.self_contact);
+                    let stats = (settings, &mut self.stats);
+                    solve_once(work, term, &mut self.filter, stats, ctx.chunk, Start::Guess);
+                }
                 break;
             }
         }
@@ -235,6 +244,16 @@ impl ImplicitEuler {
 /// after a solve, the pairs it brought within `thickness` are held too and the step is solved
 /// again.
 const SELF_ROUNDS: u32 = 2;
+
+/// The relative residual `|r| / |b|` at which the first solve of a step holding self-contact
+/// pairs stops when a second may follow (the scene's `cg_tolerance` where that is looser). Its
+/// `dv` is not the step's: it only finds the pairs the solve brings within `thickness` (on a
+/// wound twist most of those the step holds), and the second solve, from zero with them all,
+/// meets `cg_tolerance`. A step whose first solve brings no new pair finishes that solve to
+/// `cg_tolerance` from where it stopped. Trade-off: looser takes fewer iterations but finds the
+/// pairs from a rougher `dv`, and the step's result moves with the pairs found (measured in
+/// `docs/contact.md`, "Where a frame goes"); at `cg_tolerance` it is two full solves.
+const PAIR_FINDING_TOLERANCE: f32 = 3e-2;
 
 /// `v' = v + dv`, `x' = x + h v'` for free particles; held ones keep their state bitwise.
 /// Returns whether everything written is finite.
@@ -456,16 +475,19 @@ fn filter_couplings(work: &mut Work, ctx: &StepContext) {
 }
 
 /// The preconditioner's setup and one CG solve of `work`'s system (with the self-contact
-/// couplings `term` in its product, and the collider contacts' `filter`) into `work.dv`.
+/// couplings `term` in its product, and the collider contacts' `filter`) into `work.dv`, from
+/// `start` (from the last `dv` without a new setup).
 fn solve_once(
     work: &mut Work,
     term: Option<&SelfContactTerm>,
     filter: &mut ContactFilter,
     (settings, stats): (SolverSettings, &mut SolverStats),
     chunk: usize,
+    start: Start,
 ) {
     let started = Instant::now();
     match settings.preconditioner {
+        _ if start == Start::Guess => {}
         Preconditioner::Jacobi => {
             let d = work.matrix.slot(0);
             for (c, out) in work.jacobi.iter_mut().enumerate() {
@@ -501,9 +523,15 @@ fn solve_once(
     let limits = (settings.tolerance as f64, settings.max_iterations);
     // Without contacts the filter projects nothing: the plain preconditioned CG.
     let project = &*filter;
-    let (iterations, residual) = cg.solve_filtered(&operator, rhs, dv, limits, precondition, |v| {
-        project.project(v)
-    });
+    let (iterations, residual) = cg.solve_filtered(
+        &operator,
+        rhs,
+        dv,
+        limits,
+        precondition,
+        |v| project.project(v),
+        start,
+    );
     if !filter.is_empty() {
         filter.finish(dv, |x, y| operator.apply(x, y, chunk));
     }

@@ -60,7 +60,7 @@ use super::solver::{live_or_zero, Preconditioner, SolverSettings, SolverStats, C
 use super::StepContext;
 use crate::collisions::PredictedContacts;
 use crate::linear::cg::BlockOperator;
-use crate::linear::cg::{diagonal_blocks, ConjugateGradient};
+use crate::linear::cg::{diagonal_blocks, ConjugateGradient, Start};
 use crate::linear::stencil::SlotArrays;
 use crate::linear::{Amg, SpringMatrix, Sym3};
 use crate::mesh_cloth::membrane::Membrane;
@@ -529,11 +529,11 @@ impl MeshSystem {
         let (iterations, residual) = match (settings.preconditioner, amg.first_mut()) {
             (Preconditioner::Multigrid, Some((_, amg))) => {
                 let precondition = |r: &Vec3s, z: &mut Vec3s| amg.apply(coarse, r, z);
-                cg.solve_filtered(&a, rhs, dv, limits, precondition, project)
+                cg.solve_filtered(&a, rhs, dv, limits, precondition, project, Start::Zero)
             }
             _ => {
                 let precondition = |r: &Vec3s, z: &mut Vec3s| diagonal_blocks(jacobi, r, z);
-                cg.solve_filtered(&a, rhs, dv, limits, precondition, project)
+                cg.solve_filtered(&a, rhs, dv, limits, precondition, project, Start::Zero)
             }
         };
         if !filter.is_empty() {

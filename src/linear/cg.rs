@@ -8,7 +8,9 @@
 //!         z = M^-1 r, beta = (r . z)_new / (r . z), p = z + beta p
 //! ```
 //!
-//! until `|r| / |b|` is below the tolerance. The preconditioner `M^-1` is the caller's (block
+//! until `|r| / |b|` is below the tolerance. Started from a guess `x` instead
+//! ([`Start::Guess`]), `r = b - A x` and the same stop on `|r| / |b|`.
+//! The preconditioner `M^-1` is the caller's (block
 //! Jacobi through [`diagonal_blocks`], a multigrid V-cycle); it must be symmetric positive
 //! definite for the iteration to be CG.
 //!
@@ -59,6 +61,15 @@ impl BlockOperator for BlockStencil {
     }
 }
 
+/// Where a solve starts: from `x = 0`, or from the guess `x` holds (in `range(S)`), whose
+/// residual `S (b - A x)` starts the iteration; either way it stops on `|r| / |S b|`, so a
+/// close guess takes only the iterations its own error needs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Start {
+    Zero,
+    Guess,
+}
+
 /// The vectors of a CG solve, kept between solves so that a solve allocates nothing.
 #[derive(Clone, Debug, Default)]
 pub struct ConjugateGradient {
@@ -96,12 +107,14 @@ impl ConjugateGradient {
         precondition: impl FnMut(&Vec3s, &mut Vec3s),
     ) -> (u32, f64) {
         let settings = (tolerance, max_iterations);
-        self.solve_filtered(a, b, x, settings, precondition, |_| {})
+        self.solve_filtered(a, b, x, settings, precondition, |_| {}, Start::Zero)
     }
 
     /// [`ConjugateGradient::solve`] with every vector kept in the range of the projection
     /// `filter` (which projects its argument in place): solves `S A S x = S b` for `x` in
-    /// `range(S)`, stopping on `|r| / |S b|` at most `tolerance` or after `max_iterations`.
+    /// `range(S)`, from `start`, stopping on `|r| / |S b|` at most `tolerance` or after
+    /// `max_iterations`.
+    #[allow(clippy::too_many_arguments)]
     pub fn solve_filtered<A: BlockOperator>(
         &mut self,
         a: &A,
@@ -110,8 +123,12 @@ impl ConjugateGradient {
         (tolerance, max_iterations): (f64, u32),
         mut precondition: impl FnMut(&Vec3s, &mut Vec3s),
         mut filter: impl FnMut(&mut Vec3s),
+        start: Start,
     ) -> (u32, f64) {
-        x.fill(glam::Vec3::ZERO);
+        let warm = start == Start::Guess;
+        if !warm {
+            x.fill(glam::Vec3::ZERO);
+        }
         self.r.copy_from(b);
         filter(&mut self.r);
         let b_dot_b = par_dot(&self.r, &self.r, &mut self.partials);
@@ -119,11 +136,23 @@ impl ConjugateGradient {
         if !(b_norm > 0.0 && b_norm.is_finite()) {
             // Nothing to solve (every node held, or no load), or a non-finite right-hand side,
             // which the caller's finite check then reports.
+            x.fill(glam::Vec3::ZERO);
             return (0, if b_norm == 0.0 { 0.0 } else { f64::NAN });
+        }
+        let mut residual = 1.0;
+        if warm {
+            // r = S b - S A x, as an iteration's update from zero along p = x would leave it.
+            self.p.copy_from(x);
+            self.product(a);
+            filter(&mut self.q);
+            x.fill(glam::Vec3::ZERO);
+            residual = self.advance_solution(x, 1.0).sqrt() / b_norm;
+            if residual <= tolerance {
+                return (0, residual);
+            }
         }
         let mut rz = self.precondition(&mut precondition, &mut filter);
         self.p.copy_from(&self.z);
-        let mut residual = 1.0;
         let mut iterations = 0;
         while residual > tolerance && iterations < max_iterations {
             let pq = self.product(a);
@@ -141,7 +170,7 @@ impl ConjugateGradient {
             self.next_direction((rz_new / rz) as f32);
             rz = rz_new;
         }
-        if iterations == 0 {
+        if iterations == 0 && !warm {
             // The first direction was already a breakdown; keep x = 0.
             residual = 1.0;
         }
@@ -239,4 +268,62 @@ pub fn diagonal_blocks(d: &SlotArrays, r: &Vec3s, z: &mut Vec3s) {
             let d: [&[f32]; 6] = std::array::from_fn(|k| &d[k][range.clone()]);
             crate::simd::dispatch!(set_product(d, r.slices(range.clone()), &mut z));
         });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    /// A chain of nodes, each tied to its neighbours: `4 x_i - x_{i-1} - x_{i+1}` per component.
+    struct Chain;
+
+    impl BlockOperator for Chain {
+        fn apply_range(&self, x: &Vec3s, range: std::ops::Range<usize>, out: &mut Vec3SliceMut) {
+            let n = x.len();
+            for (i, p) in range.enumerate() {
+                let mut y = 4.0 * x.get(p);
+                if p > 0 {
+                    y -= x.get(p - 1);
+                }
+                if p + 1 < n {
+                    y -= x.get(p + 1);
+                }
+                (out.x[i], out.y[i], out.z[i]) = (y.x, y.y, y.z);
+            }
+        }
+    }
+
+    /// A solve started from a guess stops on the residual relative to the right-hand side, as
+    /// one from zero does: from the answer it takes no iteration, and from a rough answer it
+    /// reaches the same tolerance in fewer iterations than from zero.
+    #[test]
+    fn a_warm_started_solve_stops_on_the_residual_relative_to_the_right_hand_side() {
+        let n = 3000;
+        let b = Vec3s::from_fn(n, |p| Vec3::new((p as f32 * 0.01).sin(), 1.0, -0.5));
+        let mut cg = ConjugateGradient::new(n);
+        let jacobi = |r: &Vec3s, z: &mut Vec3s| z.copy_from(r);
+        let mut cold = Vec3s::zeros(n);
+        let (cold_iterations, residual) = cg.solve(&Chain, &b, &mut cold, 1e-6, 500, jacobi);
+        assert!(residual <= 1e-6, "{residual}");
+        let mut warm = cold.clone();
+        let limits = (1e-5, 500);
+        let (iterations, residual) =
+            cg.solve_filtered(&Chain, &b, &mut warm, limits, jacobi, |_| {}, Start::Guess);
+        assert_eq!((iterations, warm == cold), (0, true), "{residual}");
+        let mut rough = Vec3s::zeros(n);
+        cg.solve(&Chain, &b, &mut rough, 1e-2, 500, jacobi);
+        let limits = (1e-6, 500);
+        let (iterations, residual) =
+            cg.solve_filtered(&Chain, &b, &mut rough, limits, jacobi, |_| {}, Start::Guess);
+        assert!(residual <= 1e-6, "{residual}");
+        assert!(
+            (1..cold_iterations).contains(&iterations),
+            "{iterations} from the rough answer, {cold_iterations} from zero"
+        );
+        let error = (0..n)
+            .map(|p| (rough.get(p) - cold.get(p)).length())
+            .fold(0.0f32, f32::max);
+        assert!(error < 1e-5, "{error}");
+    }
 }

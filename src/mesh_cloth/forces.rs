@@ -6,7 +6,9 @@
 //! the order of summation). Both passes are written for the vector unit: the first gathers a
 //! block's differences before its arithmetic, the second sums a group of vertices at once
 //! ([`IncidenceLanes`]); neither reorders any operation, so every instruction set gives the
-//! same bits.
+//! same bits. A mesh whose numbering is scattered is worked on in its own local numbering
+//! ([`crate::scene::MeshCloth::local`]): the state is gathered into it, the passes run there,
+//! the forces are scattered back, each vertex's sum the same.
 
 use rayon::prelude::*;
 
@@ -34,25 +36,60 @@ impl MeshCloth {
         watch: Option<f32>,
     ) -> bool {
         let s = &self.springs;
-        // One entry per spring, and the lanes' padding entry.
-        table.resize(s.len() + 1, [0.0; 3]);
         let limit = watch.unwrap_or(f32::INFINITY);
-        let over = table[..s.len()]
-            .par_chunks_mut(SPRING_CHUNK)
-            .enumerate()
-            .map(|(c, forces)| {
-                let first = c * SPRING_CHUNK;
-                crate::simd::dispatch!(spring_forces(s, first, (pos, vel), sewing, limit, forces))
-            })
-            .reduce(|| false, |x, y| x | y);
-        table[s.len()] = [-0.0; 3];
-        let (table, lanes) = (&*table, &self.lanes);
         // Whole groups of vertices per work item; each vertex's sum is the same in any split.
         let per_item = chunk.next_multiple_of(LANES);
-        out.par_chunks_mut(per_item).enumerate().for_each(|(c, f)| {
+        let Some(local) = &self.local else {
+            // One entry per spring, and the lanes' padding entry.
+            table.resize(s.len() + 1, [0.0; 3]);
+            let coordinates = [&pos.x, &pos.y, &pos.z, &vel.x, &vel.y, &vel.z].map(|x| &x[..]);
+            let ends = (&s.a[..], &s.b[..]);
+            let over = spring_pass::<1>(s, ends, coordinates, sewing, limit, &mut table[..]);
+            let (table, lanes) = (&*table, &self.lanes);
+            out.par_chunks_mut(per_item).enumerate().for_each(|(c, f)| {
+                let first = c * per_item / LANES;
+                crate::simd::dispatch!(gather_forces(lanes, first, table, f))
+            });
+            return watch.is_some() && over;
+        };
+        // In the local numbering: the table, then the positions, velocities and forces
+        // gathered into it.
+        let n = self.len();
+        table.resize(s.len() + 1 + 3 * n, [0.0; 3]);
+        let (forces, state) = table.split_at_mut(s.len() + 1);
+        let (x, state) = state.split_at_mut(n);
+        let (v, f) = state.split_at_mut(n);
+        let (vertices, now) = (&local.vertices, &*out);
+        (x.par_chunks_mut(per_item).zip(v.par_chunks_mut(per_item)))
+            .zip(f.par_chunks_mut(per_item))
+            .enumerate()
+            .for_each(|(c, ((x, v), f))| {
+                let from = &vertices[c * per_item..c * per_item + x.len()];
+                for (k, &i) in from.iter().enumerate() {
+                    let i = i as usize;
+                    x[k] = [pos.x[i], pos.y[i], pos.z[i]];
+                    v[k] = [vel.x[i], vel.y[i], vel.z[i]];
+                    f[k] = [now.x[i], now.y[i], now.z[i]];
+                }
+            });
+        let (x, v) = (x.as_flattened(), v.as_flattened());
+        let coordinates = [x, &x[1..], &x[2..], v, &v[1..], &v[2..]];
+        let ends = (&local.a[..], &local.b[..]);
+        let over = spring_pass::<3>(s, ends, coordinates, sewing, limit, forces);
+        let (forces, lanes) = (&*forces, &local.lanes);
+        f.par_chunks_mut(per_item).enumerate().for_each(|(c, f)| {
             let first = c * per_item / LANES;
-            crate::simd::dispatch!(gather_forces(lanes, first, table, f))
+            crate::simd::dispatch!(gather_local_forces(lanes, first, forces, f))
         });
+        let (f, place) = (&*f, &local.place);
+        out.par_chunks_mut(per_item)
+            .enumerate()
+            .for_each(|(c, out)| {
+                for k in 0..out.x.len() {
+                    let [x, y, z] = f[place[c * per_item + k] as usize];
+                    (out.x[k], out.y[k], out.z[k]) = (x, y, z);
+                }
+            });
         watch.is_some() && over
     }
 
@@ -129,6 +166,37 @@ impl MeshCloth {
     }
 }
 
+/// Fills `table` (one entry per spring, then the lanes' padding entry `-0.0`; any more entries
+/// are left as they are) with the force on the first end of each spring, its ends `ends`
+/// indexing `coordinates` (x, y, z of the position, then of the velocity) `STRIDE` apart;
+/// whether one other than a seam is longer than `limit` times its rest length.
+fn spring_pass<const STRIDE: usize>(
+    s: &EdgeSprings,
+    ends: (&[u32], &[u32]),
+    coordinates: [&[f32]; 6],
+    sewing: f32,
+    limit: f32,
+    table: &mut [[f32; 3]],
+) -> bool {
+    let over = table[..s.len()]
+        .par_chunks_mut(SPRING_CHUNK)
+        .enumerate()
+        .map(|(c, forces)| {
+            let first = c * SPRING_CHUNK;
+            crate::simd::dispatch!(spring_forces::<STRIDE>(
+                s,
+                ends,
+                first,
+                coordinates,
+                (sewing, limit),
+                forces
+            ))
+        })
+        .reduce(|| false, |x, y| x | y);
+    table[s.len()] = [-0.0; 3];
+    over
+}
+
 /// Springs per block of [`spring_forces`]: the block's gathered differences (six arrays of
 /// `f32`) stay in the first-level cache.
 const BLOCK: usize = 256;
@@ -140,19 +208,20 @@ const BLOCK: usize = 256;
 /// and no bounds check, which each instruction set's build vectorises. The arithmetic is
 /// glam's, component by component in the same order, so every build gives the same bits.
 #[inline(always)]
-fn spring_forces(
+fn spring_forces<const STRIDE: usize>(
     s: &EdgeSprings,
+    ends: (&[u32], &[u32]),
     first: usize,
-    (pos, vel): (&Vec3s, &Vec3s),
-    sewing: f32,
-    limit: f32,
+    coordinates: [&[f32]; 6],
+    (sewing, limit): (f32, f32),
     out: &mut [[f32; 3]],
 ) -> bool {
     let mut over = false;
     let mut gathered = [[0.0f32; BLOCK]; 6];
     for (b, out) in out.chunks_mut(BLOCK).enumerate() {
         let springs = first + b * BLOCK..first + b * BLOCK + out.len();
-        gather_differences(s, springs.clone(), (pos, vel), &mut gathered);
+        let block_ends = (&ends.0[springs.clone()], &ends.1[springs.clone()]);
+        gather_differences::<STRIDE>(block_ends, coordinates, &mut gathered);
         let n = out.len();
         let (rest, k, c) = (
             &s.rest[springs.clone()],
@@ -189,39 +258,35 @@ fn spring_forces(
     over
 }
 
-/// `x_b - x_a` and `v_b - v_a` of springs `springs` into `into` (x, y, z of the position,
-/// then of the velocity), from the first entry on.
+/// `x_b - x_a` and `v_b - v_a` of the springs with ends `(a, b)` into `into` (x, y, z of the
+/// position, then of the velocity), from the first entry on: vertex `i`'s coordinate `c` is
+/// `coordinates[c][STRIDE * i]`.
 #[inline(always)]
-fn gather_differences(
-    s: &EdgeSprings,
-    springs: std::ops::Range<usize>,
-    (pos, vel): (&Vec3s, &Vec3s),
+fn gather_differences<const STRIDE: usize>(
+    (a, b): (&[u32], &[u32]),
+    coordinates: [&[f32]; 6],
     into: &mut [[f32; BLOCK]; 6],
 ) {
-    let (a, b) = (&s.a[springs.clone()], &s.b[springs]);
-    let coordinates = [
-        &pos.x[..],
-        &pos.y[..],
-        &pos.z[..],
-        &vel.x[..],
-        &vel.y[..],
-        &vel.z[..],
-    ];
     // One check of the block's largest end lets the loads below go unchecked, and so become
     // the vector unit's gathers.
     let len = coordinates.iter().map(|x| x.len()).min().unwrap_or(0);
     let top = a.iter().chain(b).fold(0, |t, &i| t.max(i as usize + 1));
     assert!(
-        top <= len && top <= i32::MAX as usize,
-        "a spring's end ({}) beyond the {len} particles",
-        top - 1
+        top == 0 || ((top - 1) * STRIDE < len && top * STRIDE <= i32::MAX as usize),
+        "a spring's end ({}) beyond the {} particles",
+        top - 1,
+        len.div_ceil(STRIDE)
     );
     for (x, into) in coordinates.into_iter().zip(into.iter_mut()) {
         for ((&i, &j), into) in a.iter().zip(b).zip(into.iter_mut()) {
             // As signed 32-bit offsets, which the vector unit's gathers take directly (an
             // unsigned index is widened to 64 bits, and gathered half as wide).
-            let (i, j) = (i as i32 as isize, j as i32 as isize);
-            // SAFETY: `i` and `j` are below `top <= len <= x.len()` and `i32::MAX`.
+            let (i, j) = (
+                (i as i32 * STRIDE as i32) as isize,
+                (j as i32 * STRIDE as i32) as isize,
+            );
+            // SAFETY: `i` and `j` are at most `(top - 1) * STRIDE < len <= x.len()`, and below
+            // `i32::MAX`.
             *into = unsafe { *x.as_ptr().offset(j) - *x.as_ptr().offset(i) };
         }
     }
@@ -247,20 +312,53 @@ fn gather_forces(lanes: &IncidenceLanes, first: usize, table: &[[f32; 3]], f: Ve
         for (sum, f) in sum.iter_mut().zip([&*x, &*y, &*z]) {
             sum[..m].copy_from_slice(f);
         }
-        for row in lanes.group(first + g).chunks_exact(LANES) {
-            for (lane, &e) in row.iter().enumerate() {
-                // SAFETY: every slot's spring is at most `lanes.pad()` (`IncidenceLanes::new`),
-                // below `table.len()` and `i32::MAX` (a signed 32-bit offset, as above).
-                let force = unsafe { &*table.as_ptr().offset((e >> 1) as i32 as isize) };
-                // A multiply by +-1, not a branch; `sum + -1 * F` is bitwise `sum - F`.
-                let sign = 1.0 - 2.0 * (e & 1) as f32;
-                for c in 0..3 {
-                    sum[c][lane] += force[c] * sign;
-                }
-            }
-        }
+        add_group(lanes.group(first + g), table, &mut sum);
         for (f, sum) in [x, y, z].into_iter().zip(&sum) {
             f.copy_from_slice(&sum[..m]);
+        }
+    }
+}
+
+/// [`gather_forces`] on forces stored vertex by vertex (`f[k]` the x, y and z of vertex
+/// `first * LANES + k` of the local numbering).
+#[inline(always)]
+fn gather_local_forces(
+    lanes: &IncidenceLanes,
+    first: usize,
+    table: &[[f32; 3]],
+    f: &mut [[f32; 3]],
+) {
+    assert!(
+        lanes.pad() < table.len() && table.len() <= i32::MAX as usize,
+        "a force table without the padding entry"
+    );
+    for (g, f) in f.chunks_mut(LANES).enumerate() {
+        let mut sum = [[0.0f32; LANES]; 3];
+        for (lane, f) in f.iter().enumerate() {
+            (sum[0][lane], sum[1][lane], sum[2][lane]) = (f[0], f[1], f[2]);
+        }
+        add_group(lanes.group(first + g), table, &mut sum);
+        for (lane, f) in f.iter_mut().enumerate() {
+            *f = [sum[0][lane], sum[1][lane], sum[2][lane]];
+        }
+    }
+}
+
+/// Adds to each lane's `sum` the forces of the group's `rows` ([`IncidenceLanes::group`]) from
+/// `table`, whose length the caller checked to be above [`IncidenceLanes::pad`] and at most
+/// `i32::MAX`.
+#[inline(always)]
+fn add_group(rows: &[u32], table: &[[f32; 3]], sum: &mut [[f32; LANES]; 3]) {
+    for row in rows.chunks_exact(LANES) {
+        for (lane, &e) in row.iter().enumerate() {
+            // SAFETY: every slot's spring is at most `lanes.pad()` (`IncidenceLanes::new`),
+            // below `table.len()` and `i32::MAX` (a signed 32-bit offset, as above).
+            let force = unsafe { &*table.as_ptr().offset((e >> 1) as i32 as isize) };
+            // A multiply by +-1, not a branch; `sum + -1 * F` is bitwise `sum - F`.
+            let sign = 1.0 - 2.0 * (e & 1) as f32;
+            for c in 0..3 {
+                sum[c][lane] += force[c] * sign;
+            }
         }
     }
 }

@@ -14,6 +14,7 @@
 use crate::self_collision::pair::Candidate;
 use crate::soa::Vec3s;
 use glam::DVec3;
+use rayon::prelude::*;
 
 /// The list and where it was built.
 #[derive(Default)]
@@ -22,9 +23,14 @@ pub struct PairList {
     anchor: Option<Vec3s>,
     /// Every pair closer than this at `anchor` is listed, in m.
     reach: f64,
-    /// The listed pairs, nearest at the anchor first, each with its distance there (m).
+    /// The listed pairs in the order of their keys ([`Candidate::key`]), each with its
+    /// distance at the anchor (m). Kept in that order, not sorted by distance, so that the
+    /// pairs a substep takes from it come in the order it looks at them: a filter, not a sort.
     candidates: Vec<Candidate>,
     distances: Vec<f64>,
+    /// Where in `candidates` the last [`PairList::within`] found its pairs; as long as the
+    /// list, so that taking pairs from a kept list never allocates.
+    near: Vec<u32>,
 }
 
 impl PairList {
@@ -40,40 +46,73 @@ impl PairList {
         self.anchor.as_ref()
     }
 
-    /// Whether every pair closer than `needed` at some positions is listed, given `drift`, the
-    /// displacements from the anchor to those positions; `eps` allows for round-off.
-    pub fn covers(&self, drift: Option<Spread>, needed: f64, eps: f64) -> bool {
-        drift.is_some_and(|d| self.reach - 2.0 * d.radius() - eps >= needed)
+    /// Whether every pair closer than `needed` at some positions is listed, given `strayed`,
+    /// the most any vertex strayed from the cloth's common displacement since the anchor
+    /// ([`PairList::strayed`]); `eps` allows for round-off.
+    pub fn covers(&self, strayed: Option<f64>, needed: f64, eps: f64) -> bool {
+        strayed.is_some_and(|s| self.reach - 2.0 * s - eps >= needed)
     }
 
-    /// Takes `found`, every pair closer than `reach` at `x` with its distance there, as the new
-    /// list.
-    pub fn rebuild(&mut self, x: &Vec3s, reach: f64, mut found: Vec<(Candidate, f64)>) {
+    /// The most any of `verts` at `x` strays from the cloth's common displacement since the
+    /// anchor (m): the largest `|x_v - anchor_v - T|`, `T` the centre of `drift`, the box of
+    /// those displacements. A pair's distance has changed by at most twice that. At most
+    /// `drift.radius()`, and below it when no vertex sits in a corner of the box (a cloth whose
+    /// rim falls while its middle rests: about three quarters of it in the pile). An exact
+    /// reduction (max), so the same for any thread count. None without an anchor.
+    pub fn strayed(&self, verts: &[u32], x: &Vec3s, drift: Spread) -> Option<f64> {
+        let anchor = self.anchor.as_ref()?;
+        let centre = 0.5 * (drift.lo + drift.hi);
+        let from_centre = |&v: &u32| {
+            let v = v as usize;
+            (x.get(v).as_dvec3() - anchor.get(v).as_dvec3() - centre).length()
+        };
+        Some(
+            verts
+                .par_iter()
+                .with_min_len(4096)
+                .map(from_centre)
+                .reduce(|| 0.0, f64::max),
+        )
+    }
+
+    /// Takes `found`, every pair closer than `reach` at `x` with its distance there, in the
+    /// order of the pairs' keys, as the new list.
+    pub fn rebuild(
+        &mut self,
+        x: &Vec3s,
+        reach: f64,
+        found: impl Iterator<Item = (Candidate, f64)>,
+    ) {
         match &mut self.anchor {
             Some(a) if a.len() == x.len() => a.copy_from(x),
             anchor => *anchor = Some(x.clone()),
         }
         self.reach = reach;
-        // Nearest first, ties by the pair (unique), so the order is the same however `found`
-        // was.
-        found.sort_unstable_by(|p, q| p.1.total_cmp(&q.1).then(p.0.key().cmp(&q.0.key())));
         self.candidates.clear();
         self.distances.clear();
         for (c, d) in found {
             self.candidates.push(c);
             self.distances.push(d);
         }
+        debug_assert!(self.candidates.windows(2).all(|w| w[0].key() < w[1].key()));
+        self.near.clear();
+        self.near.reserve(self.candidates.len());
     }
 
-    /// The listed pairs that were closer than `d` at the anchor.
-    pub fn within(&self, d: f64) -> &[Candidate] {
-        &self.candidates[..self.distances.partition_point(|&e| e < d)]
+    /// The listed pairs that were closer than `d` at the anchor, in the order of their keys.
+    pub fn within(&mut self, d: f64) -> impl IndexedParallelIterator<Item = Candidate> + '_ {
+        self.near.clear();
+        let near = self.distances.iter().enumerate().filter(|(_, &e)| e < d);
+        self.near.extend(near.map(|(k, _)| k as u32));
+        let candidates = &self.candidates;
+        self.near.par_iter().map(move |&k| candidates[k as usize])
     }
 
     pub fn heap_bytes(&self) -> usize {
         self.anchor.as_ref().map_or(0, Vec3s::heap_bytes)
             + self.candidates.capacity() * size_of::<Candidate>()
             + self.distances.capacity() * 8
+            + self.near.capacity() * 4
     }
 }
 
@@ -127,7 +166,6 @@ impl Spread {
 mod tests {
     use super::*;
     use glam::Vec3;
-    use rayon::prelude::*;
 
     /// The bounding box of the displacements `b_i - a_i` over `verts` (m; empty if none). Exact
     /// reductions (min and max), so the same for any thread count.
@@ -168,19 +206,43 @@ mod tests {
         let mut list = PairList::default();
         assert!(list.anchor().is_none(), "an empty list covers nothing");
         assert!(!list.covers(None, 0.0, 0.0));
-        list.rebuild(&a, 0.01, Vec::new());
-        let drift = |x: &Vec3s| Some(displacements(&[0, 1], &a, x));
-        assert!(list.covers(drift(&a), 0.01, 0.0));
+        assert_eq!(list.strayed(&[0, 1], &a, Spread::default()), None);
+        list.rebuild(&a, 0.01, std::iter::empty());
+        let strayed = |x: &Vec3s| list.strayed(&[0, 1], x, displacements(&[0, 1], &a, x));
+        assert!(list.covers(strayed(&a), 0.01, 0.0));
         let mut b = a.clone();
         b.set(1, Vec3::new(1.002, 0.0, 0.0)); // spread 0.001
-        assert!(list.covers(drift(&b), 0.0079, 0.0));
-        assert!(!list.covers(drift(&b), 0.0081, 0.0));
+        assert!(list.covers(strayed(&b), 0.0079, 0.0));
+        assert!(!list.covers(strayed(&b), 0.0081, 0.0));
         list.clear();
         assert!(list.anchor().is_none());
     }
 
+    /// The bound the list is kept by is each vertex's own distance from the common
+    /// displacement, not the corner of the displacements' box: four vertices moved by 0.002
+    /// along +x, -x, +y and -y spread a box whose half diagonal is 0.002 sqrt 2, while none
+    /// strays more than 0.002 from its centre.
     #[test]
-    fn the_nearest_are_first_whatever_their_order() {
+    fn the_list_is_kept_by_the_farthest_vertex_not_the_box_corner() {
+        let a = Vec3s::from_fn(5, |v| Vec3::new(v as f32, 0.0, 0.0));
+        let mut list = PairList::default();
+        list.rebuild(&a, 0.01, std::iter::empty());
+        let mut b = a.clone();
+        for (v, step) in [(1, Vec3::X), (2, -Vec3::X), (3, Vec3::Y), (4, -Vec3::Y)] {
+            b.set(v, a.get(v) + 0.002 * step);
+        }
+        let verts = [0, 1, 2, 3, 4];
+        let drift = displacements(&verts, &a, &b);
+        assert!((drift.radius() - 0.002 * 2f64.sqrt()).abs() < 1e-5);
+        let strayed = list.strayed(&verts, &b, drift).unwrap();
+        assert!((strayed - 0.002).abs() < 1e-5, "{strayed}");
+        // Covered with the farthest vertex's bound, not with the box's.
+        assert!(list.covers(Some(strayed), 0.0055, 0.0));
+        assert!(!list.covers(Some(drift.radius()), 0.0055, 0.0));
+    }
+
+    #[test]
+    fn the_nearest_come_in_the_order_of_their_keys() {
         let a = Vec3s::zeros(1);
         let at = |d: f64, v: u32| {
             (
@@ -192,14 +254,11 @@ mod tests {
             )
         };
         let mut list = PairList::default();
-        list.rebuild(
-            &a,
-            0.01,
-            vec![at(0.005, 0), at(0.001, 1), at(0.003, 2), at(0.001, 3)],
-        );
-        let first: Vec<u32> = list.within(0.004).iter().map(|c| c.verts[0]).collect();
-        assert_eq!(first, [1, 3, 2]);
-        assert_eq!(list.within(0.001).len(), 0);
-        assert_eq!(list.within(1.0).len(), 4);
+        let found = [at(0.005, 0), at(0.001, 1), at(0.003, 2), at(0.001, 3)];
+        list.rebuild(&a, 0.01, found.into_iter());
+        let first: Vec<u32> = list.within(0.004).map(|c| c.verts[0]).collect();
+        assert_eq!(first, [1, 2, 3]);
+        assert_eq!(list.within(0.001).count(), 0);
+        assert_eq!(list.within(1.0).count(), 4);
     }
 }

@@ -60,7 +60,7 @@ use crate::soa::Vec3s;
 use crate::state::Kinematics;
 use bvh::Aabb;
 use list::{PairList, Spread};
-use search::{Broad, Looked};
+use search::{Broad, Looked, Order};
 use std::time::Instant;
 use topology::Topology;
 
@@ -72,8 +72,9 @@ const PUSH: f64 = 0.25;
 
 /// How much farther than a substep needs the pair list reaches, as a fraction of `thickness`:
 /// the relative motion the cloth may make before the list is built again. More keeps the list
-/// longer, at more pairs looked at in every substep.
-const SKIN: f64 = 1.0;
+/// longer, at more pairs found by each build and looked at in every substep (chosen by the
+/// settling pile's cost, docs/contact.md).
+const SKIN: f64 = 1.5;
 
 /// The farthest, as a multiple of `thickness`, that a substep may need to look for the pair list
 /// to be built for it. A list reaching farther holds many more pairs than the swept search
@@ -246,8 +247,9 @@ impl SelfCollision {
         // was built, so a restored state steps exactly as the original.
         let clock = Instant::now();
         let finite = if needed <= LIST_LIMIT * thickness {
-            let mut drift = survey.drift.map_or(0.0, |d| d.radius()) + eps;
-            if !self.list.covers(survey.drift, needed, eps) {
+            let strayed = survey.drift.and_then(|d| self.list.strayed(verts, x0, d));
+            let mut drift = strayed.unwrap_or(0.0) + eps;
+            if !self.list.covers(strayed, needed, eps) {
                 self.rebuild_list(x0, needed + SKIN * thickness, eps as f32);
                 drift = eps;
             }
@@ -320,25 +322,25 @@ impl SelfCollision {
             x0,
             limit,
             1e-3 * eps as f64,
+            Order::Vertices,
             &mut self.pairs,
         );
         self.count(looked);
         self.search_boxes = boxes;
-        let found = self.pairs.iter().map(|p| (p.candidate(), p.d0)).collect();
+        let found = self.pairs.iter().map(|p| (p.candidate(), p.d0));
         self.list.rebuild(x0, reach, found);
         self.stats.rebuilds += 1;
     }
 
     /// The listed pairs closer than `needed` at `x0`, with their closest points there, ordered
-    /// by their vertices (the same whenever the list was built, so the result depends on the
-    /// substep alone). A pair that was `d` apart at the anchor is at least `d - 2 drift` apart
-    /// now, so only the list's nearest need a look.
+    /// by their vertices (the list's order: the same whenever the list was built, so the result
+    /// depends on the substep alone). A pair that was `d` apart at the anchor is at least
+    /// `d - 2 drift` apart now, so only the list's nearest need a look.
     fn listed_pairs(&mut self, x0: &Vec3s, needed: f64, drift: f64) {
         let near = self.list.within(needed + 2.0 * drift);
         self.pairs.clear();
-        self.pairs.par_extend(near.par_iter().map(|c| c.at(x0)));
+        self.pairs.par_extend(near.map(|c| c.at(x0)));
         self.pairs.retain(|p| p.d0 < needed);
-        self.pairs.sort_unstable_by_key(|p| p.candidate().key());
     }
 
     /// The swept search, for a substep whose motion the list does not cover: every pair whose
@@ -367,8 +369,15 @@ impl SelfCollision {
             let side = |s: &[u32]| s.iter().map(|&v| reach(v)).fold(0.0, f64::max);
             thickness + side(a) + side(b) + eps
         };
-        self.broad
-            .search(&self.topology, boxes, x0, limit, 1e-3 * eps, out)
+        self.broad.search(
+            &self.topology,
+            boxes,
+            x0,
+            limit,
+            1e-3 * eps,
+            Order::Index,
+            out,
+        )
     }
 
     fn count(&mut self, looked: Looked) {

@@ -25,8 +25,22 @@ pub struct Broad {
     vertex_triangles: Vec<(u64, Pair)>,
     edge_edges: Vec<(u64, Pair)>,
     sorted: Vec<(u64, u32)>,
+    /// Each triangle's place among the triangles ordered by their vertices (for
+    /// [`Order::Vertices`]).
+    tri_rank: Vec<u32>,
     /// The topology version the trees were shaped for.
     shaped_for: Option<u64>,
+}
+
+/// How a search orders the vertex-triangle pairs it finds: by vertex, then by the triangle's
+/// index (`Index`) or by the triangle's vertices (`Vertices`, the order of
+/// [`crate::self_collision::pair::Candidate::key`], which the pair list keeps). The edge-edge
+/// pairs come after them in the order of their edges, which is their vertices' order either way
+/// (the edges are sorted).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Order {
+    Index,
+    Vertices,
 }
 
 /// What a search looked at.
@@ -40,12 +54,14 @@ pub struct Looked {
 }
 
 impl Broad {
-    /// Into `out`, in vertex then triangle and edge then edge order (so the same for any
-    /// thread count): every pair whose boxes overlap, given each vertex's box, and which is
+    /// Into `out`, in vertex then triangle (as `order` says) and edge then edge order (so the
+    /// same for any thread count): every pair whose boxes overlap, given each vertex's box, and which is
     /// closer than `limit(verts, split)` at `x`, with its closest points there. A primitive's
     /// box is the union of its vertices'. `margin` (m) bounds the round-off of a distance at
     /// `x`: a pair whose primitives' tight boxes at `x` are farther apart than `limit` and
     /// `margin` is passed over without its closest points.
+    // Each argument is a separate input of the one search both ways of finding pairs share.
+    #[allow(clippy::too_many_arguments)]
     pub fn search(
         &mut self,
         topo: &Topology,
@@ -53,6 +69,7 @@ impl Broad {
         x: &Vec3s,
         limit: impl Fn(&[u32; 4], usize) -> f64 + Sync,
         margin: f64,
+        order: Order,
         out: &mut Vec<Pair>,
     ) -> Looked {
         let vb = vertex_boxes;
@@ -73,6 +90,12 @@ impl Broad {
             self.vert_tree.build(&self.vert_boxes);
             self.tri_tree.build(&self.tri_boxes);
             self.edge_tree.build(&self.edge_boxes);
+            let mut by_vertices: Vec<u32> = (0..topo.triangles.len() as u32).collect();
+            by_vertices.sort_unstable_by_key(|&t| (topo.triangles[t as usize], t));
+            self.tri_rank = vec![0; by_vertices.len()];
+            for (rank, &t) in by_vertices.iter().enumerate() {
+                self.tri_rank[t as usize] = rank as u32;
+            }
             self.shaped_for = topo.version;
         } else {
             self.vert_tree.refit(&self.vert_boxes);
@@ -94,13 +117,18 @@ impl Broad {
                 }
             }
         };
+        let tri_rank = &self.tri_rank;
         let vertex_triangle_pair = |k: u32, t: u32, out: &mut Vec<(u64, Pair)>| {
             let v = topo.vertices[k as usize];
             let [a, b, c] = topo.triangles[t as usize];
             if topo.joined(v, a) || topo.joined(v, b) || topo.joined(v, c) {
                 return false;
             }
-            let key = (v as u64) << 32 | t as u64;
+            let place = match order {
+                Order::Index => t,
+                Order::Vertices => tri_rank[t as usize],
+            };
+            let key = (v as u64) << 32 | place as u64;
             keep_close([v, a, b, c], 1, key, vertex_triangle, out);
             true
         };
@@ -147,6 +175,7 @@ impl Broad {
             + (self.vertex_triangles.capacity() + self.edge_edges.capacity())
                 * size_of::<(u64, Pair)>()
             + self.sorted.capacity() * 16
+            + self.tri_rank.capacity() * 4
             + self.vert_tree.heap_bytes()
             + self.tri_tree.heap_bytes()
             + self.edge_tree.heap_bytes()
@@ -182,4 +211,63 @@ fn union(vertex_boxes: &[Aabb], vertices: &[u32]) -> Aabb {
         (min, max) = (min.min(b.min), max.max(b.max));
     }
     Aabb { min, max }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The pair list keeps its pairs in the order a substep looks at them and takes them with a
+    /// filter, so a search for it must find them in that order, `Candidate::key`'s: by vertex,
+    /// then by the triangle's vertices, which is not the triangles' index order here. Both
+    /// orders must hold the same pairs.
+    #[test]
+    fn ordered_by_vertices_the_pairs_come_in_the_order_of_their_keys() {
+        // Two layers of four triangles 1 mm apart, the second layer's triangles listed with
+        // their vertices out of index order.
+        let at = |k: usize| {
+            let (layer, i, j) = (k / 9, k % 3, (k / 3) % 3);
+            Vec3::new(0.01 * i as f32, 0.01 * j as f32, 0.001 * layer as f32)
+        };
+        let x = Vec3s::from_fn(18, at);
+        let mut triangles = Vec::new();
+        for layer in [9, 0] {
+            for (i, j) in [(1, 1), (0, 0), (1, 0), (0, 1)] {
+                let v = layer + 3 * j + i;
+                triangles.push([v + 4, v, v + 1]);
+                triangles.push([v + 3, v, v + 4]);
+            }
+        }
+        let mut topo = Topology::default();
+        topo.rebuild(0, 18, triangles);
+        let boxes: Vec<Aabb> = (0..18)
+            .map(|v| Aabb {
+                min: x.get(v) - Vec3::splat(0.002),
+                max: x.get(v) + Vec3::splat(0.002),
+            })
+            .collect();
+        let mut broad = Broad::default();
+        let key = |p: &Pair| p.candidate().key();
+        let (mut by_index, mut by_vertices) = (Vec::new(), Vec::new());
+        let limit = |_: &[u32; 4], _| 0.004;
+        broad.search(&topo, &boxes, &x, limit, 0.0, Order::Index, &mut by_index);
+        broad.search(
+            &topo,
+            &boxes,
+            &x,
+            limit,
+            0.0,
+            Order::Vertices,
+            &mut by_vertices,
+        );
+        assert!(by_vertices.len() > 20, "{}", by_vertices.len());
+        assert!(by_vertices.windows(2).all(|w| key(&w[0]) < key(&w[1])));
+        assert!(by_index.windows(2).any(|w| key(&w[0]) > key(&w[1])));
+        by_index.sort_unstable_by_key(key);
+        assert!(by_index
+            .iter()
+            .zip(&by_vertices)
+            .all(|(p, q)| key(p) == key(q)));
+        assert_eq!(by_index.len(), by_vertices.len());
+    }
 }

@@ -137,7 +137,9 @@ def test_a_table_does_not_show_through_the_tablecloth_on_it(ctx: Any, scene: str
         g[show] = r.read_gbuffer()
     cloth = np.isin(g[False]["material"], (K.CLOTH_FRONT.id, K.CLOTH_BACK.id))
     table = g[True]["material"] == K.COLLIDER.id
-    assert table.sum() > 100, "the table is not on screen"
+    # Where the cloth leaves the table uncovered (its leg, a strip of its top) depends on the
+    # drape, which any change of round-off moves: a few dozen pixels are enough to be on screen.
+    assert table.sum() > 40, "the table is not on screen"
     # A leg in front of the cloth hanging behind it covers cloth legitimately, a metre away.
     gap = np.linalg.norm(g[True]["position"] - g[False]["position"], axis=-1)
     assert (cloth & table & (gap < 0.1)).sum() == 0
