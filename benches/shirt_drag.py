@@ -11,7 +11,11 @@ as built in (symplectic Euler, 5 substeps of 1 ms) with implicit Euler at ``--st
 and prints implicit Euler's CG iterations a solve and pairs held a step.
 
     RAYON_NUM_THREADS=1 .venv/bin/python benches/shirt_drag.py [--integrator both] [--steps 1]
-        [--solve-stiffness 0 30 100]
+        [--solve-stiffness 0 30 100] [--sideways] [--trace]
+
+``--sideways`` pulls the hem 0.2 m sideways, 0.25 up and 0.3 forward instead (a fold dragged
+across itself); ``--trace`` prints the energies, the fastest vertex and the pairs held frame by
+frame.
 
 About a minute for each run.
 """
@@ -47,7 +51,7 @@ def sewn_as_one(scene: rustcloth.Scene, triangles: np.ndarray) -> np.ndarray:
     return same[triangles]
 
 
-def run(implicit: bool, steps: int, stiffness: float) -> None:
+def run(implicit: bool, steps: int, stiffness: float, pull: np.ndarray, trace: bool) -> None:
     scene = rustcloth.load_scene("shirt")
     if implicit:
         scene = scene.replace(integrator="implicit_euler", dt=1 / (60 * steps), substeps=1,
@@ -64,7 +68,6 @@ def run(implicit: bool, steps: int, stiffness: float) -> None:
     sim.grab(hem)
     gripped = sim.gripped()
     grabbed_at = sim.positions[gripped].astype(np.float64)
-    pull = np.array([0.0, 0.25, 0.4])
     stretch = 0.0
     start = time.process_time()
     for frame in range(60):
@@ -72,11 +75,15 @@ def run(implicit: bool, steps: int, stiffness: float) -> None:
         sim.drag_to((origin + reach * pull).tolist())
         sim.advance(1 / 60)
         stretch = max(stretch, float(np.max(edge_lengths(sim) / before)))
+        if trace:
+            print_frame(sim, frame)
     miss = np.linalg.norm(sim.positions[gripped] - (grabbed_at + pull), axis=1).max()
     sim.release()
     gaps = []
     for frame in range(240):
         sim.advance(1 / 60)
+        if trace and frame % 10 == 9:
+            print_frame(sim, 60 + frame)
         if frame % 30 == 29:
             gaps.append(round(1000 * sim.seam_gap(), 1))
     dragged = time.process_time() - start
@@ -97,6 +104,17 @@ def run(implicit: bool, steps: int, stiffness: float) -> None:
           f"{sim.energy().kinetic:.2g} J; {crossings} crossings at the end{solver}", flush=True)
 
 
+def print_frame(sim: rustcloth.Simulation, frame: int) -> None:
+    """One line of ``--trace``: the frame (from the drag's start), the energies, the fastest
+    vertex and the pairs held so far."""
+    e = sim.energy()
+    fastest = float(np.linalg.norm(sim.velocities, axis=1).max())
+    pairs = (sim.solver_stats() or {}).get("self_pairs", 0.0)
+    print(f"  frame {frame + 1:3d}: kinetic {e.kinetic:.3g} J, gravitational "
+          f"{e.gravitational:.4f} J, elastic {e.elastic:.3g} J, total {e.total:.4f} J, "
+          f"fastest {fastest:.3g} m/s, pairs held {pairs:.0f} so far", flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--integrator", choices=["scene", "implicit", "both"], default="both")
@@ -105,14 +123,20 @@ def main() -> None:
     parser.add_argument("--solve-stiffness", type=float, nargs="+", default=[0.0],
                         help="implicit Euler's self_collision.solve_stiffness, one run each "
                              "(default 0: the pass after the solve alone)")
+    parser.add_argument("--sideways", action="store_true",
+                        help="pull the hem 0.2 m sideways, 0.25 up and 0.3 forward instead")
+    parser.add_argument("--trace", action="store_true",
+                        help="print the energies, the fastest vertex and the pairs held each "
+                             "frame of the drag and every 10 frames after")
     args = parser.parse_args()
+    pull = np.array([0.2, 0.25, 0.3] if args.sideways else [0.0, 0.25, 0.4])
     if args.steps < 1:
         parser.error("--steps must be at least 1")
     if args.integrator in ("both", "scene"):
-        run(False, args.steps, 0.0)
+        run(False, args.steps, 0.0, pull, args.trace)
     if args.integrator in ("both", "implicit"):
         for stiffness in args.solve_stiffness:
-            run(True, args.steps, stiffness)
+            run(True, args.steps, stiffness, pull, args.trace)
 
 
 if __name__ == "__main__":
