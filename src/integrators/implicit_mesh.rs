@@ -43,8 +43,11 @@
 //! apart by the grid's penalty ([`SelfContactTerm`]): their diagonal blocks join the
 //! vertices' (the proxy's too, under the triangle membrane), their couplings join CG's product
 //! ([`WithSelfContacts`]), and the step is solved again, once, holding the pairs the first
-//! solve brought within `thickness` ([`SOLVES`]). With colliders' contacts held the right-hand
-//! side is kept as assembled, so that the filter reduces the one with the added pairs anew.
+//! solve brought within `thickness` and releasing those it carried apart ([`SOLVES`]). A pair
+//! rests at `thickness` or at its gap at the step's start where that is smaller
+//! ([`Rest::NoCloser`]): the penalty then only ever takes energy from the cloth. With
+//! colliders' contacts held the right-hand side is kept as assembled, so that the filter
+//! reduces the one with the added and released pairs anew.
 //!
 //! Every sum has a fixed order (per spring, then per vertex over its springs in spring order;
 //! the multigrid's as its module says), so a step is bitwise the same for any number of threads.
@@ -55,7 +58,7 @@ use glam::{Mat3, Vec3};
 use rayon::prelude::*;
 
 use super::contact_filter::ContactFilter;
-use super::self_contact::{DiagonalBlocks, SelfContactTerm, WithSelfContacts, SOLVES};
+use super::self_contact::{DiagonalBlocks, Rest, SelfContactTerm, WithSelfContacts, SOLVES};
 use super::solver::{live_or_zero, Preconditioner, SolverSettings, SolverStats, CONTACT_STIFFNESS};
 use super::StepContext;
 use crate::collisions::PredictedContacts;
@@ -366,7 +369,7 @@ impl MeshSystem {
                 coupling: vec![Sym3::ZERO; s.len()],
                 shift: vec![0.0; s.len()],
             }),
-            self_contact: SelfContactTerm::default(),
+            self_contact: SelfContactTerm::resting(Rest::NoCloser),
             assembled: Vec3s::zeros(0),
         }
     }
@@ -429,14 +432,15 @@ impl MeshSystem {
                 dv,
                 ..
             } = self;
-            let added = self_contact.extend(
+            let before = self_contact.len();
+            let changed = self_contact.extend(
                 h,
                 pairs,
                 (&cur.pos, &cur.vel, dv, &w[..]),
                 (&mut Diagonals::of(matrix, membrane), assembled),
             );
-            stats.self_pairs += added as u64;
-            if added == 0 {
+            stats.self_pairs += self_contact.len().saturating_sub(before) as u64;
+            if changed == 0 {
                 break;
             }
             self.rhs.copy_from(&self.assembled);
