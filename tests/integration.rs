@@ -26,6 +26,8 @@ mod energy;
 mod fuzz;
 #[path = "garment.rs"]
 mod garment;
+#[path = "garment_drag.rs"]
+mod garment_drag;
 #[path = "golden.rs"]
 mod golden;
 #[path = "grip.rs"]

@@ -39,6 +39,16 @@
 //! isotropic `P` with each stretch spring weighted as the springs membrane would weight it
 //! ([`Membrane::proxy_k`]).
 //!
+//! **Self-contact** (`self_collision.solve_stiffness`): the pairs ahead of the step are held
+//! apart by the grid's penalty ([`SelfContactTerm`]): their diagonal blocks join the
+//! vertices' (the proxy's too, under the triangle membrane), their couplings join CG's product
+//! ([`WithSelfContacts`]), and the step is solved again, once, holding the pairs the first
+//! solve brought within `thickness` and releasing those it carried apart ([`SOLVES`]). A pair
+//! rests at `thickness` or at its gap at the step's start where that is smaller
+//! ([`Rest::NoCloser`]): the penalty then only ever takes energy from the cloth. With
+//! colliders' contacts held the right-hand side is kept as assembled, so that the filter
+//! reduces the one with the added and released pairs anew.
+//!
 //! Every sum has a fixed order (per spring, then per vertex over its springs in spring order;
 //! the multigrid's as its module says), so a step is bitwise the same for any number of threads.
 
@@ -48,6 +58,7 @@ use glam::{Mat3, Vec3};
 use rayon::prelude::*;
 
 use super::contact_filter::ContactFilter;
+use super::self_contact::{DiagonalBlocks, Rest, SelfContactTerm, WithSelfContacts, SOLVES};
 use super::solver::{live_or_zero, Preconditioner, SolverSettings, SolverStats, CONTACT_STIFFNESS};
 use super::StepContext;
 use crate::collisions::PredictedContacts;
@@ -84,6 +95,35 @@ pub(super) struct MeshSystem {
     amg: Vec<(FactorKey, Amg)>,
     /// With the triangle membrane: its elements' blocks and the multigrid's proxy.
     membrane: Option<Elements>,
+    /// The self-collision pairs held apart inside the solve.
+    self_contact: SelfContactTerm,
+    /// With pairs held: the right-hand side as assembled, before the contact filter reduces it.
+    assembled: Vec3s,
+}
+
+/// The diagonal blocks the self-contact term adds to: the system's, and the multigrid's proxy
+/// under the triangle membrane.
+struct Diagonals<'a> {
+    matrix: &'a mut [Sym3],
+    proxy: Option<&'a mut [Sym3]>,
+}
+
+impl<'a> Diagonals<'a> {
+    fn of(matrix: &'a mut SpringMatrix, membrane: &'a mut Option<Elements>) -> Self {
+        Diagonals {
+            matrix: &mut matrix.diagonal,
+            proxy: membrane.as_mut().map(|m| &mut m.proxy.diagonal[..]),
+        }
+    }
+}
+
+impl DiagonalBlocks for Diagonals<'_> {
+    fn add(&mut self, p: usize, s: f32, block: &Sym3) {
+        self.matrix.add(p, s, block);
+        if let Some(proxy) = self.proxy.as_deref_mut() {
+            proxy.add(p, s, block);
+        }
+    }
 }
 
 /// The triangle membrane's part of the system.
@@ -329,12 +369,14 @@ impl MeshSystem {
                 coupling: vec![Sym3::ZERO; s.len()],
                 shift: vec![0.0; s.len()],
             }),
+            self_contact: SelfContactTerm::resting(Rest::NoCloser),
+            assembled: Vec3s::zeros(0),
         }
     }
 
     /// Assembles the step's system, builds the preconditioner and solves for `dv` (in
-    /// `self.dv`) with the predicted contacts held by `filter`, booking the times and the solve
-    /// in `stats`.
+    /// `self.dv`) with the predicted contacts held by `filter` and the self-collision pairs
+    /// ahead (`ctx.self_pairs`) by the penalty, booking the times and the solves in `stats`.
     pub(super) fn solve(
         &mut self,
         mesh: &MeshCloth,
@@ -359,12 +401,68 @@ impl MeshSystem {
             self.stiffen_contacts(contacts, ctx);
         }
         let (cur, w, mass) = (ctx.current, &ctx.particles.inv_mass, &ctx.particles.mass);
-        filter.gather(h, ctx.contacts, (&cur.pos, &cur.vel, w), |p| {
-            CONTACT_STIFFNESS * mass[p]
-        });
+        let state = (&cur.pos, &cur.vel, &w[..]);
+        match ctx.self_pairs {
+            Some(pairs) => {
+                let term = &mut self.self_contact;
+                term.gather(h, pairs, state);
+                term.add_diagonal(0, &mut Diagonals::of(&mut self.matrix, &mut self.membrane));
+                term.add_rhs(0, h, &mut self.rhs);
+                if self.assembled.len() != self.rhs.len() {
+                    self.assembled = Vec3s::zeros(self.rhs.len());
+                }
+                self.assembled.copy_from(&self.rhs);
+            }
+            None => self.self_contact.clear(),
+        }
+        stats.self_pairs += self.self_contact.len() as u64;
+        filter.gather(h, ctx.contacts, state, |p| CONTACT_STIFFNESS * mass[p]);
+        let mut setup = started;
+        for solve in 1..=SOLVES {
+            self.solve_once(mesh, (h, drag), (settings, stats), filter, ctx, setup);
+            let Some(pairs) = ctx.self_pairs.filter(|_| solve < SOLVES) else {
+                break;
+            };
+            setup = Instant::now();
+            let MeshSystem {
+                matrix,
+                membrane,
+                self_contact,
+                assembled,
+                dv,
+                ..
+            } = self;
+            let before = self_contact.len();
+            let changed = self_contact.extend(
+                h,
+                pairs,
+                (&cur.pos, &cur.vel, dv, &w[..]),
+                (&mut Diagonals::of(matrix, membrane), assembled),
+            );
+            stats.self_pairs += self_contact.len().saturating_sub(before) as u64;
+            if changed == 0 {
+                break;
+            }
+            self.rhs.copy_from(&self.assembled);
+        }
+    }
+
+    /// The contact filter's reduction, the preconditioner's setup and one CG solve of the
+    /// assembled system into `self.dv`; `started` is when its setup began.
+    fn solve_once(
+        &mut self,
+        mesh: &MeshCloth,
+        (h, drag): (f32, f32),
+        (settings, stats): (SolverSettings, &mut SolverStats),
+        filter: &mut ContactFilter,
+        ctx: &StepContext,
+        started: Instant,
+    ) {
         let w = &ctx.particles.inv_mass[..];
+        let term = (!self.self_contact.is_empty()).then_some(&self.self_contact);
         if !filter.is_empty() {
-            let operator = Operator::of(&self.matrix, &self.membrane, mesh, w);
+            let matrix = &Operator::of(&self.matrix, &self.membrane, mesh, w);
+            let operator = WithSelfContacts { matrix, term };
             filter.reduce(&mut self.rhs, |x, y| operator.apply(x, y, ctx.chunk));
         }
         match settings.preconditioner {
@@ -416,8 +514,10 @@ impl MeshSystem {
             jacobi,
             amg,
             membrane,
+            self_contact,
             ..
         } = self;
+        let term = (!self_contact.is_empty()).then_some(&*self_contact);
         let (tolerance, most) = (settings.tolerance as f64, settings.max_iterations);
         let limits = (tolerance, most);
         let held = &*filter;
@@ -426,7 +526,10 @@ impl MeshSystem {
         // The multigrid's matrix: the proxy under the triangle membrane.
         let coarse = membrane.as_ref().map_or(matrix, |m| &m.proxy);
         // Without contacts the filter projects nothing: the plain preconditioned CG.
-        let a = Operator::of(matrix, membrane, mesh, w);
+        let a = WithSelfContacts {
+            matrix: &Operator::of(matrix, membrane, mesh, w),
+            term,
+        };
         let (iterations, residual) = match (settings.preconditioner, amg.first_mut()) {
             (Preconditioner::Multigrid, Some((_, amg))) => {
                 let precondition = |r: &Vec3s, z: &mut Vec3s| amg.apply(coarse, r, z);
@@ -438,8 +541,7 @@ impl MeshSystem {
             }
         };
         if !filter.is_empty() {
-            let operator = Operator::of(&self.matrix, &self.membrane, mesh, w);
-            filter.finish(&mut self.dv, |x, y| operator.apply(x, y, ctx.chunk));
+            filter.finish(dv, |x, y| a.apply(x, y, ctx.chunk));
         }
         stats.solve_seconds += solving.elapsed().as_secs_f64();
         stats.record(iterations, residual, settings.tolerance as f64);

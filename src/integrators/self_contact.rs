@@ -19,16 +19,21 @@
 //! A_ij += h^2 k c_i c_j n n^T,   b_i += h k (delta - g_pred) c_i n
 //! ```
 //!
-//! exact for this quadratic. The stiffness is `h^2 k = beta m_eff`, `m_eff = 1 / sum w_i c_i^2`
-//! the pair's effective mass along `n` (`w` inverse masses): a lone pair ends
-//! `(delta - g_pred) / (1 + beta)` short of `delta`, for the pass after the solve. Weights summing
-//! to zero make every force and every matrix row pair sum to zero: the term exchanges momentum,
-//! it adds none. Held particles (`w = 0`) keep their rows and columns empty, as the springs'.
+//! exact for this quadratic. Where `delta` is taken is [`Rest`]'s: the grid's pairs rest at
+//! `thickness`; a mesh cloth's at the gap they start with where that is smaller, released where
+//! the solve carries them beyond it, so that the penalty is one-sided and zero at the step's
+//! start and the term can only take energy from the cloth. The stiffness is
+//! `h^2 k = beta m_eff`, `m_eff = 1 / sum w_i c_i^2` the pair's effective mass along `n` (`w`
+//! inverse masses): a lone pair ends `(delta - g_pred) / (1 + beta)` short of `delta`, for the
+//! pass after the solve. Weights summing to zero make every force and every matrix row pair sum
+//! to zero: the term exchanges momentum, it adds none. Held particles (`w = 0`) keep their rows
+//! and columns empty, as the springs'.
 //!
-//! The diagonal blocks go into the assembled matrix, where the preconditioner sees them; the
-//! couplings between a pair's vertices are applied matrix-free in CG's product: first each
-//! pair's `n . sum_k c_k x_k` (once a pair, not once for each of its vertices), then row by
-//! row over each vertex's pairs in pair order, so the product is the same for any thread count.
+//! The diagonal blocks go into the assembled matrix, where the preconditioner sees them (the
+//! grid's six slot columns or a mesh's blocks, [`DiagonalBlocks`]); the couplings between a
+//! pair's vertices are applied matrix-free in CG's product: first each pair's
+//! `n . sum_k c_k x_k` (once a pair, not once for each of its vertices), then row by row over
+//! each vertex's pairs in pair order, so the product is the same for any thread count.
 
 use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
 
@@ -41,27 +46,88 @@ use crate::linear::Sym3;
 use crate::self_collision::Pair;
 use crate::soa::{Vec3SliceMut, Vec3s};
 
+/// How many times at most a step with pairs held is solved: after a solve, the pairs it brought
+/// within `thickness` are held too and the step is solved again: the springs carry vertices
+/// into contact that their inertia alone does not.
+pub(super) const SOLVES: u32 = 2;
+
+/// A matrix's diagonal blocks, as the term adds to them.
+pub(super) trait DiagonalBlocks {
+    /// `block * s` onto particle `p`'s diagonal block.
+    fn add(&mut self, p: usize, s: f32, block: &Sym3);
+}
+
+/// The grid's: six columns `xx, yy, zz, xy, xz, yz`.
+impl DiagonalBlocks for SlotArrays {
+    fn add(&mut self, p: usize, s: f32, block: &Sym3) {
+        for (column, v) in self.iter_mut().zip(block.0) {
+            column[p] += s * v;
+        }
+    }
+}
+
+/// A mesh's: one block a vertex.
+impl DiagonalBlocks for [Sym3] {
+    fn add(&mut self, p: usize, s: f32, block: &Sym3) {
+        self[p].add_scaled(s, block);
+    }
+}
+
+/// Where a held pair's penalty rests: the gap it holds the pair at.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(super) enum Rest {
+    /// At `thickness`: a pair that starts inside it is pushed out to it within the step. The
+    /// penalty's energy at the step's start, `k/2 (delta - g(x))^2`, is then given to the
+    /// cloth as the pair separates: up to `beta m_eff/2 ((delta - g) / h)^2` a pair a step.
+    #[default]
+    Thickness,
+    /// At `thickness`, or at the pair's gap at the step's start where that is smaller, and
+    /// released where the solve leaves it beyond that gap. The penalty is then zero at the
+    /// start and pushes only where the pair ends within its rest: the one-sided penalty
+    /// `k/2 max(0, rest - g(x))^2`, convex, solved exactly by backward Euler, which can only
+    /// take energy from the cloth (kinetic + potential + penalty at the end is at most the
+    /// start's). A pair inside `thickness` is kept from closing further, not pushed out: that
+    /// is left to the pass after the solve.
+    NoCloser,
+}
+
+impl Rest {
+    /// The gap held for a pair whose gap is `g0` at the step's start.
+    fn gap(self, thickness: f32, g0: f32) -> f32 {
+        match self {
+            Rest::Thickness => thickness,
+            Rest::NoCloser => thickness.min(g0),
+        }
+    }
+}
+
 /// One pair held inside the solve.
 #[derive(Clone, Copy, Debug)]
 struct Held {
+    /// Its index among the pairs handed in.
+    of: u32,
     verts: [u32; 4],
     /// Closest-point weights, zero at held particles.
     c: [f32; 4],
     n: Vec3,
     /// `h^2 k`, kg.
     s: f32,
-    /// `delta - g_pred`, m: how far short of `delta` the inertial motion ends.
+    /// The gap held, m ([`Rest`]).
+    rest: f32,
+    /// `rest - g_pred`, m: how far short of `rest` the inertial motion ends.
     short: f32,
 }
 
 /// The pairs of one solve, kept between steps so that their buffers are reused.
 #[derive(Default)]
 pub(super) struct SelfContactTerm {
+    /// Where its pairs rest.
+    rest: Rest,
     held: Vec<Held>,
     /// Per particle, its entries in `rows` (`start[p]..start[p + 1]`): (pair, slot in it).
     start: Vec<u32>,
     rows: Vec<(u32, u8)>,
-    /// Per pair handed in, whether it is held.
+    /// Per pair handed in, whether it was held in this step (a released pair is not held again).
     taken: Vec<bool>,
     /// Where each particle's next entry goes while `rows` is filled.
     fill: Vec<u32>,
@@ -81,6 +147,14 @@ pub struct SelfPairs<'a> {
 }
 
 impl SelfContactTerm {
+    /// A term whose pairs rest as `rest` says.
+    pub(super) fn resting(rest: Rest) -> Self {
+        SelfContactTerm {
+            rest,
+            ..SelfContactTerm::default()
+        }
+    }
+
     /// The pairs of `pairs` a step of `h` s from `(pos, vel)` would bring within `thickness`.
     pub(super) fn gather(
         &mut self,
@@ -90,8 +164,8 @@ impl SelfContactTerm {
     ) {
         self.held.clear();
         self.taken.clear();
-        for pair in pairs.pairs {
-            let held = hold(h, pairs, pair, (pos, vel, inv_mass));
+        for (i, pair) in pairs.pairs.iter().enumerate() {
+            let held = hold(h, pairs, (i, pair), self.rest, (pos, vel, inv_mass));
             let ahead = held.filter(|held| held.short > 0.0);
             self.taken.push(ahead.is_some());
             self.held.extend(ahead);
@@ -99,31 +173,48 @@ impl SelfContactTerm {
         self.index_rows(pos.len());
     }
 
-    /// Adds the pairs of `pairs` not held yet that the solve's `dv` brought within `thickness`
-    /// (their closest points and normal still those at the step's start), with their diagonal
-    /// blocks into `d` and their loads into `b`. Returns how many.
-    pub(super) fn extend(
+    /// Adds the pairs of `pairs` not held yet that the solve's `dv` brought within their rest
+    /// gap (their closest points and normal still those at the step's start), with their
+    /// diagonal blocks into `d` and their loads into `b`; under [`Rest::NoCloser`] first
+    /// releases the held pairs the solve left beyond their rest gap (there the penalty pulls),
+    /// taking theirs out of `d` and `b`. Returns how many pairs were added or released.
+    pub(super) fn extend<D: DiagonalBlocks + ?Sized>(
         &mut self,
         h: f32,
         pairs: SelfPairs,
         (pos, vel, dv, inv_mass): (&Vec3s, &Vec3s, &Vec3s, &[f32]),
-        (d, b): (&mut SlotArrays, &mut Vec3s),
+        (d, b): (&mut D, &mut Vec3s),
     ) -> usize {
-        let before = self.held.len();
-        for (pair, taken) in pairs.pairs.iter().zip(&mut self.taken) {
-            if *taken {
-                continue;
-            }
-            let Some(held) = hold(h, pairs, pair, (pos, vel, inv_mass)) else {
-                continue;
-            };
+        let end_gap = |pair: &Pair, n: Vec3| {
             let mut end = 0.0;
             for k in 0..4 {
                 let p = pair.verts[k] as usize;
                 let x = pos.get(p) + h * (vel.get(p) + dv.get(p));
-                end += pair.c[k] as f32 * held.n.dot(x);
+                end += pair.c[k] as f32 * n.dot(x);
             }
-            if end < pairs.thickness {
+            end
+        };
+        let mut released = 0;
+        if self.rest == Rest::NoCloser {
+            let pulled = |held: &Held| end_gap(&pairs.pairs[held.of as usize], held.n) > held.rest;
+            for held in self.held.iter().filter(|held| pulled(held)) {
+                add_diagonal_of(held, -1.0, d);
+                add_rhs_of(held, -1.0, h, b);
+                released += 1;
+            }
+            if released > 0 {
+                self.held.retain(|held| !pulled(held));
+            }
+        }
+        let before = self.held.len();
+        for (i, (pair, taken)) in pairs.pairs.iter().zip(&mut self.taken).enumerate() {
+            if *taken {
+                continue;
+            }
+            let Some(held) = hold(h, pairs, (i, pair), self.rest, (pos, vel, inv_mass)) else {
+                continue;
+            };
+            if end_gap(pair, held.n) < held.rest {
                 *taken = true;
                 self.held.push(held);
             }
@@ -132,9 +223,11 @@ impl SelfContactTerm {
         if added > 0 {
             self.add_diagonal(before, d);
             self.add_rhs(before, h, b);
+        }
+        if added + released > 0 {
             self.index_rows(pos.len());
         }
-        added
+        added + released
     }
 
     /// Each particle's entries, in pair order.
@@ -182,17 +275,10 @@ impl SelfContactTerm {
     }
 
     /// `h^2 k c_i^2 n n^T` of the held pairs from the `from`-th on, onto each free vertex's
-    /// diagonal block (`xx, yy, zz, xy, xz, yz`).
-    pub(super) fn add_diagonal(&self, from: usize, d: &mut SlotArrays) {
+    /// diagonal block.
+    pub(super) fn add_diagonal<D: DiagonalBlocks + ?Sized>(&self, from: usize, d: &mut D) {
         for held in &self.held[from..] {
-            let block = Sym3::outer(1.0, held.n, 0.0).0;
-            for k in 0..4 {
-                let p = held.verts[k] as usize;
-                let s = held.s * held.c[k] * held.c[k];
-                for (column, v) in d.iter_mut().zip(block) {
-                    column[p] += s * v;
-                }
-            }
+            add_diagonal_of(held, 1.0, d);
         }
     }
 
@@ -200,13 +286,7 @@ impl SelfContactTerm {
     /// vertex's right-hand side.
     pub(super) fn add_rhs(&self, from: usize, h: f32, b: &mut Vec3s) {
         for held in &self.held[from..] {
-            let push = held.s / h * held.short * held.n;
-            for k in 0..4 {
-                let p = held.verts[k] as usize;
-                if held.c[k] != 0.0 {
-                    b.set(p, b.get(p) + held.c[k] * push);
-                }
-            }
+            add_rhs_of(held, 1.0, h, b);
         }
     }
 
@@ -246,12 +326,34 @@ impl SelfContactTerm {
     }
 }
 
-/// `pair` as a held pair of a step of `h` s from `(pos, vel)`, however far its inertial motion
-/// ends (`short` may be negative); None when its normal is degenerate or no vertex of it moves.
+/// `sign h^2 k c_i^2 n n^T` of `held` onto each free vertex's diagonal block.
+fn add_diagonal_of<D: DiagonalBlocks + ?Sized>(held: &Held, sign: f32, d: &mut D) {
+    let block = Sym3::outer(1.0, held.n, 0.0);
+    for k in 0..4 {
+        let p = held.verts[k] as usize;
+        d.add(p, sign * held.s * held.c[k] * held.c[k], &block);
+    }
+}
+
+/// `sign h k (rest - g_pred) c_i n` of `held` onto each free vertex's right-hand side.
+fn add_rhs_of(held: &Held, sign: f32, h: f32, b: &mut Vec3s) {
+    let push = sign * held.s / h * held.short * held.n;
+    for k in 0..4 {
+        let p = held.verts[k] as usize;
+        if held.c[k] != 0.0 {
+            b.set(p, b.get(p) + held.c[k] * push);
+        }
+    }
+}
+
+/// Pair `i` of those handed in as a held pair of a step of `h` s from `(pos, vel)` resting as
+/// `rest` says, however far its inertial motion ends (`short` may be negative); None when its
+/// normal is degenerate or no vertex of it moves.
 fn hold(
     h: f32,
     given: SelfPairs,
-    pair: &Pair,
+    (i, pair): (usize, &Pair),
+    rest: Rest,
     (pos, vel, inv_mass): (&Vec3s, &Vec3s, &[f32]),
 ) -> Option<Held> {
     let n = pair.n.as_vec3();
@@ -264,12 +366,15 @@ fn hold(
         w += inv_mass[p] * weight * weight;
         *ck = if inv_mass[p] > 0.0 { weight } else { 0.0 };
     }
+    let rest = rest.gap(given.thickness, n.dot(rel_x));
     (n != Vec3::ZERO && w > 0.0).then(|| Held {
+        of: i as u32,
         verts: pair.verts,
         c,
         n,
         s: given.stiffness / w,
-        short: given.thickness - (n.dot(rel_x) + h * n.dot(rel_v)),
+        rest,
+        short: rest - (n.dot(rel_x) + h * n.dot(rel_v)),
     })
 }
 
@@ -303,15 +408,24 @@ mod tests {
     use crate::self_collision::Pair;
     use glam::DVec3;
 
-    /// The pairs of `pairs` a 1/60 s step holds, 2 mm apart at 50 times their effective mass.
-    fn held(pairs: &[Pair], state: (&Vec3s, &Vec3s, &[f32])) -> SelfContactTerm {
-        let mut term = SelfContactTerm::default();
-        let given = SelfPairs {
+    /// `pairs` held 2 mm apart at 50 times their effective mass.
+    fn given(pairs: &[Pair]) -> SelfPairs<'_> {
+        SelfPairs {
             pairs,
             thickness: 0.002,
             stiffness: 50.0,
-        };
-        term.gather(1.0 / 60.0, given, state);
+        }
+    }
+
+    /// The pairs of `pairs` a 1/60 s step holds ([`given`]), resting at `thickness`.
+    fn held(pairs: &[Pair], state: (&Vec3s, &Vec3s, &[f32])) -> SelfContactTerm {
+        held_as(Rest::Thickness, pairs, state)
+    }
+
+    /// The same, resting as `rest` says.
+    fn held_as(rest: Rest, pairs: &[Pair], state: (&Vec3s, &Vec3s, &[f32])) -> SelfContactTerm {
+        let mut term = SelfContactTerm::resting(rest);
+        term.gather(1.0 / 60.0, given(pairs), state);
         term
     }
 
@@ -448,6 +562,25 @@ mod tests {
         assert_eq!(y.get(2), Vec3::ZERO, "the pinned vertex gets nothing");
     }
 
+    /// A mesh's diagonal blocks get what the grid's six columns get, entry for entry.
+    #[test]
+    fn the_diagonal_blocks_are_the_same_on_a_grid_and_on_a_mesh() {
+        let (pairs, pos, vel) = pairs();
+        let inv_mass = vec![1.0f32, 2.0, 0.0, 1.0, 1.0, 3.0, 1.0, 0.25];
+        let term = held(&pairs, (&pos, &vel, &inv_mass));
+        assert_eq!(term.len(), 2);
+        let mut columns: SlotArrays = std::array::from_fn(|_| crate::soa::Floats::zeros(8));
+        let mut blocks = [Sym3::ZERO; 8];
+        term.add_diagonal(0, &mut columns);
+        term.add_diagonal(0, &mut blocks[..]);
+        for (p, block) in blocks.iter().enumerate() {
+            let column = std::array::from_fn(|c| columns[c][p]);
+            assert_eq!(block.0, column, "vertex {p}");
+        }
+        assert_eq!(blocks[2], Sym3::ZERO, "the pinned vertex gets nothing");
+        assert_ne!(blocks[0], Sym3::ZERO);
+    }
+
     /// A pair moving apart, or one whose inertial motion stays outside the gap, exerts
     /// nothing; a pinned vertex gets no row.
     #[test]
@@ -466,5 +599,84 @@ mod tests {
             vel.set(p, Vec3::new(0.0, 1.0, 0.0));
         }
         assert!(held(&pairs, (&pos, &vel, &inv_mass)).is_empty());
+    }
+
+    /// A pair held at `thickness` that starts inside it holds the penalty's energy
+    /// `k/2 (delta - g)^2` at the step's start and gives it to the cloth as the pair
+    /// separates; one resting at the gap it starts with (where that is smaller) holds none, and
+    /// a pair at rest inside `thickness` is not held at all.
+    #[test]
+    fn a_passive_term_holds_no_energy_at_the_steps_start() {
+        let (pairs, pos, mut vel) = pairs();
+        let inv_mass = vec![1.0f32; 8];
+        let g0 = |held: &Held| {
+            let pair = &pairs[held.of as usize];
+            (0..4)
+                .map(|k| pair.c[k] as f32 * held.n.dot(pos.get(pair.verts[k] as usize)))
+                .sum::<f32>()
+        };
+        let start_energy = |term: &SelfContactTerm| -> f32 {
+            let h2 = (1.0f32 / 60.0).powi(2);
+            let one_sided = |held: &Held| (held.rest - g0(held)).max(0.0);
+            term.held
+                .iter()
+                .map(|held| 0.5 * held.s / h2 * one_sided(held).powi(2))
+                .sum()
+        };
+        let at_thickness = held(&pairs, (&pos, &vel, &inv_mass));
+        let passive = held_as(Rest::NoCloser, &pairs, (&pos, &vel, &inv_mass));
+        assert_eq!(
+            (at_thickness.len(), passive.len()),
+            (2, 2),
+            "both pairs close"
+        );
+        assert!(start_energy(&at_thickness) > 0.0);
+        assert_eq!(start_energy(&passive), 0.0);
+        for p in 0..8 {
+            vel.set(p, Vec3::ZERO);
+        }
+        let at_thickness = held(&pairs, (&pos, &vel, &inv_mass));
+        let passive = held_as(Rest::NoCloser, &pairs, (&pos, &vel, &inv_mass));
+        assert_eq!(at_thickness.len(), 2, "pushed out to thickness");
+        assert!(passive.is_empty(), "at rest, nothing held");
+    }
+
+    /// A held pair that the solve carries beyond its rest gap would be pulled back by the
+    /// penalty (which the one-sided contact never does): the next round releases it, taking its
+    /// diagonal blocks and its load out again.
+    #[test]
+    fn a_held_pair_the_solve_carries_apart_is_released() {
+        let (pairs, pos, vel) = pairs();
+        let pairs = &pairs[..1];
+        let inv_mass = vec![1.0f32; 8];
+        let h = 1.0f32 / 60.0;
+        let mut term = held_as(Rest::NoCloser, pairs, (&pos, &vel, &inv_mass));
+        assert_eq!(term.len(), 1);
+        let (mut d, mut b) = ([Sym3::ZERO; 8], Vec3s::zeros(8));
+        term.add_diagonal(0, &mut d[..]);
+        term.add_rhs(0, h, &mut b);
+        let scale = term.held[0].s;
+        // The vertex leaves the triangle at 2 m/s.
+        let dv = Vec3s::from_fn(8, |p| {
+            if p == 0 {
+                Vec3::new(0.0, 3.0, 0.0)
+            } else {
+                Vec3::ZERO
+            }
+        });
+        let state = (&pos, &vel, &dv, &inv_mass[..]);
+        assert_eq!(term.extend(h, given(pairs), state, (&mut d[..], &mut b)), 1);
+        assert!(term.is_empty());
+        for (p, block) in d.iter().enumerate() {
+            assert!(
+                block.0.iter().all(|x| x.abs() < 1e-5 * scale),
+                "{p}: {block:?}"
+            );
+            assert!(b.get(p).length() < 1e-5 * scale / h, "{p}: {}", b.get(p));
+        }
+        // Held again in no later round of the step.
+        let still = Vec3s::zeros(8);
+        let state = (&pos, &vel, &still, &inv_mass[..]);
+        assert_eq!(term.extend(h, given(pairs), state, (&mut d[..], &mut b)), 0);
     }
 }

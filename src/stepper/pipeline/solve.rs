@@ -378,9 +378,9 @@ impl Pipeline {
     }
 }
 
-/// The self-collision pairs ahead of a solve from `from`, for implicit Euler (`kind`) on a grid
-/// cloth with `self_collision.solve_stiffness` (`src/integrators/self_contact.rs`); None
-/// otherwise. Timed as the self-collision pass.
+/// The self-collision pairs ahead of a solve from `from`, for implicit Euler (`kind`), on a grid
+/// or a mesh cloth, with `self_collision.solve_stiffness` (`src/integrators/self_contact.rs`);
+/// None otherwise. Timed as the self-collision pass.
 fn pairs_ahead<'p>(
     pass: &'p mut Option<SelfCollision>,
     kind: IntegratorKind,
@@ -388,7 +388,7 @@ fn pairs_ahead<'p>(
     from: &Kinematics,
 ) -> Option<SelfPairs<'p>> {
     let pass = pass.as_mut().filter(|p| p.in_solve())?;
-    if kind != IntegratorKind::ImplicitEuler || job.model.mesh().is_some() {
+    if kind != IntegratorKind::ImplicitEuler {
         return None;
     }
     let t = Instant::now();
