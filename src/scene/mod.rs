@@ -7,9 +7,12 @@
 //! Units are SI throughout: metres, kilograms, seconds, newtons.
 
 mod cuts;
+mod edge_springs;
 mod lanes;
+mod local_numbering;
 mod membrane;
 mod mesh;
+mod mesh_checks;
 mod mesh_cloth;
 mod pins;
 mod solvers;
@@ -20,10 +23,11 @@ mod validate;
 use serde::{Deserialize, Serialize};
 
 pub use cuts::CutSpec;
+pub use edge_springs::{EdgeKind, EdgeSprings};
 pub use lanes::{IncidenceLanes, LANES};
 pub use membrane::Membrane;
 pub use mesh::{is_closed, merged_indices};
-pub use mesh_cloth::{EdgeKind, EdgeSprings, MeshCloth};
+pub use mesh_cloth::MeshCloth;
 pub use pins::PIN_GROUPS;
 pub use solvers::{IntegratorKind, Preconditioner, SolverSettings};
 pub use specs::{

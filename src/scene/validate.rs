@@ -364,7 +364,7 @@ impl ClothSpec {
     pub(crate) fn rest_spacing(&self) -> (f64, &'static str) {
         match &self.mesh {
             Some(mesh) => (
-                super::mesh_cloth::min_altitude(&mesh.vertices, &mesh.triangles),
+                super::mesh_checks::min_altitude(&mesh.vertices, &mesh.triangles),
                 "shortest triangle altitude",
             ),
             None => (
