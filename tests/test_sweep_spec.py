@@ -229,23 +229,32 @@ def test_a_sweep_file_nested_too_deeply_is_a_sweep_error(tmp_path):
         Sweep.from_toml(path)
 
 
+def _held_by_rustcloth() -> int:
+    """Bytes now held that were allocated with a rustcloth frame on the stack. tracemalloc sees
+    every thread: a thread left behind by an earlier test must not move a measurement."""
+    mine = tracemalloc.take_snapshot().filter_traces(
+        [tracemalloc.Filter(True, "*rustcloth*", all_frames=True)])
+    return sum(stat.size for stat in mine.statistics("filename"))
+
+
 def test_runs_are_built_one_at_a_time():
     # Expanding a sweep kept a whole scene per run (1e5 runs: 514 MB before anything ran).
     # Taking the runs one by one holds one scene at a time, whatever the size of the sweep.
-    def peak(n: int) -> int:
+    def held(n: int) -> int:
         sweep = Sweep(base="hanging", grid={"cloth.k_bend": [float(k) for k in range(1, n + 1)]},
                       steps=1)
-        tracemalloc.start()
+        tracemalloc.start(8)
         try:
-            for _ in sweep.iter_runs():
-                pass
-            return tracemalloc.get_traced_memory()[1]
+            for taken, _ in enumerate(sweep.iter_runs(), start=1):
+                if taken == n:
+                    return _held_by_rustcloth()
+            raise AssertionError("fewer runs than asked")
         finally:
             tracemalloc.stop()
 
-    small, large = peak(20), peak(2000)
+    small, large = held(20), held(2000)
     # The bookkeeping of run ids grows (about 100 bytes a run); the scenes must not.
-    assert large < small + 2000 * 400, (small, large)
+    assert small > 0 and large < small + 2000 * 400, (small, large)
 
 
 @pytest.mark.parametrize("device", ["/dev/zero", "/dev/full"])
@@ -271,11 +280,7 @@ class _Consuming:
         total = len(runs)
         for taken, _ in enumerate(runs, start=1):
             if taken == total:
-                # Only traces with a rustcloth frame count: tracemalloc sees every thread, and a
-                # thread left behind by an earlier test must not move the measurement.
-                mine = tracemalloc.take_snapshot().filter_traces(
-                    [tracemalloc.Filter(True, "*rustcloth*", all_frames=True)])
-                self.held_at_last_run = sum(stat.size for stat in mine.statistics("filename"))
+                self.held_at_last_run = _held_by_rustcloth()
         yield from ()
 
 
