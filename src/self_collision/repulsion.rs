@@ -2,7 +2,9 @@
 //! it, or two edges with no shared vertex), the closest points at `x0` (`geometry.rs`) give
 //! weights `c_i` with `sum c_i = 0` and a unit normal `n`, and the gap `g = (sum c_i x_i) . n`.
 //! `iterations` Gauss-Seidel sweeps in pair order push every pair with `g < thickness` apart
-//! along `n`, shared by inverse mass, `dx_i = w_i c_i (thickness - g) n / sum_j w_j c_j^2`.
+//! along `n`, shared by inverse mass, `dx_i = w_i c_i (thickness - g) n / sum_j w_j c_j^2`
+//! (the sum raised where a vertex would be given more than `LEVER` times the pair's change,
+//! see `pair::inverse_mass`).
 //! Then, in as many sweeps, each such pair loses its approaching normal velocity (an inelastic
 //! impulse of the same shape) and, in the first sweep, by Coulomb friction up to `friction`
 //! times that of its tangential relative velocity. Every correction is applied to both sides
