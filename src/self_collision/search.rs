@@ -356,6 +356,7 @@ where
     L: Fn(&[u32; 4], usize) -> f64 + Sync,
     M: Fn([u32; 4], usize) -> (f64, R) + Sync,
 {
+    #[inline]
     fn keep_close(&self, verts: [u32; 4], split: usize, key: u64, out: &mut Vec<(u64, R)>) {
         let most = (self.limit)(&verts, split);
         if apart(self.x, &verts, split) <= most + self.margin {
@@ -367,7 +368,7 @@ where
     }
 
     /// The mesh's `k`-th vertex against triangle `t`; false if they are neighbours.
-    #[inline]
+    #[inline(always)]
     fn vertex_triangle(&self, k: u32, t: u32, out: &mut Vec<(u64, R)>) -> bool {
         let topo = self.topo;
         let v = topo.vertices[k as usize];
@@ -385,7 +386,7 @@ where
     }
 
     /// Edges `e` and `f` (either order); false if they are neighbours.
-    #[inline]
+    #[inline(always)]
     fn edge_edge(&self, e: u32, f: u32, out: &mut Vec<(u64, R)>) -> bool {
         let topo = self.topo;
         let (e, f) = (e.min(f), e.max(f));
