@@ -56,7 +56,7 @@ def main() -> None:
     if args.state is not None and (args.case == "twist50" or args.no_pass):
         parser.error("--state is for the pile with the pass")
     if args.case == "twist50":
-        scene = peer.scene("implicit_euler", (1000.0, 250.0, 10.0))
+        scene = peer.scene("implicit_euler", (1000.0, 250.0, 10.0), peer.STEPS_PER_FRAME)
         if args.no_pass:
             scene = scene.replace(self_collision=None)
         sim = rustcloth.Simulation(scene)
@@ -87,14 +87,16 @@ def main() -> None:
     cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
     after = dict(sim.self_collision_stats() or {})
     split = bench.per_substep(before, after)
-    rebuilds = after.get("rebuilds", 0) - before.get("rebuilds", 0)
+    rebuilds, requeries, requeried = (after.get(k, 0) - before.get(k, 0)
+                                      for k in ("rebuilds", "requeries", "requeried"))
     digest = hashlib.sha1(sim.positions.tobytes()).hexdigest()[:12]
     print(f"{args.case}{' without the pass' if args.no_pass else ''}: state {digest} "
           f"cpu {1e3 * cpu / args.frames:.1f} ms per {unit} "
           f"wall {1e3 * wall / args.frames:.1f} ms per {unit}; per substep: "
           f"search {split['search']:.2f} ms, boxes tested {split['boxes_tested']:.0f}, "
           f"candidates {split['candidates']:.0f}, pairs {split['pairs']:.0f}, "
-          f"swept {100 * split['swept_substeps']:.0f} %; list rebuilds {rebuilds}")
+          f"swept {100 * split['swept_substeps']:.0f} %; list rebuilds {rebuilds}, "
+          f"partial {requeries} ({requeried} vertices queried again)")
 
 
 if __name__ == "__main__":

@@ -284,6 +284,41 @@ impl Bvh {
         counts
     }
 
+    /// Calls `each` with every item whose box at the last refit overlaps `query` (closed boxes,
+    /// the same test as [`Bvh::overlapping_pairs`], so an item found here is an item that walk
+    /// pairs with `query`'s owner). Returns how many boxes it tested. Allocates nothing.
+    pub fn overlapping(&self, query: &Aabb, mut each: impl FnMut(u32)) -> u64 {
+        if self.nodes.is_empty() {
+            return 0;
+        }
+        let q = Lanes::of(query);
+        // Median splits halve the items at every level: a stack of 64 holds any tree of
+        // up to 2^64 items.
+        let mut stack = [0u32; 64];
+        let (mut top, mut tested) = (1usize, 0u64);
+        while top > 0 {
+            top -= 1;
+            let at = stack[top];
+            let node = &self.nodes[at as usize];
+            tested += 1;
+            if !node.bounds.overlaps(&q) {
+                continue;
+            }
+            if node.count > 0 {
+                let mut hits = self.quads[node.quad as usize].overlapping(&q);
+                while hits != 0 {
+                    let k = hits.trailing_zeros();
+                    hits &= hits - 1;
+                    each(self.order[(node.index + k) as usize]);
+                }
+            } else {
+                (stack[top], stack[top + 1]) = (node.index, at + 1);
+                top += 2;
+            }
+        }
+        tested
+    }
+
     /// Walks the node pairs below `root` (of `self` and `b`), depth first; node pairs at
     /// `limit` levels below it go to `front` instead of being opened.
     fn walk<T>(
@@ -466,6 +501,29 @@ mod tests {
             .filter(|&(i, j)| a[i as usize].overlaps(&a[j as usize]))
             .collect();
         assert_eq!(found, brute);
+    }
+
+    /// A query by one box finds exactly the items the walk of two trees pairs it with.
+    #[test]
+    fn one_box_finds_what_the_walk_pairs_it_with() {
+        let (mut tree, mut one) = (Bvh::default(), Bvh::default());
+        let boxes = scattered(700, 0.0);
+        tree.build(&boxes);
+        for query in scattered(60, 1.7) {
+            one.build(&[query]);
+            let emit = |_: u32, j: u32, out: &mut Vec<u32>| {
+                out.push(j);
+                true
+            };
+            let mut walked = Vec::new();
+            one.overlapping_pairs(Some(&tree), emit, &mut walked);
+            let mut found = Vec::new();
+            assert!(tree.overlapping(&query, |j| found.push(j)) > 0);
+            walked.sort_unstable();
+            found.sort_unstable();
+            assert_eq!(found, walked);
+        }
+        assert_eq!(Bvh::default().overlapping(&boxes[0], |_| panic!()), 0);
     }
 
     #[test]

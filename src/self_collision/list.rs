@@ -10,6 +10,12 @@
 //! ([`PairList::covers`]); when it no longer does, the list is built again where the cloth is.
 //! The translation is the centre of the displacements' bounding box, so a cloth that falls
 //! or is carried as a whole keeps its list however far it goes.
+//!
+//! The bound holds for any anchor, not only one where the cloth once was: so when a few
+//! vertices pass their bound, only they are given a new anchor (where they are, less the common
+//! translation), and only the pairs through them are searched for again there and merged in.
+//! The list is then still every pair closer than `reach` at the anchor, in key order, exactly
+//! what a search of the whole mesh at the anchor finds.
 
 use crate::self_collision::pair::Candidate;
 use crate::soa::Vec3s;
@@ -32,9 +38,18 @@ pub struct PairList {
     /// list, so that taking pairs from a kept list never allocates.
     near: Vec<u32>,
     /// Each particle's own stray from the cloth's common displacement since the anchor, as the
-    /// last [`PairList::strayed`] found it (m; zero at a rebuild), and the most of them.
+    /// last [`PairList::strayed`] found it (m; zero at a rebuild and for a particle in no
+    /// triangle), the most of them, and that common displacement (m).
     strays: Vec<f64>,
     most_strayed: f64,
+    common: DVec3,
+    /// The vertices [`PairList::mark_past`] marked to be queried again, one flag a particle,
+    /// and which they are.
+    moved: Vec<bool>,
+    past: Vec<u32>,
+    /// The list being merged into ([`PairList::merge`]), swapped with it after.
+    merged_candidates: Vec<Candidate>,
+    merged_distances: Vec<f64>,
 }
 
 impl PairList {
@@ -45,6 +60,24 @@ impl PairList {
         self.distances.clear();
         self.strays.clear();
         self.most_strayed = 0.0;
+        self.moved.clear();
+        self.past.clear();
+    }
+
+    /// How far every pair is listed to at the anchor (m).
+    pub fn reach(&self) -> f64 {
+        self.reach
+    }
+
+    /// The most any vertex strays, as the last [`PairList::strayed`] or requery left it (m).
+    pub fn most_strayed(&self) -> f64 {
+        self.most_strayed
+    }
+
+    /// The most a vertex may stray for the list to cover a substep that needs `needed`
+    /// ([`PairList::covers`]; m, negative when the reach itself is short).
+    pub fn bound(&self, needed: f64, eps: f64) -> f64 {
+        0.5 * (self.reach - needed - eps)
     }
 
     /// Where the list was built, if it was.
@@ -59,34 +92,117 @@ impl PairList {
         strayed.is_some_and(|s| self.reach - 2.0 * s - eps >= needed)
     }
 
-    /// The most any of `verts` at `x` strays from the cloth's common displacement since the
-    /// anchor (m): the largest `|x_v - anchor_v - T|`, `T` the centre of `drift`, the box of
-    /// those displacements. A pair's distance has changed by at most twice that. At most
-    /// `drift.radius()`, and below it when no vertex sits in a corner of the box (a cloth whose
-    /// rim falls while its middle rests: about three quarters of it in the pile). An exact
-    /// reduction (max), so the same for any thread count. None without an anchor.
+    /// The most any vertex at `x` (a particle `in_mesh`) strays from the cloth's common
+    /// displacement since the anchor (m): the largest `|x_v - anchor_v - T|`, `T` the centre of
+    /// `drift`, the box of those displacements. A pair's distance has changed by at most twice
+    /// that. At most `drift.radius()`, and below it when no vertex sits in a corner of the box
+    /// (a cloth whose rim falls while its middle rests: about three quarters of it in the
+    /// pile). An exact reduction (max), so the same for any thread count. None without an
+    /// anchor.
     ///
     /// Each vertex's own stray is kept for [`PairList::within`]: a pair's distance has changed
     /// by at most the most either of its primitives' vertices strayed, and most of a settling
     /// cloth's vertices stray far less than its farthest.
-    pub fn strayed(&mut self, verts: &[u32], x: &Vec3s, drift: Spread) -> Option<f64> {
+    pub fn strayed(&mut self, in_mesh: &[bool], x: &Vec3s, drift: Spread) -> Option<f64> {
         let anchor = self.anchor.as_ref()?;
         let centre = 0.5 * (drift.lo + drift.hi);
         let from_centre = |(v, stray): (usize, &mut f64)| {
-            *stray = (x.get(v).as_dvec3() - anchor.get(v).as_dvec3() - centre).length();
+            if in_mesh[v] {
+                *stray = (x.get(v).as_dvec3() - anchor.get(v).as_dvec3() - centre).length();
+            }
+            *stray
         };
-        self.strays
+        self.most_strayed = self
+            .strays
             .par_iter_mut()
             .with_min_len(4096)
             .enumerate()
-            .for_each(from_centre);
-        let strays = &self.strays;
-        self.most_strayed = verts
-            .par_iter()
-            .with_min_len(4096)
-            .map(|&v| strays[v as usize])
+            .map(from_centre)
             .reduce(|| 0.0, f64::max);
+        self.common = centre;
         Some(self.most_strayed)
+    }
+
+    /// Marks the vertices of `verts` that stray more than `beyond` (m) to be queried again, and
+    /// returns how many there are.
+    pub fn mark_past(&mut self, verts: &[u32], beyond: f64) -> usize {
+        self.unmark();
+        self.moved.resize(self.strays.len(), false);
+        let strays = &self.strays;
+        self.past
+            .extend(verts.iter().filter(|&&v| strays[v as usize] > beyond));
+        for &v in &self.past {
+            self.moved[v as usize] = true;
+        }
+        self.past.len()
+    }
+
+    /// Forgets the marks of [`PairList::mark_past`].
+    pub fn unmark(&mut self) {
+        for &v in &self.past {
+            self.moved[v as usize] = false;
+        }
+        self.past.clear();
+    }
+
+    /// Moves the anchor of each marked vertex to where it is at `x`, less the cloth's common
+    /// displacement since the anchor (so it strays no more): every listed pair through a
+    /// marked vertex must then be measured again at the anchor, and merged in
+    /// ([`PairList::merge`]). The other pairs keep their distances, which are still those at
+    /// the anchor: the list stays what a search at the anchor would list.
+    pub fn reanchor_marked(&mut self, x: &Vec3s) {
+        let anchor = self.anchor.as_mut().expect("a list to re-anchor");
+        for &v in &self.past {
+            let v = v as usize;
+            let at = x.get(v).as_dvec3() - self.common;
+            anchor.set(v, at.as_vec3());
+            let stray = x.get(v).as_dvec3() - anchor.get(v).as_dvec3() - self.common;
+            self.strays[v] = stray.length();
+        }
+        self.most_strayed = self.strays.iter().copied().fold(0.0, f64::max);
+    }
+
+    /// Which particles [`PairList::mark_past`] marked.
+    pub fn marked(&self) -> &[bool] {
+        &self.moved
+    }
+
+    /// Replaces every listed pair through a marked vertex with `found`, the pairs through a
+    /// marked vertex closer than the reach at the anchor, in the order of their keys, with
+    /// their distances there; then forgets the marks.
+    pub fn merge(&mut self, found: impl Iterator<Item = (Candidate, f64)>) {
+        let (candidates, distances) = (&mut self.merged_candidates, &mut self.merged_distances);
+        candidates.clear();
+        distances.clear();
+        let moved = &self.moved;
+        let mut found = found.peekable();
+        for (c, &d) in self.candidates.iter().zip(&self.distances) {
+            if c.verts.iter().any(|&v| moved[v as usize]) {
+                continue;
+            }
+            while let Some((f, e)) = found.next_if(|(f, _)| f.key() < c.key()) {
+                candidates.push(f);
+                distances.push(e);
+            }
+            candidates.push(*c);
+            distances.push(d);
+        }
+        for (f, e) in found {
+            candidates.push(f);
+            distances.push(e);
+        }
+        std::mem::swap(&mut self.candidates, candidates);
+        std::mem::swap(&mut self.distances, distances);
+        debug_assert!(self.candidates.windows(2).all(|w| w[0].key() < w[1].key()));
+        self.near.clear();
+        self.near.reserve(self.candidates.len());
+        self.unmark();
+    }
+
+    /// The listed pairs and their distances at the anchor.
+    #[cfg(test)]
+    pub fn listed(&self) -> (&[Candidate], &[f64]) {
+        (&self.candidates, &self.distances)
     }
 
     /// Takes `found`, every pair closer than `reach` at `x` with its distance there, in the
@@ -105,6 +221,7 @@ impl PairList {
         self.strays.clear();
         self.strays.resize(x.len(), 0.0);
         self.most_strayed = 0.0;
+        self.unmark();
         self.candidates.clear();
         self.distances.clear();
         for (c, d) in found {
@@ -150,6 +267,10 @@ impl PairList {
             + self.distances.capacity() * 8
             + self.near.capacity() * 4
             + self.strays.capacity() * 8
+            + self.moved.capacity()
+            + self.past.capacity() * 4
+            + self.merged_candidates.capacity() * size_of::<Candidate>()
+            + self.merged_distances.capacity() * 8
     }
 }
 
@@ -243,9 +364,9 @@ mod tests {
         let mut list = PairList::default();
         assert!(list.anchor().is_none(), "an empty list covers nothing");
         assert!(!list.covers(None, 0.0, 0.0));
-        assert_eq!(list.strayed(&[0, 1], &a, Spread::default()), None);
+        assert_eq!(list.strayed(&[true; 2], &a, Spread::default()), None);
         list.rebuild(&a, 0.01, std::iter::empty());
-        let mut strayed = |x: &Vec3s| list.strayed(&[0, 1], x, displacements(&[0, 1], &a, x));
+        let mut strayed = |x: &Vec3s| list.strayed(&[true; 2], x, displacements(&[0, 1], &a, x));
         let (at_a, mut b) = (strayed(&a), a.clone());
         b.set(1, Vec3::new(1.002, 0.0, 0.0)); // spread 0.001
         let at_b = strayed(&b);
@@ -272,7 +393,7 @@ mod tests {
         let verts = [0, 1, 2, 3, 4];
         let drift = displacements(&verts, &a, &b);
         assert!((drift.radius() - 0.002 * 2f64.sqrt()).abs() < 1e-5);
-        let strayed = list.strayed(&verts, &b, drift).unwrap();
+        let strayed = list.strayed(&[true; 5], &b, drift).unwrap();
         assert!((strayed - 0.002).abs() < 1e-5, "{strayed}");
         // Covered with the farthest vertex's bound, not with the box's.
         assert!(list.covers(Some(strayed), 0.0055, 0.0));
@@ -299,7 +420,7 @@ mod tests {
         b.set(6, a.get(6) - Vec3::new(0.0, 0.002, 0.0));
         b.set(7, a.get(7) + Vec3::new(0.0, 0.002, 0.0));
         let verts: Vec<u32> = (0..8).collect();
-        let strayed = list.strayed(&verts, &b, displacements(&verts, &a, &b));
+        let strayed = list.strayed(&[true; 8], &b, displacements(&verts, &a, &b));
         assert!((strayed.unwrap() - 0.002).abs() < 1e-6, "{strayed:?}");
         // The second pair may be 0.005 - 0.002 apart now, the first is still 0.005 apart
         // (twice the farthest stray would let both through below 0.0035).

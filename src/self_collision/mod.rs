@@ -11,7 +11,9 @@
 //!      falling or slowly moving cloth): every pair closer than
 //!      `needed = thickness + 2 (r + PUSH thickness)` at `x0`, `r` the most any vertex's
 //!      displacement strays from the common one. The list reaches `SKIN thickness` farther
-//!      and is kept until the cloth has moved too far for it (a Verlet list). If the
+//!      and is kept until the cloth has moved too far for it (a Verlet list); then the pairs
+//!      of the vertices that moved most are searched for again, or, when they are many, all
+//!      pairs. If the
 //!      repulsion or the cap then moves a vertex more than `PUSH thickness` away, the
 //!      substep is redone the second way.
 //!    - *the swept search*, otherwise: every pair whose boxes, swept from `x0` to `x1` and
@@ -71,16 +73,26 @@ use topology::Topology;
 const PUSH: f64 = 0.25;
 
 /// How much farther than a substep needs the pair list reaches, as a fraction of `thickness`:
-/// the relative motion the cloth may make before the list is built again. More keeps the list
-/// longer, at more pairs found by each build and looked at in every substep (chosen by the
-/// settling pile's cost, docs/contact.md).
-const SKIN: f64 = 1.5;
+/// the relative motion the cloth may make before some of its vertices are queried again. More
+/// keeps the list longer, at more pairs found by each search and filtered in every substep
+/// (chosen by the settling pile's cost at 64 x 64 and 128 x 128, docs/contact.md).
+const SKIN: f64 = 0.75;
 
 /// The farthest, as a multiple of `thickness`, that a substep may need to look for the pair list
 /// to be built for it. A list reaching farther holds many more pairs than the swept search
 /// finds (their number grows with the square of the reach in a layered cloth), so a substep
 /// whose motion needs more uses the swept search instead.
 const LIST_LIMIT: f64 = 2.0;
+
+/// When a vertex passes the bound the pair list allows it, the vertices past this fraction of
+/// the bound are queried again, each from where it is, instead of the whole mesh: less queries
+/// more vertices at once, and less often.
+const REQUERY_AT: f64 = 0.5;
+
+/// The largest share of the mesh's vertices queried again on their own; with more, the whole
+/// list is built again, which then costs about as much (chosen by the pile's cost,
+/// docs/contact.md).
+const REQUERY_MOST: f64 = 0.1;
 
 /// What the pass did, summed since the simulation was built.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -89,8 +101,11 @@ pub struct SelfCollisionStats {
     pub substeps: u64,
     /// Pairs looked at, summed over substeps.
     pub pairs: u64,
-    /// Times the pair list was built.
+    /// Times the pair list was built, and times some of its vertices were queried again
+    /// instead (`requeries`; `requeried` of them, summed).
     pub rebuilds: u64,
+    pub requeries: u64,
+    pub requeried: u64,
     /// Substeps that used the swept search: their motion needed more than the list reaches,
     /// or (`redone`) they were redone because the repulsion or the cap moved a vertex farther
     /// than the list allowed for.
@@ -137,6 +152,8 @@ impl Default for SelfCollisionStats {
             substeps: 0,
             pairs: 0,
             rebuilds: 0,
+            requeries: 0,
+            requeried: 0,
             swept_substeps: 0,
             redone: 0,
             contacts: 0,
@@ -172,8 +189,10 @@ pub struct SelfCollision {
     path_ends: Vec<Vec3>,
     /// The capsules' radius this substep (m): `thickness / 2` and a round-off margin.
     path_radius: f32,
-    /// Each vertex's box for building the pair list.
+    /// Each vertex's box for building the pair list, and the round-off margin (m) the list was
+    /// built with.
     search_boxes: Vec<Aabb>,
+    list_eps: f32,
     broad: Broad,
     list: PairList,
     pairs: Vec<Pair>,
@@ -205,6 +224,7 @@ impl SelfCollision {
             path_ends: Vec::new(),
             path_radius: 0.0,
             search_boxes: Vec::new(),
+            list_eps: 0.0,
             broad: Broad::default(),
             list: PairList::default(),
             pairs: Vec::new(),
@@ -247,9 +267,10 @@ impl SelfCollision {
         // was built, so a restored state steps exactly as the original.
         let clock = Instant::now();
         let finite = if needed <= LIST_LIMIT * thickness {
-            let strayed = survey.drift.and_then(|d| self.list.strayed(verts, x0, d));
+            let in_mesh = &self.topology.in_mesh;
+            let strayed = survey.drift.and_then(|d| self.list.strayed(in_mesh, x0, d));
             if !self.list.covers(strayed, needed, eps) {
-                self.rebuild_list(x0, needed + SKIN * thickness, eps as f32);
+                self.renew_list(x0, needed, eps);
             }
             self.listed_pairs(x0, needed, eps);
             self.stats.effort.search_seconds += clock.elapsed().as_secs_f64();
@@ -301,27 +322,60 @@ impl SelfCollision {
         }
     }
 
-    /// Lists every pair closer than `reach` at `x0`.
-    fn rebuild_list(&mut self, x0: &Vec3s, reach: f64, eps: f32) {
-        let grow = Vec3::splat(0.5 * reach as f32 + eps);
-        let mut boxes = std::mem::take(&mut self.search_boxes);
-        boxes.clear();
-        boxes.extend((0..x0.len()).map(|v| {
-            let p = x0.get(v);
-            Aabb {
-                min: p - grow,
-                max: p + grow,
+    /// Makes the list cover a substep at `x0` that needs `needed`: the vertices past
+    /// `REQUERY_AT` of the bound they may stray by are queried again, each from where it is,
+    /// or, when there are more than `REQUERY_MOST` of the vertices or the list's reach falls
+    /// short of `needed` itself, the whole list is built again.
+    fn renew_list(&mut self, x0: &Vec3s, needed: f64, eps: f64) {
+        let bound = self.list.bound(needed, eps);
+        if self.list.anchor().is_some() && bound > 0.0 {
+            let verts = &self.topology.vertices;
+            let past = self.list.mark_past(verts, REQUERY_AT * bound);
+            if past as f64 <= REQUERY_MOST * verts.len() as f64 {
+                // A cloth carried farther from the origin rounds its coordinates coarser.
+                self.list_eps = self.list_eps.max(eps as f32);
+                self.requery_list(x0, past);
+                let most = self.list.most_strayed();
+                if self.list.covers(Some(most), needed, eps) {
+                    return;
+                }
             }
-        }));
-        let margin = 1e-3 * eps as f64;
+            self.list.unmark();
+        }
+        let reach = needed + SKIN * self.thickness as f64;
+        self.list_eps = eps as f32;
+        let mut boxes = std::mem::take(&mut self.search_boxes);
+        list_boxes(&mut boxes, x0, reach, self.list_eps);
+        let margin = 1e-3 * self.list_eps as f64;
         let looked = self
             .broad
-            .search_near(&self.topology, &boxes, x0, reach, margin);
+            .search_near(&self.topology, &boxes, x0, reach, margin, None);
         self.count(looked);
         self.search_boxes = boxes;
         let found = self.broad.near_found(&self.topology);
         self.list.rebuild(x0, reach, found);
         self.stats.rebuilds += 1;
+    }
+
+    /// Moves the anchor of the `past` vertices the list marked to where they are at `x0` (less
+    /// the cloth's common displacement), and lists again every pair through them: the pairs a
+    /// search of the whole mesh at the new anchor would find, in its order.
+    fn requery_list(&mut self, x0: &Vec3s, past: usize) {
+        self.list.reanchor_marked(x0);
+        let (anchor, moved) = (self.list.anchor(), self.list.marked());
+        let anchor = anchor.expect("a list to query again");
+        let reach = self.list.reach();
+        let mut boxes = std::mem::take(&mut self.search_boxes);
+        list_boxes(&mut boxes, anchor, reach, self.list_eps);
+        let margin = 1e-3 * self.list_eps as f64;
+        let looked =
+            self.broad
+                .search_near(&self.topology, &boxes, anchor, reach, margin, Some(moved));
+        self.count(looked);
+        self.search_boxes = boxes;
+        self.list.merge(self.broad.near_found(&self.topology));
+        self.stats.requeries += 1;
+        self.stats.requeried += past as u64;
     }
 
     /// The listed pairs closer than `needed` at `x0`, with their closest points there, ordered
@@ -467,6 +521,20 @@ impl SelfCollision {
     }
 }
 
+/// Each vertex's box for a search for the pair list at `x` that reaches `reach` (m): a pair
+/// closer than that has overlapping boxes.
+fn list_boxes(boxes: &mut Vec<Aabb>, x: &Vec3s, reach: f64, eps: f32) {
+    let grow = Vec3::splat(0.5 * reach as f32 + eps);
+    boxes.clear();
+    boxes.extend((0..x.len()).map(|v| {
+        let p = x.get(v);
+        Aabb {
+            min: p - grow,
+            max: p + grow,
+        }
+    }));
+}
+
 /// What one pass over the mesh's vertices finds of a substep.
 #[derive(Clone, Copy)]
 struct Survey {
@@ -514,6 +582,98 @@ impl Survey {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::{Scene, Simulation};
+
+    /// The positions after each of the steps from `from` to `to` of `scene`, its left and
+    /// right edges (when pinned) turned about the x axis through its centre at `omega` rad/s,
+    /// in opposite ways.
+    fn recorded(scene: Scene, from: u64, to: u64, omega: f64) -> Vec<Vec3s> {
+        let (nx, dt, centre) = (scene.cloth.nx as usize, scene.dt, scene.cloth.center);
+        let mut sim = Simulation::new(scene).unwrap();
+        let start = sim.positions().clone();
+        let mut out = Vec::new();
+        for step in 1..=to {
+            let angle = omega * step as f64 * dt;
+            for p in (0..start.len()).filter(|_| omega != 0.0) {
+                let sign = match p % nx {
+                    0 => 1.0,
+                    i if i == nx - 1 => -1.0,
+                    _ => continue,
+                };
+                let r = start.get(p).as_dvec3() - glam::DVec3::from(centre);
+                let (s, c) = (sign * angle).sin_cos();
+                let turned = glam::DVec3::new(r.x, c * r.y - s * r.z, s * r.y + c * r.z);
+                let target = glam::DVec3::from(centre) + turned;
+                sim.pin(p as i64, Some(target.as_vec3())).unwrap();
+            }
+            sim.step(1).unwrap();
+            if step >= from {
+                out.push(sim.positions().clone());
+            }
+        }
+        out
+    }
+
+    /// The list a search of the whole mesh at the list's anchor finds, with the reach and
+    /// margin the list was built with.
+    fn searched_at_anchor(pass: &SelfCollision) -> Vec<(pair::Candidate, f64)> {
+        let anchor = pass.list.anchor().unwrap();
+        let (reach, eps) = (pass.list.reach(), pass.list_eps);
+        let mut boxes = Vec::new();
+        list_boxes(&mut boxes, anchor, reach, eps);
+        let mut broad = Broad::default();
+        let margin = 1e-3 * eps as f64;
+        broad.search_near(&pass.topology, &boxes, anchor, reach, margin, None);
+        broad.near_found(&pass.topology).collect()
+    }
+
+    /// Querying again only the vertices past their bound must leave the list exactly as a
+    /// search of the whole mesh at its anchor lists it: every pair, in its order, with its
+    /// distance to the bit. Otherwise a pair the substep needs could be missing, or the pairs
+    /// come in another order and the result depends on when the list was built. The pass is
+    /// replayed over the steps of a settling pile and of a twist, one step a substep.
+    #[test]
+    fn a_partial_rebuild_finds_the_full_searchs_pairs_in_its_order() {
+        let mut pile = Scene::builtin("pile").unwrap();
+        (pile.cloth.nx, pile.cloth.ny) = (48, 48);
+        (pile.dt, pile.substeps) = (0.5 * pile.dt, 1);
+        let mut twist = Scene::builtin("twist").unwrap();
+        (twist.cloth.nx, twist.cloth.ny, twist.cloth.size) = (40, 40, [0.3, 0.3]);
+        for (name, scene, (from, to), omega) in [
+            ("pile", pile, (1600, 2400), 0.0),
+            ("twist", twist, (1, 1500), 2.0),
+        ] {
+            let frames = recorded(scene.clone(), from, to, omega);
+            let spec = scene.self_collision.clone().unwrap();
+            let (model, _) = Model::new(scene).unwrap();
+            let mut pass = SelfCollision::new(spec.thickness as f32, spec.friction as f32, 1);
+            let mut checked = 0;
+            for w in frames.windows(2) {
+                let n = w[0].len();
+                let start = Kinematics {
+                    pos: w[0].clone(),
+                    vel: Vec3s::zeros(n),
+                };
+                let mut next = Kinematics {
+                    pos: w[1].clone(),
+                    vel: Vec3s::zeros(n),
+                };
+                let requeries = pass.stats.requeries;
+                assert!(pass.apply(&model, &start, &mut next));
+                if pass.stats.requeries > requeries {
+                    let full = searched_at_anchor(&pass);
+                    let (candidates, distances) = pass.list.listed();
+                    assert_eq!(candidates.len(), full.len());
+                    for ((c, d), (f, e)) in candidates.iter().zip(distances).zip(&full) {
+                        assert_eq!((c, d.to_bits()), (f, e.to_bits()));
+                    }
+                    checked += !candidates.is_empty() as usize;
+                }
+            }
+            eprintln!("{name}: {checked} requeries checked, {:?}", pass.stats);
+            assert!(checked > 5, "{name}: {checked} requeries checked");
+        }
+    }
 
     /// A pass that built its mesh from the live particles alone would keep the triangles a
     /// severed stroke runs through as a surface stretched across the gap, and push cloth off

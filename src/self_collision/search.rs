@@ -108,7 +108,16 @@ impl Broad {
             std::mem::take(&mut self.vertex_triangles),
             std::mem::take(&mut self.edge_edges),
         );
-        let looked = self.find(topo, x, &limit, margin, order, closest, &mut vt, &mut ee);
+        let tests = PairTests {
+            topo,
+            x,
+            limit,
+            margin,
+            order,
+            tri_rank: &self.tri_rank,
+            measure: closest,
+        };
+        let looked = self.find(&tests, &mut vt, &mut ee);
         // The keys are sorted with where each pair is, not with the pairs (six times larger).
         out.clear();
         for (found, buckets) in [(&vt, topo.same.len()), (&ee, topo.edges.len())] {
@@ -124,7 +133,10 @@ impl Broad {
 
     /// For the pair list: every pair whose boxes overlap and which is closer than `reach` at
     /// `x`, as [`Broad::search`] with [`Order::Vertices`] finds them, but with its distance
-    /// alone; [`Broad::near_found`] then gives them in that order.
+    /// alone; [`Broad::near_found`] then gives them in that order. With `moved` (one flag a
+    /// particle), only those of them with a moved vertex: each primitive through a moved vertex
+    /// is looked up in the other tree alone, so the cost is that of the moved vertices'
+    /// neighbourhoods, not of the mesh.
     pub fn search_near(
         &mut self,
         topo: &Topology,
@@ -132,9 +144,9 @@ impl Broad {
         x: &Vec3s,
         reach: f64,
         margin: f64,
+        moved: Option<&[bool]>,
     ) -> Looked {
         self.fit(topo, vertex_boxes);
-        let limit = |_: &[u32; 4], _: usize| reach;
         let measure = |verts: [u32; 4], split: usize| {
             let d = distance(x, verts, split);
             (d, d)
@@ -143,8 +155,19 @@ impl Broad {
             std::mem::take(&mut self.near_vertex_triangles),
             std::mem::take(&mut self.near_edge_edges),
         );
-        let order = Order::Vertices;
-        let looked = self.find(topo, x, &limit, margin, order, measure, &mut vt, &mut ee);
+        let tests = PairTests {
+            topo,
+            x,
+            limit: |_: &[u32; 4], _: usize| reach,
+            margin,
+            order: Order::Vertices,
+            tri_rank: &self.tri_rank,
+            measure,
+        };
+        let looked = match moved {
+            None => self.find(&tests, &mut vt, &mut ee),
+            Some(moved) => self.find_touching(&tests, moved, &mut vt, &mut ee),
+        };
         // Sorted with their distances, as small as where each is, so that the list reads them
         // in order.
         let (starts, cursor, sorted) = (&mut self.starts, &mut self.cursor, &mut self.sorted_near);
@@ -217,66 +240,85 @@ impl Broad {
     }
 
     /// Into `vt` and `ee`, in an order fixed by the trees: every vertex-triangle and edge-edge
-    /// pair whose boxes overlap and whose `measure` (its distance at `x` and what is kept of
-    /// it) is below `limit`, under its key (as `order` says for the vertex-triangle pairs). A
-    /// pair's tight boxes at `x` pass over it first when they are farther apart than `limit`
-    /// and `margin`.
-    // The two searches differ only in what they keep of a pair.
-    #[allow(clippy::too_many_arguments)]
+    /// pair whose boxes overlap and which passes `tests`.
     fn find<R: Send>(
         &self,
-        topo: &Topology,
-        x: &Vec3s,
-        limit: &(impl Fn(&[u32; 4], usize) -> f64 + Sync),
-        margin: f64,
-        order: Order,
-        measure: impl Fn([u32; 4], usize) -> (f64, R) + Sync,
+        tests: &PairTests<
+            impl Fn(&[u32; 4], usize) -> f64 + Sync,
+            impl Fn([u32; 4], usize) -> (f64, R) + Sync,
+        >,
         vt: &mut Vec<(u64, R)>,
         ee: &mut Vec<(u64, R)>,
     ) -> Looked {
-        let keep_close = |verts: [u32; 4], split: usize, key: u64, out: &mut Vec<(u64, R)>| {
-            let most = limit(&verts, split);
-            if apart(x, &verts, split) <= most + margin {
-                let (d, kept) = measure(verts, split);
-                if d < most {
-                    out.push((key, kept));
-                }
-            }
-        };
-        let tri_rank = &self.tri_rank;
-        let vertex_triangle_pair = |k: u32, t: u32, out: &mut Vec<(u64, R)>| {
-            let v = topo.vertices[k as usize];
-            let [a, b, c] = topo.triangles[t as usize];
-            if topo.joined(v, a) || topo.joined(v, b) || topo.joined(v, c) {
-                return false;
-            }
-            let place = match order {
-                Order::Index => t,
-                Order::Vertices => tri_rank[t as usize],
-            };
-            let key = (v as u64) << 32 | place as u64;
-            keep_close([v, a, b, c], 1, key, out);
-            true
-        };
+        let vertex_triangle_pair = |k, t, out: &mut _| tests.vertex_triangle(k, t, out);
         let (boxes, candidates) =
             self.vert_tree
                 .overlapping_pairs(Some(&self.tri_tree), vertex_triangle_pair, vt);
-        let edge_edge_pair = |e: u32, f: u32, out: &mut Vec<(u64, R)>| {
-            let (e, f) = (e.min(f), e.max(f));
-            let ([a, b], [c, d]) = (topo.edges[e as usize], topo.edges[f as usize]);
-            let joined = |p: u32| topo.joined(p, c) || topo.joined(p, d);
-            if joined(a) || joined(b) {
-                return false;
-            }
-            let key = (e as u64) << 32 | f as u64;
-            keep_close([a, b, c, d], 2, key, out);
-            true
-        };
+        let edge_edge_pair = |e, f, out: &mut _| tests.edge_edge(e, f, out);
         let more = self.edge_tree.overlapping_pairs(None, edge_edge_pair, ee);
         Looked { boxes, candidates }.and(Looked {
             boxes: more.0,
             candidates: more.1,
         })
+    }
+
+    /// What [`Broad::find`] finds with `tests`, of the pairs with a vertex `moved`, each once:
+    /// a moved vertex against the triangles, a triangle through a moved vertex against the
+    /// vertices not moved (the moved ones found it already), and an edge through a moved
+    /// vertex against the edges, a pair of two such edges taken from its first. Each lookup is
+    /// the walk's own box test, so the pairs are the walk's; their order is the trees', and the
+    /// caller sorts them by key.
+    fn find_touching<R: Send>(
+        &self,
+        tests: &PairTests<
+            impl Fn(&[u32; 4], usize) -> f64 + Sync,
+            impl Fn([u32; 4], usize) -> (f64, R) + Sync,
+        >,
+        moved: &[bool],
+        vt: &mut Vec<(u64, R)>,
+        ee: &mut Vec<(u64, R)>,
+    ) -> Looked {
+        let topo = tests.topo;
+        let touches = |verts: &[u32]| verts.iter().any(|&v| moved[v as usize]);
+        let mut looked = Looked::default();
+        vt.clear();
+        ee.clear();
+        for (k, &v) in topo.vertices.iter().enumerate() {
+            if moved[v as usize] {
+                let mut found = 0;
+                looked.boxes += self.tri_tree.overlapping(&self.vert_boxes[k], |t| {
+                    found += tests.vertex_triangle(k as u32, t, vt) as u64;
+                });
+                looked.candidates += found;
+            }
+        }
+        for (t, tri) in topo.triangles.iter().enumerate() {
+            if touches(tri) {
+                let mut found = 0;
+                looked.boxes += self.vert_tree.overlapping(&self.tri_boxes[t], |k| {
+                    if !moved[topo.vertices[k as usize] as usize] {
+                        found += tests.vertex_triangle(k, t as u32, vt) as u64;
+                    }
+                });
+                looked.candidates += found;
+            }
+        }
+        for (e, edge) in topo.edges.iter().enumerate() {
+            if touches(edge) {
+                let e = e as u32;
+                let mut found = 0;
+                looked.boxes += self
+                    .edge_tree
+                    .overlapping(&self.edge_boxes[e as usize], |f| {
+                        let first = f > e || !touches(&topo.edges[f as usize]);
+                        if f != e && first {
+                            found += tests.edge_edge(e, f, ee) as u64;
+                        }
+                    });
+                looked.candidates += found;
+            }
+        }
+        looked
     }
 
     pub fn heap_bytes(&self) -> usize {
@@ -291,6 +333,71 @@ impl Broad {
             + self.vert_tree.heap_bytes()
             + self.tri_tree.heap_bytes()
             + self.edge_tree.heap_bytes()
+    }
+}
+
+/// What makes a pair whose boxes overlap one a search finds: neither primitive through the
+/// other's vertices (or a vertex sewn to one), and its `measure` (its distance at `x` and what
+/// is kept of it) below its `limit`. A pair's tight boxes at `x` pass over it first when they
+/// are farther apart than `limit` and `margin`. Each found pair goes under its key (as `order`
+/// says for the vertex-triangle pairs).
+struct PairTests<'a, L, M> {
+    topo: &'a Topology,
+    x: &'a Vec3s,
+    limit: L,
+    margin: f64,
+    order: Order,
+    tri_rank: &'a [u32],
+    measure: M,
+}
+
+impl<L, M, R> PairTests<'_, L, M>
+where
+    L: Fn(&[u32; 4], usize) -> f64 + Sync,
+    M: Fn([u32; 4], usize) -> (f64, R) + Sync,
+{
+    #[inline]
+    fn keep_close(&self, verts: [u32; 4], split: usize, key: u64, out: &mut Vec<(u64, R)>) {
+        let most = (self.limit)(&verts, split);
+        if apart(self.x, &verts, split) <= most + self.margin {
+            let (d, kept) = (self.measure)(verts, split);
+            if d < most {
+                out.push((key, kept));
+            }
+        }
+    }
+
+    /// The mesh's `k`-th vertex against triangle `t`; false if they are neighbours.
+    #[inline(always)]
+    fn vertex_triangle(&self, k: u32, t: u32, out: &mut Vec<(u64, R)>) -> bool {
+        let topo = self.topo;
+        let v = topo.vertices[k as usize];
+        let [a, b, c] = topo.triangles[t as usize];
+        if topo.joined(v, a) || topo.joined(v, b) || topo.joined(v, c) {
+            return false;
+        }
+        let place = match self.order {
+            Order::Index => t,
+            Order::Vertices => self.tri_rank[t as usize],
+        };
+        let key = (v as u64) << 32 | place as u64;
+        self.keep_close([v, a, b, c], 1, key, out);
+        true
+    }
+
+    /// Edges `e` and `f` (either order); false if they are neighbours.
+    #[inline(always)]
+    fn edge_edge(&self, e: u32, f: u32, out: &mut Vec<(u64, R)>) -> bool {
+        let topo = self.topo;
+        let (e, f) = (e.min(f), e.max(f));
+        let ([a, b], [c, d]) = (topo.edges[e as usize], topo.edges[f as usize]);
+        let joined = |p: u32| topo.joined(p, c) || topo.joined(p, d);
+        if joined(a) || joined(b) {
+            return false;
+        }
+        let key = (e as u64) << 32 | f as u64;
+        self.keep_close([a, b, c, d], 2, key, out);
+        true
     }
 }
 
@@ -421,7 +528,7 @@ mod tests {
         // The pair list's search keeps a pair's distance alone, and must find the same pairs,
         // in the same order, with the same distances to the bit.
         let mut near = Broad::default();
-        near.search_near(&topo, &boxes, &x, 0.004, 0.0);
+        near.search_near(&topo, &boxes, &x, 0.004, 0.0, None);
         let found: Vec<(Candidate, f64)> = near.near_found(&topo).collect();
         assert_eq!(found.len(), by_vertices.len());
         for ((c, d), p) in found.iter().zip(&by_vertices) {
