@@ -580,100 +580,11 @@ impl Survey {
 }
 
 #[cfg(test)]
+mod partial_rebuild_tests;
+
+#[cfg(test)]
 mod tests {
     use super::*;
-    use crate::{Scene, Simulation};
-
-    /// The positions after each of the steps from `from` to `to` of `scene`, its left and
-    /// right edges (when pinned) turned about the x axis through its centre at `omega` rad/s,
-    /// in opposite ways.
-    fn recorded(scene: Scene, from: u64, to: u64, omega: f64) -> Vec<Vec3s> {
-        let (nx, dt, centre) = (scene.cloth.nx as usize, scene.dt, scene.cloth.center);
-        let mut sim = Simulation::new(scene).unwrap();
-        let start = sim.positions().clone();
-        let mut out = Vec::new();
-        for step in 1..=to {
-            let angle = omega * step as f64 * dt;
-            for p in (0..start.len()).filter(|_| omega != 0.0) {
-                let sign = match p % nx {
-                    0 => 1.0,
-                    i if i == nx - 1 => -1.0,
-                    _ => continue,
-                };
-                let r = start.get(p).as_dvec3() - glam::DVec3::from(centre);
-                let (s, c) = (sign * angle).sin_cos();
-                let turned = glam::DVec3::new(r.x, c * r.y - s * r.z, s * r.y + c * r.z);
-                let target = glam::DVec3::from(centre) + turned;
-                sim.pin(p as i64, Some(target.as_vec3())).unwrap();
-            }
-            sim.step(1).unwrap();
-            if step >= from {
-                out.push(sim.positions().clone());
-            }
-        }
-        out
-    }
-
-    /// The list a search of the whole mesh at the list's anchor finds, with the reach and
-    /// margin the list was built with.
-    fn searched_at_anchor(pass: &SelfCollision) -> Vec<(pair::Candidate, f64)> {
-        let anchor = pass.list.anchor().unwrap();
-        let (reach, eps) = (pass.list.reach(), pass.list_eps);
-        let mut boxes = Vec::new();
-        list_boxes(&mut boxes, anchor, reach, eps);
-        let mut broad = Broad::default();
-        let margin = 1e-3 * eps as f64;
-        broad.search_near(&pass.topology, &boxes, anchor, reach, margin, None);
-        broad.near_found(&pass.topology).collect()
-    }
-
-    /// Querying again only the vertices past their bound must leave the list exactly as a
-    /// search of the whole mesh at its anchor lists it: every pair, in its order, with its
-    /// distance to the bit. Otherwise a pair the substep needs could be missing, or the pairs
-    /// come in another order and the result depends on when the list was built. The pass is
-    /// replayed over the steps of a settling pile and of a twist, one step a substep.
-    #[test]
-    fn a_partial_rebuild_finds_the_full_searchs_pairs_in_its_order() {
-        let mut pile = Scene::builtin("pile").unwrap();
-        (pile.cloth.nx, pile.cloth.ny) = (48, 48);
-        (pile.dt, pile.substeps) = (0.5 * pile.dt, 1);
-        let mut twist = Scene::builtin("twist").unwrap();
-        (twist.cloth.nx, twist.cloth.ny, twist.cloth.size) = (40, 40, [0.3, 0.3]);
-        for (name, scene, (from, to), omega) in [
-            ("pile", pile, (1600, 2400), 0.0),
-            ("twist", twist, (1, 1500), 2.0),
-        ] {
-            let frames = recorded(scene.clone(), from, to, omega);
-            let spec = scene.self_collision.clone().unwrap();
-            let (model, _) = Model::new(scene).unwrap();
-            let mut pass = SelfCollision::new(spec.thickness as f32, spec.friction as f32, 1);
-            let mut checked = 0;
-            for w in frames.windows(2) {
-                let n = w[0].len();
-                let start = Kinematics {
-                    pos: w[0].clone(),
-                    vel: Vec3s::zeros(n),
-                };
-                let mut next = Kinematics {
-                    pos: w[1].clone(),
-                    vel: Vec3s::zeros(n),
-                };
-                let requeries = pass.stats.requeries;
-                assert!(pass.apply(&model, &start, &mut next));
-                if pass.stats.requeries > requeries {
-                    let full = searched_at_anchor(&pass);
-                    let (candidates, distances) = pass.list.listed();
-                    assert_eq!(candidates.len(), full.len());
-                    for ((c, d), (f, e)) in candidates.iter().zip(distances).zip(&full) {
-                        assert_eq!((c, d.to_bits()), (f, e.to_bits()));
-                    }
-                    checked += !candidates.is_empty() as usize;
-                }
-            }
-            eprintln!("{name}: {checked} requeries checked, {:?}", pass.stats);
-            assert!(checked > 5, "{name}: {checked} requeries checked");
-        }
-    }
 
     /// A pass that built its mesh from the live particles alone would keep the triangles a
     /// severed stroke runs through as a surface stretched across the gap, and push cloth off
