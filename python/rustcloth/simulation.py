@@ -719,10 +719,11 @@ class Simulation:
     def self_collision_stats(self) -> dict[str, float] | None:
         """What the self-collision pass did since the simulation was built, or None without
         ``[self_collision]``: ``substeps`` it ran, candidate ``pairs`` and ``contacts`` (pairs
-        closer than ``thickness``) summed over substeps, ``rebuilds`` of its pair list,
-        vertices the cap slowed (``capped``) or ``stopped``, the most cap rounds in one
-        substep (``max_cap_rounds``) and the smallest distance between a vertex and a
-        triangle, or two edges, at the start of a substep (``min_distance``, m)."""
+        closer than ``thickness``) summed over substeps, ``rebuilds`` of its pair list and
+        ``requeries`` of part of it (``requeried`` vertices, summed), vertices the cap slowed
+        (``capped``) or ``stopped``, the most cap rounds in one substep (``max_cap_rounds``)
+        and the smallest distance between a vertex and a triangle, or two edges, at the start
+        of a substep (``min_distance``, m)."""
         return self._core.self_collision_stats()
 
     def seam_gap(self) -> float | None:
