@@ -75,16 +75,11 @@ pub const LEVER: f64 = 2.0;
 /// that no vertex is given more than [`LEVER`] times the pair's change; None when no vertex of
 /// it can move.
 pub fn inverse_mass(pair: &Pair, inv_mass: &[f32]) -> Option<f64> {
-    let w = pair.verts.map(|v| inv_mass[v as usize] as f64);
-    lever_limited(w, pair.c)
-}
-
-/// [`inverse_mass`] from the vertices' inverse masses `w` and weights `c`.
-pub fn lever_limited(w: [f64; 4], c: [f64; 4]) -> Option<f64> {
     let (mut sum, mut lever) = (0.0f64, 0.0f64);
-    for k in 0..4 {
-        sum += w[k] * c[k] * c[k];
-        lever = lever.max(w[k] * c[k].abs());
+    for (&v, c) in pair.verts.iter().zip(pair.c) {
+        let w = inv_mass[v as usize] as f64;
+        sum += w * c * c;
+        lever = lever.max(w * c.abs());
     }
     (sum > 0.0).then_some(sum.max(lever / LEVER))
 }
