@@ -43,6 +43,11 @@ pub enum Trouble {
     /// A spring grew longer than the watchdog's `max_stretch` times its rest length; `stretch`
     /// is the ratio `l / L` of the first such spring found.
     Overstretched { stretch: f32, limit: f32 },
+    /// With self-collision, `share` of the cloth's edges changed length by more than half the
+    /// cloth's spacing within one substep: the step no longer resolves the cloth's motion (an
+    /// explicit integrator past its stable step), which the pass would otherwise hide by
+    /// holding the runaway cloth apart instead of letting it reach infinity.
+    Unresolved { share: f32 },
     /// The step panicked (a bug): never retried, reported as [`Error::Internal`].
     Panicked,
 }
@@ -53,6 +58,7 @@ impl Trouble {
         match self {
             Trouble::NonFinite => "non_finite",
             Trouble::Overstretched { .. } => "overstretched",
+            Trouble::Unresolved { .. } => "unresolved",
             Trouble::Panicked => "panicked",
         }
     }
@@ -100,6 +106,13 @@ impl fmt::Display for Error {
                         f,
                         "a spring at particle {particle} stretched to {stretch:.3} times its rest \
                          length, beyond the watchdog's max_stretch = {limit}"
+                    )?,
+                    Trouble::Unresolved { share } => write!(
+                        f,
+                        "{:.0} % of the edges, particle {particle}'s first, changed length by \
+                         more than half the cloth's spacing within one substep (an integrator \
+                         past its stable step)",
+                        100.0 * share
                     )?,
                     Trouble::Panicked => write!(f, "the solver panicked")?,
                 }

@@ -242,6 +242,11 @@ impl SelfCollision {
         self.stats
     }
 
+    /// The live mesh's edges, each once, as of the last pass.
+    pub fn edges(&self) -> &[[u32; 2]] {
+        &self.topology.edges
+    }
+
     /// Runs the pass on the substep from `start` to `next` (see the module's comment). Returns
     /// false, changing nothing, when `next` holds a non-finite position (the step then fails
     /// as any non-finite step does), and otherwise whether the velocities it wrote are finite.

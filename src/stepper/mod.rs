@@ -223,6 +223,16 @@ impl Stepper {
             }
             round += 1;
         };
+        if finite {
+            if let Some((particle, share)) = passes.unresolved_motion(&s) {
+                return Err(Failure {
+                    reason: Trouble::Unresolved { share },
+                    particle,
+                    in_start_state: false,
+                    substeps,
+                });
+            }
+        }
         self.accept(state, finite, substeps)
     }
 

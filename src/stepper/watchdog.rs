@@ -440,3 +440,50 @@ fn find_overstretched(
         })
     })
 }
+
+/// How far an edge's length may change within one substep, as a fraction of the cloth's
+/// spacing, before the substep counts as not resolving the cloth's motion. Physical motion
+/// changes an edge's length by a few per cent of it in a substep (0.22 at most in the built-in
+/// scenes, the pile at two implicit steps a frame); an explicit integrator past its stable step
+/// swings most edges by their whole length.
+const UNRESOLVED_SWING: f32 = 0.5;
+
+/// The share of the edges that must swing that far at once: a grip flicked across the cloth
+/// may swing the few edges round it, an unstable integrator swings a quarter of the cloth.
+const UNRESOLVED_SHARE: f32 = 0.01;
+
+/// Edges per parallel work item of [`unresolved_motion`].
+const EDGE_CHUNK: usize = 4096;
+
+/// Whether the substep from `x0` to `x1` resolved the cloth's motion: `None`, or the first
+/// particle of the first edge that swung and the share of the edges that did (more than
+/// [`UNRESOLVED_SHARE`] swung by more than [`UNRESOLVED_SWING`] of `spacing`).
+///
+/// Only a scene with self-collision needs this: without it an unstable integrator runs to a
+/// non-finite value, which the update loop catches; with it, the pass caps every vertex's
+/// motion to what keeps the cloth apart and damps the capped velocities, so the runaway cloth
+/// settles into a bounded boil with no value ever infinite.
+pub fn unresolved_motion(
+    edges: &[[u32; 2]],
+    x0: &Vec3s,
+    x1: &Vec3s,
+    spacing: f32,
+) -> Option<(usize, f32)> {
+    let swing = UNRESOLVED_SWING * spacing;
+    let swung = |&[a, b]: &[u32; 2]| {
+        let (a, b) = (a as usize, b as usize);
+        let l0 = (x0.get(b) - x0.get(a)).length();
+        let l1 = (x1.get(b) - x1.get(a)).length();
+        (l1 - l0).abs() > swing
+    };
+    let count: usize = edges
+        .par_chunks(EDGE_CHUNK)
+        .map(|chunk| chunk.iter().filter(|e| swung(e)).count())
+        .sum();
+    let share = count as f32 / edges.len().max(1) as f32;
+    if share <= UNRESOLVED_SHARE {
+        return None;
+    }
+    let first = edges.iter().find(|e| swung(e)).map_or(0, |e| e[0] as usize);
+    Some((first, share))
+}

@@ -116,8 +116,11 @@ class Recovery:
     def handle(self, err: SimulationDiverged) -> str:
         """Undo what the failed step left behind and apply the next remedy; returns what
         happened and what was done, for the overlay."""
-        what = ("became non-finite" if err.reason == "non_finite"
-                else "was overstretched" if err.reason == "overstretched" else err.reason)
+        what = {
+            "non_finite": "became non-finite",
+            "overstretched": "was overstretched",
+            "unresolved": "moved faster than the step resolves",
+        }.get(err.reason, err.reason)
         return self._recover(f"particle {err.particle} {what}", "rolled back the failed step")
 
     def runaway(self) -> str | None:

@@ -4,6 +4,7 @@
 use std::time::Instant;
 
 use super::{Pipeline, Substep};
+use crate::stepper::watchdog;
 use crate::model::Model;
 use crate::pins::KinematicPins;
 use crate::profile::Profile;
@@ -93,6 +94,14 @@ impl Pipeline {
         let finite = contact.apply(s.model, &s.state.kin, s.next);
         s.profile.add(SelfCollision::NAME, t.elapsed());
         finite
+    }
+
+    /// With self-collision, whether the substep left motion it does not resolve
+    /// ([`watchdog::unresolved_motion`]): the first particle at fault and the share of edges.
+    pub fn unresolved_motion(&self, s: &Substep) -> Option<(usize, f32)> {
+        let contact = self.self_collision.as_ref()?;
+        let spacing = s.model.min_spacing() as f32;
+        watchdog::unresolved_motion(contact.edges(), &s.state.kin.pos, &s.next.pos, spacing)
     }
 
     /// Breaks the springs strained beyond the tearing limit, on the accepted end-of-step
