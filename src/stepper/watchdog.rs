@@ -470,6 +470,11 @@ pub fn unresolved_motion(
     spacing: f32,
 ) -> Option<(usize, f32)> {
     let swing = UNRESOLVED_SWING * spacing;
+    // No edge changes length by more than the diagonal of the box round the displacements: a
+    // cloth that moves together (resting, falling, carried) costs one pass over its particles.
+    if displacement_diagonal(x0, x1) <= swing {
+        return None;
+    }
     let swung = |&[a, b]: &[u32; 2]| {
         let (a, b) = (a as usize, b as usize);
         let l0 = (x0.get(b) - x0.get(a)).length();
@@ -486,4 +491,22 @@ pub fn unresolved_motion(
     }
     let first = edges.iter().find(|e| swung(e)).map_or(0, |e| e[0] as usize);
     Some((first, share))
+}
+
+/// The diagonal of the bounding box of the displacements `x1 - x0`: a bound on how much any
+/// distance between two particles changed.
+fn displacement_diagonal(x0: &Vec3s, x1: &Vec3s) -> f32 {
+    let axis = |a: &[f32], b: &[f32]| {
+        let (lo, hi) = a.par_chunks(EDGE_CHUNK).zip(b.par_chunks(EDGE_CHUNK))
+            .map(|(a, b)| {
+                a.iter().zip(b).fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), (a, b)| {
+                    let d = b - a;
+                    (lo.min(d), hi.max(d))
+                })
+            })
+            .reduce(|| (f32::INFINITY, f32::NEG_INFINITY), |p, q| (p.0.min(q.0), p.1.max(q.1)));
+        (hi - lo).max(0.0)
+    };
+    let (dx, dy, dz) = (axis(&x0.x, &x1.x), axis(&x0.y, &x1.y), axis(&x0.z, &x1.z));
+    (dx * dx + dy * dy + dz * dz).sqrt()
 }
