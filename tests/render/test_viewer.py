@@ -65,6 +65,31 @@ def test_explicit_euler_diverges_rolls_back_and_keeps_running(ctx: Any) -> None:
     assert viewer.sim.substeps == 2
 
 
+def test_explicit_euler_is_caught_and_recovered_with_self_collision_on(ctx: Any) -> None:
+    """With self-collision the pass held explicit Euler's runaway cloth apart instead of
+    letting it reach infinity: the cloth boiled on and the viewer never said a word. The core
+    now fails such a step as "unresolved"; the viewer goes back to a checkpoint from before the
+    runaway (its velocities, not its springs, were wild) and switches integrator."""
+    viewer, fbo = _viewer(ctx, "fold")
+    for _ in range(5):
+        viewer.frame(fbo, 1 / 30)
+    _to_integrator(viewer, "explicit_euler")
+    for _ in range(30):
+        viewer.frame(fbo, 1 / 30)
+        if any("diverged" in n for n, _, _ in viewer.notices):
+            break
+    notice = next(n for n, _, _ in viewer.notices if "diverged" in n)
+    assert notice.startswith("explicit_euler diverged at t = ")
+    assert "moved faster than the step resolves" in notice
+    assert "put back the cloth of t = " in notice
+    for _ in range(20):
+        viewer.frame(fbo, 1 / 30)
+    assert sum("diverged" in n for n, _, _ in viewer.notices) == 1  # the checkpoint held
+    assert viewer.sim.integrator != "explicit_euler"
+    v = viewer.sim.velocities
+    assert np.isfinite(v).all() and (np.abs(v) < 10.0).all()
+
+
 def test_a_violent_drag_that_diverges_is_recovered(ctx: Any) -> None:
     viewer, fbo = _viewer(ctx, "freefall")
     sim = viewer.sim

@@ -26,6 +26,11 @@ MAX_SUBSTEPS = 128
 HEALTHY_STRETCH = 2.0
 """A state whose springs are all below this strain (l / L - 1) is sane: kept as a
 checkpoint, and not replaced after a rollback."""
+UNRESOLVED_SWING = 0.5
+UNRESOLVED_SHARE = 0.01
+"""The core's test of motion a step does not resolve (``SimulationDiverged.reason ==
+"unresolved"``): more than this share of the edges changing length by more than this fraction
+of the spacing within a substep. A state that would fail it is not a checkpoint."""
 RUNAWAY_STRETCH = 1000.0
 """A spring this many times past its rest length means the cloth is running away (a fast
 drag stretches the grabbed particle's springs tens of times, for a step or two)."""
@@ -55,6 +60,8 @@ class Steppable(Protocol):
     def set_positions(self, positions: F32) -> None: ...
     def set_velocities(self, velocities: F32) -> None: ...
     def stable_dt(self) -> float | None: ...
+    @property
+    def triangles(self) -> npt.NDArray[np.uint32]: ...
     def max_stretch(self) -> float: ...
     def grabbed(self) -> int | None: ...
     def release(self) -> None: ...
@@ -99,8 +106,28 @@ class Recovery:
 
     def _healthy(self) -> bool:
         stretch = self.sim.max_stretch()
-        return math.isfinite(stretch) and stretch < HEALTHY_STRETCH and bool(
-            np.isfinite(self.sim.velocities).all())
+        return (math.isfinite(stretch) and stretch < HEALTHY_STRETCH
+                and bool(np.isfinite(self.sim.velocities).all())
+                and self._unresolved_share() <= UNRESOLVED_SHARE)
+
+    def _unresolved_share(self) -> float:
+        """The share of the cloth's edges whose length the velocities would change by more
+        than half the typical edge within one substep: the core's ``"unresolved"`` trouble,
+        foreseen from one state. A cloth boiling under an unstable integrator has its springs
+        at sane lengths (the self-collision pass holds it) but not its velocities."""
+        sim = self.sim
+        tri = sim.triangles.astype(np.int64)
+        if len(tri) == 0:
+            return 0.0
+        edges = np.unique(np.sort(tri[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1), axis=0)
+        x = sim.positions.astype(np.float64)
+        v = sim.velocities.astype(np.float64)
+        a, b = edges.T
+        d = x[b] - x[a]
+        length = np.linalg.norm(d, axis=1)
+        rate = np.abs(np.einsum("ij,ij->i", v[b] - v[a], d)) / np.maximum(length, 1e-12)
+        swing = rate * sim.dt / sim.substeps
+        return float(np.mean(swing > UNRESOLVED_SWING * np.median(length)))
 
     def after_steps(self) -> None:
         """Keep a checkpoint when one is due and the state is sane."""
