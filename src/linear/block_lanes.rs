@@ -5,7 +5,8 @@
 //! are symmetric 3 x 3 blocks ([`BlockLanes`], the multigrid's matrices) or scalars acting on
 //! x, y and z alike ([`WeightLanes`], its transfers). Each lane still adds its own row's entries
 //! in row order, each computed as [`Sym3::mul`] or `w * x` computes it, so a product is bitwise
-//! what a row-by-row product gives; a slot past a row's end is masked, not added.
+//! what a row-by-row product gives; a slot past a row's end adds `-0.0`, which leaves any sum
+//! bitwise as it is.
 //!
 //! A product streams the blocks once and gathers its operand by column [`LANES`] rows at a
 //! time, which row by row it could not (measured in docs/mesh_cloth.md, "Implicit solvers").
@@ -310,7 +311,8 @@ impl<const C: usize> Lanes<C> {
         let first = self.starts[g] as usize;
         let slots = first..self.starts[g + 1] as usize;
         // The sums in locals, not in `acc`: a sum kept in memory and written back under a
-        // mask each slot became a masked store that the next slot's load must wait out.
+        // mask each slot is a masked store, which the next slot's load must wait out (no
+        // store forwarding from it).
         let [mut sx, mut sy, mut sz] = *acc;
         for (k, b) in slots.clone().zip(&self.values[slots]) {
             let columns = column(k);
