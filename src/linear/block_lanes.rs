@@ -5,7 +5,8 @@
 //! are symmetric 3 x 3 blocks ([`BlockLanes`], the multigrid's matrices) or scalars acting on
 //! x, y and z alike ([`WeightLanes`], its transfers). Each lane still adds its own row's entries
 //! in row order, each computed as [`Sym3::mul`] or `w * x` computes it, so a product is bitwise
-//! what a row-by-row product gives; a slot past a row's end is masked, not added.
+//! what a row-by-row product gives; a slot past a row's end adds `-0.0`, which leaves any sum
+//! bitwise as it is.
 //!
 //! A product streams the blocks once and gathers its operand by column [`LANES`] rows at a
 //! time, which row by row it could not (measured in docs/mesh_cloth.md, "Implicit solvers").
@@ -309,6 +310,10 @@ impl<const C: usize> Lanes<C> {
         let lengths = &self.lengths[g];
         let first = self.starts[g] as usize;
         let slots = first..self.starts[g + 1] as usize;
+        // The sums in locals, not in `acc`: a sum kept in memory and written back under a
+        // mask each slot is a masked store, which the next slot's load must wait out (no
+        // store forwarding from it).
+        let [mut sx, mut sy, mut sz] = *acc;
         for (k, b) in slots.clone().zip(&self.values[slots]) {
             let columns = column(k);
             for lane in 0..LANES {
@@ -326,24 +331,16 @@ impl<const C: usize> Lanes<C> {
                     )
                 };
                 let p = term(std::array::from_fn(|c| b[c][lane]), Vec3::new(vx, vy, vz));
+                // A slot past the row's end adds `-0.0`, which leaves every sum bitwise as
+                // it is (`-0.0` too), so the lane's sum needs no select.
                 let live = ((k - first) as u32) < lengths[lane];
-                acc[0][lane] = if live {
-                    acc[0][lane] + p.x
-                } else {
-                    acc[0][lane]
-                };
-                acc[1][lane] = if live {
-                    acc[1][lane] + p.y
-                } else {
-                    acc[1][lane]
-                };
-                acc[2][lane] = if live {
-                    acc[2][lane] + p.z
-                } else {
-                    acc[2][lane]
-                };
+                let p = if live { p } else { Vec3::splat(-0.0) };
+                sx[lane] += p.x;
+                sy[lane] += p.y;
+                sz[lane] += p.z;
             }
         }
+        *acc = [sx, sy, sz];
     }
 
     pub fn heap_bytes(&self) -> usize {
@@ -404,6 +401,26 @@ mod tests {
             offsets.push(columns.len() as u32);
         }
         (offsets, columns, blocks)
+    }
+
+    #[test]
+    fn a_row_shorter_than_its_group_keeps_a_negative_zero_sum() {
+        // Row 0 has one entry, row 1 three, so row 0's lane is padded for two slots; its sum
+        // starts at -0.0 and adds -0.0 (a zero block times a negative operand), which must
+        // stay -0.0 past the padding, as the row-by-row sum gives it.
+        let offsets = [0u32, 1, 4];
+        let columns = [1u32, 0, 1, 0];
+        let blocks = [Sym3::ZERO, Sym3([1.0; 6]), Sym3([2.0; 6]), Sym3([3.0; 6])];
+        let mut lanes = BlockLanes::new(&offsets, &columns, &[0, 1, 2, 3], 2);
+        lanes.refill(&blocks, |b| b.0);
+        let x = Vec3s::from_fn(2, |v| Vec3::splat(-1.0 - v as f32));
+        let mut y = Vec3s::zeros(2);
+        lanes.apply_blocks(&x, 0..2, &mut y.slices_mut(0..2), |_, _| Vec3::splat(-0.0));
+        assert_eq!(
+            y.get(0).to_array().map(f32::to_bits),
+            [(-0.0f32).to_bits(); 3]
+        );
+        assert_eq!(y.get(1), Vec3::splat(-3.0 - 12.0 - 9.0));
     }
 
     #[test]
