@@ -231,6 +231,9 @@ impl PairList {
         self.strays.clear();
         self.strays.resize(x.len(), 0.0);
         self.most_strayed = 0.0;
+        // Where the cloth is now is the anchor: a re-anchoring before the next
+        // [`PairList::strayed`] puts a vertex where it is.
+        self.common = DVec3::ZERO;
         self.unmark();
         self.candidates.clear();
         self.distances.clear();
@@ -296,18 +299,6 @@ impl PairList {
         };
         self.hot.extend(self.near.iter().filter(hot));
         self.hot.par_iter().map(move |&k| candidates[k as usize])
-    }
-
-    /// Whether the last [`PairList::within`] found pairs that the last [`PairList::hot`] left
-    /// out.
-    pub fn left_cold(&self) -> bool {
-        self.hot.len() < self.near.len()
-    }
-
-    /// Every pair the last [`PairList::within`] found, in the order of their keys.
-    pub fn all_near(&self) -> impl IndexedParallelIterator<Item = Candidate> + '_ {
-        let candidates = &self.candidates;
-        self.near.par_iter().map(move |&k| candidates[k as usize])
     }
 
     pub fn heap_bytes(&self) -> usize {

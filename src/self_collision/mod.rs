@@ -10,12 +10,15 @@
 //!    - *the pair list*, when no vertex strays far from the cloth's common motion (a resting,
 //!      falling or slowly moving cloth): every pair closer than
 //!      `needed = thickness + 2 (r + PUSH thickness)` at `x0`, `r` the most any vertex's
-//!      displacement strays from the common one. The list reaches `SKIN thickness` farther
-//!      and is kept until the cloth has moved too far for it (a Verlet list); then the pairs
-//!      of the vertices that moved most are searched for again, or, when they are many, all
-//!      pairs. If the
-//!      repulsion or the cap then moves a vertex more than `PUSH thickness` away, the
-//!      substep is redone the second way.
+//!      displacement strays from the common one. The repulsion and the cap look first at those
+//!      of them that the substep's motion may bring within `(1 + HOT) thickness`, and at the
+//!      others only where they have not shown that those cannot act (see `Cold`), so the list
+//!      holds every pair closer than `(1 + HOT) thickness + 2 r`, searched for the rest when
+//!      they are needed. It reaches `SKIN thickness` farther and is kept until the cloth has
+//!      moved too far for it (a Verlet list); then the pairs of the vertices that moved most
+//!      are searched for again, or, when they are many, all pairs. If the repulsion or the
+//!      cap then moves a vertex more than `PUSH thickness` away, the substep is redone the
+//!      second way.
 //!    - *the swept search*, otherwise: every pair whose boxes, swept from `x0` to `x1` and
 //!      grown by `thickness / 2`, overlap and whose distance at `x0` is below `thickness`
 //!      plus how far its vertices may end from where they start (`|x1 - x0| + thickness / 2`
@@ -94,12 +97,15 @@ const REQUERY_AT: f64 = 0.5;
 /// docs/contact.md).
 const REQUERY_MOST: f64 = 0.1;
 
-/// How much nearer than `thickness` a listed pair must be able to come in a substep, as a
-/// fraction of `thickness`, for the substep to give it its closest points and the repulsion and
-/// the cap to look at it. The pairs left out cannot act unless the repulsion moves a vertex
-/// more than half of this, or the cap acts at all; the substep then looks at them too. More
-/// looks at more pairs in every substep on the list, less looks at all of them more often.
-const HOT: f64 = 0.5;
+/// How near, beyond `thickness` and as a fraction of it, a pair must be able to come in a
+/// substep on the pair list for the substep to give it its closest points and the repulsion and
+/// the cap to look at it; the list holds only such pairs. The pairs left out cannot act unless
+/// the repulsion moves a vertex more than half of this, or the cap acts at all; the substep
+/// then looks at them too (and first lists them). More lists and looks at more pairs in every
+/// substep, less looks at all of them more often (0.1 did so in every substep of the settling
+/// 64 x 64 pile; chosen by the piles' and freefall's cost, docs/contact.md). At most
+/// `2 PUSH`, what the substep needs.
+const HOT: f64 = 0.25;
 
 /// What the pass did, summed since the simulation was built.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -225,6 +231,10 @@ pub struct SelfCollision {
     /// Whether the cap's last round changed each vertex's scale.
     rescaled: Vec<bool>,
     stats: SelfCollisionStats,
+    /// Look at every pair the substep needs in each substep on the list, as if none could be
+    /// left out (what the tests compare with).
+    #[cfg(test)]
+    look_at_all: bool,
 }
 
 impl SelfCollision {
@@ -258,6 +268,8 @@ impl SelfCollision {
             scale_next: Vec::new(),
             rescaled: Vec::new(),
             stats: SelfCollisionStats::default(),
+            #[cfg(test)]
+            look_at_all: false,
         }
     }
 
@@ -286,19 +298,22 @@ impl SelfCollision {
         let thickness = self.thickness as f64;
         let allowed = motion.radius() + PUSH * thickness;
         let needed = thickness + 2.0 * allowed + eps;
+        // What the list must hold: the pairs that may come within `(1 + HOT) thickness`.
+        let hot_needed = (1.0 + HOT) * thickness + 2.0 * motion.radius() + eps;
         // Which pairs a substep looks at depends on the substep alone, never on when the list
         // was built, so a restored state steps exactly as the original.
         let clock = Instant::now();
         let finite = if needed <= LIST_LIMIT * thickness {
             let in_mesh = &self.topology.in_mesh;
             let strayed = survey.drift.and_then(|d| self.list.strayed(in_mesh, x0, d));
-            if !self.list.covers(strayed, needed, eps) {
-                self.renew_list(x0, needed, eps);
+            if !self.list.covers(strayed, hot_needed, eps) {
+                self.renew_list(x0, hot_needed, eps);
             }
-            self.listed_pairs(x0, &next.pos, motion, needed, eps);
+            self.listed_pairs(x0, &next.pos, motion, (needed, hot_needed), eps);
             self.stats.effort.search_seconds += clock.elapsed().as_secs_f64();
             let inert = |c: &Cold| c.repulsion_safe(0.0, eps) && c.cap_safe(0.0, eps);
-            if self.pairs.is_empty() && self.cold.as_ref().is_none_or(inert) {
+            let all = self.looks_at_all();
+            if self.pairs.is_empty() && !all && self.cold.as_ref().is_none_or(inert) {
                 return true;
             }
             self.sweep_boxes(x0, &next.pos, eps as f32);
@@ -402,16 +417,24 @@ impl SelfCollision {
         self.stats.requeried += past as u64;
     }
 
-    /// The listed pairs closer than `needed` at `x0` that the substep from `x0` to `x1`
-    /// (`motion`, the box of its displacements) may bring within `thickness` and `HOT` of it,
-    /// with their closest points at `x0`, ordered by their vertices (the list's order: the
-    /// same whenever the list was built, so the result depends on the substep alone). A pair
-    /// that was `d` apart at the anchor is at least `d` less its vertices' strays apart now
-    /// ([`PairList::within`]; `eps` allows for round-off), so only the list's nearest need a
-    /// look; of those, most are farther apart than the substep's own motion can close, and
-    /// are left `cold` (see [`Cold`]).
-    fn listed_pairs(&mut self, x0: &Vec3s, x1: &Vec3s, motion: Spread, needed: f64, eps: f64) {
-        let _ = self.list.within(needed, eps);
+    /// The pairs closer than `needed` at `x0` that the substep from `x0` to `x1` (`motion`,
+    /// the box of its displacements) may bring within `thickness` and `HOT` of it, with their
+    /// closest points at `x0`, ordered by their vertices (the list's order: the same whenever
+    /// the list was built, so the result depends on the substep alone), from a list that
+    /// holds every pair closer than `hot_needed`. A pair that was `d` apart at the anchor is
+    /// at least `d` less its vertices' strays apart now ([`PairList::within`]; `eps` allows
+    /// for round-off), so only the list's nearest need a look; of those, most are farther
+    /// apart than the substep's own motion can close, and are left `cold` with the pairs the
+    /// list does not hold (see [`Cold`]).
+    fn listed_pairs(
+        &mut self,
+        x0: &Vec3s,
+        x1: &Vec3s,
+        motion: Spread,
+        (needed, hot_needed): (f64, f64),
+        eps: f64,
+    ) {
+        let _ = self.list.within(hot_needed, eps);
         let (common, in_mesh) = (motion.centre(), &self.topology.in_mesh);
         self.moving.resize(x0.len(), 0.0);
         let moving_most = self
@@ -432,27 +455,34 @@ impl SelfCollision {
         self.pairs.clear();
         self.pairs.par_extend(hot.map(|c| c.at(x0)));
         self.pairs.retain(|p| p.d0 < needed);
-        self.cold = self.list.left_cold().then_some(Cold {
+        self.cold = Some(Cold {
             needed,
+            eps,
             thickness,
             slack,
             moving_most,
         });
     }
 
-    /// Looks at every listed pair the substep needs, the ones [`SelfCollision::listed_pairs`]
-    /// left cold too (in the list's order), and keeps their vertices as `next` has them (as
-    /// the integrator left them: only the pairs already looked at moved theirs) to redo the
-    /// substep from.
+    /// Looks at every pair the substep needs, the ones [`SelfCollision::listed_pairs`] left
+    /// cold too (in the list's order, the list first made to hold them), and keeps their
+    /// vertices as `next` has them (as the integrator left them: only the pairs already
+    /// looked at moved theirs) to redo the substep from.
     fn widen(&mut self, x0: &Vec3s, next: &Kinematics) {
-        let Some(cold) = self.cold.take() else {
+        let Some(Cold { needed, eps, .. }) = self.cold.take() else {
             return;
         };
         self.stats.widened += 1;
+        if !self
+            .list
+            .covers(Some(self.list.most_strayed()), needed, eps)
+        {
+            self.renew_list(x0, needed, eps);
+        }
+        let near = self.list.within(needed, eps);
         self.pairs.clear();
-        self.pairs
-            .par_extend(self.list.all_near().map(|c| c.at(x0)));
-        self.pairs.retain(|p| p.d0 < cold.needed);
+        self.pairs.par_extend(near.map(|c| c.at(x0)));
+        self.pairs.retain(|p| p.d0 < needed);
         self.save_listed(next, true);
     }
 
@@ -563,6 +593,9 @@ impl SelfCollision {
     /// for the repulsion) unless it has shown that they cannot act in it.
     fn resolve(&mut self, x0: &Vec3s, next: &mut Kinematics, inv_mass: &[f32], eps: f64) -> bool {
         let clock = Instant::now();
+        if self.looks_at_all() {
+            self.widen(x0, next);
+        }
         let contacts = self.stats.contacts;
         let mut finite = self.repel(next, inv_mass, eps);
         if let Some(cold) = self.cold {
@@ -597,6 +630,16 @@ impl SelfCollision {
         finite
     }
 
+    #[cfg(test)]
+    fn looks_at_all(&self) -> bool {
+        self.look_at_all
+    }
+
+    #[cfg(not(test))]
+    fn looks_at_all(&self) -> bool {
+        false
+    }
+
     pub fn heap_bytes(&self) -> usize {
         self.topology.heap_bytes()
             + (self.vertex_boxes.capacity() + self.search_boxes.capacity()) * size_of::<Aabb>()
@@ -628,11 +671,13 @@ fn list_boxes(boxes: &mut Vec<Aabb>, x: &Vec3s, reach: f64, eps: f32) {
     }));
 }
 
-/// The listed pairs a substep on the pair list may leave out of what the repulsion and the cap
-/// look at: each was, at the anchor, farther than `thickness + slack` and the most any vertex
-/// of each of its primitives strayed since then and strays in the substep (`moving`, from the
-/// substep's common displacement `T`), so it is at least `thickness + slack + m_a + m_b` apart
-/// at the substep's start (`m` the most a vertex of that side strays in the substep). Its
+/// The pairs a substep on the pair list may leave out of what the repulsion and the cap look
+/// at: each listed one was, at the anchor, farther than `thickness + slack` and the most any
+/// vertex of each of its primitives strayed since then and strays in the substep (`moving`,
+/// from the substep's common displacement `T`), and each one the list does not hold is farther
+/// than `thickness + slack + 2 r` (`r` the most any vertex strays in the substep), so it is at
+/// least `thickness + slack + m_a + m_b` apart at the substep's start (`m` the most a vertex
+/// of that side strays in the substep). Its
 /// gap along its normal at the start (what the repulsion measures) then changes by at most
 /// `m_a + m_b` over the substep, since its closest points' weights are zero-sum, and by at
 /// most `p_a + p_b` more through the repulsion (`p` what the repulsion moved a vertex, summed
@@ -643,8 +688,10 @@ fn list_boxes(boxes: &mut Vec<Aabb>, x: &Vec3s, reach: f64, eps: f32) {
 /// which may be any, so when it acts it looks at every pair.
 #[derive(Clone, Copy)]
 struct Cold {
-    /// What the substep needs (m): the pairs looked at in the end are those closer at `x0`.
+    /// What the substep needs (m): the pairs looked at in the end are those closer at `x0`;
+    /// and the round-off margin it was found with (m).
     needed: f64,
+    eps: f64,
     thickness: f64,
     /// How much farther than `thickness` the pairs left out are (m).
     slack: f64,
