@@ -434,6 +434,7 @@ impl SelfCollision {
         (needed, hot_needed): (f64, f64),
         eps: f64,
     ) {
+        // Marks the pairs `hot` then filters.
         let _ = self.list.within(hot_needed, eps);
         let (common, in_mesh) = (motion.centre(), &self.topology.in_mesh);
         self.moving.resize(x0.len(), 0.0);

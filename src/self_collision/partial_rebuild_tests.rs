@@ -33,6 +33,16 @@ fn recorded(scene: Scene, from: u64, to: u64, omega: f64) -> Vec<Vec3s> {
     out
 }
 
+/// The scenes replayed: a 48 x 48 pile, one step a substep, and a 40 x 40 twist.
+fn pile_and_twist() -> (Scene, Scene) {
+    let mut pile = Scene::builtin("pile").unwrap();
+    (pile.cloth.nx, pile.cloth.ny) = (48, 48);
+    (pile.dt, pile.substeps) = (0.5 * pile.dt, 1);
+    let mut twist = Scene::builtin("twist").unwrap();
+    (twist.cloth.nx, twist.cloth.ny, twist.cloth.size) = (40, 40, [0.3, 0.3]);
+    (pile, twist)
+}
+
 /// The list a search of the whole mesh at the list's anchor finds, with the reach and
 /// margin the list was built with.
 fn searched_at_anchor(pass: &SelfCollision) -> Vec<(pair::Candidate, f64)> {
@@ -53,11 +63,7 @@ fn searched_at_anchor(pass: &SelfCollision) -> Vec<(pair::Candidate, f64)> {
 /// replayed over the steps of a settling pile and of a twist, one step a substep.
 #[test]
 fn a_partial_rebuild_finds_the_full_searchs_pairs_in_its_order() {
-    let mut pile = Scene::builtin("pile").unwrap();
-    (pile.cloth.nx, pile.cloth.ny) = (48, 48);
-    (pile.dt, pile.substeps) = (0.5 * pile.dt, 1);
-    let mut twist = Scene::builtin("twist").unwrap();
-    (twist.cloth.nx, twist.cloth.ny, twist.cloth.size) = (40, 40, [0.3, 0.3]);
+    let (pile, twist) = pile_and_twist();
     for (name, scene, (from, to), omega) in [
         ("pile", pile, (1600, 2000), 0.0),
         ("twist", twist, (1, 1000), 2.0),
@@ -114,11 +120,7 @@ fn bits(k: &Kinematics) -> Vec<[u32; 6]> {
 /// velocities, both passes must end every substep bitwise the same.
 #[test]
 fn leaving_out_the_pairs_the_motion_cannot_bring_near_ends_each_substep_as_looking_at_all() {
-    let mut pile = Scene::builtin("pile").unwrap();
-    (pile.cloth.nx, pile.cloth.ny) = (48, 48);
-    (pile.dt, pile.substeps) = (0.5 * pile.dt, 1);
-    let mut twist = Scene::builtin("twist").unwrap();
-    (twist.cloth.nx, twist.cloth.ny, twist.cloth.size) = (40, 40, [0.3, 0.3]);
+    let (pile, twist) = pile_and_twist();
     let mut contacts = 0;
     for (name, scene, (from, to), omega) in [
         ("pile", pile, (1600, 1800), 0.0),
