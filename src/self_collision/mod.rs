@@ -232,9 +232,11 @@ pub struct SelfCollision {
     rescaled: Vec<bool>,
     stats: SelfCollisionStats,
     /// Look at every pair the substep needs in each substep on the list, as if none could be
-    /// left out (what the tests compare with).
+    /// left out (what the tests compare with), and `HOT` in its place, if given.
     #[cfg(test)]
     look_at_all: bool,
+    #[cfg(test)]
+    hot: Option<f64>,
 }
 
 impl SelfCollision {
@@ -270,6 +272,8 @@ impl SelfCollision {
             stats: SelfCollisionStats::default(),
             #[cfg(test)]
             look_at_all: false,
+            #[cfg(test)]
+            hot: None,
         }
     }
 
@@ -299,7 +303,7 @@ impl SelfCollision {
         let allowed = motion.radius() + PUSH * thickness;
         let needed = thickness + 2.0 * allowed + eps;
         // What the list must hold: the pairs that may come within `(1 + HOT) thickness`.
-        let hot_needed = (1.0 + HOT) * thickness + 2.0 * motion.radius() + eps;
+        let hot_needed = (1.0 + self.hot()) * thickness + 2.0 * motion.radius() + eps;
         // Which pairs a substep looks at depends on the substep alone, never on when the list
         // was built, so a restored state steps exactly as the original.
         let clock = Instant::now();
@@ -451,7 +455,7 @@ impl SelfCollision {
             })
             .reduce(|| 0.0, f64::max);
         let thickness = self.thickness as f64;
-        let slack = HOT * thickness;
+        let slack = self.hot() * thickness;
         let hot = self.list.hot(thickness + slack, eps, &self.moving);
         self.pairs.clear();
         self.pairs.par_extend(hot.map(|c| c.at(x0)));
@@ -639,6 +643,16 @@ impl SelfCollision {
     #[cfg(not(test))]
     fn looks_at_all(&self) -> bool {
         false
+    }
+
+    #[cfg(test)]
+    fn hot(&self) -> f64 {
+        self.hot.unwrap_or(HOT)
+    }
+
+    #[cfg(not(test))]
+    fn hot(&self) -> f64 {
+        HOT
     }
 
     pub fn heap_bytes(&self) -> usize {

@@ -117,11 +117,14 @@ fn bits(k: &Kinematics) -> Vec<[u32; 6]> {
 /// slow, or a stage that went on without the others where it had to look at them, would end
 /// the substep elsewhere than a pass that looks at every pair the substep needs. Replayed over
 /// a settling pile (in contact) and a twist, each substep from recorded positions with their
-/// velocities, both passes must end every substep bitwise the same.
+/// velocities, both passes must end every substep bitwise the same, and so must a pass that
+/// leaves out all but the pairs that may come within `1.02 thickness` (`HOT` 0.02), which has
+/// to look at all of them, listing them first, whenever the repulsion moves a vertex by more
+/// than a hundredth of `thickness`.
 #[test]
 fn leaving_out_the_pairs_the_motion_cannot_bring_near_ends_each_substep_as_looking_at_all() {
     let (pile, twist) = pile_and_twist();
-    let mut contacts = 0;
+    let (mut contacts, mut widened) = (0, 0);
     for (name, scene, (from, to), omega) in [
         ("pile", pile, (1600, 1800), 0.0),
         ("twist", twist, (1, 400), 2.0),
@@ -131,8 +134,9 @@ fn leaving_out_the_pairs_the_motion_cannot_bring_near_ends_each_substep_as_looki
         let spec = scene.self_collision.clone().unwrap();
         let (model, _) = Model::new(scene).unwrap();
         let new = || SelfCollision::new(spec.thickness as f32, spec.friction as f32, 4);
-        let (mut pass, mut all) = (new(), new());
+        let (mut pass, mut all, mut narrow) = (new(), new(), new());
         all.look_at_all = true;
+        narrow.hot = Some(0.02);
         for w in frames.windows(2) {
             let n = w[0].len();
             let start = Kinematics {
@@ -143,26 +147,36 @@ fn leaving_out_the_pairs_the_motion_cannot_bring_near_ends_each_substep_as_looki
                 pos: w[1].clone(),
                 vel: Vec3s::from_fn(n, |v| (w[1].get(v) - w[0].get(v)) / dt),
             };
-            let (mut next, mut every) = (Kinematics::zeros(n), Kinematics::zeros(n));
-            next.copy_from(&moved);
-            every.copy_from(&moved);
-            assert!(pass.apply(&model, &start, &mut next));
-            assert!(all.apply(&model, &start, &mut every));
+            let mut ends = [(); 3].map(|_| Kinematics::zeros(n));
+            for (p, end) in [&mut pass, &mut all, &mut narrow]
+                .into_iter()
+                .zip(&mut ends)
+            {
+                end.copy_from(&moved);
+                assert!(p.apply(&model, &start, end));
+            }
+            let every = bits(&ends[1]);
+            assert!(bits(&ends[0]) == every, "{name}: a substep ended elsewhere");
             assert!(
-                bits(&next) == bits(&every),
-                "{name}: a substep ended elsewhere"
+                bits(&ends[2]) == every,
+                "{name}: a narrow substep ended elsewhere"
             );
         }
         let (left, every) = (pass.stats, all.stats);
-        eprintln!("{name}: {left:?}\nlooking at all: {every:?}");
+        eprintln!(
+            "{name}: {left:?}\nlooking at all: {every:?}\nnarrow: {:?}",
+            narrow.stats
+        );
         assert_eq!(left.contacts, every.contacts, "{name}");
         contacts += every.contacts;
+        widened += narrow.stats.widened;
         let listed = every.substeps - every.swept_substeps;
         assert!(
             listed > 50 && left.pairs < every.pairs,
             "{name}: no pair was left out"
         );
     }
-    // The settling pile's layers touch: the repulsion corrected pairs.
-    assert!(contacts > 0);
+    // The settling pile's layers touch: the repulsion corrected pairs, and the narrow pass had
+    // to look at all of them then.
+    assert!(contacts > 0 && widened > 0);
 }
