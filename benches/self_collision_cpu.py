@@ -87,8 +87,9 @@ def main() -> None:
     cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
     after = dict(sim.self_collision_stats() or {})
     split = bench.per_substep(before, after)
-    rebuilds, requeries, requeried = (after.get(k, 0) - before.get(k, 0)
-                                      for k in ("rebuilds", "requeries", "requeried"))
+    rebuilds, requeries, requeried, widened = (
+        after.get(k, 0) - before.get(k, 0)
+        for k in ("rebuilds", "requeries", "requeried", "widened"))
     digest = hashlib.sha1(sim.positions.tobytes()).hexdigest()[:12]
     print(f"{args.case}{' without the pass' if args.no_pass else ''}: state {digest} "
           f"cpu {1e3 * cpu / args.frames:.1f} ms per {unit} "
@@ -96,7 +97,8 @@ def main() -> None:
           f"search {split['search']:.2f} ms, boxes tested {split['boxes_tested']:.0f}, "
           f"candidates {split['candidates']:.0f}, pairs {split['pairs']:.0f}, "
           f"swept {100 * split['swept_substeps']:.0f} %; list rebuilds {rebuilds}, "
-          f"partial {requeries} ({requeried} vertices queried again)")
+          f"partial {requeries} ({requeried} vertices queried again); "
+          f"substeps that looked at every listed pair {widened}")
 
 
 if __name__ == "__main__":

@@ -719,7 +719,9 @@ class Simulation:
     def self_collision_stats(self) -> dict[str, float] | None:
         """What the self-collision pass did since the simulation was built, or None without
         ``[self_collision]``: ``substeps`` it ran, candidate ``pairs`` and ``contacts`` (pairs
-        closer than ``thickness``) summed over substeps, ``rebuilds`` of its pair list and
+        closer than ``thickness``) summed over substeps, substeps on the pair list that looked
+        at every pair they needed, not only those their motion can bring near (``widened``),
+        ``rebuilds`` of its pair list and
         ``requeries`` of part of it (``requeried`` vertices, summed), vertices the cap slowed
         (``capped``) or ``stopped``, the most cap rounds in one substep (``max_cap_rounds``)
         and the smallest distance between a vertex and a triangle, or two edges, at the start

@@ -29,7 +29,7 @@ use crate::state::Kinematics;
 /// within it. Close to 1 so that the cap seldom acts (the repulsion keeps pairs at
 /// `thickness`, and only a relative motion of 0.9 `thickness` per substep reaches the cap);
 /// below 1 so that a pair keeps a tenth of its distance, far above float32 round-off.
-const APPROACH: f64 = 0.9;
+pub(super) const APPROACH: f64 = 0.9;
 
 /// Rounds of proportional scaling before the cap stops the vertices of the pairs still too
 /// fast. More rounds keep more motion in a tangle of contacts, at one pass over the pairs each.
@@ -37,8 +37,11 @@ const SCALE_ROUNDS: u32 = 8;
 
 impl SelfCollision {
     /// The cap (see the module's comment): scales displacements from `x0` until every pair's
-    /// relative motion is below `APPROACH` of its distance at `x0`, less `eps`.
-    pub(super) fn cap(&mut self, x0: &Vec3s, next: &mut Kinematics, eps: f64) {
+    /// relative motion is below `APPROACH` of its distance at `x0`, less `eps`. Unless the
+    /// pairs are `whole` (every pair the substep must look at), returns false, changing
+    /// nothing, when any of them is too fast: the later rounds look at the pairs of the
+    /// vertices the first rescaled, which may be any.
+    pub(super) fn cap(&mut self, x0: &Vec3s, next: &mut Kinematics, eps: f64, whole: bool) -> bool {
         let n = x0.len();
         self.scale.clear();
         self.scale.resize(n, 1.0);
@@ -65,6 +68,9 @@ impl SelfCollision {
                 })
                 .collect();
             let violated = !violations.is_empty();
+            if violated && !whole {
+                return false;
+            }
             for (k, f) in violations {
                 for &v in &self.pairs[k as usize].verts {
                     let v = v as usize;
@@ -82,7 +88,7 @@ impl SelfCollision {
         }
         self.stats.max_cap_rounds = self.stats.max_cap_rounds.max(rounds);
         if rounds == 0 {
-            return;
+            return true;
         }
         for &v in &self.topology.vertices {
             let v = v as usize;
@@ -100,6 +106,7 @@ impl SelfCollision {
                 self.stats.stopped += (s == 0.0) as u64;
             }
         }
+        true
     }
 }
 
@@ -175,7 +182,7 @@ mod tests {
             pos: Vec3s::from_fn(n, |v| x1.get(v)),
             vel: Vec3s::zeros(n),
         };
-        pass.cap(x0, &mut next, eps);
+        pass.cap(x0, &mut next, eps, true);
         (next.pos, pass.stats)
     }
 

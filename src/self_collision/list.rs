@@ -37,6 +37,8 @@ pub struct PairList {
     /// Where in `candidates` the last [`PairList::within`] found its pairs; as long as the
     /// list, so that taking pairs from a kept list never allocates.
     near: Vec<u32>,
+    /// Which of those [`PairList::hot`] found may act in the substep, as long as the list too.
+    hot: Vec<u32>,
     /// Each particle's own stray from the cloth's common displacement since the anchor, as the
     /// last [`PairList::strayed`] found it (m; zero at a rebuild and for a particle in no
     /// triangle), the most of them, and that common displacement (m).
@@ -194,9 +196,17 @@ impl PairList {
         std::mem::swap(&mut self.candidates, candidates);
         std::mem::swap(&mut self.distances, distances);
         debug_assert!(self.candidates.windows(2).all(|w| w[0].key() < w[1].key()));
+        self.reserve_near();
+        self.unmark();
+    }
+
+    /// Room for every listed pair in `near` and `hot`, so that a substep on a kept list never
+    /// allocates.
+    fn reserve_near(&mut self) {
         self.near.clear();
         self.near.reserve(self.candidates.len());
-        self.unmark();
+        self.hot.clear();
+        self.hot.reserve(self.candidates.len());
     }
 
     /// The listed pairs and their distances at the anchor.
@@ -221,6 +231,9 @@ impl PairList {
         self.strays.clear();
         self.strays.resize(x.len(), 0.0);
         self.most_strayed = 0.0;
+        // Where the cloth is now is the anchor: a re-anchoring before the next
+        // [`PairList::strayed`] puts a vertex where it is.
+        self.common = DVec3::ZERO;
         self.unmark();
         self.candidates.clear();
         self.distances.clear();
@@ -229,8 +242,7 @@ impl PairList {
             self.distances.push(d);
         }
         debug_assert!(self.candidates.windows(2).all(|w| w[0].key() < w[1].key()));
-        self.near.clear();
-        self.near.reserve(self.candidates.len());
+        self.reserve_near();
     }
 
     /// The listed pairs that may be closer than `d` now, in the order of their keys: those
@@ -261,11 +273,39 @@ impl PairList {
         self.near.par_iter().map(move |&k| candidates[k as usize])
     }
 
+    /// Of the pairs the last [`PairList::within`] found, those that may come within `limit`
+    /// (m) of each other in the substep, in the order of their keys: a pair whose distance at
+    /// the anchor, less the most any vertex of each primitive strayed since
+    /// ([`PairList::strayed`]) and the most any of them strays in the substep (`moving`, each
+    /// particle's distance from the substep's common displacement, m), and `eps` for each, is
+    /// not below `limit`, is at least `limit` apart at the substep's start and end and along the
+    /// straight path between them.
+    pub fn hot(
+        &mut self,
+        limit: f64,
+        eps: f64,
+        moving: &[f64],
+    ) -> impl IndexedParallelIterator<Item = Candidate> + '_ {
+        self.hot.clear();
+        let (strays, candidates, distances) = (&self.strays, &self.candidates, &self.distances);
+        let side = |s: &[u32]| {
+            let most = |a: &[f64]| s.iter().map(|&v| a[v as usize]).fold(0.0, f64::max);
+            most(strays) + most(moving)
+        };
+        let hot = |&&k: &&u32| {
+            let c = &candidates[k as usize];
+            let (a, b) = c.verts.split_at(usize::from(c.split).min(4));
+            distances[k as usize] < limit + side(a) + side(b) + 2.0 * eps
+        };
+        self.hot.extend(self.near.iter().filter(hot));
+        self.hot.par_iter().map(move |&k| candidates[k as usize])
+    }
+
     pub fn heap_bytes(&self) -> usize {
         self.anchor.as_ref().map_or(0, Vec3s::heap_bytes)
             + self.candidates.capacity() * size_of::<Candidate>()
             + self.distances.capacity() * 8
-            + self.near.capacity() * 4
+            + (self.near.capacity() + self.hot.capacity()) * 4
             + self.strays.capacity() * 8
             + self.moved.capacity()
             + self.past.capacity() * 4
@@ -309,6 +349,11 @@ impl Spread {
     pub fn add(&mut self, d: DVec3) {
         self.lo = self.lo.min(d);
         self.hi = self.hi.max(d);
+    }
+
+    /// The box's centre: the common displacement its displacements stray from.
+    pub fn centre(&self) -> DVec3 {
+        0.5 * (self.lo + self.hi)
     }
 
     /// Half the diagonal (m): the most any displacement strays from the common one.

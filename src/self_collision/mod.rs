@@ -10,12 +10,15 @@
 //!    - *the pair list*, when no vertex strays far from the cloth's common motion (a resting,
 //!      falling or slowly moving cloth): every pair closer than
 //!      `needed = thickness + 2 (r + PUSH thickness)` at `x0`, `r` the most any vertex's
-//!      displacement strays from the common one. The list reaches `SKIN thickness` farther
-//!      and is kept until the cloth has moved too far for it (a Verlet list); then the pairs
-//!      of the vertices that moved most are searched for again, or, when they are many, all
-//!      pairs. If the
-//!      repulsion or the cap then moves a vertex more than `PUSH thickness` away, the
-//!      substep is redone the second way.
+//!      displacement strays from the common one. The repulsion and the cap look first at those
+//!      of them that the substep's motion may bring within `(1 + HOT) thickness`, and at the
+//!      others only where they have not shown that those cannot act (see `Cold`), so the list
+//!      holds every pair closer than `(1 + HOT) thickness + 2 r`, searched for the rest when
+//!      they are needed. It reaches `SKIN thickness` farther and is kept until the cloth has
+//!      moved too far for it (a Verlet list); then the pairs of the vertices that moved most
+//!      are searched for again, or, when they are many, all pairs. If the repulsion or the
+//!      cap then moves a vertex more than `PUSH thickness` away, the substep is redone the
+//!      second way.
 //!    - *the swept search*, otherwise: every pair whose boxes, swept from `x0` to `x1` and
 //!      grown by `thickness / 2`, overlap and whose distance at `x0` is below `thickness`
 //!      plus how far its vertices may end from where they start (`|x1 - x0| + thickness / 2`
@@ -94,13 +97,26 @@ const REQUERY_AT: f64 = 0.5;
 /// docs/contact.md).
 const REQUERY_MOST: f64 = 0.1;
 
+/// How near, beyond `thickness` and as a fraction of it, a pair must be able to come in a
+/// substep on the pair list for the substep to give it its closest points and the repulsion and
+/// the cap to look at it; the list holds only such pairs. The pairs left out cannot act unless
+/// the repulsion moves a vertex more than half of this, or the cap acts at all; the substep
+/// then looks at them too (and first lists them). More lists and looks at more pairs in every
+/// substep, less looks at all of them more often (0.1 did so in every substep of the settling
+/// 64 x 64 pile; chosen by the piles' and freefall's cost, docs/contact.md). At most
+/// `2 PUSH`, what the substep needs.
+const HOT: f64 = 0.25;
+
 /// What the pass did, summed since the simulation was built.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct SelfCollisionStats {
     /// Substeps the pass ran.
     pub substeps: u64,
-    /// Pairs looked at, summed over substeps.
+    /// Pairs looked at (given their closest points), summed over substeps. On the pair list,
+    /// the listed pairs that can come within `thickness` and `HOT` of it, or all that can come
+    /// within `thickness` in a substep where those others had to be looked at too (`widened`).
     pub pairs: u64,
+    pub widened: u64,
     /// Times the pair list was built, and times some of its vertices were queried again
     /// instead (`requeries`; `requeried` of them, summed).
     pub rebuilds: u64,
@@ -151,6 +167,7 @@ impl Default for SelfCollisionStats {
         SelfCollisionStats {
             substeps: 0,
             pairs: 0,
+            widened: 0,
             rebuilds: 0,
             requeries: 0,
             requeried: 0,
@@ -196,6 +213,14 @@ pub struct SelfCollision {
     broad: Broad,
     list: PairList,
     pairs: Vec<Pair>,
+    /// What the substep on the pair list left out of `pairs`, if it left out any.
+    cold: Option<Cold>,
+    /// Each particle's distance from the substep's common displacement (m; zero for a particle
+    /// in no triangle), and how far the repulsion moved each vertex, summed over its
+    /// corrections (m; zero outside the repulsion), and the most of that.
+    moving: Vec<f64>,
+    pushed: Vec<f64>,
+    pushed_most: f64,
     /// The vertices of this substep's pairs as the integrator left them, to redo it from.
     saved: Vec<(u32, Vec3, Vec3)>,
     marked: Vec<bool>,
@@ -206,6 +231,12 @@ pub struct SelfCollision {
     /// Whether the cap's last round changed each vertex's scale.
     rescaled: Vec<bool>,
     stats: SelfCollisionStats,
+    /// Look at every pair the substep needs in each substep on the list, as if none could be
+    /// left out (what the tests compare with), and `HOT` in its place, if given.
+    #[cfg(test)]
+    look_at_all: bool,
+    #[cfg(test)]
+    hot: Option<f64>,
 }
 
 impl SelfCollision {
@@ -228,6 +259,10 @@ impl SelfCollision {
             broad: Broad::default(),
             list: PairList::default(),
             pairs: Vec::new(),
+            cold: None,
+            moving: Vec::new(),
+            pushed: Vec::new(),
+            pushed_most: 0.0,
             saved: Vec::new(),
             marked: Vec::new(),
             near: Vec::new(),
@@ -235,6 +270,10 @@ impl SelfCollision {
             scale_next: Vec::new(),
             rescaled: Vec::new(),
             stats: SelfCollisionStats::default(),
+            #[cfg(test)]
+            look_at_all: false,
+            #[cfg(test)]
+            hot: None,
         }
     }
 
@@ -268,22 +307,26 @@ impl SelfCollision {
         let thickness = self.thickness as f64;
         let allowed = motion.radius() + PUSH * thickness;
         let needed = thickness + 2.0 * allowed + eps;
+        // What the list must hold: the pairs that may come within `(1 + HOT) thickness`.
+        let hot_needed = (1.0 + self.hot()) * thickness + 2.0 * motion.radius() + eps;
         // Which pairs a substep looks at depends on the substep alone, never on when the list
         // was built, so a restored state steps exactly as the original.
         let clock = Instant::now();
         let finite = if needed <= LIST_LIMIT * thickness {
             let in_mesh = &self.topology.in_mesh;
             let strayed = survey.drift.and_then(|d| self.list.strayed(in_mesh, x0, d));
-            if !self.list.covers(strayed, needed, eps) {
-                self.renew_list(x0, needed, eps);
+            if !self.list.covers(strayed, hot_needed, eps) {
+                self.renew_list(x0, hot_needed, eps);
             }
-            self.listed_pairs(x0, needed, eps);
+            self.listed_pairs(x0, &next.pos, motion, (needed, hot_needed), eps);
             self.stats.effort.search_seconds += clock.elapsed().as_secs_f64();
-            if self.pairs.is_empty() {
+            let inert = |c: &Cold| c.repulsion_safe(0.0, eps) && c.cap_safe(0.0, eps);
+            let all = self.looks_at_all();
+            if self.pairs.is_empty() && !all && self.cold.as_ref().is_none_or(inert) {
                 return true;
             }
             self.sweep_boxes(x0, &next.pos, eps as f32);
-            self.save_listed(next);
+            self.save_listed(next, false);
             let finite = self.resolve(x0, next, inv_mass, eps);
             // Only the pairs' vertices moved from where the integrator left them.
             let mut moved = motion;
@@ -383,16 +426,74 @@ impl SelfCollision {
         self.stats.requeried += past as u64;
     }
 
-    /// The listed pairs closer than `needed` at `x0`, with their closest points there, ordered
-    /// by their vertices (the list's order: the same whenever the list was built, so the result
-    /// depends on the substep alone). A pair that was `d` apart at the anchor is at least `d`
-    /// less its vertices' strays apart now ([`PairList::within`]; `eps` allows for round-off),
-    /// so only the list's nearest need a look.
-    fn listed_pairs(&mut self, x0: &Vec3s, needed: f64, eps: f64) {
+    /// The pairs closer than `needed` at `x0` that the substep from `x0` to `x1` (`motion`,
+    /// the box of its displacements) may bring within `thickness` and `HOT` of it, with their
+    /// closest points at `x0`, ordered by their vertices (the list's order: the same whenever
+    /// the list was built, so the result depends on the substep alone), from a list that
+    /// holds every pair closer than `hot_needed`. A pair that was `d` apart at the anchor is
+    /// at least `d` less its vertices' strays apart now ([`PairList::within`]; `eps` allows
+    /// for round-off), so only the list's nearest need a look; of those, most are farther
+    /// apart than the substep's own motion can close, and are left `cold` with the pairs the
+    /// list does not hold (see [`Cold`]).
+    fn listed_pairs(
+        &mut self,
+        x0: &Vec3s,
+        x1: &Vec3s,
+        motion: Spread,
+        (needed, hot_needed): (f64, f64),
+        eps: f64,
+    ) {
+        // Marks the pairs `hot` then filters.
+        let _ = self.list.within(hot_needed, eps);
+        let (common, in_mesh) = (motion.centre(), &self.topology.in_mesh);
+        self.moving.resize(x0.len(), 0.0);
+        let moving_most = self
+            .moving
+            .par_iter_mut()
+            .with_min_len(4096)
+            .enumerate()
+            .map(|(v, m)| {
+                if in_mesh[v] {
+                    *m = (x1.get(v).as_dvec3() - x0.get(v).as_dvec3() - common).length();
+                }
+                *m
+            })
+            .reduce(|| 0.0, f64::max);
+        let thickness = self.thickness as f64;
+        let slack = self.hot() * thickness;
+        let hot = self.list.hot(thickness + slack, eps, &self.moving);
+        self.pairs.clear();
+        self.pairs.par_extend(hot.map(|c| c.at(x0)));
+        self.pairs.retain(|p| p.d0 < needed);
+        self.cold = Some(Cold {
+            needed,
+            eps,
+            thickness,
+            slack,
+            moving_most,
+        });
+    }
+
+    /// Looks at every pair the substep needs, the ones [`SelfCollision::listed_pairs`] left
+    /// cold too (in the list's order, the list first made to hold them), and keeps their
+    /// vertices as `next` has them (as the integrator left them: only the pairs already
+    /// looked at moved theirs) to redo the substep from.
+    fn widen(&mut self, x0: &Vec3s, next: &Kinematics) {
+        let Some(Cold { needed, eps, .. }) = self.cold.take() else {
+            return;
+        };
+        self.stats.widened += 1;
+        if !self
+            .list
+            .covers(Some(self.list.most_strayed()), needed, eps)
+        {
+            self.renew_list(x0, needed, eps);
+        }
         let near = self.list.within(needed, eps);
         self.pairs.clear();
         self.pairs.par_extend(near.map(|c| c.at(x0)));
         self.pairs.retain(|p| p.d0 < needed);
+        self.save_listed(next, true);
     }
 
     /// The swept search, for a substep whose motion the list does not cover: every pair whose
@@ -401,6 +502,7 @@ impl SelfCollision {
     /// vertices' capsules reach at most `l_a` and `l_b` from where they start stays
     /// `d0 - l_a - l_b` apart.
     fn swept_pairs(&mut self, x0: &Vec3s, eps: f64) {
+        self.cold = None;
         let mut pairs = std::mem::take(&mut self.pairs);
         let looked = self.swept_search(x0, eps, &mut pairs);
         self.pairs = pairs;
@@ -466,9 +568,15 @@ impl SelfCollision {
     }
 
     /// Keeps the positions and velocities of the pairs' vertices, the only ones the pass
-    /// changes, so that a substep can be redone.
-    fn save_listed(&mut self, next: &Kinematics) {
-        self.saved.clear();
+    /// changes, so that a substep can be redone; with `more`, adds those of the vertices not
+    /// kept yet to those kept.
+    fn save_listed(&mut self, next: &Kinematics, more: bool) {
+        if !more {
+            self.saved.clear();
+        }
+        for &(v, ..) in &self.saved {
+            self.marked[v as usize] = true;
+        }
         for pair in &self.pairs {
             for &v in &pair.verts {
                 if !std::mem::replace(&mut self.marked[v as usize], true) {
@@ -490,10 +598,24 @@ impl SelfCollision {
         }
     }
 
-    /// The repulsion, each touched vertex put back inside its box, and the cap.
+    /// The repulsion, each touched vertex put back inside its box, and the cap. On pairs that
+    /// left some `cold`, each stage looks at those too (from the integrator's positions again,
+    /// for the repulsion) unless it has shown that they cannot act in it.
     fn resolve(&mut self, x0: &Vec3s, next: &mut Kinematics, inv_mass: &[f32], eps: f64) -> bool {
         let clock = Instant::now();
-        let finite = self.repel(next, inv_mass);
+        if self.looks_at_all() {
+            self.widen(x0, next);
+        }
+        let contacts = self.stats.contacts;
+        let mut finite = self.repel(next, inv_mass, eps);
+        if let Some(cold) = self.cold {
+            if !cold.repulsion_safe(self.pushed_most, eps) {
+                self.restore_listed(next);
+                self.stats.contacts = contacts;
+                self.widen(x0, next);
+                finite = self.repel(next, inv_mass, eps);
+            }
+        }
         // Back inside each vertex's capsule, what the swept search allows for.
         for &(k, touched) in &self.near {
             if touched {
@@ -505,9 +627,37 @@ impl SelfCollision {
         }
         let capping = Instant::now();
         self.stats.effort.repulsion_seconds += (capping - clock).as_secs_f64();
-        self.cap(x0, next, eps);
+        if let Some(cold) = self.cold {
+            if !cold.cap_safe(self.pushed_most, eps) {
+                self.widen(x0, next);
+            }
+        }
+        if !self.cap(x0, next, eps, self.cold.is_none()) {
+            self.widen(x0, next);
+            self.cap(x0, next, eps, true);
+        }
         self.stats.effort.cap_seconds += capping.elapsed().as_secs_f64();
         finite
+    }
+
+    #[cfg(test)]
+    fn looks_at_all(&self) -> bool {
+        self.look_at_all
+    }
+
+    #[cfg(not(test))]
+    fn looks_at_all(&self) -> bool {
+        false
+    }
+
+    #[cfg(test)]
+    fn hot(&self) -> f64 {
+        self.hot.unwrap_or(HOT)
+    }
+
+    #[cfg(not(test))]
+    fn hot(&self) -> f64 {
+        HOT
     }
 
     pub fn heap_bytes(&self) -> usize {
@@ -518,6 +668,7 @@ impl SelfCollision {
             + self.list.heap_bytes()
             + (self.pairs.capacity() + self.ahead_pairs.capacity()) * size_of::<Pair>()
             + self.ahead.heap_bytes()
+            + (self.moving.capacity() + self.pushed.capacity()) * 8
             + self.saved.capacity() * size_of::<(u32, Vec3, Vec3)>()
             + self.marked.capacity()
             + self.near.capacity() * 8
@@ -538,6 +689,50 @@ fn list_boxes(boxes: &mut Vec<Aabb>, x: &Vec3s, reach: f64, eps: f32) {
             max: p + grow,
         }
     }));
+}
+
+/// The pairs a substep on the pair list may leave out of what the repulsion and the cap look
+/// at: each listed one was, at the anchor, farther than `thickness + slack` and the most any
+/// vertex of each of its primitives strayed since then and strays in the substep (`moving`,
+/// from the substep's common displacement `T`), and each one the list does not hold is farther
+/// than `thickness + slack + 2 r` (`r` the most any vertex strays in the substep), so it is at
+/// least `thickness + slack + m_a + m_b` apart at the substep's start (`m` the most a vertex
+/// of that side strays in the substep). Its
+/// gap along its normal at the start (what the repulsion measures) then changes by at most
+/// `m_a + m_b` over the substep, since its closest points' weights are zero-sum, and by at
+/// most `p_a + p_b` more through the repulsion (`p` what the repulsion moved a vertex, summed
+/// over its corrections): below `slack` it stays at least `thickness`, and the pair is never
+/// corrected, so the repulsion on the others alone ends exactly as on all. In the cap's first
+/// round its relative motion is at most `m_a + m_b + 2 p`, within `APPROACH` of its distance
+/// while `cap_safe`; the cap's later rounds look at the pairs of the vertices it rescaled,
+/// which may be any, so when it acts it looks at every pair.
+#[derive(Clone, Copy)]
+struct Cold {
+    /// What the substep needs (m): the pairs looked at in the end are those closer at `x0`;
+    /// and the round-off margin it was found with (m).
+    needed: f64,
+    eps: f64,
+    thickness: f64,
+    /// How much farther than `thickness` the pairs left out are (m).
+    slack: f64,
+    /// The most any vertex strays from the substep's common displacement (m).
+    moving_most: f64,
+}
+
+impl Cold {
+    /// Whether no pair left out can be corrected by a repulsion that moved no vertex farther
+    /// than `pushed` (m), summed over its corrections (`eps` allows for round-off).
+    fn repulsion_safe(&self, pushed: f64, eps: f64) -> bool {
+        2.0 * pushed + 4.0 * eps <= self.slack
+    }
+
+    /// Whether no pair left out is too fast for the cap's first round after such a
+    /// repulsion: its relative motion `m_a + m_b + 2 pushed` (and round-off) within
+    /// `APPROACH` of its distance `thickness + slack + m_a + m_b`, less `eps`.
+    fn cap_safe(&self, pushed: f64, eps: f64) -> bool {
+        let spare = cap::APPROACH * (self.thickness + self.slack);
+        2.0 * (1.0 - cap::APPROACH) * self.moving_most + 2.0 * pushed + 3.0 * eps <= spare
+    }
 }
 
 /// What one pass over the mesh's vertices finds of a substep.

@@ -33,6 +33,16 @@ fn recorded(scene: Scene, from: u64, to: u64, omega: f64) -> Vec<Vec3s> {
     out
 }
 
+/// The scenes replayed: a 48 x 48 pile, one step a substep, and a 40 x 40 twist.
+fn pile_and_twist() -> (Scene, Scene) {
+    let mut pile = Scene::builtin("pile").unwrap();
+    (pile.cloth.nx, pile.cloth.ny) = (48, 48);
+    (pile.dt, pile.substeps) = (0.5 * pile.dt, 1);
+    let mut twist = Scene::builtin("twist").unwrap();
+    (twist.cloth.nx, twist.cloth.ny, twist.cloth.size) = (40, 40, [0.3, 0.3]);
+    (pile, twist)
+}
+
 /// The list a search of the whole mesh at the list's anchor finds, with the reach and
 /// margin the list was built with.
 fn searched_at_anchor(pass: &SelfCollision) -> Vec<(pair::Candidate, f64)> {
@@ -53,11 +63,7 @@ fn searched_at_anchor(pass: &SelfCollision) -> Vec<(pair::Candidate, f64)> {
 /// replayed over the steps of a settling pile and of a twist, one step a substep.
 #[test]
 fn a_partial_rebuild_finds_the_full_searchs_pairs_in_its_order() {
-    let mut pile = Scene::builtin("pile").unwrap();
-    (pile.cloth.nx, pile.cloth.ny) = (48, 48);
-    (pile.dt, pile.substeps) = (0.5 * pile.dt, 1);
-    let mut twist = Scene::builtin("twist").unwrap();
-    (twist.cloth.nx, twist.cloth.ny, twist.cloth.size) = (40, 40, [0.3, 0.3]);
+    let (pile, twist) = pile_and_twist();
     for (name, scene, (from, to), omega) in [
         ("pile", pile, (1600, 2000), 0.0),
         ("twist", twist, (1, 1000), 2.0),
@@ -92,4 +98,85 @@ fn a_partial_rebuild_finds_the_full_searchs_pairs_in_its_order() {
         eprintln!("{name}: {checked} requeries checked, {:?}", pass.stats);
         assert!(checked > 5, "{name}: {checked} requeries checked");
     }
+}
+
+/// Each particle's position and velocity, to the bit.
+fn bits(k: &Kinematics) -> Vec<[u32; 6]> {
+    let b = |p: glam::Vec3| p.to_array().map(f32::to_bits);
+    (0..k.pos.len())
+        .map(|v| {
+            let (x, u) = (b(k.pos.get(v)), b(k.vel.get(v)));
+            [x[0], x[1], x[2], u[0], u[1], u[2]]
+        })
+        .collect()
+}
+
+/// The repulsion and the cap look at the listed pairs the substep's motion can bring within
+/// `(1 + HOT) thickness`, and at the others only where they have not shown that those cannot
+/// act. A bound that let a pair through which the repulsion would correct or the cap would
+/// slow, or a stage that went on without the others where it had to look at them, would end
+/// the substep elsewhere than a pass that looks at every pair the substep needs. Replayed over
+/// a settling pile (in contact) and a twist, each substep from recorded positions with their
+/// velocities, both passes must end every substep bitwise the same, and so must a pass that
+/// leaves out all but the pairs that may come within `1.02 thickness` (`HOT` 0.02), which has
+/// to look at all of them, listing them first, whenever the repulsion moves a vertex by more
+/// than a hundredth of `thickness`.
+#[test]
+fn leaving_out_the_pairs_the_motion_cannot_bring_near_ends_each_substep_as_looking_at_all() {
+    let (pile, twist) = pile_and_twist();
+    let (mut contacts, mut widened) = (0, 0);
+    for (name, scene, (from, to), omega) in [
+        ("pile", pile, (1600, 1800), 0.0),
+        ("twist", twist, (1, 400), 2.0),
+    ] {
+        let dt = scene.dt as f32;
+        let frames = recorded(scene.clone(), from, to, omega);
+        let spec = scene.self_collision.clone().unwrap();
+        let (model, _) = Model::new(scene).unwrap();
+        let new = || SelfCollision::new(spec.thickness as f32, spec.friction as f32, 4);
+        let (mut pass, mut all, mut narrow) = (new(), new(), new());
+        all.look_at_all = true;
+        narrow.hot = Some(0.02);
+        for w in frames.windows(2) {
+            let n = w[0].len();
+            let start = Kinematics {
+                pos: w[0].clone(),
+                vel: Vec3s::zeros(n),
+            };
+            let moved = Kinematics {
+                pos: w[1].clone(),
+                vel: Vec3s::from_fn(n, |v| (w[1].get(v) - w[0].get(v)) / dt),
+            };
+            let mut ends = [(); 3].map(|_| Kinematics::zeros(n));
+            for (p, end) in [&mut pass, &mut all, &mut narrow]
+                .into_iter()
+                .zip(&mut ends)
+            {
+                end.copy_from(&moved);
+                assert!(p.apply(&model, &start, end));
+            }
+            let every = bits(&ends[1]);
+            assert!(bits(&ends[0]) == every, "{name}: a substep ended elsewhere");
+            assert!(
+                bits(&ends[2]) == every,
+                "{name}: a narrow substep ended elsewhere"
+            );
+        }
+        let (left, every) = (pass.stats, all.stats);
+        eprintln!(
+            "{name}: {left:?}\nlooking at all: {every:?}\nnarrow: {:?}",
+            narrow.stats
+        );
+        assert_eq!(left.contacts, every.contacts, "{name}");
+        contacts += every.contacts;
+        widened += narrow.stats.widened;
+        let listed = every.substeps - every.swept_substeps;
+        assert!(
+            listed > 50 && left.pairs < every.pairs,
+            "{name}: no pair was left out"
+        );
+    }
+    // The settling pile's layers touch: the repulsion corrected pairs, and the narrow pass had
+    // to look at all of them then.
+    assert!(contacts > 0 && widened > 0);
 }

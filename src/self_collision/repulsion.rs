@@ -19,14 +19,16 @@ use crate::state::Kinematics;
 
 impl SelfCollision {
     /// The repulsion sweeps and the inelastic, frictional velocity impulses; returns whether
-    /// the velocities it wrote are finite.
+    /// the velocities it wrote are finite. Leaves in `pushed_most` the most it moved a vertex,
+    /// summed over its corrections, each with `eps` for its round-off (m).
     ///
     /// Gauss-Seidel in pair order: each pair is corrected with the positions its predecessors
     /// left, so a vertex in many contacts is not under-corrected as a Jacobi average would (a
     /// vertex lying on a layer touches a dozen triangles and edges). Sequential, so the same for
     /// any thread count; each correction keeps momentum on its own.
-    pub(super) fn repel(&mut self, next: &mut Kinematics, inv_mass: &[f32]) -> bool {
+    pub(super) fn repel(&mut self, next: &mut Kinematics, inv_mass: &[f32], eps: f64) -> bool {
         let thickness = self.thickness as f64;
+        self.pushed.resize(next.pos.len(), 0.0);
         self.near.clear();
         // Pairs beyond twice the gap are out of the sweeps' reach (each moves a vertex by at
         // most the gap's shortfall). An ordered parallel filter: the same for any thread count.
@@ -59,12 +61,23 @@ impl SelfCollision {
                         let dx = inv_mass[v] as f64 * pair.c[k] * lambda * pair.n;
                         if dx != DVec3::ZERO {
                             next.pos.set(v, (next.pos.get(v).as_dvec3() + dx).as_vec3());
+                            self.pushed[v] += dx.length() + eps;
                         }
                     }
                 }
             }
             if !any {
                 break;
+            }
+        }
+        // Only the vertices of the pairs corrected moved; they are left at zero for the next.
+        self.pushed_most = 0.0;
+        for &(k, touched) in &self.near {
+            if touched {
+                for &v in &self.pairs[k as usize].verts {
+                    let p = std::mem::take(&mut self.pushed[v as usize]);
+                    self.pushed_most = self.pushed_most.max(p);
+                }
             }
         }
         let mut finite = true;
