@@ -10,7 +10,8 @@ thread, crossings by the independent ``tri_check`` every 30 frames, and what the
 
 ``builtin`` is the scene file, ``1ms`` symplectic Euler at 1 ms steps with no in-solve term and
 damping 0.01 (the scenes as tuned), ``implicit`` implicit Euler at ``--steps-per-frame``,
-``--stiffness`` and (if given) ``--damping``. ``twist`` is turned by ``TwistDriver`` (2 turns in
+``--stiffness`` and (if given) ``--damping``; ``--trace`` prints the twist's stretch every 0.5 s
+and stops a run past a stretch of 4. ``twist`` is turned by ``TwistDriver`` (2 turns in
 4 s) for 4 s, ``pile`` runs 3 s, ``fold`` 5 s (``--seconds`` overrides). With ``--repeats`` the
 runs alternate (builtin, 1ms, builtin, 1ms, ...) so that a shared machine's drift falls on both.
 """
@@ -33,6 +34,8 @@ from rustcloth.drivers import TwistDriver  # noqa: E402
 from test_scene_behaviour import pile_shape  # noqa: E402
 
 SECONDS = {"twist": 4.0, "pile": 3.0, "fold": 5.0}
+# The twist's largest stretch along its axis past which ``--trace`` calls it torn and stops.
+TORN = 4.0
 # Symplectic Euler's substeps per 1 ms step in each scene.
 SUBSTEPS = {"twist": 1, "pile": 2, "fold": 1}
 
@@ -59,6 +62,13 @@ def variant(name: str, run: str, args: argparse.Namespace) -> tuple[rustcloth.Sc
     return scene, label
 
 
+def stretch(sim: rustcloth.Simulation) -> float:
+    """The largest ``l / L - 1`` of the edges along the twist's axis."""
+    p = sim.positions
+    edges = np.linalg.norm(np.diff(p.reshape(sim.ny, sim.nx, 3), axis=1), axis=2)
+    return float(edges.max() / (sim.scene.cloth["size"][0] / (sim.nx - 1)) - 1)
+
+
 def behaviour(name: str, sim: rustcloth.Simulation) -> str:
     """What the scene's test checks, measured."""
     p = sim.positions
@@ -71,9 +81,7 @@ def behaviour(name: str, sim: rustcloth.Simulation) -> str:
         speed = float(np.linalg.norm(sim.velocities, axis=1).max())
         return (f"footprint {area:.3f} m^2 (< 0.333), height {height:.3f} m (> 0.03), "
                 f"fastest {speed:.2f} m/s (< 0.5)")
-    edges = np.linalg.norm(np.diff(p.reshape(sim.ny, sim.nx, 3), axis=1), axis=2)
-    rest = sim.scene.cloth["size"][0] / (sim.nx - 1)
-    return f"largest stretch along the axis {edges.max() / rest - 1:.2f}"
+    return f"largest stretch along the axis {stretch(sim):.2f}"
 
 
 def run(name: str, kind: str, args: argparse.Namespace) -> None:
@@ -82,7 +90,7 @@ def run(name: str, kind: str, args: argparse.Namespace) -> None:
     driver = TwistDriver(sim) if name == "twist" else None
     frames = round((args.seconds or SECONDS[name]) * 60)
     per_frame = round(1.0 / 60 / sim.dt)
-    cpu, crossings = 0.0, []
+    cpu, crossings, trace = 0.0, [], []
     for frame in range(1, frames + 1):
         c0 = time.process_time()
         for _ in range(per_frame):
@@ -92,9 +100,15 @@ def run(name: str, kind: str, args: argparse.Namespace) -> None:
         cpu += time.process_time() - c0
         if frame % 30 == 0:
             crossings.append(tri_check.count(sim.positions.astype(np.float64), sim.triangles))
+            if args.trace and name == "twist":
+                trace.append(f"{stretch(sim):.2f}")
+                if stretch(sim) > TORN:
+                    trace.append(f"torn, stopped at {sim.time:.2f} s")
+                    frames = frame
+                    break
     print(f"{name:6s} {label:72s} {1e3 * cpu / frames:8.2f} CPU ms/frame, crossings at "
-          f"{len(crossings)} checks: {max(crossings)} at most; {behaviour(name, sim)}",
-          flush=True)
+          f"{len(crossings)} checks: {max(crossings)} at most; {behaviour(name, sim)}"
+          + (f"; every 0.5 s: {' '.join(trace)}" if trace else ""), flush=True)
 
 
 def main() -> None:
@@ -110,6 +124,8 @@ def main() -> None:
     parser.add_argument("--damping", type=float, default=None,
                         help="the implicit run's spring damping, N s/m (default: the scene's)")
     parser.add_argument("--seconds", type=float, default=None, help="simulated time")
+    parser.add_argument("--trace", action="store_true",
+                        help="the twist's stretch every 0.5 s; stop a run once it is torn")
     args = parser.parse_args()
     for name in args.scenes:
         for _ in range(args.repeats):
