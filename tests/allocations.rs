@@ -134,7 +134,7 @@ fn a_quiet_substep_on_a_kept_pair_list_allocates_nothing() {
     let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     with_threads(2, || {
         rayon::broadcast(|_| WATCHED.with(|w| w.set(true)));
-        let mut scene = Scene::builtin("twist").unwrap();
+        let mut scene = common::at_1ms("twist");
         (scene.cloth.nx, scene.cloth.ny, scene.cloth.size) = (40, 40, [0.3, 0.3]);
         let allocations = fewest(|| {
             let mut sim = Simulation::new(scene.clone()).unwrap();

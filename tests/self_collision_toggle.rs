@@ -5,12 +5,12 @@
 
 use crate::common;
 
-use common::{bare_scene, state_hash};
+use common::{at_1ms, bare_scene, state_hash};
 use rustcloth::scene::SelfCollisionSpec;
 use rustcloth::{Error, Scene, Simulation};
 
 fn pile() -> Scene {
-    Scene::builtin("pile").unwrap()
+    at_1ms("pile")
 }
 
 fn stepped(scene: Scene, steps: u64) -> Simulation {

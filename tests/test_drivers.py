@@ -9,11 +9,12 @@ import math
 import numpy as np
 import pytest
 import rustcloth
+from conftest import at_1ms
 from rustcloth.drivers import TwistDriver, driver_for
 
 
 def _twist(n: int = 12) -> rustcloth.Simulation:
-    scene = rustcloth.load_scene("twist").replace(cloth={"nx": n, "ny": n})
+    scene = at_1ms("twist").replace(cloth={"nx": n, "ny": n})
     return rustcloth.Simulation(scene)
 
 

@@ -6,13 +6,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import rustcloth
+from conftest import at_1ms
 from rustcloth import Scene, Simulation
 from rustcloth.errors import ParameterError, ParameterTypeError
 
 
 def _pile(n: int = 12, **self_collision: object) -> Scene:
-    return rustcloth.load_scene("pile").replace(
+    return at_1ms("pile").replace(
         cloth={"nx": n, "ny": n}, self_collision=self_collision
     )
 

@@ -10,12 +10,13 @@ import pickle
 import numpy as np
 import pytest
 import rustcloth
+from conftest import at_1ms
 from rustcloth import Simulation
 from rustcloth.errors import ParameterError
 
 
 def test_off_and_on_again_continues_bit_for_bit_and_survives_pickling():
-    sim, untouched = Simulation("pile"), Simulation("pile")
+    sim, untouched = Simulation(at_1ms("pile")), Simulation(at_1ms("pile"))
     for s in (sim, untouched):
         s.advance(0.3)
     own = sim.self_collision
@@ -57,7 +58,7 @@ def test_true_takes_the_defaults_and_false_turns_it_off():
     ],
 )
 def test_bad_settings_are_refused_by_name_changing_nothing(bad, error, name):
-    sim = Simulation("pile")
+    sim = Simulation(at_1ms("pile"))
     sim.advance(0.1)
     before = (sim.positions.copy(), sim.velocities.copy(), sim.self_collision, sim.steps)
     with pytest.raises(error, match=name):
