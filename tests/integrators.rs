@@ -120,7 +120,10 @@ fn an_integrator_past_its_stable_step_is_caught_with_self_collision_on() {
     let m = scene.particle_mass();
     let h = scene.dt / scene.substeps as f64;
     scene.cloth.k_structural = 30.0 * m / (h * h);
-    for integrator in [IntegratorKind::SymplecticEuler, IntegratorKind::ExplicitEuler] {
+    for integrator in [
+        IntegratorKind::SymplecticEuler,
+        IntegratorKind::ExplicitEuler,
+    ] {
         let mut sim = Simulation::new(Scene {
             integrator,
             ..scene.clone()
@@ -136,10 +139,22 @@ fn an_integrator_past_its_stable_step_is_caught_with_self_collision_on() {
     }
     for (integrator, scene) in [
         (IntegratorKind::SymplecticEuler, stable),
-        (IntegratorKind::ImplicitEuler, Scene { dt: 1.0 / 60.0, substeps: 1, ..scene }),
+        (
+            IntegratorKind::ImplicitEuler,
+            Scene {
+                dt: 1.0 / 60.0,
+                substeps: 1,
+                ..scene
+            },
+        ),
     ] {
-        let mut sim = Simulation::new(Scene { integrator, ..scene }).unwrap();
-        sim.step(200).unwrap_or_else(|e| panic!("{integrator}: {e}"));
+        let mut sim = Simulation::new(Scene {
+            integrator,
+            ..scene
+        })
+        .unwrap();
+        sim.step(200)
+            .unwrap_or_else(|e| panic!("{integrator}: {e}"));
     }
 }
 

@@ -497,14 +497,21 @@ pub fn unresolved_motion(
 /// distance between two particles changed.
 fn displacement_diagonal(x0: &Vec3s, x1: &Vec3s) -> f32 {
     let axis = |a: &[f32], b: &[f32]| {
-        let (lo, hi) = a.par_chunks(EDGE_CHUNK).zip(b.par_chunks(EDGE_CHUNK))
+        let (lo, hi) = a
+            .par_chunks(EDGE_CHUNK)
+            .zip(b.par_chunks(EDGE_CHUNK))
             .map(|(a, b)| {
-                a.iter().zip(b).fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), (a, b)| {
-                    let d = b - a;
-                    (lo.min(d), hi.max(d))
-                })
+                a.iter()
+                    .zip(b)
+                    .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), (a, b)| {
+                        let d = b - a;
+                        (lo.min(d), hi.max(d))
+                    })
             })
-            .reduce(|| (f32::INFINITY, f32::NEG_INFINITY), |p, q| (p.0.min(q.0), p.1.max(q.1)));
+            .reduce(
+                || (f32::INFINITY, f32::NEG_INFINITY),
+                |p, q| (p.0.min(q.0), p.1.max(q.1)),
+            );
         (hi - lo).max(0.0)
     };
     let (dx, dy, dz) = (axis(&x0.x, &x1.x), axis(&x0.y, &x1.y), axis(&x0.z, &x1.z));

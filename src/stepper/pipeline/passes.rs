@@ -4,13 +4,13 @@
 use std::time::Instant;
 
 use super::{Pipeline, Substep};
-use crate::stepper::watchdog;
 use crate::model::Model;
 use crate::pins::KinematicPins;
 use crate::profile::Profile;
 use crate::self_collision::SelfCollision;
 use crate::soa::Vec3s;
 use crate::state::State;
+use crate::stepper::watchdog;
 use crate::strain_limit::StrainLimit;
 use crate::tearing::Tearing;
 use crate::wind::Wind;
