@@ -47,9 +47,9 @@ pub use order::local_order;
 pub const COARSEST: usize = 64;
 
 /// Block-Jacobi sweeps before and after the coarse correction on every level but the finest
-/// (which has one each side). A coarse level's sweep costs about an eighth of a fine one, and
+/// (which has one each side). A coarse level has about an eighth of the nodes above it, and
 /// a second each side there took CG on the stiff 16k drape from 14.5 to 13.3 iterations a
-/// solve, 2 to 3 % of the step (docs/mesh_cloth.md, "Speed"); three or four each side take
+/// solve, 1 to 4 % of the step (docs/mesh_cloth.md, "Speed"); three or four each side take
 /// as many iterations and cost more, and so does a second sweep on the finest level.
 pub const COARSE_SWEEPS: usize = 2;
 
