@@ -13,8 +13,7 @@ use crate::common;
 
 use common::crossings::{intersecting_pairs, triangles_intersect};
 use common::{
-    at_1ms, bare_scene, edge_first_pile, momentum, scene_under_gravity, state_hash,
-    with_threads,
+    at_1ms, bare_scene, edge_first_pile, momentum, scene_under_gravity, state_hash, with_threads,
 };
 use glam::{DVec3, Vec3};
 use rustcloth::scene::SelfCollisionSpec;
