@@ -43,10 +43,10 @@ pub enum Trouble {
     /// A spring grew longer than the watchdog's `max_stretch` times its rest length; `stretch`
     /// is the ratio `l / L` of the first such spring found.
     Overstretched { stretch: f32, limit: f32 },
-    /// With self-collision, `share` of the cloth's edges changed length by more than half the
-    /// cloth's spacing within one substep: the step no longer resolves the cloth's motion (an
-    /// explicit integrator past its stable step), which the pass would otherwise hide by
-    /// holding the runaway cloth apart instead of letting it reach infinity.
+    /// With self-collision and an integrator past its estimated stable step, `share` of the
+    /// cloth's edges changed length by more than half its spacing within one substep: the step
+    /// no longer resolves the cloth's motion, a runaway the pass would otherwise hide by
+    /// holding the cloth apart instead of letting it reach infinity.
     Unresolved { share: f32 },
     /// The step panicked (a bug): never retried, reported as [`Error::Internal`].
     Panicked,
@@ -109,7 +109,7 @@ impl fmt::Display for Error {
                     )?,
                     Trouble::Unresolved { share } => write!(
                         f,
-                        "{:.0} % of the edges, particle {particle}'s first, changed length by \
+                        "{:.1} % of the edges, particle {particle}'s first, changed length by \
                          more than half the cloth's spacing within one substep (an integrator \
                          past its stable step)",
                         100.0 * share

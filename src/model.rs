@@ -295,6 +295,22 @@ impl Model {
         dx.min(dy)
     }
 
+    /// The largest substep (s) at which `integrator` is estimated to stay stable
+    /// ([`crate::scene::stable_substep`]) with the lightest moving particle's mass, which bounds
+    /// the stiffest mode also when masses differ; None when any substep is (the implicit
+    /// solvers, no springs, nothing moving).
+    pub fn stable_substep(&self, integrator: crate::scene::IntegratorKind) -> Option<f64> {
+        let particles = &self.particles;
+        let m = (0..self.grid.len())
+            .filter(|&p| particles.is_dynamic(p))
+            .map(|p| particles.mass[p] as f64)
+            .fold(f64::INFINITY, f64::min);
+        if !m.is_finite() {
+            return None;
+        }
+        crate::scene::stable_substep(&self.scene, integrator, m)
+    }
+
     /// The stiffness (N/m) of a spring family in the scene.
     pub fn stiffness(&self, family: crate::grid::Family) -> f64 {
         let cloth = &self.scene.cloth;

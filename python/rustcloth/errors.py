@@ -46,9 +46,9 @@ class SimulationDiverged(RustclothError, FloatingPointError):
     ``step`` is the 1-based number of the step that failed, ``particle`` the first particle at
     fault, ``reason`` ``"non_finite"`` (a value became infinite or NaN), ``"overstretched"``
     (a spring grew beyond the scene's ``watchdog.max_stretch``) or ``"unresolved"`` (with
-    self-collision: more than 1 % of the edges changed length by over half the cloth's spacing
-    within one substep, an integrator past its stable step, whose runaway the pass would
-    otherwise hold in a bounded boil), and ``substeps`` the most
+    self-collision and an integrator past its estimated stable step: more than 1 % of the edges
+    changed length by over half the cloth's spacing within one substep, a runaway the pass
+    would otherwise hold in a bounded boil), and ``substeps`` the most
     substeps the step was tried with (more than the scene's when ``watchdog.on_trouble =
     "substep"`` retried it)."""
 

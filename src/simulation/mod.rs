@@ -203,17 +203,10 @@ impl Simulation {
     /// [`Scene::stable_dt`] with the lightest moving particle's mass, which bounds the stiffest
     /// mode also when masses differ (`set_masses`).
     pub fn stable_dt(&self) -> Option<f64> {
-        let particles = &self.model.particles;
-        let m = (0..self.model.grid.len())
-            .filter(|&p| particles.is_dynamic(p))
-            .map(|p| particles.mass[p] as f64)
-            .fold(f64::INFINITY, f64::min);
-        if !m.is_finite() {
-            return None;
-        }
-        let scene = &self.model.scene;
-        crate::scene::stable_substep(scene, self.stepper.integrator(), m)
-            .map(|h| h * scene.substeps as f64)
+        let substeps = self.model.scene.substeps as f64;
+        self.model
+            .stable_substep(self.stepper.integrator())
+            .map(|h| h * substeps)
     }
 
     /// What the watchdog caught and retried so far.

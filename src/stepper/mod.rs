@@ -358,6 +358,7 @@ impl Stepper {
     pub fn set_integrator(&mut self, model: &Model) {
         self.pipeline.integrator =
             Integrator::new(model.scene.integrator, model.scene.solver_settings());
+        self.pipeline.stable_substep = None;
     }
 
     /// After a change of the substeps: history restarts, and a step keeps its start.
@@ -378,6 +379,7 @@ impl Stepper {
     /// After the masses changed: history restarts.
     pub fn masses_changed(&mut self) {
         self.pipeline.integrator.reset_history();
+        self.pipeline.stable_substep = None;
     }
 
     /// Something other than a step changed the state: the watchdog must not blame (and undo)

@@ -114,8 +114,13 @@ class Recovery:
         """The share of the cloth's edges whose length the velocities would change by more
         than half the typical edge within one substep: the core's ``"unresolved"`` trouble,
         foreseen from one state. A cloth boiling under an unstable integrator has its springs
-        at sane lengths (the self-collision pass holds it) but not its velocities."""
+        at sane lengths (the self-collision pass holds it) but not its velocities. As in the
+        core, only past the integrator's estimated stable step: within it a fast drag may swing
+        the edges round the grip as far."""
         sim = self.sim
+        limit = sim.stable_dt()
+        if limit is None or sim.dt <= limit:
+            return 0.0
         tri = sim.triangles.astype(np.int64)
         if len(tri) == 0:
             return 0.0

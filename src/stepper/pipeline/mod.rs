@@ -86,6 +86,9 @@ pub(super) struct Pipeline {
     /// Where the passes before self-collision left the particles, for a solver that holds
     /// contacts: what the self-collision pass moved (`Pipeline::hold_self_contacts`).
     unshortened: Vec3s,
+    /// The current integrator's estimated stable substep (s), None when any is; computed when
+    /// first needed and forgotten when the integrator or the masses change.
+    pub stable_substep: Option<Option<f64>>,
 }
 
 /// What the passes of one substep read and write.
