@@ -116,6 +116,8 @@ pub struct SelfCollisionStats {
     /// the listed pairs that can come within `thickness` and `HOT` of it, or all that can come
     /// within `thickness` in a substep where those others had to be looked at too (`widened`).
     pub pairs: u64,
+    /// Substeps on the pair list that had to look at every pair within reach, the repulsion
+    /// or the cap having shown that the pairs left out could act.
     pub widened: u64,
     /// Times the pair list was built, and times some of its vertices were queried again
     /// instead (`requeries`; `requeried` of them, summed).
@@ -443,7 +445,8 @@ impl SelfCollision {
         (needed, hot_needed): (f64, f64),
         eps: f64,
     ) {
-        // Marks the pairs `hot` then filters.
+        // Only for its side effect: the list's `near`, the pairs that may be closer than
+        // `hot_needed`, which `PairList::hot` then filters by this substep's own motion.
         let _ = self.list.within(hot_needed, eps);
         let (common, in_mesh) = (motion.centre(), &self.topology.in_mesh);
         self.moving.resize(x0.len(), 0.0);
