@@ -13,10 +13,9 @@
 //! Euler), with its diagonal blocks and the dense Cholesky factor of the coarsest level.
 //!
 //! **Cycle** ([`Amg::apply`]): one V-cycle with one damped block-Jacobi sweep
-//! (`x += omega D^-1 (b - A x)`, `omega` = [`OMEGA`]) before and after the coarse correction on
-//! the finest level and [`COARSE_SWEEPS`] on each coarser one. Two sweeps each on the finest
-//! level cut CG's iterations on the stiff 16k drape from 14.3 to 10.9, but cost five fine
-//! products an iteration instead of three, and the step took longer.
+//! (`x += omega D^-1 (b - A x)`, `omega` = [`OMEGA`]) before and after the coarse correction.
+//! Two sweeps each cut CG's iterations on the stiff 16k drape from 14.3 to 10.9, but cost five
+//! fine products an iteration instead of three, and the step took longer.
 //! Block Jacobi is symmetric, the post-smoother repeats the pre-smoother, restriction is the
 //! transpose of prolongation and the coarsest solve is exact, so the cycle is a symmetric
 //! positive definite preconditioner for CG. A held node (zero diagonal block) is in no
@@ -45,13 +44,6 @@ pub use order::local_order;
 /// refactored every update: a larger coarsest level costs `(3n)^3 / 3` flops a step, a smaller
 /// one more levels.
 pub const COARSEST: usize = 64;
-
-/// Block-Jacobi sweeps before and after the coarse correction on every level but the finest
-/// (which has one each side). A coarse level has about an eighth of the nodes above it, and
-/// a second each side there took CG on the stiff 16k drape from 14.5 to 13.3 iterations a
-/// solve, 1 to 4 % of the step (docs/mesh_cloth.md, "Speed"); three or four each side take
-/// as many iterations and cost more, and so does a second sweep on the finest level.
-pub const COARSE_SWEEPS: usize = 2;
 
 /// Coarsening also stops when a level keeps more than this fraction of the nodes above it.
 const STALLED: f64 = 0.8;
@@ -189,12 +181,11 @@ impl Amg {
             jacobi_start(&self.smoother, r, z);
             return;
         }
-        cycle(fine, r, z, levels, coarsest, rhs, 1);
+        cycle(fine, r, z, levels, coarsest, rhs);
     }
 }
 
-/// One V-cycle on `a x = b` from `x = 0`, `levels[0]` being `a`'s level, with `sweeps`
-/// block-Jacobi sweeps before and after the coarse correction on this level.
+/// One V-cycle on `a x = b` from `x = 0`, `levels[0]` being `a`'s level.
 fn cycle<A: BlockOperator>(
     a: &A,
     b: &Vec3s,
@@ -202,7 +193,6 @@ fn cycle<A: BlockOperator>(
     levels: &mut [Level],
     coarsest: &DenseCholesky,
     rhs: &mut Vec<f64>,
-    sweeps: usize,
 ) {
     let (level, below) = levels.split_first_mut().expect("a level to cycle on");
     let Level {
@@ -215,28 +205,15 @@ fn cycle<A: BlockOperator>(
         ..
     } = level;
     jacobi_start(smoother, b, x);
-    for _ in 1..sweeps {
-        jacobi_sweep(a, smoother, b, x, r);
-    }
     residual(a, b, x, r);
     transfer.restrict(r, coarse_b);
     if below.is_empty() {
         solve_dense(coarsest, coarse_b, coarse_x, rhs);
     } else {
-        cycle(
-            &*coarse,
-            coarse_b,
-            coarse_x,
-            below,
-            coarsest,
-            rhs,
-            COARSE_SWEEPS,
-        );
+        cycle(&*coarse, coarse_b, coarse_x, below, coarsest, rhs);
     }
     transfer.prolong_add(coarse_x, x);
-    for _ in 0..sweeps {
-        jacobi_sweep(a, smoother, b, x, r);
-    }
+    jacobi_sweep(a, smoother, b, x, r);
 }
 
 /// `omega D^-1` of `a`, block by block (zero for a block that is not positive definite).
