@@ -109,12 +109,23 @@ fn symplectic_methods_keep_energy_bounded_explicit_gains_implicit_loses() {
 /// boiled at 200 J and 60 m/s for as long as it ran, and no step failed. The watchdog now
 /// catches the motion the step no longer resolves; the same integrators within their stable
 /// step, and implicit Euler far beyond it, run on untouched.
+/// The demo's `hanging` at 16 x 16 with self-collision, and the same at one implicit Euler
+/// step a 1/60 s frame.
+fn small_hanging_with_self_collision() -> (Scene, Scene) {
+    let mut scene = builtin_scene("hanging", IntegratorKind::SymplecticEuler, 16, 16);
+    scene.self_collision = Some(rustcloth::scene::SelfCollisionSpec::default());
+    let implicit = Scene {
+        integrator: IntegratorKind::ImplicitEuler,
+        dt: 1.0 / 60.0,
+        substeps: 1,
+        ..scene.clone()
+    };
+    (scene, implicit)
+}
+
 #[test]
 fn an_integrator_past_its_stable_step_is_caught_with_self_collision_on() {
-    let mut scene = Scene::builtin("hanging").unwrap();
-    scene.cloth.nx = 16;
-    scene.cloth.ny = 16;
-    scene.self_collision = Some(rustcloth::scene::SelfCollisionSpec::default());
+    let (mut scene, implicit) = small_hanging_with_self_collision();
     let stable = scene.clone();
     // The explicit integrators at 30 times the stiffness their step can hold.
     let m = scene.particle_mass();
@@ -137,22 +148,14 @@ fn an_integrator_past_its_stable_step_is_caught_with_self_collision_on() {
             other => panic!("{integrator} past its stable step ran on: {other:?}"),
         }
     }
-    for (integrator, scene) in [
-        (IntegratorKind::SymplecticEuler, stable),
-        (
-            IntegratorKind::ImplicitEuler,
-            Scene {
-                dt: 1.0 / 60.0,
-                substeps: 1,
-                ..scene
-            },
-        ),
-    ] {
-        let mut sim = Simulation::new(Scene {
-            integrator,
-            ..scene
-        })
-        .unwrap();
+    // Implicit Euler at the same stiffness, far beyond any explicit step.
+    let implicit = Scene {
+        cloth: scene.cloth.clone(),
+        ..implicit
+    };
+    for scene in [stable, implicit] {
+        let integrator = scene.integrator;
+        let mut sim = Simulation::new(scene).unwrap();
         sim.step(200)
             .unwrap_or_else(|e| panic!("{integrator}: {e}"));
     }
@@ -164,16 +167,7 @@ fn an_integrator_past_its_stable_step_is_caught_with_self_collision_on() {
 /// past the integrator's estimated stable step.
 #[test]
 fn a_fast_drag_at_a_stable_step_is_not_taken_for_a_runaway() {
-    let mut scene = Scene::builtin("hanging").unwrap();
-    scene.cloth.nx = 16;
-    scene.cloth.ny = 16;
-    scene.self_collision = Some(rustcloth::scene::SelfCollisionSpec::default());
-    let implicit = Scene {
-        integrator: IntegratorKind::ImplicitEuler,
-        dt: 1.0 / 60.0,
-        substeps: 1,
-        ..scene.clone()
-    };
+    let (scene, implicit) = small_hanging_with_self_collision();
     // Symplectic Euler at the scene's 1 ms in 2 substeps (within its stable step), 17 steps a
     // 1/60 s frame, and implicit Euler at one step a frame; the grip moves 0.3 m a frame.
     for (scene, steps) in [(scene, 17), (implicit, 1)] {
