@@ -83,6 +83,11 @@ pub struct Snapshot {
     /// before glides).
     #[serde(default)]
     pub drag_glide: Option<(Vec3, f64, f64, Vec<usize>)>,
+    /// The particles whose targets a drag set (a grip held back by self-collision catches up
+    /// at [`crate::pins::CATCH_UP`]; other targets are reached in one substep). Empty from a
+    /// state saved before.
+    #[serde(default)]
+    pub drag_targets: Vec<usize>,
     pub pick_radius: Option<f32>,
     pub pick_strategy: PickStrategy,
     pub steps: u64,
@@ -143,6 +148,7 @@ impl Snapshot {
                 .targets
                 .glide()
                 .map(|(g, moved)| (g.shift, g.from, g.until, moved)),
+            drag_targets: state.targets.gliding(),
             pick_radius: picker.radius_setting(),
             pick_strategy: picker.strategy(),
             steps: state.clock.steps,
@@ -284,6 +290,13 @@ impl Snapshot {
                 ));
             }
         }
+        let has_target = |p: &usize| self.targets.iter().any(|(q, _)| q == p);
+        if !self.drag_targets.iter().all(has_target) {
+            return Err(Error::value(
+                "drag_targets",
+                "must list particles with targets",
+            ));
+        }
         if let Some(r) = self.pick_radius {
             picker.set_radius(r as f64)?;
         }
@@ -359,6 +372,7 @@ impl Snapshot {
             let glide = crate::pins::Glide { shift, from, until };
             state.targets.restore_glide(glide, &moved);
         }
+        state.targets.restore_gliding(&self.drag_targets);
         picker.set_strategy(self.pick_strategy);
         state.clock = Clock {
             steps: self.steps,

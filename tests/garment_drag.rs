@@ -120,6 +120,33 @@ fn the_in_solve_term_on_a_mesh_cloth_steps_the_same_for_any_thread_count_and_aft
     assert_eq!(state_hash(&a), state_hash(&one));
 }
 
+/// A grip the pass holds short of its target catches up at `CATCH_UP` (src/pins.rs), a drag's
+/// targets only: a state restored while it is held, and stepped with no further drag, steps as
+/// the one it was saved from (its targets are known to be a drag's, not pins that jump).
+#[test]
+fn a_grip_held_short_of_its_target_steps_the_same_after_a_restore() {
+    let (mut sim, origin) = with_threads(2, || grabbed(shirt(300.0)));
+    with_threads(2, || {
+        for frame in 1..=32 {
+            drag_frame(&mut sim, origin, SIDEWAYS, frame);
+        }
+    });
+    let grip = sim.gripped();
+    let target = origin + SIDEWAYS;
+    let short = (sim.positions().get(grip[0]) - target).length();
+    assert!(
+        short > 0.05,
+        "the grip is held {short} m short of its target"
+    );
+    let mut again = Simulation::restore(sim.snapshot()).unwrap();
+    with_threads(2, || {
+        for sim in [&mut sim, &mut again] {
+            sim.advance(5.0 / 60.0).unwrap();
+        }
+    });
+    assert_eq!(state_hash(&again), state_hash(&sim));
+}
+
 /// The sideways drag at `solve_stiffness` 300 once blew up: pairs held grew from ~800 a frame to
 /// 100 000 and a vertex reached 11 000 m/s. Each held pair's quadratic penalty rested at
 /// `thickness`, so it pulled pairs the solve moved apart and pushed out pairs that started
@@ -127,11 +154,19 @@ fn the_in_solve_term_on_a_mesh_cloth_steps_the_same_for_any_thread_count_and_aft
 /// the grip's work). A frame's kinetic, gravitational and elastic energy may rise only by the
 /// work the grip does on its particles (the potential's gradient there, trapezoidal over the
 /// frame), plus a margin for that estimate, for the pass after the solve and for the springs'
-/// linearisation (docs/garments.md gives the measured excesses).
+/// linearisation (docs/garments.md gives the measured excesses). At 299, where the grip's
+/// target stops 0.2 m past where the pass lets it be, the grip jumped onto its target and was
+/// pulled back every step, gaining 0.2-0.35 J a frame (2.2 J in one) while it was held
+/// (`CATCH_UP` in `src/pins.rs`).
 #[test]
 fn a_sideways_drag_with_contact_in_the_solve_never_gains_energy() {
-    let drag = sideways_drag(300.0);
+    let drag = sideways_drag(299.0);
     drag.assert_no_frame_gains_beyond_the_grips_work();
+    let (frame, gain) = drag.worst_held;
+    assert!(
+        gain < HELD_MARGIN,
+        "frame {frame}, the grip's target still: {gain:.3} J beyond the grip's work"
+    );
 }
 
 /// The same drag with the pass after the solve alone once flung a vertex at 100-19 000 m/s: two
@@ -155,6 +190,8 @@ fn a_grip_dragged_across_its_own_cloth_never_flings_a_vertex() {
 /// the grip's work (J) and the frame with the fastest free vertex at its end (m/s).
 struct SidewaysDrag {
     worst_gain: (u32, f64),
+    /// The same over the frames after the grip's target has stopped (31-60).
+    worst_held: (u32, f64),
     fastest: (u32, f32),
 }
 
@@ -178,6 +215,7 @@ fn sideways_drag(solve_stiffness: f64) -> SidewaysDrag {
     };
     let mut drag = SidewaysDrag {
         worst_gain: (0, f64::MIN),
+        worst_held: (0, f64::MIN),
         fastest: (0, 0.0),
     };
     with_threads(2, || {
@@ -191,6 +229,9 @@ fn sideways_drag(solve_stiffness: f64) -> SidewaysDrag {
             let excess = e1 - e0 - work;
             if excess > drag.worst_gain.1 {
                 drag.worst_gain = (frame, excess);
+            }
+            if frame > 30 && excess > drag.worst_held.1 {
+                drag.worst_held = (frame, excess);
             }
             assert!(e1.is_finite(), "frame {frame}");
             let vel = sim.velocities();
@@ -210,5 +251,9 @@ fn sideways_drag(solve_stiffness: f64) -> SidewaysDrag {
 /// about 1 m/s, but its pins, held back by contact, catch up at up to 16 m/s within a step.
 const FASTEST: f32 = 20.0;
 
-/// What a frame of the sideways drag may gain beyond the grip's estimated work, J.
-const MARGIN: f64 = 1.0;
+/// What a frame of the sideways drag may gain beyond the grip's estimated work, J: the
+/// estimate's error while the grip moves (up to 0.1 J measured).
+const MARGIN: f64 = 0.25;
+
+/// The same once the grip's target has stopped, J (within 0.01 J measured at 299).
+const HELD_MARGIN: f64 = 0.05;
