@@ -76,6 +76,10 @@ struct Work {
     jacobi: SlotArrays,
     multigrid: Multigrid,
     rhs: Vec3s,
+    /// The right-hand side before the contact filter's reduction, with the held self-contact
+    /// pairs' loads: what a later round of a step adds its pairs to and reduces again. Kept
+    /// only while a step holds both (empty otherwise).
+    assembled: Vec3s,
     dv: Vec3s,
     cg: ConjugateGradient,
 }
@@ -94,6 +98,7 @@ impl Work {
             jacobi: std::array::from_fn(|_| Floats::zeros(n)),
             multigrid: Multigrid::new(),
             rhs: Vec3s::zeros(n),
+            assembled: Vec3s::zeros(0),
             dv: Vec3s::zeros(n),
             cg: ConjugateGradient::new(n),
         }
@@ -180,7 +185,15 @@ impl ImplicitEuler {
             CONTACT_STIFFNESS * mass[p]
         });
         let term = (!self.self_contact.is_empty()).then_some(&self.self_contact);
-        if !filter.is_empty() {
+        // Rounds after the first add their pairs to the unreduced right-hand side.
+        let filtered = !filter.is_empty();
+        if filtered && ctx.self_pairs.is_some() {
+            if work.assembled.len() != n {
+                work.assembled = Vec3s::zeros(n);
+            }
+            work.assembled.copy_from(&work.rhs);
+        }
+        if filtered {
             let (operator, chunk) = (
                 WithSelfContacts {
                     matrix: &work.matrix,
@@ -195,7 +208,7 @@ impl ImplicitEuler {
         let settings = self.settings;
         // The first solve of a step that may hold more pairs after it only finds which pairs
         // its `dv` brings within `thickness`: loose, unless it turns out to be the last.
-        let more_rounds = ctx.self_pairs.is_some() && self.filter.is_empty();
+        let more_rounds = ctx.self_pairs.is_some();
         let mut first = settings;
         if more_rounds {
             first.tolerance = settings.tolerance.max(PAIR_FINDING_TOLERANCE);
@@ -207,32 +220,49 @@ impl ImplicitEuler {
             let stats = (this, &mut self.stats);
             solve_once(work, term, &mut self.filter, stats, ctx.chunk, Start::Zero);
             round += 1;
-            // More rounds only for the self-contact pairs alone: a collider's filtered
-            // right-hand side is reduced once.
-            let Some(pairs) = ctx.self_pairs.filter(|_| self.filter.is_empty()) else {
+            let Some(pairs) = ctx.self_pairs else {
                 break;
             };
             if round >= SELF_ROUNDS {
                 break;
             }
+            let filtered = !self.filter.is_empty();
             let Work {
-                matrix, rhs, dv, ..
+                matrix,
+                rhs,
+                assembled,
+                dv,
+                ..
             } = &mut *work;
+            let loads = if filtered { assembled } else { rhs };
             let added = self.self_contact.extend(
                 h,
                 pairs,
                 (&cur.pos, &cur.vel, dv, w),
-                (matrix.slot_mut(0), rhs),
+                (matrix.slot_mut(0), loads),
             );
             self.stats.self_pairs += added as u64;
             if added == 0 {
-                // The loose solve's system is the step's: finish it from where it stopped.
+                // The loose solve's system is the step's: finish it from where it stopped (the
+                // filtered unknown is `S dv`, the held particles' prescribed part taken out).
                 if this.tolerance > settings.tolerance {
+                    self.filter.project(&mut work.dv);
                     let term = (!self.self_contact.is_empty()).then_some(&self.self_contact);
                     let stats = (settings, &mut self.stats);
                     solve_once(work, term, &mut self.filter, stats, ctx.chunk, Start::Guess);
                 }
                 break;
+            }
+            if filtered {
+                // The matrix changed with the pairs added: the prescribed motion's load too.
+                work.rhs.copy_from(&work.assembled);
+                let operator = WithSelfContacts {
+                    matrix: &work.matrix,
+                    term: Some(&self.self_contact),
+                };
+                let chunk = ctx.chunk;
+                self.filter
+                    .reduce(&mut work.rhs, |x, y| operator.apply(x, y, chunk));
             }
         }
 
