@@ -1,7 +1,7 @@
 """What self-collision costs per 1/60 s frame, against the same frames without it, at 32^2 to
 256^2 particles, for the scenes as they ship.
 
-    PYTHONPATH=python python benches/self_collision.py          # quick: 32-128, about 5 min
+    PYTHONPATH=python python benches/self_collision.py          # quick: 32-128, 9 min at load 3-4
     PYTHONPATH=python python benches/self_collision.py --full   # adds 256 and 1 ms at 64
 
 Run it with ``PYTHONPATH`` pointing at another build (``--no-write``) to compare two builds in
@@ -211,7 +211,8 @@ def row(case: str, cloth: str, settings: str, r: dict[str, float]) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--full", action="store_true",
-                        help="sizes 32-256, and the 1 ms runs at 64 x 64 too (about an hour)")
+                        help="sizes 32-256, and the 1 ms runs at 64 x 64 too (not yet run through: "
+                             "the 256 x 256 twist steps to its window at 2.0 s first)")
     parser.add_argument("--sizes", type=int, nargs="+", default=None)
     parser.add_argument("--before-sizes", type=int, nargs="+", default=None,
                         help="sizes of the 1 ms runs of twist and pile (quiet: every size)")
