@@ -47,12 +47,14 @@ def main() -> None:
     wp.synchronize()
     setup = time.perf_counter() - t0
     triangles = example.model.tri_indices.numpy()
-    walls, samples = [], [sample(0, example.state_0.particle_q.numpy(), triangles)]
+    walls, cpus = [], []
+    samples = [sample(0, example.state_0.particle_q.numpy(), triangles)]
     for frame in range(1, args.frames + 1):
-        w0 = time.perf_counter()
+        w0, c0 = time.perf_counter(), time.process_time()
         example.step()
         wp.synchronize()
         walls.append(time.perf_counter() - w0)
+        cpus.append(time.process_time() - c0)
         if frame % args.every == 0 or frame == args.frames:
             samples.append(sample(frame, example.state_0.particle_q.numpy(), triangles))
     x = example.state_0.particle_q.numpy()
@@ -65,6 +67,9 @@ def main() -> None:
         "setup_s": setup,
         "first_frame_s": walls[0],
         "walls": walls,
+        # The process's CPU time, steadier than the wall time on a shared machine (as
+        # impl_rustcloth_twist.py reports it).
+        "cpu_ms_per_frame": 1e3 * float(np.mean(cpus[1:] or cpus)),
         "samples": samples,
         "particles": len(x),
         "triangles": len(triangles),
