@@ -521,16 +521,13 @@ impl SelfCollision {
             let v = v as usize;
             (ends[v] - x0.get(v)).as_dvec3().length() + radius
         };
-        let limit = |verts: &[u32; 4], split: usize| {
-            let (a, b) = verts.split_at(split);
-            let side = |s: &[u32]| s.iter().map(|&v| reach(v)).fold(0.0, f64::max);
-            thickness + side(a) + side(b) + eps
-        };
+        // A pair is found closer than `thickness + side(a) + side(b) + eps`, a side's the most
+        // any of its vertices may move.
         self.broad.search(
             &self.topology,
             boxes,
             x0,
-            limit,
+            (thickness, reach, eps),
             1e-3 * eps,
             Order::Index,
             out,

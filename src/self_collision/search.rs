@@ -45,6 +45,31 @@ pub struct Broad {
     by_rank: Vec<u32>,
     /// The topology version the trees were shaped for.
     shaped_for: Option<u64>,
+    /// Each triangle's and edge's tight box at the search's positions, and the most any vertex
+    /// of each vertex, triangle and edge may move (m; a vertex's by particle), for a whole
+    /// search: a primitive is in a few dozen candidate pairs, so its box and its reach are
+    /// taken once, not once a pair.
+    tight_tris: Vec<Aabb>,
+    tight_edges: Vec<Aabb>,
+    vert_side: Vec<f64>,
+    tri_side: Vec<f64>,
+    edge_side: Vec<f64>,
+}
+
+/// How far apart a pair may be and still be found (m).
+#[derive(Clone, Copy)]
+enum Limit<'a> {
+    /// The same for every pair.
+    Fixed(f64),
+    /// `base`, the most any vertex of each primitive may move (`vert`, `tri`, `edge`: by
+    /// particle, triangle and edge), and `eps`, summed in that order.
+    Sides {
+        base: f64,
+        vert: &'a [f64],
+        tri: &'a [f64],
+        edge: &'a [f64],
+        eps: f64,
+    },
 }
 
 /// How a search orders the vertex-triangle pairs it finds: by vertex, then by the triangle's
@@ -80,7 +105,9 @@ impl Looked {
 impl Broad {
     /// Into `out`, in vertex then triangle (as `order` says) and edge then edge order (so the
     /// same for any thread count): every pair whose boxes overlap, given each vertex's box, and
-    /// which is closer than `limit(verts, split)` at `x`, with its closest points there. A
+    /// which is closer than `limit` at `x`, with its closest points there: `(base, reach, eps)`,
+    /// the limit `base + side(a) + side(b) + eps` (m), a primitive's side the most `reach` (m,
+    /// by particle) of its vertices. A
     /// primitive's box is the union of its vertices'. `margin` (m) bounds the round-off of a
     /// distance at `x`: a pair whose primitives' tight boxes at `x` are farther apart than
     /// `limit` and `margin` is passed over without its closest points.
@@ -91,12 +118,36 @@ impl Broad {
         topo: &Topology,
         vertex_boxes: &[Aabb],
         x: &Vec3s,
-        limit: impl Fn(&[u32; 4], usize) -> f64 + Sync,
+        (base, reach, eps): (f64, impl Fn(u32) -> f64 + Sync, f64),
         margin: f64,
         order: Order,
         out: &mut Vec<Pair>,
     ) -> Looked {
         self.fit(topo, vertex_boxes);
+        self.fit_tight(topo, x);
+        self.vert_side.clear();
+        self.vert_side.resize(x.len(), 0.0);
+        self.vert_side
+            .par_iter_mut()
+            .with_min_len(4096)
+            .enumerate()
+            .filter(|(v, _)| topo.in_mesh[*v])
+            .for_each(|(v, r)| *r = 0.0f64.max(reach(v as u32)));
+        let vb = &self.vert_side;
+        let side = |vs: &[u32]| vs.iter().map(|&v| vb[v as usize]).fold(0.0, f64::max);
+        self.tri_side.clear();
+        self.tri_side
+            .par_extend(topo.triangles.par_iter().map(|t| side(t)));
+        self.edge_side.clear();
+        self.edge_side
+            .par_extend(topo.edges.par_iter().map(|e| side(e)));
+        let limit = Limit::Sides {
+            base,
+            vert: vb,
+            tri: &self.tri_side,
+            edge: &self.edge_side,
+            eps,
+        };
         let closest = |verts: [u32; 4], split: usize| {
             let pair = match split {
                 1 => vertex_triangle(x, verts),
@@ -115,6 +166,7 @@ impl Broad {
             margin,
             order,
             tri_rank: &self.tri_rank,
+            tight: Some((&self.tight_tris, &self.tight_edges)),
             measure: closest,
         };
         let looked = self.find(&tests, &mut vt, &mut ee);
@@ -147,6 +199,11 @@ impl Broad {
         moved: Option<&[bool]>,
     ) -> Looked {
         self.fit(topo, vertex_boxes);
+        // A query of a few vertices looks at their neighbourhoods alone: the boxes of the whole
+        // mesh would cost more than they save.
+        if moved.is_none() {
+            self.fit_tight(topo, x);
+        }
         let measure = |verts: [u32; 4], split: usize| {
             let d = distance(x, verts, split);
             (d, d)
@@ -158,10 +215,13 @@ impl Broad {
         let tests = PairTests {
             topo,
             x,
-            limit: |_: &[u32; 4], _: usize| reach,
+            limit: Limit::Fixed(reach),
             margin,
             order: Order::Vertices,
             tri_rank: &self.tri_rank,
+            tight: moved
+                .is_none()
+                .then_some((&self.tight_tris[..], &self.tight_edges[..])),
             measure,
         };
         let looked = match moved {
@@ -239,14 +299,25 @@ impl Broad {
         }
     }
 
+    /// Each triangle's and edge's tight box at `x`.
+    fn fit_tight(&mut self, topo: &Topology, x: &Vec3s) {
+        let tight = |vs: &[u32]| {
+            let (lo, hi) = bounds(x, vs);
+            Aabb { min: lo, max: hi }
+        };
+        self.tight_tris.clear();
+        self.tight_tris
+            .par_extend(topo.triangles.par_iter().map(|t| tight(t)));
+        self.tight_edges.clear();
+        self.tight_edges
+            .par_extend(topo.edges.par_iter().map(|e| tight(e)));
+    }
+
     /// Into `vt` and `ee`, in an order fixed by the trees: every vertex-triangle and edge-edge
     /// pair whose boxes overlap and which passes `tests`.
     fn find<R: Send>(
         &self,
-        tests: &PairTests<
-            impl Fn(&[u32; 4], usize) -> f64 + Sync,
-            impl Fn([u32; 4], usize) -> (f64, R) + Sync,
-        >,
+        tests: &PairTests<impl Fn([u32; 4], usize) -> (f64, R) + Sync>,
         vt: &mut Vec<(u64, R)>,
         ee: &mut Vec<(u64, R)>,
     ) -> Looked {
@@ -270,10 +341,7 @@ impl Broad {
     /// caller sorts them by key.
     fn find_touching<R: Send>(
         &self,
-        tests: &PairTests<
-            impl Fn(&[u32; 4], usize) -> f64 + Sync,
-            impl Fn([u32; 4], usize) -> (f64, R) + Sync,
-        >,
+        tests: &PairTests<impl Fn([u32; 4], usize) -> (f64, R) + Sync>,
         moved: &[bool],
         vt: &mut Vec<(u64, R)>,
         ee: &mut Vec<(u64, R)>,
@@ -333,6 +401,9 @@ impl Broad {
             + self.vert_tree.heap_bytes()
             + self.tri_tree.heap_bytes()
             + self.edge_tree.heap_bytes()
+            + (self.tight_tris.capacity() + self.tight_edges.capacity()) * size_of::<Aabb>()
+            + (self.vert_side.capacity() + self.tri_side.capacity() + self.edge_side.capacity())
+                * 8
     }
 }
 
@@ -341,25 +412,67 @@ impl Broad {
 /// is kept of it) below its `limit`. A pair's tight boxes at `x` pass over it first when they
 /// are farther apart than `limit` and `margin`. Each found pair goes under its key (as `order`
 /// says for the vertex-triangle pairs).
-struct PairTests<'a, L, M> {
+struct PairTests<'a, M> {
     topo: &'a Topology,
     x: &'a Vec3s,
-    limit: L,
+    limit: Limit<'a>,
     margin: f64,
     order: Order,
     tri_rank: &'a [u32],
+    /// The triangles' and edges' tight boxes at `x`, where the search took them.
+    tight: Option<(&'a [Aabb], &'a [Aabb])>,
     measure: M,
 }
 
-impl<L, M, R> PairTests<'_, L, M>
+impl<M, R> PairTests<'_, M>
 where
-    L: Fn(&[u32; 4], usize) -> f64 + Sync,
     M: Fn([u32; 4], usize) -> (f64, R) + Sync,
 {
+    /// The pair `verts` split at `split`, of primitives `first` and `second` (a vertex, by
+    /// particle, and a triangle, or two edges), kept under `key` when close enough.
     #[inline]
-    fn keep_close(&self, verts: [u32; 4], split: usize, key: u64, out: &mut Vec<(u64, R)>) {
-        let most = (self.limit)(&verts, split);
-        if apart(self.x, &verts, split) <= most + self.margin {
+    fn keep_close(
+        &self,
+        verts: [u32; 4],
+        split: usize,
+        (first, second): (u32, u32),
+        key: u64,
+        out: &mut Vec<(u64, R)>,
+    ) {
+        let most = match self.limit {
+            Limit::Fixed(most) => most,
+            Limit::Sides {
+                base,
+                vert,
+                tri,
+                edge,
+                eps,
+            } => {
+                let (a, b) = match split {
+                    1 => (vert[first as usize], tri[second as usize]),
+                    _ => (edge[first as usize], edge[second as usize]),
+                };
+                base + a + b + eps
+            }
+        };
+        let gap = match self.tight {
+            Some((tris, edges)) => {
+                let (a, b) = match split {
+                    1 => {
+                        let p = self.x.get(first as usize);
+                        let t = &tris[second as usize];
+                        ((p, p), (t.min, t.max))
+                    }
+                    _ => {
+                        let (e, f) = (&edges[first as usize], &edges[second as usize]);
+                        ((e.min, e.max), (f.min, f.max))
+                    }
+                };
+                boxes_apart(a, b)
+            }
+            None => apart(self.x, &verts, split),
+        };
+        if gap <= most + self.margin {
             let (d, kept) = (self.measure)(verts, split);
             if d < most {
                 out.push((key, kept));
@@ -381,7 +494,7 @@ where
             Order::Vertices => self.tri_rank[t as usize],
         };
         let key = (v as u64) << 32 | place as u64;
-        self.keep_close([v, a, b, c], 1, key, out);
+        self.keep_close([v, a, b, c], 1, (v, t), key, out);
         true
     }
 
@@ -396,7 +509,7 @@ where
             return false;
         }
         let key = (e as u64) << 32 | f as u64;
-        self.keep_close([a, b, c, d], 2, key, out);
+        self.keep_close([a, b, c, d], 2, (e, f), key, out);
         true
     }
 }
@@ -443,14 +556,22 @@ fn in_key_order<T: Copy + Default + Send>(
 /// cloth (two parallel edges a grid spacing apart).
 #[inline]
 fn apart(x: &Vec3s, verts: &[u32; 4], split: usize) -> f64 {
-    let bounds = |s: &[u32]| {
-        let first = x.get(s[0] as usize);
-        s[1..].iter().fold((first, first), |(lo, hi), &v| {
-            let p = x.get(v as usize);
-            (lo.min(p), hi.max(p))
-        })
-    };
-    let ((lo_a, hi_a), (lo_b, hi_b)) = (bounds(&verts[..split]), bounds(&verts[split..]));
+    boxes_apart(bounds(x, &verts[..split]), bounds(x, &verts[split..]))
+}
+
+/// The tight box of `vertices` at `x`.
+#[inline]
+fn bounds(x: &Vec3s, vertices: &[u32]) -> (Vec3, Vec3) {
+    let first = x.get(vertices[0] as usize);
+    vertices[1..].iter().fold((first, first), |(lo, hi), &v| {
+        let p = x.get(v as usize);
+        (lo.min(p), hi.max(p))
+    })
+}
+
+/// The distance between the boxes `(lo_a, hi_a)` and `(lo_b, hi_b)` (m).
+#[inline]
+fn boxes_apart((lo_a, hi_a): (Vec3, Vec3), (lo_b, hi_b): (Vec3, Vec3)) -> f64 {
     // Per axis, the gap between the two intervals (zero where they overlap), exact in f64.
     let gap = (lo_b.as_dvec3() - hi_a.as_dvec3())
         .max(lo_a.as_dvec3() - hi_b.as_dvec3())
@@ -505,7 +626,7 @@ mod tests {
         let mut broad = Broad::default();
         let key = |p: &Pair| p.candidate().key();
         let (mut by_index, mut by_vertices) = (Vec::new(), Vec::new());
-        let limit = |_: &[u32; 4], _| 0.004;
+        let limit = (0.004, |_| 0.0, 0.0);
         broad.search(&topo, &boxes, &x, limit, 0.0, Order::Index, &mut by_index);
         broad.search(
             &topo,
