@@ -21,16 +21,23 @@ pub struct Broad {
     vert_tree: Bvh,
     tri_tree: Bvh,
     edge_tree: Bvh,
-    /// The pairs found with their closest points, each with what orders it.
-    vertex_triangles: Vec<(u64, Pair)>,
-    edge_edges: Vec<(u64, Pair)>,
+    /// The candidate pairs of a swept search, each under its key with the most it may be
+    /// apart to be found (m), and in key order: their closest points are taken after the walk,
+    /// in that order, or taken over from the search they were kept from.
+    candidate_vt: Vec<(u64, f64)>,
+    candidate_ee: Vec<(u64, f64)>,
+    sorted_candidates: Vec<(u64, f64)>,
+    /// The keys of the pairs a search kept ([`Reuse::Keep`]), the vertex-triangle pairs first
+    /// (`kept_split` of them), and where each vertex's and edge's pairs start among those of
+    /// its kind.
+    kept_keys: Vec<u64>,
+    kept_split: usize,
+    kept_starts: [Vec<u32>; 2],
     /// The pairs found for the pair list, each with what orders it and its distance (m): a
     /// sixth of a pair with its closest points, which a list rebuild finds by the hundred
     /// thousand.
     near_vertex_triangles: Vec<(u64, f64)>,
     near_edge_edges: Vec<(u64, f64)>,
-    /// What orders each found pair and where it is, in that order.
-    sorted: Vec<(u64, u32)>,
     /// The pair list's pairs found, each under its key with its distance, in that order: the
     /// first `near_split` vertex-triangle pairs, then the edge-edge pairs.
     sorted_near: Vec<(u64, f64)>,
@@ -54,6 +61,19 @@ pub struct Broad {
     vert_side: Vec<f64>,
     tri_side: Vec<f64>,
     edge_side: Vec<f64>,
+}
+
+/// Whether a swept search keeps its pairs' keys for a later one to take over their closest
+/// points, or takes them over from the one that kept them.
+#[derive(Clone, Copy)]
+pub enum Reuse<'a> {
+    Nothing,
+    Keep,
+    /// The pairs the search that kept its keys found, which must have been at the same
+    /// positions, bit for bit, with the same topology and [`Order::Index`]: a pair's closest
+    /// points are a function of its vertices' positions alone, so a pair found again is taken
+    /// over whole, bitwise what it would be taken anew.
+    From(&'a [Pair]),
 }
 
 /// How far apart a pair may be and still be found (m).
@@ -121,6 +141,7 @@ impl Broad {
         (base, reach, eps): (f64, impl Fn(u32) -> f64 + Sync, f64),
         margin: f64,
         order: Order,
+        reuse: Reuse<'_>,
         out: &mut Vec<Pair>,
     ) -> Looked {
         self.fit(topo, vertex_boxes);
@@ -148,16 +169,9 @@ impl Broad {
             edge: &self.edge_side,
             eps,
         };
-        let closest = |verts: [u32; 4], split: usize| {
-            let pair = match split {
-                1 => vertex_triangle(x, verts),
-                _ => edge_edge(x, verts),
-            };
-            (pair.d0, pair)
-        };
         let (mut vt, mut ee) = (
-            std::mem::take(&mut self.vertex_triangles),
-            std::mem::take(&mut self.edge_edges),
+            std::mem::take(&mut self.candidate_vt),
+            std::mem::take(&mut self.candidate_ee),
         );
         let tests = PairTests {
             topo,
@@ -167,20 +181,88 @@ impl Broad {
             order,
             tri_rank: &self.tri_rank,
             tight: Some((&self.tight_tris, &self.tight_edges)),
-            measure: closest,
+            measure: |_: [u32; 4], _: usize, most: f64| Some(most),
         };
         let looked = self.find(&tests, &mut vt, &mut ee);
-        // The keys are sorted with where each pair is, not with the pairs (six times larger).
         out.clear();
-        for (found, buckets) in [(&vt, topo.same.len()), (&ee, topo.edges.len())] {
-            let at = found.iter().enumerate().map(|(k, p)| (p.0, k as u32));
-            self.sorted.clear();
-            let (starts, cursor) = (&mut self.starts, &mut self.cursor);
-            in_key_order(at, buckets, starts, cursor, &mut self.sorted);
-            out.extend(self.sorted.iter().map(|&(_, k)| found[k as usize].1));
+        let keep = matches!(reuse, Reuse::Keep);
+        // The keys this search keeps; the kept ones stay where they are to be taken over.
+        let mut keys = Vec::new();
+        if keep {
+            keys = std::mem::take(&mut self.kept_keys);
+            keys.clear();
         }
-        (self.vertex_triangles, self.edge_edges) = (vt, ee);
+        let mut sorted = std::mem::take(&mut self.sorted_candidates);
+        for (split, found, buckets) in [(1, &vt, topo.same.len()), (2, &ee, topo.edges.len())] {
+            sorted.clear();
+            let (starts, cursor) = (&mut self.starts, &mut self.cursor);
+            in_key_order(found.iter().copied(), buckets, starts, cursor, &mut sorted);
+            let kept_before = keys.len();
+            let (by_rank, kept_split, kept) = (&self.by_rank, self.kept_split, &self.kept_keys);
+            let kept_starts = &self.kept_starts[split - 1];
+            let taken_over = |key: u64| -> Option<Pair> {
+                let Reuse::From(pairs) = reuse else {
+                    return None;
+                };
+                let first = (key >> 32) as usize;
+                let offset = if split == 1 { 0 } else { kept_split };
+                let range = offset + *kept_starts.get(first)? as usize
+                    ..offset + *kept_starts.get(first + 1)? as usize;
+                let k = kept[range.clone()].binary_search(&key).ok()?;
+                Some(pairs[range.start + k])
+            };
+            let found_pair = |&(key, most): &(u64, f64)| {
+                let pair = taken_over(key).unwrap_or_else(|| {
+                    let (first, second) = ((key >> 32) as usize, key as u32 as usize);
+                    if split == 1 {
+                        let t = match order {
+                            Order::Index => second,
+                            Order::Vertices => by_rank[second] as usize,
+                        };
+                        let [a, b, c] = topo.triangles[t];
+                        vertex_triangle(x, [first as u32, a, b, c])
+                    } else {
+                        let ([a, b], [c, d]) = (topo.edges[first], topo.edges[second]);
+                        edge_edge(x, [a, b, c, d])
+                    }
+                });
+                (pair.d0 < most).then_some((key, pair))
+            };
+            let pairs = sorted.par_iter().with_min_len(256).filter_map(found_pair);
+            if keep {
+                let mut both = (std::mem::take(&mut keys), std::mem::take(out));
+                both.par_extend(pairs);
+                (keys, *out) = both;
+                // Where each vertex's or edge's kept pairs start.
+                let starts = &mut self.kept_starts[split - 1];
+                starts.clear();
+                starts.resize(buckets + 1, 0);
+                for &key in &keys[kept_before..] {
+                    starts[(key >> 32) as usize + 1] += 1;
+                }
+                for b in 0..buckets {
+                    starts[b + 1] += starts[b];
+                }
+                if split == 1 {
+                    self.kept_split = keys.len();
+                }
+            } else {
+                out.par_extend(pairs.map(|(_, pair)| pair));
+            }
+        }
+        if keep {
+            self.kept_keys = keys;
+        }
+        self.sorted_candidates = sorted;
+        (self.candidate_vt, self.candidate_ee) = (vt, ee);
         looked
+    }
+
+    /// Forgets the keys a search kept: the pairs found so far are not to be taken over.
+    pub fn forget_kept(&mut self) {
+        self.kept_keys.clear();
+        self.kept_split = 0;
+        self.kept_starts.iter_mut().for_each(Vec::clear);
     }
 
     /// For the pair list: every pair whose boxes overlap and which is closer than `reach` at
@@ -204,9 +286,9 @@ impl Broad {
         if moved.is_none() {
             self.fit_tight(topo, x);
         }
-        let measure = |verts: [u32; 4], split: usize| {
+        let measure = |verts: [u32; 4], split: usize, most: f64| {
             let d = distance(x, verts, split);
-            (d, d)
+            (d < most).then_some(d)
         };
         let (mut vt, mut ee) = (
             std::mem::take(&mut self.near_vertex_triangles),
@@ -317,7 +399,7 @@ impl Broad {
     /// pair whose boxes overlap and which passes `tests`.
     fn find<R: Send>(
         &self,
-        tests: &PairTests<impl Fn([u32; 4], usize) -> (f64, R) + Sync>,
+        tests: &PairTests<impl Fn([u32; 4], usize, f64) -> Option<R> + Sync>,
         vt: &mut Vec<(u64, R)>,
         ee: &mut Vec<(u64, R)>,
     ) -> Looked {
@@ -341,7 +423,7 @@ impl Broad {
     /// caller sorts them by key.
     fn find_touching<R: Send>(
         &self,
-        tests: &PairTests<impl Fn([u32; 4], usize) -> (f64, R) + Sync>,
+        tests: &PairTests<impl Fn([u32; 4], usize, f64) -> Option<R> + Sync>,
         moved: &[bool],
         vt: &mut Vec<(u64, R)>,
         ee: &mut Vec<(u64, R)>,
@@ -392,10 +474,12 @@ impl Broad {
     pub fn heap_bytes(&self) -> usize {
         (self.tri_boxes.capacity() + self.edge_boxes.capacity()) * size_of::<Aabb>()
             + self.vert_boxes.capacity() * size_of::<Aabb>()
-            + (self.vertex_triangles.capacity() + self.edge_edges.capacity())
-                * size_of::<(u64, Pair)>()
+            + (self.candidate_vt.capacity() + self.candidate_ee.capacity()) * 16
+            + self.sorted_candidates.capacity() * 16
+            + self.kept_keys.capacity() * 8
+            + (self.kept_starts[0].capacity() + self.kept_starts[1].capacity()) * 4
             + (self.near_vertex_triangles.capacity() + self.near_edge_edges.capacity()) * 16
-            + (self.sorted.capacity() + self.sorted_near.capacity()) * 16
+            + self.sorted_near.capacity() * 16
             + (self.starts.capacity() + self.cursor.capacity()) * 4
             + (self.tri_rank.capacity() + self.by_rank.capacity()) * 4
             + self.vert_tree.heap_bytes()
@@ -426,7 +510,7 @@ struct PairTests<'a, M> {
 
 impl<M, R> PairTests<'_, M>
 where
-    M: Fn([u32; 4], usize) -> (f64, R) + Sync,
+    M: Fn([u32; 4], usize, f64) -> Option<R> + Sync,
 {
     /// The pair `verts` split at `split`, of primitives `first` and `second` (a vertex, by
     /// particle, and a triangle, or two edges), kept under `key` when close enough.
@@ -473,8 +557,7 @@ where
             None => apart(self.x, &verts, split),
         };
         if gap <= most + self.margin {
-            let (d, kept) = (self.measure)(verts, split);
-            if d < most {
+            if let Some(kept) = (self.measure)(verts, split, most) {
                 out.push((key, kept));
             }
         }
@@ -627,7 +710,8 @@ mod tests {
         let key = |p: &Pair| p.candidate().key();
         let (mut by_index, mut by_vertices) = (Vec::new(), Vec::new());
         let limit = (0.004, |_| 0.0, 0.0);
-        broad.search(&topo, &boxes, &x, limit, 0.0, Order::Index, &mut by_index);
+        let none = Reuse::Nothing;
+        broad.search(&topo, &boxes, &x, limit, 0.0, Order::Index, none, &mut by_index);
         broad.search(
             &topo,
             &boxes,
@@ -635,6 +719,7 @@ mod tests {
             limit,
             0.0,
             Order::Vertices,
+            none,
             &mut by_vertices,
         );
         assert!(by_vertices.len() > 20, "{}", by_vertices.len());
