@@ -746,4 +746,73 @@ mod tests {
             "no edge-edge pair to test"
         );
     }
+
+    /// The pass after an implicit solve searches from the step's start, where the search ahead
+    /// of the solve found its pairs with other boxes, and takes over the closest points of the
+    /// pairs both find. It must find the same pairs, in the same order, with the same closest
+    /// points to the bit, as a search that takes over nothing.
+    #[test]
+    fn a_search_taking_over_anothers_pairs_finds_what_it_finds_alone_to_the_bit() {
+        // Two crumpled layers of a 6 x 6 grid 1.5 mm apart.
+        let at = |k: usize| {
+            let (layer, i, j) = (k / 36, k % 6, (k / 6) % 6);
+            let wave = 0.0007 * ((i * 7 + j * 3 + layer) as f32).sin();
+            Vec3::new(0.01 * i as f32, 0.01 * j as f32, 0.0015 * layer as f32 + wave)
+        };
+        let x = Vec3s::from_fn(72, at);
+        let mut triangles = Vec::new();
+        for layer in [0, 36] {
+            for j in 0..5 {
+                for i in 0..5 {
+                    let v = layer + 6 * j + i;
+                    triangles.push([v, v + 1, v + 7]);
+                    triangles.push([v, v + 7, v + 6]);
+                }
+            }
+        }
+        let mut topo = Topology::default();
+        topo.rebuild(0, 72, triangles);
+        // Each vertex moves its own way, differently in the two searches.
+        let boxes = |turn: f32| -> Vec<Aabb> {
+            (0..72)
+                .map(|v| {
+                    let p = x.get(v);
+                    let q = p + 0.002 * Vec3::new((v as f32 + turn).sin(), turn.cos(), 0.3);
+                    Aabb {
+                        min: p.min(q) - Vec3::splat(0.001),
+                        max: p.max(q) + Vec3::splat(0.001),
+                    }
+                })
+                .collect()
+        };
+        let reach = |turn: f32| move |v: u32| 0.001 + 0.002 * (v as f64 + turn as f64).cos().abs();
+        let (ahead_boxes, pass_boxes) = (boxes(0.0), boxes(1.3));
+        let mut broad = Broad::default();
+        let (mut ahead, mut taken, mut alone) = (Vec::new(), Vec::new(), Vec::new());
+        let limit = (0.002, reach(0.0), 1e-9);
+        let keep = Reuse::Keep;
+        broad.search(&topo, &ahead_boxes, &x, limit, 1e-12, Order::Index, keep, &mut ahead);
+        let limit = (0.002, reach(1.3), 1e-9);
+        let from = Reuse::From(&ahead);
+        broad.search(&topo, &pass_boxes, &x, limit, 1e-12, Order::Index, from, &mut taken);
+        let mut fresh = Broad::default();
+        let none = Reuse::Nothing;
+        fresh.search(&topo, &pass_boxes, &x, limit, 1e-12, Order::Index, none, &mut alone);
+        let bits = |p: &Pair| {
+            let (c, n) = (p.c.map(f64::to_bits), p.n.to_array().map(f64::to_bits));
+            (p.verts, p.split, c, n, p.d0.to_bits())
+        };
+        assert_eq!(taken.len(), alone.len());
+        assert!(taken.iter().zip(&alone).all(|(p, q)| bits(p) == bits(q)));
+        // Both kinds of pair are taken over, and some pairs are new to the second search.
+        let before: Vec<_> = ahead.iter().map(|p| p.candidate().key()).collect();
+        let shared = |split: usize| {
+            alone
+                .iter()
+                .filter(|p| p.split == split && before.contains(&p.candidate().key()))
+                .count()
+        };
+        assert!(shared(1) > 5 && shared(2) > 5, "{} {}", shared(1), shared(2));
+        assert!(alone.len() > shared(1) + shared(2), "no pair new to the second search");
+    }
 }
