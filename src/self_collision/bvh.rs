@@ -273,7 +273,10 @@ impl Bvh {
         // buffer and a stack a node pair of the front cost more than the walk below many of
         // them. The runs come back in the front's order, so the output does not depend on
         // how the front was cut.
-        let run = front.len().div_ceil(4 * rayon::current_num_threads()).max(1);
+        let run = front
+            .len()
+            .div_ceil(4 * rayon::current_num_threads())
+            .max(1);
         let done: Vec<(Vec<T>, (u64, u64))> = front
             .par_chunks(run)
             .map(|ws| {

@@ -486,8 +486,7 @@ impl Broad {
             + self.tri_tree.heap_bytes()
             + self.edge_tree.heap_bytes()
             + (self.tight_tris.capacity() + self.tight_edges.capacity()) * size_of::<Aabb>()
-            + (self.vert_side.capacity() + self.tri_side.capacity() + self.edge_side.capacity())
-                * 8
+            + (self.vert_side.capacity() + self.tri_side.capacity() + self.edge_side.capacity()) * 8
     }
 }
 
@@ -711,7 +710,16 @@ mod tests {
         let (mut by_index, mut by_vertices) = (Vec::new(), Vec::new());
         let limit = (0.004, |_| 0.0, 0.0);
         let none = Reuse::Nothing;
-        broad.search(&topo, &boxes, &x, limit, 0.0, Order::Index, none, &mut by_index);
+        broad.search(
+            &topo,
+            &boxes,
+            &x,
+            limit,
+            0.0,
+            Order::Index,
+            none,
+            &mut by_index,
+        );
         broad.search(
             &topo,
             &boxes,
@@ -757,7 +765,11 @@ mod tests {
         let at = |k: usize| {
             let (layer, i, j) = (k / 36, k % 6, (k / 6) % 6);
             let wave = 0.0007 * ((i * 7 + j * 3 + layer) as f32).sin();
-            Vec3::new(0.01 * i as f32, 0.01 * j as f32, 0.0015 * layer as f32 + wave)
+            Vec3::new(
+                0.01 * i as f32,
+                0.01 * j as f32,
+                0.0015 * layer as f32 + wave,
+            )
         };
         let x = Vec3s::from_fn(72, at);
         let mut triangles = Vec::new();
@@ -791,13 +803,40 @@ mod tests {
         let (mut ahead, mut taken, mut alone) = (Vec::new(), Vec::new(), Vec::new());
         let limit = (0.002, reach(0.0), 1e-9);
         let keep = Reuse::Keep;
-        broad.search(&topo, &ahead_boxes, &x, limit, 1e-12, Order::Index, keep, &mut ahead);
+        broad.search(
+            &topo,
+            &ahead_boxes,
+            &x,
+            limit,
+            1e-12,
+            Order::Index,
+            keep,
+            &mut ahead,
+        );
         let limit = (0.002, reach(1.3), 1e-9);
         let from = Reuse::From(&ahead);
-        broad.search(&topo, &pass_boxes, &x, limit, 1e-12, Order::Index, from, &mut taken);
+        broad.search(
+            &topo,
+            &pass_boxes,
+            &x,
+            limit,
+            1e-12,
+            Order::Index,
+            from,
+            &mut taken,
+        );
         let mut fresh = Broad::default();
         let none = Reuse::Nothing;
-        fresh.search(&topo, &pass_boxes, &x, limit, 1e-12, Order::Index, none, &mut alone);
+        fresh.search(
+            &topo,
+            &pass_boxes,
+            &x,
+            limit,
+            1e-12,
+            Order::Index,
+            none,
+            &mut alone,
+        );
         let bits = |p: &Pair| {
             let (c, n) = (p.c.map(f64::to_bits), p.n.to_array().map(f64::to_bits));
             (p.verts, p.split, c, n, p.d0.to_bits())
@@ -812,7 +851,15 @@ mod tests {
                 .filter(|p| p.split == split && before.contains(&p.candidate().key()))
                 .count()
         };
-        assert!(shared(1) > 5 && shared(2) > 5, "{} {}", shared(1), shared(2));
-        assert!(alone.len() > shared(1) + shared(2), "no pair new to the second search");
+        assert!(
+            shared(1) > 5 && shared(2) > 5,
+            "{} {}",
+            shared(1),
+            shared(2)
+        );
+        assert!(
+            alone.len() > shared(1) + shared(2),
+            "no pair new to the second search"
+        );
     }
 }
