@@ -156,12 +156,7 @@ impl Broad {
             .for_each(|(v, r)| *r = 0.0f64.max(reach(v as u32)));
         let vb = &self.vert_side;
         let side = |vs: &[u32]| vs.iter().map(|&v| vb[v as usize]).fold(0.0, f64::max);
-        self.tri_side.clear();
-        self.tri_side
-            .par_extend(topo.triangles.par_iter().map(|t| side(t)));
-        self.edge_side.clear();
-        self.edge_side
-            .par_extend(topo.edges.par_iter().map(|e| side(e)));
+        per_primitive(topo, &mut self.tri_side, &mut self.edge_side, side);
         let limit = Limit::Sides {
             base,
             vert: vb,
@@ -349,12 +344,8 @@ impl Broad {
     /// topology.
     fn fit(&mut self, topo: &Topology, vertex_boxes: &[Aabb]) {
         let vb = vertex_boxes;
-        self.tri_boxes.clear();
-        self.tri_boxes
-            .par_extend(topo.triangles.par_iter().map(|t| union(vb, t)));
-        self.edge_boxes.clear();
-        self.edge_boxes
-            .par_extend(topo.edges.par_iter().map(|e| union(vb, e)));
+        let boxes = |vs: &[u32]| union(vb, vs);
+        per_primitive(topo, &mut self.tri_boxes, &mut self.edge_boxes, boxes);
         self.vert_boxes.clear();
         self.vert_boxes
             .extend(topo.vertices.iter().map(|&v| vb[v as usize]));
@@ -387,12 +378,7 @@ impl Broad {
             let (lo, hi) = bounds(x, vs);
             Aabb { min: lo, max: hi }
         };
-        self.tight_tris.clear();
-        self.tight_tris
-            .par_extend(topo.triangles.par_iter().map(|t| tight(t)));
-        self.tight_edges.clear();
-        self.tight_edges
-            .par_extend(topo.edges.par_iter().map(|e| tight(e)));
+        per_primitive(topo, &mut self.tight_tris, &mut self.tight_edges, tight);
     }
 
     /// Into `vt` and `ee`, in an order fixed by the trees: every vertex-triangle and edge-edge
@@ -661,6 +647,19 @@ fn boxes_apart((lo_a, hi_a): (Vec3, Vec3), (lo_b, hi_b): (Vec3, Vec3)) -> f64 {
     gap.length()
 }
 
+/// Into `tris` and `edges`, in order: `per` of each triangle's and each edge's vertices.
+fn per_primitive<T: Send>(
+    topo: &Topology,
+    tris: &mut Vec<T>,
+    edges: &mut Vec<T>,
+    per: impl Fn(&[u32]) -> T + Sync,
+) {
+    tris.clear();
+    tris.par_extend(topo.triangles.par_iter().map(|t| per(t)));
+    edges.clear();
+    edges.par_extend(topo.edges.par_iter().map(|e| per(e)));
+}
+
 /// The union of `vertices`' boxes.
 fn union(vertex_boxes: &[Aabb], vertices: &[u32]) -> Aabb {
     let (mut min, mut max) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
@@ -709,27 +708,12 @@ mod tests {
         let key = |p: &Pair| p.candidate().key();
         let (mut by_index, mut by_vertices) = (Vec::new(), Vec::new());
         let limit = (0.004, |_| 0.0, 0.0);
-        let none = Reuse::Nothing;
-        broad.search(
-            &topo,
-            &boxes,
-            &x,
-            limit,
-            0.0,
-            Order::Index,
-            none,
-            &mut by_index,
-        );
-        broad.search(
-            &topo,
-            &boxes,
-            &x,
-            limit,
-            0.0,
-            Order::Vertices,
-            none,
-            &mut by_vertices,
-        );
+        for (order, out) in [
+            (Order::Index, &mut by_index),
+            (Order::Vertices, &mut by_vertices),
+        ] {
+            broad.search(&topo, &boxes, &x, limit, 0.0, order, Reuse::Nothing, out);
+        }
         assert!(by_vertices.len() > 20, "{}", by_vertices.len());
         assert!(by_vertices.windows(2).all(|w| key(&w[0]) < key(&w[1])));
         assert!(by_index.windows(2).any(|w| key(&w[0]) > key(&w[1])));
@@ -799,44 +783,21 @@ mod tests {
         };
         let reach = |turn: f32| move |v: u32| 0.001 + 0.002 * (v as f64 + turn as f64).cos().abs();
         let (ahead_boxes, pass_boxes) = (boxes(0.0), boxes(1.3));
-        let mut broad = Broad::default();
+        let (mut broad, mut fresh) = (Broad::default(), Broad::default());
         let (mut ahead, mut taken, mut alone) = (Vec::new(), Vec::new(), Vec::new());
-        let limit = (0.002, reach(0.0), 1e-9);
-        let keep = Reuse::Keep;
-        broad.search(
-            &topo,
-            &ahead_boxes,
-            &x,
-            limit,
-            1e-12,
-            Order::Index,
-            keep,
-            &mut ahead,
-        );
-        let limit = (0.002, reach(1.3), 1e-9);
-        let from = Reuse::From(&ahead);
-        broad.search(
-            &topo,
+        let search = |broad: &mut Broad, boxes: &[Aabb], turn, reuse, out: &mut Vec<Pair>| {
+            let limit = (0.002, reach(turn), 1e-9);
+            broad.search(&topo, boxes, &x, limit, 1e-12, Order::Index, reuse, out);
+        };
+        search(&mut broad, &ahead_boxes, 0.0, Reuse::Keep, &mut ahead);
+        search(
+            &mut broad,
             &pass_boxes,
-            &x,
-            limit,
-            1e-12,
-            Order::Index,
-            from,
+            1.3,
+            Reuse::From(&ahead),
             &mut taken,
         );
-        let mut fresh = Broad::default();
-        let none = Reuse::Nothing;
-        fresh.search(
-            &topo,
-            &pass_boxes,
-            &x,
-            limit,
-            1e-12,
-            Order::Index,
-            none,
-            &mut alone,
-        );
+        search(&mut fresh, &pass_boxes, 1.3, Reuse::Nothing, &mut alone);
         let bits = |p: &Pair| {
             let (c, n) = (p.c.map(f64::to_bits), p.n.to_array().map(f64::to_bits));
             (p.verts, p.split, c, n, p.d0.to_bits())
