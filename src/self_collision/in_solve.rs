@@ -54,8 +54,8 @@ impl SelfCollision {
         let mut pairs = std::mem::take(&mut self.ahead_pairs);
         self.swept_search(x0, eps, Reuse::Keep, &mut pairs);
         self.ahead_pairs = pairs;
-        // The pass after the solve searches from the same start and takes these pairs' closest
-        // points over.
+        // The pass after the solve searches from the same start and takes over the closest
+        // points this search took.
         if self.ahead_from.len() == n {
             self.ahead_from.copy_from(x0);
         } else {

@@ -200,8 +200,8 @@ pub struct SelfCollision {
     /// vertex.
     ahead_pairs: Vec<Pair>,
     ahead: Vec3s,
-    /// Where the pairs ahead were found, while the search keeps their keys (`ahead_kept`): a
-    /// swept search from there, bit for bit, takes over their closest points.
+    /// Where the pairs ahead were found, while the search keeps its candidates (`ahead_kept`):
+    /// a swept search from there, bit for bit, takes over their closest points.
     ahead_from: Vec3s,
     ahead_kept: bool,
     topology: Topology,
@@ -515,29 +515,21 @@ impl SelfCollision {
     fn swept_pairs(&mut self, x0: &Vec3s, eps: f64) {
         self.cold = None;
         let mut pairs = std::mem::take(&mut self.pairs);
-        let ahead = std::mem::take(&mut self.ahead_pairs);
-        // The step's own start: the pairs ahead of its solve were found there, with the same
-        // closest points.
+        // The step's own start: the search ahead of its solve looked at the pairs there, with
+        // the same closest points.
         let same_start = self.ahead_kept && same_bits(&self.ahead_from, x0);
         let reuse = match same_start {
-            true => Reuse::From(&ahead),
+            true => Reuse::Take,
             false => Reuse::Nothing,
         };
         let looked = self.swept_search(x0, eps, reuse, &mut pairs);
-        self.ahead_pairs = ahead;
         self.pairs = pairs;
         self.count(looked);
     }
 
     /// The swept search of [`SelfCollision::swept_pairs`] into `out`, on the boxes and path
     /// ends of the last [`SelfCollision::sweep_boxes`].
-    fn swept_search(
-        &mut self,
-        x0: &Vec3s,
-        eps: f64,
-        reuse: Reuse<'_>,
-        out: &mut Vec<Pair>,
-    ) -> Looked {
+    fn swept_search(&mut self, x0: &Vec3s, eps: f64, reuse: Reuse, out: &mut Vec<Pair>) -> Looked {
         let (boxes, thickness) = (&self.vertex_boxes, self.thickness as f64);
         let (ends, radius) = (&self.path_ends, self.path_radius as f64);
         let reach = |v: u32| {

@@ -27,10 +27,12 @@ pub struct Broad {
     candidate_vt: Vec<(u64, f64)>,
     candidate_ee: Vec<(u64, f64)>,
     sorted_candidates: Vec<(u64, f64)>,
-    /// The keys of the pairs a search kept ([`Reuse::Keep`]), the vertex-triangle pairs first
-    /// (`kept_split` of them), and where each vertex's and edge's pairs start among those of
-    /// its kind.
+    /// The candidates a search kept ([`Reuse::Keep`]) with their closest points, under their
+    /// keys in `kept_for`'s order, the vertex-triangle pairs first (`kept_split` of them), and
+    /// where each vertex's and edge's start among those of its kind.
+    kept_for: Option<Order>,
     kept_keys: Vec<u64>,
+    kept_pairs: Vec<Pair>,
     kept_split: usize,
     kept_starts: [Vec<u32>; 2],
     /// The pairs found for the pair list, each with what orders it and its distance (m): a
@@ -63,17 +65,17 @@ pub struct Broad {
     edge_side: Vec<f64>,
 }
 
-/// Whether a swept search keeps its pairs' keys for a later one to take over their closest
-/// points, or takes them over from the one that kept them.
-#[derive(Clone, Copy)]
-pub enum Reuse<'a> {
+/// Whether a swept search keeps the closest points of its candidates for a later one to take
+/// over, or takes them over from the last one that kept them.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub enum Reuse {
     Nothing,
     Keep,
-    /// The pairs the search that kept its keys found, which must have been at the same
-    /// positions, bit for bit, with the same topology and [`Order::Index`]: a pair's closest
-    /// points are a function of its vertices' positions alone, so a pair found again is taken
-    /// over whole, bitwise what it would be taken anew.
-    From(&'a [Pair]),
+    /// The caller vouches that the search that kept them was at the same positions, bit for
+    /// bit, with the same topology: a pair's closest points are a function of its vertices'
+    /// positions alone, so a candidate found again is taken over whole, bitwise what it would
+    /// be taken anew.
+    Take,
 }
 
 /// How far apart a pair may be and still be found (m).
@@ -141,7 +143,7 @@ impl Broad {
         (base, reach, eps): (f64, impl Fn(u32) -> f64 + Sync, f64),
         margin: f64,
         order: Order,
-        reuse: Reuse<'_>,
+        reuse: Reuse,
         out: &mut Vec<Pair>,
     ) -> Looked {
         self.fit(topo, vertex_boxes);
@@ -181,33 +183,36 @@ impl Broad {
         let looked = self.find(&tests, &mut vt, &mut ee);
         out.clear();
         let keep = matches!(reuse, Reuse::Keep);
-        // The keys this search keeps; the kept ones stay where they are to be taken over.
-        let mut keys = Vec::new();
+        let take = matches!(reuse, Reuse::Take) && self.kept_for == Some(order);
+        // What this search keeps; what was kept stays where it is to be taken over.
+        let mut keeping = Vec::new();
         if keep {
-            keys = std::mem::take(&mut self.kept_keys);
-            keys.clear();
+            self.kept_keys.clear();
+            keeping = std::mem::take(&mut self.kept_pairs);
+            keeping.clear();
+            self.kept_for = Some(order);
         }
         let mut sorted = std::mem::take(&mut self.sorted_candidates);
         for (split, found, buckets) in [(1, &vt, topo.same.len()), (2, &ee, topo.edges.len())] {
             sorted.clear();
             let (starts, cursor) = (&mut self.starts, &mut self.cursor);
             in_key_order(found.iter().copied(), buckets, starts, cursor, &mut sorted);
-            let kept_before = keys.len();
-            let (by_rank, kept_split, kept) = (&self.by_rank, self.kept_split, &self.kept_keys);
-            let kept_starts = &self.kept_starts[split - 1];
+            let by_rank = &self.by_rank;
+            let (kept, kept_pairs) = (&self.kept_keys, &self.kept_pairs);
+            let (kept_split, kept_starts) = (self.kept_split, &self.kept_starts[split - 1]);
             let taken_over = |key: u64| -> Option<Pair> {
-                let Reuse::From(pairs) = reuse else {
+                if !take {
                     return None;
-                };
+                }
                 let first = (key >> 32) as usize;
                 let offset = if split == 1 { 0 } else { kept_split };
                 let range = offset + *kept_starts.get(first)? as usize
                     ..offset + *kept_starts.get(first + 1)? as usize;
                 let k = kept[range.clone()].binary_search(&key).ok()?;
-                Some(pairs[range.start + k])
+                Some(kept_pairs[range.start + k])
             };
-            let found_pair = |&(key, most): &(u64, f64)| {
-                let pair = taken_over(key).unwrap_or_else(|| {
+            let closest = |&(key, _): &(u64, f64)| {
+                taken_over(key).unwrap_or_else(|| {
                     let (first, second) = ((key >> 32) as usize, key as u32 as usize);
                     if split == 1 {
                         let t = match order {
@@ -220,42 +225,48 @@ impl Broad {
                         let ([a, b], [c, d]) = (topo.edges[first], topo.edges[second]);
                         edge_edge(x, [a, b, c, d])
                     }
-                });
-                (pair.d0 < most).then_some((key, pair))
+                })
             };
-            let pairs = sorted.par_iter().with_min_len(256).filter_map(found_pair);
             if keep {
-                let mut both = (std::mem::take(&mut keys), std::mem::take(out));
-                both.par_extend(pairs);
-                (keys, *out) = both;
+                // Every candidate's closest points are kept, the pairs found and the ones too
+                // far apart alike: a later search with other boxes and limits finds many of
+                // the latter.
+                let before = keeping.len();
+                keeping.par_extend(sorted.par_iter().with_min_len(256).map(closest));
+                self.kept_keys.extend(sorted.iter().map(|&(key, _)| key));
+                let near = keeping[before..].iter().zip(&sorted);
+                out.extend(near.filter(|(p, c)| p.d0 < c.1).map(|(p, _)| *p));
                 // Where each vertex's or edge's kept pairs start.
                 let starts = &mut self.kept_starts[split - 1];
                 starts.clear();
                 starts.resize(buckets + 1, 0);
-                for &key in &keys[kept_before..] {
+                for &(key, _) in sorted.iter() {
                     starts[(key >> 32) as usize + 1] += 1;
                 }
                 for b in 0..buckets {
                     starts[b + 1] += starts[b];
                 }
                 if split == 1 {
-                    self.kept_split = keys.len();
+                    self.kept_split = self.kept_keys.len();
                 }
             } else {
-                out.par_extend(pairs.map(|(_, pair)| pair));
+                let near = |c: &(u64, f64)| Some(closest(c)).filter(|p| p.d0 < c.1);
+                out.par_extend(sorted.par_iter().with_min_len(256).filter_map(near));
             }
         }
         if keep {
-            self.kept_keys = keys;
+            self.kept_pairs = keeping;
         }
         self.sorted_candidates = sorted;
         (self.candidate_vt, self.candidate_ee) = (vt, ee);
         looked
     }
 
-    /// Forgets the keys a search kept: the pairs found so far are not to be taken over.
+    /// Forgets the candidates a search kept: they are not to be taken over.
     pub fn forget_kept(&mut self) {
+        self.kept_for = None;
         self.kept_keys.clear();
+        self.kept_pairs.clear();
         self.kept_split = 0;
         self.kept_starts.iter_mut().for_each(Vec::clear);
     }
@@ -463,6 +474,7 @@ impl Broad {
             + (self.candidate_vt.capacity() + self.candidate_ee.capacity()) * 16
             + self.sorted_candidates.capacity() * 16
             + self.kept_keys.capacity() * 8
+            + self.kept_pairs.capacity() * size_of::<Pair>()
             + (self.kept_starts[0].capacity() + self.kept_starts[1].capacity()) * 4
             + (self.near_vertex_triangles.capacity() + self.near_edge_edges.capacity()) * 16
             + self.sorted_near.capacity() * 16
@@ -740,9 +752,9 @@ mod tests {
     }
 
     /// The pass after an implicit solve searches from the step's start, where the search ahead
-    /// of the solve found its pairs with other boxes, and takes over the closest points of the
-    /// pairs both find. It must find the same pairs, in the same order, with the same closest
-    /// points to the bit, as a search that takes over nothing.
+    /// of the solve looked at its candidates with other boxes, and takes over the closest
+    /// points of the candidates both look at. It must find the same pairs, in the same order,
+    /// with the same closest points to the bit, as a search that takes over nothing.
     #[test]
     fn a_search_taking_over_anothers_pairs_finds_what_it_finds_alone_to_the_bit() {
         // Two crumpled layers of a 6 x 6 grid 1.5 mm apart.
@@ -790,13 +802,7 @@ mod tests {
             broad.search(&topo, boxes, &x, limit, 1e-12, Order::Index, reuse, out);
         };
         search(&mut broad, &ahead_boxes, 0.0, Reuse::Keep, &mut ahead);
-        search(
-            &mut broad,
-            &pass_boxes,
-            1.3,
-            Reuse::From(&ahead),
-            &mut taken,
-        );
+        search(&mut broad, &pass_boxes, 1.3, Reuse::Take, &mut taken);
         search(&mut fresh, &pass_boxes, 1.3, Reuse::Nothing, &mut alone);
         let bits = |p: &Pair| {
             let (c, n) = (p.c.map(f64::to_bits), p.n.to_array().map(f64::to_bits));
