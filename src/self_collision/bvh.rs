@@ -266,13 +266,25 @@ impl Bvh {
             b: 0,
             same: other.is_none(),
         };
-        let mut front = Vec::new();
-        let mut counts = self.walk(b, root, Some(FRONT_DEPTH), &mut front, &emit, out);
+        let (mut front, mut stack) = (Vec::new(), Vec::new());
+        let limit = Some(FRONT_DEPTH);
+        let mut counts = self.walk(b, root, limit, &mut front, &emit, out, &mut stack);
+        // A few runs of the front a thread, each walked into one buffer with one stack: a
+        // buffer and a stack a node pair of the front cost more than the walk below many of
+        // them. The runs come back in the front's order, so the output does not depend on
+        // how the front was cut.
+        let run = front
+            .len()
+            .div_ceil(4 * rayon::current_num_threads())
+            .max(1);
         let done: Vec<(Vec<T>, (u64, u64))> = front
-            .par_iter()
-            .map(|&w| {
-                let mut found = Vec::new();
-                let counts = self.walk(b, w, None, &mut Vec::new(), &emit, &mut found);
+            .par_chunks(run)
+            .map(|ws| {
+                let (mut found, mut stack, mut counts) = (Vec::new(), Vec::new(), (0, 0));
+                for &w in ws {
+                    let c = self.walk(b, w, None, &mut Vec::new(), &emit, &mut found, &mut stack);
+                    counts = (counts.0 + c.0, counts.1 + c.1);
+                }
                 (found, counts)
             })
             .collect();
@@ -319,8 +331,10 @@ impl Bvh {
         tested
     }
 
-    /// Walks the node pairs below `root` (of `self` and `b`), depth first; node pairs at
-    /// `limit` levels below it go to `front` instead of being opened.
+    /// Walks the node pairs below `root` (of `self` and `b`), depth first, on `stack` (left
+    /// empty); node pairs at `limit` levels below it go to `front` instead of being opened.
+    // Each argument is a separate input of the walk.
+    #[allow(clippy::too_many_arguments)]
     fn walk<T>(
         &self,
         b: &Bvh,
@@ -329,8 +343,10 @@ impl Bvh {
         front: &mut Vec<Walk>,
         emit: &impl Fn(u32, u32, &mut Vec<T>) -> bool,
         out: &mut Vec<T>,
+        stack: &mut Vec<(Walk, usize)>,
     ) -> (u64, u64) {
-        let mut stack = vec![(root, 0usize)];
+        stack.clear();
+        stack.push((root, 0usize));
         let (mut tested, mut looked) = (0u64, 0u64);
         while let Some((w, depth)) = stack.pop() {
             let (na, nb) = (&self.nodes[w.a as usize], &b.nodes[w.b as usize]);

@@ -6,6 +6,7 @@
 use rayon::prelude::*;
 
 use super::pair::Pair;
+use super::search::Reuse;
 use super::{SelfCollision, Survey};
 use crate::model::Model;
 use crate::soa::Vec3s;
@@ -41,6 +42,7 @@ impl SelfCollision {
             });
         // The round-off margin of `apply`, from the largest coordinate at either end; with a
         // non-finite position the step fails anyway, and nothing is held.
+        self.ahead_kept = false;
         let Some(survey) = Survey::of(&self.topology.vertices, x0, &self.ahead, None) else {
             self.ahead_pairs.clear();
             return &self.ahead_pairs;
@@ -50,8 +52,16 @@ impl SelfCollision {
         self.sweep_boxes(x0, &ahead, eps as f32);
         self.ahead = ahead;
         let mut pairs = std::mem::take(&mut self.ahead_pairs);
-        self.swept_search(x0, eps, &mut pairs);
+        self.swept_search(x0, eps, Reuse::Keep, &mut pairs);
         self.ahead_pairs = pairs;
+        // The pass after the solve searches from the same start and takes over the closest
+        // points this search took.
+        if self.ahead_from.len() == n {
+            self.ahead_from.copy_from(x0);
+        } else {
+            self.ahead_from = x0.clone();
+        }
+        self.ahead_kept = true;
         &self.ahead_pairs
     }
 }

@@ -65,7 +65,7 @@ use crate::soa::Vec3s;
 use crate::state::Kinematics;
 use bvh::Aabb;
 use list::{PairList, Spread};
-use search::{Broad, Looked, Order};
+use search::{Broad, Looked, Order, Reuse};
 use std::time::Instant;
 use topology::Topology;
 
@@ -200,6 +200,10 @@ pub struct SelfCollision {
     /// vertex.
     ahead_pairs: Vec<Pair>,
     ahead: Vec3s,
+    /// Where the pairs ahead were found, while the search keeps its candidates (`ahead_kept`):
+    /// a swept search from there, bit for bit, takes over their closest points.
+    ahead_from: Vec3s,
+    ahead_kept: bool,
     topology: Topology,
     /// Each vertex's grown swept box this substep.
     vertex_boxes: Vec<Aabb>,
@@ -252,6 +256,8 @@ impl SelfCollision {
             solve_stiffness: 0.0,
             ahead_pairs: Vec::new(),
             ahead: Vec3s::zeros(0),
+            ahead_from: Vec3s::zeros(0),
+            ahead_kept: false,
             topology: Topology::default(),
             vertex_boxes: Vec::new(),
             path_ends: Vec::new(),
@@ -368,6 +374,8 @@ impl SelfCollision {
                 .rebuild(model.topology_version, model.grid.len(), triangles);
             self.topology.sew(model.sewn());
             self.list.clear();
+            self.broad.forget_kept();
+            self.ahead_kept = false;
             self.marked = vec![false; model.grid.len()];
         }
     }
@@ -507,32 +515,37 @@ impl SelfCollision {
     fn swept_pairs(&mut self, x0: &Vec3s, eps: f64) {
         self.cold = None;
         let mut pairs = std::mem::take(&mut self.pairs);
-        let looked = self.swept_search(x0, eps, &mut pairs);
+        // The step's own start: the search ahead of its solve looked at the pairs there, with
+        // the same closest points.
+        let same_start = self.ahead_kept && same_bits(&self.ahead_from, x0);
+        let reuse = match same_start {
+            true => Reuse::Take,
+            false => Reuse::Nothing,
+        };
+        let looked = self.swept_search(x0, eps, reuse, &mut pairs);
         self.pairs = pairs;
         self.count(looked);
     }
 
     /// The swept search of [`SelfCollision::swept_pairs`] into `out`, on the boxes and path
     /// ends of the last [`SelfCollision::sweep_boxes`].
-    fn swept_search(&mut self, x0: &Vec3s, eps: f64, out: &mut Vec<Pair>) -> Looked {
+    fn swept_search(&mut self, x0: &Vec3s, eps: f64, reuse: Reuse, out: &mut Vec<Pair>) -> Looked {
         let (boxes, thickness) = (&self.vertex_boxes, self.thickness as f64);
         let (ends, radius) = (&self.path_ends, self.path_radius as f64);
         let reach = |v: u32| {
             let v = v as usize;
             (ends[v] - x0.get(v)).as_dvec3().length() + radius
         };
-        let limit = |verts: &[u32; 4], split: usize| {
-            let (a, b) = verts.split_at(split);
-            let side = |s: &[u32]| s.iter().map(|&v| reach(v)).fold(0.0, f64::max);
-            thickness + side(a) + side(b) + eps
-        };
+        // A pair is found closer than `thickness + side(a) + side(b) + eps`, a side's the most
+        // any of its vertices may move.
         self.broad.search(
             &self.topology,
             boxes,
             x0,
-            limit,
+            (thickness, reach, eps),
             1e-3 * eps,
             Order::Index,
+            reuse,
             out,
         )
     }
@@ -671,6 +684,7 @@ impl SelfCollision {
             + self.list.heap_bytes()
             + (self.pairs.capacity() + self.ahead_pairs.capacity()) * size_of::<Pair>()
             + self.ahead.heap_bytes()
+            + self.ahead_from.heap_bytes()
             + (self.moving.capacity() + self.pushed.capacity()) * 8
             + self.saved.capacity() * size_of::<(u32, Vec3, Vec3)>()
             + self.marked.capacity()
@@ -678,6 +692,14 @@ impl SelfCollision {
             + (self.scale.capacity() + self.scale_next.capacity()) * 8
             + self.rescaled.capacity()
     }
+}
+
+/// Whether `a` and `b` hold the same positions, bit for bit.
+fn same_bits(a: &Vec3s, b: &Vec3s) -> bool {
+    let same = |p: &[f32], q: &[f32]| {
+        p.len() == q.len() && p.iter().zip(q).all(|(u, v)| u.to_bits() == v.to_bits())
+    };
+    same(&a.x, &b.x) && same(&a.y, &b.y) && same(&a.z, &b.z)
 }
 
 /// Each vertex's box for a search for the pair list at `x` that reaches `reach` (m): a pair
