@@ -635,6 +635,42 @@ mod tests {
         assert_eq!(Bvh::default().overlapping(&boxes[0], |_| panic!()), 0);
     }
 
+    /// The wide tree's edge cases (a single leaf for a root, wide nodes of two to four
+    /// children, leaves against wide nodes) find the brute-force pairs at every small size.
+    #[test]
+    fn every_overlapping_pair_is_found_in_trees_of_every_small_size() {
+        let emit = |i: u32, j: u32, out: &mut Vec<(u32, u32)>| {
+            out.push((i.min(j), i.max(j)));
+            true
+        };
+        for n in 1..40 {
+            let a = scattered(n, 0.3);
+            let (mut tree, mut other) = (Bvh::default(), Bvh::default());
+            tree.build(&a);
+            let mut found = Vec::new();
+            tree.overlapping_pairs(None, emit, &mut found);
+            found.sort_unstable();
+            let brute: Vec<(u32, u32)> = (0..n as u32)
+                .flat_map(|i| (i + 1..n as u32).map(move |j| (i, j)))
+                .filter(|&(i, j)| a[i as usize].overlaps(&a[j as usize]))
+                .collect();
+            assert_eq!(found, brute, "{n} items against themselves");
+            let b = scattered(41 - n, 1.1);
+            other.build(&b);
+            let across = |i: u32, j: u32, out: &mut Vec<(u32, u32)>| {
+                out.push((i, j));
+                true
+            };
+            tree.overlapping_pairs(Some(&other), across, &mut found);
+            found.sort_unstable();
+            let brute: Vec<(u32, u32)> = (0..n as u32)
+                .flat_map(|i| (0..b.len() as u32).map(move |j| (i, j)))
+                .filter(|&(i, j)| a[i as usize].overlaps(&b[j as usize]))
+                .collect();
+            assert_eq!(found, brute, "{n} items against {}", b.len());
+        }
+    }
+
     #[test]
     fn an_empty_tree_finds_nothing() {
         let mut tree = Bvh::default();
