@@ -146,6 +146,21 @@ impl Quad {
     }
 }
 
+impl Wide {
+    /// The children whose boxes overlap `b`, in lane order.
+    #[inline]
+    fn overlapping(&self, b: &Lanes) -> impl Iterator<Item = u32> + '_ {
+        let mut hits = self.boxes.overlapping(b);
+        std::iter::from_fn(move || {
+            (hits != 0).then(|| {
+                let j = hits.trailing_zeros() as usize;
+                hits &= hits - 1;
+                self.child[j]
+            })
+        })
+    }
+}
+
 /// The tree. Nodes are in depth-first order, each parent before its children, so a refit
 /// walks them backwards.
 #[derive(Default)]
@@ -493,32 +508,30 @@ impl Bvh {
                     let box_a = &self.nodes[(w.a & !LEAF_BIT) as usize].bounds;
                     let node = &b.wide[w.b as usize];
                     tested += node.count as u64;
-                    let mut hits = node.boxes.overlapping(box_a);
-                    while hits != 0 {
-                        let j = hits.trailing_zeros() as usize;
-                        hits &= hits - 1;
-                        let walk = Walk {
-                            a: w.a,
-                            b: node.child[j],
-                            same: false,
-                        };
-                        stack.push((walk, next));
+                    for c in node.overlapping(box_a) {
+                        stack.push((
+                            Walk {
+                                a: w.a,
+                                b: c,
+                                same: false,
+                            },
+                            next,
+                        ));
                     }
                 }
                 (false, true) => {
                     let box_b = &b.nodes[(w.b & !LEAF_BIT) as usize].bounds;
                     let node = &self.wide[w.a as usize];
                     tested += node.count as u64;
-                    let mut hits = node.boxes.overlapping(box_b);
-                    while hits != 0 {
-                        let i = hits.trailing_zeros() as usize;
-                        hits &= hits - 1;
-                        let walk = Walk {
-                            a: node.child[i],
-                            b: w.b,
-                            same: false,
-                        };
-                        stack.push((walk, next));
+                    for c in node.overlapping(box_b) {
+                        stack.push((
+                            Walk {
+                                a: c,
+                                b: w.b,
+                                same: false,
+                            },
+                            next,
+                        ));
                     }
                 }
                 (false, false) => {
@@ -526,16 +539,16 @@ impl Bvh {
                     for i in 0..na.count as usize {
                         let box_i = &self.nodes[na.binary[i] as usize].bounds;
                         tested += nb.count as u64;
-                        let mut hits = nb.boxes.overlapping(box_i);
-                        while hits != 0 {
-                            let j = hits.trailing_zeros() as usize;
-                            hits &= hits - 1;
-                            let walk = Walk {
-                                a: na.child[i],
-                                b: nb.child[j],
-                                same: false,
-                            };
-                            stack.push((walk, next));
+                        for c in nb.overlapping(box_i) {
+                            let a = na.child[i];
+                            stack.push((
+                                Walk {
+                                    a,
+                                    b: c,
+                                    same: false,
+                                },
+                                next,
+                            ));
                         }
                     }
                 }
