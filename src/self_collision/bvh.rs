@@ -93,6 +93,13 @@ struct Walk {
     same: bool,
 }
 
+impl Walk {
+    /// Child `a` of the first tree against child `b` of the second.
+    fn across(a: u32, b: u32) -> Walk {
+        Walk { a, b, same: false }
+    }
+}
+
 /// A node of the wide tree: the binary tree with every other level collapsed, so its up to
 /// four children are the binary node's children, or their children where those are inner.
 /// Their boxes lane by lane, so one box is tested against all four in one compare.
@@ -471,7 +478,7 @@ impl Bvh {
                         }
                         for &j in pairs[..found].iter().rev() {
                             let (a, b) = (node.child[i], node.child[j as usize]);
-                            stack.push((Walk { a, b, same: false }, next));
+                            stack.push((Walk::across(a, b), next));
                         }
                         let a = node.child[i];
                         stack.push((
@@ -509,14 +516,7 @@ impl Bvh {
                     let node = &b.wide[w.b as usize];
                     tested += node.count as u64;
                     for c in node.overlapping(box_a) {
-                        stack.push((
-                            Walk {
-                                a: w.a,
-                                b: c,
-                                same: false,
-                            },
-                            next,
-                        ));
+                        stack.push((Walk::across(w.a, c), next));
                     }
                 }
                 (false, true) => {
@@ -524,14 +524,7 @@ impl Bvh {
                     let node = &self.wide[w.a as usize];
                     tested += node.count as u64;
                     for c in node.overlapping(box_b) {
-                        stack.push((
-                            Walk {
-                                a: c,
-                                b: w.b,
-                                same: false,
-                            },
-                            next,
-                        ));
+                        stack.push((Walk::across(c, w.b), next));
                     }
                 }
                 (false, false) => {
@@ -540,15 +533,7 @@ impl Bvh {
                         let box_i = &self.nodes[na.binary[i] as usize].bounds;
                         tested += nb.count as u64;
                         for c in nb.overlapping(box_i) {
-                            let a = na.child[i];
-                            stack.push((
-                                Walk {
-                                    a,
-                                    b: c,
-                                    same: false,
-                                },
-                                next,
-                            ));
+                            stack.push((Walk::across(na.child[i], c), next));
                         }
                     }
                 }
