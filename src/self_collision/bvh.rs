@@ -66,11 +66,6 @@ impl Lanes {
         (self.min.cmple(other.max) & other.min.cmple(self.max)).all()
     }
 
-    /// The sum of the sides (m): which of two nodes to open first.
-    fn extent(&self) -> f32 {
-        (self.max - self.min).element_sum()
-    }
-
     #[inline]
     fn union(&self, other: &Lanes) -> Lanes {
         Lanes {
@@ -80,17 +75,43 @@ impl Lanes {
     }
 }
 
-/// Levels of the simultaneous walk done on one thread before its front is shared out: up to
-/// `3^6` node pairs, enough to keep every thread busy.
-const FRONT_DEPTH: usize = 6;
+/// Levels of the wide walk done on one thread before its front is shared out: a wide node pair
+/// opens into up to 16 child pairs, so three levels give enough node pairs to keep every
+/// thread busy.
+const FRONT_DEPTH: usize = 3;
 
-/// A pair of nodes in the simultaneous walk: node `a` of the first tree and `b` of the second,
-/// or (`same`) node `a` against itself.
+/// A child of a wide node: a wide node's index, or (`LEAF_BIT` set) a leaf's index among the
+/// binary nodes.
+const LEAF_BIT: u32 = 1 << 31;
+
+/// A pair of children in the wide walk: `a` of the first tree and `b` of the second, or
+/// (`same`) `a` against itself. Their boxes overlap (or `same`).
 #[derive(Clone, Copy, Debug)]
 struct Walk {
     a: u32,
     b: u32,
     same: bool,
+}
+
+impl Walk {
+    /// Child `a` of the first tree against child `b` of the second.
+    fn across(a: u32, b: u32) -> Walk {
+        Walk { a, b, same: false }
+    }
+}
+
+/// A node of the wide tree: the binary tree with every other level collapsed, so its up to
+/// four children are the binary node's children, or their children where those are inner.
+/// Their boxes lane by lane, so one box is tested against all four in one compare.
+#[derive(Clone, Copy, Debug)]
+struct Wide {
+    boxes: Quad,
+    /// Each child: a wide node, or a leaf (`LEAF_BIT`).
+    child: [u32; 4],
+    /// Each child's binary node, whose box it has.
+    binary: [u32; 4],
+    /// How many children (2 to 4).
+    count: u32,
 }
 
 /// A node: its box and either its two children (the first is the next node, `right` the
@@ -132,6 +153,21 @@ impl Quad {
     }
 }
 
+impl Wide {
+    /// The children whose boxes overlap `b`, in lane order.
+    #[inline]
+    fn overlapping(&self, b: &Lanes) -> impl Iterator<Item = u32> + '_ {
+        let mut hits = self.boxes.overlapping(b);
+        std::iter::from_fn(move || {
+            (hits != 0).then(|| {
+                let j = hits.trailing_zeros() as usize;
+                hits &= hits - 1;
+                self.child[j]
+            })
+        })
+    }
+}
+
 /// The tree. Nodes are in depth-first order, each parent before its children, so a refit
 /// walks them backwards.
 #[derive(Default)]
@@ -146,6 +182,10 @@ pub struct Bvh {
     /// Each leaf's boxes, lane by lane, in the leaves' order.
     quads: Vec<Quad>,
     leaves: u32,
+    /// The same tree four children a node, walked by [`Bvh::overlapping_pairs`].
+    wide: Vec<Wide>,
+    /// The wide tree's root: a wide node, or the single leaf (`LEAF_BIT`).
+    wide_root: u32,
 }
 
 impl Bvh {
@@ -159,6 +199,7 @@ impl Bvh {
     /// broken by item), and its boxes are those of `boxes`.
     pub fn build(&mut self, boxes: &[Aabb]) {
         self.nodes.clear();
+        self.wide.clear();
         self.leaves = 0;
         self.items = boxes.len();
         self.order = (0..boxes.len() as u32).collect();
@@ -169,7 +210,40 @@ impl Bvh {
         let mut order = std::mem::take(&mut self.order);
         self.split(&centres, &mut order, 0);
         self.order = order;
+        self.wide_root = self.widen(0);
         self.refit(boxes);
+    }
+
+    /// Appends the wide node over binary node `k` and those below it; returns its child
+    /// reference (a leaf stays a leaf).
+    fn widen(&mut self, k: u32) -> u32 {
+        let node = self.nodes[k as usize];
+        if node.count > 0 {
+            return k | LEAF_BIT;
+        }
+        let at = self.wide.len();
+        self.wide.push(Wide {
+            boxes: Quad::EMPTY,
+            child: [0; 4],
+            binary: [0; 4],
+            count: 0,
+        });
+        let mut binary = Vec::with_capacity(4);
+        for c in [k + 1, node.index] {
+            let n = self.nodes[c as usize];
+            if n.count > 0 {
+                binary.push(c);
+            } else {
+                binary.extend([c + 1, n.index]);
+            }
+        }
+        for (lane, &g) in binary.iter().enumerate() {
+            let child = self.widen(g);
+            let w = &mut self.wide[at];
+            (w.child[lane], w.binary[lane]) = (child, g);
+            w.count += 1;
+        }
+        at as u32
     }
 
     /// Appends the subtree over `items` (which start at `offset` in `order`).
@@ -238,6 +312,15 @@ impl Bvh {
                     .union(&self.nodes[node.index as usize].bounds)
             };
         }
+        for w in self.wide.iter_mut() {
+            for lane in 0..w.count as usize {
+                let b = self.nodes[w.binary[lane] as usize].bounds;
+                for axis in 0..3 {
+                    w.boxes.min[axis][lane] = b.min[axis];
+                    w.boxes.max[axis][lane] = b.max[axis];
+                }
+            }
+        }
     }
 
     /// Every pair of items whose boxes at the last refit overlap, one item of `self` and one of
@@ -261,14 +344,19 @@ impl Bvh {
         if self.nodes.is_empty() || b.nodes.is_empty() {
             return (0, 0);
         }
+        let same = other.is_none();
+        if !same && !self.nodes[0].bounds.overlaps(&b.nodes[0].bounds) {
+            return (1, 0);
+        }
         let root = Walk {
-            a: 0,
-            b: 0,
-            same: other.is_none(),
+            a: self.wide_root,
+            b: b.wide_root,
+            same,
         };
         let (mut front, mut stack) = (Vec::new(), Vec::new());
         let limit = Some(FRONT_DEPTH);
         let mut counts = self.walk(b, root, limit, &mut front, &emit, out, &mut stack);
+        counts.0 += !same as u64;
         // A few runs of the front a thread, each walked into one buffer with one stack: a
         // buffer and a stack a node pair of the front cost more than the walk below many of
         // them. The runs come back in the front's order, so the output does not depend on
@@ -331,8 +419,10 @@ impl Bvh {
         tested
     }
 
-    /// Walks the node pairs below `root` (of `self` and `b`), depth first, on `stack` (left
-    /// empty); node pairs at `limit` levels below it go to `front` instead of being opened.
+    /// Walks the child pairs below `root` (of `self` and `b`, whose boxes overlap), depth
+    /// first, on `stack` (left empty); pairs at `limit` levels below it go to `front` instead
+    /// of being opened. A pair of wide nodes tests each child of one against the other's four
+    /// in one compare; a leaf against a wide node tests its box against the four.
     // Each argument is a separate input of the walk.
     #[allow(clippy::too_many_arguments)]
     fn walk<T>(
@@ -349,20 +439,15 @@ impl Bvh {
         stack.push((root, 0usize));
         let (mut tested, mut looked) = (0u64, 0u64);
         while let Some((w, depth)) = stack.pop() {
-            let (na, nb) = (&self.nodes[w.a as usize], &b.nodes[w.b as usize]);
-            if !w.same {
-                tested += 1;
-                if !na.bounds.overlaps(&nb.bounds) {
-                    continue;
-                }
-            }
             if limit == Some(depth) {
                 front.push(w);
                 continue;
             }
-            let (leaf_a, leaf_b) = (na.count > 0, nb.count > 0);
+            let next = depth + 1;
+            let (leaf_a, leaf_b) = (w.a & LEAF_BIT != 0, w.b & LEAF_BIT != 0);
             if w.same {
                 if leaf_a {
+                    let na = &self.nodes[(w.a & !LEAF_BIT) as usize];
                     let range = na.index as usize..(na.index + na.count) as usize;
                     let quad = &self.quads[na.quad as usize];
                     let items = &self.order[range.clone()];
@@ -377,75 +462,80 @@ impl Bvh {
                         }
                     }
                 } else {
-                    let (l, r) = (w.a + 1, na.index);
-                    let next = depth + 1;
-                    stack.push((
-                        Walk {
-                            a: l,
-                            b: r,
-                            same: false,
-                        },
-                        next,
-                    ));
-                    stack.push((
-                        Walk {
-                            a: r,
-                            b: r,
-                            same: true,
-                        },
-                        next,
-                    ));
-                    stack.push((
-                        Walk {
-                            a: l,
-                            b: l,
-                            same: true,
-                        },
-                        next,
-                    ));
-                }
-                continue;
-            }
-            if leaf_a && leaf_b {
-                let ra = na.index as usize..(na.index + na.count) as usize;
-                let rb = nb.index as usize..(nb.index + nb.count) as usize;
-                let (ia, ib) = (&self.order[ra.clone()], &b.order[rb]);
-                let quad = &b.quads[nb.quad as usize];
-                for (p, box_a) in self.leaf_boxes[ra].iter().enumerate() {
-                    tested += 1;
-                    let mut hits = quad.overlapping(box_a);
-                    while hits != 0 {
-                        let q = hits.trailing_zeros() as usize;
-                        hits &= hits - 1;
-                        looked += emit(ia[p], ib[q], out) as u64;
+                    let node = &self.wide[w.a as usize];
+                    let n = node.count as usize;
+                    // Pushed backwards, so the children come off the stack in order.
+                    for i in (0..n).rev() {
+                        let box_i = &self.nodes[node.binary[i] as usize].bounds;
+                        tested += (n - 1 - i) as u64;
+                        let mut hits = node.boxes.overlapping(box_i) & !((2u32 << i) - 1);
+                        let mut pairs = [0u32; 4];
+                        let mut found = 0;
+                        while hits != 0 {
+                            pairs[found] = hits.trailing_zeros();
+                            found += 1;
+                            hits &= hits - 1;
+                        }
+                        for &j in pairs[..found].iter().rev() {
+                            let (a, b) = (node.child[i], node.child[j as usize]);
+                            stack.push((Walk::across(a, b), next));
+                        }
+                        let a = node.child[i];
+                        stack.push((
+                            Walk {
+                                a,
+                                b: a,
+                                same: true,
+                            },
+                            next,
+                        ));
                     }
                 }
                 continue;
             }
-            // Open the larger node (a leaf cannot be opened).
-            let open_a = !leaf_a && (leaf_b || na.bounds.extent() >= nb.bounds.extent());
-            let next = depth + 1;
-            if open_a {
-                for c in [na.index, w.a + 1] {
-                    stack.push((
-                        Walk {
-                            a: c,
-                            b: w.b,
-                            same: false,
-                        },
-                        next,
-                    ));
+            match (leaf_a, leaf_b) {
+                (true, true) => {
+                    let na = &self.nodes[(w.a & !LEAF_BIT) as usize];
+                    let nb = &b.nodes[(w.b & !LEAF_BIT) as usize];
+                    let ra = na.index as usize..(na.index + na.count) as usize;
+                    let rb = nb.index as usize..(nb.index + nb.count) as usize;
+                    let (ia, ib) = (&self.order[ra.clone()], &b.order[rb]);
+                    let quad = &b.quads[nb.quad as usize];
+                    for (p, box_a) in self.leaf_boxes[ra].iter().enumerate() {
+                        tested += 1;
+                        let mut hits = quad.overlapping(box_a);
+                        while hits != 0 {
+                            let q = hits.trailing_zeros() as usize;
+                            hits &= hits - 1;
+                            looked += emit(ia[p], ib[q], out) as u64;
+                        }
+                    }
                 }
-            } else {
-                for c in [nb.index, w.b + 1] {
-                    stack.push((
-                        Walk {
-                            a: w.a,
-                            b: c,
-                            same: false,
-                        },
-                        next,
-                    ));
+                (true, false) => {
+                    let box_a = &self.nodes[(w.a & !LEAF_BIT) as usize].bounds;
+                    let node = &b.wide[w.b as usize];
+                    tested += node.count as u64;
+                    for c in node.overlapping(box_a) {
+                        stack.push((Walk::across(w.a, c), next));
+                    }
+                }
+                (false, true) => {
+                    let box_b = &b.nodes[(w.b & !LEAF_BIT) as usize].bounds;
+                    let node = &self.wide[w.a as usize];
+                    tested += node.count as u64;
+                    for c in node.overlapping(box_b) {
+                        stack.push((Walk::across(c, w.b), next));
+                    }
+                }
+                (false, false) => {
+                    let (na, nb) = (&self.wide[w.a as usize], &b.wide[w.b as usize]);
+                    for i in 0..na.count as usize {
+                        let box_i = &self.nodes[na.binary[i] as usize].bounds;
+                        tested += nb.count as u64;
+                        for c in nb.overlapping(box_i) {
+                            stack.push((Walk::across(na.child[i], c), next));
+                        }
+                    }
                 }
             }
         }
@@ -457,6 +547,7 @@ impl Bvh {
             + self.order.capacity() * 4
             + self.quads.capacity() * size_of::<Quad>()
             + self.leaf_boxes.capacity() * size_of::<Lanes>()
+            + self.wide.capacity() * size_of::<Wide>()
     }
 }
 
@@ -540,6 +631,42 @@ mod tests {
             assert_eq!(found, walked);
         }
         assert_eq!(Bvh::default().overlapping(&boxes[0], |_| panic!()), 0);
+    }
+
+    /// The wide tree's edge cases (a single leaf for a root, wide nodes of two to four
+    /// children, leaves against wide nodes) find the brute-force pairs at every small size.
+    #[test]
+    fn every_overlapping_pair_is_found_in_trees_of_every_small_size() {
+        let emit = |i: u32, j: u32, out: &mut Vec<(u32, u32)>| {
+            out.push((i.min(j), i.max(j)));
+            true
+        };
+        for n in 1..40 {
+            let a = scattered(n, 0.3);
+            let (mut tree, mut other) = (Bvh::default(), Bvh::default());
+            tree.build(&a);
+            let mut found = Vec::new();
+            tree.overlapping_pairs(None, emit, &mut found);
+            found.sort_unstable();
+            let brute: Vec<(u32, u32)> = (0..n as u32)
+                .flat_map(|i| (i + 1..n as u32).map(move |j| (i, j)))
+                .filter(|&(i, j)| a[i as usize].overlaps(&a[j as usize]))
+                .collect();
+            assert_eq!(found, brute, "{n} items against themselves");
+            let b = scattered(41 - n, 1.1);
+            other.build(&b);
+            let across = |i: u32, j: u32, out: &mut Vec<(u32, u32)>| {
+                out.push((i, j));
+                true
+            };
+            tree.overlapping_pairs(Some(&other), across, &mut found);
+            found.sort_unstable();
+            let brute: Vec<(u32, u32)> = (0..n as u32)
+                .flat_map(|i| (0..b.len() as u32).map(move |j| (i, j)))
+                .filter(|&(i, j)| a[i as usize].overlaps(&b[j as usize]))
+                .collect();
+            assert_eq!(found, brute, "{n} items against {}", b.len());
+        }
     }
 
     #[test]
