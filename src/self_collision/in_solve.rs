@@ -2,12 +2,19 @@
 //! `thickness`, found at the step's start by the swept search, for implicit Euler to hold
 //! apart inside its linear solve (`src/integrators/self_contact.rs`). The pass after the solve
 //! is unchanged: the solve only makes it rarely have to stop anything far.
+//!
+//! A cloth where nothing is close would pay for that search over the whole mesh before every
+//! solve only to find nothing. A pair list of its own ([`Quiet`], `list.rs`), reaching as far
+//! as the search could look and a skin more, shows when no pair can be found: then the search
+//! is not run, and its result, no pair, is the same. The list is kept while the cloth moves
+//! little from its anchor, so a cloth at rest builds it once.
 
 use rayon::prelude::*;
 
+use super::list::PairList;
 use super::pair::Pair;
 use super::search::Reuse;
-use super::{SelfCollision, Survey};
+use super::{list_boxes, SelfCollision, Survey, SKIN};
 use crate::model::Model;
 use crate::soa::Vec3s;
 use crate::state::Kinematics;
@@ -43,11 +50,18 @@ impl SelfCollision {
         // The round-off margin of `apply`, from the largest coordinate at either end; with a
         // non-finite position the step fails anyway, and nothing is held.
         self.ahead_kept = false;
-        let Some(survey) = Survey::of(&self.topology.vertices, x0, &self.ahead, None) else {
+        let verts = &self.topology.vertices;
+        let anchor = self.ahead_list.list.anchor();
+        let Some(survey) = Survey::of(verts, x0, &self.ahead, anchor) else {
             self.ahead_pairs.clear();
             return &self.ahead_pairs;
         };
         let eps = 1e-6 * (1.0 + survey.reach);
+        self.ahead_pairs.clear();
+        if self.nothing_ahead(x0, survey, eps) {
+            return &self.ahead_pairs;
+        }
+        self.stats.ahead_searches += 1;
         let ahead = std::mem::replace(&mut self.ahead, Vec3s::zeros(0));
         self.sweep_boxes(x0, &ahead, eps as f32);
         self.ahead = ahead;
@@ -63,5 +77,101 @@ impl SelfCollision {
         }
         self.ahead_kept = true;
         &self.ahead_pairs
+    }
+}
+
+/// The pairs that may matter to the search ahead of a solve, and when to build their list
+/// again.
+#[derive(Default)]
+pub struct Quiet {
+    /// Every pair closer than its reach at its anchor, and the round-off margin (m) it was
+    /// built with.
+    list: PairList,
+    eps: f64,
+    /// Whether the list has spared a search since it was built; if not, how many more steps a
+    /// failed cover waits before the next build (`wait`, doubled after each build that spared
+    /// none, so a cloth in motion pays for few builds), and how many of them are left. None of
+    /// this changes which pairs a step finds, only what finding them costs.
+    spared: bool,
+    wait: u32,
+    left: u32,
+}
+
+/// The most steps a failed cover waits before the list is built again.
+const MOST_WAIT: u32 = 64;
+
+impl Quiet {
+    /// Forgets the list (the mesh changed).
+    pub fn clear(&mut self) {
+        self.list.clear();
+        self.spared = false;
+        self.wait = 0;
+        self.left = 0;
+    }
+
+    pub fn heap_bytes(&self) -> usize {
+        self.list.heap_bytes()
+    }
+}
+
+impl SelfCollision {
+    /// Whether the swept search ahead of a solve from `x0` to `self.ahead` (`survey`, with
+    /// the drift from the list's anchor; `eps` the search's round-off margin) would find no
+    /// pair. It finds a pair closer than `thickness` and `eps` and both primitives' sides, a
+    /// side at most `s`, the longest vertex path (`|x1 - x0|`, as the search measures it) and
+    /// the capsule's radius; so with no pair closer than `needed = thickness + 2 s + 2 eps`
+    /// (one `eps` more than the search allows, for the search's own round-off) it finds none.
+    /// The list shows that when it covers `needed` at `x0` and none of its pairs may be
+    /// closer than that ([`PairList::within`]). Exact either way: a pair the search would
+    /// find is never left out, so the choice changes what a step costs, never what it finds.
+    fn nothing_ahead(&mut self, x0: &Vec3s, survey: Survey, eps: f64) -> bool {
+        let thickness = self.thickness as f64;
+        // The search's capsule radius, rounded as `sweep_boxes` rounds it.
+        let radius = (0.5 * self.thickness + eps as f32) as f64;
+        let ahead = &self.ahead;
+        let side = self
+            .topology
+            .vertices
+            .par_iter()
+            .with_min_len(4096)
+            .map(|&v| (ahead.get(v as usize) - x0.get(v as usize)).as_dvec3().length())
+            .reduce(|| 0.0, f64::max)
+            + radius;
+        let needed = thickness + 2.0 * side + 2.0 * eps;
+        let quiet = &mut self.ahead_list;
+        // A cloth carried farther from the origin rounds its coordinates coarser.
+        let margin = quiet.eps.max(eps);
+        let in_mesh = &self.topology.in_mesh;
+        let strayed = survey.drift.and_then(|d| quiet.list.strayed(in_mesh, x0, d));
+        if !quiet.list.covers(strayed, needed, margin) {
+            if quiet.left > 0 {
+                quiet.left -= 1;
+                return false;
+            }
+            quiet.wait = match (quiet.list.anchor(), quiet.spared) {
+                (Some(_), false) => (2 * quiet.wait).clamp(1, MOST_WAIT),
+                _ => 0,
+            };
+            quiet.left = quiet.wait;
+            quiet.spared = false;
+            quiet.eps = eps;
+            let reach = needed + SKIN * thickness;
+            let mut boxes = std::mem::take(&mut self.search_boxes);
+            list_boxes(&mut boxes, x0, reach, eps as f32);
+            let looked =
+                self.broad
+                    .search_near(&self.topology, &boxes, x0, reach, 1e-3 * eps, None);
+            self.count(looked);
+            self.search_boxes = boxes;
+            let quiet = &mut self.ahead_list;
+            quiet
+                .list
+                .rebuild(x0, reach, self.broad.near_found(&self.topology));
+            self.stats.ahead_rebuilds += 1;
+        }
+        let quiet = &mut self.ahead_list;
+        let nothing = quiet.list.within(needed, quiet.eps.max(eps)).len() == 0;
+        quiet.spared |= nothing;
+        nothing
     }
 }
