@@ -95,6 +95,9 @@ pub struct Quiet {
     spared: bool,
     wait: u32,
     left: u32,
+    /// Each particle's side in the search (m): the length of its path and the capsule's
+    /// radius (zero for a particle in no triangle).
+    sides: Vec<f64>,
 }
 
 /// The most steps a failed cover waits before the list is built again.
@@ -110,38 +113,46 @@ impl Quiet {
     }
 
     pub fn heap_bytes(&self) -> usize {
-        self.list.heap_bytes()
+        self.list.heap_bytes() + self.sides.capacity() * 8
     }
 }
 
 impl SelfCollision {
     /// Whether the swept search ahead of a solve from `x0` to `self.ahead` (`survey`, with
     /// the drift from the list's anchor; `eps` the search's round-off margin) would find no
-    /// pair. It finds a pair closer than `thickness` and `eps` and both primitives' sides, a
-    /// side at most `s`, the longest vertex path (`|x1 - x0|`, as the search measures it) and
-    /// the capsule's radius; so with no pair closer than `needed = thickness + 2 s + 2 eps`
-    /// (one `eps` more than the search allows, for the search's own round-off) it finds none.
-    /// The list shows that when it covers `needed` at `x0` and none of its pairs may be
-    /// closer than that ([`PairList::within`]). Exact either way: a pair the search would
-    /// find is never left out, so the choice changes what a step costs, never what it finds.
+    /// pair. It finds a pair closer than `thickness`, `eps` and its two primitives' sides, a
+    /// side the most any of its vertices' paths is long (`|x1 - x0|`, as the search measures
+    /// it) and the capsule's radius. So it finds none when the list covers
+    /// `thickness + 2 s + 2 eps` (`s` the longest side; one `eps` more than the search allows,
+    /// for its own round-off) at `x0` and none of the listed pairs may be closer than
+    /// `thickness + 2 eps` and its own sides ([`PairList::clear_of`]). Exact either way: a pair
+    /// the search would find is never left out, so the choice changes what a step costs,
+    /// never what it finds.
     fn nothing_ahead(&mut self, x0: &Vec3s, survey: Survey, eps: f64) -> bool {
         let thickness = self.thickness as f64;
         // The search's capsule radius, rounded as `sweep_boxes` rounds it.
         let radius = (0.5 * self.thickness + eps as f32) as f64;
-        let ahead = &self.ahead;
-        let side = self
-            .topology
-            .vertices
-            .par_iter()
-            .with_min_len(4096)
-            .map(|&v| (ahead.get(v as usize) - x0.get(v as usize)).as_dvec3().length())
-            .reduce(|| 0.0, f64::max)
-            + radius;
-        let needed = thickness + 2.0 * side + 2.0 * eps;
+        let (ahead, in_mesh) = (&self.ahead, &self.topology.in_mesh);
         let quiet = &mut self.ahead_list;
+        quiet.sides.resize(x0.len(), 0.0);
+        let side = quiet
+            .sides
+            .par_iter_mut()
+            .with_min_len(4096)
+            .enumerate()
+            .map(|(v, s)| {
+                *s = match in_mesh[v] {
+                    true => (ahead.get(v) - x0.get(v)).as_dvec3().length() + radius,
+                    false => 0.0,
+                };
+                *s
+            })
+            .reduce(|| 0.0, f64::max);
+        // One `eps` for the search's own limit, one for its round-off.
+        let base = thickness + 2.0 * eps;
+        let needed = base + 2.0 * side;
         // A cloth carried farther from the origin rounds its coordinates coarser.
         let margin = quiet.eps.max(eps);
-        let in_mesh = &self.topology.in_mesh;
         let strayed = survey.drift.and_then(|d| quiet.list.strayed(in_mesh, x0, d));
         if !quiet.list.covers(strayed, needed, margin) {
             if quiet.left > 0 {
@@ -170,7 +181,7 @@ impl SelfCollision {
             self.stats.ahead_rebuilds += 1;
         }
         let quiet = &mut self.ahead_list;
-        let nothing = quiet.list.within(needed, quiet.eps.max(eps)).len() == 0;
+        let nothing = quiet.list.clear_of(base, &quiet.sides, quiet.eps.max(eps));
         quiet.spared |= nothing;
         nothing
     }
