@@ -126,6 +126,21 @@ fn twist_never_intersects_and_does_without_the_pass() {
     assert!(found.iter().any(|&k| k > 0), "{found:?}");
 }
 
+/// A cloth at rest where nothing is near (the shipped twist, undriven) pays for one swept
+/// search ahead of its solves, the first, which finds no pair: then one list of the pairs near
+/// enough to matter shows, step after step, that the search would find none.
+#[test]
+fn a_quiet_cloth_takes_one_swept_search_ahead_of_its_solves_then_none() {
+    let mut sim = Simulation::new(Scene::builtin("twist").unwrap()).unwrap();
+    sim.step(40).unwrap();
+    let stats = sim.self_collision_stats().unwrap();
+    assert_eq!(
+        (stats.ahead_searches, stats.ahead_rebuilds),
+        (1, 1),
+        "{stats:?}"
+    );
+}
+
 /// Runs `scene` for `steps` steps, counting intersections every `every` steps.
 fn run_checked(scene: Scene, steps: u64, every: u64) -> (Simulation, Vec<usize>) {
     let mut sim = Simulation::new(scene).unwrap();

@@ -273,6 +273,32 @@ impl PairList {
         self.near.par_iter().map(move |&k| candidates[k as usize])
     }
 
+    /// Whether every listed pair is now at least `base` and the most that any vertex of each
+    /// of its primitives reaches (`reach`, by particle; m) apart: its distance at the anchor,
+    /// less the most any vertex of each primitive strayed since ([`PairList::strayed`]) and
+    /// `eps` for each, is not below that. With [`PairList::covers`] for
+    /// `base + 2 max(reach)`, no pair of the mesh is closer.
+    pub fn clear_of(&self, base: f64, reach: &[f64], eps: f64) -> bool {
+        let strays = &self.strays;
+        let side = |s: &[u32]| {
+            let most = |a: &[f64]| s.iter().map(|&v| a[v as usize]).fold(0.0, f64::max);
+            most(strays) + most(reach)
+        };
+        let farthest = reach.iter().copied().fold(0.0, f64::max);
+        // Most pairs are farther than the farthest vertex allows for, read by distance alone.
+        let loose = base + 2.0 * (self.most_strayed + farthest + eps);
+        self.candidates
+            .par_iter()
+            .zip(&self.distances)
+            .with_min_len(1024)
+            .all(|(c, &e)| {
+                e >= loose || {
+                    let (a, b) = c.verts.split_at(usize::from(c.split).min(4));
+                    e >= base + side(a) + side(b) + 2.0 * eps
+                }
+            })
+    }
+
     /// Of the pairs the last [`PairList::within`] found, those that may come within `limit`
     /// (m) of each other in the substep, in the order of their keys: a pair whose distance at
     /// the anchor, less the most any vertex of each primitive strayed since

@@ -129,6 +129,11 @@ pub struct SelfCollisionStats {
     /// than the list allowed for.
     pub swept_substeps: u64,
     pub redone: u64,
+    /// Swept searches run ahead of implicit Euler's solves (`in_solve.rs`): those the list of
+    /// the pairs near enough to matter ahead did not show would find nothing, and the times
+    /// that list was built.
+    pub ahead_searches: u64,
+    pub ahead_rebuilds: u64,
     /// Pairs closer than `thickness` after the integrator (the repulsion's first sweep).
     pub contacts: u64,
     /// Vertices whose displacement the cap shortened, summed over substeps.
@@ -175,6 +180,8 @@ impl Default for SelfCollisionStats {
             requeried: 0,
             swept_substeps: 0,
             redone: 0,
+            ahead_searches: 0,
+            ahead_rebuilds: 0,
             contacts: 0,
             capped: 0,
             stopped: 0,
@@ -204,6 +211,8 @@ pub struct SelfCollision {
     /// a swept search from there, bit for bit, takes over their closest points.
     ahead_from: Vec3s,
     ahead_kept: bool,
+    /// What shows that the search ahead of a solve would find nothing (`in_solve.rs`).
+    ahead_list: in_solve::Quiet,
     topology: Topology,
     /// Each vertex's grown swept box this substep.
     vertex_boxes: Vec<Aabb>,
@@ -258,6 +267,7 @@ impl SelfCollision {
             ahead: Vec3s::zeros(0),
             ahead_from: Vec3s::zeros(0),
             ahead_kept: false,
+            ahead_list: in_solve::Quiet::default(),
             topology: Topology::default(),
             vertex_boxes: Vec::new(),
             path_ends: Vec::new(),
@@ -374,6 +384,7 @@ impl SelfCollision {
                 .rebuild(model.topology_version, model.grid.len(), triangles);
             self.topology.sew(model.sewn());
             self.list.clear();
+            self.ahead_list.clear();
             self.broad.forget_kept();
             self.ahead_kept = false;
             self.marked = vec![false; model.grid.len()];
@@ -682,6 +693,7 @@ impl SelfCollision {
             + self.path_ends.capacity() * size_of::<Vec3>()
             + self.broad.heap_bytes()
             + self.list.heap_bytes()
+            + self.ahead_list.heap_bytes()
             + (self.pairs.capacity() + self.ahead_pairs.capacity()) * size_of::<Pair>()
             + self.ahead.heap_bytes()
             + self.ahead_from.heap_bytes()
