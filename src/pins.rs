@@ -4,6 +4,18 @@ use glam::Vec3;
 
 use crate::soa::Vec3s;
 
+/// How fast a gliding particle left behind its path catches up with it, m/s.
+///
+/// Were it put on its target each substep, the pass would put it back where the cloth lets it
+/// be; the jump and the pull back act on different cloths (the free vertices move in between),
+/// so every such round trip leaves energy in the cloth, more the longer the jump. The shirt's
+/// hem dragged sideways into its own fold at one implicit step a frame
+/// (`tests/garment_drag.rs`), its target 0.2 m past where the pass let it be: jumping the
+/// whole way, 0.2-0.35 J a frame beyond the grip's work (2.2 J in one); at 1 m/s (1.7 cm a
+/// step) within 0.01 J. Slower pumps less; faster follows the hand sooner once the cloth lets
+/// the grip go. A particle on its path moves exactly as before.
+pub const CATCH_UP: f32 = 1.0;
+
 /// Pinned particles with a target. Each substep puts the particle exactly on its target and
 /// gives it the velocity of that move, `(target - x) / h`, so spring damping sees the motion.
 /// In the pipeline only while at least one target is set.
@@ -17,18 +29,6 @@ use crate::soa::Vec3s;
 /// A gliding particle the self-collision pass held back (a hand pulling the cloth against a
 /// fold of itself) follows its path's motion and closes the distance it was left behind at
 /// [`CATCH_UP`] at most, rather than jumping back onto its target every substep.
-/// How fast a gliding particle left behind its path catches up with it, m/s.
-///
-/// Each substep it is put on its target and the pass puts it back where the cloth lets it be;
-/// the jump and the pull back are done on different cloths (the free vertices move in
-/// between), so every such round trip leaves energy in the cloth, growing with the square of
-/// the jump. The shirt's hem dragged sideways into its own fold at one implicit step a frame
-/// (`tests/garment_drag.rs`), its target 0.2 m past where the pass let it be: jumping the
-/// whole way, 0.2-0.35 J a frame beyond the grip's work (2.2 J in one); at 1 m/s (1.7 cm a
-/// step) within 0.01 J. Slower pumps less; faster follows the hand sooner once the cloth lets
-/// the grip go. A particle on its path moves exactly as before.
-pub const CATCH_UP: f32 = 1.0;
-
 #[derive(Clone, Debug, Default)]
 pub struct KinematicPins {
     targets: Vec<(usize, Vec3)>,
