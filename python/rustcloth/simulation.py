@@ -723,9 +723,11 @@ class Simulation:
         at every pair they needed, not only those their motion can bring near (``widened``),
         ``rebuilds`` of its pair list and
         ``requeries`` of part of it (``requeried`` vertices, summed), vertices the cap slowed
-        (``capped``) or ``stopped``, the most cap rounds in one substep (``max_cap_rounds``)
-        and the smallest distance between a vertex and a triangle, or two edges, at the start
-        of a substep (``min_distance``, m)."""
+        (``capped``) or ``stopped``, the most cap rounds in one substep (``max_cap_rounds``),
+        the smallest distance between a vertex and a triangle, or two edges, at the start
+        of a substep (``min_distance``, m), and, with ``solve_stiffness``, the swept searches
+        run ahead of implicit Euler's solves (``ahead_searches``; skipped where a list of its
+        own shows they would find nothing) and that list's builds (``ahead_rebuilds``)."""
         return self._core.self_collision_stats()
 
     def seam_gap(self) -> float | None:
