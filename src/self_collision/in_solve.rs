@@ -14,7 +14,7 @@ use rayon::prelude::*;
 use super::list::PairList;
 use super::pair::Pair;
 use super::search::Reuse;
-use super::{list_boxes, SelfCollision, Survey, SKIN};
+use super::{list_boxes, per_surface_vertex, SelfCollision, Survey, SKIN};
 use crate::model::Model;
 use crate::soa::Vec3s;
 use crate::state::Kinematics;
@@ -145,20 +145,9 @@ impl SelfCollision {
         let radius = (0.5 * self.thickness + eps as f32) as f64;
         let (ahead, in_mesh) = (&self.ahead, &self.topology.in_mesh);
         let quiet = &mut self.ahead_list;
-        quiet.sides.resize(x0.len(), 0.0);
-        let side = quiet
-            .sides
-            .par_iter_mut()
-            .with_min_len(4096)
-            .enumerate()
-            .map(|(v, s)| {
-                *s = match in_mesh[v] {
-                    true => (ahead.get(v) - x0.get(v)).as_dvec3().length() + radius,
-                    false => 0.0,
-                };
-                *s
-            })
-            .reduce(|| 0.0, f64::max);
+        let side = per_surface_vertex(&mut quiet.sides, in_mesh, |v| {
+            (ahead.get(v) - x0.get(v)).as_dvec3().length() + radius
+        });
         // One `eps` for the search's own limit, one for its round-off.
         let base = thickness + 2.0 * eps;
         let needed = base + 2.0 * side;

@@ -280,10 +280,6 @@ impl PairList {
     /// `base + 2 max(reach)`, no pair of the mesh is closer.
     pub fn clear_of(&self, base: f64, reach: &[f64], eps: f64) -> bool {
         let strays = &self.strays;
-        let side = |s: &[u32]| {
-            let most = |a: &[f64]| s.iter().map(|&v| a[v as usize]).fold(0.0, f64::max);
-            most(strays) + most(reach)
-        };
         let farthest = reach.iter().copied().fold(0.0, f64::max);
         // Most pairs are farther than the farthest vertex allows for, read by distance alone.
         let loose = base + 2.0 * (self.most_strayed + farthest + eps);
@@ -293,8 +289,8 @@ impl PairList {
             .with_min_len(1024)
             .all(|(c, &e)| {
                 e >= loose || {
-                    let (a, b) = c.verts.split_at(usize::from(c.split).min(4));
-                    e >= base + side(a) + side(b) + 2.0 * eps
+                    let (a, b) = sides(c, strays, reach);
+                    e >= base + a + b + 2.0 * eps
                 }
             })
     }
@@ -314,14 +310,10 @@ impl PairList {
     ) -> impl IndexedParallelIterator<Item = Candidate> + '_ {
         self.hot.clear();
         let (strays, candidates, distances) = (&self.strays, &self.candidates, &self.distances);
-        let side = |s: &[u32]| {
-            let most = |a: &[f64]| s.iter().map(|&v| a[v as usize]).fold(0.0, f64::max);
-            most(strays) + most(moving)
-        };
         let hot = |&&k: &&u32| {
             let c = &candidates[k as usize];
-            let (a, b) = c.verts.split_at(usize::from(c.split).min(4));
-            distances[k as usize] < limit + side(a) + side(b) + 2.0 * eps
+            let (a, b) = sides(c, strays, moving);
+            distances[k as usize] < limit + a + b + 2.0 * eps
         };
         self.hot.extend(self.near.iter().filter(hot));
         self.hot.par_iter().map(move |&k| candidates[k as usize])
@@ -338,6 +330,18 @@ impl PairList {
             + self.merged_candidates.capacity() * size_of::<Candidate>()
             + self.merged_distances.capacity() * 8
     }
+}
+
+/// How far each of the pair `c`'s two primitives may have moved towards the other: the most any
+/// of its vertices strayed since the anchor (`strays`) and the most any of them reaches
+/// (`reach`, by particle), both in m.
+fn sides(c: &Candidate, strays: &[f64], reach: &[f64]) -> (f64, f64) {
+    let side = |s: &[u32]| {
+        let most = |a: &[f64]| s.iter().map(|&v| a[v as usize]).fold(0.0, f64::max);
+        most(strays) + most(reach)
+    };
+    let (a, b) = c.verts.split_at(usize::from(c.split).min(4));
+    (side(a), side(b))
 }
 
 /// A bounding box of displacements. Half its diagonal bounds `|d_i - T|` for every

@@ -467,20 +467,10 @@ impl SelfCollision {
         // Only for its side effect: the list's `near`, the pairs that may be closer than
         // `hot_needed`, which `PairList::hot` then filters by this substep's own motion.
         let _ = self.list.within(hot_needed, eps);
-        let (common, in_mesh) = (motion.centre(), &self.topology.in_mesh);
-        self.moving.resize(x0.len(), 0.0);
-        let moving_most = self
-            .moving
-            .par_iter_mut()
-            .with_min_len(4096)
-            .enumerate()
-            .map(|(v, m)| {
-                if in_mesh[v] {
-                    *m = (x1.get(v).as_dvec3() - x0.get(v).as_dvec3() - common).length();
-                }
-                *m
-            })
-            .reduce(|| 0.0, f64::max);
+        let common = motion.centre();
+        let moving_most = per_surface_vertex(&mut self.moving, &self.topology.in_mesh, |v| {
+            (x1.get(v).as_dvec3() - x0.get(v).as_dvec3() - common).length()
+        });
         let thickness = self.thickness as f64;
         let slack = self.hot() * thickness;
         let hot = self.list.hot(thickness + slack, eps, &self.moving);
@@ -529,9 +519,10 @@ impl SelfCollision {
         // The step's own start: the search ahead of its solve looked at the pairs there, with
         // the same closest points.
         let same_start = self.ahead_kept && same_bits(&self.ahead_from, x0);
-        let reuse = match same_start {
-            true => Reuse::Take,
-            false => Reuse::Nothing,
+        let reuse = if same_start {
+            Reuse::Take
+        } else {
+            Reuse::Nothing
         };
         let looked = self.swept_search(x0, eps, reuse, &mut pairs);
         self.pairs = pairs;
@@ -704,6 +695,24 @@ impl SelfCollision {
             + (self.scale.capacity() + self.scale_next.capacity()) * 8
             + self.rescaled.capacity()
     }
+}
+
+/// Fills `out` with `of(v)` for each vertex `v` of the mesh's surface and zero for every other
+/// particle, and returns the largest (zero if none is larger).
+fn per_surface_vertex(
+    out: &mut Vec<f64>,
+    in_mesh: &[bool],
+    of: impl Fn(usize) -> f64 + Sync,
+) -> f64 {
+    out.resize(in_mesh.len(), 0.0);
+    out.par_iter_mut()
+        .with_min_len(4096)
+        .enumerate()
+        .map(|(v, o)| {
+            *o = if in_mesh[v] { of(v) } else { 0.0 };
+            *o
+        })
+        .reduce(|| 0.0, f64::max)
 }
 
 /// Whether `a` and `b` hold the same positions, bit for bit.

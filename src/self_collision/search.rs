@@ -8,6 +8,7 @@ use rayon::prelude::*;
 
 use crate::self_collision::bvh::{Aabb, Bvh};
 use crate::self_collision::pair::{distance, edge_edge, vertex_triangle, Candidate, Pair};
+use crate::self_collision::per_surface_vertex;
 use crate::self_collision::topology::Topology;
 use crate::soa::Vec3s;
 
@@ -148,14 +149,9 @@ impl Broad {
     ) -> Looked {
         self.fit(topo, vertex_boxes);
         self.fit_tight(topo, x);
-        self.vert_side.clear();
-        self.vert_side.resize(x.len(), 0.0);
-        self.vert_side
-            .par_iter_mut()
-            .with_min_len(4096)
-            .enumerate()
-            .filter(|(v, _)| topo.in_mesh[*v])
-            .for_each(|(v, r)| *r = 0.0f64.max(reach(v as u32)));
+        per_surface_vertex(&mut self.vert_side, &topo.in_mesh, |v| {
+            0.0f64.max(reach(v as u32))
+        });
         let vb = &self.vert_side;
         let side = |vs: &[u32]| vs.iter().map(|&v| vb[v as usize]).fold(0.0, f64::max);
         per_primitive(topo, &mut self.tri_side, &mut self.edge_side, side);
