@@ -23,17 +23,24 @@ machine falls on both. A scene with a ``[self_collision]`` of its own runs with 
 writes its table into docs/contact.md between the markers (``--no-write`` prints it only).
 All twelve scenes take about nine minutes on a loaded two-core machine, most of it the folds
 with the pass of the scenes that are left off; ``--scenes`` picks some, and their rows replace
-theirs in the table, the other rows kept.
+theirs in the table, the other rows kept. ``--set KEY=VALUE`` (repeated) tries a variant of
+every scene run without editing its file: a top-level key (``integrator=implicit_euler``,
+``dt=1/120``, ``substeps=1``) or a key of a table (``cloth.damping=0.1``); the keys of
+``self_collision.`` apply to the run with the pass only (``self_collision.solve_stiffness=30``).
+A value is read as JSON, else as a fraction, else as a string.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import platform
 import sys
 import time
+from fractions import Fraction
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import rustcloth
@@ -105,10 +112,55 @@ def frames(sim: rustcloth.Simulation, n: int, drag=None, seen: Drag | None = Non
     return out
 
 
-def run(name: str, with_pass: bool, opening: float, drag: float, hold: float) -> dict:
+def value(text: str) -> Any:
+    """A ``--set`` value: JSON (a number, ``true``, a list), else a fraction (``1/120``), else
+    the text itself (``implicit_euler``)."""
+    try:
+        return json.loads(text)
+    except ValueError:
+        pass
+    try:
+        return float(Fraction(text))
+    except ValueError:
+        return text
+
+
+def settings(pairs: list[str]) -> dict[str, Any]:
+    """``--set`` pairs as nested changes: ``cloth.mesh.damping=0.1`` ->
+    ``{"cloth": {"mesh": {"damping": 0.1}}}``."""
+    out: dict[str, Any] = {}
+    for pair in pairs:
+        key, sep, text = pair.partition("=")
+        if not sep:
+            raise SystemExit(f"--set {pair}: expected KEY=VALUE")
+        *tables, field = key.split(".")
+        table = out
+        for name in tables:
+            table = table.setdefault(name, {})
+        table[field] = value(text)
+    return out
+
+
+def merged(data: dict[str, Any], changes: dict[str, Any]) -> dict[str, Any]:
+    """``data`` with ``changes`` merged in, table by table."""
+    out = dict(data)
+    for key, change in changes.items():
+        current = out.get(key)
+        out[key] = merged(current, change) if isinstance(change, dict) and isinstance(
+            current, dict) else change
+    return out
+
+
+def run(name: str, with_pass: bool, opening: float, drag: float, hold: float,
+        changes: dict[str, Any] | None = None) -> dict:
+    changes = dict(changes or {})
+    own_changes = changes.pop("self_collision", {})
     scene = rustcloth.load_scene(name)
     own = scene.self_collision
-    scene = scene.replace(self_collision=(own or {"thickness": THICKNESS}) if with_pass else None)
+    spec = {**(own or {"thickness": THICKNESS}), **own_changes}
+    data = merged(scene.to_dict(), changes)
+    data["self_collision"] = spec if with_pass else None
+    scene = rustcloth.Scene.from_dict(data)
     sim = rustcloth.Simulation(scene)
     seen = Drag(sim.positions.astype(np.float64))
     open_ms = frames(sim, round(opening * FPS))
@@ -152,7 +204,7 @@ def table(rows: dict[str, str], args: argparse.Namespace) -> str:
         f"Measured on {platform.machine()}, {os.cpu_count()} cores, one thread "
         f"(`RAYON_NUM_THREADS={os.environ.get('RAYON_NUM_THREADS', 'unset')}`), "
         f"`python benches/scene_self_collision.py --opening {args.opening} --drag {args.drag} "
-        f"--hold {args.hold}`. CPU ms per 1/60 s frame (mean; the fold's worst frame in "
+        f"--hold {args.hold}{''.join(' --set ' + pair for pair in args.set)}`. CPU ms per 1/60 s frame (mean; the fold's worst frame in "
         f"brackets); crossings by `benches/peers/tri_check.py` at the end of the fold. On when "
         f"both windows' mean with the pass is at most {BUDGET_MS:g} ms.",
         "",
@@ -170,12 +222,16 @@ def main() -> None:
     parser.add_argument("--drag", type=float, default=0.75, help="seconds of the drag (0.75)")
     parser.add_argument("--hold", type=float, default=0.5, help="seconds held after it (0.5)")
     parser.add_argument("--scenes", nargs="*", default=SCENES, help="scenes to run (all)")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="a scene key changed in every run (repeatable): integrator=..., "
+                        "cloth.damping=..., self_collision.solve_stiffness=... (with the pass)")
     parser.add_argument("--no-write", action="store_true", help="print, leave the docs")
     args = parser.parse_args()
+    changes = settings(args.set)
     rows = {}
     for name in args.scenes:
-        off = run(name, False, args.opening, args.drag, args.hold)
-        on = run(name, True, args.opening, args.drag, args.hold)
+        off = run(name, False, args.opening, args.drag, args.hold, changes)
+        on = run(name, True, args.opening, args.drag, args.hold, changes)
         print(name, off, on, flush=True)
         rows[name] = row(name, off, on)
     print(table(rows, args))
