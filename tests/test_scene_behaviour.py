@@ -96,3 +96,17 @@ def test_the_built_in_pile_comes_to_rest_and_never_gains_energy_once_it_has_land
     # At rest by 5 s: a handful of particles above 0.1 m/s at most (20-90 and up to 0.45 m/s
     # while it shivered).
     assert speed.max() < 0.25 and (speed > 0.1).sum() <= 5, (speed.max(), (speed > 0.1).sum())
+
+
+def test_every_scene_with_self_collision_opens_and_steps_with_the_pass_active():
+    # The demo opens a scene as it ships: one that has [self_collision] must run the pass from
+    # its first step (docs/contact.md, "Self-collision in the scenes").
+    names = [n for n in rustcloth.scenes() if rustcloth.load_scene(n).self_collision is not None]
+    assert {"freefall", "fold", "pile", "twist"} <= set(names), names
+    for name in names:
+        sim = rustcloth.Simulation(name)
+        assert "self_collision" in sim.effects, name
+        sim.step(3)
+        stats = sim.self_collision_stats()
+        assert stats is not None and stats["substeps"] == 3 * sim.scene.substeps, (name, stats)
+        assert np.isfinite(sim.positions).all(), name

@@ -1,5 +1,8 @@
 """benches/self_collision.py measures the scenes as they ship, and its frames without the pass
-are the same frames as with it: what docs/contact.md's cost table rests on."""
+are the same frames as with it: what docs/contact.md's cost table rests on. Its table of the
+scenes, benches/scene_self_collision.py, tries a variant of them with ``--set`` without editing
+their files: the same change in the runs without and with the pass, the ``self_collision`` keys
+in the run with it only, and a change inside a table keeps the table's other keys."""
 
 from __future__ import annotations
 
@@ -16,6 +19,7 @@ _path = list(sys.path)
 sys.path.insert(0, str(BENCHES))
 try:
     bench = pytest.importorskip("self_collision")
+    scenes_bench = pytest.importorskip("scene_self_collision")
 finally:
     sys.path[:] = _path
 
@@ -44,3 +48,37 @@ def test_the_frames_without_the_pass_cover_the_same_simulated_time_from_the_same
     assert r["crossings"] == 0
     assert r["wall"] > 0 and r["without_wall"] > 0 and r["cpu"] >= 0
     assert r["ratio_wall"] == pytest.approx(r["wall"] / r["without_wall"])
+
+
+def test_set_reads_numbers_fractions_and_names_into_nested_tables() -> None:
+    changes = scenes_bench.settings(["integrator=implicit_euler", "dt=1/120", "substeps=1",
+                                     "cloth.damping=0.1", "self_collision.solve_stiffness=30"])
+    assert changes == {"integrator": "implicit_euler", "dt": pytest.approx(1 / 120),
+                       "substeps": 1, "cloth": {"damping": 0.1},
+                       "self_collision": {"solve_stiffness": 30}}
+    with pytest.raises(SystemExit, match="KEY=VALUE"):
+        scenes_bench.settings(["dt"])
+
+
+def test_a_variant_changes_both_runs_and_the_pass_only_in_the_run_with_it() -> None:
+    changes = scenes_bench.settings(["integrator=implicit_euler", "dt=1/120", "cloth.damping=0.1",
+                                     "self_collision.solve_stiffness=30"])
+    base = rustcloth.load_scene("curtain")
+    for with_pass in (False, True):
+        scene = scenes_bench.variant("curtain", with_pass, changes)
+        assert (scene.integrator, scene.dt) == ("implicit_euler", pytest.approx(1 / 120))
+        assert scene.cloth["damping"] == 0.1 and scene.cloth["nx"] == base.cloth["nx"]
+        assert scene.wind == base.wind
+    assert scenes_bench.variant("curtain", False, changes).self_collision is None
+    spec = scenes_bench.variant("curtain", True, changes).self_collision
+    assert spec is not None and spec["solve_stiffness"] == 30.0
+    assert spec["thickness"] == pytest.approx(scenes_bench.THICKNESS)
+    # Without --set a scene runs as shipped, its own [self_collision] kept.
+    assert scenes_bench.variant("fold", True) == rustcloth.load_scene("fold")
+
+
+def test_a_change_inside_a_mesh_cloth_keeps_its_mesh() -> None:
+    changes = scenes_bench.settings(["cloth.mesh.damping=0.2"])
+    scene = scenes_bench.variant("flag_hole", False, changes)
+    mesh, base = scene.cloth["mesh"], rustcloth.load_scene("flag_hole").cloth["mesh"]
+    assert mesh["damping"] == 0.2 and len(mesh["vertices"]) == len(base["vertices"])
