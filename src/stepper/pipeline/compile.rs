@@ -46,6 +46,7 @@ impl Pipeline {
             halved: 0,
             start_energy: None,
             unshortened: Vec3s::zeros(0),
+            trial: Kinematics::zeros(0),
             stable_substep: None,
         }
     }

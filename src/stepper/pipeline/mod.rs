@@ -86,6 +86,9 @@ pub(super) struct Pipeline {
     /// Where the passes before self-collision left the particles, for a solver that holds
     /// contacts: what the self-collision pass moved (`Pipeline::hold_self_contacts`).
     unshortened: Vec3s,
+    /// Trial states of a substep the self-collision pass left with energy it was not given
+    /// (`Pipeline::keep_contact_passive`).
+    trial: Kinematics,
     /// The current integrator's estimated stable substep (s), None when any is; computed when
     /// first needed and forgotten when the integrator or the masses change.
     pub stable_substep: Option<Option<f64>>,
@@ -210,6 +213,8 @@ impl Pipeline {
                 .map(Kinematics::heap_bytes)
                 .sum::<usize>()
             + self.unshortened.heap_bytes()
+            + self.trial.pos.heap_bytes()
+            + self.trial.vel.heap_bytes()
     }
 }
 

@@ -80,7 +80,7 @@ fn contact_rounds(kind: IntegratorKind, round: u32) -> u32 {
 
 /// Whether the total energy `end` is above `start` by more than the rounding of float32
 /// positions and speeds can explain ([`ENERGY_SLACK`] of the energies' sum at the start).
-fn gained(start: Energy, end: Energy) -> bool {
+pub(super) fn gained(start: Energy, end: Energy) -> bool {
     let scale = start.kinetic + start.gravitational.abs() + start.elastic;
     end.total() > start.total() + ENERGY_SLACK * scale
 }
