@@ -91,6 +91,8 @@ pub(super) struct Pipeline {
     pass_input: Kinematics,
     /// Whether the self-collision pass's cap shortened any motion in the last round.
     contact_capped: bool,
+    /// The last round's draw-back once sized: None inside when it keeps the whole motion.
+    draw_back: Option<Option<f32>>,
     trial: Kinematics,
     moved_first: Kinematics,
     /// The current integrator's estimated stable substep (s), None when any is; computed when

@@ -111,6 +111,7 @@ impl Pipeline {
         let finite = contact.apply(s.model, &s.state.kin, s.next);
         let after = contact.stats();
         self.contact_capped = after.capped != before.capped;
+        self.draw_back = None;
         s.profile.add(SelfCollision::NAME, t.elapsed());
         finite
     }
@@ -161,6 +162,15 @@ impl Pipeline {
     /// The fraction of the substep's motion [`Pipeline::keep_contact_passive`] would keep, None
     /// where it keeps it all: the largest found by bisection whose energy is within its bound.
     pub(super) fn passive_fraction(&mut self, s: &Substep) -> Option<f32> {
+        if let Some(sized) = self.draw_back {
+            return sized;
+        }
+        let sized = self.size_draw_back(s);
+        self.draw_back = Some(sized);
+        sized
+    }
+
+    fn size_draw_back(&mut self, s: &Substep) -> Option<f32> {
         if !self.contact_gained(s) {
             return None;
         }
