@@ -266,12 +266,10 @@ fn along_paths(
     scale: f32,
     trial: &mut Kinematics,
 ) {
-    for p in 0..start.pos.len() {
+    for (p, &w) in inv_mass.iter().enumerate() {
         let a = start.pos.get(p);
         trial.pos.set(p, a + scale * (end.pos.get(p) - a));
         let v = end.vel.get(p);
-        trial
-            .vel
-            .set(p, if inv_mass[p] == 0.0 { v } else { scale * v });
+        trial.vel.set(p, if w == 0.0 { v } else { scale * v });
     }
 }
