@@ -832,26 +832,43 @@ fn largest_stretch(sim: &Simulation, start: &Vec3s) -> f64 {
         .fold(f64::NEG_INFINITY, f64::max)
 }
 
+/// The long-step twist wound for 2 s at `solve_stiffness`: its largest stretch, the crossings
+/// found at each check and the simulation.
+fn wound_long_step_twist(solve_stiffness: f64) -> (f64, Vec<usize>, Simulation) {
+    let scene = long_step_twist(solve_stiffness);
+    let start = Simulation::new(scene.clone()).unwrap().positions().clone();
+    // 1/6 turn per second each way, for 2 s: the rope winds from 1.5 s on.
+    let (sim, found) = run_twist(scene, 2.0 / 6.0, 2.0, 10);
+    (largest_stretch(&sim, &start), found, sim)
+}
+
 /// At long steps the pass after the solve stops a vertex a spring's length short of where the
-/// solve sent it, and a wound twist tore itself apart (largest stretch above 1 at 2 steps per
-/// frame, against 0.35 at 10). Held apart inside the solve, the pairs end near where the solve
-/// puts them and the springs stay near their length; the pass still finds nothing crossing.
+/// solve sent it. Held apart inside the solve, the pairs end near where the solve puts them
+/// and the springs stay near their length; the pass still finds nothing crossing.
 #[test]
 fn holding_self_contact_inside_the_solve_keeps_a_long_step_twist_from_tearing() {
-    let run = |solve_stiffness| {
-        let scene = long_step_twist(solve_stiffness);
-        let start = Simulation::new(scene.clone()).unwrap().positions().clone();
-        // 1/6 turn per second each way, for 2 s: the rope winds from 1.5 s on.
-        let (sim, found) = run_twist(scene, 2.0 / 6.0, 2.0, 10);
-        (largest_stretch(&sim, &start), found, sim)
-    };
-    let (old, _, _) = run(0.0);
-    let (new, found, sim) = run(100.0);
+    let (stretch, found, sim) = wound_long_step_twist(100.0);
     let held = sim.solver_stats().unwrap().self_pairs;
-    eprintln!("largest stretch: {old:.3} without the term, {new:.3} with; {held} pairs held");
-    assert!(old > 1.0, "the twist the term is for: {old}");
-    assert!(new.is_finite() && (0.0..0.7).contains(&new), "{new}");
+    assert!(
+        stretch.is_finite() && (0.0..0.7).contains(&stretch),
+        "{stretch}"
+    );
     assert!(held > 1000, "{held}");
+    assert!(found.iter().all(|&k| k == 0), "intersections: {found:?}");
+}
+
+/// Without the in-solve term the same twist tore itself apart (largest stretch above 1, against
+/// 0.35 at 10 steps a frame): each step the cap stopped vertices short of where their
+/// neighbours went, the springs between them held energy no work gave the cloth, and the next
+/// solve turned it into motion for the next cap to stop. The energy guard
+/// (`Pipeline::keep_contact_passive`) keeps that energy out.
+#[test]
+fn a_long_step_twist_without_the_in_solve_term_does_not_tear_itself_apart() {
+    let (stretch, found, _) = wound_long_step_twist(0.0);
+    assert!(
+        stretch.is_finite() && (0.0..0.7).contains(&stretch),
+        "{stretch}"
+    );
     assert!(found.iter().all(|&k| k == 0), "intersections: {found:?}");
 }
 
@@ -913,7 +930,10 @@ fn every_step_holding_self_contact_ends_on_a_solve_at_the_scenes_tolerance() {
             "step {step}: the last solve ended at {}",
             after.last_residual
         );
-        assert_eq!(after.solves - before.solves, 2, "step {step}");
+        // Two solves, or more where the cap left energy nothing gave the cloth and the step's
+        // passes ran again holding what it moved (`Pipeline::hold_self_contacts`).
+        let solves = after.solves - before.solves;
+        assert!(solves >= 2, "step {step}: {solves} solves");
         if after.self_pairs > before.self_pairs {
             holding += 1;
         } else {

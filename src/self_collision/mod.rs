@@ -142,6 +142,10 @@ pub struct SelfCollisionStats {
     pub stopped: u64,
     /// Most cap rounds one substep took.
     pub max_cap_rounds: u32,
+    /// Substeps the pass ended with more energy than the cloth had at their start plus the
+    /// work done on it, drawn back along their own paths until they did not
+    /// (`Pipeline::keep_contact_passive`).
+    pub drawn_back: u64,
     /// Smallest distance at the start of a substep between a vertex and a triangle without it,
     /// or two edges with no shared vertex, among the pairs looked at (m; infinite if none).
     pub min_distance: f64,
@@ -186,6 +190,7 @@ impl Default for SelfCollisionStats {
             capped: 0,
             stopped: 0,
             max_cap_rounds: 0,
+            drawn_back: 0,
             min_distance: f64::INFINITY,
             effort: SelfCollisionEffort::default(),
         }
@@ -297,6 +302,11 @@ impl SelfCollision {
 
     pub fn stats(&self) -> SelfCollisionStats {
         self.stats
+    }
+
+    /// Counts a substep drawn back for the energy it gained ([`SelfCollisionStats::drawn_back`]).
+    pub fn count_drawn_back(&mut self) {
+        self.stats.drawn_back += 1;
     }
 
     /// The live mesh's edges, each once, as of the last pass.

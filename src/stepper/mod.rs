@@ -224,6 +224,7 @@ impl Stepper {
             round += 1;
         };
         if finite {
+            passes.keep_contact_passive(&mut s);
             if let Some((particle, share)) = passes.unresolved_motion(&s) {
                 return Err(Failure {
                     reason: Trouble::Unresolved { share },

@@ -46,6 +46,11 @@ impl Pipeline {
             halved: 0,
             start_energy: None,
             unshortened: Vec3s::zeros(0),
+            pass_input: Kinematics::zeros(0),
+            contact_capped: false,
+            draw_back: None,
+            trial: Kinematics::zeros(0),
+            moved_first: Kinematics::zeros(0),
             stable_substep: None,
         }
     }

@@ -86,6 +86,15 @@ pub(super) struct Pipeline {
     /// Where the passes before self-collision left the particles, for a solver that holds
     /// contacts: what the self-collision pass moved (`Pipeline::hold_self_contacts`).
     unshortened: Vec3s,
+    /// What the self-collision pass was given, and trial states of a substep it left with
+    /// energy nothing gave it (`Pipeline::keep_contact_passive`).
+    pass_input: Kinematics,
+    /// Whether the self-collision pass's cap shortened any motion in the last round.
+    contact_capped: bool,
+    /// The last round's draw-back once sized: None inside when it keeps the whole motion.
+    draw_back: Option<Option<f32>>,
+    trial: Kinematics,
+    moved_first: Kinematics,
     /// The current integrator's estimated stable substep (s), None when any is; computed when
     /// first needed and forgotten when the integrator or the masses change.
     pub stable_substep: Option<Option<f64>>,
@@ -210,6 +219,10 @@ impl Pipeline {
                 .map(Kinematics::heap_bytes)
                 .sum::<usize>()
             + self.unshortened.heap_bytes()
+            + [&self.pass_input, &self.trial, &self.moved_first]
+                .iter()
+                .map(|k| k.pos.heap_bytes() + k.vel.heap_bytes())
+                .sum::<usize>()
     }
 }
 

@@ -63,6 +63,11 @@ const SELF_ROUNDS: u32 = 2;
 /// ends below it.
 const RERUN_ROUNDS: u32 = 1;
 
+/// The fraction of a substep's motion below which a substep that does work and that the energy
+/// guard would draw back ([`Pipeline::keep_contact_passive`]) runs its passes again, the solve
+/// holding the particles the self-collision pass moved. Above it the draw-back alone is kept.
+const RERUN_KEPT: f32 = 0.5;
+
 /// How many times at most the solve of round `round` (from 0) of a substep's passes runs while
 /// its contacts change. A rerun holding the self-collision pass's particles settles its
 /// contacts in rounds only where a contact pulls as well as pushes inside the solve (implicit
@@ -80,7 +85,7 @@ fn contact_rounds(kind: IntegratorKind, round: u32) -> u32 {
 
 /// Whether the total energy `end` is above `start` by more than the rounding of float32
 /// positions and speeds can explain ([`ENERGY_SLACK`] of the energies' sum at the start).
-fn gained(start: Energy, end: Energy) -> bool {
+pub(super) fn gained(start: Energy, end: Energy) -> bool {
     let scale = start.kinetic + start.gravitational.abs() + start.elastic;
     end.total() > start.total() + ENERGY_SLACK * scale
 }
@@ -359,12 +364,19 @@ impl Pipeline {
         if round + 1 >= SELF_ROUNDS || self.self_collision.is_none() || !self.holds_contacts() {
             return false;
         }
-        let (Some(start), Some(contacts)) = (self.start_energy, self.contacts.as_mut()) else {
+        // Where something does work, only a substep the energy guard would draw back by more
+        // than [`RERUN_KEPT`] is run again: a smaller draw-back costs less than a second
+        // solve, and a larger one stops the cloth where it stood (a grip held by its own
+        // cloth froze mid-drag, every substep drawn back to its start).
+        let gain = match self.start_energy {
+            Some(start) => gained(start, energy_of(s.model, s.next)),
+            None => self
+                .passive_fraction(s)
+                .is_some_and(|kept| kept < RERUN_KEPT),
+        };
+        let Some(contacts) = self.contacts.as_mut().filter(|_| gain) else {
             return false;
         };
-        if !gained(start, energy_of(s.model, s.next)) {
-            return false;
-        }
         let (before, after) = (&self.unshortened, &s.next.pos);
         let mut held = false;
         for p in 0..after.len() {
