@@ -261,7 +261,8 @@ impl SelfContactTerm {
             self.start[p + 1] += self.start[p];
         }
         self.rows.clear();
-        self.rows.resize(self.start[n] as usize, RowEntry::default());
+        self.rows
+            .resize(self.start[n] as usize, RowEntry::default());
         self.fill.clear();
         self.fill.extend_from_slice(&self.start[..n]);
         for (i, held) in self.held.iter().enumerate() {
