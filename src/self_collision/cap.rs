@@ -131,31 +131,38 @@ fn cap_factor(
     eps: f64,
     round: u32,
 ) -> Option<f64> {
-    // The Lipschitz bound's relative motion `m` (from its square: the square root is
-    // monotonic, so the root of the largest square is the largest root, to the bit), and for
-    // the plane bound the least gap along `n` at the end and the most approach along it.
-    let (mut m2, mut gap_end, mut approach) = (0.0f64, f64::INFINITY, 0.0f64);
-    let mut slack_start = f64::INFINITY;
-    for i in 0..pair.split {
-        let a = pair.verts[i] as usize;
-        let da = s[a] * disp[a];
-        for j in pair.split..4 {
-            let b = pair.verts[j] as usize;
-            let rel = da - s[b] * disp[b];
-            m2 = m2.max(rel.length_squared());
-            let base = (start[a] - start[b]).dot(pair.n);
-            gap_end = gap_end.min(base + rel.dot(pair.n));
-            approach = approach.max(-rel.dot(pair.n));
-            slack_start = slack_start.min(base);
-        }
-    }
-    let m = m2.sqrt();
-    let allowed = (APPROACH * pair.d0 - eps).max(0.0);
-    let keep = (1.0 - APPROACH) * pair.d0 + eps;
+    let pairs = || {
+        (0..pair.split)
+            .flat_map(move |i| (pair.split..4).map(move |j| (i, j)))
+            .map(|(i, j)| {
+                let (a, b) = (pair.verts[i] as usize, pair.verts[j] as usize);
+                (a, b, s[a] * disp[a] - s[b] * disp[b])
+            })
+    };
     // Safe by either bound: relative motion below the distance, or the plane through the
     // closest points at the start separating the two at the end (and so, by linearity, all
-    // along).
-    if m <= allowed || gap_end >= keep {
+    // along). The Lipschitz bound first, alone: most pairs pass it, and then the plane's
+    // terms are not needed.
+    // Its relative motion `m` from the largest square: the square root is monotonic, so the
+    // root of the largest square is the largest root, to the bit.
+    let m = (pairs().map(|(_, _, rel)| rel.length_squared()))
+        .fold(0.0f64, f64::max)
+        .sqrt();
+    let allowed = (APPROACH * pair.d0 - eps).max(0.0);
+    if m <= allowed {
+        return None;
+    }
+    // The plane bound: the least gap along `n` at the end and the most approach along it.
+    let (mut gap_end, mut approach) = (f64::INFINITY, 0.0f64);
+    let mut slack_start = f64::INFINITY;
+    for (a, b, rel) in pairs() {
+        let base = (start[a] - start[b]).dot(pair.n);
+        gap_end = gap_end.min(base + rel.dot(pair.n));
+        approach = approach.max(-rel.dot(pair.n));
+        slack_start = slack_start.min(base);
+    }
+    let keep = (1.0 - APPROACH) * pair.d0 + eps;
+    if gap_end >= keep {
         return None;
     }
     Some(if round < SCALE_ROUNDS {
