@@ -118,15 +118,30 @@ struct Held {
     short: f32,
 }
 
+/// A vertex's part in one held pair, as its row of the product reads it.
+#[derive(Clone, Copy, Debug, Default)]
+struct RowEntry {
+    /// The pair's index among the held ones (its `along`).
+    pair: u32,
+    /// `h^2 k c_i`, kg: the pair's `s` times the vertex's weight.
+    sc: f32,
+    /// The vertex's weight `c_i`.
+    c: f32,
+    n: Vec3,
+}
+
 /// The pairs of one solve, kept between steps so that their buffers are reused.
 #[derive(Default)]
 pub(super) struct SelfContactTerm {
     /// Where its pairs rest.
     rest: Rest,
     held: Vec<Held>,
-    /// Per particle, its entries in `rows` (`start[p]..start[p + 1]`): (pair, slot in it).
+    /// Per particle, its entries in `rows` (`start[p]..start[p + 1]`), in pair order.
     start: Vec<u32>,
-    rows: Vec<(u32, u8)>,
+    /// What a row of the product reads of each of its pairs, in row order: CG's product walks
+    /// them in sequence instead of gathering each pair's whole [`Held`] (60 bytes) from the
+    /// pairs' order.
+    rows: Vec<RowEntry>,
     /// Per pair handed in, whether it was held in this step (a released pair is not held again).
     taken: Vec<bool>,
     /// Where each particle's next entry goes while `rows` is filled.
@@ -246,14 +261,20 @@ impl SelfContactTerm {
             self.start[p + 1] += self.start[p];
         }
         self.rows.clear();
-        self.rows.resize(self.start[n] as usize, (0, 0));
+        self.rows
+            .resize(self.start[n] as usize, RowEntry::default());
         self.fill.clear();
         self.fill.extend_from_slice(&self.start[..n]);
         for (i, held) in self.held.iter().enumerate() {
             for k in 0..4 {
                 if held.c[k] != 0.0 {
                     let p = held.verts[k] as usize;
-                    self.rows[self.fill[p] as usize] = (i as u32, k as u8);
+                    self.rows[self.fill[p] as usize] = RowEntry {
+                        pair: i as u32,
+                        sc: held.s * held.c[k],
+                        c: held.c[k],
+                        n: held.n,
+                    };
                     self.fill[p] += 1;
                 }
             }
@@ -315,11 +336,10 @@ impl SelfContactTerm {
                 continue;
             }
             let (mut sum, x_p) = (Vec3::new(out.x[i], out.y[i], out.z[i]), x.get(p));
-            for &(pair, slot) in entries {
-                let held = &self.held[pair as usize];
-                let c = held.c[slot as usize];
-                let all = f32::from_bits(self.along[pair as usize].load(Relaxed));
-                sum += held.s * c * (all - c * held.n.dot(x_p)) * held.n;
+            for entry in entries {
+                let all = f32::from_bits(self.along[entry.pair as usize].load(Relaxed));
+                // `s c (..)` is `(s c) (..)`: `sc` rounds as that first product does.
+                sum += entry.sc * (all - entry.c * entry.n.dot(x_p)) * entry.n;
             }
             (out.x[i], out.y[i], out.z[i]) = (sum.x, sum.y, sum.z);
         }

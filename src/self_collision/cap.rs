@@ -17,7 +17,7 @@
 //! whose vertices all stand still has `m = 0`. Capped vertices get their velocity scaled by `s`
 //! too, and stay in their capsule (see the parent module).
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use super::pair::Pair;
@@ -49,6 +49,15 @@ impl SelfCollision {
         self.scale_next.resize(n, 1.0);
         self.rescaled.clear();
         self.rescaled.resize(n, false);
+        // Each vertex's start and move in f64 once, not once for each pair and vertex of the
+        // other primitive it is in (a few dozen): the same values, so the same factors.
+        self.cap_start.clear();
+        self.cap_move.clear();
+        if !self.pairs.is_empty() {
+            let (start, moved) = (&mut self.cap_start, &mut self.cap_move);
+            start.extend((0..n).map(|v| x0.get(v).as_dvec3()));
+            moved.extend((0..n).map(|v| next.pos.get(v).as_dvec3() - start[v]));
+        }
         let mut rounds = 0;
         loop {
             // Each pair's factor depends only on the scales of the round before (a Jacobi
@@ -56,7 +65,8 @@ impl SelfCollision {
             // is exact whatever the order. After the first round only a pair with a vertex
             // the last round rescaled can be unsafe: any other has the scales it was safe
             // with (a violated pair rescales its own vertices).
-            let (s, pos, rescaled) = (&self.scale, &next.pos, &self.rescaled);
+            let (s, rescaled) = (&self.scale, &self.rescaled);
+            let motion = (&self.cap_start[..], &self.cap_move[..]);
             let violations: Vec<(u32, f64)> = self
                 .pairs
                 .par_iter()
@@ -64,7 +74,7 @@ impl SelfCollision {
                 .with_min_len(1024)
                 .filter(|(_, pair)| rounds == 0 || pair.verts.iter().any(|&v| rescaled[v as usize]))
                 .filter_map(|(k, pair)| {
-                    cap_factor(pair, s, x0, pos, eps, rounds).map(|f| (k as u32, f))
+                    cap_factor(pair, s, motion, eps, rounds).map(|f| (k as u32, f))
                 })
                 .collect();
             let violated = !violations.is_empty();
@@ -111,34 +121,48 @@ impl SelfCollision {
 }
 
 /// The factor the cap scales a pair's vertices' displacements by in round `round`, given the
-/// scales `s` so far, or None when the pair is safe by either bound (see the module's comment).
+/// scales `s` so far and each vertex's start and move (`x1 - x0`, in f64), or None when the
+/// pair is safe by either bound (see the module's comment).
 #[inline]
-fn cap_factor(pair: &Pair, s: &[f64], x0: &Vec3s, x: &Vec3s, eps: f64, round: u32) -> Option<f64> {
-    let disp = |v: usize| x.get(v).as_dvec3() - x0.get(v).as_dvec3();
-    let start = |v: usize| x0.get(v).as_dvec3();
-    // The Lipschitz bound's relative motion `m`, and for the plane bound the least gap along
-    // `n` at the end and the most approach along it.
-    let (mut m, mut gap_end, mut approach) = (0.0f64, f64::INFINITY, 0.0f64);
-    let mut slack_start = f64::INFINITY;
-    for i in 0..pair.split {
-        let a = pair.verts[i] as usize;
-        let da = s[a] * disp(a);
-        for j in pair.split..4 {
-            let b = pair.verts[j] as usize;
-            let rel = da - s[b] * disp(b);
-            m = m.max(rel.length());
-            let base = (start(a) - start(b)).dot(pair.n);
-            gap_end = gap_end.min(base + rel.dot(pair.n));
-            approach = approach.max(-rel.dot(pair.n));
-            slack_start = slack_start.min(base);
-        }
-    }
-    let allowed = (APPROACH * pair.d0 - eps).max(0.0);
-    let keep = (1.0 - APPROACH) * pair.d0 + eps;
+fn cap_factor(
+    pair: &Pair,
+    s: &[f64],
+    (start, disp): (&[DVec3], &[DVec3]),
+    eps: f64,
+    round: u32,
+) -> Option<f64> {
+    let pairs = || {
+        (0..pair.split)
+            .flat_map(move |i| (pair.split..4).map(move |j| (i, j)))
+            .map(|(i, j)| {
+                let (a, b) = (pair.verts[i] as usize, pair.verts[j] as usize);
+                (a, b, s[a] * disp[a] - s[b] * disp[b])
+            })
+    };
     // Safe by either bound: relative motion below the distance, or the plane through the
     // closest points at the start separating the two at the end (and so, by linearity, all
-    // along).
-    if m <= allowed || gap_end >= keep {
+    // along). The Lipschitz bound first, alone: most pairs pass it, and then the plane's
+    // terms are not needed.
+    // Its relative motion `m` from the largest square: the square root is monotonic, so the
+    // root of the largest square is the largest root, to the bit.
+    let m = (pairs().map(|(_, _, rel)| rel.length_squared()))
+        .fold(0.0f64, f64::max)
+        .sqrt();
+    let allowed = (APPROACH * pair.d0 - eps).max(0.0);
+    if m <= allowed {
+        return None;
+    }
+    // The plane bound: the least gap along `n` at the end and the most approach along it.
+    let (mut gap_end, mut approach) = (f64::INFINITY, 0.0f64);
+    let mut slack_start = f64::INFINITY;
+    for (a, b, rel) in pairs() {
+        let base = (start[a] - start[b]).dot(pair.n);
+        gap_end = gap_end.min(base + rel.dot(pair.n));
+        approach = approach.max(-rel.dot(pair.n));
+        slack_start = slack_start.min(base);
+    }
+    let keep = (1.0 - APPROACH) * pair.d0 + eps;
+    if gap_end >= keep {
         return None;
     }
     Some(if round < SCALE_ROUNDS {

@@ -57,7 +57,7 @@ mod topology;
 
 pub use pair::Pair;
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::model::Model;
@@ -250,6 +250,9 @@ pub struct SelfCollision {
     scale_next: Vec<f64>,
     /// Whether the cap's last round changed each vertex's scale.
     rescaled: Vec<bool>,
+    /// Each vertex's start and move over the substep in f64, for the cap's pair tests.
+    cap_start: Vec<DVec3>,
+    cap_move: Vec<DVec3>,
     stats: SelfCollisionStats,
     /// Look at every pair the substep needs in each substep on the list, as if none could be
     /// left out (what the tests compare with), and `HOT` in its place, if given.
@@ -292,6 +295,8 @@ impl SelfCollision {
             scale: Vec::new(),
             scale_next: Vec::new(),
             rescaled: Vec::new(),
+            cap_start: Vec::new(),
+            cap_move: Vec::new(),
             stats: SelfCollisionStats::default(),
             #[cfg(test)]
             look_at_all: false,
@@ -704,6 +709,7 @@ impl SelfCollision {
             + self.near.capacity() * 8
             + (self.scale.capacity() + self.scale_next.capacity()) * 8
             + self.rescaled.capacity()
+            + (self.cap_start.capacity() + self.cap_move.capacity()) * size_of::<DVec3>()
     }
 }
 
