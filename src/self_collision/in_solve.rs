@@ -271,8 +271,10 @@ mod tests {
         let (skipped, _, found) = pairs_ahead_against_the_search(3e-3);
         assert!(skipped > 0 && found > 0, "skipped {skipped}, found {found}");
         let (skipped, from_list, found) = pairs_ahead_against_the_search(1.2e-2);
+        // The list gives the pairs of the slow steps, and the search runs again once they are
+        // too fast for it.
         assert!(
-            from_list > 30,
+            from_list > 10 && skipped < 40,
             "skipped {skipped}, found by the list {from_list}, found {found}"
         );
     }
