@@ -15,8 +15,8 @@ use rayon::prelude::*;
 
 use super::list::PairList;
 use super::pair::Pair;
-use super::search::{NearKeys, Order, Reuse};
-use super::{list_boxes, path_reach, per_surface_vertex, SelfCollision, Survey, SKIN};
+use super::search::{NearKeys, Reuse};
+use super::{list_boxes, per_surface_vertex, SelfCollision, Survey, SKIN};
 use crate::model::Model;
 use crate::soa::Vec3s;
 use crate::state::Kinematics;
@@ -70,24 +70,11 @@ impl SelfCollision {
         let mut pairs = std::mem::take(&mut self.ahead_pairs);
         if listed {
             self.stats.ahead_from_list += 1;
-            let (boxes, thickness) = (&self.vertex_boxes, self.thickness as f64);
-            let reach = path_reach(&self.path_ends, x0, self.path_radius);
-            let quiet = &self.ahead_list;
-            let looked = self.broad.search_listed(
-                &self.topology,
-                boxes,
-                x0,
-                (thickness, reach, eps),
-                1e-3 * eps,
-                Order::Index,
-                Reuse::Keep,
-                (&quiet.keys, quiet.list.picked()),
-                &mut pairs,
-            );
+            let looked = self.swept_search(x0, eps, (Reuse::Keep, true), &mut pairs);
             self.count(looked);
         } else {
             self.stats.ahead_searches += 1;
-            self.swept_search(x0, eps, Reuse::Keep, &mut pairs);
+            self.swept_search(x0, eps, (Reuse::Keep, false), &mut pairs);
         }
         let thickness = self.thickness as f64;
         self.ahead_list.found_none = pairs.is_empty();
@@ -157,6 +144,11 @@ impl Quiet {
         self.spared = false;
         self.wait = 0;
         self.left = 0;
+    }
+
+    /// The listed pairs' keys, and which of them the last [`PairList::unclear`] picked.
+    pub fn picked(&self) -> (&NearKeys, &[u32]) {
+        (&self.keys, self.list.picked())
     }
 
     pub fn heap_bytes(&self) -> usize {

@@ -527,28 +527,36 @@ impl SelfCollision {
         } else {
             Reuse::Nothing
         };
-        let looked = self.swept_search(x0, eps, reuse, &mut pairs);
+        let looked = self.swept_search(x0, eps, (reuse, false), &mut pairs);
         self.pairs = pairs;
         self.count(looked);
     }
 
     /// The swept search of [`SelfCollision::swept_pairs`] into `out`, on the boxes and path
-    /// ends of the last [`SelfCollision::sweep_boxes`].
-    fn swept_search(&mut self, x0: &Vec3s, eps: f64, reuse: Reuse, out: &mut Vec<Pair>) -> Looked {
+    /// ends of the last [`SelfCollision::sweep_boxes`]; with `listed`, its pairs among those
+    /// the quiet list picked, which the caller vouches hold every pair it could find
+    /// (`in_solve.rs`).
+    fn swept_search(
+        &mut self,
+        x0: &Vec3s,
+        eps: f64,
+        (reuse, listed): (Reuse, bool),
+        out: &mut Vec<Pair>,
+    ) -> Looked {
         let (boxes, thickness) = (&self.vertex_boxes, self.thickness as f64);
         let reach = path_reach(&self.path_ends, x0, self.path_radius);
         // A pair is found closer than `thickness + side(a) + side(b) + eps`, a side's the most
         // any of its vertices may move.
-        self.broad.search(
-            &self.topology,
-            boxes,
-            x0,
-            (thickness, reach, eps),
-            1e-3 * eps,
-            Order::Index,
-            reuse,
-            out,
-        )
+        let (topo, limit, margin) = (&self.topology, (thickness, reach, eps), 1e-3 * eps);
+        if listed {
+            let picked = self.ahead_list.picked();
+            let (order, broad) = (Order::Index, &mut self.broad);
+            broad.search_listed(topo, boxes, x0, limit, margin, order, reuse, picked, out)
+        } else {
+            let order = Order::Index;
+            self.broad
+                .search(topo, boxes, x0, limit, margin, order, reuse, out)
+        }
     }
 
     fn count(&mut self, looked: Looked) {

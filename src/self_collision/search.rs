@@ -86,6 +86,10 @@ impl NearKeys {
     }
 }
 
+/// A candidate pair of a swept search under its key, with the most it may be apart to be found
+/// (m).
+type Keyed = (u64, f64);
+
 /// Whether a swept search keeps the closest points of its candidates for a later one to take
 /// over, or takes them over from the last one that kept them.
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -170,27 +174,11 @@ impl Broad {
         self.fit(topo, vertex_boxes);
         self.fit_tight(topo, x);
         self.fit_sides(topo, reach);
-        let limit = Limit::Sides {
-            base,
-            vert: &self.vert_side,
-            tri: &self.tri_side,
-            edge: &self.edge_side,
-            eps,
-        };
         let (mut vt, mut ee) = (
             std::mem::take(&mut self.candidate_vt),
             std::mem::take(&mut self.candidate_ee),
         );
-        let tests = PairTests {
-            topo,
-            x,
-            limit,
-            margin,
-            order,
-            tri_rank: &self.tri_rank,
-            tight: Some((&self.tight_tris, &self.tight_edges)),
-            measure: |_: [u32; 4], _: usize, most: f64| Some(most),
-        };
+        let tests = self.swept_tests(topo, x, (base, eps, margin), order, true);
         let looked = self.find(&tests, &mut vt, &mut ee);
         self.take_found(topo, x, order, reuse, (&vt, &ee), out);
         (self.candidate_vt, self.candidate_ee) = (vt, ee);
@@ -219,30 +207,15 @@ impl Broad {
         out: &mut Vec<Pair>,
     ) -> Looked {
         self.fit_sides(topo, reach);
-        let limit = Limit::Sides {
-            base,
-            vert: &self.vert_side,
-            tri: &self.tri_side,
-            edge: &self.edge_side,
-            eps,
-        };
-        let tests = PairTests {
-            topo,
-            x,
-            limit,
-            margin,
-            order,
-            tri_rank: &self.tri_rank,
-            tight: None,
-            measure: |_: [u32; 4], _: usize, most: f64| Some(most),
-        };
         let (mut vt, mut ee) = (
             std::mem::take(&mut self.candidate_vt),
             std::mem::take(&mut self.candidate_ee),
         );
+        let tests = self.swept_tests(topo, x, (base, eps, margin), order, false);
         let vb = vertex_boxes;
         let by_rank = &self.by_rank;
-        let (of_vt, of_ee) = picked.split_at(picked.partition_point(|&k| (k as usize) < listed.split));
+        let (of_vt, of_ee) =
+            picked.split_at(picked.partition_point(|&k| (k as usize) < listed.split));
         let vertex_triangle = |&k: &u32| {
             let key = listed.keys[k as usize];
             let (v, rank) = ((key >> 32) as u32, key as u32);
@@ -260,7 +233,12 @@ impl Broad {
             tests.close([v, a, b, c], 1, (v, t)).map(|most| (key, most))
         };
         vt.clear();
-        vt.par_extend(of_vt.par_iter().with_min_len(1024).filter_map(vertex_triangle));
+        vt.par_extend(
+            of_vt
+                .par_iter()
+                .with_min_len(1024)
+                .filter_map(vertex_triangle),
+        );
         let edge_edge = |&k: &u32| {
             let key = listed.keys[k as usize];
             let (e, f) = ((key >> 32) as u32, key as u32);
@@ -279,6 +257,35 @@ impl Broad {
         self.take_found(topo, x, order, reuse, (&vt, &ee), out);
         (self.candidate_vt, self.candidate_ee) = (vt, ee);
         looked
+    }
+
+    /// The tests of a swept search at `x` ([`Broad::search`]'s `base`, `eps`, `margin` and
+    /// `order`) on the sides of the last [`Broad::fit_sides`], and, when `tight`, the tight
+    /// boxes of the last [`Broad::fit_tight`] (else each pair's own, the same to the bit).
+    fn swept_tests<'a>(
+        &'a self,
+        topo: &'a Topology,
+        x: &'a Vec3s,
+        (base, eps, margin): (f64, f64, f64),
+        order: Order,
+        tight: bool,
+    ) -> PairTests<'a, impl Fn([u32; 4], usize, f64) -> Option<f64> + Sync> {
+        PairTests {
+            topo,
+            x,
+            limit: Limit::Sides {
+                base,
+                vert: &self.vert_side,
+                tri: &self.tri_side,
+                edge: &self.edge_side,
+                eps,
+            },
+            margin,
+            order,
+            tri_rank: &self.tri_rank,
+            tight: tight.then_some((&self.tight_tris[..], &self.tight_edges[..])),
+            measure: |_: [u32; 4], _: usize, most: f64| Some(most),
+        }
     }
 
     /// Each vertex's side for a search, the most `reach` of it (m, by particle; zero for a
@@ -301,7 +308,7 @@ impl Broad {
         x: &Vec3s,
         order: Order,
         reuse: Reuse,
-        (vt, ee): (&[(u64, f64)], &[(u64, f64)]),
+        (vt, ee): (&[Keyed], &[Keyed]),
         out: &mut Vec<Pair>,
     ) {
         out.clear();
@@ -476,7 +483,8 @@ impl Broad {
     /// [`Broad::search_listed`].
     pub fn near_keys(&self, into: &mut NearKeys) {
         into.keys.clear();
-        into.keys.extend(self.sorted_near.iter().map(|&(key, _)| key));
+        into.keys
+            .extend(self.sorted_near.iter().map(|&(key, _)| key));
         into.split = self.near_split;
     }
 
