@@ -727,9 +727,10 @@ class Simulation:
         the smallest distance between a vertex and a triangle, or two edges, at the start
         of a substep (``min_distance``, m), and, with ``solve_stiffness``, the swept searches
         run ahead of implicit Euler's solves (``ahead_searches``; skipped where a list of its
-        own shows they would find nothing) and that list's builds (``ahead_rebuilds``), and
-        substeps drawn back along their paths because the cap left the cloth with energy
-        nothing gave it (``drawn_back``)."""
+        own holds every pair they could find), the steps whose pairs ahead that list gave
+        instead (``ahead_from_list``; not counted: those it showed have none), that list's
+        builds (``ahead_rebuilds``), and substeps drawn back along their paths because the cap
+        left the cloth with energy nothing gave it (``drawn_back``)."""
         return self._core.self_collision_stats()
 
     def seam_gap(self) -> float | None:

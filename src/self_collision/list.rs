@@ -273,26 +273,38 @@ impl PairList {
         self.near.par_iter().map(move |&k| candidates[k as usize])
     }
 
-    /// Whether every listed pair is now at least `base` and the most that any vertex of each
-    /// of its primitives reaches (`reach`, by particle; m) apart: its distance at the anchor,
-    /// less the most any vertex of each primitive strayed since ([`PairList::strayed`]) and
-    /// `eps` for each, is not below that. With [`PairList::covers`] for
-    /// `base + 2 max(reach)`, no pair of the mesh is closer.
-    pub fn clear_of(&self, base: f64, reach: &[f64], eps: f64) -> bool {
+    /// The listed pairs that may now be closer than `base` and the most that any vertex of
+    /// each of its primitives reaches (`reach`, by particle, at least `least` for a vertex of
+    /// the mesh; m), in the order of their keys, as their places in the list: those whose
+    /// distance at the anchor, less the most any vertex of each primitive strayed since
+    /// ([`PairList::strayed`]) and `eps` for each, is below that. With [`PairList::covers`]
+    /// for `base + 2 max(reach)`, no pair of the mesh left out is closer.
+    pub fn unclear(&mut self, base: f64, (reach, least): (&[f64], f64), eps: f64) -> &[u32] {
         let strays = &self.strays;
         let farthest = reach.iter().copied().fold(0.0, f64::max);
-        // Most pairs are farther than the farthest vertex allows for, read by distance alone.
+        // Most pairs are farther than the farthest vertex allows for, read by distance alone,
+        // and most of a cloth at rest are nearer than the nearest allows for (a sum of sides
+        // no smaller, rounded alike).
         let loose = base + 2.0 * (self.most_strayed + farthest + eps);
-        self.candidates
-            .par_iter()
-            .zip(&self.distances)
-            .with_min_len(1024)
-            .all(|(c, &e)| {
-                e >= loose || {
-                    let (a, b) = sides(c, strays, reach);
-                    e >= base + a + b + 2.0 * eps
-                }
-            })
+        let sure = base + least + least + 2.0 * eps;
+        let candidates = &self.candidates;
+        let near = |(k, &e): (usize, &f64)| {
+            let near = e < loose
+                && (e < sure || {
+                    let (a, b) = sides(&candidates[k], strays, reach);
+                    e < base + a + b + 2.0 * eps
+                });
+            near.then_some(k as u32)
+        };
+        self.near.clear();
+        let listed = self.distances.par_iter().enumerate().with_min_len(4096);
+        self.near.par_extend(listed.filter_map(near));
+        &self.near
+    }
+
+    /// The pairs the last [`PairList::unclear`] picked.
+    pub fn picked(&self) -> &[u32] {
+        &self.near
     }
 
     /// Of the pairs the last [`PairList::within`] found, those that may come within `limit`

@@ -130,9 +130,11 @@ pub struct SelfCollisionStats {
     pub swept_substeps: u64,
     pub redone: u64,
     /// Swept searches run ahead of implicit Euler's solves (`in_solve.rs`): those the list of
-    /// the pairs near enough to matter ahead did not show would find nothing, and the times
-    /// that list was built.
+    /// the pairs near enough to matter ahead did not hold every pair of, the steps whose pairs
+    /// ahead that list gave instead (`ahead_from_list`; not counted: the steps it showed to
+    /// have none), and the times it was built.
     pub ahead_searches: u64,
+    pub ahead_from_list: u64,
     pub ahead_rebuilds: u64,
     /// Pairs closer than `thickness` after the integrator (the repulsion's first sweep).
     pub contacts: u64,
@@ -185,6 +187,7 @@ impl Default for SelfCollisionStats {
             swept_substeps: 0,
             redone: 0,
             ahead_searches: 0,
+            ahead_from_list: 0,
             ahead_rebuilds: 0,
             contacts: 0,
             capped: 0,
@@ -539,32 +542,36 @@ impl SelfCollision {
         } else {
             Reuse::Nothing
         };
-        let looked = self.swept_search(x0, eps, reuse, &mut pairs);
+        let looked = self.swept_search(x0, eps, (reuse, false), &mut pairs);
         self.pairs = pairs;
         self.count(looked);
     }
 
     /// The swept search of [`SelfCollision::swept_pairs`] into `out`, on the boxes and path
-    /// ends of the last [`SelfCollision::sweep_boxes`].
-    fn swept_search(&mut self, x0: &Vec3s, eps: f64, reuse: Reuse, out: &mut Vec<Pair>) -> Looked {
+    /// ends of the last [`SelfCollision::sweep_boxes`]; with `listed`, its pairs among those
+    /// the quiet list picked, which the caller vouches hold every pair it could find
+    /// (`in_solve.rs`).
+    fn swept_search(
+        &mut self,
+        x0: &Vec3s,
+        eps: f64,
+        (reuse, listed): (Reuse, bool),
+        out: &mut Vec<Pair>,
+    ) -> Looked {
         let (boxes, thickness) = (&self.vertex_boxes, self.thickness as f64);
-        let (ends, radius) = (&self.path_ends, self.path_radius as f64);
-        let reach = |v: u32| {
-            let v = v as usize;
-            (ends[v] - x0.get(v)).as_dvec3().length() + radius
-        };
+        let reach = path_reach(&self.path_ends, x0, self.path_radius);
         // A pair is found closer than `thickness + side(a) + side(b) + eps`, a side's the most
         // any of its vertices may move.
-        self.broad.search(
-            &self.topology,
-            boxes,
-            x0,
-            (thickness, reach, eps),
-            1e-3 * eps,
-            Order::Index,
-            reuse,
-            out,
-        )
+        let (topo, limit, margin) = (&self.topology, (thickness, reach, eps), 1e-3 * eps);
+        if listed {
+            let picked = self.ahead_list.picked();
+            let (order, broad) = (Order::Index, &mut self.broad);
+            broad.search_listed(topo, boxes, x0, limit, margin, order, reuse, picked, out)
+        } else {
+            let order = Order::Index;
+            self.broad
+                .search(topo, boxes, x0, limit, margin, order, reuse, out)
+        }
     }
 
     fn count(&mut self, looked: Looked) {
@@ -729,6 +736,16 @@ fn per_surface_vertex(
             *o
         })
         .reduce(|| 0.0, f64::max)
+}
+
+/// How far each vertex may end from where it starts at `x0` (m, by particle): the length of its
+/// path to its end in `ends` and the capsule's `radius` (m).
+fn path_reach<'a>(ends: &'a [Vec3], x0: &'a Vec3s, radius: f32) -> impl Fn(u32) -> f64 + Sync + 'a {
+    let radius = radius as f64;
+    move |v: u32| {
+        let v = v as usize;
+        (ends[v] - x0.get(v)).as_dvec3().length() + radius
+    }
 }
 
 /// Whether `a` and `b` hold the same positions, bit for bit.

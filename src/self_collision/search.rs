@@ -66,6 +66,30 @@ pub struct Broad {
     edge_side: Vec<f64>,
 }
 
+/// The keys of the pairs a [`Broad::search_near`] found, in the order of
+/// [`Broad::near_found`]: the first `split` vertex-triangle pairs' (the vertex, then the
+/// triangle's place among the triangles ordered by their vertices), then the edge-edge pairs'.
+#[derive(Default)]
+pub struct NearKeys {
+    keys: Vec<u64>,
+    split: usize,
+}
+
+impl NearKeys {
+    pub fn clear(&mut self) {
+        self.keys.clear();
+        self.split = 0;
+    }
+
+    pub fn heap_bytes(&self) -> usize {
+        self.keys.capacity() * 8
+    }
+}
+
+/// A candidate pair of a swept search under its key, with the most it may be apart to be found
+/// (m).
+type Keyed = (u64, f64);
+
 /// Whether a swept search keeps the closest points of its candidates for a later one to take
 /// over, or takes them over from the last one that kept them.
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -149,34 +173,144 @@ impl Broad {
     ) -> Looked {
         self.fit(topo, vertex_boxes);
         self.fit_tight(topo, x);
+        self.fit_sides(topo, reach);
+        let (mut vt, mut ee) = (
+            std::mem::take(&mut self.candidate_vt),
+            std::mem::take(&mut self.candidate_ee),
+        );
+        let tests = self.swept_tests(topo, x, (base, eps, margin), order, true);
+        let looked = self.find(&tests, &mut vt, &mut ee);
+        self.take_found(topo, x, order, reuse, (&vt, &ee), out);
+        (self.candidate_vt, self.candidate_ee) = (vt, ee);
+        looked
+    }
+
+    /// Into `out`, in vertex then triangle (as `order` says) and edge then edge order: of the
+    /// pairs `listed` (the keys of [`Broad::near_keys`], `picked` of them), those that
+    /// [`Broad::search`] with the same arguments finds, with the same closest points, to the
+    /// bit. Each is put through the search's own tests (its primitives' boxes overlap, as the
+    /// trees' leaves test them, its tight boxes are near enough, its distance below its
+    /// limit), so a pair the search would find is found here if it is among those picked, and
+    /// nothing else is. The trees are not walked: the caller vouches that every pair the
+    /// search could find is picked, and that the keys were found with this topology.
+    #[allow(clippy::too_many_arguments)]
+    pub fn search_listed(
+        &mut self,
+        topo: &Topology,
+        vertex_boxes: &[Aabb],
+        x: &Vec3s,
+        (base, reach, eps): (f64, impl Fn(u32) -> f64 + Sync, f64),
+        margin: f64,
+        order: Order,
+        reuse: Reuse,
+        (listed, picked): (&NearKeys, &[u32]),
+        out: &mut Vec<Pair>,
+    ) -> Looked {
+        self.fit_sides(topo, reach);
+        let (mut vt, mut ee) = (
+            std::mem::take(&mut self.candidate_vt),
+            std::mem::take(&mut self.candidate_ee),
+        );
+        let tests = self.swept_tests(topo, x, (base, eps, margin), order, false);
+        let vb = vertex_boxes;
+        let by_rank = &self.by_rank;
+        let (of_vt, of_ee) =
+            picked.split_at(picked.partition_point(|&k| (k as usize) < listed.split));
+        let vertex_triangle = |&k: &u32| {
+            let key = listed.keys[k as usize];
+            let (v, rank) = ((key >> 32) as u32, key as u32);
+            let t = by_rank[rank as usize];
+            let tri = topo.triangles[t as usize];
+            if !overlap(&vb[v as usize], &union(vb, &tri)) {
+                return None;
+            }
+            let [a, b, c] = tri;
+            let place = match order {
+                Order::Index => t,
+                Order::Vertices => rank,
+            };
+            let key = (v as u64) << 32 | place as u64;
+            tests.close([v, a, b, c], 1, (v, t)).map(|most| (key, most))
+        };
+        vt.clear();
+        vt.par_extend(
+            of_vt
+                .par_iter()
+                .with_min_len(1024)
+                .filter_map(vertex_triangle),
+        );
+        let edge_edge = |&k: &u32| {
+            let key = listed.keys[k as usize];
+            let (e, f) = ((key >> 32) as u32, key as u32);
+            let ([a, b], [c, d]) = (topo.edges[e as usize], topo.edges[f as usize]);
+            if !overlap(&union(vb, &[a, b]), &union(vb, &[c, d])) {
+                return None;
+            }
+            tests.close([a, b, c, d], 2, (e, f)).map(|most| (key, most))
+        };
+        ee.clear();
+        ee.par_extend(of_ee.par_iter().with_min_len(1024).filter_map(edge_edge));
+        let looked = Looked {
+            boxes: 0,
+            candidates: (vt.len() + ee.len()) as u64,
+        };
+        self.take_found(topo, x, order, reuse, (&vt, &ee), out);
+        (self.candidate_vt, self.candidate_ee) = (vt, ee);
+        looked
+    }
+
+    /// The tests of a swept search at `x` ([`Broad::search`]'s `base`, `eps`, `margin` and
+    /// `order`) on the sides of the last [`Broad::fit_sides`], and, when `tight`, the tight
+    /// boxes of the last [`Broad::fit_tight`] (else each pair's own, the same to the bit).
+    fn swept_tests<'a>(
+        &'a self,
+        topo: &'a Topology,
+        x: &'a Vec3s,
+        (base, eps, margin): (f64, f64, f64),
+        order: Order,
+        tight: bool,
+    ) -> PairTests<'a, impl Fn([u32; 4], usize, f64) -> Option<f64> + Sync> {
+        PairTests {
+            topo,
+            x,
+            limit: Limit::Sides {
+                base,
+                vert: &self.vert_side,
+                tri: &self.tri_side,
+                edge: &self.edge_side,
+                eps,
+            },
+            margin,
+            order,
+            tri_rank: &self.tri_rank,
+            tight: tight.then_some((&self.tight_tris[..], &self.tight_edges[..])),
+            measure: |_: [u32; 4], _: usize, most: f64| Some(most),
+        }
+    }
+
+    /// Each vertex's side for a search, the most `reach` of it (m, by particle; zero for a
+    /// particle in no triangle), and each triangle's and edge's, the most of its vertices'.
+    fn fit_sides(&mut self, topo: &Topology, reach: impl Fn(u32) -> f64 + Sync) {
         per_surface_vertex(&mut self.vert_side, &topo.in_mesh, |v| {
             0.0f64.max(reach(v as u32))
         });
         let vb = &self.vert_side;
         let side = |vs: &[u32]| vs.iter().map(|&v| vb[v as usize]).fold(0.0, f64::max);
         per_primitive(topo, &mut self.tri_side, &mut self.edge_side, side);
-        let limit = Limit::Sides {
-            base,
-            vert: vb,
-            tri: &self.tri_side,
-            edge: &self.edge_side,
-            eps,
-        };
-        let (mut vt, mut ee) = (
-            std::mem::take(&mut self.candidate_vt),
-            std::mem::take(&mut self.candidate_ee),
-        );
-        let tests = PairTests {
-            topo,
-            x,
-            limit,
-            margin,
-            order,
-            tri_rank: &self.tri_rank,
-            tight: Some((&self.tight_tris, &self.tight_edges)),
-            measure: |_: [u32; 4], _: usize, most: f64| Some(most),
-        };
-        let looked = self.find(&tests, &mut vt, &mut ee);
+    }
+
+    /// Into `out`, in key order, the pairs of `found` (the vertex-triangle and the edge-edge
+    /// candidates, each under its key with its limit) closer than their limit at `x`, with
+    /// their closest points there, kept or taken over as `reuse` says.
+    fn take_found(
+        &mut self,
+        topo: &Topology,
+        x: &Vec3s,
+        order: Order,
+        reuse: Reuse,
+        (vt, ee): (&[Keyed], &[Keyed]),
+        out: &mut Vec<Pair>,
+    ) {
         out.clear();
         let keep = matches!(reuse, Reuse::Keep);
         let take = matches!(reuse, Reuse::Take) && self.kept_for == Some(order);
@@ -189,7 +323,7 @@ impl Broad {
             self.kept_for = Some(order);
         }
         let mut sorted = std::mem::take(&mut self.sorted_candidates);
-        for (split, found, buckets) in [(1, &vt, topo.same.len()), (2, &ee, topo.edges.len())] {
+        for (split, found, buckets) in [(1, vt, topo.same.len()), (2, ee, topo.edges.len())] {
             sorted.clear();
             let (starts, cursor) = (&mut self.starts, &mut self.cursor);
             in_key_order(found.iter().copied(), buckets, starts, cursor, &mut sorted);
@@ -254,8 +388,6 @@ impl Broad {
             self.kept_pairs = keeping;
         }
         self.sorted_candidates = sorted;
-        (self.candidate_vt, self.candidate_ee) = (vt, ee);
-        looked
     }
 
     /// Forgets the candidates a search kept: they are not to be taken over.
@@ -345,6 +477,15 @@ impl Broad {
                     (Candidate { verts, split: 2 }, d)
                 }
             })
+    }
+
+    /// Into `into`, the keys of the pairs the last [`Broad::search_near`] found, for
+    /// [`Broad::search_listed`].
+    pub fn near_keys(&self, into: &mut NearKeys) {
+        into.keys.clear();
+        into.keys
+            .extend(self.sorted_near.iter().map(|&(key, _)| key));
+        into.split = self.near_split;
     }
 
     /// Refits the trees to `vertex_boxes` (each vertex's box), shaping them first for a new
@@ -512,10 +653,18 @@ where
         &self,
         verts: [u32; 4],
         split: usize,
-        (first, second): (u32, u32),
+        primitives: (u32, u32),
         key: u64,
         out: &mut Vec<(u64, R)>,
     ) {
+        if let Some(kept) = self.close(verts, split, primitives) {
+            out.push((key, kept));
+        }
+    }
+
+    /// What is kept of the pair of [`PairTests::keep_close`] when it is close enough.
+    #[inline]
+    fn close(&self, verts: [u32; 4], split: usize, (first, second): (u32, u32)) -> Option<R> {
         let most = match self.limit {
             Limit::Fixed(most) => most,
             Limit::Sides {
@@ -550,9 +699,9 @@ where
             None => apart(self.x, &verts, split),
         };
         if gap <= most + self.margin {
-            if let Some(kept) = (self.measure)(verts, split, most) {
-                out.push((key, kept));
-            }
+            (self.measure)(verts, split, most)
+        } else {
+            None
         }
     }
 
@@ -666,6 +815,13 @@ fn per_primitive<T: Send>(
     tris.par_extend(topo.triangles.par_iter().map(|t| per(t)));
     edges.clear();
     edges.par_extend(topo.edges.par_iter().map(|e| per(e)));
+}
+
+/// Whether the closed boxes `a` and `b` overlap, as the trees' leaves test them (touching
+/// counts).
+#[inline]
+fn overlap(a: &Aabb, b: &Aabb) -> bool {
+    a.min.cmple(b.max).all() && a.max.cmpge(b.min).all()
 }
 
 /// The union of `vertices`' boxes.
