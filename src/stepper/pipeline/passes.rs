@@ -116,8 +116,9 @@ impl Pipeline {
         finite
     }
 
-    /// Keeps the self-collision pass from leaving energy in the cloth that nothing gave it;
-    /// returns whether it drew the substep back.
+    /// Keeps the self-collision pass from leaving energy in the cloth that nothing gave it,
+    /// drawing the substep back along its paths where it did
+    /// (`self_collision_stats()["drawn_back"]` counts them).
     ///
     /// The cap stops each vertex short where its move would cross the cloth, so its result
     /// mixes vertices near their start with vertices where the solve sent them, and the springs
