@@ -86,27 +86,26 @@ impl Pipeline {
     }
 
     /// Keeps the cloth from passing through itself; for a solver that holds contacts, keeps
-    /// where the particles were before, for [`Pipeline::hold_self_contacts`].
+    /// what the pass was given, for [`Pipeline::hold_self_contacts`] and the energy guard.
     pub fn separate_self_contacts(&mut self, s: &mut Substep) -> bool {
         let holds = self.holds_contacts();
         let Some(contact) = &mut self.self_collision else {
             return true;
         };
         let t = Instant::now();
+        // Only a solver that holds contacts reruns the substep or has its energy guarded
+        // (`Pipeline::contact_gained`): the copies are kept for those alone.
         if holds {
             let n = s.next.pos.len();
             if self.unshortened.len() != n {
                 self.unshortened = Vec3s::zeros(n);
+                self.pass_input = Kinematics::zeros(n);
+                self.trial = Kinematics::zeros(n);
+                self.moved_first = Kinematics::zeros(n);
             }
             self.unshortened.copy_from(&s.next.pos);
+            self.pass_input.copy_from(s.next);
         }
-        let n = s.next.pos.len();
-        if self.pass_input.pos.len() != n {
-            self.pass_input = Kinematics::zeros(n);
-            self.trial = Kinematics::zeros(n);
-            self.moved_first = Kinematics::zeros(n);
-        }
-        self.pass_input.copy_from(s.next);
         let before = contact.stats();
         let finite = contact.apply(s.model, &s.state.kin, s.next);
         let after = contact.stats();
