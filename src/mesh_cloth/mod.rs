@@ -68,6 +68,7 @@
 //! edge springs here are the smallest model that runs on every explicit integrator already in
 //! the solver, with one set of equations for every pass.
 
+pub mod bending;
 pub mod forces;
 pub mod membrane;
 pub mod topology;
