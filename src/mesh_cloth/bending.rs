@@ -84,7 +84,9 @@ impl IsometricBending {
                 EdgeKind::Bend => true,
                 EdgeKind::Seam => continue,
             };
-            index.entry((springs.a[e], springs.b[e], bend)).or_insert(e as u32);
+            index
+                .entry((springs.a[e], springs.b[e], bend))
+                .or_insert(e as u32);
         }
         let x = |k: u32| DVec3::from(rest[k as usize]);
         let cot = |a: DVec3, b: DVec3| a.dot(b) / a.cross(b).length();
@@ -116,9 +118,9 @@ impl IsometricBending {
             pair_springs.push(PAIRS.map(|(i, j)| {
                 let (a, b) = (c[i].min(c[j]), c[i].max(c[j]));
                 let bend = (i, j) == (2, 3);
-                *index
-                    .get(&(a, b, bend))
-                    .expect("a stretch spring on every edge, a bend spring across every interior edge")
+                *index.get(&(a, b, bend)).expect(
+                    "a stretch spring on every edge, a bend spring across every interior edge",
+                )
             }));
         }
         let mut bending = IsometricBending {

@@ -45,7 +45,8 @@ impl MeshCloth {
             let coordinates = [&pos.x, &pos.y, &pos.z, &vel.x, &vel.y, &vel.z].map(|x| &x[..]);
             let ends = (&s.a[..], &s.b[..]);
             let linear = self.bending.as_ref().map(|b| &b.linear[..]);
-            let over = spring_pass::<1>(s, linear, ends, coordinates, sewing, limit, &mut table[..]);
+            let over =
+                spring_pass::<1>(s, linear, ends, coordinates, sewing, limit, &mut table[..]);
             let (table, lanes) = (&*table, &self.lanes);
             out.par_chunks_mut(per_item).enumerate().for_each(|(c, f)| {
                 let first = c * per_item / LANES;
@@ -246,7 +247,11 @@ fn spring_forces<const STRIDE: usize, const LINEAR: bool>(
             &s.k[springs.clone()],
             &s.c[springs.clone()],
         );
-        let lin = if LINEAR { &linear[springs.clone()] } else { &[] };
+        let lin = if LINEAR {
+            &linear[springs.clone()]
+        } else {
+            &[]
+        };
         let (kind, active) = (&s.kind[springs.clone()], &s.active[springs]);
         let [dx, dy, dz, wx, wy, wz] = &gathered;
         let (dx, dy, dz, wx, wy, wz) = (&dx[..n], &dy[..n], &dz[..n], &wx[..n], &wy[..n], &wz[..n]);

@@ -271,7 +271,10 @@ impl MeshCloth {
             + self.lanes.heap_bytes()
             + self.local.as_ref().map_or(0, LocalNumbering::heap_bytes)
             + self.membrane.as_ref().map_or(0, Membrane::heap_bytes)
-            + self.bending.as_ref().map_or(0, IsometricBending::heap_bytes)
+            + self
+                .bending
+                .as_ref()
+                .map_or(0, IsometricBending::heap_bytes)
     }
 }
 
@@ -352,7 +355,12 @@ fn interior_edges(triangles: &[[u32; 3]]) -> Vec<[u32; 4]> {
         .filter(|run| run.len() == 2)
         .map(|run| {
             let (a, b) = ((run[0].0 >> 32) as u32, run[0].0 as u32);
-            [a, b, opposite(run[0].1, run[0].2), opposite(run[1].1, run[1].2)]
+            [
+                a,
+                b,
+                opposite(run[0].1, run[0].2),
+                opposite(run[1].1, run[1].2),
+            ]
         })
         .collect()
 }
