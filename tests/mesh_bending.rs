@@ -14,7 +14,12 @@ use rustcloth::{IntegratorKind, Simulation};
 /// A flat 1 m jittered square in z = 0, `n` x `n` vertices, under isometric bending of
 /// modulus `modulus` (N m).
 fn sheet(n: usize, modulus: f64, seed: u64) -> MeshSpec {
-    let (vertices, triangles) = jittered_square(n, 1.0, [0.0, 0.0, 0.0], 0.3, seed);
+    jittered_sheet(n, modulus, 0.3, seed)
+}
+
+/// [`sheet`] with its interior points moved by up to `jitter` spacings.
+fn jittered_sheet(n: usize, modulus: f64, jitter: f64, seed: u64) -> MeshSpec {
+    let (vertices, triangles) = jittered_square(n, 1.0, [0.0, 0.0, 0.0], jitter, seed);
     MeshSpec {
         vertices,
         triangles,
@@ -39,6 +44,13 @@ fn rolled(cloth: &MeshCloth, r: f64) -> Vec3s {
         p[normal] += r * (1.0 - (x / r).cos());
         DVec3::from(p).as_vec3()
     })
+}
+
+/// A scene of the mesh cloth `spec`, unpinned.
+fn scene_of(spec: MeshSpec) -> rustcloth::Scene {
+    let mut scene = common::mesh_cloth_scene(vec![], vec![], vec![]);
+    scene.cloth.mesh = Some(spec);
+    scene
 }
 
 fn bending_energy(cloth: &MeshCloth, pos: &Vec3s) -> f64 {
@@ -117,30 +129,10 @@ fn bending_energy_by_mesh_family() {
     let modulus = 1e-3;
     let mut specs = Vec::new();
     for n in [17, 33] {
-        let (vertices, triangles) = jittered_square(n, 1.0, [0.0, 0.0, 0.0], 0.0, 1);
-        specs.push((
-            format!("regular {n}"),
-            MeshSpec {
-                vertices,
-                triangles,
-                bending: BendingKind::Isometric,
-                bend_modulus: modulus,
-                ..MeshSpec::default()
-            },
-        ));
+        specs.push((format!("regular {n}"), jittered_sheet(n, modulus, 0.0, 1)));
     }
     for j in [0.1, 0.2, 0.4] {
-        let (vertices, triangles) = jittered_square(33, 1.0, [0.0, 0.0, 0.0], j, 1);
-        specs.push((
-            format!("jitter {j}"),
-            MeshSpec {
-                vertices,
-                triangles,
-                bending: BendingKind::Isometric,
-                bend_modulus: modulus,
-                ..MeshSpec::default()
-            },
-        ));
+        specs.push((format!("jitter {j}"), jittered_sheet(33, modulus, j, 1)));
     }
     for f in ["delaunay_sheet", "round_tablecloth"] {
         let text =
@@ -198,8 +190,7 @@ fn the_isometric_bending_force_is_the_energy_gradient() {
         let [x, y, _] = cloth.rest[v];
         DVec3::new(x, y, 0.3 * x * x - 0.2 * x * y + 0.1 * (3.0 * y).sin()).as_vec3()
     });
-    let mut scene = common::mesh_cloth_scene(spec.vertices.clone(), spec.triangles.clone(), vec![]);
-    scene.cloth.mesh = Some(spec);
+    let mut scene = scene_of(spec);
     scene.gravity = [0.0; 3];
     let mut sim = Simulation::new(scene).unwrap();
     sim.set_positions(&bent).unwrap();
@@ -266,8 +257,7 @@ fn cantilever(
         bend: 80.0,
         ..MeshSpec::default()
     };
-    let mut scene = common::mesh_cloth_scene(spec.vertices.clone(), spec.triangles.clone(), vec![]);
-    scene.cloth.mesh = Some(spec);
+    let mut scene = scene_of(spec);
     scene.cloth.pins = vec![PinSpec::Region(PinBox {
         corners: [[-1e-6, 0.9, -1.0], [h + 1e-6, 1.1, 1.0]],
     })];
@@ -329,8 +319,7 @@ fn a_cantilever_deflects_alike_at_every_resolution_under_isometric_bending() {
 fn a_free_bent_sheet_never_gains_energy_on_symplectic_euler() {
     let spec = sheet(13, 2e-3, 6);
     let cloth = MeshCloth::new(&spec).unwrap();
-    let mut scene = common::mesh_cloth_scene(spec.vertices.clone(), spec.triangles.clone(), vec![]);
-    scene.cloth.mesh = Some(spec);
+    let mut scene = scene_of(spec);
     scene.gravity = [0.0; 3];
     scene.dt = 0.7 * scene.stable_dt(IntegratorKind::SymplecticEuler).unwrap();
     let mut sim = Simulation::new(scene).unwrap();
@@ -445,9 +434,7 @@ fn an_isometric_mesh_cloth_steps_bitwise_alike_on_any_thread_count() {
     ] {
         common::assert_bitwise_on_1_2_3_threads(&format!("{integrator:?}"), || {
             let spec = sheet(17, 1e-4, 10);
-            let mut scene =
-                common::mesh_cloth_scene(spec.vertices.clone(), spec.triangles.clone(), vec![]);
-            scene.cloth.mesh = Some(spec);
+            let mut scene = scene_of(spec);
             scene.cloth.pins = vec![PinSpec::Region(PinBox {
                 corners: [[-0.6, 0.45, -0.1], [-0.4, 0.6, 0.1]],
             })];
