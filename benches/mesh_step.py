@@ -1,7 +1,7 @@
 """The step of a mesh cloth against the grid of the same particle count.
 
     RAYON_NUM_THREADS=1 python benches/mesh_step.py [--n 129] [--steps 100] [--repeat 3] [--wall]
-        [--stiff] [--membrane] [--shuffle]
+        [--stiff] [--membrane] [--bending] [--shuffle]
 
 An `n` x `n` jittered square (``tests/test_mesh_cloth.py``'s ``jittered_square``: irregular, each
 quad split along its shorter diagonal; `stretch` 60 N/m, 0.2 kg/m^2, two corners pinned) and the
@@ -12,7 +12,9 @@ and `k_bend` 25 N/m, the mesh's `stretch` 1500 and `bend` 200 N/m, both 0.5 kg (
 ``examples/mesh_implicit.rs``), at most 20 steps. Prints the best of `--repeat` runs of `--steps`
 steps after 5, per step: CPU time of this process (steady on a shared machine with one thread;
 ``--wall`` for wall time with several). With ``--membrane``, the same mesh with
-``membrane = "triangle"`` too, and its cost against the springs' in the same runs. Two builds
+``membrane = "triangle"`` too, and its cost against the springs' in the same runs; with
+``--bending``, the same mesh with ``bending = "isometric"`` (``bend_modulus`` 5e-5 N m, the
+default; 2e-4 with ``--stiff``) likewise. Two builds
 compare by running this once with each on
 ``PYTHONPATH``, one after the other. With ``--shuffle``, the mesh's vertices are numbered in a
 random order (as a Delaunay mesh of dart-thrown points, or a file, may number them) instead
@@ -59,6 +61,8 @@ def main() -> None:
     parser.add_argument("--stiff", action="store_true", help="implicit Euler, stiff, 1/60 s")
     parser.add_argument("--membrane", action="store_true",
                         help='also the mesh with membrane = "triangle"')
+    parser.add_argument("--bending", action="store_true",
+                        help='also the mesh with bending = "isometric"')
     parser.add_argument("--shuffle", action="store_true",
                         help="number the mesh's vertices in a random order")
     args = parser.parse_args()
@@ -97,6 +101,11 @@ def main() -> None:
         data = mesh.to_dict()
         data["cloth"]["mesh"]["membrane"] = "triangle"
         scenes.append(rustcloth.Scene.from_dict(data))
+    if args.bending:
+        data = mesh.to_dict()
+        data["cloth"]["mesh"]["bending"] = "isometric"
+        data["cloth"]["mesh"]["bend_modulus"] = 2e-4 if args.stiff else 5e-5
+        scenes.append(rustcloth.Scene.from_dict(data))
     runs = [[per_step(s, args.steps, args.wall, k) for k, s in enumerate(scenes)]
             for _ in range(args.repeat)]
     g, m = min(r[0] for r in runs), min(r[1] for r in runs)
@@ -109,8 +118,12 @@ def main() -> None:
         t = min(r[2] for r in runs)
         print(f"mesh with the triangle membrane: {t:.3f} ms   triangle / springs {t / m:.2f}   "
               f"triangle / grid {t / g:.2f}")
+    if args.bending:
+        b = min(r[-1] for r in runs)
+        print(f"mesh with isometric bending: {b:.3f} ms   isometric / springs {b / m:.2f}   "
+              f"isometric / grid {b / g:.2f}")
     if ITERATIONS:
-        print("CG iterations a solve (grid, mesh, triangle membrane):",
+        print("CG iterations a solve (grid, mesh, then --membrane's, --bending's):",
               ", ".join(f"{ITERATIONS[k]:.1f}" for k in sorted(ITERATIONS)))
 
 

@@ -8,17 +8,19 @@
 //! `cargo run --release --example mesh_resolution -- [SIZES] [SECONDS] [CLOTHS] [TOP] [SEEDS]`,
 //! SIZES points per side (default `17,33`, about 300 and 1k vertices: seconds), SECONDS
 //! simulated (default 3), CLOTHS which to hang (default `springs,grid`; `triangle` is the mesh
-//! with `membrane = "triangle"`), TOP `jittered` (default: the top edge's vertices slide along
+//! with `membrane = "triangle"`, `isometric` the springs membrane with `bending =
+//! "isometric"`, `triangle-isometric` both), TOP `jittered` (default: the top edge's vertices slide along
 //! it as the interior's move, so a clamp's end moves by up to 0.3 spacing from one mesh to the
 //! next) or `even` (the top row evenly spaced: every mesh holds exactly the same clamps), SEEDS
-//! the meshes' seeds (default `1`; `1,2` hangs two triangulations of each size).
+//! the meshes' seeds (default `1`; `1,2` hangs two triangulations of each size), BEND the bend
+//! springs' modulus (N/m, default 0.8; the isometric cloths take `bend_modulus` 5e-5 N m).
 //! docs/mesh_cloth.md quotes `-- 33,65,129 4` (1k, 4k and 16k vertices; about ten minutes on
 //! two shared cores, most of it the 16k mesh) and the membrane's runs.
 
 use std::time::Instant;
 
 use rustcloth::mesh_cloth::jittered_square;
-use rustcloth::scene::{ClothSpec, MembraneKind, MeshSpec, PinBox, PinSpec, Plane};
+use rustcloth::scene::{BendingKind, ClothSpec, MembraneKind, MeshSpec, PinBox, PinSpec, Plane};
 use rustcloth::{IntegratorKind, Scene, Simulation};
 
 /// Length of each clamp along the top edge from a corner, m.
@@ -39,7 +41,16 @@ fn pins() -> Vec<PinSpec> {
         .to_vec()
 }
 
-fn mesh_scene(n: usize, membrane: MembraneKind, even_top: bool, seed: u64) -> Scene {
+/// Bending modulus of the `isometric` cloths, N m: the mesh cloth's default.
+const BEND_MODULUS: f64 = 5e-5;
+
+fn mesh_scene(
+    n: usize,
+    (membrane, bending): (MembraneKind, BendingKind),
+    even_top: bool,
+    seed: u64,
+    bend: f64,
+) -> Scene {
     let (mut vertices, triangles) = jittered_square(n, 1.0, [0.0, 1.0, 0.0], 0.3, seed);
     if even_top {
         for (i, v) in vertices[n * (n - 1)..].iter_mut().enumerate() {
@@ -54,9 +65,14 @@ fn mesh_scene(n: usize, membrane: MembraneKind, even_top: bool, seed: u64) -> Sc
                 triangles,
                 density: DENSITY,
                 stretch: STRETCH,
-                bend: 0.8,
+                bend,
                 damping: 0.01,
                 membrane,
+                bending,
+                bend_modulus: match bending {
+                    BendingKind::Springs => MeshSpec::default().bend_modulus,
+                    BendingKind::Isometric => BEND_MODULUS,
+                },
                 ..MeshSpec::default()
             }),
             pins: pins(),
@@ -151,26 +167,31 @@ fn main() {
         .split(',')
         .map(|s| s.parse().expect("SEEDS: comma separated"))
         .collect();
+    let bend: f64 = args.get(6).map_or(0.8, |s| s.parse().expect("BEND: N/m"));
     println!(
         "density {DENSITY} kg/m^2, stretch {STRETCH} N/m, clamps {CLAMP} m, {seconds} s, \
          top edge {}",
         if even_top { "even" } else { "jittered" }
     );
     for cloth in cloths {
-        let membrane = match cloth {
-            "springs" => MembraneKind::Springs,
-            "triangle" => MembraneKind::Triangle,
+        let model = match cloth {
+            "springs" => (MembraneKind::Springs, BendingKind::Springs),
+            "triangle" => (MembraneKind::Triangle, BendingKind::Springs),
+            "isometric" => (MembraneKind::Springs, BendingKind::Isometric),
+            "triangle-isometric" => (MembraneKind::Triangle, BendingKind::Isometric),
             "grid" => {
                 for &n in &sizes {
                     measure(&format!("grid {n}x{n}"), grid_scene(n as u32), seconds);
                 }
                 continue;
             }
-            other => panic!("CLOTHS: springs, triangle or grid, got {other}"),
+            other => panic!(
+                "CLOTHS: springs, triangle, isometric, triangle-isometric or grid, got {other}"
+            ),
         };
         for &n in &sizes {
             for &seed in &seeds {
-                let scene = mesh_scene(n, membrane, even_top, seed);
+                let scene = mesh_scene(n, model, even_top, seed, bend);
                 measure(&format!("{cloth} {n}x{n} #{seed}"), scene, seconds);
             }
         }

@@ -13,3 +13,14 @@ pub enum MembraneKind {
     /// A co-rotational linear constant-strain element on every triangle.
     Triangle,
 }
+
+/// What resists a mesh cloth's bending (`cloth.mesh.bending`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BendingKind {
+    /// A spring across every interior edge, `k = bend A_h / L^2`.
+    Springs,
+    /// The quadratic isometric bending energy of Bergou et al. 2006 on every interior edge,
+    /// with the bending modulus `bend_modulus`.
+    Isometric,
+}

@@ -36,6 +36,8 @@ mod grip;
 mod implicit_friction;
 #[path = "integrators.rs"]
 mod integrators;
+#[path = "mesh_bending.rs"]
+mod mesh_bending;
 #[path = "mesh_cloth.rs"]
 mod mesh_cloth;
 #[path = "mesh_colliders.rs"]

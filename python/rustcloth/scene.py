@@ -240,8 +240,10 @@ class Scene:
         optional per-vertex ``uvs`` (``(N, 2)``), or ``path``, a mesh file read with trimesh
         (the ``export`` extra; its texture coordinates come along). ``keys`` are the mesh's
         material: ``density`` (kg/m^2), ``stretch``, ``bend`` (N/m), ``damping`` (N s/m),
-        ``membrane`` (``"springs"``, default, or ``"triangle"``) and ``poisson`` (the
-        triangle membrane's Poisson ratio, default 1/3);
+        ``membrane`` (``"springs"``, default, or ``"triangle"``), ``poisson`` (the
+        triangle membrane's Poisson ratio, default 1/3), ``bending`` (``"springs"``, default,
+        or ``"isometric"``, which holds a curvature alike at every resolution on a flat rest
+        shape) and ``bend_modulus`` (N m, the isometric bending's, default 5e-5);
         ``pins`` are vertex indices and selections: ``{"box": [[x0, y0, z0], [x1, y1, z1]]}``,
         ``{"boundary": True}``, ``{"top": 0.001}`` (default none). ``pin_group`` (with
         ``path``) names the file's vertex groups (an OBJ file's ``g`` or ``o`` names, a glTF

@@ -59,6 +59,8 @@ class MeshSettings(TypedDict):
     damping: float
     membrane: Literal["springs", "triangle"]
     poisson: float
+    bending: Literal["springs", "isometric"]
+    bend_modulus: float
     seams: NotRequired[SeamsSettings]
 
 

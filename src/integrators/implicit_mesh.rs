@@ -555,6 +555,7 @@ impl MeshSystem {
         let s = &mesh.springs;
         let (pos, vel, w) = (&ctx.current.pos, &ctx.current.vel, &ctx.particles.inv_mass);
         let sewing = ctx.forces.sewing(mesh);
+        let linear = mesh.bending.as_ref().map(|b| &b.linear[..]);
         self.blocks
             .par_chunks_mut(SPRING_CHUNK)
             .zip(self.kv.par_chunks_mut(SPRING_CHUNK))
@@ -577,6 +578,8 @@ impl MeshSystem {
                     let g = (1.0 - rest * inv_l).max(0.0) * (l > 0.0) as u32 as f32;
                     let alpha = h * c + h * h * k * (1.0 - g);
                     let beta = h * h * k * g;
+                    // Isometric bending's constant Hessian, `w I` on the spring's pair.
+                    let beta = linear.map_or(beta, |w| beta + h * h * w[e]);
                     let u = d * inv_l;
                     let block = Sym3::outer(alpha, u, beta);
                     let dw = vel.get(a) - vel.get(b);
@@ -681,7 +684,8 @@ impl MeshSystem {
         let (mass, w) = (&ctx.particles.mass, &ctx.particles.inv_mass);
         let mut p = self.matrix.clone();
         let proxy = |e: usize| mesh.membrane.as_ref().map_or(0.0, |m| m.proxy_k[e]);
-        let weight = |e: usize| h * s.c[e] + h * h * (s.k[e] + proxy(e));
+        let linear = |e: usize| mesh.bending.as_ref().map_or(0.0, |b| b.linear[e]);
+        let weight = |e: usize| h * s.c[e] + h * h * (s.k[e] + proxy(e) + linear(e));
         for (v, d) in p.diagonal.iter_mut().enumerate() {
             let m = mass[v] + h * drag;
             *d = Sym3([m, m, m, 0.0, 0.0, 0.0]);

@@ -36,7 +36,10 @@ pub(super) fn factor(
     let (mass, w) = (&ctx.particles.mass, &ctx.particles.inv_mass);
     let (h64, drag64) = (h as f64, drag as f64);
     let s = &mesh.springs;
-    let weight = |e: usize| s.k[e] as f64 + s.c[e] as f64 / h64;
+    // Isometric bending's linear term is a zero-rest-length spring of stiffness `w`: its
+    // projection is the pair itself, so it joins the constant matrix and nothing else.
+    let linear = |e: usize| mesh.bending.as_ref().map_or(0.0, |b| b.linear[e] as f64);
+    let weight = |e: usize| s.k[e] as f64 + linear(e) + s.c[e] as f64 / h64;
     let mut diagonal: Vec<f64> = mass
         .iter()
         .map(|&m| m as f64 / (h64 * h64) + drag64 / h64)
@@ -73,6 +76,7 @@ pub(super) fn local_step(
     let cur = &ctx.current.pos;
     let inv_h = 1.0 / h;
     let sewing = ctx.forces.sewing(mesh);
+    let linear = mesh.bending.as_ref().map(|b| &b.linear[..]);
     spring_force
         .par_chunks_mut(SPRING_CHUNK)
         .enumerate()
@@ -94,7 +98,8 @@ pub(super) fn local_step(
                     }
                     None => 0.0,
                 };
-                f.set(i, magnitude * u);
+                let force = magnitude * u;
+                f.set(i, linear.map_or(force, |w| force + w[e] * d));
             }
         });
     let table = &*spring_force;

@@ -44,7 +44,9 @@ impl MeshCloth {
             table.resize(s.len() + 1, [0.0; 3]);
             let coordinates = [&pos.x, &pos.y, &pos.z, &vel.x, &vel.y, &vel.z].map(|x| &x[..]);
             let ends = (&s.a[..], &s.b[..]);
-            let over = spring_pass::<1>(s, ends, coordinates, sewing, limit, &mut table[..]);
+            let linear = self.bending.as_ref().map(|b| &b.linear[..]);
+            let over =
+                spring_pass::<1>(s, linear, ends, coordinates, sewing, limit, &mut table[..]);
             let (table, lanes) = (&*table, &self.lanes);
             out.par_chunks_mut(per_item).enumerate().for_each(|(c, f)| {
                 let first = c * per_item / LANES;
@@ -75,7 +77,8 @@ impl MeshCloth {
         let (x, v) = (x.as_flattened(), v.as_flattened());
         let coordinates = [x, &x[1..], &x[2..], v, &v[1..], &v[2..]];
         let ends = (&local.a[..], &local.b[..]);
-        let over = spring_pass::<3>(s, ends, coordinates, sewing, limit, forces);
+        let linear = self.bending.as_ref().map(|b| &b.linear[..]);
+        let over = spring_pass::<3>(s, linear, ends, coordinates, sewing, limit, forces);
         let (forces, lanes) = (&*forces, &local.lanes);
         f.par_chunks_mut(per_item).enumerate().for_each(|(c, f)| {
             let first = c * per_item / LANES;
@@ -94,7 +97,8 @@ impl MeshCloth {
     }
 
     /// Elastic energy of the springs at `pos`, `sum k (l - L)^2 / 2`, and of the triangle
-    /// membrane's elements where the cloth has them, in J (f64); a seam
+    /// membrane's and the isometric bending's elements where the cloth has them, in J (f64); a
+    /// seam
     /// counts at the zero rest length it holds once sewn (while it closes, its rest length is
     /// driven by the clock and the energy is not conserved).
     pub fn elastic_energy(&self, pos: &Vec3s) -> f64 {
@@ -112,6 +116,7 @@ impl MeshCloth {
             })
             .sum::<f64>()
             + (self.membrane.as_ref()).map_or(0.0, |m| m.energy(pos, &s.active))
+            + (self.bending.as_ref()).map_or(0.0, |b| b.energy(pos, &s.active))
     }
 
     /// The first spring (in list order) longer than `limit` times its rest length at `pos`,
@@ -168,10 +173,12 @@ impl MeshCloth {
 
 /// Fills `table` (one entry per spring, then the lanes' padding entry `-0.0`; any more entries
 /// are left as they are) with the force on the first end of each spring, its ends `ends`
-/// indexing `coordinates` (x, y, z of the position, then of the velocity) `STRIDE` apart;
-/// whether one other than a seam is longer than `limit` times its rest length.
+/// indexing `coordinates` (x, y, z of the position, then of the velocity) `STRIDE` apart, plus
+/// `linear[e] (x_b - x_a)` where the cloth has isometric bending; whether one other than a
+/// seam is longer than `limit` times its rest length.
 fn spring_pass<const STRIDE: usize>(
     s: &EdgeSprings,
+    linear: Option<&[f32]>,
     ends: (&[u32], &[u32]),
     coordinates: [&[f32]; 6],
     sewing: f32,
@@ -183,14 +190,25 @@ fn spring_pass<const STRIDE: usize>(
         .enumerate()
         .map(|(c, forces)| {
             let first = c * SPRING_CHUNK;
-            crate::simd::dispatch!(spring_forces::<STRIDE>(
-                s,
-                ends,
-                first,
-                coordinates,
-                (sewing, limit),
-                forces
-            ))
+            // Two builds of the loop: without bending's term it is exactly the springs' own.
+            match linear {
+                None => crate::simd::dispatch!(spring_forces::<STRIDE, false>(
+                    s,
+                    (ends, &[]),
+                    first,
+                    coordinates,
+                    (sewing, limit),
+                    forces
+                )),
+                Some(linear) => crate::simd::dispatch!(spring_forces::<STRIDE, true>(
+                    s,
+                    (ends, linear),
+                    first,
+                    coordinates,
+                    (sewing, limit),
+                    forces
+                )),
+            }
         })
         .reduce(|| false, |x, y| x | y);
     table[s.len()] = [-0.0; 3];
@@ -207,10 +225,11 @@ const BLOCK: usize = 256;
 /// the arithmetic (a square root and three divisions a spring) runs as one loop with no branch
 /// and no bounds check, which each instruction set's build vectorises. The arithmetic is
 /// glam's, component by component in the same order, so every build gives the same bits.
+/// With `LINEAR`, each spring's force gains `linear[e] (x_b - x_a)` (isometric bending).
 #[inline(always)]
-fn spring_forces<const STRIDE: usize>(
+fn spring_forces<const STRIDE: usize, const LINEAR: bool>(
     s: &EdgeSprings,
-    ends: (&[u32], &[u32]),
+    (ends, linear): ((&[u32], &[u32]), &[f32]),
     first: usize,
     coordinates: [&[f32]; 6],
     (sewing, limit): (f32, f32),
@@ -228,6 +247,11 @@ fn spring_forces<const STRIDE: usize>(
             &s.k[springs.clone()],
             &s.c[springs.clone()],
         );
+        let lin = if LINEAR {
+            &linear[springs.clone()]
+        } else {
+            &[]
+        };
         let (kind, active) = (&s.kind[springs.clone()], &s.active[springs]);
         let [dx, dy, dz, wx, wy, wz] = &gathered;
         let (dx, dy, dz, wx, wy, wz) = (&dx[..n], &dy[..n], &dz[..n], &wx[..n], &wy[..n], &wz[..n]);
@@ -248,10 +272,16 @@ fn spring_forces<const STRIDE: usize>(
             // A seam is a thread: it pulls its ends together, it never pushes them apart (a
             // pair that came closer than the seam's rest length is slack).
             let slack = seam & (l <= rest);
-            out[e] = if slack {
+            let f = if slack {
                 [0.0; 3]
             } else {
                 [magnitude * u[0], magnitude * u[1], magnitude * u[2]]
+            };
+            out[e] = if LINEAR {
+                let w = lin[e];
+                [f[0] + w * d[0], f[1] + w * d[1], f[2] + w * d[2]]
+            } else {
+                f
             };
         }
     }

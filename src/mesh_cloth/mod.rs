@@ -23,8 +23,10 @@
 //! * *Stretch*: one spring on every edge of the mesh.
 //! * *Bend*: one spring across every interior edge, between the two vertices opposite it (the
 //!   grid's bending springs span two cells the same way). Like the grid's, such a spring
-//!   resists a fold only to second order in the fold angle; a dihedral-angle model (Bridson et
-//!   al. 2003, discrete shells) is the next step and would replace this family only.
+//!   resists a fold only to second order in the fold angle, so a finer mesh is softer in
+//!   bending; `bending = "isometric"` gives this family's stiffness to the quadratic bending
+//!   energy of a flat sheet instead ([`bending`]), which holds a curvature alike at every
+//!   resolution.
 //!
 //! The force law is the grid's, `f_a = k (l - L) u + c ((v_b - v_a) . u) u`, `f_b = -f_a`.
 //!
@@ -68,6 +70,7 @@
 //! edge springs here are the smallest model that runs on every explicit integrator already in
 //! the solver, with one set of equations for every pass.
 
+pub mod bending;
 pub mod forces;
 pub mod membrane;
 pub mod topology;

@@ -120,6 +120,19 @@ pub(super) fn check_material(at: &str, spec: &MeshSpec) -> Result<()> {
     check_scalar(&format!("{at}.stretch"), spec.stretch, Bound::NonNegative)?;
     check_scalar(&format!("{at}.bend"), spec.bend, Bound::NonNegative)?;
     check_scalar(&format!("{at}.damping"), spec.damping, Bound::NonNegative)?;
+    let modulus = format!("{at}.bend_modulus");
+    check_scalar(&modulus, spec.bend_modulus, Bound::NonNegative)?;
+    if spec.bending == super::BendingKind::Springs
+        && spec.bend_modulus != MeshSpec::default().bend_modulus
+    {
+        return Err(Error::value(
+            modulus,
+            format!(
+                "is the isometric bending's modulus; set {at}.bending = \"isometric\" or \
+                 remove it"
+            ),
+        ));
+    }
     let name = format!("{at}.poisson");
     if spec.membrane == super::MembraneKind::Springs {
         if spec.poisson != MeshSpec::default().poisson {

@@ -12,6 +12,7 @@ use super::mesh_checks::{check_material, check_triangles, check_uvs, edge_uses, 
 use super::Membrane;
 use super::{ClothSpec, IncidenceLanes, MeshSpec, SeamsSpec};
 use crate::error::{check_scalar, check_vector, Bound, Error, Result};
+use crate::mesh_cloth::bending::IsometricBending;
 
 /// Two vertices closer than this (m) are one point.
 const DEGENERATE: f64 = f32::EPSILON as f64;
@@ -43,6 +44,9 @@ pub struct MeshCloth {
     /// The triangle elements of `membrane = "triangle"`, which then hold the stretch and
     /// shear (the stretch springs keep only their damping); None with `"springs"`.
     pub membrane: Option<Membrane>,
+    /// The isometric bending elements of `bending = "isometric"` (the bend springs keep only
+    /// their damping); None with `"springs"`.
+    pub bending: Option<IsometricBending>,
 }
 
 impl MeshCloth {
@@ -132,8 +136,19 @@ impl MeshCloth {
         let mean_edge = total / count as f64;
         let membrane = (spec.membrane == super::MembraneKind::Triangle)
             .then(|| Membrane::new(rest, &triangles, &springs, spec.stretch, spec.poisson));
+        let bending = match spec.bending {
+            super::BendingKind::Springs => None,
+            super::BendingKind::Isometric => Some(IsometricBending::new(
+                AT,
+                rest,
+                &interior_edges(&triangles),
+                &springs,
+                spec.bend_modulus,
+            )?),
+        };
         Ok(MeshCloth {
             membrane,
+            bending,
             mean_edge,
             rest: rest.clone(),
             triangles,
@@ -146,6 +161,14 @@ impl MeshCloth {
             local,
             sew_time,
         })
+    }
+
+    /// Recomputes the isometric bending's per-spring terms from the springs that hold (after a
+    /// cut or a tear: an element goes with any of its six springs).
+    pub fn refresh_bending(&mut self) {
+        if let Some(bending) = &mut self.bending {
+            bending.refresh(&self.springs.active);
+        }
     }
 
     /// The fraction of its starting length a seam spring's rest length has at `time` (s):
@@ -181,18 +204,26 @@ impl MeshCloth {
     /// at rest ([`Membrane::row_sums`]), bounded the same way.
     pub fn max_omega2(&self) -> f64 {
         let Some(membrane) = &self.membrane else {
-            return self.per_vertex_max(|s| self.springs.k[s] as f64);
+            return self.per_vertex_max(|s| self.stiffness(s));
         };
         let rest = crate::soa::Vec3s::from_fn(self.len(), |v| DVec3::from(self.rest[v]).as_vec3());
         let rows = membrane.row_sums(&rest);
         (0..self.len())
             .map(|v| {
                 let springs = (self.springs_at(v).iter())
-                    .map(|&e| self.springs.k[(e >> 1) as usize] as f64)
+                    .map(|&e| self.stiffness((e >> 1) as usize))
                     .sum::<f64>();
                 (2.0 * springs + rows[v] as f64) / self.masses[v]
             })
             .fold(0.0, f64::max)
+    }
+
+    /// Spring `s`'s stiffness for the stability bound: its `k`, plus `|w|` of the isometric
+    /// bending's linear term on its pair (a row of the bending's Hessian sums to zero, so its
+    /// diagonal is at most the sum of `|w|` off it, and the factor 2 of the bound covers it).
+    fn stiffness(&self, s: usize) -> f64 {
+        let linear = self.bending.as_ref().map_or(0.0, |b| b.linear[s].abs());
+        self.springs.k[s] as f64 + linear as f64
     }
 
     /// The largest damping rate (1/s) of the springs, `2 sum_e c_e / m_v`, bounded the same way.
@@ -240,6 +271,10 @@ impl MeshCloth {
             + self.lanes.heap_bytes()
             + self.local.as_ref().map_or(0, LocalNumbering::heap_bytes)
             + self.membrane.as_ref().map_or(0, Membrane::heap_bytes)
+            + self
+                .bending
+                .as_ref()
+                .map_or(0, IsometricBending::heap_bytes)
     }
 }
 
@@ -259,14 +294,20 @@ fn springs_of(
     // Under the triangle membrane the elements hold the stretch and shear: every edge keeps a
     // stretch spring for its damping, for strain limiting, cuts and tears, with no stiffness.
     let triangle = spec.membrane == super::MembraneKind::Triangle;
+    // Under isometric bending the elements hold the bending: every interior edge keeps its
+    // bend spring, and every edge its stretch spring, for the damping, the linear term of
+    // their pair and the elements' liveness, whatever the moduli.
+    let isometric = spec.bending == super::BendingKind::Isometric;
     let add = |springs: &mut EdgeSprings, (a, b): (u32, u32), share: f64, kind| {
         let (modulus, damping) = match kind {
             EdgeKind::Stretch if triangle => (0.0, spec.damping),
             EdgeKind::Stretch => (spec.stretch, spec.damping),
+            EdgeKind::Bend if isometric => (0.0, spec.damping),
             EdgeKind::Bend => (spec.bend, spec.damping),
             EdgeKind::Seam => unreachable!("seams are added apart"),
         };
-        if modulus == 0.0 && !(triangle && kind == EdgeKind::Stretch) {
+        let kept = (triangle && kind == EdgeKind::Stretch) || isometric;
+        if modulus == 0.0 && !kept {
             return;
         }
         let rest = (at(b) - at(a)).length();
@@ -304,6 +345,24 @@ fn springs_of(
         add(&mut springs, pair, share, EdgeKind::Bend);
     }
     Ok(springs)
+}
+
+/// Each interior edge's two vertices, then the vertex opposite it in each of its triangles.
+fn interior_edges(triangles: &[[u32; 3]]) -> Vec<[u32; 4]> {
+    let uses = edge_uses(triangles);
+    let opposite = |t: u32, k: u8| triangles[t as usize][(k as usize + 2) % 3];
+    uses.chunk_by(|x, y| x.0 == y.0)
+        .filter(|run| run.len() == 2)
+        .map(|run| {
+            let (a, b) = ((run[0].0 >> 32) as u32, run[0].0 as u32);
+            [
+                a,
+                b,
+                opposite(run[0].1, run[0].2),
+                opposite(run[1].1, run[1].2),
+            ]
+        })
+        .collect()
 }
 
 /// Appends the seam springs of `seams` (checked: indices in range, two different vertices,

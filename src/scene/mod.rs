@@ -31,9 +31,9 @@ pub use mesh_cloth::MeshCloth;
 pub use pins::PIN_GROUPS;
 pub use solvers::{IntegratorKind, Preconditioner, SolverSettings};
 pub use specs::{
-    ClothSpec, ColliderSpec, FloorSpec, MembraneKind, MeshSpec, OnTrouble, PinBoundary, PinBox,
-    PinSpec, PinTop, Plane, SeamsSpec, SelfCollisionSpec, ShapeKind, SphereSpec, StrainLimitSpec,
-    TearingSpec, WatchdogSpec, WindSpec,
+    BendingKind, ClothSpec, ColliderSpec, FloorSpec, MembraneKind, MeshSpec, OnTrouble,
+    PinBoundary, PinBox, PinSpec, PinTop, Plane, SeamsSpec, SelfCollisionSpec, ShapeKind,
+    SphereSpec, StrainLimitSpec, TearingSpec, WatchdogSpec, WindSpec,
 };
 pub use stability::stable_substep;
 use validate::require_tables;

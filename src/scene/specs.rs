@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
-pub use crate::material::MembraneKind;
+pub use crate::material::{BendingKind, MembraneKind};
 
 /// What a step does on trouble: a non-finite value, or (with `max_stretch`) a spring stretched
 /// beyond the limit.
@@ -306,6 +306,22 @@ pub struct MeshSpec {
     /// cloth's width as it is pulled; lower lets it narrow less. Only read by `"triangle"`
     /// (another value with `"springs"` is refused).
     pub poisson: f64,
+    /// What resists bending: `"springs"` (default), a spring across every interior edge with
+    /// `k = bend A_h / L^2`, which resists a fold only to second order in its angle, so that a
+    /// finer mesh is softer in bending; or `"isometric"`, the quadratic bending energy of
+    /// Bergou et al. 2006, `bend_modulus / 2 * integral |mean curvature vector|^2 dA`, the same
+    /// at every resolution (docs/mesh_cloth.md, "Isometric bending"). It needs a flat rest
+    /// shape (a curved mesh is refused, naming this key); the bend springs then keep only
+    /// their damping, and `bend` is not read.
+    pub bending: BendingKind,
+    /// Bending modulus of `bending = "isometric"` in N m (>= 0): a sheet curved to radius `R`
+    /// stores `bend_modulus / (2 R^2)` J per m^2. Default 5e-5, a cotton's order of
+    /// magnitude (with the default density its bending length `(B / (rho g))^(1/3)` is 3 cm).
+    /// Higher folds in wider curves and lowers the explicit integrators' stable step as
+    /// `1 / sqrt(bend_modulus)` once it dominates the stretch (the stiffest bending mode grows
+    /// as `1 / h^4` with the spacing `h`). Only read by `"isometric"` (another value with
+    /// `"springs"` is refused).
+    pub bend_modulus: f64,
     /// Vertices sewn together (a garment's seams, `cloth.garment` fills it in). Default none.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub seams: Option<SeamsSpec>,
@@ -349,6 +365,8 @@ impl Default for MeshSpec {
             damping: 0.07,
             membrane: MembraneKind::Springs,
             poisson: 1.0 / 3.0,
+            bending: BendingKind::Springs,
+            bend_modulus: 5e-5,
             seams: None,
         }
     }
