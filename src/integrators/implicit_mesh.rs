@@ -494,8 +494,11 @@ impl MeshSystem {
                     Some(kept) => self.amg[..=kept].rotate_right(1),
                     None => {
                         let reference = self.isotropic_matrix(mesh, h, drag, ctx);
-                        self.amg
-                            .insert(0, (FactorKey::of(h, drag, ctx), Amg::new(&reference)));
+                        let mut amg = Amg::new(&reference);
+                        // Isometric bending couples the second ring with the wrong sign for
+                        // a sweep damped by `OMEGA` alone.
+                        amg.bound_damping(mesh.bending.is_some());
+                        self.amg.insert(0, (FactorKey::of(h, drag, ctx), amg));
                         self.amg.truncate(HIERARCHIES_KEPT);
                         stats.factorizations += 1;
                     }

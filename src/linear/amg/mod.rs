@@ -13,7 +13,8 @@
 //! Euler), with its diagonal blocks and the dense Cholesky factor of the coarsest level.
 //!
 //! **Cycle** ([`Amg::apply`]): one V-cycle with one damped block-Jacobi sweep
-//! (`x += omega D^-1 (b - A x)`, `omega` = [`OMEGA`]) before and after the coarse correction.
+//! (`x += omega D^-1 (b - A x)`, `omega` = [`OMEGA`], or less where [`Amg::bound_damping`]
+//! finds it too much) before and after the coarse correction.
 //! Two sweeps each cut CG's iterations on the stiff 16k drape from 14.3 to 10.9, but cost five
 //! fine products an iteration instead of three, and the step took longer.
 //! Block Jacobi is symmetric, the post-smoother repeats the pre-smoother, restriction is the
@@ -50,6 +51,12 @@ const STALLED: f64 = 0.8;
 
 /// Damping of the block-Jacobi smoother (as the grid's multigrid).
 pub const OMEGA: f32 = 0.7;
+
+/// With its damping bounded ([`Amg::bound_damping`]), a smoother whose Gershgorin bound `g` on
+/// `rho(D^-1 A)` exceeds `2 / OMEGA` damps by `SLACK / g`: below 2, so the sweep contracts
+/// every error, and near it because `g` overstates `rho` (the usual `4/3 / rho` took the
+/// isometric cantilever's CG from 44 to 53 iterations a solve, the 16k mesh's from 19.6 to 23.2).
+const SLACK: f32 = 1.9;
 
 /// A level with a coarser one below: the prolongator to it, its Galerkin plan, its matrix and
 /// this level's workspace.
@@ -100,6 +107,9 @@ pub struct Amg {
     coarsest: DenseCholesky,
     dense: Vec<f64>,
     rhs: Vec<f64>,
+    /// Whether each smoother's damping is bounded by its level's `rho(D^-1 A)` (see
+    /// [`Amg::bound_damping`]); off, every level smooths with [`OMEGA`].
+    bounded: bool,
 }
 
 impl Amg {
@@ -142,13 +152,28 @@ impl Amg {
         self.refresh_smoothers_and_coarsest(fine);
     }
 
+    /// Bounds each level's smoothing by a Gershgorin estimate of its `rho(D^-1 A)`, from the
+    /// next update on. [`OMEGA`] damps a block-Jacobi sweep enough while `rho(D^-1 A) < 2 /
+    /// OMEGA`, which holds for a matrix of springs (mass plus weighted graph Laplacians:
+    /// `rho < 2`), but not for a fourth-order term such as isometric bending, whose positive
+    /// couplings to the second ring take `rho` to about 3.2: there the sweep amplifies the
+    /// roughest error and CG stalls. Costs one pass over each level's blocks an update, so
+    /// only a matrix that may need it asks.
+    pub fn bound_damping(&mut self, on: bool) {
+        self.bounded = on;
+    }
+
     /// Every level's smoother and the coarsest level's factor, from `fine` and the coarse
     /// operators as they are.
     fn refresh_smoothers_and_coarsest(&mut self, fine: &SpringMatrix) {
         self.update_smoother(fine);
         for pair in 1..self.levels.len() {
             let (above, below) = self.levels.split_at_mut(pair);
-            set_smoother(&above[pair - 1].coarse, &mut below[0].smoother);
+            set_smoother(
+                &above[pair - 1].coarse,
+                &mut below[0].smoother,
+                self.bounded,
+            );
         }
         if let Some(last) = self.levels.last() {
             last.coarse.to_dense(&mut self.dense);
@@ -160,10 +185,10 @@ impl Amg {
     /// of the reference, or of an earlier update).
     pub fn update_smoother(&mut self, fine: &SpringMatrix) {
         match self.levels.first_mut() {
-            Some(level) => set_smoother(fine, &mut level.smoother),
+            Some(level) => set_smoother(fine, &mut level.smoother, self.bounded),
             None => {
                 self.smoother.resize(fine.rows(), Sym3::ZERO);
-                set_smoother(fine, &mut self.smoother);
+                set_smoother(fine, &mut self.smoother, self.bounded);
             }
         }
     }
@@ -216,16 +241,74 @@ fn cycle<A: BlockOperator>(
     jacobi_sweep(a, smoother, b, x, r);
 }
 
-/// `omega D^-1` of `a`, block by block (zero for a block that is not positive definite).
-fn set_smoother<A: BlockRows + Sync>(a: &A, out: &mut [Sym3]) {
-    out.par_chunks_mut(REDUCE_CHUNK)
-        .enumerate()
-        .for_each(|(c, out)| {
-            for (k, o) in out.iter_mut().enumerate() {
-                let inv = a.diagonal(c * REDUCE_CHUNK + k).inverse_or_zero();
-                *o = Sym3(inv.0.map(|x| OMEGA * x));
+/// `omega D^-1` of `a`, block by block (zero for a block that is not positive definite):
+/// `omega` is [`OMEGA`], or with `bounded` [`SLACK`] over [`jacobi_bound`] where that is less,
+/// so that the sweep contracts every error (it does while `omega rho(D^-1 A) < 2`).
+fn set_smoother<A: BlockRows + Sync>(a: &A, out: &mut [Sym3], bounded: bool) {
+    let scale = |out: &mut [Sym3], omega: f32, invert: bool| {
+        out.par_chunks_mut(REDUCE_CHUNK)
+            .enumerate()
+            .for_each(|(c, out)| {
+                for (k, o) in out.iter_mut().enumerate() {
+                    let inv = if invert {
+                        a.diagonal(c * REDUCE_CHUNK + k).inverse_or_zero()
+                    } else {
+                        *o
+                    };
+                    *o = Sym3(inv.0.map(|x| omega * x));
+                }
+            });
+    };
+    if !bounded {
+        scale(out, OMEGA, true);
+        return;
+    }
+    scale(out, 1.0, true);
+    let bound = jacobi_bound(a, out);
+    // Where OMEGA is provably damped enough the smoother is the unbounded one, bit for bit.
+    let omega = if bound * OMEGA < 2.0 {
+        OMEGA
+    } else {
+        SLACK / bound
+    };
+    scale(out, omega, false);
+}
+
+/// A bound on `rho(D^-1 A)` (`inverse` holding `D^-1` block by block): the infinity norm
+/// of `D^-1 A`, the largest absolute row sum of its scalar rows (Gershgorin's circles; the
+/// diagonal's own term is exactly 1). Rows of a held node (zero inverse) are left out. The
+/// largest of the rows, so the same for any thread count.
+fn jacobi_bound<A: BlockRows + Sync>(a: &A, inverse: &[Sym3]) -> f32 {
+    (0..a.rows())
+        .into_par_iter()
+        .with_min_len(REDUCE_CHUNK)
+        .map(|v| {
+            let inv = inverse[v].0;
+            if inv == [0.0; 6] {
+                return 0.0;
             }
-        });
+            let inv = [
+                [inv[0], inv[3], inv[4]],
+                [inv[3], inv[1], inv[5]],
+                [inv[4], inv[5], inv[2]],
+            ];
+            let mut sums = [1.0f32; 3];
+            a.for_each_entry(v, |w, block| {
+                if w == v {
+                    return;
+                }
+                let b = block.0;
+                let columns = [[b[0], b[3], b[4]], [b[3], b[1], b[5]], [b[4], b[5], b[2]]];
+                for (sum, row) in sums.iter_mut().zip(&inv) {
+                    for column in &columns {
+                        *sum +=
+                            (row[0] * column[0] + row[1] * column[1] + row[2] * column[2]).abs();
+                    }
+                }
+            });
+            sums[0].max(sums[1]).max(sums[2])
+        })
+        .reduce(|| 0.0, f32::max)
 }
 
 /// `x = S b`, the first sweep from `x = 0`.
