@@ -980,7 +980,7 @@ fn thin_twist_stretches() -> (Vec<f64>, usize) {
 /// contact. Without the pass this twist stays below 0.82 to frame 80, and with the shipped
 /// 3 mm below 0.96; here it reaches 1.15 at frame 45 and 2.46 at frame 60, with 0 crossings.
 #[test]
-#[ignore = "fails: the cap holds back a wound cloth moving more than its contacts allow (docs/contact.md)"]
+#[ignore = "fails: the cap holds back a wound thin cloth (docs/contact.md)"]
 fn a_thin_twist_never_stretches_its_cloth_past_one_and_a_half_with_self_collision() {
     let (stretches, crossings) = thin_twist_stretches();
     assert_eq!(crossings, 0);
