@@ -944,3 +944,51 @@ fn every_step_holding_self_contact_ends_on_a_solve_at_the_scenes_tolerance() {
     // Steps before the rope winds hold no pair; the wound ones hold many.
     assert!(holding > 10 && free > 10, "{holding} holding, {free} not");
 }
+
+// ----- a thin cloth's twist: the cap holding back a wound cloth ----------------------------------
+
+/// The shipped twist (implicit Euler, four steps a 1/60 s frame) at 64 x 64 with a 0.8 mm
+/// `thickness`, its edges turned as `TwistDriver` turns them (two turns each over 4 s), for
+/// 1 s: its largest stretch `l / L - 1` each frame, and the crossings at the end. The same
+/// failure as the shipped twist at 256 x 256 (1.57 mm there), in seconds: the cloth, wound,
+/// moves about 2 mm a substep, more than `APPROACH` of the distance of its pairs in contact.
+fn thin_twist_stretches() -> (Vec<f64>, usize) {
+    let mut scene = Scene::builtin("twist").unwrap();
+    (scene.cloth.nx, scene.cloth.ny) = (64, 64);
+    scene.self_collision.as_mut().unwrap().thickness = 0.0008;
+    let steps_per_frame = (1.0 / 60.0 / scene.dt).round() as u64;
+    let mut sim = Simulation::new(scene).unwrap();
+    let start = sim.positions().clone();
+    let turner = EdgeTurner::new(&sim, 2.0 * std::f64::consts::TAU / 4.0);
+    let mut stretches = Vec::new();
+    for step in 1..=60 * steps_per_frame {
+        turner.turn(&mut sim, step);
+        sim.step(1).unwrap();
+        if step % steps_per_frame == 0 {
+            stretches.push(largest_stretch(&sim, &start));
+        }
+    }
+    (stretches, intersections(&mut sim).len())
+}
+
+/// Fails on the cap as it is: kept as the place to start from (docs/contact.md, "the 256 x 256
+/// twist"). The wound cloth moves about 2 mm a substep, more than `APPROACH` of its contacts'
+/// distance, so the cap, which scales each displacement toward `x0`, holds back 300-700 of the
+/// 4,096 vertices every substep from frame 30 (stopping up to 168 a frame) while the rest and the
+/// pinned edges go on turning: the stretch grows in the interior. At 256 x 256 the same cap
+/// stops 9,926 vertices in one substep, the stop spreading from one pair to every pair in
+/// contact. Without the pass this twist stays below 0.82 to frame 80, and with the shipped
+/// 3 mm below 0.96; here it reaches 1.15 at frame 45 and 2.46 at frame 60, with 0 crossings.
+#[test]
+#[ignore = "fails: the cap holds back a wound thin cloth (docs/contact.md)"]
+fn a_thin_twist_never_stretches_its_cloth_past_one_and_a_half_with_self_collision() {
+    let (stretches, crossings) = thin_twist_stretches();
+    assert_eq!(crossings, 0);
+    let (frame, most) = (stretches.iter().enumerate())
+        .map(|(f, &s)| (f + 1, s))
+        .fold((0, f64::NEG_INFINITY), |a, b| if b.1 > a.1 { b } else { a });
+    assert!(
+        most < 1.5,
+        "largest stretch {most:.2} at frame {frame}: {stretches:.2?}"
+    );
+}
