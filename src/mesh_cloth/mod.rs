@@ -70,7 +70,11 @@
 //! edge springs here are the smallest model that runs on every explicit integrator already in
 //! the solver, with one set of equations for every pass.
 
-pub mod bending;
+/// Isometric bending's elements, compiled with the scene (`src/scene/bending.rs`) as the
+/// triangle membrane's rest state is.
+pub mod bending {
+    pub use crate::scene::IsometricBending;
+}
 pub mod forces;
 pub mod membrane;
 pub mod topology;

@@ -6,13 +6,13 @@ use std::collections::HashMap;
 
 use glam::DVec3;
 
+use super::bending::IsometricBending;
 use super::edge_springs::{EdgeKind, EdgeSprings};
 use super::local_numbering::{incidence, local_order, LocalNumbering};
 use super::mesh_checks::{check_material, check_triangles, check_uvs, edge_uses, AT};
 use super::Membrane;
 use super::{ClothSpec, IncidenceLanes, MeshSpec, SeamsSpec};
 use crate::error::{check_scalar, check_vector, Bound, Error, Result};
-use crate::mesh_cloth::bending::IsometricBending;
 
 /// Two vertices closer than this (m) are one point.
 const DEGENERATE: f64 = f32::EPSILON as f64;

@@ -6,6 +6,7 @@
 //!
 //! Units are SI throughout: metres, kilograms, seconds, newtons.
 
+mod bending;
 mod cuts;
 mod edge_springs;
 mod lanes;
@@ -22,6 +23,7 @@ mod validate;
 
 use serde::{Deserialize, Serialize};
 
+pub use bending::IsometricBending;
 pub use cuts::CutSpec;
 pub use edge_springs::{EdgeKind, EdgeSprings};
 pub use lanes::{IncidenceLanes, LANES};

@@ -36,8 +36,8 @@ use std::collections::HashMap;
 
 use glam::DVec3;
 
+use super::{EdgeKind, EdgeSprings};
 use crate::error::{Error, Result};
-use crate::scene::{EdgeKind, EdgeSprings};
 use crate::soa::Vec3s;
 
 /// Largest fold angle (rad) across an edge of the rest shape that still counts as flat: the
