@@ -5,7 +5,7 @@
 //! mass dropped), the drop of its lowest point, and the largest stretch `l / L - 1` (over all
 //! springs, and away from the clamps).
 //!
-//! `cargo run --release --example mesh_resolution -- [SIZES] [SECONDS] [CLOTHS] [TOP] [SEEDS]`,
+//! `cargo run --release --example mesh_resolution -- [SIZES] [SECONDS] [CLOTHS] [TOP] [SEEDS] [BEND] [CLAMP]`,
 //! SIZES points per side (default `17,33`, about 300 and 1k vertices: seconds), SECONDS
 //! simulated (default 3), CLOTHS which to hang (default `springs,grid`; `triangle` is the mesh
 //! with `membrane = "triangle"`, `isometric` the springs membrane with `bending =
@@ -13,7 +13,9 @@
 //! it as the interior's move, so a clamp's end moves by up to 0.3 spacing from one mesh to the
 //! next) or `even` (the top row evenly spaced: every mesh holds exactly the same clamps), SEEDS
 //! the meshes' seeds (default `1`; `1,2` hangs two triangulations of each size), BEND the bend
-//! springs' modulus (N/m, default 0.8; the isometric cloths take `bend_modulus` 5e-5 N m).
+//! springs' modulus (N/m, default 0.8; the isometric cloths take `bend_modulus` 5e-5 N m), CLAMP
+//! each clamp's length along the top edge from its corner (m, default 0.125; 0.5 clamps the whole
+//! edge, which leaves no clamp end inside the edge where the membrane's strain is singular).
 //! docs/mesh_cloth.md quotes `-- 33,65,129 4` (1k, 4k and 16k vertices; about ten minutes on
 //! two shared cores, most of it the 16k mesh) and the membrane's runs.
 
@@ -23,7 +25,7 @@ use rustcloth::mesh_cloth::jittered_square;
 use rustcloth::scene::{BendingKind, ClothSpec, MembraneKind, MeshSpec, PinBox, PinSpec, Plane};
 use rustcloth::{IntegratorKind, Scene, Simulation};
 
-/// Length of each clamp along the top edge from a corner, m.
+/// Length of each clamp along the top edge from a corner, m (the default; see CLAMP above).
 const CLAMP: f64 = 0.125;
 /// Areal density (kg/m^2) and stretch modulus (N/m): a soft cloth, so that it sags visibly.
 const DENSITY: f64 = 0.2;
@@ -31,8 +33,8 @@ const STRETCH: f64 = 60.0;
 /// Air drag per unit mass, 1/s: settles the cloth without changing where it settles.
 const DRAG_RATE: f64 = 4.0;
 
-fn pins() -> Vec<PinSpec> {
-    [[-0.5, -0.5 + CLAMP], [0.5 - CLAMP, 0.5]]
+fn pins(clamp: f64) -> Vec<PinSpec> {
+    [[-0.5, -0.5 + clamp], [0.5 - clamp, 0.5]]
         .map(|[x0, x1]| {
             PinSpec::Region(PinBox {
                 corners: [[x0, 1.5 - 1e-9, -0.1], [x1, 1.5, 0.1]],
@@ -50,6 +52,7 @@ fn mesh_scene(
     even_top: bool,
     seed: u64,
     bend: f64,
+    clamp: f64,
 ) -> Scene {
     let (mut vertices, triangles) = jittered_square(n, 1.0, [0.0, 1.0, 0.0], 0.3, seed);
     if even_top {
@@ -75,7 +78,7 @@ fn mesh_scene(
                 },
                 ..MeshSpec::default()
             }),
-            pins: pins(),
+            pins: pins(clamp),
             ..ClothSpec::default()
         },
         ..Scene::default()
@@ -86,7 +89,7 @@ fn mesh_scene(
 
 /// The grid cloth of the same material: `Y = 2 (k_structural + 2 k_shear)` with the grid's
 /// usual 4 : 1, bend `8 k_bend`, the same mass.
-fn grid_scene(n: u32) -> Scene {
+fn grid_scene(n: u32, clamp: f64) -> Scene {
     let k_structural = STRETCH / 2.0 / 1.5;
     let mut scene = Scene {
         air_drag: DRAG_RATE * DENSITY / (n * n) as f64,
@@ -101,7 +104,7 @@ fn grid_scene(n: u32) -> Scene {
             k_shear: k_structural / 4.0,
             k_bend: 0.1,
             damping: 0.001,
-            pins: pins(),
+            pins: pins(clamp),
             ..ClothSpec::default()
         },
         ..Scene::default()
@@ -110,7 +113,7 @@ fn grid_scene(n: u32) -> Scene {
     scene
 }
 
-fn measure(label: &str, scene: Scene, seconds: f64) {
+fn measure(label: &str, scene: Scene, seconds: f64, clamp: f64) {
     let mut sim = Simulation::new(scene).unwrap();
     let start = Instant::now();
     sim.advance(seconds).unwrap();
@@ -125,7 +128,7 @@ fn measure(label: &str, scene: Scene, seconds: f64) {
     let strain = sim.spring_strain();
     // Away from the clamps, whose ends concentrate strain more as the mesh refines.
     let away = (0..m.len())
-        .filter(|&p| pos.y[p] < 1.5 - 2.0 * CLAMP as f32)
+        .filter(|&p| pos.y[p] < 1.5 - 2.0 * clamp.min(CLAMP) as f32)
         .map(|p| strain[p])
         .fold(0.0f32, f32::max);
     let e = sim.energy();
@@ -168,8 +171,9 @@ fn main() {
         .map(|s| s.parse().expect("SEEDS: comma separated"))
         .collect();
     let bend: f64 = args.get(6).map_or(0.8, |s| s.parse().expect("BEND: N/m"));
+    let clamp: f64 = args.get(7).map_or(CLAMP, |s| s.parse().expect("CLAMP: m"));
     println!(
-        "density {DENSITY} kg/m^2, stretch {STRETCH} N/m, clamps {CLAMP} m, {seconds} s, \
+        "density {DENSITY} kg/m^2, stretch {STRETCH} N/m, clamps {clamp} m, {seconds} s, \
          top edge {}",
         if even_top { "even" } else { "jittered" }
     );
@@ -181,7 +185,12 @@ fn main() {
             "triangle-isometric" => (MembraneKind::Triangle, BendingKind::Isometric),
             "grid" => {
                 for &n in &sizes {
-                    measure(&format!("grid {n}x{n}"), grid_scene(n as u32), seconds);
+                    measure(
+                        &format!("grid {n}x{n}"),
+                        grid_scene(n as u32, clamp),
+                        seconds,
+                        clamp,
+                    );
                 }
                 continue;
             }
@@ -191,8 +200,8 @@ fn main() {
         };
         for &n in &sizes {
             for &seed in &seeds {
-                let scene = mesh_scene(n, model, even_top, seed, bend);
-                measure(&format!("{cloth} {n}x{n} #{seed}"), scene, seconds);
+                let scene = mesh_scene(n, model, even_top, seed, bend, clamp);
+                measure(&format!("{cloth} {n}x{n} #{seed}"), scene, seconds, clamp);
             }
         }
     }

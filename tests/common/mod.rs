@@ -518,8 +518,13 @@ pub fn check_slides_iff_the_slope_beats_friction(
 /// `damping` 0.01 N s/m, settled 3 s under drag proportional to mass at 0.7 of symplectic
 /// Euler's stable step: its sag (m, how far the centre of mass dropped from y = 1) and its
 /// largest edge strain below y = 1.25 (away from the clamps' singular ends).
-pub fn settle_clamped(mut scene: Scene, n: usize) -> (f64, f64) {
-    scene.cloth.pins = [[-0.5, -0.375], [0.375, 0.5]]
+pub fn settle_clamped(scene: Scene, n: usize) -> (f64, f64) {
+    settle_clamped_over(scene, n, 0.125)
+}
+
+/// [`settle_clamped`] with clamps `clamp` m long from each top corner (0.5: the whole edge).
+pub fn settle_clamped_over(mut scene: Scene, n: usize, clamp: f64) -> (f64, f64) {
+    scene.cloth.pins = [[-0.5, -0.5 + clamp], [0.5 - clamp, 0.5]]
         .map(|[x0, x1]| {
             PinSpec::Region(rustcloth::scene::PinBox {
                 corners: [[x0, 1.5 - 1e-9, -0.1], [x1, 1.5, 0.1]],
