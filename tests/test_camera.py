@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+import rustcloth
 from rustcloth.camera import Camera, gl_bytes
 
 
@@ -107,10 +108,20 @@ def test_light_view_projection_holds_every_point() -> None:
     assert (np.abs(ndc).max(axis=0) > 0.95).all()  # tight, not a loose box
 
 
-@pytest.mark.parametrize("name", ["drape", "hanging", "freefall", "curtain", "tear", "flag"])
+# The garments are tubes round a body, half of them facing away from any eye: their front is
+# the outside, tested in tests/test_garment.py.
+BUILTIN_SCENES = [n for n in rustcloth.scenes() if n not in ("shirt", "skirt")]
+WRAPS_ROUND_A_POLE = ("flag_hole",)
+"""Scenes in still air whose hung cloth falls against a pole and wraps round it, showing both
+sides once it has moved (only their opening view is the front)."""
+
+
+@pytest.mark.parametrize("name", BUILTIN_SCENES)
 def test_each_scene_opens_framed_with_its_front_towards_the_camera(name: str) -> None:
-    """Every scene opens on the cloth's front, all of it in frame, and a falling cloth stays
-    in the window: the first view is what a person judges the demo by."""
+    """Every built-in scene (mesh cloths included: a mesh has no grid plane, and flag_hole,
+    standing up, opened framed from the side on its plain back) opens on the cloth's front,
+    all of it in frame, and a falling cloth stays in the window: the first view is what a
+    person judges the demo by."""
     pytest.importorskip("moderngl")  # rustcloth.render needs the viewer extra
     import rustcloth
     from rustcloth.render.layout import box_corners
@@ -133,7 +144,7 @@ def test_each_scene_opens_framed_with_its_front_towards_the_camera(name: str) ->
     front = sim.normals if layout.front_is_winding else -sim.normals
     facing = np.einsum("ij,ij->i", front, cam.eye - p) > 0.0
     assert facing.mean() > 0.95
-    if abs(float(layout.front[1])) > 0.7:
+    if abs(float(layout.front[1])) > 0.7 or name in WRAPS_ROUND_A_POLE:
         return  # lying or draped: its far slopes face away, as they should
     # A hanging cloth once it has moved (hanging swings down about its pins): still the front.
     sim.advance(1.5)

@@ -172,6 +172,15 @@ def test_overlay_is_one_line_until_asked_and_says_paused_alone_ssao_state_and_sc
     assert viewer.renderer.lights.name == "neon"
 
 
+def test_the_opening_frame_shows_no_frame_rate_until_one_is_measured(ctx: Any) -> None:
+    viewer, fbo = _viewer(ctx)
+    viewer.frame(fbo, 0.0)
+    first = _text(viewer).splitlines()[0]
+    assert "-- fps" in first and "0.0 fps" not in first
+    viewer.fps = 12.34  # what the half-second count sets once it has frames to count
+    assert "12.3 fps" in _text(viewer).splitlines()[0]
+
+
 def test_cut_line_goes_away_on_release(ctx: Any) -> None:
     viewer, fbo = _viewer(ctx, "curtain")
     viewer.frame(fbo, 1 / 30)

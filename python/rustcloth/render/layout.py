@@ -89,7 +89,7 @@ class SceneLayout:
         for center, radius in balls:
             lo = np.minimum(lo, center - radius)
             hi = np.maximum(hi, center + radius)
-        plane = cloth.get("plane", "xz")
+        plane = _mesh_plane(rest_normals) if "mesh" in cloth else cloth.get("plane", "xz")
         front = _front(plane, rest_positions, pins, hang)
         facing = float(np.mean(rest_normals @ _rest_front(plane)))
         if abs(facing) < 0.5:
@@ -142,6 +142,16 @@ def box_corners(lo: npt.ArrayLike, hi: npt.ArrayLike) -> F32:
     lo_a, hi_a = np.asarray(lo, dtype=np.float32), np.asarray(hi, dtype=np.float32)
     pick = np.array([[(k >> b) & 1 for b in range(3)] for k in range(8)], dtype=bool)
     return np.where(pick, hi_a, lo_a).astype(np.float32)
+
+
+def _mesh_plane(rest_normals: F32) -> str:
+    """The grid plane a mesh cloth's rest shape stands for: a mesh has no ``plane`` of its own
+    (its scene dict carries the grid default, ``xz``), so a flat sheet standing up facing +-z
+    (a flag) would otherwise be framed from the side and open showing its back. ``xy`` when
+    the mean rest normal is mostly along z, else ``xz`` (lying flat, or wrapped round a body,
+    which the winding test in :meth:`SceneLayout.from_scene` handles)."""
+    mean = rest_normals.mean(axis=0)
+    return "xy" if abs(float(mean[2])) > 0.7 else "xz"
 
 
 def _rest_front(plane: str) -> F32:

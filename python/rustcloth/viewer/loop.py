@@ -227,8 +227,11 @@ class Viewer:
         tier = "  software tier (Q)" if r.tier == "software" else ""
         gap = sim.seam_gap()  # how far a garment's sewing has come
         seams = "" if gap is None else f"  seam gap {1e3 * gap:.1f} mm"
+        # The rate is counted over half a second of frames: until then there is none to show
+        # (a "0.0 fps" on the opening frame reads as a frozen window).
+        fps = f"{self.fps:.1f}" if self.fps > 0.0 else "--"
         lines: list[Line] = [
-            f"{self.name}  t = {sim.time:.2f} s  {self.fps:.1f} fps{tier}{raised}{seams}  "
+            f"{self.name}  t = {sim.time:.2f} s  {fps} fps{tier}{raised}{seams}  "
             f"H help  D details  {state}".rstrip()]
         if self.show_details:
             ssao = "on" if r.ssao else "off"
