@@ -23,6 +23,14 @@ pub trait BlockRows: BlockOperator {
 
     /// The diagonal block of row `v`.
     fn diagonal(&self, v: usize) -> Sym3;
+
+    /// Calls `f(column, id)` for each stored entry of row `v` after its diagonal block, in
+    /// [`BlockRows::for_each_entry`]'s order, `id` naming its block for [`BlockRows::block`]
+    /// while the pattern stays.
+    fn for_each_off_diagonal_id(&self, v: usize, f: impl FnMut(usize, u32));
+
+    /// The block of the entry [`BlockRows::for_each_entry_id`] named `id`.
+    fn block(&self, id: u32) -> &Sym3;
 }
 
 impl BlockRows for SpringMatrix {
@@ -39,6 +47,18 @@ impl BlockRows for SpringMatrix {
 
     fn diagonal(&self, v: usize) -> Sym3 {
         self.diagonal[v]
+    }
+
+    /// An entry's spring.
+    fn for_each_off_diagonal_id(&self, v: usize, mut f: impl FnMut(usize, u32)) {
+        for (spring, column) in self.row(v) {
+            f(column, spring as u32);
+        }
+    }
+
+    #[inline(always)]
+    fn block(&self, id: u32) -> &Sym3 {
+        &self.off[id as usize]
     }
 }
 
@@ -110,6 +130,18 @@ impl BlockRows for BlockCsr {
 
     fn diagonal(&self, v: usize) -> Sym3 {
         self.values[self.offsets[v] as usize]
+    }
+
+    /// An entry's position in `values` (the diagonal is each row's first).
+    fn for_each_off_diagonal_id(&self, v: usize, mut f: impl FnMut(usize, u32)) {
+        for k in self.range(v).skip(1) {
+            f(self.columns[k] as usize, k as u32);
+        }
+    }
+
+    #[inline(always)]
+    fn block(&self, id: u32) -> &Sym3 {
+        &self.values[id as usize]
     }
 }
 
