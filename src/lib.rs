@@ -22,6 +22,7 @@
 
 pub mod collisions;
 pub mod cutting;
+pub mod cutting_rest;
 pub mod diagnostics;
 pub mod error;
 pub mod forces;

@@ -771,3 +771,50 @@ fn a_removed_particle_is_a_hole_without_cut_vertices() {
     let physics = sim.triangles().to_vec();
     assert_eq!(sim.render_triangles(), physics);
 }
+
+/// The live stroke of two frames across the curtain at the cut's height, the cloth moved down
+/// by `drop` rows between them (the first springs cut, the cloth below sags): the first frame
+/// from off the left edge to `x_mid`, the second on to `x_end`. Returns the springs severed.
+fn live_stroke_over_two_frames(sim: &mut Simulation, x_mid: f32, x_end: f32, drop: f32) -> usize {
+    let ray = |x: f32| (Vec3::new(x, cut_height(), 2.0), Vec3::NEG_Z);
+    let frame = |from: f32, to: f32| -> Vec<(Vec3, Vec3)> {
+        (0..=16)
+            .map(|s| ray(from + (to - from) * s as f32 / 16.0))
+            .collect()
+    };
+    let mut severed = sim.sever_live_stroke(&frame(-0.8, x_mid)).unwrap();
+    let dy = 1.0 / (N - 1) as f32;
+    let pos = sim.positions();
+    let moved = rustcloth::soa::Vec3s::from_fn(pos.len(), |p| pos.get(p) - Vec3::Y * drop * dy);
+    sim.set_positions(&moved).unwrap();
+    severed += sim.sever_live_stroke(&frame(x_mid, x_end)).unwrap();
+    sim.end_live_stroke();
+    severed
+}
+
+#[test]
+fn a_live_stroke_continues_through_the_material_where_the_last_frame_left_off() {
+    // The cloth drops 1.5 rows between the frames: the second frame's rays meet material 1.5
+    // rows above where the first frame's ended. Cut against the cloth as it is in each frame,
+    // the two halves would be 1.5 rows apart with the cloth whole between them.
+    let mut sim = Simulation::new(curtain(IntegratorKind::SymplecticEuler)).unwrap();
+    let mass = live_mass(&sim);
+    assert!(live_stroke_over_two_frames(&mut sim, 0.0, 0.8, 1.5) > 0);
+    assert_eq!(sim.pieces(), 2);
+    assert_eq!(live_mass(&sim).to_bits(), mass.to_bits());
+}
+
+#[test]
+fn a_live_stroke_that_stays_inside_the_cloth_makes_a_slit() {
+    let mut sim = Simulation::new(curtain(IntegratorKind::SymplecticEuler)).unwrap();
+    let mut severed = 0;
+    for frame in [[-0.3f32, 0.0], [0.0, 0.3]] {
+        let rays: Vec<_> = (0..=8)
+            .map(|s| frame[0] + (frame[1] - frame[0]) * s as f32 / 8.0)
+            .map(|x| (Vec3::new(x, cut_height(), 2.0), Vec3::NEG_Z))
+            .collect();
+        severed += sim.sever_live_stroke(&rays).unwrap();
+    }
+    assert!(severed > 0);
+    assert_eq!(sim.pieces(), 1);
+}

@@ -23,7 +23,8 @@ JUNK = [None, "x", b"ab", 1.5, -1, 2**70, True, [1, 2], (1.0, 2.0, 3.0, 4.0), np
 
 METHODS = ["step", "advance", "set_positions", "set_velocities", "set_masses", "pin",
            "pin_many", "unpin", "cut", "set_state", "pick", "pick_triangle", "cut_ray", "grab",
-           "drag_to", "cut_stroke", "sever_stroke", "set_collider_pose", "set_self_collision"]
+           "drag_to", "cut_stroke", "sever_stroke", "sever_live_stroke", "set_collider_pose",
+           "set_self_collision"]
 
 SETTERS = ["dt", "substeps", "integrator", "pick_radius", "pick_strategy"]
 

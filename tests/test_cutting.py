@@ -106,6 +106,78 @@ def test_the_viewers_cut_gesture_severs_along_its_samples():
     assert sim.topology_version == version
 
 
+class _Picked:
+    """A simulation whose live cut also counts how many times the stroke came onto the cloth
+    (runs of rays that hit it, as each frame's rays meet it before they cut)."""
+
+    def __init__(self, sim: Simulation) -> None:
+        self.sim, self.runs, self._on = sim, 0, False
+
+    def __getattr__(self, name: str) -> object:
+        return getattr(self.sim, name)
+
+    def sever_live_stroke(self, rays: list) -> int:
+        for origin, direction in rays:
+            on = self.sim.pick_triangle(origin, direction) is not None
+            self.runs += on and not self._on
+            self._on = on
+        return self.sim.sever_live_stroke(rays)
+
+
+def _live_stroke(height: float, fps: float, *, still: bool = False,
+                 span: tuple[float, float] = (-0.02, 1.02)) -> tuple[Simulation, _Picked, int]:
+    """A right drag across ``hanging`` through the viewer's own gestures (the layout's camera,
+    1280 x 800), 3 s after it was let go, at ``height`` of the cloth's box on screen (0 top),
+    from ``span[0]`` to ``span[1]`` of its width (outside it at the defaults), over 0.6 s with
+    one mouse move per frame at ``fps``, the cloth advancing 1 / fps after each (or held
+    still)."""
+    pytest.importorskip("moderngl")  # rustcloth.viewer needs the viewer extra
+    from rustcloth.render.renderer import layout_of
+    from rustcloth.viewer.interaction import Interaction, Pointer
+
+    size = (1280, 800)
+    sim = Simulation("hanging")
+    camera = layout_of(sim).camera(size[0] / size[1])
+    picked = _Picked(sim)
+    interaction = Interaction(picked)  # type: ignore[arg-type]
+    pointer = Pointer(interaction, camera, size)
+    sim.advance(3.0)
+    px = np.array([camera.project(p, *size)[:2] for p in sim.positions])
+    lo, hi = px.min(axis=0), px.max(axis=0)
+    y = lo[1] + height * (hi[1] - lo[1])
+    start = np.array([lo[0] + span[0] * (hi[0] - lo[0]), y])
+    end = np.array([lo[0] + span[1] * (hi[0] - lo[0]), y])
+    frames = round(0.6 * fps)
+    pointer.press("cut", *start)
+    for k in range(1, frames + 1):
+        if not still:
+            sim.advance(1.0 / fps)
+        pointer.move(*(start + k / frames * (end - start)))
+    pointer.release()
+    return sim, picked, interaction.cut_count
+
+
+@pytest.mark.parametrize("still", [False, True], ids=["swinging", "held_still"])
+def test_a_stroke_across_a_swinging_cloth_cuts_it_in_two(still):
+    """The cloth swings between frames as its first springs go; the cut still goes through:
+    two pieces, or one more for each time the stroke came back onto the cloth."""
+    outcomes = []
+    for fps in (60.0, 20.0, 8.0):
+        for height in (0.3, 0.6, 0.85):
+            sim, picked, severed = _live_stroke(height, fps, still=still)
+            outcomes.append((fps, height, severed, picked.runs, sim.pieces()))
+    for _fps, _height, severed, runs, pieces in outcomes:
+        assert severed > 0 and 2 <= pieces <= runs + 1, outcomes
+        if runs == 1:
+            assert pieces == 2, outcomes
+
+
+def test_a_live_stroke_that_stays_inside_the_cloth_makes_a_slit_not_a_piece():
+    for fps in (60.0, 8.0):
+        sim, picked, severed = _live_stroke(0.6, fps, span=(0.3, 0.7))
+        assert severed > 0 and picked.runs == 1 and sim.pieces() == 1
+
+
 def test_the_tear_scene_has_tearing_and_tears():
     scene = rustcloth.load_scene("tear")
     assert scene.to_dict()["tearing"] == {"max_strain": 0.5, "max_per_step": 8}

@@ -519,6 +519,27 @@ class Simulation:
         naming ``rays[k].origin`` or ``rays[k].direction``, before anything changes."""
         return self._core.sever_stroke(_args.stroke(rays))
 
+    def sever_live_stroke(self, rays: Sequence[tuple[Vector, Vector]] | npt.ArrayLike) -> int:
+        """Continue the live cut in progress (a mouse drag over several frames, the cloth
+        moving between them) with ``rays``, this frame's samples of it, severing the springs
+        it crosses; returns how many. :meth:`end_live_stroke` ends it; the next call starts a
+        new one. What the viewer's right drag calls once a frame.
+
+        On a grid cloth the stroke is held in the cloth's own coordinates: each ray that hits
+        the cloth names the point of the flat rest sheet under it, and consecutive points (the
+        previous frame's last one included) are joined on that sheet, so the cut goes through
+        the material the mouse passed over even while the cloth swings, and a stroke from off
+        the cloth to off the cloth cuts it in two (where it comes on and goes off, the cut is
+        carried out through the cloth's edge on that sheet). Where the stroke jumps to another
+        layer (over a fold's edge), that piece is cut by the surface the two rays sweep, as
+        :meth:`sever_stroke` does; a mesh cloth is cut that way throughout. Bad rays raise as
+        in :meth:`sever_stroke`, changing nothing."""
+        return self._core.sever_live_stroke(_args.stroke(rays))
+
+    def end_live_stroke(self) -> None:
+        """End the live cut in progress (the mouse button went up)."""
+        self._core.end_live_stroke()
+
     def pieces(self) -> int:
         """The number of pieces the cloth is in: connected components of the live particles
         joined by live springs (O(n)); on a mesh cloth a garment's seams do not join pieces."""

@@ -71,4 +71,16 @@ impl PySimulation {
         let rays = self::rays(&rays)?;
         self.stepping(py, |sim, stop| sim.sever_stroke_with(&rays, stop))
     }
+
+    fn sever_live_stroke(&self, py: Python<'_>, rays: Floats<'_>) -> PyResult<usize> {
+        let rays = self::rays(&rays)?;
+        self.call(py, |sim| sim.sever_live_stroke(&rays))
+    }
+
+    fn end_live_stroke(&self, py: Python<'_>) -> PyResult<()> {
+        self.call(py, |sim| {
+            sim.end_live_stroke();
+            Ok(())
+        })
+    }
 }

@@ -2,11 +2,13 @@
 //! grabbing and dragging a particle, cutting particles and severing springs along a stroke.
 //! Each call checks its rays first and changes nothing when one is bad.
 
-use glam::Vec3;
+use glam::{DVec2, Vec3};
 
 use super::Simulation;
+use crate::cutting_rest::{LiveStroke, RestSheet};
 use crate::error::{Error, Result};
 use crate::interaction::{Grab, DRAG_TIME, GRIP_SPACINGS};
+use crate::picking::pick_triangle_scan;
 use crate::picking::STROKE_TREE_MIN_RAYS;
 use crate::picking::{BvhStats, ParticleHit, PickStrategy, Picker, Queries, TriangleHit};
 use crate::ray::Ray;
@@ -314,6 +316,186 @@ impl Simulation {
         }
     }
 
+    /// Continues the live stroke in progress (a mouse drag drawn over several frames, the
+    /// cloth moving between them) with `rays`, this frame's samples of it, and severs the
+    /// springs it crosses; returns how many. The first call after
+    /// [`Simulation::end_live_stroke`] starts a stroke.
+    ///
+    /// On the grid the stroke is held in the cloth's own coordinates
+    /// ([`crate::cutting_rest`]): each ray that hits the cloth (its triangles, severed or not,
+    /// so that a ray over the slit already cut still names the material under it) names a
+    /// point of the rest sheet, and consecutive points, the previous frame's last among them,
+    /// are joined on that sheet, so the cut goes through the material the mouse passed over
+    /// whatever the cloth did between frames. A stroke that comes onto the cloth from off it
+    /// is carried back out from its first point through the sheet's edge, and one that leaves
+    /// it out from its last point, each along the stroke's direction over about a spacing on
+    /// the sheet and at most [`REST_JUMP_SPACINGS`] spacings: so a stroke from off the cloth
+    /// to off it separates it, even where it came on over a curl seen edge on. Two
+    /// consecutive points farther apart than that on the sheet (the stroke went over a fold's
+    /// edge onto another layer) are cut by the surface their rays sweep through the cloth as
+    /// it is now ([`Simulation::sever_stroke`]). On a mesh cloth every pair of rays is cut by
+    /// its swept surface, the last frame's last ray joined to this frame's first.
+    ///
+    /// Every ray is checked before anything changes, as in [`Simulation::sever_stroke`].
+    pub fn sever_live_stroke(&mut self, rays: &[(Vec3, Vec3)]) -> Result<usize> {
+        let rays = checked_rays(rays)?;
+        let Some(&last) = rays.last() else {
+            return Ok(0);
+        };
+        if self.model.mesh().is_some() {
+            let previous = self.live.last_ray.replace(last);
+            let stroke: Vec<Ray> = previous.into_iter().chain(rays).collect();
+            return self.sever_rays(&stroke);
+        }
+        let sheet = self.rest_sheet();
+        let jump = REST_JUMP_SPACINGS * sheet.spacing.min_element();
+        // Every ray meets the cloth as it is at the start of this frame's piece: the points
+        // are picked before any spring goes.
+        let alive = &self.model.particles.alive;
+        let points: Vec<Option<DVec2>> = (rays.iter())
+            .map(|ray| {
+                let pos = &self.state.kin.pos;
+                pick_triangle_scan(ray, self.model.grid, pos, alive)
+                    .map(|hit| sheet.at(hit.index, hit.barycentric))
+            })
+            .collect();
+        let step = sheet.spacing.min_element();
+        let mut severed = 0;
+        let mut crossings = Vec::new();
+        for (&ray, &here) in rays.iter().zip(&points) {
+            let alive = &self.model.particles.alive;
+            let live = self.live;
+            self.live = LiveStroke {
+                last_ray: Some(ray),
+                last_point: here,
+                ..live
+            };
+            let Some(before) = live.last_ray else {
+                continue; // a stroke's first sample: nothing to join yet
+            };
+            crossings.clear();
+            // Out past the sheet's edge from `from` along `dir`, no farther than a jump.
+            let out =
+                |from: DVec2, dir: DVec2| from + sheet.exit_distance(from, dir).min(jump) * dir;
+            let cut = |(a, b): (DVec2, DVec2), crossings: &mut Vec<_>| {
+                sheet.crossings(&self.model.springs, alive, (a, b), crossings);
+            };
+            match (live.last_point, here) {
+                (Some(a), Some(b)) if a.distance(b) <= jump => {
+                    cut((a, b), &mut crossings);
+                    // The stroke's direction over about its last spacing on the sheet: a
+                    // single sample's step is a fraction of a spacing, and near a curl seen
+                    // edge on it points anywhere.
+                    let tail = live.tail.unwrap_or(a);
+                    let heading = (b - tail).try_normalize();
+                    if let Some(dir) = heading.filter(|_| b.distance(tail) >= step) {
+                        if let Some(entry) = live.entry {
+                            // The stroke came onto the cloth at `entry`: carried back out
+                            // through the edge it came over, on the sheet, where the cloth's
+                            // edge and the stroke's start are the same material whatever
+                            // the cloth did between frames.
+                            let back = (entry - b).try_normalize().unwrap_or(-dir);
+                            cut((entry, out(entry, back)), &mut crossings);
+                            self.live.entry = None;
+                        }
+                        self.live.tail = Some(b - step * dir);
+                    } else {
+                        self.live.tail = Some(tail);
+                    }
+                    self.live.heading = heading.or(live.heading);
+                }
+                (Some(a), None) => {
+                    // Leaving the cloth: out through its edge along the stroke's direction.
+                    if let Some(entry) = live.entry {
+                        // On the cloth for less than a spacing: in and out the same way.
+                        if let Some(dir) = (a - entry).try_normalize() {
+                            cut((entry, out(entry, -dir)), &mut crossings);
+                            cut((a, out(a, dir)), &mut crossings);
+                        }
+                    } else if let Some(dir) = live.heading {
+                        cut((a, out(a, dir)), &mut crossings);
+                    }
+                    self.live = LiveStroke {
+                        last_ray: Some(ray),
+                        ..LiveStroke::default()
+                    };
+                }
+                (None, Some(b)) => {
+                    // Onto the cloth from off it: cut back out once the stroke's direction
+                    // on the sheet is known.
+                    self.live.entry = Some(b);
+                    self.live.tail = Some(b);
+                    self.live.heading = None;
+                }
+                (Some(_), Some(b)) => {
+                    // A jump on the sheet: the stroke went over a fold's edge onto another
+                    // layer. The surface the two rays sweep cuts the fold's edge; the new
+                    // layer's cut starts at its point.
+                    let pair = [before, ray];
+                    let pos = &self.state.kin.pos;
+                    let grid = self.model.grid;
+                    let swept = (self.cutter).crossings(
+                        grid,
+                        &self.model.springs,
+                        alive,
+                        pos,
+                        &pair,
+                        &mut || false,
+                    );
+                    crossings.extend_from_slice(swept.unwrap_or_default());
+                    self.live.tail = Some(b);
+                    self.live.heading = None;
+                    self.live.entry = None;
+                }
+                (None, None) => {}
+            }
+            severed += self.model.sever_crossing(&crossings);
+        }
+        Ok(severed)
+    }
+
+    /// Ends the live stroke in progress: the next [`Simulation::sever_live_stroke`] starts a
+    /// new one, joined to nothing.
+    pub fn end_live_stroke(&mut self) {
+        self.live = LiveStroke::default();
+    }
+
+    /// The grid's rest sheet: `(i dx, j dy)` with the scene's size over the cells.
+    fn rest_sheet(&self) -> RestSheet {
+        let (grid, size) = (self.model.grid, self.model.scene.cloth.size);
+        let cells = DVec2::new((grid.nx - 1) as f64, (grid.ny - 1) as f64);
+        RestSheet {
+            grid,
+            spacing: DVec2::new(size[0], size[1]) / cells,
+        }
+    }
+
+    /// The springs the surface `rays` sweep crosses, severed ([`Simulation::sever_stroke`]
+    /// without its interrupt).
+    fn sever_rays(&mut self, rays: &[Ray]) -> Result<usize> {
+        let model = &self.model;
+        if let Some(mesh) = model.mesh() {
+            let at = (&self.state.kin.pos, &model.particles.alive[..]);
+            let crossings = self
+                .cutter
+                .mesh_crossings(&mesh.springs, at, rays, &mut || false)
+                .unwrap_or_default();
+            return Ok(self.model.sever_mesh_crossing(crossings));
+        }
+        let crossings = self
+            .cutter
+            .crossings(
+                model.grid,
+                &model.springs,
+                &model.particles.alive,
+                &self.state.kin.pos,
+                rays,
+                &mut || false,
+            )
+            .unwrap_or_default();
+        Ok(self.model.sever_crossing(crossings))
+    }
+
     /// The number of pieces the cloth is in: connected components of the live particles
     /// joined by live springs (`O(n)`).
     pub fn pieces(&self) -> usize {
@@ -359,6 +541,14 @@ impl Simulation {
         Some(p)
     }
 }
+
+/// How far apart on the rest sheet, in rest spacings, two consecutive points of a live stroke
+/// may be and still be joined there (default 8). Farther apart, the stroke went from one layer
+/// of the cloth to another (over a fold's edge) rather than across the material between them,
+/// and a rest segment would cut everything between the two; those two rays are cut by the
+/// surface they sweep instead. It has to allow for what the material under the mouse moves
+/// between two frames of a slow display.
+pub const REST_JUMP_SPACINGS: f64 = 8.0;
 
 /// The rays of a stroke, each checked and named `rays[k].origin` / `rays[k].direction`.
 fn checked_rays(rays: &[(Vec3, Vec3)]) -> Result<Vec<Ray>> {

@@ -44,6 +44,8 @@ pub struct Simulation {
     mesh: Mesh,
     render: RenderMesh,
     cutter: StrokeCutter,
+    /// The live stroke in progress ([`Simulation::sever_live_stroke`]).
+    live: crate::cutting_rest::LiveStroke,
 }
 
 impl Simulation {
@@ -61,6 +63,7 @@ impl Simulation {
             mesh: Mesh::default(),
             render: RenderMesh::default(),
             cutter: StrokeCutter::default(),
+            live: Default::default(),
         };
         sim.make_scene_cuts()?;
         Ok(sim)

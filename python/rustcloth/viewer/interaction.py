@@ -30,7 +30,8 @@ class Grabbable(Protocol):
     def drag_to(self, target: Any) -> None: ...
     def release(self) -> None: ...
     def grabbed(self) -> int | None: ...
-    def sever_stroke(self, rays: Any) -> int: ...
+    def sever_live_stroke(self, rays: Any) -> int: ...
+    def end_live_stroke(self) -> None: ...
     def colliders(self) -> list[dict[str, Any]]: ...
     def collider_poses(self) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
     def set_collider_pose(self, index: int, position: Any, rotation: Any) -> None: ...
@@ -70,7 +71,6 @@ class Interaction:
         self.stroke_version = 0
         self.cut_count = 0
         self._last_hit: F32 | None = None
-        self._last_ray: Ray | None = None
         self.collider: int | None = None
         """The collider a Ctrl drag holds."""
         self.collider_target: F32 | None = None
@@ -107,14 +107,13 @@ class Interaction:
         self.drag_point = None
 
     def cut(self, rays: list[Ray]) -> int:
-        """Sever the cloth along one stroke sample: the surface swept from the previous
-        sample's last ray (none at the start of a stroke) through these rays. Returns how many
-        springs were severed. The stroke is drawn through the points where the rays meet the
-        particles' pick boxes (the triangles along the cut are gone), joined to the previous
-        sample's."""
-        stroke = rays if self._last_ray is None else [self._last_ray, *rays]
-        self._last_ray = rays[-1]
-        severed = self.sim.sever_stroke(stroke) if len(stroke) >= 2 else 0
+        """Sever the cloth along one stroke sample (a frame's mouse moves), continuing the
+        stroke in progress: the core joins these rays to the previous sample's in the cloth's
+        own coordinates (``sever_live_stroke``), so a stroke across a cloth that swings
+        between frames still cuts one line through it. Returns how many springs were severed.
+        The stroke is drawn through the points where the rays meet the particles' pick boxes
+        (the triangles along the cut are gone), joined to the previous sample's."""
+        severed = self.sim.sever_live_stroke(rays)
         hits: list[F32] = []
         for origin, direction in rays:
             hit = self.sim.pick(origin, direction)
@@ -136,7 +135,7 @@ class Interaction:
     def end_stroke(self) -> None:
         """The cut gesture is over: its line goes away with it."""
         self._last_hit = None
-        self._last_ray = None
+        self.sim.end_live_stroke()
         if self.segments:
             self.segments.clear()
             self.stroke_version += 1
