@@ -48,17 +48,29 @@ pub enum Trouble {
     /// no longer resolves the cloth's motion, a runaway the pass would otherwise hide by
     /// holding the cloth apart instead of letting it reach infinity.
     Unresolved { share: f32 },
+    /// The self-collision cap stopped `stopped` vertices in one substep: a cluster of contacts
+    /// moving together farther in a substep than the cap lets a pair close, held at the
+    /// substep's start while the cloth around it moves on. Always retried with more substeps,
+    /// whatever `watchdog.on_trouble` says, and accepted as it is at the most the watchdog
+    /// allows it (see `stepper/watchdog.rs`), so it reaches the user only by name.
+    Cascade { stopped: u64 },
     /// The step panicked (a bug): never retried, reported as [`Error::Internal`].
     Panicked,
 }
 
 impl Trouble {
+    /// Whether this is [`Trouble::Cascade`], which every scene retries.
+    pub fn is_cascade(&self) -> bool {
+        matches!(self, Trouble::Cascade { .. })
+    }
+
     /// Its name in Python (`SimulationDiverged.reason`).
     pub fn name(&self) -> &'static str {
         match self {
             Trouble::NonFinite => "non_finite",
             Trouble::Overstretched { .. } => "overstretched",
             Trouble::Unresolved { .. } => "unresolved",
+            Trouble::Cascade { .. } => "cascade",
             Trouble::Panicked => "panicked",
         }
     }
@@ -113,6 +125,10 @@ impl fmt::Display for Error {
                          more than half the cloth's spacing within one substep (an integrator \
                          past its stable step)",
                         100.0 * share
+                    )?,
+                    Trouble::Cascade { stopped } => write!(
+                        f,
+                        "the self-collision pass stopped {stopped} particles in one substep"
                     )?,
                     Trouble::Panicked => write!(f, "the solver panicked")?,
                 }

@@ -18,6 +18,7 @@ use common::{
 use glam::{DVec3, Vec3};
 use rustcloth::scene::SelfCollisionSpec;
 use rustcloth::soa::Vec3s;
+use rustcloth::stepper::WatchdogStats;
 use rustcloth::{IntegratorKind, Scene, Simulation};
 
 /// The pairs of triangles sharing no particle that intersect (the checker in
@@ -952,7 +953,7 @@ fn every_step_holding_self_contact_ends_on_a_solve_at_the_scenes_tolerance() {
 /// 1 s: its largest stretch `l / L - 1` each frame, and the crossings at the end. The same
 /// failure as the shipped twist at 256 x 256 (1.57 mm there), in seconds: the cloth, wound,
 /// moves about 2 mm a substep, more than `APPROACH` of the distance of its pairs in contact.
-fn thin_twist_stretches() -> (Vec<f64>, usize) {
+fn thin_twist_stretches() -> (Vec<f64>, usize, WatchdogStats) {
     let mut scene = Scene::builtin("twist").unwrap();
     (scene.cloth.nx, scene.cloth.ny) = (64, 64);
     scene.self_collision.as_mut().unwrap().thickness = 0.0008;
@@ -968,22 +969,26 @@ fn thin_twist_stretches() -> (Vec<f64>, usize) {
             stretches.push(largest_stretch(&sim, &start));
         }
     }
-    (stretches, intersections(&mut sim).len())
+    let watchdog = sim.watchdog_stats();
+    (stretches, intersections(&mut sim).len(), watchdog)
 }
 
-/// Fails on the cap as it is: kept as the place to start from (docs/contact.md, "the 256 x 256
-/// twist"). The wound cloth moves about 2 mm a substep, more than `APPROACH` of its contacts'
-/// distance, so the cap, which scales each displacement toward `x0`, holds back 300-700 of the
-/// 4,096 vertices every substep from frame 30 (stopping up to 168 a frame) while the rest and the
-/// pinned edges go on turning: the stretch grows in the interior. At 256 x 256 the same cap
-/// stops 9,926 vertices in one substep, the stop spreading from one pair to every pair in
-/// contact. Without the pass this twist stays below 0.82 to frame 80, and with the shipped
-/// 3 mm below 0.96; here it reaches 1.15 at frame 45 and 2.46 at frame 60, with 0 crossings.
+/// The wound cloth moves about 2 mm a substep, more than `APPROACH` of its contacts' distance
+/// (0.72 mm here), so the cap, which scales each displacement toward `x0`, stops clusters of
+/// vertices at the substep's start while the rest and the pinned edges go on turning (up to 90
+/// in one substep): without the cascade trouble, which retries such a step with more substeps,
+/// the stretch grew in the interior to 2.46 at frame 60, with 0 crossings (docs/contact.md,
+/// "the 256 x 256 twist"). Without the pass this twist stays below 0.82 to frame 80, and with
+/// the shipped 3 mm below 0.96. The scene raises on trouble (the default), and the cascade is
+/// retried all the same, never past `CASCADE_MOST` (4) times its one substep.
 #[test]
-#[ignore = "fails: the cap holds back a wound thin cloth (docs/contact.md)"]
 fn a_thin_twist_never_stretches_its_cloth_past_one_and_a_half_with_self_collision() {
-    let (stretches, crossings) = thin_twist_stretches();
+    let (stretches, crossings, watchdog) = thin_twist_stretches();
     assert_eq!(crossings, 0);
+    assert!(
+        watchdog.retried > 0 && watchdog.max_substeps_used <= 4,
+        "{watchdog:?}"
+    );
     let (frame, most) = (stretches.iter().enumerate())
         .map(|(f, &s)| (f + 1, s))
         .fold((0, f64::NEG_INFINITY), |a, b| if b.1 > a.1 { b } else { a });
@@ -991,4 +996,33 @@ fn a_thin_twist_never_stretches_its_cloth_past_one_and_a_half_with_self_collisio
         most < 1.5,
         "largest stretch {most:.2} at frame {frame}: {stretches:.2?}"
     );
+}
+
+/// The cascade trouble (a substep whose cap stops more than `CASCADE_STOPPED` vertices is
+/// retried with more substeps) is for a cluster of contacts moving farther than the cap lets a
+/// pair close; the built-in scenes as they ship never stop that many, so they step exactly as
+/// they did before it: no step caught. 2 s of each, the twist turned as its driver turns it
+/// (its cap does stop vertices, at most 18 in one substep over its 4 s).
+#[test]
+fn the_shipped_pile_fold_and_twist_are_never_retried_for_a_cascade() {
+    for name in ["pile", "fold", "twist"] {
+        let scene = Scene::builtin(name).unwrap();
+        let steps = (2.0 / scene.dt).round() as u64;
+        let mut sim = Simulation::new(scene).unwrap();
+        let turner = EdgeTurner::new(&sim, std::f64::consts::PI);
+        for step in 1..=steps {
+            if name == "twist" {
+                turner.turn(&mut sim, step);
+            }
+            sim.step(1).unwrap();
+        }
+        let (watchdog, contact) = (sim.watchdog_stats(), sim.self_collision_stats().unwrap());
+        assert_eq!(watchdog.caught, 0, "{name}: {watchdog:?} {contact:?}");
+        if name == "twist" {
+            assert!(
+                contact.stopped > 0,
+                "the twist's cap stopped nothing: {contact:?}"
+            );
+        }
+    }
 }

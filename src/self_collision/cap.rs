@@ -43,6 +43,7 @@ impl SelfCollision {
     /// vertices the first rescaled, which may be any.
     pub(super) fn cap(&mut self, x0: &Vec3s, next: &mut Kinematics, eps: f64, whole: bool) -> bool {
         let n = x0.len();
+        self.stopped_last = 0;
         self.scale.clear();
         self.scale.resize(n, 1.0);
         self.scale_next.clear();
@@ -113,9 +114,10 @@ impl SelfCollision {
                 next.pos.set(v, self.kept_on_path(v, x0, a + d * s as f32));
                 next.vel.set(v, next.vel.get(v) * s as f32);
                 self.stats.capped += 1;
-                self.stats.stopped += (s == 0.0) as u64;
+                self.stopped_last += (s == 0.0) as u64;
             }
         }
+        self.stats.stopped += self.stopped_last;
         true
     }
 }

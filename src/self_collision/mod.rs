@@ -256,6 +256,9 @@ pub struct SelfCollision {
     /// Each vertex's start and move over the substep in f64, for the cap's pair tests.
     cap_start: Vec<DVec3>,
     cap_move: Vec<DVec3>,
+    /// Vertices the cap stopped altogether in the last substep (in its last run, where the
+    /// substep ran the pass more than once): what tells a cascade (`stopped_last`).
+    stopped_last: u64,
     stats: SelfCollisionStats,
     /// Look at every pair the substep needs in each substep on the list, as if none could be
     /// left out (what the tests compare with), and `HOT` in its place, if given.
@@ -300,6 +303,7 @@ impl SelfCollision {
             rescaled: Vec::new(),
             cap_start: Vec::new(),
             cap_move: Vec::new(),
+            stopped_last: 0,
             stats: SelfCollisionStats::default(),
             #[cfg(test)]
             look_at_all: false,
@@ -310,6 +314,14 @@ impl SelfCollision {
 
     pub fn stats(&self) -> SelfCollisionStats {
         self.stats
+    }
+
+    /// Vertices the cap stopped altogether in the last run of the pass: many means the stop
+    /// spread from pair to pair through a cluster of contacts moving together faster than the
+    /// cap lets a pair close (`APPROACH` of its distance a substep), which holds the whole
+    /// cluster at the substep's start while the cloth around it moves on.
+    pub fn stopped_last(&self) -> u64 {
+        self.stopped_last
     }
 
     /// Counts a substep drawn back for the energy it gained ([`SelfCollisionStats::drawn_back`]).
@@ -327,6 +339,7 @@ impl SelfCollision {
     /// as any non-finite step does), and otherwise whether the velocities it wrote are finite.
     pub fn apply(&mut self, model: &Model, start: &Kinematics, next: &mut Kinematics) -> bool {
         self.follow_topology(model);
+        self.stopped_last = 0;
         let (x0, inv_mass) = (&start.pos, &model.particles.inv_mass);
         let verts = &self.topology.vertices;
         let Some(survey) = Survey::of(verts, x0, &next.pos, self.list.anchor()) else {

@@ -224,6 +224,22 @@ impl Stepper {
             round += 1;
         };
         if finite {
+            let stopped = passes
+                .self_collision
+                .as_ref()
+                .map_or(0, |c| c.stopped_last());
+            if self
+                .watchdog
+                .cascade(stopped, substeps, model.scene.substeps)
+            {
+                return Err(Failure {
+                    reason: Trouble::Cascade { stopped },
+                    // No one particle is to blame: the stop spread through a cluster.
+                    particle: 0,
+                    in_start_state: false,
+                    substeps,
+                });
+            }
             passes.keep_contact_passive(&mut s);
             if let Some((particle, share)) = passes.unresolved_motion(&s) {
                 return Err(Failure {

@@ -71,7 +71,9 @@ impl Stepper {
         // The restored state was judged good; a call that takes no step must not judge again.
         self.watchdog.judged();
         let step = state.clock.steps + 1;
-        if self.watchdog.retries() {
+        // A cascade is the cap's limit, not a divergence: more substeps are its remedy in
+        // every scene.
+        if self.watchdog.retries() || failure.reason.is_cascade() {
             self.retry_step(model, state, step, failure)
         } else {
             Err(diverged(step, failure))
@@ -119,6 +121,10 @@ impl Stepper {
                 Err(f) => {
                     last = f;
                     state.kin.copy_from(&start);
+                    // A scene that raises on trouble retries a cascade, and nothing else.
+                    if !self.watchdog.retries() && !f.reason.is_cascade() {
+                        break;
+                    }
                 }
             }
         }

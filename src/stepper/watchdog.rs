@@ -21,6 +21,11 @@
 //! state, and raises only if every attempt fails; the substeps that saved the step are then held
 //! for `hold_steps` steps, since what made one step fail usually persists. [`WatchdogStats`]
 //! counts what happened.
+//!
+//! One trouble is retried whatever `on_trouble` says: a [`Trouble::Cascade`], the
+//! self-collision cap stopping a whole cluster of contacts in one substep. It is no divergence
+//! but motion the cap cannot pass in one substep, and at most [`CASCADE_MOST`] times the
+//! scene's substeps it is accepted as the cap left it, so it never raises.
 
 use rayon::prelude::*;
 
@@ -200,6 +205,18 @@ impl Watchdog {
 
     // ----- recovering ---------------------------------------------------------------------------
 
+    /// Whether a substep of a step of `substeps` substeps, in which the self-collision cap
+    /// stopped `stopped` vertices, fails as a [`Trouble::Cascade`]: more than
+    /// [`CASCADE_STOPPED`], and the retry with twice the substeps within both `max_substeps`
+    /// and [`CASCADE_MOST`] times the scene's `scene_substeps`. Past those the substep is kept
+    /// as the cap left it (safe, only held back), so that a cascade never raises.
+    pub fn cascade(&self, stopped: u64, substeps: u32, scene_substeps: u32) -> bool {
+        let doubled = substeps.saturating_mul(2);
+        stopped > CASCADE_STOPPED
+            && doubled <= self.spec.max_substeps
+            && doubled <= scene_substeps.saturating_mul(CASCADE_MOST)
+    }
+
     pub fn count_caught(&mut self) {
         self.stats.caught += 1;
     }
@@ -372,6 +389,22 @@ impl Watchdog {
         })
     }
 }
+
+/// Vertices the self-collision cap may stop in one substep before the substep fails as a
+/// [`Trouble::Cascade`]. The cap stops a pair's vertices at the substep's start when its
+/// proportional rounds do not settle it; in a wound cloth moving together faster than the cap
+/// lets a pair close, every pair touching a stopped vertex is then too fast as well, and the stop
+/// spreads through the contacts (9,926 vertices of the 256 x 256 twist in one substep) while the
+/// pins and the cloth around move on, tearing it. The shipped scenes stop at most a few at a
+/// time (docs/contact.md, "the cascade"): more, and the step is retried with more substeps,
+/// each moving the cloth half as far.
+pub const CASCADE_STOPPED: u64 = 32;
+
+/// Most substeps a step retried for a cascade may take, as a multiple of the scene's: each
+/// doubling halves the motion a substep, and a cloth that still cascades at four times is held
+/// back as the cap leaves it rather than frozen at 64 substeps (an interactive scene's frame
+/// would take 16 times as long for `hold_steps` steps).
+pub const CASCADE_MOST: u32 = 4;
 
 /// Particles per parallel work item of [`any_overstretched`].
 const SCAN_CHUNK: usize = 8192;

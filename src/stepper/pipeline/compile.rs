@@ -43,6 +43,7 @@ impl Pipeline {
             halves: Vec::new(),
             last_piece: None,
             piece_start: Kinematics::zeros(0),
+            put_out: Kinematics::zeros(0),
             halved: 0,
             start_energy: None,
             unshortened: Vec3s::zeros(0),

@@ -78,6 +78,9 @@ pub(super) struct Pipeline {
     /// for one that went through it.
     last_piece: Option<f32>,
     piece_start: Kinematics,
+    /// A projective-dynamics solve's result as the colliders' passes would leave it, for its
+    /// energy judge (`solve.rs`).
+    put_out: Kinematics,
     /// Solves split in halves since the pipeline was compiled.
     pub halved: u64,
     /// The energy at the substep's start, where a solver holds contacts and nothing does work
@@ -219,10 +222,15 @@ impl Pipeline {
                 .map(Kinematics::heap_bytes)
                 .sum::<usize>()
             + self.unshortened.heap_bytes()
-            + [&self.pass_input, &self.trial, &self.moved_first]
-                .iter()
-                .map(|k| k.pos.heap_bytes() + k.vel.heap_bytes())
-                .sum::<usize>()
+            + [
+                &self.pass_input,
+                &self.trial,
+                &self.moved_first,
+                &self.put_out,
+            ]
+            .iter()
+            .map(|k| k.pos.heap_bytes() + k.vel.heap_bytes())
+            .sum::<usize>()
     }
 }
 
