@@ -65,21 +65,18 @@ impl SelfCollision {
         };
         let eps = 1e-6 * (1.0 + survey.reach);
         self.ahead_pairs.clear();
-        let listed = !self.ahead_always() && self.listed_ahead(x0, survey, eps);
-        if listed && self.ahead_list.list.picked().is_empty() {
+        let listed = !self.ahead_always() && self.listed_ahead(x0, survey, eps, (v, h));
+        if self.ahead_apart.is_some() {
+            self.stats.ahead_apart += 1;
+            self.ahead_list.eps_ahead = eps;
+            // Every pair the search would find is farther than `thickness`; whether it would
+            // find any is not known, and only decides when the list is built.
+            self.ahead_list.found_none = false;
+            self.ahead_list.found_apart = true;
             return &self.ahead_pairs;
         }
-        if listed {
-            if let Some(apart) = self.apart_ahead(v, h, survey.reach, eps) {
-                self.stats.ahead_apart += 1;
-                self.ahead_apart = Some(apart);
-                self.ahead_list.eps_ahead = eps;
-                // Every pair the search would find is farther than `thickness`; whether it
-                // would find any is not known, and only decides when the list is built.
-                self.ahead_list.found_none = false;
-                self.ahead_list.found_apart = true;
-                return &self.ahead_pairs;
-            }
+        if listed && self.ahead_list.list.picked().is_empty() {
+            return &self.ahead_pairs;
         }
         self.find_ahead(x0, eps, listed);
         &self.ahead_pairs
@@ -113,6 +110,7 @@ impl SelfCollision {
         if self.ahead_apart.take().is_some() {
             self.stats.ahead_asked += 1;
             let eps = self.ahead_list.eps_ahead;
+            self.pick_ahead(eps);
             self.find_ahead(&from.pos, eps, true);
         }
         self.ahead_wanted.store(false, Relaxed);
@@ -309,7 +307,13 @@ impl SelfCollision {
     /// sides ([`PairList::unclear`]) can be among them. Exact either way: a pair the search
     /// would find is never left out, so the choice changes what a step costs, never what it
     /// finds.
-    fn listed_ahead(&mut self, x0: &Vec3s, survey: Survey, eps: f64) -> bool {
+    fn listed_ahead(
+        &mut self,
+        x0: &Vec3s,
+        survey: Survey,
+        eps: f64,
+        (vel, h): (&Vec3s, f32),
+    ) -> bool {
         if self.ahead_list.list.anchor().is_none() && !self.ahead_list.found_apart {
             return false;
         }
@@ -362,6 +366,22 @@ impl SelfCollision {
             quiet.least = quiet.list.least_distance();
             self.stats.ahead_rebuilds += 1;
         }
+        self.ahead_list.spared |= !built;
+        if self.ahead_list.least.is_finite() {
+            self.ahead_apart = self.apart_ahead(vel, h, survey.reach, eps);
+            if self.ahead_apart.is_some() {
+                return true;
+            }
+        }
+        self.pick_ahead(eps);
+        true
+    }
+
+    /// Picks the listed pairs that may be among those of the search ahead
+    /// ([`PairList::unclear`]), from the sides [`SelfCollision::listed_ahead`] found (`eps`
+    /// the search's round-off margin).
+    fn pick_ahead(&mut self, eps: f64) {
+        let base = self.thickness as f64 + 2.0 * eps;
         let quiet = &mut self.ahead_list;
         let least = quiet
             .sides
@@ -371,8 +391,6 @@ impl SelfCollision {
             .fold(f64::INFINITY, |l, (&s, _)| l.min(s));
         let eps = quiet.eps.max(eps);
         quiet.list.unclear(base, (&quiet.sides, least), eps);
-        quiet.spared |= !built;
-        true
     }
 }
 
