@@ -163,7 +163,7 @@ impl SelfCollision {
         let round = ROUND * (1.0 + reach);
         let least = quiet.least - 2.0 * (quiet.list.most_strayed() + eps) - round;
         let room = least - self.thickness as f64;
-        if !(room > 0.0) {
+        if room.is_nan() || room <= 0.0 {
             return None;
         }
         let h = h as f64;

@@ -413,13 +413,7 @@ fn pairs_ahead<'p>(
     let t = Instant::now();
     pass.pairs_ahead(job.model, from, job.h);
     job.profile.add(SelfCollision::NAME, t.elapsed());
-    let pass: &SelfCollision = pass;
-    Some(SelfPairs {
-        pairs: pass.pairs_ahead_given(),
-        thickness: pass.thickness,
-        stiffness: pass.solve_stiffness,
-        apart: pass.ahead_apart().map(|apart| (apart, pass)),
-    })
+    Some(given_to_the_solve(pass))
 }
 
 /// The pairs ahead of a solve from `from` that [`pairs_ahead`] left out, for the step to be
@@ -433,11 +427,15 @@ fn given_pairs_ahead<'p>(
     let t = Instant::now();
     pass.give_pairs_ahead(from);
     job.profile.add(SelfCollision::NAME, t.elapsed());
-    let pass: &SelfCollision = pass;
-    Some(SelfPairs {
+    Some(given_to_the_solve(pass))
+}
+
+/// What `pass`'s last pairs ahead give the solve: the pairs, and what it left out of them.
+fn given_to_the_solve(pass: &SelfCollision) -> SelfPairs<'_> {
+    SelfPairs {
         pairs: pass.pairs_ahead_given(),
         thickness: pass.thickness,
         stiffness: pass.solve_stiffness,
-        apart: None,
-    })
+        apart: pass.ahead_apart().map(|apart| (apart, pass)),
+    }
 }
