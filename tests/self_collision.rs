@@ -142,6 +142,31 @@ fn a_quiet_cloth_takes_one_swept_search_ahead_of_its_solves_then_none() {
     );
 }
 
+/// A cloth at rest whose grid neighbours across a cell's short diagonal sit within the search
+/// ahead's reach (the 128 x 128 twist: 3 mm `thickness`, 7.9 mm spacing, those neighbours 5.6
+/// mm apart against the search's 6 mm at rest) is given no pair ahead of its solves once its
+/// list shows them all too far apart to be held: no search, no candidate, no closest point.
+#[test]
+fn a_quiet_128_cloth_s_solves_look_at_no_pair_ahead_of_them() {
+    let mut scene = Scene::builtin("twist").unwrap();
+    (scene.cloth.nx, scene.cloth.ny) = (128, 128);
+    scene.self_collision.as_mut().unwrap().thickness = 3e-3;
+    let mut sim = Simulation::new(scene).unwrap();
+    sim.step(24).unwrap();
+    let before = sim.self_collision_stats().unwrap();
+    sim.step(10).unwrap();
+    let after = sim.self_collision_stats().unwrap();
+    let looked = (
+        after.ahead_searches - before.ahead_searches,
+        after.ahead_from_list - before.ahead_from_list,
+        after.effort.candidates - before.effort.candidates,
+        after.effort.boxes_tested - before.effort.boxes_tested,
+    );
+    assert_eq!(looked, (0, 0, 0, 0), "{after:?}");
+    assert_eq!(after.ahead_apart - before.ahead_apart, 10, "{after:?}");
+    assert_eq!(after.ahead_asked, 0, "{after:?}");
+}
+
 /// Runs `scene` for `steps` steps, counting intersections every `every` steps.
 fn run_checked(scene: Scene, steps: u64, every: u64) -> (Simulation, Vec<usize>) {
     let mut sim = Simulation::new(scene).unwrap();

@@ -750,7 +750,10 @@ class Simulation:
         run ahead of implicit Euler's solves (``ahead_searches``; skipped where a list of its
         own holds every pair they could find), the steps whose pairs ahead that list gave
         instead (``ahead_from_list``; not counted: those it showed have none), that list's
-        builds (``ahead_rebuilds``), and substeps drawn back along their paths because the cap
+        builds (``ahead_rebuilds``), the steps whose pairs ahead it showed all too far apart
+        to be held and left out (``ahead_apart``) and of those the steps whose solve moved
+        far enough to ask for them and was solved again (``ahead_asked``), and substeps drawn
+        back along their paths because the cap
         left the cloth with energy nothing gave it (``drawn_back``)."""
         return self._core.self_collision_stats()
 

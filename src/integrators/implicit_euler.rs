@@ -242,6 +242,10 @@ impl ImplicitEuler {
                 (matrix.slot_mut(0), loads),
             );
             self.stats.self_pairs += added as u64;
+            if pairs.asked() {
+                // The step is solved again with the pairs (`stepper/pipeline/solve.rs`).
+                break;
+            }
             if added == 0 {
                 // The loose solve's system is the step's: finish it from where it stopped (the
                 // filtered unknown is `S dv`, the held particles' prescribed part taken out).

@@ -43,7 +43,7 @@ use rayon::prelude::*;
 use crate::linear::cg::BlockOperator;
 use crate::linear::stencil::SlotArrays;
 use crate::linear::Sym3;
-use crate::self_collision::Pair;
+use crate::self_collision::{Apart, Pair, SelfCollision};
 use crate::soa::{Vec3SliceMut, Vec3s};
 
 /// How many times at most a step with pairs held is solved: after a solve, the pairs it brought
@@ -159,6 +159,16 @@ pub struct SelfPairs<'a> {
     pub thickness: f32,
     /// `beta`: the penalty as a multiple of a pair's effective mass over `h^2`.
     pub stiffness: f32,
+    /// Where `pairs` is empty because every pair ahead is too far apart to be held: how far,
+    /// and the pass to ask for them if the solve moves farther than that allows for.
+    pub apart: Option<(Apart, &'a SelfCollision)>,
+}
+
+impl SelfPairs<'_> {
+    /// Whether the solve asked for the pairs left out: the step must be solved again with them.
+    pub fn asked(&self) -> bool {
+        self.apart.is_some_and(|(_, pass)| pass.pairs_ahead_asked())
+    }
 }
 
 impl SelfContactTerm {
@@ -209,6 +219,14 @@ impl SelfContactTerm {
             }
             end
         };
+        if let Some((apart, pass)) = pairs.apart {
+            // No pair was given, so none is held: ask for them where the solve's motion could
+            // have brought one within `thickness`.
+            if !apart.holds_none(h, pairs.thickness, vel, dv) {
+                pass.ask_for_pairs_ahead();
+            }
+            return 0;
+        }
         let mut released = 0;
         if self.rest == Rest::NoCloser {
             let pulled = |held: &Held| end_gap(&pairs.pairs[held.of as usize], held.n) > held.rest;
@@ -434,6 +452,7 @@ mod tests {
             pairs,
             thickness: 0.002,
             stiffness: 50.0,
+            apart: None,
         }
     }
 

@@ -11,6 +11,9 @@
 //! order, so they are the same to the bit (none, most often, on a cloth at rest). The list is
 //! kept while it covers, so a cloth at rest builds it once.
 
+use std::sync::atomic::Ordering::Relaxed;
+
+use glam::DVec3;
 use rayon::prelude::*;
 
 use super::list::PairList;
@@ -34,6 +37,8 @@ impl SelfCollision {
     /// cannot come within `thickness` along those straight paths.
     pub fn pairs_ahead(&mut self, model: &Model, from: &Kinematics, h: f32) -> &[Pair] {
         self.follow_topology(model);
+        self.ahead_apart = None;
+        self.ahead_wanted.store(false, Relaxed);
         let (x0, v) = (&from.pos, &from.vel);
         let n = x0.len();
         if self.ahead.len() != n {
@@ -60,14 +65,66 @@ impl SelfCollision {
         };
         let eps = 1e-6 * (1.0 + survey.reach);
         self.ahead_pairs.clear();
-        let listed = !self.ahead_always() && self.listed_ahead(x0, survey, eps);
+        let listed = !self.ahead_always() && self.listed_ahead(x0, survey, eps, (v, h));
+        if self.ahead_apart.is_some() {
+            self.stats.ahead_apart += 1;
+            self.ahead_list.eps_ahead = eps;
+            // Every pair the search would find is farther than `thickness`; whether it would
+            // find any is not known, and only decides when the list is built.
+            self.ahead_list.found_none = false;
+            self.ahead_list.found_apart = true;
+            return &self.ahead_pairs;
+        }
         if listed && self.ahead_list.list.picked().is_empty() {
             return &self.ahead_pairs;
         }
+        self.find_ahead(x0, eps, listed);
+        &self.ahead_pairs
+    }
+
+    /// The pairs the last [`SelfCollision::pairs_ahead`] gave.
+    pub fn pairs_ahead_given(&self) -> &[Pair] {
+        &self.ahead_pairs
+    }
+
+    /// Where the last [`SelfCollision::pairs_ahead`] left its pairs out, what the solve is told
+    /// of them.
+    pub fn ahead_apart(&self) -> Option<Apart> {
+        self.ahead_apart
+    }
+
+    /// Marks the pairs left out of the last [`SelfCollision::pairs_ahead`] as needed after all
+    /// (the solve moved a vertex farther than [`Apart`] allows for).
+    pub fn ask_for_pairs_ahead(&self) {
+        self.ahead_wanted.store(true, Relaxed);
+    }
+
+    /// Whether the solve asked for the pairs left out ([`SelfCollision::ask_for_pairs_ahead`]).
+    pub fn pairs_ahead_asked(&self) -> bool {
+        self.ahead_apart.is_some() && self.ahead_wanted.load(Relaxed)
+    }
+
+    /// The pairs the last [`SelfCollision::pairs_ahead`], from `from` (the same state), left
+    /// out: those the search would have found, the same to the bit.
+    pub fn give_pairs_ahead(&mut self, from: &Kinematics) -> &[Pair] {
+        if self.ahead_apart.take().is_some() {
+            self.stats.ahead_asked += 1;
+            let eps = self.ahead_list.eps_ahead;
+            self.pick_ahead(eps);
+            self.find_ahead(&from.pos, eps, true);
+        }
+        self.ahead_wanted.store(false, Relaxed);
+        &self.ahead_pairs
+    }
+
+    /// The swept search ahead from `x0` to `self.ahead` (`eps` its round-off margin) into
+    /// `ahead_pairs`, among the pairs the list picked when `listed`.
+    fn find_ahead(&mut self, x0: &Vec3s, eps: f64, listed: bool) {
         let ahead = std::mem::replace(&mut self.ahead, Vec3s::zeros(0));
         self.sweep_boxes(x0, &ahead, eps as f32);
         self.ahead = ahead;
         let mut pairs = std::mem::take(&mut self.ahead_pairs);
+        pairs.clear();
         if listed {
             self.stats.ahead_from_list += 1;
             let looked = self.swept_search(x0, eps, (Reuse::Keep, true), &mut pairs);
@@ -82,13 +139,89 @@ impl SelfCollision {
         self.ahead_pairs = pairs;
         // The pass after the solve searches from the same start and takes over the closest
         // points this search took.
-        if self.ahead_from.len() == n {
+        if self.ahead_from.len() == x0.len() {
             self.ahead_from.copy_from(x0);
         } else {
             self.ahead_from = x0.clone();
         }
         self.ahead_kept = true;
-        &self.ahead_pairs
+    }
+
+    /// What the solve may be told instead of the pairs ahead, when the list (which covers the
+    /// step: [`SelfCollision::listed_ahead`]) shows every pair it could give too far apart for
+    /// the solve to hold ([`Apart`]): each pair is at least the least listed distance, less its
+    /// primitives' strays since the anchor, apart at the step's start, and the inertial motion
+    /// closes it by at most twice the most any vertex's path `h v` strays from a common
+    /// displacement. Only when that motion uses at most half the room between that and
+    /// `thickness`: the other half is left to the solve's own motion, which the solve checks
+    /// ([`Apart::holds_none`]), asking for the pairs where it fails.
+    fn apart_ahead(&self, vel: &Vec3s, h: f32, reach: f64, eps: f64) -> Option<Apart> {
+        let quiet = &self.ahead_list;
+        let eps = quiet.eps.max(eps);
+        // The solve's gaps are taken in f32 (`self_contact.rs`): a few roundings of the
+        // coordinates each, far below this.
+        let round = ROUND * (1.0 + reach);
+        let least = quiet.least - 2.0 * (quiet.list.most_strayed() + eps) - round;
+        let room = least - self.thickness as f64;
+        if room.is_nan() || room <= 0.0 {
+            return None;
+        }
+        let h = h as f64;
+        let path = |p: usize| h * vel.get(p).as_dvec3();
+        let (common, most) = Apart::spread((0..vel.len()).map(path));
+        (2.0 * most <= 0.5 * room).then_some(Apart { least, common })
+    }
+}
+
+/// Relative round-off allowed for the solve's f32 gaps, per m of the largest coordinate.
+const ROUND: f64 = 1e-5;
+
+/// What a solve is told of the pairs ahead of it when they were left out as all too far apart
+/// to be held: every one of them is at least `least` (m) apart at the step's start (its gap
+/// `n . sum c_i x_i`, `n` and `c` at the start), less the round-off of the solve's gaps. A
+/// pair's weights sum to zero and to at most one on each primitive, so a motion `d_i` changes
+/// its gap by at most twice the most any `|d_i - u|` is, for any common `u`: a solve whose
+/// every vertex ends within `(least - thickness) / 2` of `u` (here the middle of the inertial
+/// paths' box) brings no pair within `thickness`, and holds none, as with the pairs given.
+#[derive(Clone, Copy, Debug)]
+pub struct Apart {
+    pub least: f64,
+    pub common: DVec3,
+}
+
+impl Apart {
+    /// The middle of the box of `d`, and the most any `d` is from it (m; an exact reduction,
+    /// the same for any order).
+    fn spread(d: impl Iterator<Item = DVec3> + Clone) -> (DVec3, f64) {
+        let (lo, hi) = d
+            .clone()
+            .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), d| {
+                (lo.min(d), hi.max(d))
+            });
+        let common = if lo.is_finite() && hi.is_finite() {
+            0.5 * (lo + hi)
+        } else {
+            DVec3::ZERO
+        };
+        let most = d.fold(0.0f64, |m, d| m.max((d - common).length()));
+        (common, most)
+    }
+
+    /// Whether a step of `h` s from velocities `vel` with the change `dv` brings no pair
+    /// within `thickness` (m): then the solve, given the pairs, would have held none.
+    pub fn holds_none(&self, h: f32, thickness: f32, vel: &Vec3s, dv: &Vec3s) -> bool {
+        #[cfg(test)]
+        if tests::mode(thickness) == tests::Mode::Ask {
+            return false;
+        }
+        let h = h as f64;
+        let mut most = 0.0f64;
+        for p in 0..vel.len() {
+            let d = h * (vel.get(p).as_dvec3() + dv.get(p).as_dvec3());
+            most = most.max((d - self.common).length());
+        }
+        // A motion that is not finite fails the step whatever the pairs.
+        self.least - 2.0 * most * (1.0 + ROUND) >= thickness as f64
     }
 }
 
@@ -101,6 +234,10 @@ pub struct Quiet {
     list: PairList,
     keys: NearKeys,
     eps: f64,
+    /// The least listed distance at the anchor (m; infinite with none), and the round-off
+    /// margin of the last step whose pairs were left out ([`Apart`]).
+    least: f64,
+    eps_ahead: f64,
     /// Whether the last search ahead found no pair, or none closer than `thickness`: the
     /// list is built only after the first, or the second on a cloth whose vertices move less
     /// than `SLOW thickness` in the step (there the list lasts many steps), so that a cloth in
@@ -139,6 +276,7 @@ impl Quiet {
     pub fn clear(&mut self) {
         self.list.clear();
         self.keys.clear();
+        self.least = f64::INFINITY;
         self.found_none = false;
         self.found_apart = false;
         self.spared = false;
@@ -169,7 +307,13 @@ impl SelfCollision {
     /// sides ([`PairList::unclear`]) can be among them. Exact either way: a pair the search
     /// would find is never left out, so the choice changes what a step costs, never what it
     /// finds.
-    fn listed_ahead(&mut self, x0: &Vec3s, survey: Survey, eps: f64) -> bool {
+    fn listed_ahead(
+        &mut self,
+        x0: &Vec3s,
+        survey: Survey,
+        eps: f64,
+        (vel, h): (&Vec3s, f32),
+    ) -> bool {
         if self.ahead_list.list.anchor().is_none() && !self.ahead_list.found_apart {
             return false;
         }
@@ -219,8 +363,25 @@ impl SelfCollision {
                 .list
                 .rebuild(x0, reach, self.broad.near_found(&self.topology));
             self.broad.near_keys(&mut quiet.keys);
+            quiet.least = quiet.list.least_distance();
             self.stats.ahead_rebuilds += 1;
         }
+        self.ahead_list.spared |= !built;
+        if self.ahead_list.least.is_finite() {
+            self.ahead_apart = self.apart_ahead(vel, h, survey.reach, eps);
+            if self.ahead_apart.is_some() {
+                return true;
+            }
+        }
+        self.pick_ahead(eps);
+        true
+    }
+
+    /// Picks the listed pairs that may be among those of the search ahead
+    /// ([`PairList::unclear`]), from the sides [`SelfCollision::listed_ahead`] found (`eps`
+    /// the search's round-off margin).
+    fn pick_ahead(&mut self, eps: f64) {
+        let base = self.thickness as f64 + 2.0 * eps;
         let quiet = &mut self.ahead_list;
         let least = quiet
             .sides
@@ -230,15 +391,13 @@ impl SelfCollision {
             .fold(f64::INFINITY, |l, (&s, _)| l.min(s));
         let eps = quiet.eps.max(eps);
         quiet.list.unclear(base, (&quiet.sides, least), eps);
-        quiet.spared |= !built;
-        true
     }
 }
 
 impl SelfCollision {
     #[cfg(test)]
     fn ahead_always(&self) -> bool {
-        self.ahead_list.always
+        self.ahead_list.always || tests::mode(self.thickness) == tests::Mode::Search
     }
 
     #[cfg(not(test))]
@@ -250,6 +409,67 @@ impl SelfCollision {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::sync::Mutex;
+
+    /// How the steps of the passes of one `thickness` find their pairs ahead (the steps run on
+    /// the thread pool, and other tests' passes step as shipped): as shipped, by the search
+    /// every time (what the others are compared with), or with every solve given no pair
+    /// asking for those left out.
+    #[derive(Clone, Copy, PartialEq, Eq, Debug)]
+    pub(super) enum Mode {
+        Shipped,
+        Search,
+        Ask,
+    }
+
+    static MODE: Mutex<Option<(f32, Mode)>> = Mutex::new(None);
+
+    pub(super) fn mode(thickness: f32) -> Mode {
+        match *MODE.lock().unwrap() {
+            Some((t, mode)) if t.to_bits() == thickness.to_bits() => mode,
+            _ => Mode::Shipped,
+        }
+    }
+
+    /// A solve given no pair ahead because all are too far apart to be held, which then moves
+    /// the cloth farther than that allows for, asks for them, and the step is solved again
+    /// with them: a cloth at rest whose list shows its pairs apart steps bitwise as with the
+    /// search run ahead of every solve, whether its solves ask for the pairs or not.
+    #[test]
+    fn a_step_whose_solve_asks_for_the_pairs_left_out_steps_as_if_they_were_given() {
+        // A thickness of this test's own.
+        let thickness = 1.21e-2;
+        let run = |mode| {
+            *MODE.lock().unwrap() = Some((thickness, mode));
+            let mut scene = crate::Scene::builtin("twist").unwrap();
+            // 0.38 of the grid spacing, as the 128 x 128 cloth's 3 mm of its 7.9 mm: its grid
+            // neighbours across a cell's short diagonal are pairs ahead, 0.7 spacings apart.
+            scene.self_collision.as_mut().unwrap().thickness = thickness as f64;
+            let mut sim = crate::Simulation::new(scene).unwrap();
+            sim.step(60).unwrap();
+            *MODE.lock().unwrap() = None;
+            let bits = |v: &Vec3s| {
+                let c = [&v.x, &v.y, &v.z];
+                c.map(|c| c.iter().map(|x| x.to_bits()).collect::<Vec<_>>())
+            };
+            let state = (bits(sim.positions()), bits(sim.velocities()));
+            (state, sim.self_collision_stats().unwrap())
+        };
+        let (searched, s) = run(Mode::Search);
+        let (shipped, a) = run(Mode::Shipped);
+        let (asked, b) = run(Mode::Ask);
+        assert!(s.ahead_apart == 0 && s.ahead_searches == 60, "{s:?}");
+        assert!(a.ahead_apart > 40 && a.ahead_asked == 0, "{a:?}");
+        assert!(
+            b.ahead_asked == b.ahead_apart && b.ahead_asked > 40,
+            "{b:?}"
+        );
+        assert!(shipped == searched, "the pairs left out changed the steps");
+        assert!(
+            asked == searched,
+            "the steps asking for the pairs left out changed"
+        );
+    }
 
     /// Skipping the search ahead never changes the pairs it finds: on a resting cloth given
     /// velocities from none to fast enough to bring its neighbours together within the step,
@@ -282,7 +502,7 @@ mod tests {
         let mut skipping = SelfCollision::new(thickness, 0.0, 1);
         let mut searching = SelfCollision::new(thickness, 0.0, 1);
         searching.ahead_list.always = true;
-        let (mut skipped, mut from_list, mut found) = (0, 0, 0);
+        let (mut skipped, mut from_list, mut found, mut left_out) = (0, 0, 0, 0);
         for k in 0..40u32 {
             // A wave across the cloth whose speed grows step by step: from rest to vertices
             // closing on their neighbours within the step.
@@ -297,8 +517,21 @@ mod tests {
                 vel,
             };
             let before = skipping.stats.ahead_searches;
-            let skip = skipping.pairs_ahead(&model, &from, h).to_vec();
+            let mut skip = skipping.pairs_ahead(&model, &from, h).to_vec();
             let all = searching.pairs_ahead(&model, &from, h).to_vec();
+            if let Some(apart) = skipping.ahead_apart() {
+                // Left out, as too far apart to be held: they are, and given they are the
+                // search's.
+                assert!(skip.is_empty(), "step {k}");
+                let least = all.iter().map(|p| p.d0).fold(f64::INFINITY, f64::min);
+                assert!(
+                    least >= apart.least && apart.least > thickness as f64,
+                    "step {k}"
+                );
+                assert!(!skipping.pairs_ahead_asked(), "step {k}");
+                skip = skipping.give_pairs_ahead(&from).to_vec();
+                left_out += 1;
+            }
             let bits = |p: &Pair| {
                 let (c, n) = (p.c.map(f64::to_bits), p.n.to_array().map(f64::to_bits));
                 (p.verts, p.split, c, n, p.d0.to_bits())
@@ -313,6 +546,7 @@ mod tests {
             from_list += u32::from(not_run && !all.is_empty());
             found += u32::from(!all.is_empty());
         }
+        assert_eq!(skipping.stats.ahead_asked, left_out);
         (skipped, from_list, found)
     }
 }

@@ -209,6 +209,11 @@ impl PairList {
         self.hot.reserve(self.candidates.len());
     }
 
+    /// The least distance of a listed pair at the anchor (m; infinite with none listed).
+    pub fn least_distance(&self) -> f64 {
+        self.distances.iter().copied().fold(f64::INFINITY, f64::min)
+    }
+
     /// The listed pairs and their distances at the anchor.
     #[cfg(test)]
     pub fn listed(&self) -> (&[Candidate], &[f64]) {

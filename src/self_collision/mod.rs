@@ -55,6 +55,7 @@ mod repulsion;
 mod search;
 mod topology;
 
+pub use in_solve::Apart;
 pub use pair::Pair;
 
 use glam::{DVec3, Vec3};
@@ -136,6 +137,11 @@ pub struct SelfCollisionStats {
     pub ahead_searches: u64,
     pub ahead_from_list: u64,
     pub ahead_rebuilds: u64,
+    /// Steps whose pairs ahead the list showed all too far apart for the solve to hold any,
+    /// left out ([`Apart`]: no search, no closest points), and of those the steps whose solve
+    /// then moved the cloth far enough to ask for them (the step is solved again with them).
+    pub ahead_apart: u64,
+    pub ahead_asked: u64,
     /// Pairs closer than `thickness` after the integrator (the repulsion's first sweep).
     pub contacts: u64,
     /// Vertices whose displacement the cap shortened, summed over substeps.
@@ -189,6 +195,8 @@ impl Default for SelfCollisionStats {
             ahead_searches: 0,
             ahead_from_list: 0,
             ahead_rebuilds: 0,
+            ahead_apart: 0,
+            ahead_asked: 0,
             contacts: 0,
             capped: 0,
             stopped: 0,
@@ -221,6 +229,10 @@ pub struct SelfCollision {
     ahead_kept: bool,
     /// What shows that the search ahead of a solve would find nothing (`in_solve.rs`).
     ahead_list: in_solve::Quiet,
+    /// Where the last step's pairs ahead were left out as too far apart to be held, what the
+    /// solve is told of them, and whether it asked for them after all (`in_solve.rs`).
+    ahead_apart: Option<Apart>,
+    ahead_wanted: std::sync::atomic::AtomicBool,
     topology: Topology,
     /// Each vertex's grown swept box this substep.
     vertex_boxes: Vec<Aabb>,
@@ -282,6 +294,8 @@ impl SelfCollision {
             ahead_from: Vec3s::zeros(0),
             ahead_kept: false,
             ahead_list: in_solve::Quiet::default(),
+            ahead_apart: None,
+            ahead_wanted: std::sync::atomic::AtomicBool::new(false),
             topology: Topology::default(),
             vertex_boxes: Vec::new(),
             path_ends: Vec::new(),

@@ -351,7 +351,7 @@ impl Pipeline {
             self.find_contacts(job.model, from, span, job.chunk, job.profile);
         }
         let kind = self.integrator.kind();
-        let self_pairs = pairs_ahead(&mut self.self_collision, kind, job, from);
+        let mut self_pairs = pairs_ahead(&mut self.self_collision, kind, job, from);
         let mut round = 0;
         let finite = loop {
             round += 1;
@@ -370,6 +370,13 @@ impl Pipeline {
                 self_pairs,
             };
             let finite = self.integrator.step(job.h, &mut ctx);
+            if self_pairs.is_some_and(|p| p.asked()) {
+                // The solve moved farther than the pairs left out allowed for: the same step
+                // again with them, as if they had been given.
+                self_pairs = given_pairs_ahead(&mut self.self_collision, job, from);
+                round -= 1;
+                continue;
+            }
             let Some(contacts) = self.contacts.as_mut().filter(|_| holds) else {
                 break finite;
             };
@@ -452,12 +459,31 @@ fn pairs_ahead<'p>(
         return None;
     }
     let t = Instant::now();
-    let (thickness, stiffness) = (pass.thickness, pass.solve_stiffness);
-    let pairs = pass.pairs_ahead(job.model, from, job.h);
+    pass.pairs_ahead(job.model, from, job.h);
     job.profile.add(SelfCollision::NAME, t.elapsed());
-    Some(SelfPairs {
-        pairs,
-        thickness,
-        stiffness,
-    })
+    Some(given_to_the_solve(pass))
+}
+
+/// The pairs ahead of a solve from `from` that [`pairs_ahead`] left out, for the step to be
+/// solved again with them. Timed as the self-collision pass.
+fn given_pairs_ahead<'p>(
+    pass: &'p mut Option<SelfCollision>,
+    job: &mut Solve,
+    from: &Kinematics,
+) -> Option<SelfPairs<'p>> {
+    let pass = pass.as_mut()?;
+    let t = Instant::now();
+    pass.give_pairs_ahead(from);
+    job.profile.add(SelfCollision::NAME, t.elapsed());
+    Some(given_to_the_solve(pass))
+}
+
+/// What `pass`'s last pairs ahead give the solve: the pairs, and what it left out of them.
+fn given_to_the_solve(pass: &SelfCollision) -> SelfPairs<'_> {
+    SelfPairs {
+        pairs: pass.pairs_ahead_given(),
+        thickness: pass.thickness,
+        stiffness: pass.solve_stiffness,
+        apart: pass.ahead_apart().map(|apart| (apart, pass)),
+    }
 }
