@@ -212,8 +212,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--full", action="store_true",
                         help="sizes 32-256, and the 1 ms runs at 64 x 64 too (not run through: the "
-                             "256 x 256 twist tears itself apart with the pass before its window "
-                             "at 2.0 s and its pass runs out of memory, docs/contact.md)")
+                             "256 x 256 twist tore itself apart and ran out of memory before "
+                             "cascades were retried, and has not been timed since; "
+                             "docs/contact.md)")
     parser.add_argument("--sizes", type=int, nargs="+", default=None)
     parser.add_argument("--before-sizes", type=int, nargs="+", default=None,
                         help="sizes of the 1 ms runs of twist and pile (quiet: every size)")
