@@ -291,12 +291,22 @@ impl Simulation {
         interrupted: &mut dyn FnMut() -> bool,
     ) -> Result<usize> {
         let rays = checked_rays(rays)?;
+        self.sever_checked(&rays, interrupted)
+    }
+
+    /// [`Simulation::sever_stroke_with`] on rays already checked: the springs the surface
+    /// `rays` sweep through the cloth as it is now crosses, severed.
+    fn sever_checked(
+        &mut self,
+        rays: &[Ray],
+        interrupted: &mut dyn FnMut() -> bool,
+    ) -> Result<usize> {
         let model = &self.model;
         if let Some(mesh) = model.mesh() {
             let at = (&self.state.kin.pos, &model.particles.alive[..]);
             let crossings = self
                 .cutter
-                .mesh_crossings(&mesh.springs, at, &rays, interrupted);
+                .mesh_crossings(&mesh.springs, at, rays, interrupted);
             return match crossings {
                 Some(crossings) => Ok(self.model.sever_mesh_crossing(crossings)),
                 None => Err(Error::Interrupted { steps: 0 }),
@@ -307,7 +317,7 @@ impl Simulation {
             &model.springs,
             &model.particles.alive,
             &self.state.kin.pos,
-            &rays,
+            rays,
             interrupted,
         );
         match crossings {
@@ -345,7 +355,7 @@ impl Simulation {
         if self.model.mesh().is_some() {
             let previous = self.live.last_ray.replace(last);
             let stroke: Vec<Ray> = previous.into_iter().chain(rays).collect();
-            return self.sever_rays(&stroke);
+            return self.sever_checked(&stroke, &mut || false);
         }
         let sheet = self.rest_sheet();
         let jump = REST_JUMP_SPACINGS * sheet.spacing.min_element();
@@ -468,32 +478,6 @@ impl Simulation {
             grid,
             spacing: DVec2::new(size[0], size[1]) / cells,
         }
-    }
-
-    /// The springs the surface `rays` sweep crosses, severed ([`Simulation::sever_stroke`]
-    /// without its interrupt).
-    fn sever_rays(&mut self, rays: &[Ray]) -> Result<usize> {
-        let model = &self.model;
-        if let Some(mesh) = model.mesh() {
-            let at = (&self.state.kin.pos, &model.particles.alive[..]);
-            let crossings = self
-                .cutter
-                .mesh_crossings(&mesh.springs, at, rays, &mut || false)
-                .unwrap_or_default();
-            return Ok(self.model.sever_mesh_crossing(crossings));
-        }
-        let crossings = self
-            .cutter
-            .crossings(
-                model.grid,
-                &model.springs,
-                &model.particles.alive,
-                &self.state.kin.pos,
-                rays,
-                &mut || false,
-            )
-            .unwrap_or_default();
-        Ok(self.model.sever_crossing(crossings))
     }
 
     /// The number of pieces the cloth is in: connected components of the live particles
