@@ -354,7 +354,6 @@ impl Pipeline {
         let mut self_pairs = pairs_ahead(&mut self.self_collision, kind, job, from);
         let mut round = 0;
         let finite = loop {
-            round += 1;
             let mut ctx = StepContext {
                 grid: job.model.grid,
                 current: from,
@@ -374,9 +373,9 @@ impl Pipeline {
                 // The solve moved farther than the pairs left out allowed for: the same step
                 // again with them, as if they had been given.
                 self_pairs = given_pairs_ahead(&mut self.self_collision, job, from);
-                round -= 1;
                 continue;
             }
+            round += 1;
             let Some(contacts) = self.contacts.as_mut().filter(|_| holds) else {
                 break finite;
             };
