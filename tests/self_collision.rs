@@ -935,10 +935,10 @@ fn the_in_solve_term_steps_the_same_for_any_thread_count_and_after_a_restore() {
     assert_eq!(state_hash(&a), state_hash(&one));
 }
 
-/// The first solve of a step holding self-contact pairs stops at a loose tolerance: it only
+/// The first solve of a step given self-contact pairs ahead stops at a loose tolerance: it only
 /// finds the pairs its `dv` brings within `thickness`. Every step must still end on a solve
 /// at the scene's `cg_tolerance`: the second, holding the new pairs, or, where the first brought
-/// none, the first finished from where it stopped.
+/// none, the first finished from where it stopped; a step given no pair solves once, to it.
 #[test]
 fn every_step_holding_self_contact_ends_on_a_solve_at_the_scenes_tolerance() {
     let scene = long_step_twist(30.0);
@@ -957,10 +957,15 @@ fn every_step_holding_self_contact_ends_on_a_solve_at_the_scenes_tolerance() {
             after.last_residual
         );
         // Two solves, or more where the cap left energy nothing gave the cloth and the step's
-        // passes ran again holding what it moved (`Pipeline::hold_self_contacts`).
+        // passes ran again holding what it moved (`Pipeline::hold_self_contacts`); one where
+        // no pair was given, which then holds none.
         let solves = after.solves - before.solves;
-        assert!(solves >= 2, "step {step}: {solves} solves");
-        if after.self_pairs > before.self_pairs {
+        let held = after.self_pairs > before.self_pairs;
+        assert!(
+            solves >= 2 || (solves == 1 && !held),
+            "step {step}: {solves} solves"
+        );
+        if held {
             holding += 1;
         } else {
             free += 1;

@@ -129,6 +129,13 @@ impl PredictedContacts {
         chunk: usize,
         sticks: bool,
     ) {
+        self.sticks = sticks;
+        if colliders.is_empty() {
+            // Self-collision alone (its holds, [`PredictedContacts::hold`]): nothing to predict,
+            // and the last substep's holds are let go.
+            self.release_all();
+            return;
+        }
         // Where each particle would be moving freely; the colliders only move dynamic ones.
         let free = |p: usize| {
             let (x, v) = (current.pos.get(p), current.vel.get(p));
@@ -140,7 +147,6 @@ impl PredictedContacts {
             self.predicted.vel.set(p, v);
         }
         self.put_out(colliders, current, particles, (h, time), chunk);
-        self.sticks = sticks;
         let mut count = 0;
         for p in 0..current.pos.len() {
             let (_, v) = free(p);
@@ -180,6 +186,26 @@ impl PredictedContacts {
         } else {
             0.0
         };
+    }
+
+    /// Lets every contact go, as [`PredictedContacts::set`] leaves a particle the colliders did
+    /// not move: only particles with a contact have anything to clear (`count` of them).
+    fn release_all(&mut self) {
+        for p in 0..self.normal.len() {
+            if self.count == 0 {
+                break;
+            }
+            if self.normal.get(p) != Vec3::ZERO {
+                self.normal.set(p, Vec3::ZERO);
+                self.offset[p] = 0.0;
+                self.friction[p] = 0.0;
+                self.mu[p] = 0.0;
+                self.stuck[p] = false;
+                self.surface_velocity.set(p, Vec3::ZERO);
+                self.slide_damping[p] = 0.0;
+                self.count -= 1;
+            }
+        }
     }
 
     /// The friction damper `c P_t` (`P_t = I - n n^T`, kg) of particle `p`'s sliding contact on
@@ -245,6 +271,10 @@ impl PredictedContacts {
         (h, time): (f32, f64),
         chunk: usize,
     ) -> usize {
+        if colliders.is_empty() && self.count == 0 {
+            // Nothing held, and nothing for a solve to be carried into.
+            return 0;
+        }
         self.predicted.copy_from(solved);
         self.put_out(colliders, current, particles, (h, time), chunk);
         let mut changed = 0;

@@ -207,8 +207,10 @@ impl ImplicitEuler {
         self.stats.setup_seconds += started.elapsed().as_secs_f64();
         let settings = self.settings;
         // The first solve of a step that may hold more pairs after it only finds which pairs
-        // its `dv` brings within `thickness`: loose, unless it turns out to be the last.
-        let more_rounds = ctx.self_pairs.is_some();
+        // its `dv` brings within `thickness`: loose, unless it turns out to be the last. With
+        // no pair ahead (a cloth where nothing is close) there is none to find, and one solve
+        // to `cg_tolerance` costs less than a loose one finished from where it stopped.
+        let more_rounds = ctx.self_pairs.is_some_and(|p| !p.pairs.is_empty());
         let mut first = settings;
         if more_rounds {
             first.tolerance = settings.tolerance.max(PAIR_FINDING_TOLERANCE);

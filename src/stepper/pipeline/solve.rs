@@ -278,7 +278,9 @@ impl Pipeline {
         depth: u32,
     ) -> Judged {
         let finite = self.solve(job, from, into, predict);
-        let Some(start) = judge.filter(|_| finite) else {
+        // A solve that held no contact is not judged ([`Pipeline::rose`]).
+        let held = self.contacts.as_ref().is_some_and(|c| c.count > 0);
+        let Some(start) = judge.filter(|_| finite && held) else {
             return (finite, None);
         };
         match self.rose(job, (from, into), start) {
@@ -416,6 +418,11 @@ impl Pipeline {
     /// more energy than it started with (by more than rounding, [`gained`]).
     pub fn hold_self_contacts(&mut self, s: &Substep, round: u32) -> bool {
         if round + 1 >= SELF_ROUNDS || self.self_collision.is_none() || !self.holds_contacts() {
+            return false;
+        }
+        // A pass that moved nothing leaves nothing to hold: no energy to weigh (a quiet cloth).
+        let (before, after) = (&self.unshortened, &s.next.pos);
+        if (0..after.len()).all(|p| after.get(p) == before.get(p)) {
             return false;
         }
         // Where something does work, only a substep the energy guard would draw back by more
