@@ -9,13 +9,20 @@
 //! stroke ended is a material point, so the next frame's stroke starts there, wherever that
 //! point has moved.
 //!
-//! Only the grid has a flat rest sheet in these coordinates; a mesh cloth keeps the swept
-//! surface ([`crate::cutting::StrokeCutter`]).
+//! A mesh cloth whose rest shape is flat (or a garment of flat panels) has a rest sheet of its
+//! own, [`MeshSheet`], in charts (a garment's panels); a curved one keeps the swept surface
+//! ([`crate::cutting::StrokeCutter`]). The stroke's course over the sheet ([`LiveStroke::advance`])
+//! is the same for both.
+
+mod mesh;
 
 use glam::DVec2;
 
+pub use mesh::{MeshSheet, MAX_TILT_DEG};
+
 use crate::cutting::Crossing;
 use crate::grid::{cell_triangle, Grid, SpringKind};
+use crate::ray::Ray;
 use crate::springs::Springs;
 
 /// The grid's rest sheet: particle `(i, j)` at `(i dx, j dy)` (m).
@@ -118,23 +125,42 @@ impl RestSheet {
 /// the row from one side, not from both. Parallel segments never cross: a stroke along a spring
 /// does not cut it.
 pub fn segments_crossing((p, q): (DVec2, DVec2), (a, b): (DVec2, DVec2)) -> Option<f64> {
+    let (t, u) = lines_meeting((p, q), (a, b))?;
+    ((0.0..1.0).contains(&t) && (0.0..=1.0).contains(&u)).then_some(t)
+}
+
+/// Where the lines through `p`-`q` and `a`-`b` meet: the parameters `(t, u)` of the point
+/// `p + t (q - p) = a + u (b - a)`; `None` for parallel lines.
+pub fn lines_meeting((p, q): (DVec2, DVec2), (a, b): (DVec2, DVec2)) -> Option<(f64, f64)> {
     let (r, s) = (q - p, b - a);
     let denom = r.perp_dot(s);
     if denom == 0.0 {
         return None;
     }
     let w = a - p;
-    let t = w.perp_dot(s) / denom;
-    let u = w.perp_dot(r) / denom;
-    ((0.0..1.0).contains(&t) && (0.0..=1.0).contains(&u)).then_some(t)
+    Some((w.perp_dot(s) / denom, w.perp_dot(r) / denom))
+}
+
+/// A material point: the chart of the rest sheet it is on (the grid's one sheet is chart 0;
+/// a garment's panels are its charts) and where on it (m).
+pub type SheetPoint = (u32, DVec2);
+
+/// What a live stroke cuts for one of its rays ([`LiveStroke::advance`]).
+#[derive(Clone, Copy, Debug)]
+pub enum Cut {
+    /// The springs whose rest segments cross this rest segment of the chart.
+    Rest(u32, DVec2, DVec2),
+    /// The springs the surface these two rays sweep through the cloth as it is now crosses.
+    Swept(Ray, Ray),
 }
 
 /// A live stroke's memory between frames: the last ray and, if it hit the cloth, the material
-/// point it hit and the stroke's direction on the sheet there (a unit vector).
+/// point it hit and the stroke's direction on the sheet there (a unit vector). `entry` and
+/// `tail` are on `last_point`'s chart.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct LiveStroke {
-    pub last_ray: Option<crate::ray::Ray>,
-    pub last_point: Option<DVec2>,
+    pub last_ray: Option<Ray>,
+    pub last_point: Option<SheetPoint>,
     pub heading: Option<DVec2>,
     /// Where the stroke came onto the cloth from off it, until its direction there is known
     /// and the cut is carried back out through the edge.
@@ -142,6 +168,104 @@ pub struct LiveStroke {
     /// A point about one spacing back along the stroke on the sheet, which its heading is
     /// taken from.
     pub tail: Option<DVec2>,
+}
+
+/// How a live stroke meets a rest sheet: `step` (m), about one spacing, the stretch of sheet its
+/// direction is taken over; `jump` (m), the farthest two consecutive points are joined on the
+/// sheet (`REST_JUMP_SPACINGS` spacings, `src/simulation/interaction.rs`).
+#[derive(Clone, Copy, Debug)]
+pub struct Reach {
+    pub step: f64,
+    pub jump: f64,
+}
+
+impl LiveStroke {
+    /// Continues the stroke with `ray`, which hit the material point `here` (or missed the
+    /// cloth), and hands `cut` what to sever for it, in order; `exit(chart, from, dir)` is how
+    /// far from `from` along `dir` the chart's material ends, plus a spacing. Consecutive
+    /// points on one chart and within `reach.jump` are joined on it; the cut is carried out
+    /// through the edge where the stroke comes on or goes off; two points on different charts
+    /// or farther apart (over a fold's edge, across a seam) are cut by their rays' swept
+    /// surface, and the stroke goes on from the new point.
+    pub fn advance(
+        &mut self,
+        ray: Ray,
+        here: Option<SheetPoint>,
+        reach: Reach,
+        exit: impl Fn(u32, DVec2, DVec2) -> f64,
+        mut cut: impl FnMut(Cut),
+    ) {
+        let Reach { step, jump } = reach;
+        let live = *self;
+        *self = LiveStroke {
+            last_ray: Some(ray),
+            last_point: here,
+            ..live
+        };
+        let Some(before) = live.last_ray else {
+            return; // a stroke's first sample: nothing to join yet
+        };
+        // Out past the sheet's edge from `from` along `dir`, no farther than a jump.
+        let out = |c: u32, from: DVec2, dir: DVec2| from + exit(c, from, dir).min(jump) * dir;
+        match (live.last_point, here) {
+            (Some((ca, a)), Some((c, b))) if ca == c && a.distance(b) <= jump => {
+                cut(Cut::Rest(c, a, b));
+                // The stroke's direction over about its last spacing on the sheet: a single
+                // sample's step is a fraction of a spacing, and near a curl seen edge on it
+                // points anywhere.
+                let tail = live.tail.unwrap_or(a);
+                let heading = (b - tail).try_normalize();
+                if let Some(dir) = heading.filter(|_| b.distance(tail) >= step) {
+                    if let Some(entry) = live.entry {
+                        // The stroke came onto the cloth at `entry`: carried back out through
+                        // the edge it came over, on the sheet, where the cloth's edge and the
+                        // stroke's start are the same material whatever the cloth did between
+                        // frames.
+                        let back = (entry - b).try_normalize().unwrap_or(-dir);
+                        cut(Cut::Rest(c, entry, out(c, entry, back)));
+                        self.entry = None;
+                    }
+                    self.tail = Some(b - step * dir);
+                } else {
+                    self.tail = Some(tail);
+                }
+                self.heading = heading.or(live.heading);
+            }
+            (Some((c, a)), None) => {
+                // Leaving the cloth: out through its edge along the stroke's direction.
+                if let Some(entry) = live.entry {
+                    // On the cloth for less than a spacing: in and out the same way.
+                    if let Some(dir) = (a - entry).try_normalize() {
+                        cut(Cut::Rest(c, entry, out(c, entry, -dir)));
+                        cut(Cut::Rest(c, a, out(c, a, dir)));
+                    }
+                } else if let Some(dir) = live.heading {
+                    cut(Cut::Rest(c, a, out(c, a, dir)));
+                }
+                *self = LiveStroke {
+                    last_ray: Some(ray),
+                    ..LiveStroke::default()
+                };
+            }
+            (None, Some((_, b))) => {
+                // Onto the cloth from off it: cut back out once the stroke's direction on the
+                // sheet is known.
+                self.entry = Some(b);
+                self.tail = Some(b);
+                self.heading = None;
+            }
+            (Some(_), Some((_, b))) => {
+                // A jump on the sheet, or onto another chart: the stroke went over a fold's
+                // edge onto another layer, or across a seam. The surface the two rays sweep
+                // cuts what lies between; the new layer's cut starts at its point.
+                cut(Cut::Swept(before, ray));
+                self.tail = Some(b);
+                self.heading = None;
+                self.entry = None;
+            }
+            (None, None) => {}
+        }
+    }
 }
 
 #[cfg(test)]

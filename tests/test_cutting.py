@@ -4,6 +4,9 @@ viewer's cut gesture."""
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 import rustcloth
@@ -125,8 +128,9 @@ class _Picked:
 
 
 def _live_stroke(height: float, fps: float, *, still: bool = False,
-                 span: tuple[float, float] = (-0.02, 1.02)) -> tuple[Simulation, _Picked, int]:
-    """A right drag across ``hanging`` through the viewer's own gestures (the layout's camera,
+                 span: tuple[float, float] = (-0.02, 1.02),
+                 scene: str | rustcloth.Scene = "hanging") -> tuple[Simulation, _Picked, int]:
+    """A right drag across ``scene`` through the viewer's own gestures (the layout's camera,
     1280 x 800), 3 s after it was let go, at ``height`` of the cloth's box on screen (0 top),
     from ``span[0]`` to ``span[1]`` of its width (outside it at the defaults), over 0.6 s with
     one mouse move per frame at ``fps``, the cloth advancing 1 / fps after each (or held
@@ -136,13 +140,13 @@ def _live_stroke(height: float, fps: float, *, still: bool = False,
     from rustcloth.viewer.interaction import Interaction, Pointer
 
     size = (1280, 800)
-    sim = Simulation("hanging")
+    sim = Simulation(scene)
     camera = layout_of(sim).camera(size[0] / size[1])
     picked = _Picked(sim)
     interaction = Interaction(picked)  # type: ignore[arg-type]
     pointer = Pointer(interaction, camera, size)
     sim.advance(3.0)
-    px = np.array([camera.project(p, *size)[:2] for p in sim.positions])
+    px = np.array([camera.project(p, *size)[:2] for p in sim.positions[sim.alive]])
     lo, hi = px.min(axis=0), px.max(axis=0)
     y = lo[1] + height * (hi[1] - lo[1])
     start = np.array([lo[0] + span[0] * (hi[0] - lo[0]), y])
@@ -170,6 +174,39 @@ def test_a_stroke_across_a_swinging_cloth_cuts_it_in_two(still):
         assert severed > 0 and 2 <= pieces <= runs + 1, outcomes
         if runs == 1:
             assert pieces == 2, outcomes
+
+
+def _hanging_mesh() -> rustcloth.Scene:
+    """``hanging`` as an irregular mesh (benches/cut_moving.py's ``mesh_hanging``)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benches"))
+    try:
+        bench = pytest.importorskip("cut_moving")
+    finally:
+        sys.path.pop(0)
+    return bench.mesh_hanging()
+
+
+@pytest.mark.parametrize("still", [False, True], ids=["swinging", "held_still"])
+def test_a_stroke_across_a_swinging_mesh_cloth_cuts_it_in_two(still):
+    """``hanging`` as an irregular mesh swings as the stroke severs it: the stroke is held on
+    the mesh's flat rest sheet, so it still cuts the cloth in two (or one more piece for each
+    time it came back onto the cloth). Cut frame by frame against the cloth as it was, the
+    same strokes left it whole while it moved (benches/cut_moving.py, docs/cutting.md)."""
+    scene = _hanging_mesh()
+    outcomes = []
+    for fps in (60.0, 8.0):
+        for height in (0.6, 0.85):
+            sim, picked, severed = _live_stroke(height, fps, still=still, scene=scene)
+            outcomes.append((fps, height, severed, picked.runs, sim.pieces()))
+    for _fps, _height, severed, runs, pieces in outcomes:
+        assert severed > 0 and 2 <= pieces <= runs + 1, outcomes
+        if runs == 1:
+            assert pieces == 2, outcomes
+
+
+def test_a_live_stroke_inside_a_mesh_cloth_makes_a_slit_not_a_piece():
+    sim, picked, severed = _live_stroke(0.85, 20.0, span=(0.3, 0.7), scene=_hanging_mesh())
+    assert severed > 0 and picked.runs == 1 and sim.pieces() == 1
 
 
 def test_a_live_stroke_that_stays_inside_the_cloth_makes_a_slit_not_a_piece():

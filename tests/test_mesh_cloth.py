@@ -149,8 +149,8 @@ def test_a_mesh_cloths_settings_have_the_typed_keys() -> None:
     scene = hanging(4, density=0.3)
     # A mesh's masses come from its density: no `particle_mass`.
     assert set(scene.cloth) | {"particle_mass"} == set(settings.ClothSettings.__annotations__)
-    # `uvs` and `seams` (NotRequired) only when given.
-    assert set(scene.cloth["mesh"]) | {"uvs", "seams"} == set(
+    # `uvs`, `seams` and `panels` (NotRequired) only when given.
+    assert set(scene.cloth["mesh"]) | {"uvs", "seams", "panels"} == set(
         settings.MeshSettings.__annotations__)
     assert scene.cloth["mesh"]["density"] == 0.3
 

@@ -62,6 +62,16 @@ class MeshSettings(TypedDict):
     bending: Literal["springs", "isometric"]
     bend_modulus: float
     seams: NotRequired[SeamsSettings]
+    panels: NotRequired[PanelsSettings]
+
+
+class PanelsSettings(TypedDict):
+    """``scene.cloth["mesh"]["panels"]``: each triangle of a garment on its flat panel, as a
+    garment compiles to (its panel's index and its three corners there, m): what a live cut
+    holds its stroke on (docs/cutting.md)."""
+
+    panel: list[int]
+    corners: list[list[list[float]]]
 
 
 class CutSettings(TypedDict):

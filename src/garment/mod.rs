@@ -48,6 +48,7 @@ use std::collections::BTreeMap;
 use glam::{DVec2, DVec3};
 
 use crate::error::{check_scalar, check_vector, Bound, Error, Result};
+use serde::{Deserialize, Serialize};
 pub use spec::{GarmentSpec, PanelSpec, Placement, SeamSpec};
 
 use outline::{
@@ -60,14 +61,28 @@ const AT: &str = "cloth.garment";
 /// Two chains sewn together may differ in length by at most this factor.
 pub const MAX_LENGTH_RATIO: f64 = 1.5;
 
-/// A compiled garment: a mesh cloth's vertices, triangles and UVs, and the vertex pairs sewn
-/// (pairs that start closed are merged into one vertex instead).
+/// A compiled garment: a mesh cloth's vertices, triangles and UVs, the vertex pairs sewn
+/// (pairs that start closed are merged into one vertex instead), and each triangle on its flat
+/// panel.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Garment {
     pub vertices: Vec<[f64; 3]>,
     pub triangles: Vec<[i64; 3]>,
     pub uvs: Vec<[f64; 2]>,
     pub seams: Vec<[i64; 2]>,
+    pub panels: FlatPanels,
+}
+
+/// Each triangle of a garment on its flat panel: the panel and its three corners there, in m
+/// in the panel's own 2-D layout. Per corner rather than per vertex because a vertex merged
+/// across a seam that started closed has a place on each of its panels.
+#[derive(Clone, Debug, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FlatPanels {
+    /// Per triangle, the index of its panel.
+    pub panel: Vec<u32>,
+    /// Per triangle, its corners on its panel (m).
+    pub corners: Vec<[[f64; 2]; 3]>,
 }
 
 /// A checked panel: its outline, holes and placement.
@@ -211,6 +226,7 @@ impl GarmentSpec {
             triangles: Vec::new(),
             uvs: Vec::new(),
             seams: Vec::new(),
+            panels: FlatPanels::default(),
         };
         // For each seam side, the global vertex of each sample.
         let mut sewn: Vec<[Vec<i64>; 2]> = vec![[Vec::new(), Vec::new()]; chains.len()];
@@ -241,6 +257,10 @@ impl GarmentSpec {
             }
             out.triangles
                 .extend(flat.triangles.iter().map(|t| t.map(|v| base + v as i64)));
+            for t in &flat.triangles {
+                out.panels.panel.push(p as u32);
+                (out.panels.corners).push(t.map(|v| flat.points[v as usize].to_array()));
+            }
         }
         for (s, [a, b]) in sewn.iter().enumerate() {
             let reversed = samples[s].1;

@@ -116,6 +116,14 @@ impl MeshTopology {
         self.edges[t]
     }
 
+    /// The bend springs across triangle `t`'s edges (edge `k` from corner `k` to corner
+    /// `k + 1`), each joining corner `k + 2` to the corner opposite the edge in the triangle
+    /// beyond it; [`NONE`] on a boundary edge or where the mesh has none.
+    #[inline]
+    pub fn bend_springs(&self, t: usize) -> [u32; 3] {
+        self.bends[t]
+    }
+
     /// Whether triangle `t` is drawn: its corners alive and its stretch springs holding.
     #[inline]
     pub fn drawn(&self, alive: &[bool], t: usize) -> bool {

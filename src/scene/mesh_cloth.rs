@@ -11,7 +11,7 @@ use super::edge_springs::{EdgeKind, EdgeSprings};
 use super::local_numbering::{incidence, local_order, LocalNumbering};
 use super::mesh_checks::{check_material, check_triangles, check_uvs, edge_uses, AT};
 use super::Membrane;
-use super::{ClothSpec, IncidenceLanes, MeshSpec, SeamsSpec};
+use super::{ClothSpec, FlatPanels, IncidenceLanes, MeshSpec, SeamsSpec};
 use crate::error::{check_scalar, check_vector, Bound, Error, Result};
 
 /// Two vertices closer than this (m) are one point.
@@ -47,6 +47,8 @@ pub struct MeshCloth {
     /// The isometric bending elements of `bending = "isometric"` (the bend springs keep only
     /// their damping); None with `"springs"`.
     pub bending: Option<IsometricBending>,
+    /// A garment's triangles on their flat panels, one per triangle (None for another mesh).
+    pub panels: Option<FlatPanels>,
 }
 
 impl MeshCloth {
@@ -146,7 +148,33 @@ impl MeshCloth {
                 spec.bend_modulus,
             )?),
         };
+        if let Some(p) = &spec.panels {
+            let t = triangles.len();
+            if p.panel.len() != t || p.corners.len() != t {
+                return Err(Error::value(
+                    format!("{AT}.panels"),
+                    format!(
+                        "must hold one panel and one set of corners per triangle ({t}), got {} \
+                         and {}",
+                        p.panel.len(),
+                        p.corners.len()
+                    ),
+                ));
+            }
+            if let Some(k) = p
+                .corners
+                .iter()
+                .position(|c| !c.as_flattened().iter().all(|x| x.is_finite()))
+            {
+                return Err(Error::value(
+                    format!("{AT}.panels.corners[{k}]"),
+                    "must be finite",
+                ));
+            }
+        }
+        let panels = spec.panels.clone();
         Ok(MeshCloth {
+            panels,
             membrane,
             bending,
             mean_edge,
@@ -275,6 +303,8 @@ impl MeshCloth {
                 .bending
                 .as_ref()
                 .map_or(0, IsometricBending::heap_bytes)
+            + (self.panels.as_ref())
+                .map_or(0, |p| p.panel.capacity() * 4 + p.corners.capacity() * 48)
     }
 }
 
@@ -425,6 +455,7 @@ impl ClothSpec {
             vertices: sewn.vertices,
             triangles: sewn.triangles,
             uvs: Some(sewn.uvs),
+            panels: Some(sewn.panels),
             seams: (!sewn.seams.is_empty()).then_some(SeamsSpec {
                 pairs: sewn.seams,
                 sew_time: garment.sew_time,

@@ -33,7 +33,7 @@ pub use mesh_cloth::MeshCloth;
 pub use pins::PIN_GROUPS;
 pub use solvers::{IntegratorKind, Preconditioner, SolverSettings};
 pub use specs::{
-    BendingKind, ClothSpec, ColliderSpec, FloorSpec, MembraneKind, MeshSpec, OnTrouble,
+    BendingKind, ClothSpec, ColliderSpec, FlatPanels, FloorSpec, MembraneKind, MeshSpec, OnTrouble,
     PinBoundary, PinBox, PinSpec, PinTop, Plane, SeamsSpec, SelfCollisionSpec, ShapeKind,
     SphereSpec, StrainLimitSpec, TearingSpec, WatchdogSpec, WindSpec,
 };

@@ -3,6 +3,8 @@
 
 use serde::{Deserialize, Serialize};
 
+pub use crate::garment::FlatPanels;
+
 pub use crate::material::{BendingKind, MembraneKind};
 
 /// What a step does on trouble: a non-finite value, or (with `max_stretch`) a spring stretched
@@ -325,6 +327,12 @@ pub struct MeshSpec {
     /// Vertices sewn together (a garment's seams, `cloth.garment` fills it in). Default none.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub seams: Option<SeamsSpec>,
+    /// Each triangle on the flat panel it was cut from (`cloth.garment` fills it in): what a
+    /// live cut holds its stroke on (docs/cutting.md). Default none: a mesh whose rest shape is
+    /// flat is cut on its own plane, a curved one by the stroke's swept surface. Refused, naming
+    /// it: not one entry per triangle, a corner not finite.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub panels: Option<FlatPanels>,
 }
 
 /// Seams of a mesh cloth: pairs of vertices pulled together by springs whose rest length goes
@@ -368,6 +376,7 @@ impl Default for MeshSpec {
             bending: BendingKind::Springs,
             bend_modulus: 5e-5,
             seams: None,
+            panels: None,
         }
     }
 }

@@ -5,11 +5,13 @@
 use glam::{DVec2, Vec3};
 
 use super::Simulation;
-use crate::cutting_rest::{LiveStroke, RestSheet};
+use crate::cutting::{Crossing, MeshCrossing};
+use crate::cutting_rest::{Cut, LiveStroke, MeshSheet, Reach, RestSheet, SheetPoint};
 use crate::error::{Error, Result};
 use crate::interaction::{Grab, DRAG_TIME, GRIP_SPACINGS};
-use crate::picking::pick_triangle_scan;
+use crate::model::Model;
 use crate::picking::STROKE_TREE_MIN_RAYS;
+use crate::picking::{pick_triangle_brute_force_where, pick_triangle_scan};
 use crate::picking::{BvhStats, ParticleHit, PickStrategy, Picker, Queries, TriangleHit};
 use crate::ray::Ray;
 
@@ -343,8 +345,14 @@ impl Simulation {
     /// to off it separates it, even where it came on over a curl seen edge on. Two
     /// consecutive points farther apart than that on the sheet (the stroke went over a fold's
     /// edge onto another layer) are cut by the surface their rays sweep through the cloth as
-    /// it is now ([`Simulation::sever_stroke`]). On a mesh cloth every pair of rays is cut by
-    /// its swept surface, the last frame's last ray joined to this frame's first.
+    /// it is now ([`Simulation::sever_stroke`]).
+    ///
+    /// A mesh cloth whose rest shape is flat has a rest sheet too ([`MeshSheet`]): the plane
+    /// fitted to its rest positions, or a garment's flat panels, one chart each. The stroke is
+    /// held there as on the grid; two consecutive points on different panels (the stroke
+    /// crossed a seam) are cut by the surface their rays sweep, as a jump is. On a mesh whose
+    /// rest shape is curved every pair of rays is cut by its swept surface, the last frame's
+    /// last ray joined to this frame's first.
     ///
     /// Every ray is checked before anything changes, as in [`Simulation::sever_stroke`].
     pub fn sever_live_stroke(&mut self, rays: &[(Vec3, Vec3)]) -> Result<usize> {
@@ -352,118 +360,114 @@ impl Simulation {
         let Some(&last) = rays.last() else {
             return Ok(0);
         };
-        if self.model.mesh().is_some() {
+        let Some(topology) = self.model.mesh_topology() else {
+            let sheet = self.rest_sheet();
+            let step = sheet.spacing.min_element();
+            // Every ray meets the cloth as it is at the start of this frame's piece: the
+            // points are picked before any spring goes.
+            let (grid, pos) = (self.model.grid, &self.state.kin.pos);
+            let alive = &self.model.particles.alive;
+            let points: Vec<Option<SheetPoint>> = (rays.iter())
+                .map(|ray| {
+                    pick_triangle_scan(ray, grid, pos, alive)
+                        .map(|hit| (0, sheet.at(hit.index, hit.barycentric)))
+                })
+                .collect();
+            let exit = |_: u32, from: DVec2, dir: DVec2| sheet.exit_distance(from, dir);
+            return Ok(
+                self.live_cuts(&rays, &points, step, exit, |sim, cut, out| match cut {
+                    Cut::Rest(_, a, b) => {
+                        let alive = &sim.model.particles.alive;
+                        sheet.crossings(&sim.model.springs, alive, (a, b), out);
+                    }
+                    Cut::Swept(r0, r1) => {
+                        let (model, pos) = (&sim.model, &sim.state.kin.pos);
+                        let alive = &model.particles.alive;
+                        let swept = (sim.cutter).crossings(
+                            model.grid,
+                            &model.springs,
+                            alive,
+                            pos,
+                            &[r0, r1],
+                            &mut || false,
+                        );
+                        out.extend_from_slice(swept.unwrap_or_default());
+                    }
+                }),
+            );
+        };
+        let sheet = self
+            .mesh_sheet
+            .get_or_insert_with(|| MeshSheet::new(topology))
+            .take();
+        let Some(sheet) = sheet else {
+            // A curved rest shape: every pair of rays is cut by its swept surface.
+            self.mesh_sheet = Some(None);
             let previous = self.live.last_ray.replace(last);
             let stroke: Vec<Ray> = previous.into_iter().chain(rays).collect();
             return self.sever_checked(&stroke, &mut || false);
-        }
-        let sheet = self.rest_sheet();
-        let jump = REST_JUMP_SPACINGS * sheet.spacing.min_element();
-        // Every ray meets the cloth as it is at the start of this frame's piece: the points
-        // are picked before any spring goes.
-        let alive = &self.model.particles.alive;
-        let points: Vec<Option<DVec2>> = (rays.iter())
+        };
+        // Every triangle whose corners are alive, severed or not, names the material under it.
+        let (pos, alive) = (&self.state.kin.pos, &self.model.particles.alive);
+        let points: Vec<Option<SheetPoint>> = (rays.iter())
             .map(|ray| {
-                let pos = &self.state.kin.pos;
-                pick_triangle_scan(ray, self.model.grid, pos, alive)
-                    .map(|hit| sheet.at(hit.index, hit.barycentric))
+                pick_triangle_brute_force_where(ray, pos, &topology.triangles, |t| {
+                    topology.triangles[t].iter().all(|&v| alive[v as usize])
+                })
+                .map(|hit| sheet.at(hit.index, hit.barycentric))
             })
             .collect();
-        let step = sheet.spacing.min_element();
-        let mut severed = 0;
-        let mut crossings = Vec::new();
-        for (&ray, &here) in rays.iter().zip(&points) {
-            let alive = &self.model.particles.alive;
-            let live = self.live;
-            self.live = LiveStroke {
-                last_ray: Some(ray),
-                last_point: here,
-                ..live
+        let exit = |c: u32, from: DVec2, dir: DVec2| sheet.exit_distance(c, from, dir);
+        let severed = self.live_cuts(&rays, &points, sheet.spacing, exit, |sim, cut, out| {
+            let Some(mesh) = sim.model.mesh() else {
+                return;
             };
-            let Some(before) = live.last_ray else {
-                continue; // a stroke's first sample: nothing to join yet
-            };
-            crossings.clear();
-            // Out past the sheet's edge from `from` along `dir`, no farther than a jump.
-            let out =
-                |from: DVec2, dir: DVec2| from + sheet.exit_distance(from, dir).min(jump) * dir;
-            let cut = |(a, b): (DVec2, DVec2), crossings: &mut Vec<_>| {
-                sheet.crossings(&self.model.springs, alive, (a, b), crossings);
-            };
-            match (live.last_point, here) {
-                (Some(a), Some(b)) if a.distance(b) <= jump => {
-                    cut((a, b), &mut crossings);
-                    // The stroke's direction over about its last spacing on the sheet: a
-                    // single sample's step is a fraction of a spacing, and near a curl seen
-                    // edge on it points anywhere.
-                    let tail = live.tail.unwrap_or(a);
-                    let heading = (b - tail).try_normalize();
-                    if let Some(dir) = heading.filter(|_| b.distance(tail) >= step) {
-                        if let Some(entry) = live.entry {
-                            // The stroke came onto the cloth at `entry`: carried back out
-                            // through the edge it came over, on the sheet, where the cloth's
-                            // edge and the stroke's start are the same material whatever
-                            // the cloth did between frames.
-                            let back = (entry - b).try_normalize().unwrap_or(-dir);
-                            cut((entry, out(entry, back)), &mut crossings);
-                            self.live.entry = None;
-                        }
-                        self.live.tail = Some(b - step * dir);
-                    } else {
-                        self.live.tail = Some(tail);
-                    }
-                    self.live.heading = heading.or(live.heading);
+            let at = (&sim.state.kin.pos, &sim.model.particles.alive[..]);
+            match cut {
+                Cut::Rest(c, a, b) => sheet.crossings(c, (&mesh.springs, at.1), (a, b), out),
+                Cut::Swept(r0, r1) => {
+                    let swept =
+                        (sim.cutter).mesh_crossings(&mesh.springs, at, &[r0, r1], &mut || false);
+                    out.extend_from_slice(swept.unwrap_or_default());
                 }
-                (Some(a), None) => {
-                    // Leaving the cloth: out through its edge along the stroke's direction.
-                    if let Some(entry) = live.entry {
-                        // On the cloth for less than a spacing: in and out the same way.
-                        if let Some(dir) = (a - entry).try_normalize() {
-                            cut((entry, out(entry, -dir)), &mut crossings);
-                            cut((a, out(a, dir)), &mut crossings);
-                        }
-                    } else if let Some(dir) = live.heading {
-                        cut((a, out(a, dir)), &mut crossings);
-                    }
-                    self.live = LiveStroke {
-                        last_ray: Some(ray),
-                        ..LiveStroke::default()
-                    };
-                }
-                (None, Some(b)) => {
-                    // Onto the cloth from off it: cut back out once the stroke's direction
-                    // on the sheet is known.
-                    self.live.entry = Some(b);
-                    self.live.tail = Some(b);
-                    self.live.heading = None;
-                }
-                (Some(_), Some(b)) => {
-                    // A jump on the sheet: the stroke went over a fold's edge onto another
-                    // layer. The surface the two rays sweep cuts the fold's edge; the new
-                    // layer's cut starts at its point.
-                    let pair = [before, ray];
-                    let pos = &self.state.kin.pos;
-                    let grid = self.model.grid;
-                    let swept = (self.cutter).crossings(
-                        grid,
-                        &self.model.springs,
-                        alive,
-                        pos,
-                        &pair,
-                        &mut || false,
-                    );
-                    crossings.extend_from_slice(swept.unwrap_or_default());
-                    self.live.tail = Some(b);
-                    self.live.heading = None;
-                    self.live.entry = None;
-                }
-                (None, None) => {}
             }
-            severed += self.model.sever_crossing(&crossings);
-        }
+        });
+        self.mesh_sheet = Some(Some(sheet));
         Ok(severed)
     }
 
+    /// The live stroke's course over the rest sheet for this frame's `rays`, which hit the
+    /// material `points`: for each ray, what [`LiveStroke::advance`] hands on, turned into
+    /// crossings by `crossings` and severed before the next ray. Returns how many springs went.
+    fn live_cuts<C: Severed>(
+        &mut self,
+        rays: &[Ray],
+        points: &[Option<SheetPoint>],
+        step: f64,
+        exit: impl Fn(u32, DVec2, DVec2) -> f64,
+        mut crossings: impl FnMut(&mut Simulation, Cut, &mut Vec<C>),
+    ) -> usize {
+        let reach = Reach {
+            step,
+            jump: REST_JUMP_SPACINGS * step,
+        };
+        let mut severed = 0;
+        let mut out = Vec::new();
+        for (&ray, &here) in rays.iter().zip(points) {
+            out.clear();
+            let mut cuts = [None; 3];
+            let mut n = 0;
+            self.live.advance(ray, here, reach, &exit, |cut| {
+                cuts[n] = Some(cut);
+                n += 1;
+            });
+            for cut in cuts.into_iter().flatten() {
+                crossings(self, cut, &mut out);
+            }
+            severed += C::sever(&mut self.model, &out);
+        }
+        severed
+    }
     /// Ends the live stroke in progress: the next [`Simulation::sever_live_stroke`] starts a
     /// new one, joined to nothing.
     pub fn end_live_stroke(&mut self) {
@@ -533,6 +537,24 @@ impl Simulation {
 /// surface they sweep instead. It has to allow for what the material under the mouse moves
 /// between two frames of a slow display.
 pub const REST_JUMP_SPACINGS: f64 = 8.0;
+
+/// A severed spring with where a stroke crossed it, grid's or mesh's.
+trait Severed: Copy {
+    /// Severs the springs `crossings` lists (see [`Model::sever_crossing`]); how many were live.
+    fn sever(model: &mut Model, crossings: &[Self]) -> usize;
+}
+
+impl Severed for Crossing {
+    fn sever(model: &mut Model, crossings: &[Self]) -> usize {
+        model.sever_crossing(crossings)
+    }
+}
+
+impl Severed for MeshCrossing {
+    fn sever(model: &mut Model, crossings: &[Self]) -> usize {
+        model.sever_mesh_crossing(crossings)
+    }
+}
 
 /// The rays of a stroke, each checked and named `rays[k].origin` / `rays[k].direction`.
 fn checked_rays(rays: &[(Vec3, Vec3)]) -> Result<Vec<Ray>> {

@@ -46,6 +46,9 @@ pub struct Simulation {
     cutter: StrokeCutter,
     /// The live stroke in progress ([`Simulation::sever_live_stroke`]).
     live: crate::cutting_rest::LiveStroke,
+    /// A mesh cloth's rest sheet, built by its first live stroke: `Some(None)` where its rest
+    /// shape is curved (the rest shape never changes, so neither does this).
+    mesh_sheet: Option<Option<crate::cutting_rest::MeshSheet>>,
 }
 
 impl Simulation {
@@ -64,6 +67,7 @@ impl Simulation {
             render: RenderMesh::default(),
             cutter: StrokeCutter::default(),
             live: Default::default(),
+            mesh_sheet: None,
         };
         sim.make_scene_cuts()?;
         Ok(sim)
@@ -302,6 +306,8 @@ impl Simulation {
             + self.mesh.heap_bytes()
             + self.render.heap_bytes()
             + self.cutter.heap_bytes()
+            + (self.mesh_sheet.as_ref().and_then(Option::as_ref))
+                .map_or(0, crate::cutting_rest::MeshSheet::heap_bytes)
             + self.picker.heap_bytes()
     }
 
