@@ -96,6 +96,15 @@ def verdict(ok: bool) -> str:
     return "**met**" if ok else "**missed**"
 
 
+def runs_dated(r: dict) -> str:
+    """Which runs were made when, on which commit of rustcloth: `--only` reruns some."""
+    when: dict[tuple[str, str], list[str]] = {}
+    for key, v in r.items():
+        when.setdefault((v.get("date", "?"), v.get("commit", "?")), []).append(key)
+    return "; ".join(f"{', '.join(keys)} on {date} at commit {commit}"
+                     for (date, commit), keys in sorted(when.items()))
+
+
 def report(data: dict) -> str:
     r = data["results"]
     tn, t2, t1 = r.get("twist-newton", {}), r.get("twist-rustcloth-2", {}), r.get(
@@ -111,9 +120,8 @@ def report(data: dict) -> str:
         "not edit by hand. Issue 13: rustcloth's self-collision and mesh collider side by side "
         "with NVIDIA newton on the CPU, in one run.",
         "",
-        f"Measured {data['date']} on {data['machine']}, rustcloth's source as of commit "
-        f"{data['commit']} (built release into `.venv-peers` by `benches/peers/setup.sh`; "
-        "rebuild with `FORCE=1`), "
+        f"Measured on {data['machine']}: {runs_dated(r)} (rustcloth built release into "
+        "`.venv-peers` by `benches/peers/setup.sh`; rebuild with `FORCE=1`), "
         f"{tn.get('version', 'newton ?')}. Each peer ran in its own process, one after the "
         "other; the machine is shared, so the load average at the end of each run is given. "
         "Warp's CPU backend runs a kernel on one thread; rustcloth ran with 2 rayon threads "
@@ -251,8 +259,9 @@ def reading(r: dict) -> list[str]:
             f"- **Stretch.** The mean edge stretch is alike ({100 * mean_n:.1f} % in newton, "
             f"{100 * mean_r:.1f} % in rustcloth at the last checkpoint), so the materials "
             f"match on average; the largest is not: {max_n:.2f} in newton, {max_r:.2f} in "
-            "rustcloth, a few of whose edges are stretched far where the wound layers hold "
-            "them (not examined further here).")
+            "rustcloth"
+            + (", a few of whose edges are stretched far where the wound layers hold them "
+               "(not examined further here)." if max_r > max_n else "."))
     f1, f2 = r.get("twist-rustcloth-fast-1"), r.get("twist-rustcloth-fast-2")
     if tn and f1 and f2 and not any("error" in v for v in (tn, f1, f2)):
         max_n = max(s["max_stretch"] for s in tn["samples"])
@@ -296,6 +305,7 @@ def main() -> int:
                 continue
             print(f"{run['key']:<20}", end=" ", flush=True)
             result = execute(run)
+            result.update(date=data["date"], commit=data["commit"])
             data["results"][run["key"]] = result
             print(result.get("error") or {k: result.get(k) for k in (
                 "ms_per_frame", "collide_ms_per_substep", "setup_s", "load") if k in result},
