@@ -752,7 +752,10 @@ class Simulation:
         instead (``ahead_from_list``; not counted: those it showed have none), that list's
         builds (``ahead_rebuilds``), the steps whose pairs ahead it showed all too far apart
         to be held and left out (``ahead_apart``) and of those the steps whose solve moved
-        far enough to ask for them and was solved again (``ahead_asked``), and substeps drawn
+        far enough to ask for them and was solved again (``ahead_asked``), the substeps whose
+        pass took its pairs from the step's one search instead of searching again
+        (``pass_from_ahead``) and the vertices it looked up on their own there, the solve having
+        ended them outside their budget (``pass_outside``, summed), and substeps drawn
         back along their paths because the cap
         left the cloth with energy nothing gave it (``drawn_back``)."""
         return self._core.self_collision_stats()

@@ -10,16 +10,50 @@
 //! run, and its pairs are taken from the list, through the search's own tests and in its
 //! order, so they are the same to the bit (none, most often, on a cloth at rest). The list is
 //! kept while it covers, so a cloth at rest builds it once.
+//!
+//! Where the search runs, it is the step's one search: the pass after the solve, which would
+//! search again from the same start to where the solve ended each vertex, takes its pairs
+//! from it. Each vertex's box and reach are widened beyond its path ahead (`x0` to
+//! `x0 + h v`) by a budget `b` around `p`, where the last step's solve ended it off its
+//! inertial path (`p = x0 + h v + o`, `o` that move): the box takes in `x0`, `x0 + h v` and `p`,
+//! grown by the capsule's radius and `b`, and the reach is the longer of `|h v|` and
+//! `|p - x0| + b`, and the capsule's radius. Every candidate of the widened search (boxes
+//! overlapping, tight boxes within its limit) is kept, by key, without closest points.
+//!
+//! Why that covers both searches. A search finds a pair when the two primitives' boxes (the
+//! union of their vertices') overlap and its distance at `x0` is below `thickness` plus the
+//! longest reach of each primitive's vertices (the tight boxes only pass over, earlier, pairs
+//! whose distance the boxes already bound above that limit). Each test is monotone: a vertex
+//! box inside a larger one leaves overlapping boxes overlapping, and a longer reach raises the
+//! limit. The pairs' distances are taken at the same `x0` by every search (the same positions,
+//! bit for bit: `same_bits`), so a pair the narrower search finds, all of whose vertices' boxes
+//! and reaches lie inside the widened ones, is a candidate of the widened search, and the
+//! narrower search's own tests, run on it, keep it exactly when the narrower search would. The
+//! search ahead always lies inside (its path is in the box, its reach at most the widened
+//! one; checked, against round-off). A vertex the solve ends at `x1` lies inside when `x1` is
+//! within `b` of `p`: distance is 1-Lipschitz in each point, so `|x1 - x0| <= |p - x0| + b`,
+//! and its box (`x0` and `x1`, grown by the radius) lies in the widened one. That is checked
+//! exactly after the solve on the boxes and reaches the pass searches with (`mark_outside`),
+//! not proven from `b`; a vertex that fails it is outside, and every pair through a vertex
+//! outside is looked up in the trees, refitted to the pass's boxes, one primitive at a time,
+//! as the pair list's partial requery does (`Broad::find_touching`: the same box tests as the
+//! walk's). The pairs through no vertex outside come from the widened candidates, those
+//! through one from the lookups, each once; all go through the pass's own tests and into key
+//! order, so the pass gets the pairs of a whole search, in its order, with the same closest
+//! points (taken over from the search ahead where it computed them). Where more than one
+//! vertex in `OUTSIDE_MOST` is outside, the lookups cost more than a walk and the pass
+//! searches on its own, as before.
 
 use std::sync::atomic::Ordering::Relaxed;
 
-use glam::DVec3;
+use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
+use super::bvh::Aabb;
 use super::list::PairList;
 use super::pair::Pair;
-use super::search::{NearKeys, Reuse};
-use super::{list_boxes, per_surface_vertex, SelfCollision, Survey, SKIN};
+use super::search::{Looked, NearKeys, Reuse};
+use super::{list_boxes, path_reach, per_surface_vertex, SelfCollision, Survey, SKIN};
 use crate::model::Model;
 use crate::soa::Vec3s;
 use crate::state::Kinematics;
@@ -57,6 +91,7 @@ impl SelfCollision {
         // The round-off margin of `apply`, from the largest coordinate at either end; with a
         // non-finite position the step fails anyway, and nothing is held.
         self.ahead_kept = false;
+        self.wide_ready = false;
         let verts = &self.topology.vertices;
         let anchor = self.ahead_list.list.anchor();
         let Some(survey) = Survey::of(verts, x0, &self.ahead, anchor) else {
@@ -125,13 +160,24 @@ impl SelfCollision {
         self.ahead = ahead;
         let mut pairs = std::mem::take(&mut self.ahead_pairs);
         pairs.clear();
+        self.wide_ready = false;
         if listed {
             self.stats.ahead_from_list += 1;
             let looked = self.swept_search(x0, eps, (Reuse::Keep, true), &mut pairs);
             self.count(looked);
         } else {
             self.stats.ahead_searches += 1;
-            self.swept_search(x0, eps, (Reuse::Keep, false), &mut pairs);
+            // After a pass that could not take its pairs from the step's one search, the next
+            // few steps search ahead as narrowly as they need: widening costs more than the
+            // narrow search ahead, and where the solve's ends wander that far they would
+            // likely miss again.
+            let rest = self.wide_rest > 0;
+            self.wide_rest = self.wide_rest.saturating_sub(1);
+            self.wide_ready =
+                !rest && !self.whole_searches() && self.search_wide(x0, eps, &mut pairs);
+            if !self.wide_ready {
+                self.swept_search(x0, eps, (Reuse::Keep, false), &mut pairs);
+            }
         }
         let thickness = self.thickness as f64;
         self.ahead_list.found_none = pairs.is_empty();
@@ -145,6 +191,106 @@ impl SelfCollision {
             self.ahead_from = x0.clone();
         }
         self.ahead_kept = true;
+    }
+
+    /// The step's one search: the swept search from `x0` on each vertex's path ahead (the
+    /// boxes and ends of the last `sweep_boxes`) and its budget beyond it, its candidates kept
+    /// for the pass after the solve; into `pairs`, the search ahead's own pairs taken from
+    /// them, the same to the bit. False, with nothing found, where a box or reach ahead is not
+    /// inside the widened one (round-off).
+    fn search_wide(&mut self, x0: &Vec3s, eps: f64, pairs: &mut Vec<Pair>) -> bool {
+        let thickness = self.thickness as f64;
+        // The pass's margin grows with the largest coordinate at the solve's end: twice the
+        // search ahead's covers ends up to a metre and that coordinate farther out.
+        let wide_eps = 2.0 * eps;
+        let n = x0.len();
+        let off = (self.off_inertia.len() == n).then_some(&self.off_inertia[..]);
+        let radius = 0.5 * self.thickness + wide_eps as f32;
+        let budget = BUDGET * self.thickness;
+        self.wide_boxes.resize(n, Aabb::EMPTY);
+        self.wide_side.resize(n, 0.0);
+        let ends = &self.path_ends;
+        self.wide_boxes
+            .par_iter_mut()
+            .zip(self.wide_side.par_iter_mut())
+            .enumerate()
+            .with_min_len(1024)
+            .for_each(|(v, (bx, side))| {
+                let (a, c) = (x0.get(v), ends[v]);
+                let off = off.map_or(Vec3::ZERO, |o| o[v]);
+                let b = budget + OFF_BUDGET * off.length();
+                let p = c + off;
+                let grow = Vec3::splat(radius + b);
+                *bx = Aabb {
+                    min: a.min(c).min(p) - grow,
+                    max: a.max(c).max(p) + grow,
+                };
+                let (to_c, to_p) = ((c - a).as_dvec3().length(), (p - a).as_dvec3().length());
+                *side = to_c.max(to_p + b as f64) + radius as f64;
+            });
+        let reach = path_reach(&self.path_ends, x0, self.path_radius);
+        let verts = &self.topology.vertices;
+        let wide = (&self.wide_boxes[..], &self.wide_side[..]);
+        if mark_outside(&mut self.outside, verts, (&self.vertex_boxes, &reach), wide) > 0 {
+            return false;
+        }
+        let (topo, wide_side) = (&self.topology, &self.wide_side);
+        let wide_reach = |v: u32| wide_side[v as usize];
+        let limit = (thickness, wide_reach, wide_eps);
+        self.broad
+            .search_wide(topo, &self.wide_boxes, x0, limit, 1e-3 * wide_eps);
+        self.wide_eps = wide_eps;
+        let (boxes, limit) = (&self.vertex_boxes, (thickness, reach, eps));
+        self.broad
+            .search_among_wide(topo, boxes, x0, limit, 1e-3 * eps, Reuse::Keep, None, pairs);
+        true
+    }
+
+    /// The pass's swept search from `x0` (on the boxes and ends of its `sweep_boxes`, `eps` its
+    /// margin) into `out`, taken from the step's one search when it was at `x0` and the solve
+    /// took few enough vertices outside their budget (the rest looked up on their own): the
+    /// same pairs, in the same order, to the bit. None, with nothing found, where it cannot.
+    /// Keeps each vertex's move off its inertial path for the next step's budget.
+    pub(super) fn pass_from_wide(
+        &mut self,
+        x0: &Vec3s,
+        eps: f64,
+        out: &mut Vec<Pair>,
+    ) -> Option<Looked> {
+        let n = x0.len();
+        self.off_inertia.resize(n, Vec3::ZERO);
+        let (ends, ahead) = (&self.path_ends, &self.ahead);
+        self.off_inertia
+            .par_iter_mut()
+            .enumerate()
+            .with_min_len(4096)
+            .for_each(|(v, o)| *o = ends[v] - ahead.get(v));
+        if eps > self.wide_eps {
+            return None;
+        }
+        let reach = path_reach(&self.path_ends, x0, self.path_radius);
+        let verts = &self.topology.vertices;
+        let wide = (&self.wide_boxes[..], &self.wide_side[..]);
+        let outside = mark_outside(&mut self.outside, verts, (&self.vertex_boxes, &reach), wide);
+        if outside * OUTSIDE_MOST > verts.len() {
+            self.wide_rest = MISSED_REST;
+            return None;
+        }
+        self.stats.pass_from_ahead += 1;
+        self.stats.pass_outside += outside as u64;
+        let thickness = self.thickness as f64;
+        let (topo, boxes) = (&self.topology, &self.vertex_boxes);
+        let outside = (outside > 0).then_some(&self.outside[..]);
+        Some(self.broad.search_among_wide(
+            topo,
+            boxes,
+            x0,
+            (thickness, reach, eps),
+            1e-3 * eps,
+            Reuse::Take,
+            outside,
+            out,
+        ))
     }
 
     /// What the solve may be told instead of the pairs ahead, when the list (which covers the
@@ -172,6 +318,46 @@ impl SelfCollision {
         (2.0 * most <= 0.5 * room).then_some(Apart { least, common })
     }
 }
+
+/// The pass takes its pairs from the step's one search while at most one vertex in this many
+/// ended outside its budget; beyond, a search of its own costs less than the lookups.
+const OUTSIDE_MOST: usize = 8;
+
+/// Steps that search ahead without widening after a pass that had too many vertices outside
+/// to take its pairs from the step's one search.
+const MISSED_REST: u32 = 4;
+
+/// Marks in `outside` (by particle) each vertex of `verts` whose box or reach (`boxes`,
+/// `reach`) is not inside the wide one (`wide`), and returns how many.
+fn mark_outside(
+    outside: &mut Vec<bool>,
+    verts: &[u32],
+    (boxes, reach): (&[Aabb], &(impl Fn(u32) -> f64 + Sync)),
+    (wide_boxes, wide_side): (&[Aabb], &[f64]),
+) -> usize {
+    outside.clear();
+    outside.resize(boxes.len(), false);
+    let mut count = 0;
+    for &v in verts {
+        let (b, w) = (&boxes[v as usize], &wide_boxes[v as usize]);
+        let inside = w.min.cmple(b.min).all() && b.max.cmple(w.max).all();
+        if !(inside && reach(v) <= wide_side[v as usize]) {
+            outside[v as usize] = true;
+            count += 1;
+        }
+    }
+    count
+}
+
+/// Each vertex's budget beyond its path ahead, in the step's one search: `BUDGET` of
+/// `thickness` and `OFF_BUDGET` of how far the last step's solve ended it off its inertial
+/// path, around where that move would take it again (gravity's `h^2 g` and the springs' pull
+/// change little from step to step). A larger budget widens the search every step; a smaller
+/// one leaves more vertices outside to be looked up on their own after the solve. Chosen by
+/// newton's 50 x 50 twist (docs/contact.md): 0.05 to 0.5 of `thickness` all within a tenth of
+/// each other, 0.2 the least work; 28.6 vertices of 2 500 outside a step there.
+const BUDGET: f32 = 0.2;
+const OFF_BUDGET: f32 = 0.5;
 
 /// Relative round-off allowed for the solve's f32 gaps, per m of the largest coordinate.
 const ROUND: f64 = 1e-5;
@@ -404,6 +590,16 @@ impl SelfCollision {
     fn ahead_always(&self) -> bool {
         false
     }
+
+    #[cfg(test)]
+    fn whole_searches(&self) -> bool {
+        self.whole_searches
+    }
+
+    #[cfg(not(test))]
+    fn whole_searches(&self) -> bool {
+        false
+    }
 }
 
 #[cfg(test)]
@@ -469,6 +665,88 @@ mod tests {
             asked == searched,
             "the steps asking for the pairs left out changed"
         );
+    }
+
+    /// The pass after a solve takes its pairs from the step's one search (the search ahead
+    /// widened by each vertex's budget) and looks up on their own only the vertices the solve
+    /// took outside it: it must end every step exactly as with two whole searches. A cloth
+    /// given waves of velocity, its solve's ends off the inertial paths by a common drop and a
+    /// wave whose amplitude grows from nothing to several budgets (so that first no vertex
+    /// ends outside, then some, then too many for anything but a whole search): the pairs
+    /// ahead, the pass's pairs (closest points to the bit) and the positions and velocities
+    /// it ends with are the same in every step.
+    #[test]
+    fn the_pass_given_its_pairs_by_the_step_s_one_search_steps_as_with_its_own_search() {
+        let thickness = 1.2e-2;
+        let scene = crate::Scene::builtin("twist").unwrap();
+        let (model, pos) = Model::new(scene).unwrap();
+        let n = model.grid.len();
+        let h = 1.0 / 240.0;
+        let mut one = SelfCollision::new(thickness, 0.0, 2);
+        let mut two = SelfCollision::new(thickness, 0.0, 2);
+        two.whole_searches = true;
+        let bits = |p: &Pair| {
+            let (c, n) = (p.c.map(f64::to_bits), p.n.to_array().map(f64::to_bits));
+            (p.verts, p.split, c, n, p.d0.to_bits())
+        };
+        let state = |k: &Kinematics| {
+            let c = [&k.pos.x, &k.pos.y, &k.pos.z, &k.vel.x, &k.vel.y, &k.vel.z];
+            c.map(|c| c.iter().map(|x| x.to_bits()).collect::<Vec<_>>())
+        };
+        let mut taken_with_outside = 0u64;
+        for k in 0..40u32 {
+            let speed = 1.0 + 0.05 * k as f32;
+            let wave = |p: usize, t: f32| {
+                let x = pos.get(p);
+                let phase = 40.0 * x.x + 17.0 * x.y + t;
+                glam::Vec3::new(phase.sin(), (1.3 * phase).cos(), (0.7 * phase).sin())
+            };
+            let vel = Vec3s::from_fn(n, |p| speed * wave(p, 0.3 * k as f32));
+            let from = Kinematics {
+                pos: pos.clone(),
+                vel: vel.clone(),
+            };
+            let ahead = one.pairs_ahead(&model, &from, h).to_vec();
+            let whole = two.pairs_ahead(&model, &from, h).to_vec();
+            assert_eq!(ahead.len(), whole.len(), "step {k}");
+            assert!(
+                ahead.iter().zip(&whole).all(|(a, b)| bits(a) == bits(b)),
+                "step {k}"
+            );
+            // The solve's end: off the inertial path by a drop and a wave of its own.
+            let amplitude = thickness * (k as f32 / 20.0).powi(2);
+            let drop = glam::Vec3::new(0.0, 0.0, -0.3 * thickness);
+            let end = Vec3s::from_fn(n, |p| {
+                let off = drop + amplitude * wave(p, 1.7 * k as f32);
+                pos.get(p) + h * vel.get(p) + off
+            });
+            let next = Kinematics {
+                vel: Vec3s::from_fn(n, |p| (end.get(p) - pos.get(p)) / h),
+                pos: end,
+            };
+            let (mut a, mut b) = (next.clone(), next);
+            let (taken, outside) = (one.stats.pass_from_ahead, one.stats.pass_outside);
+            assert!(one.apply(&model, &from, &mut a), "step {k}");
+            assert!(two.apply(&model, &from, &mut b), "step {k}");
+            assert_eq!(one.pairs.len(), two.pairs.len(), "step {k}");
+            assert!(
+                one.pairs
+                    .iter()
+                    .zip(&two.pairs)
+                    .all(|(a, b)| bits(a) == bits(b)),
+                "step {k}"
+            );
+            assert!(state(&a) == state(&b), "step {k}");
+            taken_with_outside +=
+                u64::from(one.stats.pass_from_ahead > taken && one.stats.pass_outside > outside);
+        }
+        let (s, t) = (one.stats, two.stats);
+        assert_eq!(t.pass_from_ahead, 0);
+        // Some passes took their pairs with no vertex outside, some with a few looked up on
+        // their own, and some had too many outside and searched on their own.
+        assert!(s.pass_from_ahead > taken_with_outside, "{s:?}");
+        assert!(taken_with_outside > 0, "{s:?}");
+        assert!(s.swept_substeps > s.pass_from_ahead, "{s:?}");
     }
 
     /// Skipping the search ahead never changes the pairs it finds: on a resting cloth given

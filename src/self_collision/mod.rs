@@ -142,6 +142,12 @@ pub struct SelfCollisionStats {
     /// then moved the cloth far enough to ask for them (the step is solved again with them).
     pub ahead_apart: u64,
     pub ahead_asked: u64,
+    /// Substeps whose pass after the solve took its pairs from the step's one search (the
+    /// search ahead widened by each vertex's budget, `in_solve.rs`) instead of a search of its
+    /// own, and the vertices it looked up on their own there, having ended outside their
+    /// budget (summed).
+    pub pass_from_ahead: u64,
+    pub pass_outside: u64,
     /// Pairs closer than `thickness` after the integrator (the repulsion's first sweep).
     pub contacts: u64,
     /// Vertices whose displacement the cap shortened, summed over substeps.
@@ -197,6 +203,8 @@ impl Default for SelfCollisionStats {
             ahead_rebuilds: 0,
             ahead_apart: 0,
             ahead_asked: 0,
+            pass_from_ahead: 0,
+            pass_outside: 0,
             contacts: 0,
             capped: 0,
             stopped: 0,
@@ -227,6 +235,19 @@ pub struct SelfCollision {
     /// a swept search from there, bit for bit, takes over their closest points.
     ahead_from: Vec3s,
     ahead_kept: bool,
+    /// The step's one search (`in_solve.rs`, `search_wide`): each vertex's box and reach (m,
+    /// by particle), wide enough for the search ahead and, for each vertex the solve ends within
+    /// its budget, for the pass after it; the round-off margin it was found with, whether its
+    /// candidates are those of this step's start (`ahead_from`), each vertex's move off its
+    /// inertial path in the last step, and the vertices the solve took outside.
+    wide_boxes: Vec<Aabb>,
+    wide_side: Vec<f64>,
+    wide_eps: f64,
+    wide_ready: bool,
+    /// Steps left that search ahead without widening, after a pass that could not use it.
+    wide_rest: u32,
+    off_inertia: Vec<Vec3>,
+    outside: Vec<bool>,
     /// What shows that the search ahead of a solve would find nothing (`in_solve.rs`).
     ahead_list: in_solve::Quiet,
     /// Where the last step's pairs ahead were left out as too far apart to be held, what the
@@ -278,6 +299,10 @@ pub struct SelfCollision {
     look_at_all: bool,
     #[cfg(test)]
     hot: Option<f64>,
+    /// Run the search ahead and the pass's search whole every step, as if there were no
+    /// step's one search (what the tests compare with).
+    #[cfg(test)]
+    whole_searches: bool,
 }
 
 impl SelfCollision {
@@ -293,6 +318,13 @@ impl SelfCollision {
             ahead: Vec3s::zeros(0),
             ahead_from: Vec3s::zeros(0),
             ahead_kept: false,
+            wide_boxes: Vec::new(),
+            wide_side: Vec::new(),
+            wide_eps: 0.0,
+            wide_ready: false,
+            wide_rest: 0,
+            off_inertia: Vec::new(),
+            outside: Vec::new(),
             ahead_list: in_solve::Quiet::default(),
             ahead_apart: None,
             ahead_wanted: std::sync::atomic::AtomicBool::new(false),
@@ -323,6 +355,8 @@ impl SelfCollision {
             look_at_all: false,
             #[cfg(test)]
             hot: None,
+            #[cfg(test)]
+            whole_searches: false,
         }
     }
 
@@ -432,6 +466,8 @@ impl SelfCollision {
             self.ahead_list.clear();
             self.broad.forget_kept();
             self.ahead_kept = false;
+            self.wide_ready = false;
+            self.off_inertia.clear();
             self.marked = vec![false; model.grid.len()];
         }
     }
@@ -569,7 +605,12 @@ impl SelfCollision {
         } else {
             Reuse::Nothing
         };
-        let looked = self.swept_search(x0, eps, (reuse, false), &mut pairs);
+        let looked = match same_start && self.wide_ready {
+            true => self.pass_from_wide(x0, eps, &mut pairs),
+            false => None,
+        };
+        let looked =
+            looked.unwrap_or_else(|| self.swept_search(x0, eps, (reuse, false), &mut pairs));
         self.pairs = pairs;
         self.count(looked);
     }
@@ -737,6 +778,10 @@ impl SelfCollision {
             + (self.pairs.capacity() + self.ahead_pairs.capacity()) * size_of::<Pair>()
             + self.ahead.heap_bytes()
             + self.ahead_from.heap_bytes()
+            + self.wide_boxes.capacity() * size_of::<Aabb>()
+            + self.wide_side.capacity() * 8
+            + self.off_inertia.capacity() * size_of::<Vec3>()
+            + self.outside.capacity()
             + (self.moving.capacity() + self.pushed.capacity()) * 8
             + self.saved.capacity() * size_of::<(u32, Vec3, Vec3)>()
             + self.marked.capacity()

@@ -28,6 +28,14 @@ pub struct Broad {
     candidate_vt: Vec<(u64, f64)>,
     candidate_ee: Vec<(u64, f64)>,
     sorted_candidates: Vec<(u64, f64)>,
+    /// The candidates of the last [`Broad::search_wide`], under their keys (by index) with
+    /// their tight boxes' distance (m, what a narrower search's tests compare), for
+    /// [`Broad::search_among_wide`] to take the pairs of narrower searches from; and the
+    /// candidates through the vertices outside it, found on their own.
+    wide_vt: Vec<(u64, f64)>,
+    wide_ee: Vec<(u64, f64)>,
+    outside_vt: Vec<(u64, f64)>,
+    outside_ee: Vec<(u64, f64)>,
     /// The candidates a search kept ([`Reuse::Keep`]) with their closest points, under their
     /// keys in `kept_for`'s order, the vertex-triangle pairs first (`kept_split` of them), and
     /// where each vertex's and edge's start among those of its kind.
@@ -178,7 +186,7 @@ impl Broad {
             std::mem::take(&mut self.candidate_vt),
             std::mem::take(&mut self.candidate_ee),
         );
-        let tests = self.swept_tests(topo, x, (base, eps, margin), order, true);
+        let tests = self.swept_tests(topo, x, (base, eps, margin), order, (true, false));
         let looked = self.find(&tests, &mut vt, &mut ee);
         self.take_found(topo, x, order, reuse, (&vt, &ee), out);
         (self.candidate_vt, self.candidate_ee) = (vt, ee);
@@ -211,7 +219,7 @@ impl Broad {
             std::mem::take(&mut self.candidate_vt),
             std::mem::take(&mut self.candidate_ee),
         );
-        let tests = self.swept_tests(topo, x, (base, eps, margin), order, false);
+        let tests = self.swept_tests(topo, x, (base, eps, margin), order, (false, false));
         let vb = vertex_boxes;
         let by_rank = &self.by_rank;
         let (of_vt, of_ee) =
@@ -259,6 +267,130 @@ impl Broad {
         looked
     }
 
+    /// The candidates of a swept search at `x` on boxes and reaches at least as wide as those
+    /// of each narrower search that [`Broad::search_among_wide`] is to answer from them: every
+    /// pair whose boxes overlap and whose tight boxes at `x` are within its limit
+    /// (`(base, reach, eps)` and `margin` as [`Broad::search`] takes them), by key, with the
+    /// distance of its tight boxes (the same for every search at `x`), without closest points.
+    pub fn search_wide(
+        &mut self,
+        topo: &Topology,
+        vertex_boxes: &[Aabb],
+        x: &Vec3s,
+        (base, reach, eps): (f64, impl Fn(u32) -> f64 + Sync, f64),
+        margin: f64,
+    ) -> Looked {
+        self.fit(topo, vertex_boxes);
+        self.fit_tight(topo, x);
+        self.fit_sides(topo, reach);
+        let (mut vt, mut ee) = (
+            std::mem::take(&mut self.wide_vt),
+            std::mem::take(&mut self.wide_ee),
+        );
+        vt.clear();
+        ee.clear();
+        let tests = self.swept_tests(topo, x, (base, eps, margin), Order::Index, (true, true));
+        let looked = self.find(&tests, &mut vt, &mut ee);
+        (self.wide_vt, self.wide_ee) = (vt, ee);
+        looked
+    }
+
+    /// What [`Broad::search`] finds at `x` (in [`Order::Index`]) with these arguments, to the
+    /// bit, taken from the candidates of the last [`Broad::search_wide`] at `x`. The caller
+    /// vouches that that search was at the same `x`, bit for bit, with this topology, and that
+    /// each vertex's box and reach here lie inside the ones it searched with, except those of
+    /// the vertices `outside` (by particle): then each pair the search finds here whose
+    /// vertices are all inside was among its candidates (its boxes overlapped there too, and
+    /// its tight boxes were within a limit at least this one), and goes through this search's
+    /// own tests; the pairs through a vertex outside are looked up in the trees, refitted to
+    /// these boxes, as a partial requery looks them up. The pairs are then those of a whole
+    /// search, in its order.
+    #[allow(clippy::too_many_arguments)]
+    pub fn search_among_wide(
+        &mut self,
+        topo: &Topology,
+        vertex_boxes: &[Aabb],
+        x: &Vec3s,
+        (base, reach, eps): (f64, impl Fn(u32) -> f64 + Sync, f64),
+        margin: f64,
+        reuse: Reuse,
+        outside: Option<&[bool]>,
+        out: &mut Vec<Pair>,
+    ) -> Looked {
+        let outside = outside.filter(|o| o.iter().any(|&o| o));
+        // Each primitive's box once, not once a candidate: the trees too where vertices outside
+        // are to be looked up in them.
+        if outside.is_some() {
+            self.fit(topo, vertex_boxes);
+        } else {
+            let boxes = |vs: &[u32]| union(vertex_boxes, vs);
+            per_primitive(topo, &mut self.tri_boxes, &mut self.edge_boxes, boxes);
+        }
+        self.fit_sides(topo, reach);
+        let (mut vt, mut ee) = (
+            std::mem::take(&mut self.candidate_vt),
+            std::mem::take(&mut self.candidate_ee),
+        );
+        let (mut more_vt, mut more_ee) = (
+            std::mem::take(&mut self.outside_vt),
+            std::mem::take(&mut self.outside_ee),
+        );
+        let tests = self.swept_tests(topo, x, (base, eps, margin), Order::Index, (true, false));
+        let (vb, tri_boxes, edge_boxes) = (vertex_boxes, &self.tri_boxes, &self.edge_boxes);
+        let inside =
+            |verts: &[u32; 4]| outside.is_none_or(|o| !verts.iter().any(|&v| o[v as usize]));
+        let vertex_triangle = |&(key, gap): &(u64, f64)| {
+            let (v, t) = ((key >> 32) as u32, key as u32);
+            let tri = topo.triangles[t as usize];
+            let [a, b, c] = tri;
+            let verts = [v, a, b, c];
+            if !inside(&verts) || !overlap(&vb[v as usize], &tri_boxes[t as usize]) {
+                return None;
+            }
+            tests
+                .close_at(verts, 1, (v, t), gap)
+                .map(|most| (key, most))
+        };
+        vt.clear();
+        vt.par_extend(
+            self.wide_vt
+                .par_iter()
+                .with_min_len(1024)
+                .filter_map(vertex_triangle),
+        );
+        let edge_edge = |&(key, gap): &(u64, f64)| {
+            let (e, f) = ((key >> 32) as u32, key as u32);
+            let ([a, b], [c, d]) = (topo.edges[e as usize], topo.edges[f as usize]);
+            let verts = [a, b, c, d];
+            if !inside(&verts) || !overlap(&edge_boxes[e as usize], &edge_boxes[f as usize]) {
+                return None;
+            }
+            tests
+                .close_at(verts, 2, (e, f), gap)
+                .map(|most| (key, most))
+        };
+        ee.clear();
+        ee.par_extend(
+            self.wide_ee
+                .par_iter()
+                .with_min_len(1024)
+                .filter_map(edge_edge),
+        );
+        let mut looked = Looked {
+            boxes: 0,
+            candidates: (vt.len() + ee.len()) as u64,
+        };
+        if let Some(outside) = outside {
+            looked = looked.and(self.find_touching(&tests, outside, &mut more_vt, &mut more_ee));
+            vt.extend_from_slice(&more_vt);
+            ee.extend_from_slice(&more_ee);
+        }
+        self.take_found(topo, x, Order::Index, reuse, (&vt, &ee), out);
+        (self.candidate_vt, self.candidate_ee) = (vt, ee);
+        (self.outside_vt, self.outside_ee) = (more_vt, more_ee);
+        looked
+    }
+
     /// The tests of a swept search at `x` ([`Broad::search`]'s `base`, `eps`, `margin` and
     /// `order`) on the sides of the last [`Broad::fit_sides`], and, when `tight`, the tight
     /// boxes of the last [`Broad::fit_tight`] (else each pair's own, the same to the bit).
@@ -268,8 +400,8 @@ impl Broad {
         x: &'a Vec3s,
         (base, eps, margin): (f64, f64, f64),
         order: Order,
-        tight: bool,
-    ) -> PairTests<'a, impl Fn([u32; 4], usize, f64) -> Option<f64> + Sync> {
+        (tight, keep_gap): (bool, bool),
+    ) -> PairTests<'a, impl Fn([u32; 4], usize, f64, f64) -> Option<f64> + Sync> {
         PairTests {
             topo,
             x,
@@ -284,7 +416,9 @@ impl Broad {
             order,
             tri_rank: &self.tri_rank,
             tight: tight.then_some((&self.tight_tris[..], &self.tight_edges[..])),
-            measure: |_: [u32; 4], _: usize, most: f64| Some(most),
+            measure: move |_: [u32; 4], _: usize, most: f64, gap: f64| {
+                Some(if keep_gap { gap } else { most })
+            },
         }
     }
 
@@ -420,7 +554,7 @@ impl Broad {
         if moved.is_none() {
             self.fit_tight(topo, x);
         }
-        let measure = |verts: [u32; 4], split: usize, most: f64| {
+        let measure = |verts: [u32; 4], split: usize, most: f64, _gap: f64| {
             let d = distance(x, verts, split);
             (d < most).then_some(d)
         };
@@ -533,7 +667,7 @@ impl Broad {
     /// pair whose boxes overlap and which passes `tests`.
     fn find<R: Send>(
         &self,
-        tests: &PairTests<impl Fn([u32; 4], usize, f64) -> Option<R> + Sync>,
+        tests: &PairTests<impl Fn([u32; 4], usize, f64, f64) -> Option<R> + Sync>,
         vt: &mut Vec<(u64, R)>,
         ee: &mut Vec<(u64, R)>,
     ) -> Looked {
@@ -557,7 +691,7 @@ impl Broad {
     /// caller sorts them by key.
     fn find_touching<R: Send>(
         &self,
-        tests: &PairTests<impl Fn([u32; 4], usize, f64) -> Option<R> + Sync>,
+        tests: &PairTests<impl Fn([u32; 4], usize, f64, f64) -> Option<R> + Sync>,
         moved: &[bool],
         vt: &mut Vec<(u64, R)>,
         ee: &mut Vec<(u64, R)>,
@@ -610,6 +744,8 @@ impl Broad {
             + self.vert_boxes.capacity() * size_of::<Aabb>()
             + (self.candidate_vt.capacity() + self.candidate_ee.capacity()) * 16
             + self.sorted_candidates.capacity() * 16
+            + (self.wide_vt.capacity() + self.wide_ee.capacity()) * 16
+            + (self.outside_vt.capacity() + self.outside_ee.capacity()) * 16
             + self.kept_keys.capacity() * 8
             + self.kept_pairs.capacity() * size_of::<Pair>()
             + (self.kept_starts[0].capacity() + self.kept_starts[1].capacity()) * 4
@@ -644,7 +780,7 @@ struct PairTests<'a, M> {
 
 impl<M, R> PairTests<'_, M>
 where
-    M: Fn([u32; 4], usize, f64) -> Option<R> + Sync,
+    M: Fn([u32; 4], usize, f64, f64) -> Option<R> + Sync,
 {
     /// The pair `verts` split at `split`, of primitives `first` and `second` (a vertex, by
     /// particle, and a triangle, or two edges), kept under `key` when close enough.
@@ -664,7 +800,20 @@ where
 
     /// What is kept of the pair of [`PairTests::keep_close`] when it is close enough.
     #[inline]
-    fn close(&self, verts: [u32; 4], split: usize, (first, second): (u32, u32)) -> Option<R> {
+    fn close(&self, verts: [u32; 4], split: usize, primitives: (u32, u32)) -> Option<R> {
+        self.close_at(verts, split, primitives, self.gap(verts, split, primitives))
+    }
+
+    /// [`PairTests::close`] given the pair's `gap`, the distance of its tight boxes at `x` (as
+    /// [`PairTests::gap`] takes it).
+    #[inline]
+    fn close_at(
+        &self,
+        verts: [u32; 4],
+        split: usize,
+        (first, second): (u32, u32),
+        gap: f64,
+    ) -> Option<R> {
         let most = match self.limit {
             Limit::Fixed(most) => most,
             Limit::Sides {
@@ -681,7 +830,17 @@ where
                 base + a + b + eps
             }
         };
-        let gap = match self.tight {
+        if gap <= most + self.margin {
+            (self.measure)(verts, split, most, gap)
+        } else {
+            None
+        }
+    }
+
+    /// The distance between the pair's primitives' tight boxes at `x` (m).
+    #[inline]
+    fn gap(&self, verts: [u32; 4], split: usize, (first, second): (u32, u32)) -> f64 {
+        match self.tight {
             Some((tris, edges)) => {
                 let (a, b) = match split {
                     1 => {
@@ -697,11 +856,6 @@ where
                 boxes_apart(a, b)
             }
             None => apart(self.x, &verts, split),
-        };
-        if gap <= most + self.margin {
-            (self.measure)(verts, split, most)
-        } else {
-            None
         }
     }
 
