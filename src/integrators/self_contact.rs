@@ -31,11 +31,13 @@
 //!
 //! The diagonal blocks go into the assembled matrix, where the preconditioner sees them (the
 //! grid's six slot columns or a mesh's blocks, [`DiagonalBlocks`]); the couplings between a
-//! pair's vertices are applied matrix-free in CG's product: first each pair's
-//! `n . sum_k c_k x_k` (once a pair, not once for each of its vertices), then row by row over
-//! each vertex's pairs in pair order, so the product is the same for any thread count.
-
-use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
+//! pair's vertices are applied matrix-free after the matrix's rows in CG's product, pair by
+//! pair: each pair's `n . sum_k c_k x_k` once, then its part of each of its vertices' rows. Each
+//! row so adds its pairs in pair order, for any number of threads (a thread takes the rows of
+//! its own range and passes over the pairs with no vertex in it), so the product is the same
+//! for any thread count. The pairs are read once a product, from one compact record each
+//! ([`Coupling`]): on the 128 x 128 twist a solve holds tens of thousands of pairs, and the
+//! product is bound by reading them (`docs/contact.md`, "Cost").
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -118,16 +120,16 @@ struct Held {
     short: f32,
 }
 
-/// A vertex's part in one held pair, as its row of the product reads it.
-#[derive(Clone, Copy, Debug, Default)]
-struct RowEntry {
-    /// The pair's index among the held ones (its `along`).
-    pair: u32,
-    /// `h^2 k c_i`, kg: the pair's `s` times the vertex's weight.
-    sc: f32,
-    /// The vertex's weight `c_i`.
-    c: f32,
+/// What CG's product reads of one held pair, 48 bytes: the product streams these once and
+/// reads nothing else of the pair.
+#[derive(Clone, Copy, Debug)]
+struct Coupling {
+    verts: [u32; 4],
+    /// Closest-point weights, zero at held particles (which get no row).
+    c: [f32; 4],
     n: Vec3,
+    /// `h^2 k`, kg.
+    s: f32,
 }
 
 /// The pairs of one solve, kept between steps so that their buffers are reused.
@@ -136,19 +138,10 @@ pub(super) struct SelfContactTerm {
     /// Where its pairs rest.
     rest: Rest,
     held: Vec<Held>,
-    /// Per particle, its entries in `rows` (`start[p]..start[p + 1]`), in pair order.
-    start: Vec<u32>,
-    /// What a row of the product reads of each of its pairs, in row order: CG's product walks
-    /// them in sequence instead of gathering each pair's whole [`Held`] (60 bytes) from the
-    /// pairs' order.
-    rows: Vec<RowEntry>,
+    /// The held pairs as the product reads them, in the same order.
+    couplings: Vec<Coupling>,
     /// Per pair handed in, whether it was held in this step (a released pair is not held again).
     taken: Vec<bool>,
-    /// Where each particle's next entry goes while `rows` is filled.
-    fill: Vec<u32>,
-    /// Per held pair, `n . sum_k c_k x_k` of the product being taken (f32 bits; written by
-    /// [`SelfContactTerm::prepare`], one pair a slot, read by the rows).
-    along: Vec<AtomicU32>,
 }
 
 /// What the pipeline hands the solve: the pairs ahead of it and the pass's settings.
@@ -195,7 +188,7 @@ impl SelfContactTerm {
             self.taken.push(ahead.is_some());
             self.held.extend(ahead);
         }
-        self.index_rows(pos.len());
+        self.index_couplings();
     }
 
     /// Adds the pairs of `pairs` not held yet that the solve's `dv` brought within their rest
@@ -258,45 +251,20 @@ impl SelfContactTerm {
             self.add_rhs(before, h, b);
         }
         if added + released > 0 {
-            self.index_rows(pos.len());
+            self.index_couplings();
         }
         added + released
     }
 
-    /// Each particle's entries, in pair order.
-    fn index_rows(&mut self, n: usize) {
-        self.along.resize_with(self.held.len(), AtomicU32::default);
-        self.start.clear();
-        self.start.resize(n + 1, 0);
-        for held in &self.held {
-            for k in 0..4 {
-                if held.c[k] != 0.0 {
-                    self.start[held.verts[k] as usize + 1] += 1;
-                }
-            }
-        }
-        for p in 0..n {
-            self.start[p + 1] += self.start[p];
-        }
-        self.rows.clear();
-        self.rows
-            .resize(self.start[n] as usize, RowEntry::default());
-        self.fill.clear();
-        self.fill.extend_from_slice(&self.start[..n]);
-        for (i, held) in self.held.iter().enumerate() {
-            for k in 0..4 {
-                if held.c[k] != 0.0 {
-                    let p = held.verts[k] as usize;
-                    self.rows[self.fill[p] as usize] = RowEntry {
-                        pair: i as u32,
-                        sc: held.s * held.c[k],
-                        c: held.c[k],
-                        n: held.n,
-                    };
-                    self.fill[p] += 1;
-                }
-            }
-        }
+    /// The held pairs' records for the product.
+    fn index_couplings(&mut self) {
+        self.couplings.clear();
+        self.couplings.extend(self.held.iter().map(|held| Coupling {
+            verts: held.verts,
+            c: held.c,
+            n: held.n,
+            s: held.s,
+        }));
     }
 
     /// No pair held: the solve is the plain one.
@@ -329,38 +297,48 @@ impl SelfContactTerm {
         }
     }
 
-    /// Each held pair's `n . sum_k c_k x_k`, for the rows of the product with `x`.
-    fn prepare(&self, x: &Vec3s) {
-        (self.held.par_iter().zip(&self.along))
-            .with_min_len(1024)
-            .for_each(|(held, along)| {
-                let mut sum = 0.0;
-                for k in 0..4 {
-                    if held.c[k] != 0.0 {
-                        sum += held.c[k] * held.n.dot(x.get(held.verts[k] as usize));
-                    }
-                }
-                along.store(f32::to_bits(sum), Relaxed);
-            });
-    }
-
     /// `out_i += sum over i's pairs of h^2 k c_i n (n . sum_{j != i} c_j x_j)` for the rows
-    /// `range`, after [`SelfContactTerm::prepare`] with `x`: the couplings the diagonal leaves
-    /// out.
+    /// `range` (`out` covers exactly `range`), each row's pairs in pair order: the couplings
+    /// the diagonal leaves out. A pair with no vertex in `range` is passed over unread but
+    /// for its vertices.
     fn couple_range(&self, x: &Vec3s, range: std::ops::Range<usize>, out: &mut Vec3SliceMut) {
-        for (i, p) in range.enumerate() {
-            let entries = &self.rows[self.start[p] as usize..self.start[p + 1] as usize];
-            if entries.is_empty() {
+        let (lo, hi) = (range.start as u32, range.end as u32);
+        for pair in &self.couplings {
+            if !pair.verts.iter().any(|v| (lo..hi).contains(v)) {
                 continue;
             }
-            let (mut sum, x_p) = (Vec3::new(out.x[i], out.y[i], out.z[i]), x.get(p));
-            for entry in entries {
-                let all = f32::from_bits(self.along[entry.pair as usize].load(Relaxed));
-                // `s c (..)` is `(s c) (..)`: `sc` rounds as that first product does.
-                sum += entry.sc * (all - entry.c * entry.n.dot(x_p)) * entry.n;
+            // Each vertex's `c_k n . x_k`, the pair's `n . sum_k c_k x_k` summed from them.
+            let (mut own, mut all) = ([0.0f32; 4], 0.0);
+            for k in 0..4 {
+                if pair.c[k] != 0.0 {
+                    own[k] = pair.c[k] * pair.n.dot(x.get(pair.verts[k] as usize));
+                    all += own[k];
+                }
             }
-            (out.x[i], out.y[i], out.z[i]) = (sum.x, sum.y, sum.z);
+            for k in 0..4 {
+                let v = pair.verts[k];
+                if pair.c[k] == 0.0 || !(lo..hi).contains(&v) {
+                    continue;
+                }
+                let i = (v - lo) as usize;
+                // `s c (..)` is `(s c) (..)`, rounded as the pair's own first product.
+                let sc = pair.s * pair.c[k];
+                out.set(i, out.get(i) + sc * (all - own[k]) * pair.n);
+            }
         }
+    }
+
+    /// [`SelfContactTerm::couple_range`] over all of `y`'s rows, split into one contiguous
+    /// range a thread: every thread reads every pair's vertices, and a row's sum does not
+    /// depend on the split.
+    fn couple(&self, x: &Vec3s, y: &mut Vec3s) {
+        let n = y.len();
+        let threads = rayon::current_num_threads().max(1);
+        let per = n.div_ceil(threads).max(1);
+        y.par_chunks_mut(per).enumerate().for_each(|(c, mut out)| {
+            let range = c * per..c * per + out.len();
+            self.couple_range(x, range, &mut out);
+        });
     }
 }
 
@@ -426,16 +404,21 @@ pub(super) struct WithSelfContacts<'a, A> {
 impl<A: BlockOperator> BlockOperator for WithSelfContacts<'_, A> {
     #[inline(always)]
     fn apply_range(&self, x: &Vec3s, range: std::ops::Range<usize>, out: &mut Vec3SliceMut) {
-        self.matrix.apply_range(x, range.clone(), out);
-        if let Some(term) = self.term {
-            term.couple_range(x, range, out);
-        }
+        self.matrix.apply_range(x, range, out);
     }
 
     fn prepare(&self, x: &Vec3s) {
         self.matrix.prepare(x);
+    }
+
+    fn adds_after(&self) -> bool {
+        self.term.is_some() || self.matrix.adds_after()
+    }
+
+    fn add_after(&self, x: &Vec3s, y: &mut Vec3s) {
+        self.matrix.add_after(x, y);
         if let Some(term) = self.term {
-            term.prepare(x);
+            term.couple(x, y);
         }
     }
 }
@@ -537,7 +520,6 @@ mod tests {
             y.set(p, block_times(&d, p, x.get(p)));
         }
         let mut out = y.slices_mut(0..8);
-        term.prepare(&x);
         term.couple_range(&x, 0..8, &mut out);
         let total: DVec3 = (0..8).map(|p| y.get(p).as_dvec3()).sum();
         let scale: f64 = (0..8).map(|p| y.get(p).as_dvec3().length()).sum();
@@ -576,7 +558,6 @@ mod tests {
         });
         let mut y = Vec3s::zeros(8);
         let mut out = y.slices_mut(0..8);
-        term.prepare(&x);
         term.couple_range(&x, 0..8, &mut out);
         let mut plain = [DVec3::ZERO; 8];
         for held in &term.held {
@@ -599,6 +580,47 @@ mod tests {
             );
         }
         assert_eq!(y.get(2), Vec3::ZERO, "the pinned vertex gets nothing");
+    }
+
+    /// The product's couplings taken over the rows split into ranges (one a thread) are the
+    /// ones taken over all rows at once, to the bit: each row adds its pairs in pair order
+    /// whatever range it falls in.
+    #[test]
+    fn the_couplings_are_the_same_to_the_bit_however_the_rows_are_split() {
+        let (mut pairs, pos, vel) = pairs();
+        let n = glam::DVec3::new(0.0, 0.6, 0.8);
+        for (verts, split, c) in [
+            ([0, 4, 5, 6], 1, [1.0, -0.3, -0.3, -0.4]),
+            ([7, 6, 2, 3], 2, [-0.5, -0.5, 0.25, 0.75]),
+            ([1, 7, 3, 5], 1, [0.9, -0.2, -0.1, -0.6]),
+        ] {
+            pairs.push(Pair {
+                verts,
+                split,
+                c,
+                n,
+                d0: 0.0005,
+            });
+        }
+        let inv_mass = vec![1.0f32; 8];
+        let mut vel = vel;
+        vel.set(0, Vec3::new(0.0, -3.0, 0.0));
+        let term = held(&pairs, (&pos, &vel, &inv_mass));
+        let x = Vec3s::from_fn(8, |v| Vec3::new(0.3 * v as f32, -1.0 / (2.0 + v as f32), 0.7));
+        let start = Vec3s::from_fn(8, |v| Vec3::new(1.0, v as f32, -0.5));
+        let mut whole = start.clone();
+        term.couple_range(&x, 0..8, &mut whole.slices_mut(0..8));
+        for cuts in [vec![0, 3, 8], vec![0, 1, 2, 5, 7, 8], vec![0, 4, 8]] {
+            let mut split = start.clone();
+            for range in cuts.windows(2) {
+                let mut out = split.slices_mut(range[0]..range[1]);
+                term.couple_range(&x, range[0]..range[1], &mut out);
+            }
+            for p in 0..8 {
+                assert_eq!(split.get(p), whole.get(p), "vertex {p}, cuts {cuts:?}");
+            }
+        }
+        assert_ne!(whole.get(0), start.get(0));
     }
 
     /// A mesh's diagonal blocks get what the grid's six columns get, entry for entry.
@@ -629,11 +651,10 @@ mod tests {
         inv_mass[1] = 0.0;
         let term = held(&pairs, (&pos, &vel, &inv_mass));
         assert_eq!(term.len(), 2);
-        assert_eq!(
-            term.start[2] - term.start[1],
-            0,
-            "the pinned vertex has no entry"
-        );
+        let rows_of_1 = term.couplings.iter().flat_map(|pair| {
+            (0..4).filter(move |&k| pair.verts[k] == 1 && pair.c[k] != 0.0)
+        });
+        assert_eq!(rows_of_1.count(), 0, "the pinned vertex has no entry");
         for p in [0, 6, 7] {
             vel.set(p, Vec3::new(0.0, 1.0, 0.0));
         }
