@@ -42,6 +42,16 @@ pub trait BlockOperator: Sync {
     /// computed here once (nothing by default).
     fn prepare(&self, _x: &Vec3s) {}
 
+    /// Whether [`BlockOperator::add_after`] adds anything (false by default).
+    fn adds_after(&self) -> bool {
+        false
+    }
+
+    /// `y += B x` for the part `B` of `A` that [`BlockOperator::apply_range`] leaves out,
+    /// after every range of `y` holds its rows: what is cheaper to take over all rows at once
+    /// than row range by row range (nothing by default).
+    fn add_after(&self, _x: &Vec3s, _y: &mut Vec3s) {}
+
     /// `y = A x`, in parallel over chunks of `chunk` rows.
     fn apply(&self, x: &Vec3s, y: &mut Vec3s, chunk: usize) {
         self.prepare(x);
@@ -51,6 +61,9 @@ pub trait BlockOperator: Sync {
                 let range = c * chunk..c * chunk + out.len();
                 crate::simd::dispatch!(self.apply_range(x, range.clone(), &mut out));
             });
+        if self.adds_after() {
+            self.add_after(x, y);
+        }
     }
 }
 
@@ -193,6 +206,17 @@ impl ConjugateGradient {
         let ConjugateGradient { p, q, partials, .. } = self;
         let p = &*p;
         a.prepare(p);
+        if a.adds_after() {
+            // `p . q` only once the part taken after the rows is in.
+            q.par_chunks_mut(REDUCE_CHUNK)
+                .enumerate()
+                .for_each(|(c, mut q)| {
+                    let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + q.len();
+                    crate::simd::dispatch!(a.apply_range(p, range.clone(), &mut q));
+                });
+            a.add_after(p, q);
+            return par_dot(p, q, partials);
+        }
         q.par_chunks_mut(REDUCE_CHUNK)
             .zip(partials.par_iter_mut())
             .enumerate()

@@ -344,6 +344,21 @@ fn smooth(
 
 /// `r = b - a x`.
 fn residual<A: BlockOperator>(a: &A, b: &Vec3s, x: &Vec3s, r: &mut Vec3s) {
+    if a.adds_after() {
+        a.apply(x, r, REDUCE_CHUNK);
+        r.par_chunks_mut(REDUCE_CHUNK)
+            .enumerate()
+            .for_each(|(c, r)| {
+                let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + r.len();
+                let b = b.slices(range);
+                for (r, b) in [(&mut *r.x, b.x), (&mut *r.y, b.y), (&mut *r.z, b.z)] {
+                    for (r, b) in r.iter_mut().zip(b) {
+                        *r = b - *r;
+                    }
+                }
+            });
+        return;
+    }
     a.prepare(x);
     r.par_chunks_mut(REDUCE_CHUNK)
         .enumerate()
