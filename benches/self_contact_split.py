@@ -95,7 +95,8 @@ def main() -> None:
           f"swept {pas.get('swept_substeps', 0) / substeps:.2f}, "
           f"redone {pas.get('redone', 0)}")
     taken = pas.get("pass_from_ahead", 0)
-    print(f"searches a step {(pas.get('ahead_searches', 0) + substeps - taken) / (args.frames * args.steps_per_frame):.2f}, "
+    searches = pas.get("ahead_searches", 0) + substeps - taken
+    print(f"searches a step {searches / (args.frames * args.steps_per_frame):.2f}, "
           f"passes taking their pairs from the step's one search {taken / substeps:.2f}, "
           f"vertices outside their budget there {pas.get('pass_outside', 0) / max(taken, 1):.1f}")
     x = sim.positions
