@@ -339,43 +339,45 @@ impl Broad {
         let (vb, tri_boxes, edge_boxes) = (vertex_boxes, &self.tri_boxes, &self.edge_boxes);
         let inside =
             |verts: &[u32; 4]| outside.is_none_or(|o| !verts.iter().any(|&v| o[v as usize]));
+        // A widened candidate `key` (two primitives' indices) of `kind`, over `verts`, whose
+        // tight boxes `overlap`: kept where no vertex is outside its budget and the pair can
+        // come within reach, with the gap the widened walk stored.
+        let keep = |kind, verts: [u32; 4], overlap: bool, (key, gap): (u64, f64)| {
+            if !inside(&verts) || !overlap {
+                return None;
+            }
+            let ids = ((key >> 32) as u32, key as u32);
+            tests
+                .close_at(verts, kind, ids, gap)
+                .map(|most| (key, most))
+        };
         let vertex_triangle = |&(key, gap): &(u64, f64)| {
-            let (v, t) = ((key >> 32) as u32, key as u32);
-            let tri = topo.triangles[t as usize];
-            let [a, b, c] = tri;
-            let verts = [v, a, b, c];
-            if !inside(&verts) || !overlap(&vb[v as usize], &tri_boxes[t as usize]) {
-                return None;
-            }
-            tests
-                .close_at(verts, 1, (v, t), gap)
-                .map(|most| (key, most))
+            let (v, t) = ((key >> 32) as usize, key as u32 as usize);
+            let [a, b, c] = topo.triangles[t];
+            let verts = [v as u32, a, b, c];
+            keep(1, verts, overlap(&vb[v], &tri_boxes[t]), (key, gap))
         };
-        vt.clear();
-        vt.par_extend(
-            self.wide_vt
-                .par_iter()
-                .with_min_len(1024)
-                .filter_map(vertex_triangle),
-        );
         let edge_edge = |&(key, gap): &(u64, f64)| {
-            let (e, f) = ((key >> 32) as u32, key as u32);
-            let ([a, b], [c, d]) = (topo.edges[e as usize], topo.edges[f as usize]);
-            let verts = [a, b, c, d];
-            if !inside(&verts) || !overlap(&edge_boxes[e as usize], &edge_boxes[f as usize]) {
-                return None;
-            }
-            tests
-                .close_at(verts, 2, (e, f), gap)
-                .map(|most| (key, most))
+            let (e, f) = ((key >> 32) as usize, key as u32 as usize);
+            let ([a, b], [c, d]) = (topo.edges[e], topo.edges[f]);
+            keep(
+                2,
+                [a, b, c, d],
+                overlap(&edge_boxes[e], &edge_boxes[f]),
+                (key, gap),
+            )
         };
-        ee.clear();
-        ee.par_extend(
-            self.wide_ee
-                .par_iter()
-                .with_min_len(1024)
-                .filter_map(edge_edge),
-        );
+        for (out, wide, filter) in [
+            (
+                &mut vt,
+                &self.wide_vt,
+                &vertex_triangle as &(dyn Fn(&(u64, f64)) -> _ + Sync),
+            ),
+            (&mut ee, &self.wide_ee, &edge_edge),
+        ] {
+            out.clear();
+            out.par_extend(wide.par_iter().with_min_len(1024).filter_map(filter));
+        }
         let mut looked = Looked {
             boxes: 0,
             candidates: (vt.len() + ee.len()) as u64,
