@@ -1034,8 +1034,8 @@ fn a_thin_twist_never_stretches_its_cloth_past_one_and_a_half_with_self_collisio
 /// they did before it: no step caught. 2 s of each, the twist turned as its driver turns it;
 /// its cap acts on thousands of vertices in those 2 s. Whether it stops any of them outright
 /// by 2 s is not asked: that turns on the wound rope's chaos (turned by Python's
-/// `TwistDriver`, main's twist stopped none by 2 s at `solve_stiffness` 299.9 and 42 at 300;
-/// `docs/contact.md`, "Cost").
+/// `TwistDriver`, the twist has stopped none by 2 s at `solve_stiffness` 299.9 and 42 at 300
+/// on one build; `docs/contact.md`, "Cost").
 #[test]
 fn the_shipped_pile_fold_and_twist_are_never_retried_for_a_cascade() {
     for name in ["pile", "fold", "twist"] {
