@@ -259,8 +259,6 @@ impl ImplicitEuler {
                 }
                 break;
             }
-            // The last solve's preconditioner on the pairs' lumped bound (`SelfContactTerm::lump`).
-            self.self_contact.lump(work.matrix.slot_mut(0));
             if filtered {
                 // The matrix changed with the pairs added: the prescribed motion's load too.
                 work.rhs.copy_from(&work.assembled);

@@ -29,21 +29,15 @@
 //! to zero: the term exchanges momentum, it adds none. Held particles (`w = 0`) keep their rows
 //! and columns empty, as the springs'.
 //!
-//! Diagonal blocks go into the assembled matrix, where the preconditioner sees them (the
-//! grid's six slot columns or a mesh's blocks, [`DiagonalBlocks`]): the term's own
-//! `h^2 k c_i^2 n n^T`, or, for the last solve of a grid's step ([`SelfContactTerm::lump`]),
-//! the bound `h^2 k |c_i| (sum_j |c_j|) n n^T`, which is at least the pair's whole rank-one
-//! term (Cauchy-Schwarz, [`lumped`]). The rest of the term, the couplings between a pair's
-//! vertices less what the blocks add to each vertex's own row, is applied matrix-free after
-//! the matrix's rows in CG's product, so the operator is the term itself either way and only
-//! the preconditioner sees the bound: a multigrid on the term's own diagonal sees a pair's
-//! relative motion up to four times stiffer than it is held, which cost the 128 x 128 twist's
-//! last solves about a fifth more CG iterations (`docs/contact.md`, "Cost"). It is applied
-//! pair by pair: each pair's `n . x_k` and `n . sum_k c_k x_k` once, then its part of each of
-//! its vertices' rows, from one compact record a pair ([`Coupling`]). Each row so adds its
-//! pairs in pair order, for any number of threads (a thread takes the rows of its own range
-//! and passes over the pairs with no vertex in it), so the product is the same for any thread
-//! count.
+//! The diagonal blocks go into the assembled matrix, where the preconditioner sees them (the
+//! grid's six slot columns or a mesh's blocks, [`DiagonalBlocks`]); the couplings between a
+//! pair's vertices are applied matrix-free after the matrix's rows in CG's product, pair by
+//! pair: each pair's `n . sum_k c_k x_k` once, then its part of each of its vertices' rows. Each
+//! row so adds its pairs in pair order, for any number of threads (a thread takes the rows of
+//! its own range and passes over the pairs with no vertex in it), so the product is the same
+//! for any thread count. The pairs are read once a product, from one compact record each
+//! ([`Coupling`]): on the 128 x 128 twist a solve holds tens of thousands of pairs, and the
+//! product is bound by reading them (`docs/contact.md`, "Cost").
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -146,10 +140,6 @@ pub(super) struct SelfContactTerm {
     held: Vec<Held>,
     /// The held pairs as the product reads them, in the same order.
     couplings: Vec<Coupling>,
-    /// Whether the matrix holds the pairs' [`lumped`] diagonal blocks (after
-    /// [`SelfContactTerm::lump`]) rather than the term's own `h^2 k c_i^2 n n^T`; the
-    /// couplings carry the difference either way.
-    bound: bool,
     /// Per pair handed in, whether it was held in this step (a released pair is not held again).
     taken: Vec<bool>,
 }
@@ -192,7 +182,6 @@ impl SelfContactTerm {
     ) {
         self.held.clear();
         self.taken.clear();
-        self.bound = false;
         for (i, pair) in pairs.pairs.iter().enumerate() {
             let held = hold(h, pairs, (i, pair), self.rest, (pos, vel, inv_mass));
             let ahead = held.filter(|held| held.short > 0.0);
@@ -235,7 +224,7 @@ impl SelfContactTerm {
         if self.rest == Rest::NoCloser {
             let pulled = |held: &Held| end_gap(&pairs.pairs[held.of as usize], held.n) > held.rest;
             for held in self.held.iter().filter(|held| pulled(held)) {
-                add_diagonal_of(held, -1.0, self.bound, d);
+                add_diagonal_of(held, -1.0, d);
                 add_rhs_of(held, -1.0, h, b);
                 released += 1;
             }
@@ -292,36 +281,12 @@ impl SelfContactTerm {
         self.held.len()
     }
 
-    /// `h^2 k c_i^2 n n^T` (after [`SelfContactTerm::lump`], the [`lumped`] `l_i n n^T`) of
-    /// the held pairs from the `from`-th on, onto each free vertex's diagonal block.
+    /// `h^2 k c_i^2 n n^T` of the held pairs from the `from`-th on, onto each free vertex's
+    /// diagonal block.
     pub(super) fn add_diagonal<D: DiagonalBlocks + ?Sized>(&self, from: usize, d: &mut D) {
         for held in &self.held[from..] {
-            add_diagonal_of(held, 1.0, self.bound, d);
+            add_diagonal_of(held, 1.0, d);
         }
-    }
-
-    /// Replaces the held pairs' own diagonal blocks in `d` (where [`add_diagonal`] put them)
-    /// by their [`lumped`] bound, for the preconditioner of the solves that follow; the
-    /// product is unchanged. Only for the step's last solve: preconditioned on the bound, the
-    /// loose first solve, which finds the pairs its `dv` brings within `thickness`, left the
-    /// 50 x 50 twist's solves holding about a quarter fewer pairs, and more substeps were run
-    /// again (`docs/contact.md`, "Cost").
-    ///
-    /// [`add_diagonal`]: SelfContactTerm::add_diagonal
-    pub(super) fn lump<D: DiagonalBlocks + ?Sized>(&mut self, d: &mut D) {
-        if self.bound {
-            return;
-        }
-        for held in &self.held {
-            let block = Sym3::outer(1.0, held.n, 0.0);
-            let weights = abs_sum(&held.c);
-            for k in 0..4 {
-                let own = held.s * held.c[k] * held.c[k];
-                let more = lumped(held.s, held.c[k], weights) - own;
-                d.add(held.verts[k] as usize, more, &block);
-            }
-        }
-        self.bound = true;
     }
 
     /// `h k (delta - g_pred) c_i n` of the held pairs from the `from`-th on, onto each free
@@ -332,38 +297,33 @@ impl SelfContactTerm {
         }
     }
 
-    /// `out_i += sum over i's pairs of (h^2 k c_i n . sum_j c_j x_j - l_i n . x_i) n`, `l_i`
-    /// the [`lumped`] weight, for the rows `range` (`out` covers exactly `range`), each row's
-    /// pairs in pair order: the term less the diagonal blocks the matrix holds. A pair with no
-    /// vertex in `range` is passed over unread but for its vertices.
+    /// `out_i += sum over i's pairs of h^2 k c_i n (n . sum_{j != i} c_j x_j)` for the rows
+    /// `range` (`out` covers exactly `range`), each row's pairs in pair order: the couplings
+    /// the diagonal leaves out. A pair with no vertex in `range` is passed over unread but
+    /// for its vertices.
     fn couple_range(&self, x: &Vec3s, range: std::ops::Range<usize>, out: &mut Vec3SliceMut) {
         let (lo, hi) = (range.start as u32, range.end as u32);
         for pair in &self.couplings {
             if !pair.verts.iter().any(|v| (lo..hi).contains(v)) {
                 continue;
             }
-            // Each vertex's `n . x_k`, and the pair's `n . sum_k c_k x_k`.
-            let (mut along, mut all) = ([0.0f32; 4], 0.0);
-            for ((a, &c), &v) in along.iter_mut().zip(&pair.c).zip(&pair.verts) {
-                if c != 0.0 {
-                    *a = pair.n.dot(x.get(v as usize));
-                    all += c * *a;
+            // Each vertex's `c_k n . x_k`, the pair's `n . sum_k c_k x_k` summed from them.
+            let (mut own, mut all) = ([0.0f32; 4], 0.0);
+            for k in 0..4 {
+                if pair.c[k] != 0.0 {
+                    own[k] = pair.c[k] * pair.n.dot(x.get(pair.verts[k] as usize));
+                    all += own[k];
                 }
             }
-            let weights = abs_sum(&pair.c);
-            for ((&v, &c), &a) in pair.verts.iter().zip(&pair.c).zip(&along) {
-                if c == 0.0 || !(lo..hi).contains(&v) {
+            for k in 0..4 {
+                let v = pair.verts[k];
+                if pair.c[k] == 0.0 || !(lo..hi).contains(&v) {
                     continue;
                 }
                 let i = (v - lo) as usize;
-                let sc = pair.s * c;
-                let push = if self.bound {
-                    sc * all - lumped(pair.s, c, weights) * a
-                } else {
-                    // `s c (..)` is `(s c) (..)`, rounded as the pair's own first product.
-                    sc * (all - c * a)
-                };
-                out.set(i, out.get(i) + push * pair.n);
+                // `s c (..)` is `(s c) (..)`, rounded as the pair's own first product.
+                let sc = pair.s * pair.c[k];
+                out.set(i, out.get(i) + sc * (all - own[k]) * pair.n);
             }
         }
     }
@@ -382,37 +342,13 @@ impl SelfContactTerm {
     }
 }
 
-/// `sign h^2 k c_i^2 n n^T` of `held`, or `sign l_i n n^T` ([`lumped`]) where `bound`, onto
-/// each free vertex's diagonal block.
-fn add_diagonal_of<D: DiagonalBlocks + ?Sized>(held: &Held, sign: f32, bound: bool, d: &mut D) {
+/// `sign h^2 k c_i^2 n n^T` of `held` onto each free vertex's diagonal block.
+fn add_diagonal_of<D: DiagonalBlocks + ?Sized>(held: &Held, sign: f32, d: &mut D) {
     let block = Sym3::outer(1.0, held.n, 0.0);
-    let weights = abs_sum(&held.c);
     for k in 0..4 {
         let p = held.verts[k] as usize;
-        let weight = if bound {
-            lumped(held.s, held.c[k], weights)
-        } else {
-            held.s * held.c[k] * held.c[k]
-        };
-        d.add(p, sign * weight, &block);
+        d.add(p, sign * held.s * held.c[k] * held.c[k], &block);
     }
-}
-
-/// `sum_j |c_j|`: 2 for a pair's own weights (each side's sum to one), less where a vertex is
-/// held.
-fn abs_sum(c: &[f32; 4]) -> f32 {
-    c[0].abs() + c[1].abs() + c[2].abs() + c[3].abs()
-}
-
-/// The diagonal weight `h^2 k |c_i| sum_j |c_j|` (kg) of a pair's vertex with weight `c_i`
-/// (`weights` its [`abs_sum`]): by Cauchy-Schwarz, `(sum_j c_j y_j)^2 <= sum_j |c_j| sum_j
-/// |c_j| y_j^2`, so the blocks `l_i n n^T` bound the pair's term `h^2 k (c c^T) n n^T` from
-/// above, and the preconditioned pair's spectrum lies in `[0, 1]` instead of reaching 4 as on
-/// the term's own diagonal `h^2 k c_i^2`. Trade-off: the blocks are stiffer than the term where
-/// the pair's vertices move together; measured, fewer iterations on the wound twist
-/// (`docs/contact.md`, "Cost").
-fn lumped(s: f32, c: f32, weights: f32) -> f32 {
-    s * c.abs() * weights
 }
 
 /// `sign h k (rest - g_pred) c_i n` of `held` onto each free vertex's right-hand side.
@@ -591,12 +527,11 @@ mod tests {
         assert!(total.length() < 1e-5 * scale, "{total} of {scale}");
     }
 
-    /// The diagonal blocks the matrix holds and the couplings as the product takes them (each
-    /// pair's sum once, less the blocks' part) are together the plain sum over each row's
-    /// pairs of `s c_i c_j n (n . x_j)`, the whole term, with a vertex in three pairs and a
-    /// pinned vertex in one.
+    /// The couplings as the product takes them (each pair's sum once, a row subtracting its
+    /// own part) against the plain sum over each row's pairs of `s c_i c_j n (n . x_j)`,
+    /// `j != i`, with a vertex in three pairs and a pinned vertex in one.
     #[test]
-    fn the_diagonal_blocks_and_the_couplings_together_are_the_whole_term() {
+    fn the_couplings_are_the_sum_over_each_rows_pairs_of_the_other_vertices() {
         let (mut pairs, pos, vel) = pairs();
         let n = glam::DVec3::new(0.6, 0.8, 0.0);
         for (verts, split, c) in [
@@ -621,20 +556,14 @@ mod tests {
         let x = Vec3s::from_fn(8, |v| {
             Vec3::new(v as f32 * 0.7 - 2.0, 1.0 / (1.0 + v as f32), 0.3)
         });
-        let mut d: SlotArrays = std::array::from_fn(|_| crate::soa::Floats::zeros(8));
-        term.add_diagonal(0, &mut d);
-        let mut y = Vec3s::from_fn(8, |p| block_times(&d, p, x.get(p)));
+        let mut y = Vec3s::zeros(8);
         let mut out = y.slices_mut(0..8);
         term.couple_range(&x, 0..8, &mut out);
-        let mut term = term;
-        term.lump(&mut d);
-        let mut lumped = Vec3s::from_fn(8, |p| block_times(&d, p, x.get(p)));
-        term.couple_range(&x, 0..8, &mut lumped.slices_mut(0..8));
         let mut plain = [DVec3::ZERO; 8];
         for held in &term.held {
             let nn = held.n.as_dvec3();
             for i in 0..4 {
-                for j in 0..4 {
+                for j in (0..4).filter(|&j| j != i) {
                     let (vi, vj) = (held.verts[i] as usize, held.verts[j] as usize);
                     let cc = (held.s * held.c[i] * held.c[j]) as f64;
                     plain[vi] += cc * nn * nn.dot(x.get(vj).as_dvec3());
@@ -644,51 +573,13 @@ mod tests {
         let scale: f64 = plain.iter().map(|v| v.length()).sum();
         assert!(scale > 0.0);
         for (p, want) in plain.iter().enumerate() {
-            for (got, what) in [(y.get(p), "own"), (lumped.get(p), "lumped")] {
-                let got = got.as_dvec3();
-                assert!(
-                    (got - want).length() < 1e-5 * scale,
-                    "{p}, {what} diagonal: {got} against {want}"
-                );
-            }
+            let got = y.get(p).as_dvec3();
+            assert!(
+                (got - want).length() < 1e-5 * scale,
+                "{p}: {got} against {want}"
+            );
         }
         assert_eq!(y.get(2), Vec3::ZERO, "the pinned vertex gets nothing");
-        assert_eq!(lumped.get(2), Vec3::ZERO, "the pinned vertex gets nothing");
-    }
-
-    /// The lumped diagonal blocks bound the term from above: `x . D x` is at least `x . K x`
-    /// for any `x`, so the term's spectrum preconditioned on them lies in `[0, 1]`.
-    #[test]
-    fn the_diagonal_blocks_bound_the_pairs_term_from_above() {
-        let (pairs, pos, vel) = pairs();
-        let inv_mass = vec![1.0f32, 2.0, 0.5, 1.0, 1.0, 3.0, 1.0, 0.25];
-        let mut term = held(&pairs, (&pos, &vel, &inv_mass));
-        assert_eq!(term.len(), 2);
-        let mut d: SlotArrays = std::array::from_fn(|_| crate::soa::Floats::zeros(8));
-        term.add_diagonal(0, &mut d);
-        term.lump(&mut d);
-        for seed in 0..20 {
-            let x = Vec3s::from_fn(8, |v| {
-                let t = (seed * 8 + v) as f32;
-                Vec3::new((1.3 * t).sin(), (0.7 * t + 1.0).cos(), (2.1 * t).sin())
-            });
-            let dx = Vec3s::from_fn(8, |p| block_times(&d, p, x.get(p)));
-            let mut kx = dx.clone();
-            term.couple_range(&x, 0..8, &mut kx.slices_mut(0..8));
-            let (xdx, xkx): (f64, f64) = (0..8)
-                .map(|p| {
-                    (
-                        x.get(p).dot(dx.get(p)) as f64,
-                        x.get(p).dot(kx.get(p)) as f64,
-                    )
-                })
-                .fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
-            assert!(
-                xkx >= -1e-6 * xdx,
-                "the term is positive semidefinite: {xkx}"
-            );
-            assert!(xdx >= xkx * (1.0 - 1e-5), "seed {seed}: {xdx} < {xkx}");
-        }
     }
 
     /// The product's couplings taken over the rows split into ranges (one a thread) are the
@@ -715,9 +606,7 @@ mod tests {
         let mut vel = vel;
         vel.set(0, Vec3::new(0.0, -3.0, 0.0));
         let term = held(&pairs, (&pos, &vel, &inv_mass));
-        let x = Vec3s::from_fn(8, |v| {
-            Vec3::new(0.3 * v as f32, -1.0 / (2.0 + v as f32), 0.7)
-        });
+        let x = Vec3s::from_fn(8, |v| Vec3::new(0.3 * v as f32, -1.0 / (2.0 + v as f32), 0.7));
         let start = Vec3s::from_fn(8, |v| Vec3::new(1.0, v as f32, -0.5));
         let mut whole = start.clone();
         term.couple_range(&x, 0..8, &mut whole.slices_mut(0..8));
@@ -762,10 +651,9 @@ mod tests {
         inv_mass[1] = 0.0;
         let term = held(&pairs, (&pos, &vel, &inv_mass));
         assert_eq!(term.len(), 2);
-        let rows_of_1 = term
-            .couplings
-            .iter()
-            .flat_map(|pair| (0..4).filter(move |&k| pair.verts[k] == 1 && pair.c[k] != 0.0));
+        let rows_of_1 = term.couplings.iter().flat_map(|pair| {
+            (0..4).filter(move |&k| pair.verts[k] == 1 && pair.c[k] != 0.0)
+        });
         assert_eq!(rows_of_1.count(), 0, "the pinned vertex has no entry");
         for p in [0, 6, 7] {
             vel.set(p, Vec3::new(0.0, 1.0, 0.0));
