@@ -254,6 +254,9 @@ impl Chart {
         for i in &items {
             (lo, hi) = (lo.min(i.a.min(i.b)), hi.max(i.a.max(i.b)));
         }
+        // No more cells than about the items: a mesh of very unequal triangles (a mean edge
+        // far below its extent) would otherwise ask for a grid of cells without bound.
+        let cell = cell.max((hi - lo).max_element() / (items.len() as f64).sqrt());
         // A cell that is not a positive length (no edges) buckets nothing.
         if items.is_empty() || cell.is_nan() || cell <= 0.0 {
             return Chart {
@@ -359,6 +362,40 @@ mod tests {
     use super::*;
     use crate::mesh_cloth::{jittered_square, MeshCloth};
     use crate::scene::MeshSpec;
+
+    #[test]
+    fn a_sheet_of_very_unequal_edges_keeps_its_cells_near_its_edge_count() {
+        // Many millimetre edges and one a kilometre long: cells two mean edges wide would
+        // number about 1e12.
+        let mut items: Vec<Item> = (0..1000)
+            .map(|k| {
+                let a = DVec2::new(k as f64 * 1e-3, 0.0);
+                Item {
+                    spring: k,
+                    a,
+                    b: a + DVec2::new(1e-3, 1e-3),
+                }
+            })
+            .collect();
+        items.push(Item {
+            spring: 1000,
+            a: DVec2::ZERO,
+            b: DVec2::new(1e3, 1e3),
+        });
+        let chart = Chart::new(items, Vec::new(), 2e-3);
+        let (cells, edges) = (chart.dims[0] * chart.dims[1], 1001);
+        assert!(cells <= 2 * edges, "{cells} cells for {edges} edges");
+        let fine = Chart::new(
+            vec![Item {
+                spring: 0,
+                a: DVec2::ZERO,
+                b: DVec2::ONE,
+            }],
+            Vec::new(),
+            2e-3,
+        );
+        assert!(fine.dims[0] * fine.dims[1] <= 4, "{:?}", fine.dims);
+    }
 
     fn topology(vertices: Vec<[f64; 3]>, triangles: Vec<[i64; 3]>) -> MeshTopology {
         let spec = MeshSpec {

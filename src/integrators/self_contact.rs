@@ -606,7 +606,9 @@ mod tests {
         let mut vel = vel;
         vel.set(0, Vec3::new(0.0, -3.0, 0.0));
         let term = held(&pairs, (&pos, &vel, &inv_mass));
-        let x = Vec3s::from_fn(8, |v| Vec3::new(0.3 * v as f32, -1.0 / (2.0 + v as f32), 0.7));
+        let x = Vec3s::from_fn(8, |v| {
+            Vec3::new(0.3 * v as f32, -1.0 / (2.0 + v as f32), 0.7)
+        });
         let start = Vec3s::from_fn(8, |v| Vec3::new(1.0, v as f32, -0.5));
         let mut whole = start.clone();
         term.couple_range(&x, 0..8, &mut whole.slices_mut(0..8));
@@ -651,9 +653,10 @@ mod tests {
         inv_mass[1] = 0.0;
         let term = held(&pairs, (&pos, &vel, &inv_mass));
         assert_eq!(term.len(), 2);
-        let rows_of_1 = term.couplings.iter().flat_map(|pair| {
-            (0..4).filter(move |&k| pair.verts[k] == 1 && pair.c[k] != 0.0)
-        });
+        let rows_of_1 = term
+            .couplings
+            .iter()
+            .flat_map(|pair| (0..4).filter(move |&k| pair.verts[k] == 1 && pair.c[k] != 0.0));
         assert_eq!(rows_of_1.count(), 0, "the pinned vertex has no entry");
         for p in [0, 6, 7] {
             vel.set(p, Vec3::new(0.0, 1.0, 0.0));
