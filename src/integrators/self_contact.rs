@@ -309,21 +309,20 @@ impl SelfContactTerm {
             }
             // Each vertex's `c_k n . x_k`, the pair's `n . sum_k c_k x_k` summed from them.
             let (mut own, mut all) = ([0.0f32; 4], 0.0);
-            for k in 0..4 {
+            for (k, own) in own.iter_mut().enumerate() {
                 if pair.c[k] != 0.0 {
-                    own[k] = pair.c[k] * pair.n.dot(x.get(pair.verts[k] as usize));
-                    all += own[k];
+                    *own = pair.c[k] * pair.n.dot(x.get(pair.verts[k] as usize));
+                    all += *own;
                 }
             }
-            for k in 0..4 {
-                let v = pair.verts[k];
-                if pair.c[k] == 0.0 || !(lo..hi).contains(&v) {
+            for ((&v, &c), own) in pair.verts.iter().zip(&pair.c).zip(own) {
+                if c == 0.0 || !(lo..hi).contains(&v) {
                     continue;
                 }
                 let i = (v - lo) as usize;
                 // `s c (..)` is `(s c) (..)`, rounded as the pair's own first product.
-                let sc = pair.s * pair.c[k];
-                out.set(i, out.get(i) + sc * (all - own[k]) * pair.n);
+                let sc = pair.s * c;
+                out.set(i, out.get(i) + sc * (all - own) * pair.n);
             }
         }
     }
