@@ -35,9 +35,8 @@
 //! pair: each pair's `n . sum_k c_k x_k` once, then its part of each of its vertices' rows. Each
 //! row so adds its pairs in pair order, for any number of threads (a thread takes the rows of
 //! its own range and passes over the pairs with no vertex in it), so the product is the same
-//! for any thread count. The pairs are read once a product, from one compact record each
-//! ([`Coupling`]): on the 128 x 128 twist a solve holds tens of thousands of pairs, and the
-//! product is bound by reading them (`docs/contact.md`, "Cost").
+//! for any thread count. The pairs are read once a product by each thread, from one compact
+//! record each ([`Coupling`]).
 
 use glam::Vec3;
 use rayon::prelude::*;
