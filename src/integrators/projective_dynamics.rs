@@ -56,8 +56,10 @@
 //! the contact within the step; projected out of the collider after the solve instead, a long
 //! step crushes the springs of rows landing on each other (the dropped `pile` at 1/60 s gains
 //! five times its energy). `Q` is refactored when the set of particles in contact changes, not
-//! when their planes do: on steps where a cloth lands, not while it rests. With contacts the
-//! iteration runs without Chebyshev's extrapolation (see [`ProjectiveDynamics::step`]).
+//! when their planes do: on steps where a cloth lands, and on most steps of a cloth resting on
+//! a collider, whose rim makes and breaks contacts (`drape` at its 1 ms steps: 758
+//! factorisations in its first 1,706 solves). With contacts the iteration runs without
+//! Chebyshev's extrapolation (see [`ProjectiveDynamics::step`]).
 //!
 //! **State between steps.** Only the factorisation of `Q`, a cache keyed on everything it is
 //! built from (step, masses, held particles, live springs, stiffness, damping, drag, contacts)

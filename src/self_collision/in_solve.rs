@@ -42,7 +42,7 @@
 //! order, so the pass gets the pairs of a whole search, in its order, with the same closest
 //! points (taken over from the search ahead where it computed them). Where more than one
 //! vertex in `OUTSIDE_MOST` is outside, the lookups cost more than a walk and the pass
-//! searches on its own, as before.
+//! searches on its own.
 
 use std::sync::atomic::Ordering::Relaxed;
 
