@@ -26,9 +26,32 @@ def test_local_sweep_is_bitwise_the_serial_loop(tmp_path, workers, threads):
     result = run_sweep(sweep, tmp_path, workers=workers, threads=threads)
     assert result.counts == {"ok": 6}
     assert_matches_serial(result, sweep.expand())
-    # Each worker's rayon pool has the size it was given (counted, not assumed).
+    # Each worker's rayon pool has the size it was given (as rayon reports it, not assumed).
     assert {r["threads"] for r in result.records} == {threads}
     assert result.backend == f"local: {workers} worker(s) x {threads} thread(s)"
+
+
+def test_a_workers_thread_count_is_its_pools_size_while_other_threads_start():
+    # A Ray worker starts threads of its own while its first run starts; the reported size of
+    # the rayon pool must be rayon's, not a count of whatever threads appeared meanwhile.
+    code = """
+import threading, time
+from rustcloth.sweep import rayon_threads
+stop = threading.Event()
+def churn():
+    while not stop.is_set():
+        ts = [threading.Thread(target=time.sleep, args=(0.05,)) for _ in range(4)]
+        for t in ts: t.start()
+        for t in ts: t.join()
+threading.Thread(target=churn, daemon=True).start()
+time.sleep(0.05)
+print(rayon_threads())
+stop.set()
+"""
+    env = dict(os.environ, RAYON_NUM_THREADS="1")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                         timeout=60, check=True)
+    assert out.stdout.split() == ["1"]
 
 
 def test_order_does_not_change_any_result(tmp_path):

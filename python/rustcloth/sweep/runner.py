@@ -15,6 +15,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from .._core import thread_count
 from ..errors import SimulationDiverged
 from ..simulation import Simulation
 from .spec import Run
@@ -72,29 +73,12 @@ class Pending:
         return run
 
 
-def _threads_now() -> int | None:
-    try:
-        return len(os.listdir("/proc/self/task"))
-    except OSError:  # not Linux
-        return None
-
-
-_RAYON_THREADS: list[int | None] = []  # measured once per process
-
-
-def rayon_threads() -> int | None:
-    """The size of this process's rayon pool, found by counting the process's threads around
-    a first, tiny step (rayon builds its global pool, reading ``RAYON_NUM_THREADS``, on first
-    use, and starts that many threads). None if it cannot be told: the pool existed before the
-    first call in this process (nothing was started), or threads cannot be counted (not
-    Linux). A sweep worker calls it before its first run."""
-    if not _RAYON_THREADS:
-        before = _threads_now()
-        Simulation({"cloth": {"nx": 2, "ny": 2}}).step(1)
-        after = _threads_now()
-        started = None if before is None or after is None else after - before
-        _RAYON_THREADS.append(started if started else None)
-    return _RAYON_THREADS[0]
+def rayon_threads() -> int:
+    """The size of this process's rayon pool, as rayon itself reports it (rayon builds its
+    global pool on first use, reading ``RAYON_NUM_THREADS`` then, so a worker that set the
+    variable too late sees the size it got, not the one it asked for). A sweep worker calls it
+    before its first run."""
+    return thread_count()
 
 
 def _frames(steps: int, every: int) -> list[int]:
