@@ -2,7 +2,7 @@
 
 use glam::{DVec3, Vec3};
 
-use super::Pipeline;
+use super::{Pipeline, StartEnergy};
 use crate::collisions::{Collider, Floor, PredictedContacts, Shapes};
 use crate::forces::{Force, ForceModel};
 use crate::grid::Family;
@@ -45,7 +45,7 @@ impl Pipeline {
             piece_start: Kinematics::zeros(0),
             put_out: Kinematics::zeros(0),
             halved: 0,
-            start_energy: None,
+            start_energy: StartEnergy::Unjudged,
             unshortened: Vec3s::zeros(0),
             pass_input: Kinematics::zeros(0),
             contact_capped: false,

@@ -36,10 +36,11 @@ mod compile;
 mod passes;
 mod solve;
 
+use solve::StartEnergy;
+
 use glam::Vec3;
 
 use crate::collisions::{Collider, PredictedContacts, Shapes};
-use crate::diagnostics::Energy;
 use crate::forces::{Force, ForceModel};
 use crate::integrators::Integrator;
 use crate::model::Model;
@@ -83,9 +84,9 @@ pub(super) struct Pipeline {
     put_out: Kinematics,
     /// Solves split in halves since the pipeline was compiled.
     pub halved: u64,
-    /// The energy at the substep's start, where a solver holds contacts and nothing does work
-    /// on the cloth (`Pipeline::judge_work`); None otherwise.
-    start_energy: Option<Energy>,
+    /// Whether the substep's solves and holds are judged against the energy at its start
+    /// (`Pipeline::judge_work`), and that energy once something asked for it.
+    start_energy: StartEnergy,
     /// Where the passes before self-collision left the particles, for a solver that holds
     /// contacts: what the self-collision pass moved (`Pipeline::hold_self_contacts`).
     unshortened: Vec3s,

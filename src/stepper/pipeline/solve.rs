@@ -108,6 +108,26 @@ struct Solve<'a> {
 /// Whether a solve's values are all finite, and the energy at its end where it was evaluated.
 type Judged = (bool, Option<Energy>);
 
+/// The energy a substep's solves and holds are judged against: that of the state it starts
+/// from, taken the first time a judge needs it (a quiet substep holds nothing and needs none).
+#[derive(Clone, Copy, Debug)]
+pub(super) enum StartEnergy {
+    /// Nothing of this substep is judged: no solver holds contacts, or something does work.
+    Unjudged,
+    /// Judged, not yet asked for.
+    Untaken,
+    Taken(Energy),
+}
+
+/// What a solve is judged against: nothing, the substep's start (taken on demand), or a
+/// known energy (the start of a half).
+#[derive(Clone, Copy)]
+enum Judge {
+    No,
+    SubstepStart,
+    Known(Energy),
+}
+
 impl Pipeline {
     /// Whether this substep's integrator holds the predicted contacts inside its solve.
     pub(super) fn holds_contacts(&self) -> bool {
@@ -151,7 +171,25 @@ impl Pipeline {
     /// before its first round.
     pub fn judge_work(&mut self, s: &Substep) {
         let idle = self.holds_contacts() && !self.does_work(s.model, s.state, (s.h, s.time));
-        self.start_energy = idle.then(|| energy_of(s.model, &s.state.kin));
+        self.start_energy = if idle {
+            StartEnergy::Untaken
+        } else {
+            StartEnergy::Unjudged
+        };
+    }
+
+    /// The energy of `start`, the state the substep starts from, where the substep is judged
+    /// ([`Pipeline::judge_work`]); taken once a substep.
+    fn start_energy(&mut self, model: &Model, start: &Kinematics) -> Option<Energy> {
+        match self.start_energy {
+            StartEnergy::Unjudged => None,
+            StartEnergy::Taken(energy) => Some(energy),
+            StartEnergy::Untaken => {
+                let energy = energy_of(model, start);
+                self.start_energy = StartEnergy::Taken(energy);
+                Some(energy)
+            }
+        }
     }
 
     /// Whether something may do work on the cloth within the substep of length `h` ending at
@@ -198,7 +236,10 @@ impl Pipeline {
         // this solve, not a later round's or a half's, which start elsewhere.
         self.forces.arm_stretch_watch();
         self.forces.set_time(s.time - s.h as f64);
-        let judge = self.start_energy;
+        let judge = match self.start_energy {
+            StartEnergy::Unjudged => Judge::No,
+            _ => Judge::SubstepStart,
+        };
         self.last_piece = None;
         let (finite, _) = self.solve_judged(&mut job, (&s.state.kin, s.next), false, judge, 0);
         let own_time = started
@@ -274,13 +315,21 @@ impl Pipeline {
         job: &mut Solve,
         (from, into): (&Kinematics, &mut Kinematics),
         predict: bool,
-        judge: Option<Energy>,
+        judge: Judge,
         depth: u32,
     ) -> Judged {
         let finite = self.solve(job, from, into, predict);
         // A solve that held no contact is not judged ([`Pipeline::rose`]).
         let held = self.contacts.as_ref().is_some_and(|c| c.count > 0);
-        let Some(start) = judge.filter(|_| finite && held) else {
+        if !(finite && held) {
+            return (finite, None);
+        }
+        let start = match judge {
+            Judge::No => return (finite, None),
+            Judge::SubstepStart => self.start_energy(job.model, from),
+            Judge::Known(energy) => Some(energy),
+        };
+        let Some(start) = start else {
             return (finite, None);
         };
         match self.rose(job, (from, into), start) {
@@ -307,7 +356,11 @@ impl Pipeline {
         let judged = depth < SPLITS;
         job.h = h / 2.0;
         job.time = time - (h / 2.0) as f64;
-        let first = judged.then_some(start);
+        let first = if judged {
+            Judge::Known(start)
+        } else {
+            Judge::No
+        };
         let (mut finite, at_mid) = self.solve_judged(job, (from, &mut mid), true, first, depth);
         let mut end = None;
         if finite {
@@ -318,7 +371,11 @@ impl Pipeline {
                 self.piece_start = Kinematics::zeros(mid.pos.len());
             }
             self.piece_start.copy_from(&mid);
-            let second = judged.then(|| at_mid.unwrap_or_else(|| energy_of(job.model, &mid)));
+            let second = if judged {
+                Judge::Known(at_mid.unwrap_or_else(|| energy_of(job.model, &mid)))
+            } else {
+                Judge::No
+            };
             (finite, end) = self.solve_judged(job, (&mid, into), true, second, depth);
         }
         self.halves[depth as usize - 1] = mid;
@@ -429,7 +486,7 @@ impl Pipeline {
         // than [`RERUN_KEPT`] is run again: a smaller draw-back costs less than a second
         // solve, and a larger one stops the cloth where it stood (a grip held by its own
         // cloth froze mid-drag, every substep drawn back to its start).
-        let gain = match self.start_energy {
+        let gain = match self.start_energy(s.model, &s.state.kin) {
             Some(start) => gained(start, energy_of(s.model, s.next)),
             None => self
                 .passive_fraction(s)
