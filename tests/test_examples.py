@@ -23,6 +23,8 @@ SCRIPTS = {
     "mesh_collider_from_file.py": (("trimesh",), "out/ball.obj: 162 vertices"),
     "stiff_implicit.py": ((), "projective_dynamics: "),
     "read_sweep_results.py": ((), "out/sag: 3 runs, 3 ok"),
+    "flag_from_mesh.py": (("trimesh",), "read back in the file's order, UVs kept"),
+    "sew_a_garment.py": (("trimesh",), "wrote out/skirt.glb"),
 }
 
 
