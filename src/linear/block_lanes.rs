@@ -394,12 +394,13 @@ impl<const C: usize> Lanes<C> {
     }
 }
 
-/// A product packs its operand when packing costs less than the gathers it replaces: when the
-/// operand's rows its groups read number at most this fraction of their slots' lanes (a
-/// packed row costs about what two gathered elements do). A local numbering passes (a range of
-/// 1,024 rows of the 129 x 129 mesh reads about 1,600 rows through 14,000 lanes); a numbering
-/// at random reads every row from every range and fails, and gathers.
-const PACK_LANES_A_ROW: usize = 2;
+/// A product packs its operand unless the operand's rows its groups read outnumber their
+/// slots' lanes by more than this: packing a row costs less than the gather of an element it
+/// saves, so packing pays even where every range reads every row (a numbering at random: a
+/// range of 1,024 rows of the 129 x 129 mesh reads its 16,641 rows through 14,500 lanes, and
+/// the stiff step is 12 % shorter packed, docs/mesh_cloth.md, "Speed", 2026-12-06), but a
+/// short range of a large scattered matrix would pack far more rows than it multiplies.
+const PACKED_ROWS_A_LANE: usize = 2;
 
 thread_local! {
     /// A packed product's operand rows, `[x, y, z, 0]` each, kept for the thread's next one.
@@ -446,7 +447,7 @@ impl<const C: usize> Lanes<C> {
     }
 
     /// The operand's rows a product over `range` reads, where it is to be packed: the CPU
-    /// has AVX2, the columns are narrow and the rows few enough ([`PACK_LANES_A_ROW`]).
+    /// has AVX2, the columns are narrow and the rows few enough ([`PACKED_ROWS_A_LANE`]).
     #[cfg(target_arch = "x86_64")]
     fn packed_span(&self, range: &std::ops::Range<usize>) -> Option<std::ops::Range<usize>> {
         if range.is_empty()
@@ -463,7 +464,7 @@ impl<const C: usize> Lanes<C> {
             .filter(|s| s[0] < s[1])
             .fold((u32::MAX, 0), |(l, h), s| (l.min(s[0]), h.max(s[1])));
         let (low, high) = (low as usize, high as usize);
-        (low < high && (high - low) * PACK_LANES_A_ROW <= slots * LANES).then_some(low..high)
+        (low < high && high - low <= PACKED_ROWS_A_LANE * slots * LANES).then_some(low..high)
     }
 }
 
@@ -595,7 +596,7 @@ impl BlockLanes {
     /// [`Lanes::apply_range`] of the blocks, each term `block x_column` as [`Sym3::mul`]
     /// computes it.
     ///
-    /// Where the rows read are few enough ([`PACK_LANES_A_ROW`]) and the CPU has AVX2, the
+    /// Where the rows read are few enough ([`PACKED_ROWS_A_LANE`]) and the CPU has AVX2, the
     /// operand's rows are first packed as `[x, y, z, 0]`, and each slot's sixteen operands
     /// read as sixteen 16-byte loads turned into x, y and z vectors by shuffles, not by three
     /// 16-wide gathers, which cost about a load an element: 16 loads a slot against 48
