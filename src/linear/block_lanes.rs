@@ -409,41 +409,41 @@ thread_local! {
     };
 }
 
+/// Adds group `g`'s terms from the rows packed from `low` to the group's sums (the functions
+/// `packed_kernel!` defines).
+#[cfg(target_arch = "x86_64")]
+type PackedKernel<const C: usize> =
+    unsafe fn(&Lanes<C>, &[[f32; 4]], usize, usize, &mut [[f32; LANES]; 3]);
+
 impl<const C: usize> Lanes<C> {
-    /// [`Lanes::apply_range`] with the operand packed where [`Lanes::packed_span`] allows, each
-    /// group's terms then added by `add(packed, low, g, acc)` (`packed` holding the rows from
-    /// `low`), and `term` gathering them otherwise.
+    /// [`Lanes::apply_range`] with the operand packed, where [`Lanes::packed_span`] allows
+    /// (returning whether it did), each group's terms added by `kernel`.
+    #[cfg(target_arch = "x86_64")]
     #[inline(always)]
-    fn apply_packed_or_gathered(
+    fn apply_packed(
         &self,
         x: &Vec3s,
-        range: std::ops::Range<usize>,
+        range: &std::ops::Range<usize>,
         out: &mut Vec3SliceMut,
-        start: impl Fn(usize, Vec3) -> Vec3,
-        term: impl Fn([f32; C], Vec3) -> Vec3,
-        #[allow(unused_variables)] add: impl Fn(
-            &Self,
-            &[[f32; 4]],
-            usize,
-            usize,
-            &mut [[f32; LANES]; 3],
-        ),
-    ) {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(span) = self.packed_span(&range) {
-            let groups = self.groups(&range);
-            PACKED.with_borrow_mut(|packed| {
-                packed.clear();
-                let (xs, ys, zs) = (&x.x[span.clone()], &x.y[span.clone()], &x.z[span.clone()]);
-                let rows = xs.iter().zip(ys).zip(zs);
-                packed.extend(rows.map(|((&x, &y), &z)| [x, y, z, 0.0]));
-                self.apply_groups(groups, range, out, start, |g, acc| {
-                    add(self, packed, span.start, g, acc)
-                });
+        start: &impl Fn(usize, Vec3) -> Vec3,
+        kernel: PackedKernel<C>,
+    ) -> bool {
+        let Some(span) = self.packed_span(range) else {
+            return false;
+        };
+        PACKED.with_borrow_mut(|packed| {
+            packed.clear();
+            let (xs, ys, zs) = (&x.x[span.clone()], &x.y[span.clone()], &x.z[span.clone()]);
+            let rows = xs.iter().zip(ys).zip(zs);
+            packed.extend(rows.map(|((&x, &y), &z)| [x, y, z, 0.0]));
+            let groups = self.groups(range);
+            self.apply_groups(groups, range.clone(), out, start, |g, acc| {
+                // SAFETY: `packed_span` found AVX2, narrow columns and every column of these
+                // groups in `span`, packed from its start.
+                unsafe { kernel(self, packed, span.start, g, acc) }
             });
-            return;
-        }
-        self.apply_range(x, range, out, start, term);
+        });
+        true
     }
 
     /// The operand's rows a product over `range` reads, where it is to be packed: the CPU
@@ -610,16 +610,11 @@ impl BlockLanes {
         out: &mut Vec3SliceMut,
         start: impl Fn(usize, Vec3) -> Vec3,
     ) {
-        let term = |b: [f32; 6], x: Vec3| Sym3(b).mul(x);
         #[cfg(target_arch = "x86_64")]
-        let add = |lanes: &Self, packed: &[[f32; 4]], low, g, acc: &mut _| {
-            // SAFETY: called only where `packed_span` found AVX2, narrow columns and every
-            // column of the group packed from `low`.
-            unsafe { add_packed_blocks(lanes, packed, low, g, acc) }
-        };
-        #[cfg(not(target_arch = "x86_64"))]
-        let add = |_: &Self, _: &[[f32; 4]], _: usize, _: usize, _: &mut [[f32; LANES]; 3]| {};
-        self.apply_packed_or_gathered(x, range, out, start, term, add);
+        if self.apply_packed(x, &range, out, &start, add_packed_blocks) {
+            return;
+        }
+        self.apply_range(x, range, out, start, |b, x| Sym3(b).mul(x));
     }
 }
 
@@ -634,15 +629,11 @@ impl WeightLanes {
         out: &mut Vec3SliceMut,
         start: impl Fn(usize, Vec3) -> Vec3,
     ) {
-        let term = |[w]: [f32; 1], x: Vec3| w * x;
         #[cfg(target_arch = "x86_64")]
-        let add = |lanes: &Self, packed: &[[f32; 4]], low, g, acc: &mut _| {
-            // SAFETY: as in `apply_blocks`.
-            unsafe { add_packed_weights(lanes, packed, low, g, acc) }
-        };
-        #[cfg(not(target_arch = "x86_64"))]
-        let add = |_: &Self, _: &[[f32; 4]], _: usize, _: usize, _: &mut [[f32; LANES]; 3]| {};
-        self.apply_packed_or_gathered(x, range, out, start, term, add);
+        if self.apply_packed(x, &range, out, &start, add_packed_weights) {
+            return;
+        }
+        self.apply_range(x, range, out, start, |[w], x| w * x);
     }
 }
 
