@@ -61,7 +61,8 @@ pub struct Lanes<const C: usize> {
     /// Each row's group and lane, as `group * LANES + lane`.
     place: Vec<u32>,
     /// Each group's least column and one past its greatest (`[0, 0]` for no entry): the
-    /// operand's rows a product of the group reads.
+    /// operand's rows a product of the group reads (packed products only, on x86-64).
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     spans: Vec<[u32; 2]>,
 }
 
@@ -398,10 +399,13 @@ impl<const C: usize> Lanes<C> {
 /// slots' lanes by more than this: packing a row costs less than the gather of an element it
 /// saves, so packing pays even where every range reads every row (a numbering at random: a
 /// range of 1,024 rows of the 129 x 129 mesh reads its 16,641 rows through 14,500 lanes, and
-/// the stiff step is 12 % shorter packed, docs/mesh_cloth.md, "Speed", 2026-12-06), but a
-/// short range of a large scattered matrix would pack far more rows than it multiplies.
+/// the stiff step was 12 % shorter packed in two rounds, docs/mesh_cloth.md, "Speed",
+/// 2026-12-06), but a short range of a large scattered matrix would pack far more rows than
+/// it multiplies.
+#[cfg(target_arch = "x86_64")]
 const PACKED_ROWS_A_LANE: usize = 2;
 
+#[cfg(target_arch = "x86_64")]
 thread_local! {
     /// A packed product's operand rows, `[x, y, z, 0]` each, kept for the thread's next one.
     static PACKED: std::cell::RefCell<Vec<[f32; 4]>> = const {
