@@ -60,6 +60,10 @@ pub struct Lanes<const C: usize> {
     lane_rows: Vec<[u32; LANES]>,
     /// Each row's group and lane, as `group * LANES + lane`.
     place: Vec<u32>,
+    /// Each group's least column and one past its greatest (`[0, 0]` for no entry): the
+    /// operand's rows a product of the group reads (packed products only, on x86-64).
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+    spans: Vec<[u32; 2]>,
 }
 
 /// Each slot's columns: where every group's columns span less than 2^16, as 16-bit offsets
@@ -172,6 +176,22 @@ impl<const C: usize> Lanes<C> {
             }
         }
         lanes.values = vec![[[0.0; LANES]; C]; lanes.source.len()];
+        lanes.spans = (0..lanes.lengths.len())
+            .map(|g| {
+                let first = lanes.starts[g] as usize;
+                let live = (first..lanes.starts[g + 1] as usize).flat_map(|k| {
+                    let lengths = &lanes.lengths[g];
+                    (0..LANES).filter_map(move |l| {
+                        ((k - first) < lengths[l] as usize).then_some(k * LANES + l)
+                    })
+                });
+                let columns = || live.clone().map(|i| wide[i / LANES][i % LANES]);
+                match columns().min() {
+                    Some(low) => [low, columns().max().unwrap_or(low) + 1],
+                    None => [0, 0],
+                }
+            })
+            .collect();
         lanes.columns = Columns::narrowed(wide, &lanes.starts, &lanes.lengths);
         lanes
     }
@@ -224,17 +244,38 @@ impl<const C: usize> Lanes<C> {
         start: impl Fn(usize, Vec3) -> Vec3,
         term: impl Fn([f32; C], Vec3) -> Vec3,
     ) {
-        if range.is_empty() {
-            return;
-        }
-        // The groups of every window the range meets; a group that holds a row of the range
-        // is computed whole, and only the range's rows are written.
+        let groups = self.groups(&range);
+        self.apply_groups(groups, range, out, start, |g, acc| {
+            self.add_group(x, g, acc, &term)
+        });
+    }
+
+    /// The groups of every window the rows `range` meet.
+    fn groups(&self, range: &std::ops::Range<usize>) -> std::ops::Range<usize> {
         let per_window = WINDOW / LANES;
-        let groups = range.start / WINDOW * per_window
+        range.start / WINDOW * per_window
             ..self
                 .lengths
                 .len()
-                .min(range.end.div_ceil(WINDOW) * per_window);
+                .min(range.end.div_ceil(WINDOW) * per_window)
+    }
+
+    /// [`Lanes::apply_range`] with each group's terms added by `add(g, acc)`.
+    #[inline(always)]
+    fn apply_groups(
+        &self,
+        groups: std::ops::Range<usize>,
+        range: std::ops::Range<usize>,
+        out: &mut Vec3SliceMut,
+        start: impl Fn(usize, Vec3) -> Vec3,
+        mut add: impl FnMut(usize, &mut [[f32; LANES]; 3]),
+    ) {
+        if range.is_empty() {
+            return;
+        }
+        // A group that holds a row of the range is computed whole, and only the range's rows
+        // are written.
+        let per_window = WINDOW / LANES;
         let whole = |g: usize| {
             let first = g / per_window * WINDOW;
             range.start <= first && first + WINDOW <= range.end
@@ -262,7 +303,7 @@ impl<const C: usize> Lanes<C> {
                 let s = start(u, current);
                 (acc[0][lane], acc[1][lane], acc[2][lane]) = (s.x, s.y, s.z);
             }
-            self.add_group(x, g, &mut acc, &term);
+            add(g, &mut acc);
             for (lane, &u) in rows.iter().enumerate() {
                 if inside(u) {
                     let i = u as usize - range.start;
@@ -349,13 +390,222 @@ impl<const C: usize> Lanes<C> {
             + (self.source.capacity() + self.lengths.capacity() + self.lane_rows.capacity())
                 * size_of::<[u32; LANES]>()
             + self.place.capacity() * 4
+            + self.spans.capacity() * 8
             + self.values.capacity() * size_of::<[[f32; LANES]; C]>()
     }
 }
 
+/// A product packs its operand unless the operand's rows its groups read outnumber their
+/// slots' lanes by more than this: packing a row costs less than the gather of an element it
+/// saves, so packing pays even where every range reads every row (a numbering at random: a
+/// range of 1,024 rows of the 129 x 129 mesh reads its 16,641 rows through 14,500 lanes, and
+/// the stiff step was 12 % shorter packed in two rounds, docs/mesh_cloth.md, "Speed",
+/// 2026-12-06), but a short range of a large scattered matrix would pack far more rows than
+/// it multiplies.
+#[cfg(target_arch = "x86_64")]
+const PACKED_ROWS_A_LANE: usize = 2;
+
+#[cfg(target_arch = "x86_64")]
+thread_local! {
+    /// A packed product's operand rows, `[x, y, z, 0]` each, kept for the thread's next one.
+    static PACKED: std::cell::RefCell<Vec<[f32; 4]>> = const {
+        std::cell::RefCell::new(Vec::new())
+    };
+}
+
+/// Adds group `g`'s terms from the rows packed from `low` to the group's sums (the functions
+/// `packed_kernel!` defines).
+#[cfg(target_arch = "x86_64")]
+type PackedKernel<const C: usize> =
+    unsafe fn(&Lanes<C>, &[[f32; 4]], usize, usize, &mut [[f32; LANES]; 3]);
+
+impl<const C: usize> Lanes<C> {
+    /// [`Lanes::apply_range`] with the operand packed, where [`Lanes::packed_span`] allows
+    /// (returning whether it did), each group's terms added by `kernel`.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    fn apply_packed(
+        &self,
+        x: &Vec3s,
+        range: &std::ops::Range<usize>,
+        out: &mut Vec3SliceMut,
+        start: &impl Fn(usize, Vec3) -> Vec3,
+        kernel: PackedKernel<C>,
+    ) -> bool {
+        let Some(span) = self.packed_span(range) else {
+            return false;
+        };
+        PACKED.with_borrow_mut(|packed| {
+            packed.clear();
+            let (xs, ys, zs) = (&x.x[span.clone()], &x.y[span.clone()], &x.z[span.clone()]);
+            let rows = xs.iter().zip(ys).zip(zs);
+            packed.extend(rows.map(|((&x, &y), &z)| [x, y, z, 0.0]));
+            let groups = self.groups(range);
+            self.apply_groups(groups, range.clone(), out, start, |g, acc| {
+                // SAFETY: `packed_span` found AVX2, narrow columns and every column of these
+                // groups in `span`, packed from its start.
+                unsafe { kernel(self, packed, span.start, g, acc) }
+            });
+        });
+        true
+    }
+
+    /// The operand's rows a product over `range` reads, where it is to be packed: the CPU
+    /// has AVX2, the columns are narrow and the rows few enough ([`PACKED_ROWS_A_LANE`]).
+    #[cfg(target_arch = "x86_64")]
+    fn packed_span(&self, range: &std::ops::Range<usize>) -> Option<std::ops::Range<usize>> {
+        if range.is_empty()
+            || crate::simd::isa() == crate::simd::Isa::Baseline
+            || !is_x86_feature_detected!("avx2")
+            || !matches!(self.columns, Columns::Narrow { .. })
+        {
+            return None;
+        }
+        let groups = self.groups(range);
+        let slots = (self.starts[groups.end] - self.starts[groups.start]) as usize;
+        let (low, high) = self.spans[groups]
+            .iter()
+            .filter(|s| s[0] < s[1])
+            .fold((u32::MAX, 0), |(l, h), s| (l.min(s[0]), h.max(s[1])));
+        let (low, high) = (low as usize, high as usize);
+        (low < high && high - low <= PACKED_ROWS_A_LANE * slots * LANES).then_some(low..high)
+    }
+}
+
+/// Defines `$name`, which adds group `g`'s slots from the packed rows `packed` (row `low`
+/// first) to `acc`, eight lanes at a time: each slot's operands read as 16-byte loads and
+/// transposed into x, y and z by shuffles, `$term` (given the slot's values `$b`, the half's
+/// first lane `$half` and the operand `$x`, `$y`, `$z`) giving the slot's terms, added where
+/// the lane's row reaches the slot and `-0.0` past it (as the gathered product).
+///
+/// Written out as a macro, not with closures or a function argument: a closure is not compiled
+/// with its function's AVX2 (its intrinsics would become calls), and a function compiled
+/// for AVX2 is not a closure's type.
+#[cfg(target_arch = "x86_64")]
+macro_rules! packed_kernel {
+    ($name:ident, $c:literal, |$b:ident, $half:ident, $x:ident, $y:ident, $z:ident| $term:expr) => {
+        /// # Safety
+        /// The CPU has AVX2, the columns are [`Columns::Narrow`], and `packed` holds the rows
+        /// `low..` through every column of group `g`.
+        #[target_feature(enable = "avx2")]
+        unsafe fn $name(
+            lanes: &Lanes<$c>,
+            packed: &[[f32; 4]],
+            low: usize,
+            g: usize,
+            acc: &mut [[f32; LANES]; 3],
+        ) {
+            use std::arch::x86_64::*;
+            let Columns::Narrow { base, offset } = &lanes.columns else {
+                unreachable!("a packed product of wide columns")
+            };
+            let (first, end) = (lanes.starts[g] as usize, lanes.starts[g + 1] as usize);
+            if first == end {
+                return;
+            }
+            // Every live column, and a dead slot's (its group's base), is in `low..low + len`.
+            debug_assert!(
+                base[g] as usize >= low && lanes.spans[g][1] as usize <= low + packed.len()
+            );
+            let origin = packed.as_ptr().add(base[g] as usize - low) as *const f32;
+            let negative_zero = _mm256_set1_ps(-0.0);
+            for $half in [0, 8] {
+                let lengths = lanes.lengths[g][$half..].as_ptr() as *const __m256i;
+                let lengths = _mm256_loadu_si256(lengths);
+                let mut sx = _mm256_loadu_ps(acc[0][$half..].as_ptr());
+                let mut sy = _mm256_loadu_ps(acc[1][$half..].as_ptr());
+                let mut sz = _mm256_loadu_ps(acc[2][$half..].as_ptr());
+                for (k, $b) in (first..end).zip(&lanes.values[first..end]) {
+                    let o = &offset[k][$half..$half + 8];
+                    // Register `e`'s 128-bit half `j` holds lane `4 j + e`'s `x, y, z, 0`.
+                    macro_rules! pair {
+                        ($e:literal) => {
+                            _mm256_insertf128_ps::<1>(
+                                _mm256_castps128_ps256(_mm_loadu_ps(
+                                    origin.add(4 * o[$e] as usize),
+                                )),
+                                _mm_loadu_ps(origin.add(4 * o[$e + 4] as usize)),
+                            )
+                        };
+                    }
+                    let (q0, q1, q2, q3) = (pair!(0), pair!(1), pair!(2), pair!(3));
+                    let (t0, t1) = (_mm256_unpacklo_ps(q0, q1), _mm256_unpackhi_ps(q0, q1));
+                    let (t2, t3) = (_mm256_unpacklo_ps(q2, q3), _mm256_unpackhi_ps(q2, q3));
+                    let $x = _mm256_shuffle_ps::<0x44>(t0, t2);
+                    let $y = _mm256_shuffle_ps::<0xEE>(t0, t2);
+                    let $z = _mm256_shuffle_ps::<0x44>(t1, t3);
+                    let (px, py, pz) = $term;
+                    let live = _mm256_set1_epi32((k - first) as i32);
+                    let live = _mm256_castsi256_ps(_mm256_cmpgt_epi32(lengths, live));
+                    sx = _mm256_add_ps(sx, _mm256_blendv_ps(negative_zero, px, live));
+                    sy = _mm256_add_ps(sy, _mm256_blendv_ps(negative_zero, py, live));
+                    sz = _mm256_add_ps(sz, _mm256_blendv_ps(negative_zero, pz, live));
+                }
+                _mm256_storeu_ps(acc[0][$half..].as_mut_ptr(), sx);
+                _mm256_storeu_ps(acc[1][$half..].as_mut_ptr(), sy);
+                _mm256_storeu_ps(acc[2][$half..].as_mut_ptr(), sz);
+            }
+        }
+    };
+}
+
+// Each block's term as `Sym3::mul` computes it: each component's three products added left
+// to right.
+#[cfg(target_arch = "x86_64")]
+packed_kernel!(add_packed_blocks, 6, |b, half, x, y, z| {
+    let m = |c: usize| b[c][half..].as_ptr();
+    let (m0, m1, m2) = (
+        _mm256_loadu_ps(m(0)),
+        _mm256_loadu_ps(m(1)),
+        _mm256_loadu_ps(m(2)),
+    );
+    let (m3, m4, m5) = (
+        _mm256_loadu_ps(m(3)),
+        _mm256_loadu_ps(m(4)),
+        _mm256_loadu_ps(m(5)),
+    );
+    let (mx, my, mz) = (
+        _mm256_mul_ps(m0, x),
+        _mm256_mul_ps(m3, y),
+        _mm256_mul_ps(m4, z),
+    );
+    let px = _mm256_add_ps(_mm256_add_ps(mx, my), mz);
+    let (mx, my, mz) = (
+        _mm256_mul_ps(m3, x),
+        _mm256_mul_ps(m1, y),
+        _mm256_mul_ps(m5, z),
+    );
+    let py = _mm256_add_ps(_mm256_add_ps(mx, my), mz);
+    let (mx, my, mz) = (
+        _mm256_mul_ps(m4, x),
+        _mm256_mul_ps(m5, y),
+        _mm256_mul_ps(m2, z),
+    );
+    let pz = _mm256_add_ps(_mm256_add_ps(mx, my), mz);
+    (px, py, pz)
+});
+
+// Each weight's term `w x`.
+#[cfg(target_arch = "x86_64")]
+packed_kernel!(add_packed_weights, 1, |b, half, x, y, z| {
+    let w = _mm256_loadu_ps(b[0][half..].as_ptr());
+    (
+        _mm256_mul_ps(w, x),
+        _mm256_mul_ps(w, y),
+        _mm256_mul_ps(w, z),
+    )
+});
+
 impl BlockLanes {
     /// [`Lanes::apply_range`] of the blocks, each term `block x_column` as [`Sym3::mul`]
     /// computes it.
+    ///
+    /// Where the rows read are few enough ([`PACKED_ROWS_A_LANE`]) and the CPU has AVX2, the
+    /// operand's rows are first packed as `[x, y, z, 0]`, and each slot's sixteen operands
+    /// read as sixteen 16-byte loads turned into x, y and z vectors by shuffles, not by three
+    /// 16-wide gathers, which cost about a load an element: 16 loads a slot against 48
+    /// (docs/mesh_cloth.md, "Speed", 2026-12-06). Each lane adds the same terms in the same
+    /// order either way, so the product is bitwise the same.
     #[inline(always)]
     pub fn apply_blocks(
         &self,
@@ -364,12 +614,17 @@ impl BlockLanes {
         out: &mut Vec3SliceMut,
         start: impl Fn(usize, Vec3) -> Vec3,
     ) {
+        #[cfg(target_arch = "x86_64")]
+        if self.apply_packed(x, &range, out, &start, add_packed_blocks) {
+            return;
+        }
         self.apply_range(x, range, out, start, |b, x| Sym3(b).mul(x));
     }
 }
 
 impl WeightLanes {
-    /// [`Lanes::apply_range`] of the weights, each term `w x_column`.
+    /// [`Lanes::apply_range`] of the weights, each term `w x_column`; packed as
+    /// [`BlockLanes::apply_blocks`] is, where it pays.
     #[inline(always)]
     pub fn apply_weights(
         &self,
@@ -378,6 +633,10 @@ impl WeightLanes {
         out: &mut Vec3SliceMut,
         start: impl Fn(usize, Vec3) -> Vec3,
     ) {
+        #[cfg(target_arch = "x86_64")]
+        if self.apply_packed(x, &range, out, &start, add_packed_weights) {
+            return;
+        }
         self.apply_range(x, range, out, start, |[w], x| w * x);
     }
 }
@@ -401,6 +660,70 @@ mod tests {
             offsets.push(columns.len() as u32);
         }
         (offsets, columns, blocks)
+    }
+
+    /// A banded matrix (each row's columns within 40 of it, so that a product packs its
+    /// operand where the CPU allows) with rows of 0 to 19 entries, of blocks and of weights,
+    /// multiplied packed and gathered over ranges that cut windows and groups: bitwise the same, a lane whose sum
+    /// starts at `-0.0` and adds only padding included.
+    #[test]
+    fn a_packed_product_is_bitwise_the_gathered_product() {
+        let n = 1500;
+        let hash = |i: usize| (i as u32).wrapping_mul(2654435761) >> 7;
+        let (mut offsets, mut columns, mut blocks) = (vec![0u32], Vec::new(), Vec::new());
+        for v in 0..n {
+            for k in 0..hash(v) % 20 {
+                let c = (v + (hash(v * 31 + k as usize) % 81) as usize).saturating_sub(40);
+                columns.push(c.min(n - 1) as u32);
+                let b = |c: usize| (hash(columns.len() * 7 + c) % 2001) as f32 / 1000.0 - 1.0;
+                blocks.push(Sym3(std::array::from_fn(b)));
+            }
+            offsets.push(columns.len() as u32);
+        }
+        let sources: Vec<u32> = (0..columns.len() as u32).collect();
+        let mut lanes = BlockLanes::new(&offsets, &columns, &sources, n);
+        lanes.refill(&blocks, |b| b.0);
+        let mut weights = WeightLanes::new(&offsets, &columns, &sources, n);
+        weights.refill(&blocks, |b| [b.0[3]]);
+        let x = Vec3s::from_fn(n, |v| {
+            Vec3::new(v as f32 * 0.37 - 9.0, -1.5, (v as f32).sin())
+        });
+        let start = |v: usize, _| match v % 3 {
+            0 => Vec3::splat(-0.0),
+            _ => Vec3::splat(v as f32 * 0.01),
+        };
+        #[cfg(target_arch = "x86_64")]
+        let packs =
+            crate::simd::isa() != crate::simd::Isa::Baseline && is_x86_feature_detected!("avx2");
+        for range in [
+            0..n,
+            0..1024,
+            1024..n,
+            3..17,
+            255..257,
+            700..1300,
+            1499..1500,
+        ] {
+            #[cfg(target_arch = "x86_64")]
+            assert_eq!(lanes.packed_span(&range).is_some(), packs, "{range:?}");
+            #[cfg(target_arch = "x86_64")]
+            assert_eq!(weights.packed_span(&range).is_some(), packs, "{range:?}");
+            let (mut packed, mut gathered) = (Vec3s::zeros(n), Vec3s::zeros(n));
+            let mut out = packed.slices_mut(range.clone());
+            lanes.apply_blocks(&x, range.clone(), &mut out, start);
+            let mut out = gathered.slices_mut(range.clone());
+            lanes.apply_range(&x, range.clone(), &mut out, start, |b, x| Sym3(b).mul(x));
+            let (mut packed_w, mut gathered_w) = (Vec3s::zeros(n), Vec3s::zeros(n));
+            let mut out = packed_w.slices_mut(range.clone());
+            weights.apply_weights(&x, range.clone(), &mut out, start);
+            let mut out = gathered_w.slices_mut(range.clone());
+            weights.apply_range(&x, range.clone(), &mut out, start, |[w], x| w * x);
+            for v in range {
+                let bits = |y: &Vec3s| y.get(v).to_array().map(f32::to_bits);
+                assert_eq!(bits(&packed), bits(&gathered), "row {v}");
+                assert_eq!(bits(&packed_w), bits(&gathered_w), "row {v}, weights");
+            }
+        }
     }
 
     #[test]
