@@ -51,6 +51,7 @@ mod geometry;
 mod in_solve;
 mod list;
 mod pair;
+mod parts;
 mod repulsion;
 mod search;
 mod topology;
@@ -282,6 +283,11 @@ pub struct SelfCollision {
     marked: Vec<bool>,
     /// Pairs the repulsion looks at, and whether each was in contact in some sweep.
     near: Vec<(u32, bool)>,
+    /// The buffers of the repulsion's and the cap's ordered parallel filters, kept.
+    near_parts: parts::Parts<(u32, bool)>,
+    /// The pairs the cap's round finds too fast, with each one's factor.
+    violations: Vec<(u32, f64)>,
+    violation_parts: parts::Parts<(u32, f64)>,
     scale: Vec<f64>,
     scale_next: Vec<f64>,
     /// Whether the cap's last round changed each vertex's scale.
@@ -344,6 +350,9 @@ impl SelfCollision {
             saved: Vec::new(),
             marked: Vec::new(),
             near: Vec::new(),
+            near_parts: Default::default(),
+            violations: Vec::new(),
+            violation_parts: Default::default(),
             scale: Vec::new(),
             scale_next: Vec::new(),
             rescaled: Vec::new(),
