@@ -672,7 +672,7 @@ impl Broad {
     }
 
     /// Each triangle's and edge's tight box at `x`.
-    fn fit_tight(&mut self, topo: &Topology, x: &Vec3s) {
+    pub fn fit_tight(&mut self, topo: &Topology, x: &Vec3s) {
         let tight = |vs: &[u32]| {
             let (lo, hi) = bounds(x, vs);
             Aabb { min: lo, max: hi }
