@@ -105,9 +105,12 @@ impl Walk {
 /// allocates nothing.
 pub struct WalkScratch<T> {
     front: Vec<Walk>,
-    stack: Vec<(Walk, usize)>,
-    runs: Vec<(Vec<T>, Vec<(Walk, usize)>)>,
+    stack: Stack,
+    runs: Vec<(Vec<T>, Stack)>,
 }
+
+/// The node pairs a walk has still to open, each with its depth below the walk's root.
+type Stack = Vec<(Walk, usize)>;
 
 impl<T> Default for WalkScratch<T> {
     fn default() -> Self {

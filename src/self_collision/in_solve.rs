@@ -687,6 +687,25 @@ mod tests {
         }
     }
 
+    /// The built-in twist's model and its particles' positions at rest.
+    fn twist_at_rest() -> (Model, Vec3s) {
+        Model::new(crate::Scene::builtin("twist").unwrap()).unwrap()
+    }
+
+    /// A pair to the bit: its vertices, split, closest-point weights, normal and distance.
+    type PairBits = ([u32; 4], usize, [u64; 4], [u64; 3], u64);
+
+    fn pair_bits(p: &Pair) -> PairBits {
+        let (c, n) = (p.c.map(f64::to_bits), p.n.to_array().map(f64::to_bits));
+        (p.verts, p.split, c, n, p.d0.to_bits())
+    }
+
+    /// Positions and velocities to the bit.
+    fn state_bits(k: &Kinematics) -> [Vec<u32>; 6] {
+        let c = [&k.pos.x, &k.pos.y, &k.pos.z, &k.vel.x, &k.vel.y, &k.vel.z];
+        c.map(|c| c.iter().map(|x| x.to_bits()).collect::<Vec<_>>())
+    }
+
     /// A solve given no pair ahead because all are too far apart to be held, which then moves
     /// the cloth farther than that allows for, asks for them, and the step is solved again
     /// with them: a cloth at rest whose list shows its pairs apart steps bitwise as with the
@@ -738,21 +757,13 @@ mod tests {
     #[test]
     fn the_pass_given_its_pairs_by_the_step_s_one_search_steps_as_with_its_own_search() {
         let thickness = 1.2e-2;
-        let scene = crate::Scene::builtin("twist").unwrap();
-        let (model, pos) = Model::new(scene).unwrap();
+        let (model, pos) = twist_at_rest();
         let n = model.grid.len();
         let h = 1.0 / 240.0;
         let mut one = SelfCollision::new(thickness, 0.0, 2);
         let mut two = SelfCollision::new(thickness, 0.0, 2);
         two.whole_searches = true;
-        let bits = |p: &Pair| {
-            let (c, n) = (p.c.map(f64::to_bits), p.n.to_array().map(f64::to_bits));
-            (p.verts, p.split, c, n, p.d0.to_bits())
-        };
-        let state = |k: &Kinematics| {
-            let c = [&k.pos.x, &k.pos.y, &k.pos.z, &k.vel.x, &k.vel.y, &k.vel.z];
-            c.map(|c| c.iter().map(|x| x.to_bits()).collect::<Vec<_>>())
-        };
+        let (bits, state) = (pair_bits, state_bits);
         let mut taken_with_outside = 0u64;
         for k in 0..40u32 {
             let speed = 1.0 + 0.05 * k as f32;
@@ -819,22 +830,14 @@ mod tests {
     #[test]
     fn a_substep_run_again_is_given_the_same_pairs_ahead_and_its_pass_the_same_pairs() {
         let thickness = 1.2e-2;
-        let scene = crate::Scene::builtin("twist").unwrap();
-        let (model, pos) = Model::new(scene).unwrap();
+        let (model, pos) = twist_at_rest();
         let n = model.grid.len();
         let h = 1.0 / 240.0;
         let mut one = SelfCollision::new(thickness, 0.0, 2);
-        let bits = |p: &Pair| {
-            let (c, n) = (p.c.map(f64::to_bits), p.n.to_array().map(f64::to_bits));
-            (p.verts, p.split, c, n, p.d0.to_bits())
-        };
         let same = |a: &[Pair], b: &[Pair]| {
-            a.len() == b.len() && a.iter().zip(b).all(|(a, b)| bits(a) == bits(b))
+            a.len() == b.len() && a.iter().zip(b).all(|(a, b)| pair_bits(a) == pair_bits(b))
         };
-        let state = |k: &Kinematics| {
-            let c = [&k.pos.x, &k.pos.y, &k.pos.z, &k.vel.x, &k.vel.y, &k.vel.z];
-            c.map(|c| c.iter().map(|x| x.to_bits()).collect::<Vec<_>>())
-        };
+        let state = state_bits;
         let (mut again_taken, mut found) = (0, 0);
         for k in 0..24u32 {
             let wave = |p: usize, t: f32| {
