@@ -159,6 +159,40 @@ fn a_quiet_substep_on_a_kept_pair_list_allocates_nothing() {
     });
 }
 
+/// A step of a cloth in self-contact, its pairs held inside implicit Euler's solve, allocates
+/// nothing once its buffers have grown to what the step needs: the searches, the filters of
+/// their candidates and pairs, the repulsion and the cap keep their buffers from step to step
+/// (grown afresh at every step, the 128 x 128 twist's were megabytes the kernel zeroed page by
+/// page). The built-in `pile` as it lands on itself; the same steps are run four times from
+/// one state, restored into the same simulation (which keeps its buffers), and the last two
+/// counted, whose steps start as the second's did in every respect (the fewer of the two: see
+/// the module documentation on rayon's own rare allocations).
+#[test]
+fn a_step_holding_self_contact_allocates_nothing_once_its_buffers_have_grown() {
+    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    with_threads(2, || {
+        rayon::broadcast(|_| WATCHED.with(|w| w.set(true)));
+        let scene = Scene::builtin("pile").unwrap();
+        let mut sim = Simulation::new(scene).unwrap();
+        sim.step(96).unwrap(); // 0.8 s: the folds are landing on each other
+        let from = sim.snapshot();
+        let before = sim.self_collision_stats().unwrap();
+        let mut counts = Vec::new();
+        for _ in 0..4 {
+            sim = sim.continuing(from.clone()).unwrap();
+            let (allocations, ()) = counted(|| sim.step(12).unwrap());
+            counts.push(allocations);
+        }
+        let after = sim.self_collision_stats().unwrap();
+        assert!(
+            after.pairs > before.pairs && after.swept_substeps > before.swept_substeps,
+            "the steps held no pair or took no swept search"
+        );
+        let fewest = counts[2].min(counts[3]);
+        assert_eq!(fewest, 0, "steps in self-contact allocated: {counts:?}");
+    });
+}
+
 #[test]
 fn the_watchdog_retry_path_does_not_allocate() {
     // The allocation test armed the watchdog with a limit that never tripped, so the retry

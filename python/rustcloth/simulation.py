@@ -752,7 +752,9 @@ class Simulation:
         instead (``ahead_from_list``; not counted: those it showed have none), that list's
         builds (``ahead_rebuilds``), the steps whose pairs ahead it showed all too far apart
         to be held and left out (``ahead_apart``) and of those the steps whose solve moved
-        far enough to ask for them and was solved again (``ahead_asked``), the substeps whose
+        far enough to ask for them and was solved again (``ahead_asked``), the solves given the
+        last pairs ahead again, from the same start along the same paths to the bit, as a
+        substep's passes run again (``ahead_again``; not searched or listed), the substeps whose
         pass took its pairs from the step's one search instead of searching again
         (``pass_from_ahead``) and the vertices it looked up on their own there, the solve having
         ended them outside their budget (``pass_outside``, summed), and substeps drawn

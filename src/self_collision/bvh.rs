@@ -100,6 +100,40 @@ impl Walk {
     }
 }
 
+/// What a walk of [`Bvh::overlapping_pairs`] keeps from one call to the next: its front, its
+/// stack, and each run's output and stack, so that a walk finding no more than an earlier one
+/// allocates nothing.
+pub struct WalkScratch<T> {
+    front: Vec<Walk>,
+    stack: Stack,
+    runs: Vec<(Vec<T>, Stack)>,
+}
+
+/// The node pairs a walk has still to open, each with its depth below the walk's root.
+type Stack = Vec<(Walk, usize)>;
+
+impl<T> Default for WalkScratch<T> {
+    fn default() -> Self {
+        WalkScratch {
+            front: Vec::new(),
+            stack: Vec::new(),
+            runs: Vec::new(),
+        }
+    }
+}
+
+impl<T> WalkScratch<T> {
+    pub fn heap_bytes(&self) -> usize {
+        let walk = size_of::<(Walk, usize)>();
+        let runs = self.runs.iter();
+        self.front.capacity() * size_of::<Walk>()
+            + self.stack.capacity() * walk
+            + runs
+                .map(|(f, s)| f.capacity() * size_of::<T>() + s.capacity() * walk)
+                .sum::<usize>()
+    }
+}
+
 /// A node of the wide tree: the binary tree with every other level collapsed, so its up to
 /// four children are the binary node's children, or their children where those are inner.
 /// Their boxes lane by lane, so one box is tested against all four in one compare.
@@ -338,6 +372,7 @@ impl Bvh {
         other: Option<&Bvh>,
         emit: impl Fn(u32, u32, &mut Vec<T>) -> bool + Sync,
         out: &mut Vec<T>,
+        scratch: &mut WalkScratch<T>,
     ) -> (u64, u64) {
         out.clear();
         let b = other.unwrap_or(self);
@@ -353,35 +388,41 @@ impl Bvh {
             b: b.wide_root,
             same,
         };
-        let (mut front, mut stack) = (Vec::new(), Vec::new());
+        let WalkScratch { front, stack, runs } = scratch;
+        front.clear();
         let limit = Some(FRONT_DEPTH);
-        let mut counts = self.walk(b, root, limit, &mut front, &emit, out, &mut stack);
+        let mut counts = self.walk(b, root, limit, front, &emit, out, stack);
         counts.0 += !same as u64;
         // A few runs of the front a thread, each walked into one buffer with one stack: a
         // buffer and a stack a node pair of the front cost more than the walk below many of
         // them. The runs come back in the front's order, so the output does not depend on
-        // how the front was cut.
+        // how the front was cut. The buffers are kept from walk to walk: grown afresh each
+        // time, the large ones were the kernel's to zero page by page.
         let run = front
             .len()
             .div_ceil(4 * rayon::current_num_threads())
             .max(1);
-        let done: Vec<(Vec<T>, (u64, u64))> = front
+        let n = front.len().div_ceil(run);
+        if runs.len() < n {
+            runs.resize_with(n, Default::default);
+        }
+        let (tested, looked) = front
             .par_chunks(run)
-            .map(|ws| {
-                let (mut found, mut stack, mut counts) = (Vec::new(), Vec::new(), (0, 0));
+            .zip(runs[..n].par_iter_mut())
+            .map(|(ws, (found, stack))| {
+                found.clear();
+                let mut counts = (0, 0);
                 for &w in ws {
-                    let c = self.walk(b, w, None, &mut Vec::new(), &emit, &mut found, &mut stack);
+                    let c = self.walk(b, w, None, &mut Vec::new(), &emit, found, stack);
                     counts = (counts.0 + c.0, counts.1 + c.1);
                 }
-                (found, counts)
+                counts
             })
-            .collect();
-        for (found, (tested, looked)) in done {
-            out.extend(found);
-            counts.0 += tested;
-            counts.1 += looked;
+            .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+        for (found, _) in &mut runs[..n] {
+            out.append(found);
         }
-        counts
+        (counts.0 + tested, counts.1 + looked)
     }
 
     /// Calls `each` with every item whose box at the last refit overlaps `query` (closed boxes,
@@ -587,8 +628,8 @@ mod tests {
             out.push((i, j));
             true
         };
-        let mut found = Vec::new();
-        let (_, looked) = first.overlapping_pairs(Some(&second), emit, &mut found);
+        let (mut found, mut scratch) = (Vec::new(), WalkScratch::default());
+        let (_, looked) = first.overlapping_pairs(Some(&second), emit, &mut found, &mut scratch);
         assert_eq!(looked as usize, found.len());
         found.sort_unstable();
         let brute: Vec<(u32, u32)> = (0..a.len() as u32)
@@ -601,7 +642,7 @@ mod tests {
             out.push((i.min(j), i.max(j)));
             true
         };
-        first.overlapping_pairs(None, ordered, &mut found);
+        first.overlapping_pairs(None, ordered, &mut found, &mut scratch);
         found.sort_unstable();
         let brute: Vec<(u32, u32)> = (0..a.len() as u32)
             .flat_map(|i| (i + 1..a.len() as u32).map(move |j| (i, j)))
@@ -623,7 +664,7 @@ mod tests {
                 true
             };
             let mut walked = Vec::new();
-            one.overlapping_pairs(Some(&tree), emit, &mut walked);
+            one.overlapping_pairs(Some(&tree), emit, &mut walked, &mut Default::default());
             let mut found = Vec::new();
             assert!(tree.overlapping(&query, |j| found.push(j)) > 0);
             walked.sort_unstable();
@@ -646,7 +687,7 @@ mod tests {
             let (mut tree, mut other) = (Bvh::default(), Bvh::default());
             tree.build(&a);
             let mut found = Vec::new();
-            tree.overlapping_pairs(None, emit, &mut found);
+            tree.overlapping_pairs(None, emit, &mut found, &mut Default::default());
             found.sort_unstable();
             let brute: Vec<(u32, u32)> = (0..n as u32)
                 .flat_map(|i| (i + 1..n as u32).map(move |j| (i, j)))
@@ -659,7 +700,7 @@ mod tests {
                 out.push((i, j));
                 true
             };
-            tree.overlapping_pairs(Some(&other), across, &mut found);
+            tree.overlapping_pairs(Some(&other), across, &mut found, &mut Default::default());
             found.sort_unstable();
             let brute: Vec<(u32, u32)> = (0..n as u32)
                 .flat_map(|i| (0..b.len() as u32).map(move |j| (i, j)))
@@ -676,6 +717,9 @@ mod tests {
         assert!(tree.is_built_for(0));
         let mut found: Vec<()> = Vec::new();
         let never = |_, _, _: &mut Vec<()>| -> bool { panic!() };
-        assert_eq!(tree.overlapping_pairs(None, never, &mut found), (0, 0));
+        assert_eq!(
+            tree.overlapping_pairs(None, never, &mut found, &mut Default::default()),
+            (0, 0)
+        );
     }
 }

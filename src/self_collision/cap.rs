@@ -18,7 +18,6 @@
 //! too, and stay in their capsule (see the parent module).
 
 use glam::{DVec3, Vec3};
-use rayon::prelude::*;
 
 use super::pair::Pair;
 use super::SelfCollision;
@@ -68,26 +67,28 @@ impl SelfCollision {
             // with (a violated pair rescales its own vertices).
             let (s, rescaled) = (&self.scale, &self.rescaled);
             let motion = (&self.cap_start[..], &self.cap_move[..]);
-            let violations: Vec<(u32, f64)> = self
-                .pairs
-                .par_iter()
-                .enumerate()
-                .with_min_len(1024)
-                .filter(|(_, pair)| rounds == 0 || pair.verts.iter().any(|&v| rescaled[v as usize]))
-                .filter_map(|(k, pair)| {
-                    cap_factor(pair, s, motion, eps, rounds).map(|f| (k as u32, f))
-                })
-                .collect();
+            let unsafe_pair = |k: usize, pair: &Pair| {
+                if rounds > 0 && !pair.verts.iter().any(|&v| rescaled[v as usize]) {
+                    return None;
+                }
+                cap_factor(pair, s, motion, eps, rounds).map(|f| (k as u32, f))
+            };
+            let mut violations = std::mem::take(&mut self.violations);
+            violations.clear();
+            self.violation_parts
+                .filter_map_into(&self.pairs, 1024, unsafe_pair, &mut violations);
             let violated = !violations.is_empty();
             if violated && !whole {
+                self.violations = violations;
                 return false;
             }
-            for (k, f) in violations {
+            for &(k, f) in &violations {
                 for &v in &self.pairs[k as usize].verts {
                     let v = v as usize;
                     self.scale_next[v] = self.scale_next[v].min(self.scale[v] * f);
                 }
             }
+            self.violations = violations;
             if !violated {
                 break;
             }

@@ -51,6 +51,7 @@ mod geometry;
 mod in_solve;
 mod list;
 mod pair;
+mod parts;
 mod repulsion;
 mod search;
 mod topology;
@@ -142,6 +143,10 @@ pub struct SelfCollisionStats {
     /// then moved the cloth far enough to ask for them (the step is solved again with them).
     pub ahead_apart: u64,
     pub ahead_asked: u64,
+    /// Solves given the last pairs ahead again, from the same start along the same paths ahead,
+    /// bit for bit (a substep's passes run again, the solve holding what the pass moved): not
+    /// searched or listed again.
+    pub ahead_again: u64,
     /// Substeps whose pass after the solve took its pairs from the step's one search (the
     /// search ahead widened by each vertex's budget, `in_solve.rs`) instead of a search of its
     /// own, and the vertices it looked up on their own there, having ended outside their
@@ -203,6 +208,7 @@ impl Default for SelfCollisionStats {
             ahead_rebuilds: 0,
             ahead_apart: 0,
             ahead_asked: 0,
+            ahead_again: 0,
             pass_from_ahead: 0,
             pass_outside: 0,
             contacts: 0,
@@ -235,6 +241,12 @@ pub struct SelfCollision {
     /// a swept search from there, bit for bit, takes over their closest points.
     ahead_from: Vec3s,
     ahead_kept: bool,
+    /// The start and the paths' ends of the last pairs ahead, while those pairs are what a
+    /// search from them gives (`ahead_again`): not where they were left out as too far apart,
+    /// whose solve may ask for them.
+    again_from: Vec3s,
+    again_ahead: Vec3s,
+    ahead_again: bool,
     /// The step's one search (`in_solve.rs`, `search_wide`): each vertex's box and reach (m,
     /// by particle), wide enough for the search ahead and, for each vertex the solve ends within
     /// its budget, for the pass after it; the round-off margin it was found with, whether its
@@ -282,6 +294,11 @@ pub struct SelfCollision {
     marked: Vec<bool>,
     /// Pairs the repulsion looks at, and whether each was in contact in some sweep.
     near: Vec<(u32, bool)>,
+    /// The buffers of the repulsion's and the cap's ordered parallel filters, kept.
+    near_parts: parts::Parts<(u32, bool)>,
+    /// The pairs the cap's round finds too fast, with each one's factor.
+    violations: Vec<(u32, f64)>,
+    violation_parts: parts::Parts<(u32, f64)>,
     scale: Vec<f64>,
     scale_next: Vec<f64>,
     /// Whether the cap's last round changed each vertex's scale.
@@ -318,6 +335,9 @@ impl SelfCollision {
             ahead: Vec3s::zeros(0),
             ahead_from: Vec3s::zeros(0),
             ahead_kept: false,
+            again_from: Vec3s::zeros(0),
+            again_ahead: Vec3s::zeros(0),
+            ahead_again: false,
             wide_boxes: Vec::new(),
             wide_side: Vec::new(),
             wide_eps: 0.0,
@@ -344,6 +364,9 @@ impl SelfCollision {
             saved: Vec::new(),
             marked: Vec::new(),
             near: Vec::new(),
+            near_parts: Default::default(),
+            violations: Vec::new(),
+            violation_parts: Default::default(),
             scale: Vec::new(),
             scale_next: Vec::new(),
             rescaled: Vec::new(),
@@ -467,6 +490,7 @@ impl SelfCollision {
             self.broad.forget_kept();
             self.ahead_kept = false;
             self.wide_ready = false;
+            self.ahead_again = false;
             self.off_inertia.clear();
             self.marked = vec![false; model.grid.len()];
         }
@@ -778,6 +802,8 @@ impl SelfCollision {
             + (self.pairs.capacity() + self.ahead_pairs.capacity()) * size_of::<Pair>()
             + self.ahead.heap_bytes()
             + self.ahead_from.heap_bytes()
+            + self.again_from.heap_bytes()
+            + self.again_ahead.heap_bytes()
             + self.wide_boxes.capacity() * size_of::<Aabb>()
             + self.wide_side.capacity() * 8
             + self.off_inertia.capacity() * size_of::<Vec3>()

@@ -11,7 +11,6 @@
 //! with weights summing to zero, so momentum is conserved.
 
 use glam::DVec3;
-use rayon::prelude::*;
 
 use super::pair::inverse_mass;
 use super::SelfCollision;
@@ -33,14 +32,11 @@ impl SelfCollision {
         // Pairs beyond twice the gap are out of the sweeps' reach (each moves a vertex by at
         // most the gap's shortfall). An ordered parallel filter: the same for any thread count.
         let pos = &next.pos;
-        self.near.par_extend(
-            self.pairs
-                .par_iter()
-                .enumerate()
-                .with_min_len(1024)
-                .filter(|(_, pair)| pair.n != DVec3::ZERO && pair.gap(pos) < 2.0 * thickness)
-                .map(|(k, _)| (k as u32, false)),
-        );
+        let near = |k: usize, pair: &super::pair::Pair| {
+            (pair.n != DVec3::ZERO && pair.gap(pos) < 2.0 * thickness).then_some((k as u32, false))
+        };
+        self.near_parts
+            .filter_map_into(&self.pairs, 1024, near, &mut self.near);
         for sweep in 0..self.iterations {
             let mut any = false;
             for slot in &mut self.near {

@@ -6,8 +6,9 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::self_collision::bvh::{Aabb, Bvh};
+use crate::self_collision::bvh::{Aabb, Bvh, WalkScratch};
 use crate::self_collision::pair::{distance, edge_edge, vertex_triangle, Candidate, Pair};
+use crate::self_collision::parts::Parts;
 use crate::self_collision::per_surface_vertex;
 use crate::self_collision::topology::Topology;
 use crate::soa::Vec3s;
@@ -72,6 +73,13 @@ pub struct Broad {
     vert_side: Vec<f64>,
     tri_side: Vec<f64>,
     edge_side: Vec<f64>,
+    /// The buffers the searches' parallel parts fill, kept from search to search (the walks of
+    /// the vertex-triangle and the edge-edge trees, the filters of candidates and of pairs):
+    /// the 128 x 128 twist finds megabytes of them a step, which, allocated afresh, the kernel
+    /// zeroed page by page (8.8 % of its samples).
+    walks: [WalkScratch<Keyed>; 2],
+    keyed_parts: Parts<Keyed>,
+    pair_parts: Parts<Pair>,
 }
 
 /// The keys of the pairs a [`Broad::search_near`] found, in the order of
@@ -186,8 +194,10 @@ impl Broad {
             std::mem::take(&mut self.candidate_vt),
             std::mem::take(&mut self.candidate_ee),
         );
+        let mut walks = std::mem::take(&mut self.walks);
         let tests = self.swept_tests(topo, x, (base, eps, margin), order, (true, false));
-        let looked = self.find(&tests, &mut vt, &mut ee);
+        let looked = self.find(&tests, &mut vt, &mut ee, &mut walks);
+        self.walks = walks;
         self.take_found(topo, x, order, reuse, (&vt, &ee), out);
         (self.candidate_vt, self.candidate_ee) = (vt, ee);
         looked
@@ -219,6 +229,7 @@ impl Broad {
             std::mem::take(&mut self.candidate_vt),
             std::mem::take(&mut self.candidate_ee),
         );
+        let mut parts = std::mem::take(&mut self.keyed_parts);
         let tests = self.swept_tests(topo, x, (base, eps, margin), order, (false, false));
         let vb = vertex_boxes;
         let by_rank = &self.by_rank;
@@ -241,12 +252,7 @@ impl Broad {
             tests.close([v, a, b, c], 1, (v, t)).map(|most| (key, most))
         };
         vt.clear();
-        vt.par_extend(
-            of_vt
-                .par_iter()
-                .with_min_len(1024)
-                .filter_map(vertex_triangle),
-        );
+        parts.filter_map_into(of_vt, 1024, |_, k| vertex_triangle(k), &mut vt);
         let edge_edge = |&k: &u32| {
             let key = listed.keys[k as usize];
             let (e, f) = ((key >> 32) as u32, key as u32);
@@ -257,7 +263,8 @@ impl Broad {
             tests.close([a, b, c, d], 2, (e, f)).map(|most| (key, most))
         };
         ee.clear();
-        ee.par_extend(of_ee.par_iter().with_min_len(1024).filter_map(edge_edge));
+        parts.filter_map_into(of_ee, 1024, |_, k| edge_edge(k), &mut ee);
+        self.keyed_parts = parts;
         let looked = Looked {
             boxes: 0,
             candidates: (vt.len() + ee.len()) as u64,
@@ -289,8 +296,10 @@ impl Broad {
         );
         vt.clear();
         ee.clear();
+        let mut walks = std::mem::take(&mut self.walks);
         let tests = self.swept_tests(topo, x, (base, eps, margin), Order::Index, (true, true));
-        let looked = self.find(&tests, &mut vt, &mut ee);
+        let looked = self.find(&tests, &mut vt, &mut ee, &mut walks);
+        self.walks = walks;
         (self.wide_vt, self.wide_ee) = (vt, ee);
         looked
     }
@@ -335,6 +344,7 @@ impl Broad {
             std::mem::take(&mut self.outside_vt),
             std::mem::take(&mut self.outside_ee),
         );
+        let mut parts = std::mem::take(&mut self.keyed_parts);
         let tests = self.swept_tests(topo, x, (base, eps, margin), Order::Index, (true, false));
         let (vb, tri_boxes, edge_boxes) = (vertex_boxes, &self.tri_boxes, &self.edge_boxes);
         let inside =
@@ -376,7 +386,7 @@ impl Broad {
             (&mut ee, &self.wide_ee, &edge_edge),
         ] {
             out.clear();
-            out.par_extend(wide.par_iter().with_min_len(1024).filter_map(filter));
+            parts.filter_map_into(wide, 1024, |_, c| filter(c), out);
         }
         let mut looked = Looked {
             boxes: 0,
@@ -387,6 +397,7 @@ impl Broad {
             vt.extend_from_slice(&more_vt);
             ee.extend_from_slice(&more_ee);
         }
+        self.keyed_parts = parts;
         self.take_found(topo, x, Order::Index, reuse, (&vt, &ee), out);
         (self.candidate_vt, self.candidate_ee) = (vt, ee);
         (self.outside_vt, self.outside_ee) = (more_vt, more_ee);
@@ -459,6 +470,7 @@ impl Broad {
             self.kept_for = Some(order);
         }
         let mut sorted = std::mem::take(&mut self.sorted_candidates);
+        let mut parts = std::mem::take(&mut self.pair_parts);
         for (split, found, buckets) in [(1, vt, topo.same.len()), (2, ee, topo.edges.len())] {
             sorted.clear();
             let (starts, cursor) = (&mut self.starts, &mut self.cursor);
@@ -517,13 +529,14 @@ impl Broad {
                 }
             } else {
                 let near = |c: &(u64, f64)| Some(closest(c)).filter(|p| p.d0 < c.1);
-                out.par_extend(sorted.par_iter().with_min_len(256).filter_map(near));
+                parts.filter_map_into(&sorted, 256, |_, c| near(c), out);
             }
         }
         if keep {
             self.kept_pairs = keeping;
         }
         self.sorted_candidates = sorted;
+        self.pair_parts = parts;
     }
 
     /// Forgets the candidates a search kept: they are not to be taken over.
@@ -576,10 +589,12 @@ impl Broad {
                 .then_some((&self.tight_tris[..], &self.tight_edges[..])),
             measure,
         };
+        let mut walks = std::mem::take(&mut self.walks);
         let looked = match moved {
-            None => self.find(&tests, &mut vt, &mut ee),
+            None => self.find(&tests, &mut vt, &mut ee, &mut walks),
             Some(moved) => self.find_touching(&tests, moved, &mut vt, &mut ee),
         };
+        self.walks = walks;
         // Sorted with their distances, as small as where each is, so that the list reads them
         // in order.
         let (starts, cursor, sorted) = (&mut self.starts, &mut self.cursor, &mut self.sorted_near);
@@ -657,7 +672,7 @@ impl Broad {
     }
 
     /// Each triangle's and edge's tight box at `x`.
-    fn fit_tight(&mut self, topo: &Topology, x: &Vec3s) {
+    pub fn fit_tight(&mut self, topo: &Topology, x: &Vec3s) {
         let tight = |vs: &[u32]| {
             let (lo, hi) = bounds(x, vs);
             Aabb { min: lo, max: hi }
@@ -667,18 +682,22 @@ impl Broad {
 
     /// Into `vt` and `ee`, in an order fixed by the trees: every vertex-triangle and edge-edge
     /// pair whose boxes overlap and which passes `tests`.
-    fn find<R: Send>(
+    fn find(
         &self,
-        tests: &PairTests<impl Fn([u32; 4], usize, f64, f64) -> Option<R> + Sync>,
-        vt: &mut Vec<(u64, R)>,
-        ee: &mut Vec<(u64, R)>,
+        tests: &PairTests<impl Fn([u32; 4], usize, f64, f64) -> Option<f64> + Sync>,
+        vt: &mut Vec<Keyed>,
+        ee: &mut Vec<Keyed>,
+        [walk_vt, walk_ee]: &mut [WalkScratch<Keyed>; 2],
     ) -> Looked {
         let vertex_triangle_pair = |k, t, out: &mut _| tests.vertex_triangle(k, t, out);
+        let tri_tree = Some(&self.tri_tree);
         let (boxes, candidates) =
             self.vert_tree
-                .overlapping_pairs(Some(&self.tri_tree), vertex_triangle_pair, vt);
+                .overlapping_pairs(tri_tree, vertex_triangle_pair, vt, walk_vt);
         let edge_edge_pair = |e, f, out: &mut _| tests.edge_edge(e, f, out);
-        let more = self.edge_tree.overlapping_pairs(None, edge_edge_pair, ee);
+        let more = self
+            .edge_tree
+            .overlapping_pairs(None, edge_edge_pair, ee, walk_ee);
         Looked { boxes, candidates }.and(Looked {
             boxes: more.0,
             candidates: more.1,
@@ -758,6 +777,13 @@ impl Broad {
             + self.vert_tree.heap_bytes()
             + self.tri_tree.heap_bytes()
             + self.edge_tree.heap_bytes()
+            + self
+                .walks
+                .iter()
+                .map(WalkScratch::heap_bytes)
+                .sum::<usize>()
+            + self.keyed_parts.heap_bytes()
+            + self.pair_parts.heap_bytes()
             + (self.tight_tris.capacity() + self.tight_edges.capacity()) * size_of::<Aabb>()
             + (self.vert_side.capacity() + self.tri_side.capacity() + self.edge_side.capacity()) * 8
     }
