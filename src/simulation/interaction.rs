@@ -10,8 +10,8 @@ use crate::cutting_rest::{Cut, LiveStroke, MeshSheet, Reach, RestSheet, SheetPoi
 use crate::error::{Error, Result};
 use crate::interaction::{Grab, DRAG_TIME, GRIP_SPACINGS};
 use crate::model::Model;
+use crate::picking::pick_triangle_scan;
 use crate::picking::STROKE_TREE_MIN_RAYS;
-use crate::picking::{pick_triangle_brute_force_where, pick_triangle_scan};
 use crate::picking::{BvhStats, ParticleHit, PickStrategy, Picker, Queries, TriangleHit};
 use crate::ray::Ray;
 
@@ -408,14 +408,10 @@ impl Simulation {
             return self.sever_checked(&stroke, &mut || false);
         };
         // Every triangle whose corners are alive, severed or not, names the material under it.
-        let (pos, alive) = (&self.state.kin.pos, &self.model.particles.alive);
-        let points: Vec<Option<SheetPoint>> = (rays.iter())
-            .map(|ray| {
-                pick_triangle_brute_force_where(ray, pos, &topology.triangles, |t| {
-                    topology.triangles[t].iter().all(|&v| alive[v as usize])
-                })
-                .map(|hit| sheet.at(hit.index, hit.barycentric))
-            })
+        let points: Vec<Option<SheetPoint>> = (self.picker)
+            .material_triangles(&self.model, &self.state, &rays)
+            .into_iter()
+            .map(|hit| hit.map(|hit| sheet.at(hit.index, hit.barycentric)))
             .collect();
         let exit = |c: u32, from: DVec2, dir: DVec2| sheet.exit_distance(c, from, dir);
         let severed = self.live_cuts(&rays, &points, sheet.spacing, exit, |sim, cut, out| {
@@ -565,4 +561,76 @@ fn checked_rays(rays: &[(Vec3, Vec3)]) -> Result<Vec<Ray>> {
             Ray::named(o, d, &origin, &dir)
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::picking::pick_triangle_brute_force_where;
+    use crate::scene::Scene;
+
+    /// Rays along each axis through a lattice over the cloth's bounding box, and slanted ones.
+    fn rays_over(pos: &crate::soa::Vec3s, alive: &[bool], k: usize) -> Vec<Ray> {
+        let live = (0..pos.len()).filter(|&p| alive[p]).map(|p| pos.get(p));
+        let (lo, hi) = live.fold((Vec3::MAX, Vec3::MIN), |(lo, hi), x| (lo.min(x), hi.max(x)));
+        let mut rays = Vec::new();
+        for axis in 0..3 {
+            let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+            for i in 0..k {
+                for j in 0..k {
+                    let (s, t) = ((i as f32 + 0.5) / k as f32, (j as f32 + 0.5) / k as f32);
+                    let mut origin = lo - Vec3::ONE;
+                    origin[u] = lo[u] + s * (hi[u] - lo[u]);
+                    origin[v] = lo[v] + t * (hi[v] - lo[v]);
+                    let mut dir = Vec3::ZERO;
+                    dir[axis] = 1.0;
+                    rays.push(Ray::new(origin, dir).unwrap());
+                    rays.push(Ray::new(origin, dir + 0.3 * Vec3::ONE).unwrap());
+                }
+            }
+        }
+        rays
+    }
+
+    #[test]
+    fn the_live_stroke_tree_pick_equals_testing_every_material_triangle_on_a_cut_moving_mesh() {
+        let mut sim = Simulation::new(Scene::builtin("flag_hole").unwrap()).unwrap();
+        sim.picker.set_strategy(PickStrategy::Bvh);
+        sim.advance(1.0).unwrap();
+        let mut severed_hits = 0;
+        for round in 0..3 {
+            // A stroke across the crumpled flag, frame by frame with the cloth moving between,
+            // and a particle cut out, so that the tree has both kinds of change to follow.
+            let live: Vec<usize> = (0..sim.model.grid.len())
+                .filter(|&p| sim.model.particles.alive[p])
+                .collect();
+            let probe = rays_over(&sim.state.kin.pos, &sim.model.particles.alive, 6);
+            for frame in probe.chunks(12).take(4) {
+                let frame: Vec<(Vec3, Vec3)> = frame.iter().map(|r| (r.origin, r.dir)).collect();
+                sim.sever_live_stroke(&frame).unwrap();
+                sim.advance(0.02).unwrap();
+            }
+            sim.end_live_stroke();
+            sim.cut(live[live.len() / (round + 2)] as i64).unwrap();
+            sim.advance(0.05).unwrap();
+
+            let (model, state) = (&sim.model, &sim.state);
+            let topology = model.mesh_topology().unwrap();
+            let alive = &model.particles.alive;
+            let rays = rays_over(&state.kin.pos, alive, 24);
+            let tree = sim.picker.material_triangles(model, state, &rays);
+            assert_eq!(tree.len(), rays.len());
+            for (ray, hit) in rays.iter().zip(tree) {
+                let all = pick_triangle_brute_force_where(
+                    ray,
+                    &state.kin.pos,
+                    &topology.triangles,
+                    |t| topology.triangles[t].iter().all(|&v| alive[v as usize]),
+                );
+                assert_eq!(hit, all, "round {round}, ray {ray:?}");
+                severed_hits += hit.is_some_and(|h| !model.triangle_drawn(h.index)) as usize;
+            }
+        }
+        assert!(severed_hits > 0, "no ray met a severed triangle");
+    }
 }
