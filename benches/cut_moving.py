@@ -194,7 +194,7 @@ def main() -> int:
         return 0
     for scene in args.scene:
         for still in (False, True):
-            two, counts = 0, []
+            two, counts, slivers = 0, [], 0
             for fps in (60.0, 20.0, 8.0):
                 for height in (0.3, 0.6, 0.85):
                     cut, pieces, sim, runs = live_stroke(scene, height, fps,
@@ -203,12 +203,14 @@ def main() -> int:
                                                          swept=args.swept)
                     two += pieces >= 2
                     counts.append(cut)
+                    slivers += sum(1 for k in sizes(sim) if k < 3)
                     print(f"{scene} {'still' if still else 'moving'} fps {fps:4.0f} "
                           f"height {height:.2f}: {cut} springs cut, {pieces} pieces "
                           f"{sizes(sim)[:4]}, came on {runs} times"
                           + (f" digest {digest(sim)}" if args.digest else ""))
             print(f"{scene} {'still' if still else 'moving'}: two or more pieces in {two} of 9,"
-                  f" springs cut {min(counts)}-{max(counts)}")
+                  f" springs cut {min(counts)}-{max(counts)}, slivers (pieces under 3 particles)"
+                  f" {slivers}")
     return 0
 
 

@@ -39,6 +39,7 @@ pub use ray::{
 };
 
 use crate::error::{Error, Result};
+use crate::grid::triangle_alive;
 use crate::model::Model;
 use crate::state::State;
 
@@ -125,8 +126,8 @@ pub struct Picker {
     strategy: PickStrategy,
     particles: Option<Cached<ParticleBvh>>,
     triangles: Option<Cached<TriangleBvh>>,
-    /// A mesh's triangles whose corners are alive, severed or not: the material a live
-    /// stroke names ([`Picker::material_triangles`]).
+    /// The triangles whose corners are alive, severed or not: the material a live stroke
+    /// names ([`Picker::material_triangles`]).
     material: Option<Cached<TriangleBvh>>,
     /// Stable triangle id -> position in `Simulation::triangles()`, for a topology version.
     triangle_rank: Option<(u64, Vec<u32>)>,
@@ -222,27 +223,29 @@ impl Picker {
         Some(hit)
     }
 
-    /// For each of `rays`, the nearest of a mesh's triangles whose corners are all alive,
-    /// severed or not (a ray over a slit still names the material under it), `index` its
-    /// position in the mesh's list: the same answer as [`pick_triangle_brute_force_where`]
-    /// with that filter, bit for bit (the tree's leaves are those triangles, its search the
-    /// one [`Picker::triangle`] uses). Empty on a grid cloth.
+    /// For each of `rays`, the nearest of the triangles whose corners are all alive, severed
+    /// or not (a ray over a slit still names the material under it), `index` its stable id (a
+    /// mesh's position in its list, a grid cell's [`cell_triangle`]): the same answer as
+    /// testing each of them ([`pick_triangle_brute_force_where`] with that filter on a mesh,
+    /// [`pick_triangle_scan`] on the grid), bit for bit: the tree's leaves are those
+    /// triangles, its search the one [`Picker::triangle`] uses.
     ///
-    /// Under [`PickStrategy::Auto`] a frame of [`STROKE_TREE_MIN_RAYS`] rays or more, or one on
-    /// the state the tree was last fitted to, uses the tree (kept between frames: refitted
+    /// Under [`PickStrategy::Auto`] a batch of [`STROKE_TREE_MIN_RAYS`] rays or more, or one on
+    /// the state the tree was last fitted to, uses the tree (kept between calls: refitted
     /// once when the cloth moved, `O(n)`, and stripped of the triangles whose corners died);
-    /// fewer rays test every triangle, cheaper than a refit.
+    /// fewer rays test the triangles, cheaper than a refit.
     pub fn material_triangles(
         &mut self,
         model: &Model,
         state: &State,
         rays: &[Ray],
     ) -> Vec<Option<TriangleHit>> {
-        let Some(topology) = model.mesh_topology() else {
-            return Vec::new();
+        let (grid, pos, alive) = (model.grid, &state.kin.pos, &model.particles.alive);
+        let topology = model.mesh_topology();
+        let material = |t: usize| match topology {
+            Some(topology) => topology.triangles[t].iter().all(|&v| alive[v as usize]),
+            None => triangle_alive(grid, alive, t),
         };
-        let (pos, alive) = (&state.kin.pos, &model.particles.alive);
-        let material = |t: usize| topology.triangles[t].iter().all(|&v| alive[v as usize]);
         let now = versions(model, state);
         let tree = match self.strategy {
             PickStrategy::Bvh => true,
@@ -255,7 +258,12 @@ impl Picker {
         if !tree {
             self.stats.triangle_scans += rays.len() as u64;
             return (rays.iter())
-                .map(|ray| pick_triangle_brute_force_where(ray, pos, &topology.triangles, material))
+                .map(|ray| match topology {
+                    Some(topology) => {
+                        pick_triangle_brute_force_where(ray, pos, &topology.triangles, material)
+                    }
+                    None => pick_triangle_scan(ray, grid, pos, alive),
+                })
                 .collect();
         }
         let cache = match &mut self.material {
