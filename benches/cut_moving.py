@@ -9,13 +9,21 @@ dropped over a ball) and ``mesh_hanging`` (``hanging`` as an irregular mesh) hav
 shapes, which the live stroke is held on.
 
     PYTHONPATH=python python benches/cut_moving.py [--scene hanging mesh_hanging flag_hole]
-        [--settle 3] [--swept]
+        [--settle 3] [--swept] [--digest]
+
+``--digest`` adds to each run a hash of the cloth after it (piece labels, severed springs'
+count, positions), to show two builds cut alike bit for bit. ``--cost 32 128`` instead times a
+cutting frame (``sever_live_stroke``, CPU time on this thread): a straight stroke of 22 rays a
+frame across the irregular ``hanging`` mesh of that size and the grid of that size, moving (the
+cloth advanced between frames, not timed) and held still.
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
 import sys
+import time
 from typing import Any
 
 import numpy as np
@@ -49,12 +57,12 @@ def jittered_square(n: int, seed: int = 0, jitter: float = 0.3) -> tuple[np.ndar
     return vertices, np.array(triangles, dtype=np.int64)
 
 
-def mesh_hanging() -> Scene:
-    """``hanging`` as an irregular 32 x 32 mesh of the same material (stretch modulus
+def mesh_hanging(n: int = 32) -> Scene:
+    """``hanging`` as an irregular ``n`` x ``n`` mesh of the same material (stretch modulus
     ``2 (k_structural + 2 k_shear)``, bend ``8 k_bend``, the same mass), held by the same two
     corners, with three substeps a step (the mesh's stiffest spring is stiffer than the
     grid's)."""
-    vertices, triangles = jittered_square(32)
+    vertices, triangles = jittered_square(n)
     pins = [{"box": [[-0.51, 1.49, 0.49], [-0.49, 1.51, 0.51]]},
             {"box": [[0.49, 1.49, 0.49], [0.51, 1.51, 0.51]]}]
     return Simulation("hanging").scene.replace(substeps=3).with_cloth_mesh(
@@ -132,6 +140,37 @@ def sizes(sim: Simulation) -> list[int]:
     return sorted(counts.tolist(), reverse=True)
 
 
+def digest(sim: Simulation) -> str:
+    """A hash of the cloth as it is: which piece each particle is in, and where it is."""
+    h = hashlib.sha256(np.asarray(sim.piece_labels()).tobytes())
+    h.update(np.ascontiguousarray(sim.positions).tobytes())
+    return h.hexdigest()[:12]
+
+
+def frame_cost(n: int, mesh: bool, still: bool, frames: int = 12,
+               rays_a_frame: int = 22) -> list[float]:
+    """CPU seconds of each ``sever_live_stroke`` frame of a straight stroke across ``hanging``
+    (``n`` x ``n``, the grid or the irregular mesh) at a third of its depth, from 10 cm off one
+    edge to 10 cm off the other, looking straight down on it as it is laid out; the cloth
+    advances 1/50 s between frames (untimed) unless ``still``."""
+    scene = mesh_hanging(n) if mesh else Simulation("hanging").scene.replace(
+        cloth={"nx": n, "ny": n})
+    # Implicit Euler: the finer meshes are past symplectic Euler's stable step.
+    sim = Simulation(scene.replace(integrator="implicit_euler"))
+    xs = np.linspace(-0.6, 0.6, frames * rays_a_frame)
+    times = []
+    for k in range(frames):
+        rays = [((float(x), 3.0, 0.17), (0.0, -1.0, 0.0))
+                for x in xs[k * rays_a_frame:(k + 1) * rays_a_frame]]
+        t0 = time.process_time()
+        sim.sever_live_stroke(rays)
+        times.append(time.process_time() - t0)
+        if not still:
+            sim.advance(0.02)
+    sim.end_live_stroke()
+    return times
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--scene", nargs="+", default=["hanging"])
@@ -139,10 +178,23 @@ def main() -> int:
     ap.add_argument("--stroke", type=float, default=0.6)
     ap.add_argument("--swept", action="store_true",
                     help="cut as the viewer did before: frame by frame, by the swept surface")
+    ap.add_argument("--digest", action="store_true",
+                    help="print a hash of the cloth after each run")
+    ap.add_argument("--cost", type=int, nargs="+", metavar="N",
+                    help="time a cutting frame on the N x N grid and mesh instead")
     args = ap.parse_args()
+    if args.cost:
+        for n in args.cost:
+            for mesh in (False, True):
+                for still in (False, True):
+                    ms = 1e3 * np.array(frame_cost(n, mesh, still))
+                    print(f"cost {n}x{n} {'mesh' if mesh else 'grid'} "
+                          f"{'still' if still else 'moving'}: {ms.mean():.3f} ms a frame "
+                          f"(first {ms[0]:.3f}, median {np.median(ms):.3f})")
+        return 0
     for scene in args.scene:
         for still in (False, True):
-            two, counts = 0, []
+            two, counts, slivers = 0, [], 0
             for fps in (60.0, 20.0, 8.0):
                 for height in (0.3, 0.6, 0.85):
                     cut, pieces, sim, runs = live_stroke(scene, height, fps,
@@ -151,11 +203,14 @@ def main() -> int:
                                                          swept=args.swept)
                     two += pieces >= 2
                     counts.append(cut)
+                    slivers += sum(1 for k in sizes(sim) if k < 3)
                     print(f"{scene} {'still' if still else 'moving'} fps {fps:4.0f} "
                           f"height {height:.2f}: {cut} springs cut, {pieces} pieces "
-                          f"{sizes(sim)[:4]}, came on {runs} times")
+                          f"{sizes(sim)[:4]}, came on {runs} times"
+                          + (f" digest {digest(sim)}" if args.digest else ""))
             print(f"{scene} {'still' if still else 'moving'}: two or more pieces in {two} of 9,"
-                  f" springs cut {min(counts)}-{max(counts)}")
+                  f" springs cut {min(counts)}-{max(counts)}, slivers (pieces under 3 particles)"
+                  f" {slivers}")
     return 0
 
 

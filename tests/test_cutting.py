@@ -425,3 +425,44 @@ def test_a_cut_whose_sides_have_not_parted_is_drawn_closed_on_a_bent_cloth():
     sim.set_positions(parted.astype(np.float32))
     gaps = _seam_gaps(sim)
     assert np.isfinite(gaps).all() and gaps.min() > 0.3 * spacing and gaps.max() < 3 * spacing
+
+
+
+def _folded(gap: float) -> Simulation:
+    """``hanging`` at 16 x 16 (flat at rest, at y = 1.5), its half at x > 0 folded over onto
+    the other half, ``gap`` m above it."""
+    sim = Simulation(Simulation("hanging").scene.replace(cloth={"nx": 16, "ny": 16}))
+    folded = np.array(sim.positions, dtype=np.float32)
+    over = folded[:, 0] > 0.0
+    folded[over, 0] *= -1.0
+    folded[over, 1] += gap
+    sim.set_positions(folded)
+    return sim
+
+
+def _stroke_down_across(sim: Simulation, x: float) -> None:
+    """A stroke looking straight down, from off the cloth to off it along z at ``x``, in four
+    frames, the cloth held still."""
+    zs = np.linspace(-0.7, 0.7, 41)
+    for frame in np.array_split(zs, 4):
+        sim.sever_live_stroke([((x, 3.0, float(z)), (0.0, -1.0, 0.0)) for z in frame])
+    sim.end_live_stroke()
+
+
+def test_a_held_still_stroke_across_a_folded_cloth_cuts_every_layer_without_a_sliver():
+    """Looking down on a cloth folded in two, a stroke from off it to off it passes over both
+    layers: the rest sheet cuts the top one under the mouse, the swept surface the one hidden
+    behind it, so the cloth falls into three pieces (the strip between the two cuts holds the
+    fold), none of them a sliver of one or two particles."""
+    sim = _folded(gap=0.15)
+    _stroke_down_across(sim, -0.23)
+    sizes = np.unique(sim.piece_labels()[sim.alive], return_counts=True)[1]
+    assert sim.pieces() == 3, sizes
+    assert sizes.min() >= 3, sizes
+
+
+def test_a_stroke_over_a_single_layer_cuts_nothing_behind_it():
+    """Laid flat, the same stroke meets one layer: two pieces, as the rest sheet alone cuts."""
+    sim = Simulation(Simulation("hanging").scene.replace(cloth={"nx": 16, "ny": 16}))
+    _stroke_down_across(sim, -0.23)
+    assert sim.pieces() == 2

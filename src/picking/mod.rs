@@ -39,6 +39,7 @@ pub use ray::{
 };
 
 use crate::error::{Error, Result};
+use crate::grid::triangle_alive;
 use crate::model::Model;
 use crate::state::State;
 
@@ -125,6 +126,9 @@ pub struct Picker {
     strategy: PickStrategy,
     particles: Option<Cached<ParticleBvh>>,
     triangles: Option<Cached<TriangleBvh>>,
+    /// The triangles whose corners are alive, severed or not: the material a live stroke
+    /// names ([`Picker::material_triangles`]).
+    material: Option<Cached<TriangleBvh>>,
     /// Stable triangle id -> position in `Simulation::triangles()`, for a topology version.
     triangle_rank: Option<(u64, Vec<u32>)>,
     /// Versions of the last particle / triangle scan.
@@ -219,6 +223,74 @@ impl Picker {
         Some(hit)
     }
 
+    /// For each of `rays`, the nearest of the triangles whose corners are all alive, severed
+    /// or not (a ray over a slit still names the material under it), `index` its stable id (a
+    /// mesh's position in its list, a grid cell's [`cell_triangle`]): the same answer as
+    /// testing each of them ([`pick_triangle_brute_force_where`] with that filter on a mesh,
+    /// [`pick_triangle_scan`] on the grid), bit for bit: the tree's leaves are those
+    /// triangles, its search the one [`Picker::triangle`] uses.
+    ///
+    /// Under [`PickStrategy::Auto`] a batch of [`STROKE_TREE_MIN_RAYS`] rays or more, or one on
+    /// the state the tree was last fitted to, uses the tree (kept between calls: refitted
+    /// once when the cloth moved, `O(n)`, and stripped of the triangles whose corners died);
+    /// fewer rays test the triangles, cheaper than a refit.
+    pub fn material_triangles(
+        &mut self,
+        model: &Model,
+        state: &State,
+        rays: &[Ray],
+    ) -> Vec<Option<TriangleHit>> {
+        let (grid, pos, alive) = (model.grid, &state.kin.pos, &model.particles.alive);
+        let topology = model.mesh_topology();
+        let material = |t: usize| match topology {
+            Some(topology) => topology.triangles[t].iter().all(|&v| alive[v as usize]),
+            None => triangle_alive(grid, alive, t),
+        };
+        let now = versions(model, state);
+        let tree = match self.strategy {
+            PickStrategy::Bvh => true,
+            PickStrategy::Scan => false,
+            PickStrategy::Auto => {
+                rays.len() >= STROKE_TREE_MIN_RAYS
+                    || self.material.as_ref().is_some_and(|c| c.versions == now)
+            }
+        };
+        if !tree {
+            self.stats.triangle_scans += rays.len() as u64;
+            return (rays.iter())
+                .map(|ray| match topology {
+                    Some(topology) => {
+                        pick_triangle_brute_force_where(ray, pos, &topology.triangles, material)
+                    }
+                    None => pick_triangle_scan(ray, grid, pos, alive),
+                })
+                .collect();
+        }
+        let cache = match &mut self.material {
+            None => {
+                self.stats.triangle_builds += 1;
+                let tree = TriangleBvh::build_where(model.triangle_ids(), pos, material);
+                self.material.insert(Cached {
+                    tree,
+                    versions: now,
+                })
+            }
+            Some(cache) => {
+                if cache.versions.1 != now.1 {
+                    // Particles only ever leave: a dead corner's triangles leave the tree.
+                    self.stats.triangle_removals += cache.tree.remove_undrawn(material) as u64;
+                }
+                if cache.versions.0 != now.0 {
+                    cache.tree.refit(pos);
+                    self.stats.triangle_refits += 1;
+                }
+                cache.versions = now;
+                cache
+            }
+        };
+        rays.iter().map(|ray| cache.tree.cast(ray, pos)).collect()
+    }
+
     /// After particle `p` was cut by a query: its leaves leave the trees that were up to date
     /// (`before`), which stay valid without a refit since a cut moves nothing.
     pub fn after_cut(&mut self, model: &Model, state: &State, p: usize, before: (u64, u64)) {
@@ -247,6 +319,7 @@ impl Picker {
     pub fn drop_caches(&mut self) {
         self.particles = None;
         self.triangles = None;
+        self.material = None;
         self.triangle_rank = None;
         self.particle_scanned_at = None;
         self.triangle_scanned_at = None;
@@ -256,6 +329,7 @@ impl Picker {
     pub fn heap_bytes(&self) -> usize {
         self.particles.as_ref().map_or(0, |c| c.tree.heap_bytes())
             + self.triangles.as_ref().map_or(0, |c| c.tree.heap_bytes())
+            + self.material.as_ref().map_or(0, |c| c.tree.heap_bytes())
             + self
                 .triangle_rank
                 .as_ref()

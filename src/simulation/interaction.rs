@@ -10,10 +10,11 @@ use crate::cutting_rest::{Cut, LiveStroke, MeshSheet, Reach, RestSheet, SheetPoi
 use crate::error::{Error, Result};
 use crate::interaction::{Grab, DRAG_TIME, GRIP_SPACINGS};
 use crate::model::Model;
+use crate::picking::pick_triangle_scan;
 use crate::picking::STROKE_TREE_MIN_RAYS;
-use crate::picking::{pick_triangle_brute_force_where, pick_triangle_scan};
 use crate::picking::{BvhStats, ParticleHit, PickStrategy, Picker, Queries, TriangleHit};
 use crate::ray::Ray;
+use crate::scene::EdgeKind;
 
 impl Simulation {
     /// Half-size in m of the box around each particle that `pick` tests the ray against.
@@ -354,6 +355,11 @@ impl Simulation {
     /// rest shape is curved every pair of rays is cut by its swept surface, the last frame's
     /// last ray joined to this frame's first.
     ///
+    /// On the grid the layers hidden behind the first one a ray meets are cut too, by the
+    /// surface the frame's rays sweep, on those layers only
+    /// ([`HIDDEN_LAYER_SPACINGS`], [`HIDDEN_LAYER_MIN_PIECE`]); a mesh cloth's are not (every
+    /// variant measured left slivers on a mesh scene, docs/cutting.md).
+    ///
     /// Every ray is checked before anything changes, as in [`Simulation::sever_stroke`].
     pub fn sever_live_stroke(&mut self, rays: &[(Vec3, Vec3)]) -> Result<usize> {
         let rays = checked_rays(rays)?;
@@ -367,34 +373,53 @@ impl Simulation {
             // points are picked before any spring goes.
             let (grid, pos) = (self.model.grid, &self.state.kin.pos);
             let alive = &self.model.particles.alive;
-            let points: Vec<Option<SheetPoint>> = (rays.iter())
-                .map(|ray| {
-                    pick_triangle_scan(ray, grid, pos, alive)
-                        .map(|hit| (0, sheet.at(hit.index, hit.barycentric)))
-                })
+            let hits: Vec<Option<TriangleHit>> = (rays.iter())
+                .map(|ray| pick_triangle_scan(ray, grid, pos, alive))
+                .collect();
+            let points: Vec<Option<SheetPoint>> = (hits.iter())
+                .map(|hit| hit.map(|hit| (0, sheet.at(hit.index, hit.barycentric))))
                 .collect();
             let exit = |_: u32, from: DVec2, dir: DVec2| sheet.exit_distance(from, dir);
-            return Ok(
-                self.live_cuts(&rays, &points, step, exit, |sim, cut, out| match cut {
-                    Cut::Rest(_, a, b) => {
-                        let alive = &sim.model.particles.alive;
-                        sheet.crossings(&sim.model.springs, alive, (a, b), out);
-                    }
-                    Cut::Swept(r0, r1) => {
-                        let (model, pos) = (&sim.model, &sim.state.kin.pos);
-                        let alive = &model.particles.alive;
-                        let swept = (sim.cutter).crossings(
-                            model.grid,
-                            &model.springs,
-                            alive,
-                            pos,
-                            &[r0, r1],
-                            &mut || false,
-                        );
-                        out.extend_from_slice(swept.unwrap_or_default());
-                    }
-                }),
+            let hidden = self.hidden_layer_crossings(
+                (&rays, &hits),
+                (HIDDEN_LAYER_SPACINGS * step) as f32,
+                |sim, stroke| {
+                    let (model, pos) = (&sim.model, &sim.state.kin.pos);
+                    let alive = &model.particles.alive;
+                    (sim.cutter)
+                        .crossings(model.grid, &model.springs, alive, pos, stroke, &mut || {
+                            false
+                        })
+                        .unwrap_or_default()
+                        .to_vec()
+                },
+                |sim, ((kind, anchor), t)| {
+                    let pos = &sim.state.kin.pos;
+                    let partner = sim.model.grid.partner(anchor, kind).unwrap_or(anchor);
+                    pos.get(anchor).lerp(pos.get(partner), t)
+                },
             );
+            let severed = self.live_cuts(&rays, &points, step, exit, |sim, cut, out| match cut {
+                Cut::Rest(_, a, b) => {
+                    let alive = &sim.model.particles.alive;
+                    sheet.crossings(&sim.model.springs, alive, (a, b), out);
+                }
+                Cut::Swept(r0, r1) => {
+                    let (model, pos) = (&sim.model, &sim.state.kin.pos);
+                    let alive = &model.particles.alive;
+                    let swept = (sim.cutter).crossings(
+                        model.grid,
+                        &model.springs,
+                        alive,
+                        pos,
+                        &[r0, r1],
+                        &mut || false,
+                    );
+                    out.extend_from_slice(swept.unwrap_or_default());
+                }
+            });
+            let hidden = self.without_slivers(hidden, grid_ends);
+            return Ok(severed + Crossing::sever(&mut self.model, &hidden));
         };
         let sheet = self
             .mesh_sheet
@@ -408,14 +433,10 @@ impl Simulation {
             return self.sever_checked(&stroke, &mut || false);
         };
         // Every triangle whose corners are alive, severed or not, names the material under it.
-        let (pos, alive) = (&self.state.kin.pos, &self.model.particles.alive);
-        let points: Vec<Option<SheetPoint>> = (rays.iter())
-            .map(|ray| {
-                pick_triangle_brute_force_where(ray, pos, &topology.triangles, |t| {
-                    topology.triangles[t].iter().all(|&v| alive[v as usize])
-                })
-                .map(|hit| sheet.at(hit.index, hit.barycentric))
-            })
+        let points: Vec<Option<SheetPoint>> = (self.picker)
+            .material_triangles(&self.model, &self.state, &rays)
+            .into_iter()
+            .map(|hit| hit.map(|hit| sheet.at(hit.index, hit.barycentric)))
             .collect();
         let exit = |c: u32, from: DVec2, dir: DVec2| sheet.exit_distance(c, from, dir);
         let severed = self.live_cuts(&rays, &points, sheet.spacing, exit, |sim, cut, out| {
@@ -434,6 +455,148 @@ impl Simulation {
         });
         self.mesh_sheet = Some(Some(sheet));
         Ok(severed)
+    }
+
+    /// `hidden` less the crossings that would leave a piece of fewer than
+    /// [`HIDDEN_LAYER_MIN_PIECE`] particles once severed with the springs already gone: where
+    /// the swept surface meets a layer at a grazing angle, or runs beside the rest sheet's cut
+    /// where a layer turns into the first one, it isolates a particle or two, which no one
+    /// meant to cut out. `ends` names a crossing's spring's two particles.
+    fn without_slivers<C: Copy>(
+        &self,
+        mut hidden: Vec<C>,
+        ends: impl Fn(&Simulation, C) -> (usize, usize),
+    ) -> Vec<C> {
+        let (model, alive) = (&self.model, &self.model.particles.alive);
+        let mut links: Vec<(usize, usize)> = Vec::new();
+        match model.mesh() {
+            Some(mesh) => {
+                let s = &mesh.springs;
+                links.extend(
+                    (0..s.len())
+                        // A seam joins no pieces ([`Simulation::pieces`]).
+                        .filter(|&e| s.active[e] && s.kind[e] != EdgeKind::Seam)
+                        .map(|e| (s.a[e] as usize, s.b[e] as usize)),
+                );
+            }
+            None => {
+                for kind in crate::grid::SpringKind::ALL {
+                    model
+                        .springs
+                        .for_each(model.grid, kind, |a, b, _| links.push((a, b)));
+                }
+            }
+        }
+        links.retain(|&(a, b)| alive[a] && alive[b]);
+        // Dropping crossings only joins pieces, so a few rounds settle it.
+        for _ in 0..4 {
+            let cut: std::collections::HashSet<(usize, usize)> = (hidden.iter())
+                .map(|&c| {
+                    let (a, b) = ends(self, c);
+                    (a.min(b), a.max(b))
+                })
+                .collect();
+            let n = alive.len();
+            let mut parent: Vec<usize> = (0..n).collect();
+            fn root(parent: &mut [usize], mut x: usize) -> usize {
+                while parent[x] != x {
+                    parent[x] = parent[parent[x]];
+                    x = parent[x];
+                }
+                x
+            }
+            for &(a, b) in &links {
+                if !cut.contains(&(a.min(b), a.max(b))) {
+                    let (ra, rb) = (root(&mut parent, a), root(&mut parent, b));
+                    parent[ra.max(rb)] = ra.min(rb);
+                }
+            }
+            let label: Vec<usize> = (0..n).map(|p| root(&mut parent, p)).collect();
+            let mut size = vec![0usize; n];
+            for p in (0..n).filter(|&p| alive[p]) {
+                size[label[p]] += 1;
+            }
+            let before = hidden.len();
+            let whole = |p: usize| size[label[p]] >= HIDDEN_LAYER_MIN_PIECE;
+            hidden.retain(|&c| {
+                let (a, b) = ends(self, c);
+                whole(a) && whole(b)
+            });
+            if hidden.len() == before {
+                break;
+            }
+        }
+        hidden
+    }
+
+    /// The crossings of the surface this frame's stroke sweeps through the cloth as it is now
+    /// (`rays`, after the last frame's last ray) that lie on layers hidden behind the first
+    /// one each ray meets: farther along the line of sight from the nearest ray's origin than
+    /// the first material there by more than `margin` (m). The rest sheet cuts the layer under
+    /// the mouse; a crumpled or folded cloth has layers behind it that the mouse passed over
+    /// too, and cutting those by the swept surface leaves the first layer to the sheet alone:
+    /// the two cuts never run side by side on one layer, which would isolate slivers between
+    /// them. `swept` lists the swept surface's crossings, `point` where one is.
+    ///
+    /// `hits` are the first hits of `rays`. Nothing is swept when no ray meets a second layer
+    /// past its first hit (a flat or gently draped cloth): one more scan a ray.
+    fn hidden_layer_crossings<C: Copy>(
+        &mut self,
+        (rays, hits): (&[Ray], &[Option<TriangleHit>]),
+        margin: f32,
+        swept: impl FnOnce(&mut Simulation, &[Ray]) -> Vec<C>,
+        point: impl Fn(&Simulation, C) -> Vec3,
+    ) -> Vec<C> {
+        let stroke: Vec<Ray> = (self.live.last_ray.into_iter())
+            .chain(rays.iter().copied())
+            .collect();
+        if stroke.len() < 2 {
+            return Vec::new();
+        }
+        // A scan a ray (a tree would be refitted for these few queries on every frame).
+        let (grid, pos, alive) = (
+            self.model.grid,
+            &self.state.kin.pos,
+            &self.model.particles.alive,
+        );
+        let layer_behind = (rays.iter().zip(hits)).any(|(ray, hit)| {
+            hit.and_then(|hit| {
+                Ray::new(ray.origin + ray.dir * (hit.distance + margin), ray.dir).ok()
+            })
+            .is_some_and(|past| pick_triangle_scan(&past, grid, pos, alive).is_some())
+        });
+        if !layer_behind {
+            return Vec::new();
+        }
+        let crossings = swept(self, &stroke);
+        // The line of sight to each crossing, from the origin of the ray nearest it.
+        let sights: Vec<Option<(Ray, f32)>> = (crossings.iter())
+            .map(|&c| {
+                let x = point(self, c);
+                let off = |r: &Ray| {
+                    (x - r.origin)
+                        .reject_from_normalized(r.dir)
+                        .length_squared()
+                };
+                let nearest = stroke.iter().min_by(|a, b| off(a).total_cmp(&off(b)))?;
+                let to = x - nearest.origin;
+                Some((Ray::new(nearest.origin, to).ok()?, to.length()))
+            })
+            .collect();
+        let lines: Vec<Ray> = sights.iter().flatten().map(|s| s.0).collect();
+        let mut first = (self.picker)
+            .material_triangles(&self.model, &self.state, &lines)
+            .into_iter();
+        (crossings.into_iter().zip(sights))
+            .filter(|(_, sight)| {
+                let Some((_, far)) = sight else {
+                    return false;
+                };
+                let first = first.next().flatten();
+                first.is_some_and(|hit| *far > hit.distance + margin)
+            })
+            .map(|(c, _)| c)
+            .collect()
     }
 
     /// The live stroke's course over the rest sheet for this frame's `rays`, which hit the
@@ -565,4 +728,95 @@ fn checked_rays(rays: &[(Vec3, Vec3)]) -> Result<Vec<Ray>> {
             Ray::named(o, d, &origin, &dir)
         })
         .collect()
+}
+
+/// How far behind the first layer a ray meets, in rest spacings (the grid's smaller one), a
+/// layer must lie for the live stroke to cut it by the swept surface
+/// ([`Simulation::sever_live_stroke`]); 1. Nearer, it counts as the first layer itself (a bending
+/// spring's chord lies off the surface, and the swept surface meets the first layer between
+/// two rays at depths between theirs), which the rest sheet already cuts: a second cut beside
+/// the first would isolate slivers. Farther, a fold lying closer behind is left whole.
+pub const HIDDEN_LAYER_SPACINGS: f64 = 1.0;
+
+/// The two particles of a grid crossing's spring.
+fn grid_ends(sim: &Simulation, ((kind, anchor), _): Crossing) -> (usize, usize) {
+    (
+        anchor,
+        sim.model.grid.partner(anchor, kind).unwrap_or(anchor),
+    )
+}
+
+/// The fewest particles a piece the hidden layers' cut leaves may hold (3): fewer is a sliver.
+pub const HIDDEN_LAYER_MIN_PIECE: usize = 3;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::picking::pick_triangle_brute_force_where;
+    use crate::scene::Scene;
+
+    /// Rays along each axis through a lattice over the cloth's bounding box, and slanted ones.
+    fn rays_over(pos: &crate::soa::Vec3s, alive: &[bool], k: usize) -> Vec<Ray> {
+        let live = (0..pos.len()).filter(|&p| alive[p]).map(|p| pos.get(p));
+        let (lo, hi) = live.fold((Vec3::MAX, Vec3::MIN), |(lo, hi), x| (lo.min(x), hi.max(x)));
+        let mut rays = Vec::new();
+        for axis in 0..3 {
+            let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+            for i in 0..k {
+                for j in 0..k {
+                    let (s, t) = ((i as f32 + 0.5) / k as f32, (j as f32 + 0.5) / k as f32);
+                    let mut origin = lo - Vec3::ONE;
+                    origin[u] = lo[u] + s * (hi[u] - lo[u]);
+                    origin[v] = lo[v] + t * (hi[v] - lo[v]);
+                    let mut dir = Vec3::ZERO;
+                    dir[axis] = 1.0;
+                    rays.push(Ray::new(origin, dir).unwrap());
+                    rays.push(Ray::new(origin, dir + 0.3 * Vec3::ONE).unwrap());
+                }
+            }
+        }
+        rays
+    }
+
+    #[test]
+    fn the_live_stroke_tree_pick_equals_testing_every_material_triangle_on_a_cut_moving_mesh() {
+        let mut sim = Simulation::new(Scene::builtin("flag_hole").unwrap()).unwrap();
+        sim.picker.set_strategy(PickStrategy::Bvh);
+        sim.advance(1.0).unwrap();
+        let mut severed_hits = 0;
+        for round in 0..3 {
+            // A stroke across the crumpled flag, frame by frame with the cloth moving between,
+            // and a particle cut out, so that the tree has both kinds of change to follow.
+            let live: Vec<usize> = (0..sim.model.grid.len())
+                .filter(|&p| sim.model.particles.alive[p])
+                .collect();
+            let probe = rays_over(&sim.state.kin.pos, &sim.model.particles.alive, 6);
+            for frame in probe.chunks(12).take(4) {
+                let frame: Vec<(Vec3, Vec3)> = frame.iter().map(|r| (r.origin, r.dir)).collect();
+                sim.sever_live_stroke(&frame).unwrap();
+                sim.advance(0.02).unwrap();
+            }
+            sim.end_live_stroke();
+            sim.cut(live[live.len() / (round + 2)] as i64).unwrap();
+            sim.advance(0.05).unwrap();
+
+            let (model, state) = (&sim.model, &sim.state);
+            let topology = model.mesh_topology().unwrap();
+            let alive = &model.particles.alive;
+            let rays = rays_over(&state.kin.pos, alive, 24);
+            let tree = sim.picker.material_triangles(model, state, &rays);
+            assert_eq!(tree.len(), rays.len());
+            for (ray, hit) in rays.iter().zip(tree) {
+                let all = pick_triangle_brute_force_where(
+                    ray,
+                    &state.kin.pos,
+                    &topology.triangles,
+                    |t| topology.triangles[t].iter().all(|&v| alive[v as usize]),
+                );
+                assert_eq!(hit, all, "round {round}, ray {ray:?}");
+                severed_hits += hit.is_some_and(|h| !model.triangle_drawn(h.index)) as usize;
+            }
+        }
+        assert!(severed_hits > 0, "no ray met a severed triangle");
+    }
 }
