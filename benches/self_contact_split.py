@@ -96,10 +96,11 @@ def main() -> None:
           f"redone {pas.get('redone', 0)}")
     taken = pas.get("pass_from_ahead", 0)
     searches = pas.get("ahead_searches", 0) + substeps - taken
-    print(f"searches a step {searches / (args.frames * args.steps_per_frame):.2f}, "
+    steps = args.frames * args.steps_per_frame
+    print(f"searches a step {searches / steps:.2f}, "
           f"passes taking their pairs from the step's one search {taken / substeps:.2f}, "
           f"vertices outside their budget there {pas.get('pass_outside', 0) / max(taken, 1):.1f}, "
-          f"solves given the pairs ahead again {pas.get('ahead_again', 0) / (args.frames * args.steps_per_frame):.2f} a step")
+          f"solves given the pairs ahead again {pas.get('ahead_again', 0) / steps:.2f} a step")
     x = sim.positions
     end = sample(args.settle + args.frames, x, sim.triangles)
     print(f"state {hashlib.sha1(x.tobytes()).hexdigest()[:12]} at frame {end['frame']}: "
