@@ -187,19 +187,45 @@ impl Broad {
         reuse: Reuse,
         out: &mut Vec<Pair>,
     ) -> Looked {
-        self.fit(topo, vertex_boxes);
-        self.fit_tight(topo, x);
-        self.fit_sides(topo, reach);
         let (mut vt, mut ee) = (
             std::mem::take(&mut self.candidate_vt),
             std::mem::take(&mut self.candidate_ee),
         );
-        let mut walks = std::mem::take(&mut self.walks);
-        let tests = self.swept_tests(topo, x, (base, eps, margin), order, (true, false));
-        let looked = self.find(&tests, &mut vt, &mut ee, &mut walks);
-        self.walks = walks;
+        let limit = (base, reach, eps, margin);
+        let looked = self.walk_trees(
+            topo,
+            (vertex_boxes, x),
+            limit,
+            order,
+            false,
+            (&mut vt, &mut ee),
+        );
         self.take_found(topo, x, order, reuse, (&vt, &ee), out);
         (self.candidate_vt, self.candidate_ee) = (vt, ee);
+        looked
+    }
+
+    /// The trees fitted to `vertex_boxes` (and the tight boxes and sides at `x`) and walked:
+    /// into `vt` and `ee`, every pair whose boxes overlap and which the swept tests at `x`
+    /// keep (`(base, reach, eps, margin)` and `order` as [`Broad::search`] takes them; with
+    /// its tight boxes' distance where `keep_gap`). What [`Broad::search`] and
+    /// [`Broad::search_wide`] share.
+    fn walk_trees(
+        &mut self,
+        topo: &Topology,
+        (vertex_boxes, x): (&[Aabb], &Vec3s),
+        (base, reach, eps, margin): (f64, impl Fn(u32) -> f64 + Sync, f64, f64),
+        order: Order,
+        keep_gap: bool,
+        (vt, ee): (&mut Vec<Keyed>, &mut Vec<Keyed>),
+    ) -> Looked {
+        self.fit(topo, vertex_boxes);
+        self.fit_tight(topo, x);
+        self.fit_sides(topo, reach);
+        let mut walks = std::mem::take(&mut self.walks);
+        let tests = self.swept_tests(topo, x, (base, eps, margin), order, (true, keep_gap));
+        let looked = self.find(&tests, vt, ee, &mut walks);
+        self.walks = walks;
         looked
     }
 
@@ -287,19 +313,21 @@ impl Broad {
         (base, reach, eps): (f64, impl Fn(u32) -> f64 + Sync, f64),
         margin: f64,
     ) -> Looked {
-        self.fit(topo, vertex_boxes);
-        self.fit_tight(topo, x);
-        self.fit_sides(topo, reach);
         let (mut vt, mut ee) = (
             std::mem::take(&mut self.wide_vt),
             std::mem::take(&mut self.wide_ee),
         );
         vt.clear();
         ee.clear();
-        let mut walks = std::mem::take(&mut self.walks);
-        let tests = self.swept_tests(topo, x, (base, eps, margin), Order::Index, (true, true));
-        let looked = self.find(&tests, &mut vt, &mut ee, &mut walks);
-        self.walks = walks;
+        let limit = (base, reach, eps, margin);
+        let looked = self.walk_trees(
+            topo,
+            (vertex_boxes, x),
+            limit,
+            Order::Index,
+            true,
+            (&mut vt, &mut ee),
+        );
         (self.wide_vt, self.wide_ee) = (vt, ee);
         looked
     }
