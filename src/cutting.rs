@@ -440,6 +440,17 @@ pub fn pieces(grid: Grid, springs: &Springs, alive: &[bool]) -> usize {
 /// The piece each live particle belongs to, named by the smallest particle index in it
 /// (`u32::MAX` for a removed particle). Union-find over the live springs, `O(n)`.
 pub fn piece_labels(grid: Grid, springs: &Springs, alive: &[bool]) -> Vec<u32> {
+    piece_labels_joined_by(grid, springs, alive, |_, _| true)
+}
+
+/// [`piece_labels`] as if only the live springs `joins(a, b)` accepts were left: the pieces a
+/// cut of the others would leave.
+pub fn piece_labels_joined_by(
+    grid: Grid,
+    springs: &Springs,
+    alive: &[bool],
+    joins: impl Fn(usize, usize) -> bool,
+) -> Vec<u32> {
     let n = grid.len();
     let mut parent: Vec<u32> = (0..n as u32).collect();
     fn root(parent: &mut [u32], mut x: u32) -> u32 {
@@ -452,7 +463,7 @@ pub fn piece_labels(grid: Grid, springs: &Springs, alive: &[bool]) -> Vec<u32> {
     }
     for kind in SpringKind::ALL {
         springs.for_each(grid, kind, |a, b, _| {
-            if alive[a] && alive[b] {
+            if alive[a] && alive[b] && joins(a, b) {
                 let (ra, rb) = (root(&mut parent, a as u32), root(&mut parent, b as u32));
                 // The smaller index stays the root, so a root is its piece's smallest index.
                 parent[ra.max(rb) as usize] = ra.min(rb);

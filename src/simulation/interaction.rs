@@ -5,7 +5,7 @@
 use glam::{DVec2, Vec3};
 
 use super::Simulation;
-use crate::cutting::{Crossing, MeshCrossing};
+use crate::cutting::{piece_labels_joined_by, Crossing, MeshCrossing};
 use crate::cutting_rest::{Cut, LiveStroke, MeshSheet, Reach, RestSheet, SheetPoint};
 use crate::error::{Error, Result};
 use crate::interaction::{Grab, DRAG_TIME, GRIP_SPACINGS};
@@ -14,7 +14,6 @@ use crate::picking::pick_triangle_scan;
 use crate::picking::STROKE_TREE_MIN_RAYS;
 use crate::picking::{BvhStats, ParticleHit, PickStrategy, Picker, Queries, TriangleHit};
 use crate::ray::Ray;
-use crate::scene::EdgeKind;
 
 impl Simulation {
     /// Half-size in m of the box around each particle that `pick` tests the ray against.
@@ -418,7 +417,7 @@ impl Simulation {
                     out.extend_from_slice(swept.unwrap_or_default());
                 }
             });
-            let hidden = self.without_slivers(hidden, grid_ends);
+            let hidden = self.without_slivers(hidden);
             return Ok(severed + Crossing::sever(&mut self.model, &hidden));
         };
         let sheet = self
@@ -457,69 +456,31 @@ impl Simulation {
         Ok(severed)
     }
 
-    /// `hidden` less the crossings that would leave a piece of fewer than
+    /// `hidden` (a grid cloth's crossings) less those that would leave a piece of fewer than
     /// [`HIDDEN_LAYER_MIN_PIECE`] particles once severed with the springs already gone: where
     /// the swept surface meets a layer at a grazing angle, or runs beside the rest sheet's cut
     /// where a layer turns into the first one, it isolates a particle or two, which no one
-    /// meant to cut out. `ends` names a crossing's spring's two particles.
-    fn without_slivers<C: Copy>(
-        &self,
-        mut hidden: Vec<C>,
-        ends: impl Fn(&Simulation, C) -> (usize, usize),
-    ) -> Vec<C> {
+    /// meant to cut out.
+    fn without_slivers(&self, mut hidden: Vec<Crossing>) -> Vec<Crossing> {
         let (model, alive) = (&self.model, &self.model.particles.alive);
-        let mut links: Vec<(usize, usize)> = Vec::new();
-        match model.mesh() {
-            Some(mesh) => {
-                let s = &mesh.springs;
-                links.extend(
-                    (0..s.len())
-                        // A seam joins no pieces ([`Simulation::pieces`]).
-                        .filter(|&e| s.active[e] && s.kind[e] != EdgeKind::Seam)
-                        .map(|e| (s.a[e] as usize, s.b[e] as usize)),
-                );
-            }
-            None => {
-                for kind in crate::grid::SpringKind::ALL {
-                    model
-                        .springs
-                        .for_each(model.grid, kind, |a, b, _| links.push((a, b)));
-                }
-            }
-        }
-        links.retain(|&(a, b)| alive[a] && alive[b]);
+        let ends = |c: Crossing| {
+            let (a, b) = grid_ends(self, c);
+            (a.min(b), a.max(b))
+        };
         // Dropping crossings only joins pieces, so a few rounds settle it.
         for _ in 0..4 {
-            let cut: std::collections::HashSet<(usize, usize)> = (hidden.iter())
-                .map(|&c| {
-                    let (a, b) = ends(self, c);
-                    (a.min(b), a.max(b))
-                })
-                .collect();
-            let n = alive.len();
-            let mut parent: Vec<usize> = (0..n).collect();
-            fn root(parent: &mut [usize], mut x: usize) -> usize {
-                while parent[x] != x {
-                    parent[x] = parent[parent[x]];
-                    x = parent[x];
-                }
-                x
-            }
-            for &(a, b) in &links {
-                if !cut.contains(&(a.min(b), a.max(b))) {
-                    let (ra, rb) = (root(&mut parent, a), root(&mut parent, b));
-                    parent[ra.max(rb)] = ra.min(rb);
-                }
-            }
-            let label: Vec<usize> = (0..n).map(|p| root(&mut parent, p)).collect();
-            let mut size = vec![0usize; n];
-            for p in (0..n).filter(|&p| alive[p]) {
-                size[label[p]] += 1;
+            let cut: std::collections::HashSet<(usize, usize)> =
+                hidden.iter().map(|&c| ends(c)).collect();
+            let joins = |a: usize, b: usize| !cut.contains(&(a.min(b), a.max(b)));
+            let label = piece_labels_joined_by(model.grid, &model.springs, alive, joins);
+            let mut size = vec![0usize; alive.len()];
+            for p in (0..alive.len()).filter(|&p| alive[p]) {
+                size[label[p] as usize] += 1;
             }
             let before = hidden.len();
-            let whole = |p: usize| size[label[p]] >= HIDDEN_LAYER_MIN_PIECE;
+            let whole = |p: usize| size[label[p] as usize] >= HIDDEN_LAYER_MIN_PIECE;
             hidden.retain(|&c| {
-                let (a, b) = ends(self, c);
+                let (a, b) = ends(c);
                 whole(a) && whole(b)
             });
             if hidden.len() == before {
