@@ -14,10 +14,12 @@
 //! ([`crate::cutting::StrokeCutter`]). The stroke's course over the sheet ([`LiveStroke::advance`])
 //! is the same for both.
 
+mod layers;
 mod mesh;
 
 use glam::DVec2;
 
+pub use layers::{Layer, LayeredStroke, FOLD_SPACINGS, MAX_LAYERS};
 pub use mesh::{MeshSheet, MAX_TILT_DEG};
 
 use crate::cutting::Crossing;

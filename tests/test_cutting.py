@@ -461,6 +461,34 @@ def test_a_held_still_stroke_across_a_folded_cloth_cuts_every_layer_without_a_sl
     assert sizes.min() >= 3, sizes
 
 
+def _folded_mesh(gap: float) -> Simulation:
+    """``hanging`` as an irregular 16 x 16 mesh, folded as :func:`_folded` folds the grid."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benches"))
+    try:
+        bench = pytest.importorskip("cut_moving")
+    finally:
+        sys.path.pop(0)
+    sim = Simulation(bench.mesh_hanging(16))
+    folded = np.array(sim.positions, dtype=np.float32)
+    over = folded[:, 0] > 0.0
+    folded[over, 0] *= -1.0
+    folded[over, 1] += gap
+    sim.set_positions(folded)
+    return sim
+
+
+@pytest.mark.parametrize("x", [-0.23, -0.31, -0.4])
+def test_a_held_still_stroke_across_a_folded_mesh_cloth_cuts_every_layer_without_a_sliver(x):
+    """The same on a mesh cloth: each layer the rays meet is followed on its own across the
+    rest sheet, so the stroke cuts both, and the cloth falls into three pieces, none a sliver
+    (the front layer alone left it in two)."""
+    sim = _folded_mesh(gap=0.15)
+    _stroke_down_across(sim, x)
+    sizes = np.unique(sim.piece_labels()[sim.alive], return_counts=True)[1]
+    assert sim.pieces() == 3, sizes
+    assert sizes.min() >= 3, sizes
+
+
 def test_a_stroke_over_a_single_layer_cuts_nothing_behind_it():
     """Laid flat, the same stroke meets one layer: two pieces, as the rest sheet alone cuts."""
     sim = Simulation(Simulation("hanging").scene.replace(cloth={"nx": 16, "ny": 16}))

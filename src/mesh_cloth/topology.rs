@@ -197,6 +197,12 @@ impl MeshTopology {
     /// The piece each vertex belongs to, named by the smallest vertex index in it; `u32::MAX`
     /// for a removed vertex.
     pub fn piece_labels(&self, alive: &[bool]) -> Vec<u32> {
+        self.piece_labels_joined_by(alive, |_| true)
+    }
+
+    /// [`MeshTopology::piece_labels`] as if only the live springs `joins(e)` accepts (indices
+    /// into the spring list) were left: the pieces a cut of the others would leave.
+    pub fn piece_labels_joined_by(&self, alive: &[bool], joins: impl Fn(u32) -> bool) -> Vec<u32> {
         let n = self.mesh.len();
         let mut parent: Vec<u32> = (0..n as u32).collect();
         fn root(parent: &mut [u32], mut v: u32) -> u32 {
@@ -214,12 +220,17 @@ impl MeshTopology {
         let s = &self.mesh.springs;
         for e in 0..s.len() {
             let (a, b) = (s.a[e], s.b[e]);
-            if s.active[e] && s.kind[e] != EdgeKind::Seam && alive[a as usize] && alive[b as usize]
+            if s.active[e]
+                && joins(e as u32)
+                && s.kind[e] != EdgeKind::Seam
+                && alive[a as usize]
+                && alive[b as usize]
             {
                 join(a, b);
             }
         }
-        for t in (0..self.triangles.len()).filter(|&t| self.drawn(alive, t)) {
+        let held = |t: usize| self.edges[t].iter().all(|&e| e == NONE || joins(e));
+        for t in (0..self.triangles.len()).filter(|&t| self.drawn(alive, t) && held(t)) {
             let [a, b, c] = self.triangles[t];
             join(a, b);
             join(a, c);

@@ -6,7 +6,9 @@ use glam::{DVec2, Vec3};
 
 use super::Simulation;
 use crate::cutting::{piece_labels_joined_by, Crossing, MeshCrossing};
-use crate::cutting_rest::{Cut, LiveStroke, MeshSheet, Reach, RestSheet, SheetPoint};
+use crate::cutting_rest::{
+    Cut, Layer, LayeredStroke, LiveStroke, MeshSheet, Reach, RestSheet, SheetPoint, MAX_LAYERS,
+};
 use crate::error::{Error, Result};
 use crate::interaction::{Grab, DRAG_TIME, GRIP_SPACINGS};
 use crate::model::Model;
@@ -432,56 +434,128 @@ impl Simulation {
             return self.sever_checked(&stroke, &mut || false);
         };
         // Every triangle whose corners are alive, severed or not, names the material under it.
-        let points: Vec<Option<SheetPoint>> = (self.picker)
-            .material_triangles(&self.model, &self.state, &rays)
-            .into_iter()
-            .map(|hit| hit.map(|hit| sheet.at(hit.index, hit.barycentric)))
+        let margin = (HIDDEN_LAYER_SPACINGS * sheet.spacing) as f32;
+        let layers: Vec<Vec<SheetPoint>> = (self.layer_hits(&rays, margin).into_iter())
+            .map(|hits| {
+                (hits.into_iter())
+                    .map(|hit| sheet.at(hit.index, hit.barycentric))
+                    .collect()
+            })
             .collect();
         let exit = |c: u32, from: DVec2, dir: DVec2| sheet.exit_distance(c, from, dir);
-        let severed = self.live_cuts(&rays, &points, sheet.spacing, exit, |sim, cut, out| {
-            let Some(mesh) = sim.model.mesh() else {
-                return;
+        let reach = Reach {
+            step: sheet.spacing,
+            jump: REST_JUMP_SPACINGS * sheet.spacing,
+        };
+        // The front layer's cuts go ray by ray, as on the grid; the layers' behind are cut
+        // once the frame's are known, less any that would cut out a sliver.
+        let (mut severed, mut behind) = (0, Vec::new());
+        let (mut cuts, mut out) = (Vec::new(), Vec::new());
+        for (&ray, hits) in rays.iter().zip(&layers) {
+            cuts.clear();
+            self.layers
+                .advance(ray, hits, reach, exit, |cut, layer| cuts.push((cut, layer)));
+            let Some(mesh) = self.model.mesh() else {
+                break;
             };
-            let at = (&sim.state.kin.pos, &sim.model.particles.alive[..]);
-            match cut {
-                Cut::Rest(c, a, b) => sheet.crossings(c, (&mesh.springs, at.1), (a, b), out),
-                Cut::Swept(r0, r1) => {
-                    let swept =
-                        (sim.cutter).mesh_crossings(&mesh.springs, at, &[r0, r1], &mut || false);
-                    out.extend_from_slice(swept.unwrap_or_default());
+            out.clear();
+            let at = (&self.state.kin.pos, &self.model.particles.alive[..]);
+            for &(cut, layer) in &cuts {
+                let out = match layer {
+                    Layer::Front => &mut out,
+                    Layer::Behind => &mut behind,
+                };
+                match cut {
+                    Cut::Rest(c, a, b) => sheet.crossings(c, (&mesh.springs, at.1), (a, b), out),
+                    Cut::Swept(r0, r1) => {
+                        let swept =
+                            (self.cutter)
+                                .mesh_crossings(&mesh.springs, at, &[r0, r1], &mut || false);
+                        out.extend_from_slice(swept.unwrap_or_default());
+                    }
                 }
             }
-        });
+            severed += MeshCrossing::sever(&mut self.model, &out);
+        }
+        let behind = self.without_slivers(behind);
+        severed += MeshCrossing::sever(&mut self.model, &behind);
         self.mesh_sheet = Some(Some(sheet));
         Ok(severed)
     }
 
-    /// `hidden` (a grid cloth's crossings) less those that would leave a piece of fewer than
-    /// [`HIDDEN_LAYER_MIN_PIECE`] particles once severed with the springs already gone: where
-    /// the swept surface meets a layer at a grazing angle, or runs beside the rest sheet's cut
-    /// where a layer turns into the first one, it isolates a particle or two, which no one
-    /// meant to cut out.
-    fn without_slivers(&self, mut hidden: Vec<Crossing>) -> Vec<Crossing> {
-        let (model, alive) = (&self.model, &self.model.particles.alive);
-        let ends = |c: Crossing| {
-            let (a, b) = grid_ends(self, c);
-            (a.min(b), a.max(b))
-        };
+    /// Every layer of material each ray meets, nearest first: the hits on triangles whose
+    /// corners are alive (severed or not), each the first more than `margin` (m) past the
+    /// last along the ray, at most [`MAX_LAYERS`]. Nearer than `margin` behind a hit, a second
+    /// hit is the same layer (a fold's two sides meet there on the sheet too).
+    fn layer_hits(&mut self, rays: &[Ray], margin: f32) -> Vec<Vec<TriangleHit>> {
+        let mut layers: Vec<Vec<TriangleHit>> = vec![Vec::new(); rays.len()];
+        // (which ray, the probe, how far along the ray the probe starts)
+        let mut probes: Vec<(usize, Ray, f32)> =
+            rays.iter().enumerate().map(|(k, &r)| (k, r, 0.0)).collect();
+        for _ in 0..MAX_LAYERS {
+            if probes.is_empty() {
+                break;
+            }
+            let queries: Vec<Ray> = probes.iter().map(|p| p.1).collect();
+            let found = (self.picker).material_triangles(&self.model, &self.state, &queries);
+            let mut next = Vec::with_capacity(probes.len());
+            for ((k, probe, start), hit) in probes.into_iter().zip(found) {
+                let Some(hit) = hit else { continue };
+                layers[k].push(TriangleHit {
+                    distance: start + hit.distance,
+                    ..hit
+                });
+                let skip = hit.distance + margin;
+                if let Ok(past) = Ray::new(probe.origin + probe.dir * skip, probe.dir) {
+                    next.push((k, past, start + skip));
+                }
+            }
+            probes = next;
+        }
+        layers
+    }
+
+    /// `hidden` (crossings on layers behind the first) less those that would leave a piece
+    /// of fewer than [`HIDDEN_LAYER_MIN_PIECE`] particles once severed with the springs
+    /// already gone: where a layer behind is cut at a grazing angle, or its cut runs beside
+    /// the first layer's where a layer turns into the first one, it isolates a particle or
+    /// two, which no one meant to cut out.
+    fn without_slivers<C: Sliver>(&self, mut hidden: Vec<C>) -> Vec<C> {
+        let alive = &self.model.particles.alive;
         // Dropping crossings only joins pieces, so a few rounds settle it.
         for _ in 0..4 {
-            let cut: std::collections::HashSet<(usize, usize)> =
-                hidden.iter().map(|&c| ends(c)).collect();
-            let joins = |a: usize, b: usize| !cut.contains(&(a.min(b), a.max(b)));
-            let label = piece_labels_joined_by(model.grid, &model.springs, alive, joins);
+            let label = C::pieces_without(self, &hidden);
             let mut size = vec![0usize; alive.len()];
             for p in (0..alive.len()).filter(|&p| alive[p]) {
                 size[label[p] as usize] += 1;
             }
+            let small = |p: usize| size[label[p] as usize] < HIDDEN_LAYER_MIN_PIECE;
+            // A sliver between two cuts goes back to one side only, the one the most of its
+            // crossings lead to (the lower label on a tie): given back to both, it would join
+            // the two sides the cuts separate.
+            let mut sides: std::collections::BTreeMap<(u32, u32), usize> = Default::default();
+            for &c in &hidden {
+                let (a, b) = c.ends(self);
+                for (p, q) in [(a, b), (b, a)] {
+                    if small(p) && !small(q) {
+                        *sides.entry((label[p], label[q])).or_default() += 1;
+                    }
+                }
+            }
+            let mut side: std::collections::BTreeMap<u32, (usize, u32)> = Default::default();
+            for (&(sliver, to), &n) in &sides {
+                let best = side.entry(sliver).or_insert((n, to));
+                if n > best.0 {
+                    *best = (n, to);
+                }
+            }
             let before = hidden.len();
-            let whole = |p: usize| size[label[p] as usize] >= HIDDEN_LAYER_MIN_PIECE;
             hidden.retain(|&c| {
-                let (a, b) = ends(c);
-                whole(a) && whole(b)
+                let (a, b) = c.ends(self);
+                let back = |p: usize, q: usize| {
+                    small(p) && (small(q) || side.get(&label[p]).is_some_and(|s| s.1 == label[q]))
+                };
+                !back(a, b) && !back(b, a)
             });
             if hidden.len() == before {
                 break;
@@ -596,6 +670,7 @@ impl Simulation {
     /// new one, joined to nothing.
     pub fn end_live_stroke(&mut self) {
         self.live = LiveStroke::default();
+        self.layers = LayeredStroke::default();
     }
 
     /// The grid's rest sheet: `(i dx, j dy)` with the scene's size over the cells.
@@ -699,12 +774,44 @@ fn checked_rays(rays: &[(Vec3, Vec3)]) -> Result<Vec<Ray>> {
 /// the first would isolate slivers. Farther, a fold lying closer behind is left whole.
 pub const HIDDEN_LAYER_SPACINGS: f64 = 1.0;
 
-/// The two particles of a grid crossing's spring.
-fn grid_ends(sim: &Simulation, ((kind, anchor), _): Crossing) -> (usize, usize) {
-    (
-        anchor,
-        sim.model.grid.partner(anchor, kind).unwrap_or(anchor),
-    )
+/// A crossing [`Simulation::without_slivers`] can weigh: its spring's two particles, and the
+/// pieces the cloth would be in with some crossings' springs severed too.
+trait Sliver: Copy {
+    fn ends(self, sim: &Simulation) -> (usize, usize);
+    fn pieces_without(sim: &Simulation, cut: &[Self]) -> Vec<u32>;
+}
+
+impl Sliver for Crossing {
+    fn ends(self, sim: &Simulation) -> (usize, usize) {
+        let ((kind, anchor), _) = self;
+        let partner = sim.model.grid.partner(anchor, kind).unwrap_or(anchor);
+        (anchor.min(partner), anchor.max(partner))
+    }
+
+    fn pieces_without(sim: &Simulation, cut: &[Self]) -> Vec<u32> {
+        let model = &sim.model;
+        let cut: std::collections::HashSet<(usize, usize)> =
+            cut.iter().map(|&c| c.ends(sim)).collect();
+        let joins = |a: usize, b: usize| !cut.contains(&(a.min(b), a.max(b)));
+        piece_labels_joined_by(model.grid, &model.springs, &model.particles.alive, joins)
+    }
+}
+
+impl Sliver for MeshCrossing {
+    fn ends(self, sim: &Simulation) -> (usize, usize) {
+        let e = self.0 as usize;
+        (sim.model.mesh()).map_or((0, 0), |m| {
+            (m.springs.a[e] as usize, m.springs.b[e] as usize)
+        })
+    }
+
+    fn pieces_without(sim: &Simulation, cut: &[Self]) -> Vec<u32> {
+        let Some(topology) = sim.model.mesh_topology() else {
+            return sim.piece_labels();
+        };
+        let cut: std::collections::HashSet<u32> = cut.iter().map(|c| c.0).collect();
+        topology.piece_labels_joined_by(&sim.model.particles.alive, |e| !cut.contains(&e))
+    }
 }
 
 /// The fewest particles a piece the hidden layers' cut leaves may hold (3): fewer is a sliver.

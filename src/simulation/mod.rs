@@ -46,6 +46,8 @@ pub struct Simulation {
     cutter: StrokeCutter,
     /// The live stroke in progress ([`Simulation::sever_live_stroke`]).
     live: crate::cutting_rest::LiveStroke,
+    /// A mesh cloth's live stroke, on every layer its rays pass through.
+    layers: crate::cutting_rest::LayeredStroke,
     /// A mesh cloth's rest sheet, built by its first live stroke: `Some(None)` where its rest
     /// shape is curved (the rest shape never changes, so neither does this).
     mesh_sheet: Option<Option<crate::cutting_rest::MeshSheet>>,
@@ -67,6 +69,7 @@ impl Simulation {
             render: RenderMesh::default(),
             cutter: StrokeCutter::default(),
             live: Default::default(),
+            layers: Default::default(),
             mesh_sheet: None,
         };
         sim.make_scene_cuts()?;
