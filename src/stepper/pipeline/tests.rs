@@ -5,7 +5,7 @@ use glam::Vec3;
 use super::{Pipeline, Substep};
 use crate::model::Model;
 use crate::profile::Profile;
-use crate::scene::{IntegratorKind, Plane, Scene, SphereSpec};
+use crate::scene::{IntegratorKind, Plane, Scene};
 use crate::soa::Vec3s;
 use crate::state::{Kinematics, State};
 
@@ -114,56 +114,4 @@ fn in_a_pile_at_rest_on_the_floor_the_self_collision_pass_moves_no_vertex_a_thic
         worst_push < thickness,
         "the self-collision pass moved a vertex {worst_push} m"
     );
-}
-
-/// Implicit Euler settled a rerun's contacts in up to three rounds, each a whole implicit step
-/// (two solves where pairs were given ahead): the holds the rerun left ahead of their planes
-/// were released and taken again, and newton's 50 x 50 twist spent 8 solves on most wound
-/// steps. The rerun holding the self-collision pass's particles solves once, as projective
-/// dynamics' does: one implicit step, however its contacts changed.
-#[test]
-fn a_rerun_of_an_implicit_euler_step_holding_the_self_collision_pass_s_particles_solves_once() {
-    // The pile's square dropped edge first from 10 cm at 1/60 s beside a ball, as
-    // `tests/test_contact_energy.py` drops it: no self-contact term in the solve, so the pass
-    // moves the landing layers and their substeps are rerun, each implicit step one solve.
-    let mut scene = Scene::builtin("pile").unwrap();
-    scene.integrator = IntegratorKind::ImplicitEuler;
-    (scene.dt, scene.substeps) = (1.0 / 60.0, 1);
-    (scene.cloth.damping, scene.cloth.k_bend) = (0.01, 10.0);
-    scene.cloth.plane = Plane::Xy;
-    scene.cloth.pins.clear();
-    scene.cloth.center = [0.0, 0.1 + scene.cloth.size[1] / 2.0, 0.0];
-    scene.colliders.clear();
-    scene.spheres = vec![SphereSpec {
-        center: [0.1, 0.04, 0.03],
-        radius: 0.04,
-        friction: 0.3,
-        thickness: 0.003,
-    }];
-    scene.floor.as_mut().unwrap().friction = 0.5;
-    scene.self_collision.as_mut().unwrap().solve_stiffness = 0.0;
-    let (mut reruns, mut most) = (0, 0);
-    substeps(scene, 48, |_, pipeline, mut s, force| {
-        for round in 0.. {
-            let (before, halved) = (pipeline_solves(pipeline), pipeline.halved);
-            assert!(pipeline.integrate(&mut s, force, round));
-            if round > 0 && pipeline.halved == halved {
-                reruns += 1;
-                most = most.max(pipeline_solves(pipeline) - before);
-            }
-            assert!(pipeline.blow_wind(&mut s) && pipeline.pin_targets(&mut s));
-            assert!(pipeline.limit_strain(&mut s) && pipeline.collide(&mut s));
-            assert!(pipeline.separate_self_contacts(&mut s));
-            if !pipeline.hold_self_contacts(&s, round) {
-                break;
-            }
-        }
-    });
-    assert!(reruns > 0, "no rerun: the case tests nothing");
-    assert!(most == 1, "a rerun took {most} solves");
-}
-
-/// The solves the pipeline's integrator has run so far.
-fn pipeline_solves(pipeline: &Pipeline) -> u64 {
-    pipeline.integrator.solver_stats().unwrap().solves
 }
