@@ -87,6 +87,55 @@ pub trait BlockOperator: Sync {
     }
 }
 
+/// An operator whose products read their operand as `packed` holds it, packed whole just
+/// before ([`BlockOperator::apply_range_packed`]): a type of its own, so that an operator that
+/// does not pack keeps its product's code as it is.
+pub(crate) struct Packing<'a, A> {
+    pub a: &'a A,
+    pub packed: &'a Packed,
+}
+
+impl<A: BlockOperator> BlockOperator for Packing<'_, A> {
+    #[inline(always)]
+    fn apply_range(&self, x: &Vec3s, range: std::ops::Range<usize>, out: &mut Vec3SliceMut) {
+        self.a.apply_range_packed((x, self.packed), range, out);
+    }
+
+    fn adds_after(&self) -> bool {
+        self.a.adds_after()
+    }
+
+    fn add_after(&self, x: &Vec3s, y: &mut Vec3s) {
+        self.a.add_after(x, y);
+    }
+}
+
+/// `q = A p` (after [`BlockOperator::prepare`]), returning `p . q`.
+fn product<A: BlockOperator>(a: &A, p: &Vec3s, q: &mut Vec3s, partials: &mut [f64]) -> f64 {
+    if a.adds_after() {
+        // `p . q` only once the part taken after the rows is in.
+        q.par_chunks_mut(REDUCE_CHUNK)
+            .enumerate()
+            .for_each(|(c, mut q)| {
+                let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + q.len();
+                crate::simd::dispatch!(a.apply_range(p, range.clone(), &mut q));
+            });
+        a.add_after(p, q);
+        return par_dot(p, q, partials);
+    }
+    q.par_chunks_mut(REDUCE_CHUNK)
+        .zip(partials.par_iter_mut())
+        .enumerate()
+        .for_each(|(c, (mut q, partial))| {
+            let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + q.len();
+            *partial = crate::simd::dispatch!({
+                a.apply_range(p, range.clone(), &mut q);
+                dot3(p.slices(range.clone()), q.as_slices())
+            });
+        });
+    partials.iter().sum()
+}
+
 impl BlockOperator for BlockStencil {
     #[inline(always)]
     fn apply_range(&self, x: &Vec3s, range: std::ops::Range<usize>, out: &mut Vec3SliceMut) {
@@ -235,38 +284,11 @@ impl ConjugateGradient {
         } = self;
         let p = &*p;
         a.prepare(p);
-        let packed = a.packs().then(|| {
+        if a.packs() {
             packed.pack(p);
-            &*packed
-        });
-        if a.adds_after() {
-            // `p . q` only once the part taken after the rows is in.
-            q.par_chunks_mut(REDUCE_CHUNK)
-                .enumerate()
-                .for_each(|(c, mut q)| {
-                    let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + q.len();
-                    crate::simd::dispatch!(match packed {
-                        Some(packed) => a.apply_range_packed((p, packed), range.clone(), &mut q),
-                        None => a.apply_range(p, range.clone(), &mut q),
-                    });
-                });
-            a.add_after(p, q);
-            return par_dot(p, q, partials);
+            return product(&Packing { a, packed }, p, q, partials);
         }
-        q.par_chunks_mut(REDUCE_CHUNK)
-            .zip(partials.par_iter_mut())
-            .enumerate()
-            .for_each(|(c, (mut q, partial))| {
-                let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + q.len();
-                *partial = crate::simd::dispatch!({
-                    match packed {
-                        Some(packed) => a.apply_range_packed((p, packed), range.clone(), &mut q),
-                        None => a.apply_range(p, range.clone(), &mut q),
-                    }
-                    dot3(p.slices(range.clone()), q.as_slices())
-                });
-            });
-        partials.iter().sum()
+        product(a, p, q, partials)
     }
 
     /// `x += step p, r -= step q`; returns `r . r`.

@@ -33,7 +33,7 @@ mod order;
 use rayon::prelude::*;
 
 use super::block_lanes::Packed;
-use super::cg::BlockOperator;
+use super::cg::{BlockOperator, Packing};
 use super::dense::DenseCholesky;
 use super::reduce::REDUCE_CHUNK;
 use super::{SpringMatrix, Sym3};
@@ -349,6 +349,16 @@ fn smooth(
 
 /// `r = b - a x` (`packed`, scratch for `x` packed where `a` [`BlockOperator::packs`]).
 fn residual<A: BlockOperator>(a: &A, b: &Vec3s, (x, packed): (&Vec3s, &mut Packed), r: &mut Vec3s) {
+    if a.packs() && !a.adds_after() {
+        a.prepare(x);
+        packed.pack(x);
+        return unpacked_residual(&Packing { a, packed }, b, x, r);
+    }
+    unpacked_residual(a, b, x, r)
+}
+
+/// `r = b - a x`, `a` read as it multiplies.
+fn unpacked_residual<A: BlockOperator>(a: &A, b: &Vec3s, x: &Vec3s, r: &mut Vec3s) {
     if a.adds_after() {
         a.apply(x, r, REDUCE_CHUNK);
         r.par_chunks_mut(REDUCE_CHUNK)
@@ -365,19 +375,12 @@ fn residual<A: BlockOperator>(a: &A, b: &Vec3s, (x, packed): (&Vec3s, &mut Packe
         return;
     }
     a.prepare(x);
-    let packed = a.packs().then(|| {
-        packed.pack(x);
-        &*packed
-    });
     r.par_chunks_mut(REDUCE_CHUNK)
         .enumerate()
         .for_each(|(c, mut r)| {
             let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + r.len();
             crate::simd::dispatch!({
-                match packed {
-                    Some(packed) => a.apply_range_packed((x, packed), range.clone(), &mut r),
-                    None => a.apply_range(x, range.clone(), &mut r),
-                }
+                a.apply_range(x, range.clone(), &mut r);
                 let b = b.slices(range.clone());
                 for (r, b) in [(&mut *r.x, b.x), (&mut *r.y, b.y), (&mut *r.z, b.z)] {
                     for (r, b) in r.iter_mut().zip(b) {
