@@ -797,6 +797,8 @@ impl BlockLanes {
         {
             return;
         }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = whole;
         let start = |v: usize, _| diagonal[v].mul(x.get(v));
         self.apply_range(x, range, out, start, |b, x| Sym3(b).mul(x));
     }
