@@ -62,6 +62,7 @@ use super::self_contact::{DiagonalBlocks, Rest, SelfContactTerm, WithSelfContact
 use super::solver::{live_or_zero, Preconditioner, SolverSettings, SolverStats, CONTACT_STIFFNESS};
 use super::StepContext;
 use crate::collisions::PredictedContacts;
+use crate::linear::block_lanes::Packed;
 use crate::linear::cg::BlockOperator;
 use crate::linear::cg::{diagonal_blocks, ConjugateGradient, Start};
 use crate::linear::stencil::SlotArrays;
@@ -155,6 +156,30 @@ impl BlockOperator for WithMembrane<'_> {
     #[inline(always)]
     fn apply_range(&self, x: &Vec3s, range: std::ops::Range<usize>, out: &mut Vec3SliceMut) {
         self.matrix.apply_range(x, range.clone(), out);
+        self.add_elements(x, range, out);
+    }
+
+    fn packs(&self) -> bool {
+        self.matrix.packs()
+    }
+
+    #[inline(always)]
+    fn apply_range_packed(
+        &self,
+        (x, packed): (&Vec3s, &Packed),
+        range: std::ops::Range<usize>,
+        out: &mut Vec3SliceMut,
+    ) {
+        self.matrix
+            .apply_range_packed((x, packed), range.clone(), out);
+        self.add_elements(x, range, out);
+    }
+}
+
+impl WithMembrane<'_> {
+    /// Adds the elements' off-diagonal terms to the rows `range` of `out`.
+    #[inline(always)]
+    fn add_elements(&self, x: &Vec3s, range: std::ops::Range<usize>, out: &mut Vec3SliceMut) {
         let m = self.membrane;
         for (i, v) in range.enumerate() {
             if self.inv_mass[v] == 0.0 {
@@ -187,6 +212,26 @@ impl BlockOperator for Operator<'_> {
         match self {
             Operator::Springs(m) => m.apply_range(x, range, out),
             Operator::Membrane(a) => a.apply_range(x, range, out),
+        }
+    }
+
+    fn packs(&self) -> bool {
+        match self {
+            Operator::Springs(m) => m.packs(),
+            Operator::Membrane(a) => a.packs(),
+        }
+    }
+
+    #[inline(always)]
+    fn apply_range_packed(
+        &self,
+        operand: (&Vec3s, &Packed),
+        range: std::ops::Range<usize>,
+        out: &mut Vec3SliceMut,
+    ) {
+        match self {
+            Operator::Springs(m) => m.apply_range_packed(operand, range, out),
+            Operator::Membrane(a) => a.apply_range_packed(operand, range, out),
         }
     }
 }

@@ -409,6 +409,20 @@ impl<A: BlockOperator> BlockOperator for WithSelfContacts<'_, A> {
         self.matrix.prepare(x);
     }
 
+    fn packs(&self) -> bool {
+        self.matrix.packs()
+    }
+
+    #[inline(always)]
+    fn apply_range_packed(
+        &self,
+        operand: (&Vec3s, &crate::linear::block_lanes::Packed),
+        range: std::ops::Range<usize>,
+        out: &mut Vec3SliceMut,
+    ) {
+        self.matrix.apply_range_packed(operand, range, out);
+    }
+
     fn adds_after(&self) -> bool {
         self.term.is_some() || self.matrix.adds_after()
     }

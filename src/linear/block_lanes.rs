@@ -245,7 +245,7 @@ impl<const C: usize> Lanes<C> {
         term: impl Fn([f32; C], Vec3) -> Vec3,
     ) {
         let groups = self.groups(&range);
-        self.apply_groups(groups, range, out, start, |g, acc| {
+        self.apply_groups(groups, range, out, Some(start), |g, acc| {
             self.add_group(x, g, acc, &term)
         });
     }
@@ -260,14 +260,15 @@ impl<const C: usize> Lanes<C> {
                 .min(range.end.div_ceil(WINDOW) * per_window)
     }
 
-    /// [`Lanes::apply_range`] with each group's terms added by `add(g, acc)`.
+    /// [`Lanes::apply_range`] with each group's terms added by `add(g, acc)`; without `start`,
+    /// `add` sets the sums' starts itself.
     #[inline(always)]
     fn apply_groups(
         &self,
         groups: std::ops::Range<usize>,
         range: std::ops::Range<usize>,
         out: &mut Vec3SliceMut,
-        start: impl Fn(usize, Vec3) -> Vec3,
+        start: Option<impl Fn(usize, Vec3) -> Vec3>,
         mut add: impl FnMut(usize, &mut [[f32; LANES]; 3]),
     ) {
         if range.is_empty() {
@@ -287,7 +288,8 @@ impl<const C: usize> Lanes<C> {
                 continue;
             }
             let mut acc = [[0.0f32; LANES]; 3];
-            for (lane, &u) in rows.iter().enumerate() {
+            let lanes = rows.iter().enumerate().filter(|_| start.is_some());
+            for (lane, &u) in lanes {
                 if u == PAD {
                     continue;
                 }
@@ -300,7 +302,7 @@ impl<const C: usize> Lanes<C> {
                     ),
                     false => Vec3::ZERO,
                 };
-                let s = start(u, current);
+                let s = start.as_ref().map_or(Vec3::ZERO, |start| start(u, current));
                 (acc[0][lane], acc[1][lane], acc[2][lane]) = (s.x, s.y, s.z);
             }
             add(g, &mut acc);
@@ -413,11 +415,42 @@ thread_local! {
     };
 }
 
+/// An operand packed whole as `[x, y, z, 0]` rows, once for all the ranges of a product
+/// ([`crate::linear::cg::BlockOperator::apply_range_packed`]), where each range would otherwise
+/// pack the rows its groups read: the rows near a range's ends again for its neighbours (about
+/// 1.5 times over in row order), and nearly every row for every range of 1,024 in a numbering
+/// at random. Filled by its caller from the operand just before the product, and read by that
+/// product only, so it cannot be stale.
+#[derive(Clone, Debug, Default)]
+pub struct Packed(Vec<[f32; 4]>);
+
+/// Rows per parallel work item of [`Packed::pack`].
+const PACK_CHUNK: usize = 4096;
+
+impl Packed {
+    /// Packs every row of `x`.
+    pub fn pack(&mut self, x: &Vec3s) {
+        use rayon::prelude::*;
+        self.0.resize(x.len(), [0.0; 4]);
+        (self.0.par_chunks_mut(PACK_CHUNK).enumerate()).for_each(|(c, rows)| {
+            let range = c * PACK_CHUNK..c * PACK_CHUNK + rows.len();
+            let (xs, ys, zs) = (&x.x[range.clone()], &x.y[range.clone()], &x.z[range]);
+            for (i, row) in rows.iter_mut().enumerate() {
+                *row = [xs[i], ys[i], zs[i], 0.0];
+            }
+        });
+    }
+
+    pub fn heap_bytes(&self) -> usize {
+        self.0.capacity() * size_of::<[f32; 4]>()
+    }
+}
+
 /// Adds group `g`'s terms from the rows packed from `low` to the group's sums (the functions
 /// `packed_kernel!` defines).
 #[cfg(target_arch = "x86_64")]
 type PackedKernel<const C: usize> =
-    unsafe fn(&Lanes<C>, &[[f32; 4]], usize, usize, &mut [[f32; LANES]; 3]);
+    unsafe fn(&Lanes<C>, &[[f32; 4]], usize, usize, Option<&[Sym3]>, &mut [[f32; LANES]; 3]);
 
 impl<const C: usize> Lanes<C> {
     /// [`Lanes::apply_range`] with the operand packed, where [`Lanes::packed_span`] allows
@@ -429,12 +462,35 @@ impl<const C: usize> Lanes<C> {
         x: &Vec3s,
         range: &std::ops::Range<usize>,
         out: &mut Vec3SliceMut,
-        start: &impl Fn(usize, Vec3) -> Vec3,
+        start: Option<&impl Fn(usize, Vec3) -> Vec3>,
         kernel: PackedKernel<C>,
+        (diagonal, whole): (Option<&[Sym3]>, Option<&Packed>),
     ) -> bool {
-        let Some(span) = self.packed_span(range) else {
+        // Packed whole by the caller: every column (below `width`) and row (below the rows'
+        // count) is in it.
+        let whole = whole.filter(|w| w.0.len() >= self.width.max(self.place.len()));
+        if let Some(whole) = whole.filter(|_| self.packs()) {
+            let groups = self.groups(range);
+            self.apply_groups(groups, range.clone(), out, start, |g, acc| {
+                // SAFETY: `packs` found AVX2 and narrow columns, and `whole` holds every row.
+                unsafe { kernel(self, &whole.0, 0, g, diagonal, acc) }
+            });
+            return true;
+        }
+        let Some(mut span) = self.packed_span(range) else {
             return false;
         };
+        if diagonal.is_some() {
+            // The diagonal's terms read each group's own rows too.
+            let groups = self.groups(range);
+            let per_window = WINDOW / LANES;
+            let rows = groups.start / per_window * WINDOW
+                ..self
+                    .place
+                    .len()
+                    .min(groups.end.div_ceil(per_window) * WINDOW);
+            span = span.start.min(rows.start)..span.end.max(rows.end);
+        }
         PACKED.with_borrow_mut(|packed| {
             packed.clear();
             let (xs, ys, zs) = (&x.x[span.clone()], &x.y[span.clone()], &x.z[span.clone()]);
@@ -443,22 +499,27 @@ impl<const C: usize> Lanes<C> {
             let groups = self.groups(range);
             self.apply_groups(groups, range.clone(), out, start, |g, acc| {
                 // SAFETY: `packed_span` found AVX2, narrow columns and every column of these
-                // groups in `span`, packed from its start.
-                unsafe { kernel(self, packed, span.start, g, acc) }
+                // groups in `span`, packed from its start (their rows too, with a diagonal).
+                unsafe { kernel(self, packed, span.start, g, diagonal, acc) }
             });
         });
         true
+    }
+
+    /// Whether a product can read a packed operand: the CPU has AVX2 and the columns are
+    /// narrow.
+    #[cfg(target_arch = "x86_64")]
+    fn packs(&self) -> bool {
+        crate::simd::isa() != crate::simd::Isa::Baseline
+            && is_x86_feature_detected!("avx2")
+            && matches!(self.columns, Columns::Narrow { .. })
     }
 
     /// The operand's rows a product over `range` reads, where it is to be packed: the CPU
     /// has AVX2, the columns are narrow and the rows few enough ([`PACKED_ROWS_A_LANE`]).
     #[cfg(target_arch = "x86_64")]
     fn packed_span(&self, range: &std::ops::Range<usize>) -> Option<std::ops::Range<usize>> {
-        if range.is_empty()
-            || crate::simd::isa() == crate::simd::Isa::Baseline
-            || !is_x86_feature_detected!("avx2")
-            || !matches!(self.columns, Columns::Narrow { .. })
-        {
+        if range.is_empty() || !self.packs() {
             return None;
         }
         let groups = self.groups(range);
@@ -484,15 +545,20 @@ impl<const C: usize> Lanes<C> {
 #[cfg(target_arch = "x86_64")]
 macro_rules! packed_kernel {
     ($name:ident, $c:literal, |$b:ident, $half:ident, $x:ident, $y:ident, $z:ident| $term:expr) => {
+        /// With `diagonal`, each lane's sum starts from its row's diagonal term instead of
+        /// `acc` ([`diagonal_terms`]).
+        ///
         /// # Safety
         /// The CPU has AVX2, the columns are [`Columns::Narrow`], and `packed` holds the rows
-        /// `low..` through every column of group `g`.
+        /// `low..` through every column of group `g` (and its rows, with `diagonal`, which then
+        /// has a block for each of them).
         #[target_feature(enable = "avx2")]
         unsafe fn $name(
             lanes: &Lanes<$c>,
             packed: &[[f32; 4]],
             low: usize,
             g: usize,
+            diagonal: Option<&[Sym3]>,
             acc: &mut [[f32; LANES]; 3],
         ) {
             use std::arch::x86_64::*;
@@ -500,7 +566,7 @@ macro_rules! packed_kernel {
                 unreachable!("a packed product of wide columns")
             };
             let (first, end) = (lanes.starts[g] as usize, lanes.starts[g + 1] as usize);
-            if first == end {
+            if first == end && diagonal.is_none() {
                 return;
             }
             // Every live column, and a dead slot's (its group's base), is in `low..low + len`.
@@ -512,9 +578,14 @@ macro_rules! packed_kernel {
             for $half in [0, 8] {
                 let lengths = lanes.lengths[g][$half..].as_ptr() as *const __m256i;
                 let lengths = _mm256_loadu_si256(lengths);
-                let mut sx = _mm256_loadu_ps(acc[0][$half..].as_ptr());
-                let mut sy = _mm256_loadu_ps(acc[1][$half..].as_ptr());
-                let mut sz = _mm256_loadu_ps(acc[2][$half..].as_ptr());
+                let (mut sx, mut sy, mut sz) = match diagonal {
+                    Some(d) => diagonal_terms(&lanes.lane_rows[g], $half, packed, low, d),
+                    None => (
+                        _mm256_loadu_ps(acc[0][$half..].as_ptr()),
+                        _mm256_loadu_ps(acc[1][$half..].as_ptr()),
+                        _mm256_loadu_ps(acc[2][$half..].as_ptr()),
+                    ),
+                };
                 for (k, $b) in (first..end).zip(&lanes.values[first..end]) {
                     let o = &offset[k][$half..$half + 8];
                     // Register `e`'s 128-bit half `j` holds lane `4 j + e`'s `x, y, z, 0`.
@@ -547,6 +618,77 @@ macro_rules! packed_kernel {
             }
         }
     };
+}
+
+/// The rows `rows[half..half + 8]`' diagonal terms `diagonal[v] x_v`, as [`Sym3::mul`] computes
+/// them: each row's operand read as one 16-byte load from `packed` (row `low` first), its block
+/// as two overlapping ones (components 0 to 3 and 2 to 5), and both turned into components
+/// across the eight lanes by shuffles, as the slots' operands are. An empty lane ([`PAD`])
+/// reads the group's first row and its sums are never written.
+///
+/// # Safety
+/// The CPU has AVX2, `packed` holds every live row of `rows` from `low`, `diagonal` has a block
+/// for each, and `rows[0]` is live (a group's first lane always is).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn diagonal_terms(
+    rows: &[u32; LANES],
+    half: usize,
+    packed: &[[f32; 4]],
+    low: usize,
+    diagonal: &[Sym3],
+) -> (
+    std::arch::x86_64::__m256,
+    std::arch::x86_64::__m256,
+    std::arch::x86_64::__m256,
+) {
+    use std::arch::x86_64::*;
+    let row = |l: usize| match rows[half + l] {
+        PAD => rows[0] as usize,
+        v => v as usize,
+    };
+    debug_assert!((0..8).all(|l| row(l) >= low && row(l) - low < packed.len()));
+    debug_assert!((0..8).all(|l| row(l) < diagonal.len()));
+    let operand = |l: usize| _mm_loadu_ps(packed.as_ptr().add(row(l) - low) as *const f32);
+    let block = diagonal.as_ptr() as *const f32;
+    let low_half = |l: usize| _mm_loadu_ps(block.add(6 * row(l)));
+    let high_half = |l: usize| _mm_loadu_ps(block.add(6 * row(l) + 2));
+    let [x, y, z, _] = transpose(std::array::from_fn(operand));
+    let [m0, m1, m2, m3] = transpose(std::array::from_fn(low_half));
+    let [_, _, m4, m5] = transpose(std::array::from_fn(high_half));
+    let px = _mm256_add_ps(
+        _mm256_add_ps(_mm256_mul_ps(m0, x), _mm256_mul_ps(m3, y)),
+        _mm256_mul_ps(m4, z),
+    );
+    let py = _mm256_add_ps(
+        _mm256_add_ps(_mm256_mul_ps(m3, x), _mm256_mul_ps(m1, y)),
+        _mm256_mul_ps(m5, z),
+    );
+    let pz = _mm256_add_ps(
+        _mm256_add_ps(_mm256_mul_ps(m4, x), _mm256_mul_ps(m5, y)),
+        _mm256_mul_ps(m2, z),
+    );
+    (px, py, pz)
+}
+
+/// Eight lanes' four components, lane `l`'s in `q[l]`, as four vectors of a component each.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn transpose(q: [std::arch::x86_64::__m128; 8]) -> [std::arch::x86_64::__m256; 4] {
+    use std::arch::x86_64::*;
+    // Register `e`'s 128-bit half `j` holds lane `4 j + e`.
+    let pair = |e: usize| _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(q[e]), q[e + 4]);
+    let (q0, q1, q2, q3) = (pair(0), pair(1), pair(2), pair(3));
+    let (t0, t1) = (_mm256_unpacklo_ps(q0, q1), _mm256_unpackhi_ps(q0, q1));
+    let (t2, t3) = (_mm256_unpacklo_ps(q2, q3), _mm256_unpackhi_ps(q2, q3));
+    [
+        _mm256_shuffle_ps::<0x44>(t0, t2),
+        _mm256_shuffle_ps::<0xEE>(t0, t2),
+        _mm256_shuffle_ps::<0x44>(t1, t3),
+        _mm256_shuffle_ps::<0xEE>(t1, t3),
+    ]
 }
 
 // Each block's term as `Sym3::mul` computes it: each component's three products added left
@@ -615,9 +757,49 @@ impl BlockLanes {
         start: impl Fn(usize, Vec3) -> Vec3,
     ) {
         #[cfg(target_arch = "x86_64")]
-        if self.apply_packed(x, &range, out, &start, add_packed_blocks) {
+        if self.apply_packed(
+            x,
+            &range,
+            out,
+            Some(&start),
+            add_packed_blocks,
+            (None, None),
+        ) {
             return;
         }
+        self.apply_range(x, range, out, start, |b, x| Sym3(b).mul(x));
+    }
+
+    /// [`BlockLanes::apply_blocks`] of a square matrix whose diagonal blocks are kept apart:
+    /// each row `v`'s sum starts from `diagonal[v] x_v` (as [`Sym3::mul`] computes it). Packed,
+    /// the diagonal's terms are taken eight rows at a time beside the slots', not row by row;
+    /// `whole`, where given, is `x` packed whole ([`Packed`]), read instead of packing the
+    /// range's rows.
+    #[inline(always)]
+    pub fn apply_blocks_from_diagonal(
+        &self,
+        (x, whole): (&Vec3s, Option<&Packed>),
+        range: std::ops::Range<usize>,
+        out: &mut Vec3SliceMut,
+        diagonal: &[Sym3],
+    ) {
+        debug_assert_eq!(diagonal.len(), self.place.len());
+        #[cfg(target_arch = "x86_64")]
+        if (self.width == diagonal.len())
+            && self.apply_packed(
+                x,
+                &range,
+                out,
+                None::<&fn(usize, Vec3) -> Vec3>,
+                add_packed_blocks,
+                (Some(diagonal), whole),
+            )
+        {
+            return;
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = whole;
+        let start = |v: usize, _| diagonal[v].mul(x.get(v));
         self.apply_range(x, range, out, start, |b, x| Sym3(b).mul(x));
     }
 }
@@ -634,7 +816,14 @@ impl WeightLanes {
         start: impl Fn(usize, Vec3) -> Vec3,
     ) {
         #[cfg(target_arch = "x86_64")]
-        if self.apply_packed(x, &range, out, &start, add_packed_weights) {
+        if self.apply_packed(
+            x,
+            &range,
+            out,
+            Some(&start),
+            add_packed_weights,
+            (None, None),
+        ) {
             return;
         }
         self.apply_range(x, range, out, start, |[w], x| w * x);
@@ -665,7 +854,9 @@ mod tests {
     /// A banded matrix (each row's columns within 40 of it, so that a product packs its
     /// operand where the CPU allows) with rows of 0 to 19 entries, of blocks and of weights,
     /// multiplied packed and gathered over ranges that cut windows and groups: bitwise the same, a lane whose sum
-    /// starts at `-0.0` and adds only padding included.
+    /// starts at `-0.0` and adds only padding included; and with each row's sum started from
+    /// its diagonal block's term, taken eight rows at a time where packed, as the row-by-row
+    /// start gives it (rows of no entry and zero blocks included).
     #[test]
     fn a_packed_product_is_bitwise_the_gathered_product() {
         let n = 1500;
@@ -688,6 +879,15 @@ mod tests {
         let x = Vec3s::from_fn(n, |v| {
             Vec3::new(v as f32 * 0.37 - 9.0, -1.5, (v as f32).sin())
         });
+        // Diagonal blocks of every sign, some zero (a held row: its sum starts from `+-0`).
+        let diagonal: Vec<Sym3> = (0..n)
+            .map(|v| match v % 7 {
+                0 => Sym3::ZERO,
+                _ => Sym3(std::array::from_fn(|c| {
+                    (hash(v * 11 + c) % 2001) as f32 / 500.0 - 2.0
+                })),
+            })
+            .collect();
         let start = |v: usize, _| match v % 3 {
             0 => Vec3::splat(-0.0),
             _ => Vec3::splat(v as f32 * 0.01),
@@ -718,10 +918,19 @@ mod tests {
             weights.apply_weights(&x, range.clone(), &mut out, start);
             let mut out = gathered_w.slices_mut(range.clone());
             weights.apply_range(&x, range.clone(), &mut out, start, |[w], x| w * x);
+            let (mut packed_d, mut gathered_d) = (Vec3s::zeros(n), Vec3s::zeros(n));
+            let mut out = packed_d.slices_mut(range.clone());
+            lanes.apply_blocks_from_diagonal((&x, None), range.clone(), &mut out, &diagonal);
+            let mut out = gathered_d.slices_mut(range.clone());
+            let from_diagonal = |v: usize, _| diagonal[v].mul(x.get(v));
+            lanes.apply_range(&x, range.clone(), &mut out, from_diagonal, |b, x| {
+                Sym3(b).mul(x)
+            });
             for v in range {
                 let bits = |y: &Vec3s| y.get(v).to_array().map(f32::to_bits);
                 assert_eq!(bits(&packed), bits(&gathered), "row {v}");
                 assert_eq!(bits(&packed_w), bits(&gathered_w), "row {v}, weights");
+                assert_eq!(bits(&packed_d), bits(&gathered_d), "row {v}, diagonal");
             }
         }
     }

@@ -28,6 +28,7 @@
 
 use rayon::prelude::*;
 
+use super::block_lanes::Packed;
 use super::reduce::{dot, dot3, par_dot, partials, REDUCE_CHUNK};
 use super::stencil::{set_product, BlockStencil, SlotArrays};
 use crate::soa::{Vec3SliceMut, Vec3s};
@@ -41,6 +42,25 @@ pub trait BlockOperator: Sync {
     /// Readies a product with `x`, once before its ranges of rows: what many rows share is
     /// computed here once (nothing by default).
     fn prepare(&self, _x: &Vec3s) {}
+
+    /// Whether a product reads its operand faster packed whole, once before its ranges of rows
+    /// ([`Packed`]): then the callers that keep a [`Packed`] pack `x` into it and call
+    /// [`BlockOperator::apply_range_packed`] (false by default).
+    fn packs(&self) -> bool {
+        false
+    }
+
+    /// [`BlockOperator::apply_range`] given also `x` packed whole just before (a wrapper that
+    /// does not forward it multiplies unpacked, by default).
+    #[inline(always)]
+    fn apply_range_packed(
+        &self,
+        (x, _packed): (&Vec3s, &Packed),
+        range: std::ops::Range<usize>,
+        out: &mut Vec3SliceMut,
+    ) {
+        self.apply_range(x, range, out)
+    }
 
     /// Whether [`BlockOperator::add_after`] adds anything (false by default).
     fn adds_after(&self) -> bool {
@@ -67,6 +87,55 @@ pub trait BlockOperator: Sync {
     }
 }
 
+/// An operator whose products read their operand as `packed` holds it, packed whole just
+/// before ([`BlockOperator::apply_range_packed`]): a type of its own, so that an operator that
+/// does not pack keeps its product's code as it is.
+pub(crate) struct Packing<'a, A> {
+    pub a: &'a A,
+    pub packed: &'a Packed,
+}
+
+impl<A: BlockOperator> BlockOperator for Packing<'_, A> {
+    #[inline(always)]
+    fn apply_range(&self, x: &Vec3s, range: std::ops::Range<usize>, out: &mut Vec3SliceMut) {
+        self.a.apply_range_packed((x, self.packed), range, out);
+    }
+
+    fn adds_after(&self) -> bool {
+        self.a.adds_after()
+    }
+
+    fn add_after(&self, x: &Vec3s, y: &mut Vec3s) {
+        self.a.add_after(x, y);
+    }
+}
+
+/// `q = A p` (after [`BlockOperator::prepare`]), returning `p . q`.
+fn product<A: BlockOperator>(a: &A, p: &Vec3s, q: &mut Vec3s, partials: &mut [f64]) -> f64 {
+    if a.adds_after() {
+        // `p . q` only once the part taken after the rows is in.
+        q.par_chunks_mut(REDUCE_CHUNK)
+            .enumerate()
+            .for_each(|(c, mut q)| {
+                let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + q.len();
+                crate::simd::dispatch!(a.apply_range(p, range.clone(), &mut q));
+            });
+        a.add_after(p, q);
+        return par_dot(p, q, partials);
+    }
+    q.par_chunks_mut(REDUCE_CHUNK)
+        .zip(partials.par_iter_mut())
+        .enumerate()
+        .for_each(|(c, (mut q, partial))| {
+            let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + q.len();
+            *partial = crate::simd::dispatch!({
+                a.apply_range(p, range.clone(), &mut q);
+                dot3(p.slices(range.clone()), q.as_slices())
+            });
+        });
+    partials.iter().sum()
+}
+
 impl BlockOperator for BlockStencil {
     #[inline(always)]
     fn apply_range(&self, x: &Vec3s, range: std::ops::Range<usize>, out: &mut Vec3SliceMut) {
@@ -91,6 +160,8 @@ pub struct ConjugateGradient {
     p: Vec3s,
     q: Vec3s,
     partials: Vec<f64>,
+    /// `p` packed for a product whose operator [`BlockOperator::packs`].
+    packed: Packed,
 }
 
 impl ConjugateGradient {
@@ -102,6 +173,7 @@ impl ConjugateGradient {
             p: Vec3s::zeros(n),
             q: Vec3s::zeros(n),
             partials: partials(n),
+            packed: Packed::default(),
         }
     }
 
@@ -203,31 +275,20 @@ impl ConjugateGradient {
 
     /// `q = A p`, returning `p . q`.
     fn product<A: BlockOperator>(&mut self, a: &A) -> f64 {
-        let ConjugateGradient { p, q, partials, .. } = self;
+        let ConjugateGradient {
+            p,
+            q,
+            partials,
+            packed,
+            ..
+        } = self;
         let p = &*p;
         a.prepare(p);
-        if a.adds_after() {
-            // `p . q` only once the part taken after the rows is in.
-            q.par_chunks_mut(REDUCE_CHUNK)
-                .enumerate()
-                .for_each(|(c, mut q)| {
-                    let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + q.len();
-                    crate::simd::dispatch!(a.apply_range(p, range.clone(), &mut q));
-                });
-            a.add_after(p, q);
-            return par_dot(p, q, partials);
+        if a.packs() {
+            packed.pack(p);
+            return product(&Packing { a, packed }, p, q, partials);
         }
-        q.par_chunks_mut(REDUCE_CHUNK)
-            .zip(partials.par_iter_mut())
-            .enumerate()
-            .for_each(|(c, (mut q, partial))| {
-                let range = c * REDUCE_CHUNK..c * REDUCE_CHUNK + q.len();
-                *partial = crate::simd::dispatch!({
-                    a.apply_range(p, range.clone(), &mut q);
-                    dot3(p.slices(range.clone()), q.as_slices())
-                });
-            });
-        partials.iter().sum()
+        product(a, p, q, partials)
     }
 
     /// `x += step p, r -= step q`; returns `r . r`.

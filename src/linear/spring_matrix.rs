@@ -8,7 +8,7 @@
 //! ([`BlockLanes`]). Each row's product sums its entries in a
 //! fixed order, so `A x` is bitwise the same for any number of threads.
 
-use super::block_lanes::BlockLanes;
+use super::block_lanes::{BlockLanes, Packed};
 use super::cg::BlockOperator;
 use super::stencil::Sym3;
 use crate::soa::{Vec3SliceMut, Vec3s};
@@ -101,8 +101,22 @@ impl SpringMatrix {
 impl BlockOperator for SpringMatrix {
     #[inline(always)]
     fn apply_range(&self, x: &Vec3s, range: std::ops::Range<usize>, out: &mut Vec3SliceMut) {
-        let diagonal = |v: usize, _| self.diagonal[v].mul(x.get(v));
-        self.values.apply_blocks(x, range, out, diagonal);
+        (self.values).apply_blocks_from_diagonal((x, None), range, out, &self.diagonal);
+    }
+
+    fn packs(&self) -> bool {
+        true
+    }
+
+    #[inline(always)]
+    fn apply_range_packed(
+        &self,
+        (x, packed): (&Vec3s, &Packed),
+        range: std::ops::Range<usize>,
+        out: &mut Vec3SliceMut,
+    ) {
+        let operand = (x, Some(packed));
+        (self.values).apply_blocks_from_diagonal(operand, range, out, &self.diagonal);
     }
 }
 

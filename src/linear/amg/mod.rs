@@ -32,7 +32,8 @@ mod order;
 
 use rayon::prelude::*;
 
-use super::cg::BlockOperator;
+use super::block_lanes::Packed;
+use super::cg::{BlockOperator, Packing};
 use super::dense::DenseCholesky;
 use super::reduce::REDUCE_CHUNK;
 use super::{SpringMatrix, Sym3};
@@ -70,6 +71,8 @@ struct Level {
     smoother: Vec<Sym3>,
     /// This level's residual, and the next level's right-hand side and solution.
     r: Vec3s,
+    /// The operand of this level's products, packed where its matrix [`BlockOperator::packs`].
+    packed: Packed,
     coarse_b: Vec3s,
     coarse_x: Vec3s,
 }
@@ -92,6 +95,7 @@ impl Level {
             coarse,
             smoother: vec![Sym3::ZERO; n],
             r: Vec3s::zeros(n),
+            packed: Packed::default(),
             coarse_b: Vec3s::zeros(nc),
             coarse_x: Vec3s::zeros(nc),
         })
@@ -223,12 +227,13 @@ fn cycle<A: BlockOperator>(
         coarse,
         smoother,
         r,
+        packed,
         coarse_b,
         coarse_x,
         ..
     } = level;
     jacobi_start(smoother, b, x);
-    residual(a, b, x, r);
+    residual(a, b, (x, packed), r);
     transfer.restrict(r, coarse_b);
     if below.is_empty() {
         solve_dense(coarsest, coarse_b, coarse_x, rhs);
@@ -236,7 +241,7 @@ fn cycle<A: BlockOperator>(
         cycle(&*coarse, coarse_b, coarse_x, below, coarsest, rhs);
     }
     transfer.prolong_add(coarse_x, x);
-    jacobi_sweep(a, smoother, b, x, r);
+    jacobi_sweep(a, smoother, b, (x, packed), r);
 }
 
 /// `omega D^-1` of `a`, block by block (zero for a block that is not positive definite):
@@ -342,8 +347,18 @@ fn smooth(
     }
 }
 
-/// `r = b - a x`.
-fn residual<A: BlockOperator>(a: &A, b: &Vec3s, x: &Vec3s, r: &mut Vec3s) {
+/// `r = b - a x` (`packed`, scratch for `x` packed where `a` [`BlockOperator::packs`]).
+fn residual<A: BlockOperator>(a: &A, b: &Vec3s, (x, packed): (&Vec3s, &mut Packed), r: &mut Vec3s) {
+    if a.packs() && !a.adds_after() {
+        a.prepare(x);
+        packed.pack(x);
+        return unpacked_residual(&Packing { a, packed }, b, x, r);
+    }
+    unpacked_residual(a, b, x, r)
+}
+
+/// `r = b - a x`, `a` read as it multiplies.
+fn unpacked_residual<A: BlockOperator>(a: &A, b: &Vec3s, x: &Vec3s, r: &mut Vec3s) {
     if a.adds_after() {
         a.apply(x, r, REDUCE_CHUNK);
         r.par_chunks_mut(REDUCE_CHUNK)
@@ -376,15 +391,15 @@ fn residual<A: BlockOperator>(a: &A, b: &Vec3s, x: &Vec3s, r: &mut Vec3s) {
         });
 }
 
-/// `x += S (b - a x)`, with `r` as scratch.
+/// `x += S (b - a x)`, with `r` and `packed` as scratch.
 fn jacobi_sweep<A: BlockOperator>(
     a: &A,
     smoother: &[Sym3],
     b: &Vec3s,
-    x: &mut Vec3s,
+    (x, packed): (&mut Vec3s, &mut Packed),
     r: &mut Vec3s,
 ) {
-    residual(a, b, x, r);
+    residual(a, b, (x, packed), r);
     x.par_chunks_mut(REDUCE_CHUNK)
         .enumerate()
         .for_each(|(c, x)| {
