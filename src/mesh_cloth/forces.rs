@@ -36,6 +36,11 @@ impl MeshCloth {
         // Whole groups of vertices per work item; each vertex's sum is the same in any split.
         let per_item = chunk.next_multiple_of(LANES);
         let slots = &self.slots;
+        assert_eq!(
+            slots.local,
+            self.local.is_some(),
+            "the force pass's slots are not in the cloth's numbering (MeshCloth::set_local)"
+        );
         let law = (sewing, limit);
         let Some(local) = &self.local else {
             let coordinates = [&pos.x, &pos.y, &pos.z, &vel.x, &vel.y, &vel.z].map(|x| &x[..]);

@@ -102,6 +102,8 @@ pub struct SpringSlots {
     pub linear: Vec<f32>,
     /// The vertices of the numbering: every `other` is below it.
     vertices: usize,
+    /// Whether the lanes are a [`super::LocalNumbering`]'s (else the user's numbering).
+    pub local: bool,
 }
 
 impl SpringSlots {
@@ -115,10 +117,10 @@ impl SpringSlots {
     pub const PADDING: u8 = 8;
 
     /// The slots of `lanes` over `vertices` vertices, whose springs `springs` have their ends
-    /// `ends` in the lanes' numbering, with isometric bending's per-spring `linear` where the
-    /// cloth has it.
+    /// `ends` in the lanes' numbering (a local numbering's with `local`), with isometric
+    /// bending's per-spring `linear` where the cloth has it.
     pub fn new(
-        lanes: &IncidenceLanes,
+        (lanes, local): (&IncidenceLanes, bool),
         ends: (&[u32], &[u32]),
         springs: &super::EdgeSprings,
         linear: Option<&[f32]>,
@@ -156,6 +158,7 @@ impl SpringSlots {
             flags,
             linear: Vec::new(),
             vertices,
+            local,
         };
         slots.refresh(springs, linear);
         slots

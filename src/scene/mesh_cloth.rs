@@ -177,10 +177,7 @@ impl MeshCloth {
         }
         let panels = spec.panels.clone();
         let linear = bending.as_ref().map(|b| &b.linear[..]);
-        let slots = match &local {
-            Some(l) => SpringSlots::new(&l.lanes, (&l.a, &l.b), &springs, linear, n),
-            None => SpringSlots::new(&lanes, (&springs.a, &springs.b), &springs, linear, n),
-        };
+        let slots = slots_of(&lanes, local.as_ref(), &springs, linear, n);
         Ok(MeshCloth {
             panels,
             membrane,
@@ -198,6 +195,15 @@ impl MeshCloth {
             slots,
             sew_time,
         })
+    }
+
+    /// Sets the numbering the force pass works in (None: the user's), with its
+    /// [`MeshCloth::slots`].
+    pub fn set_local(&mut self, local: Option<LocalNumbering>) {
+        let linear = self.bending.as_ref().map(|b| &b.linear[..]);
+        let n = self.len();
+        self.slots = slots_of(&self.lanes, local.as_ref(), &self.springs, linear, n);
+        self.local = local;
     }
 
     /// Recomputes what follows the springs' parameters after a cut or a tear: the isometric
@@ -478,5 +484,20 @@ impl ClothSpec {
             ..material
         });
         Ok(())
+    }
+}
+
+/// The force pass's slots ([`SpringSlots`]) of a cloth's springs over `n` vertices, in `local`
+/// where it has one, else in the user's numbering (`lanes`).
+fn slots_of(
+    lanes: &IncidenceLanes,
+    local: Option<&LocalNumbering>,
+    springs: &EdgeSprings,
+    linear: Option<&[f32]>,
+    n: usize,
+) -> SpringSlots {
+    match local {
+        Some(l) => SpringSlots::new((&l.lanes, true), (&l.a, &l.b), springs, linear, n),
+        None => SpringSlots::new((lanes, false), (&springs.a, &springs.b), springs, linear, n),
     }
 }
