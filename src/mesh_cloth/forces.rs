@@ -1,14 +1,18 @@
-//! The springs of a mesh cloth added to the force, in two parallel passes: each spring's force
-//! on its first end into a per-spring table (the grid's arithmetic, in float32), then each
-//! vertex gathers `+F` or `-F` from the springs that touch it, in increasing spring order. The
-//! order of every sum is fixed by the mesh, so the result is bitwise the same for any number of
-//! threads, and each spring's two ends get bitwise opposite forces (momentum is conserved up to
-//! the order of summation). Both passes are written for the vector unit: the first gathers a
-//! block's differences before its arithmetic, the second sums a group of vertices at once
-//! ([`IncidenceLanes`]); neither reorders any operation, so every instruction set gives the
-//! same bits. A mesh whose numbering is scattered is worked on in its own local numbering
-//! ([`crate::scene::MeshCloth::local`]): the state is gathered into it, the passes run there,
-//! the forces are scattered back, each vertex's sum the same.
+//! The springs of a mesh cloth added to the force, in one parallel pass over groups of
+//! vertices ([`IncidenceLanes`]): each vertex computes the force of each spring that touches
+//! it, in increasing spring order, from the slot's copy of the spring's parameters
+//! ([`SpringSlots`]) and the other end's position and velocity, and adds `+F` at a spring's
+//! first end or `-1 * F` at its second. Both ends compute `F` from `x_b - x_a` and `v_b - v_a`
+//! in that order, so they get bitwise opposite forces (momentum is conserved up to the order
+//! of summation), and every sum is bitwise that of a table of per-spring forces gathered by
+//! vertex; the order of every sum is fixed by the mesh, so the result is bitwise the same for
+//! any number of threads. Each spring is computed twice, but nothing is written per spring and
+//! read back: a group's row of [`LANES`] springs gathers only the other ends' six
+//! coordinates, which is what the pass waits on. No operation is reordered for the vector
+//! unit, so every instruction set gives the same bits. A mesh whose numbering is scattered is
+//! worked on in its own local numbering ([`crate::scene::MeshCloth::local`]): the state is
+//! gathered into it, the pass runs there, the forces are scattered back, each vertex's sum the
+//! same.
 
 use rayon::prelude::*;
 

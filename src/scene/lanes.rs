@@ -6,9 +6,9 @@
 //! of [`LANES`], and a group's lists are stored row by row, one entry per lane (a sliced ELLPACK
 //! layout): row `r` holds each lane's `r`-th spring. One vector addition per row then advances
 //! all the group's sums, each lane still in its own vertex's order. A list shorter than its
-//! group's longest is padded with [`IncidenceLanes::pad`], a spring one past the last whose
-//! force table entry is `-0.0`: `x + -0.0` is `x` for every `x`, so the padding leaves every
-//! sum bitwise what the list alone gives.
+//! group's longest is padded with [`IncidenceLanes::pad`], a spring one past the last, whose
+//! slot adds `-0.0` ([`SpringSlots::PADDING`]): `x + -0.0` is `x` for every `x`, so the
+//! padding leaves every sum bitwise what the list alone gives.
 
 /// Vertices per group: the `f32` lanes of an AVX-512 register.
 pub const LANES: usize = 16;
@@ -69,8 +69,7 @@ impl IncidenceLanes {
         self.starts[g] as usize..self.starts[g + 1] as usize
     }
 
-    /// The padding spring, whose entry in a force table must be `-0.0`: the number of springs,
-    /// so a table holds one entry more than there are springs.
+    /// The padding spring, which must add `-0.0`: the number of springs.
     pub fn pad(&self) -> usize {
         self.pad as usize
     }
@@ -180,7 +179,7 @@ impl SpringSlots {
                 (springs.rest[e], springs.k[e], springs.c[e]);
             let seam = springs.kind[e] == super::EdgeKind::Seam;
             self.flags[slot] =
-                kept | seam as u8 * Self::SEAM | springs.active[e] as u8 * Self::ACTIVE;
+                kept | (seam as u8 * Self::SEAM) | (springs.active[e] as u8 * Self::ACTIVE);
         }
         self.linear = match linear {
             Some(linear) => (self.spring.iter())
