@@ -48,28 +48,18 @@ impl MeshCloth {
         let law = (sewing, limit);
         let Some(local) = &self.local else {
             let coordinates = [&pos.x, &pos.y, &pos.z, &vel.x, &vel.y, &vel.z].map(|x| &x[..]);
-            let lanes = &self.lanes;
+            let pass = Pass {
+                lanes: &self.lanes,
+                slots,
+                coordinates,
+                law,
+            };
             let over = out
                 .par_chunks_mut(per_item)
                 .enumerate()
                 .map(|(c, f)| {
                     let first = c * per_item / LANES;
-                    match slots.linear.is_empty() {
-                        true => crate::simd::dispatch!(vertex_forces::<false>(
-                            (lanes, slots),
-                            first,
-                            coordinates,
-                            law,
-                            f
-                        )),
-                        false => crate::simd::dispatch!(vertex_forces::<true>(
-                            (lanes, slots),
-                            first,
-                            coordinates,
-                            law,
-                            f
-                        )),
-                    }
+                    cloth_forces(pass, first, f)
                 })
                 .reduce(|| false, |x, y| x | y);
             return watch.is_some() && over;
@@ -104,7 +94,12 @@ impl MeshCloth {
                 }
             });
         let coordinates = [&*x0, &*x1, &*x2, &*v0, &*v1, &*v2];
-        let lanes = &local.lanes;
+        let pass = Pass {
+            lanes: &local.lanes,
+            slots,
+            coordinates,
+            law,
+        };
         let over = (
             f0.par_chunks_mut(p),
             f1.par_chunks_mut(p),
@@ -115,22 +110,7 @@ impl MeshCloth {
             .map(|(c, (x, y, z))| {
                 let first = c * p / LANES;
                 let f = Vec3SliceMut { x, y, z };
-                match slots.linear.is_empty() {
-                    true => crate::simd::dispatch!(vertex_forces::<false>(
-                        (lanes, slots),
-                        first,
-                        coordinates,
-                        law,
-                        f
-                    )),
-                    false => crate::simd::dispatch!(vertex_forces::<true>(
-                        (lanes, slots),
-                        first,
-                        coordinates,
-                        law,
-                        f
-                    )),
-                }
+                cloth_forces(pass, first, f)
             })
             .reduce(|| false, |x, y| x | y);
         let (f, place) = ([&*f0, &*f1, &*f2], &local.place);
@@ -218,18 +198,37 @@ impl MeshCloth {
     }
 }
 
+/// [`vertex_forces`] in the build for the cloth (with isometric bending's term or without) and
+/// the processor's instruction set.
+fn cloth_forces(pass: Pass<'_>, first: usize, f: Vec3SliceMut<'_>) -> bool {
+    match pass.slots.linear.is_empty() {
+        true => crate::simd::dispatch!(vertex_forces::<false>(pass, first, f)),
+        false => crate::simd::dispatch!(vertex_forces::<true>(pass, first, f)),
+    }
+}
+
+/// What every work item of the pass reads: the lanes and their slots, each vertex's
+/// coordinates (x, y, z of the position, then of the velocity, vertex `i`'s coordinate `c` at
+/// `coordinates[c][i]`), and the seams' `sewing` and the watch's `limit`.
+#[derive(Clone, Copy)]
+struct Pass<'a> {
+    lanes: &'a IncidenceLanes,
+    slots: &'a SpringSlots,
+    coordinates: [&'a [f32]; 6],
+    law: (f32, f32),
+}
+
 /// Adds to `f` (the forces of the vertices from group `first` on, component by component) the
 /// forces of each vertex's springs ([`group_forces`]); whether one of them other than a seam is
-/// longer than `limit` times its rest length. Vertex `i`'s coordinate `c` is
-/// `coordinates[c][i]`.
+/// longer than `limit` times its rest length.
 #[inline(always)]
-fn vertex_forces<const LINEAR: bool>(
-    (lanes, slots): (&IncidenceLanes, &SpringSlots),
-    first: usize,
-    coordinates: [&[f32]; 6],
-    law: (f32, f32),
-    f: Vec3SliceMut<'_>,
-) -> bool {
+fn vertex_forces<const LINEAR: bool>(pass: Pass<'_>, first: usize, f: Vec3SliceMut<'_>) -> bool {
+    let Pass {
+        lanes,
+        slots,
+        coordinates,
+        law,
+    } = pass;
     check_coordinates(slots, coordinates);
     let mut over = false;
     let groups =
