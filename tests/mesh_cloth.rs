@@ -673,7 +673,7 @@ fn the_force_pass_in_a_local_numbering_gives_bitwise_the_forces_of_the_users() {
         "a scattered mesh kept its numbering"
     );
     let mut plain = scattered.clone();
-    plain.local = None;
+    plain.set_local(None);
     // Stretched, rippled and moving, so that every spring pulls or pushes and damps.
     let pos = Vec3s::from_fn(m, |v| {
         let [x, y, _] = scattered.rest[v].map(|c| c as f32);
@@ -693,5 +693,127 @@ fn the_force_pass_in_a_local_numbering_gives_bitwise_the_forces_of_the_users() {
     for v in 0..m {
         let bits = |f: &Vec3s| f.get(v).to_array().map(f32::to_bits);
         assert_eq!(bits(&local), bits(&user), "vertex {v}");
+    }
+}
+
+/// The force pass computes each spring at both of its ends, from the lanes' copies of its
+/// parameters; each vertex's sum must be bitwise that of a table of per-spring forces (the
+/// force on the first end `F`, added as `+F` there and `-1 * F` at the second end, in the
+/// vertex's incidence order), computed here apart: on a mesh in row order, the same mesh
+/// renumbered (the local numbering), a sewn garment (seams, some slack) and isometric bending,
+/// each before and after cuts, which the lanes' copies must follow.
+#[test]
+fn computing_each_spring_at_both_ends_gives_bitwise_the_sums_of_a_per_spring_table() {
+    let n = 20;
+    let (vertices, triangles) = jittered_square(n, 1.0, [0.0, 1.0, 0.0], 0.3, 5);
+    let m = n * n;
+    let old: Vec<usize> = (0..m).map(|k| k * 7919 % m).collect();
+    let mut new = vec![0; m];
+    for (k, &v) in old.iter().enumerate() {
+        new[v] = k;
+    }
+    let square = MeshSpec {
+        vertices: vertices.clone(),
+        triangles: triangles.clone(),
+        ..MeshSpec::default()
+    };
+    let scattered = MeshSpec {
+        vertices: old.iter().map(|&v| vertices[v]).collect(),
+        triangles: (triangles.iter())
+            .map(|t| t.map(|v| new[v as usize] as i64))
+            .collect(),
+        ..MeshSpec::default()
+    };
+    let bending = MeshSpec {
+        bending: rustcloth::scene::BendingKind::Isometric,
+        ..scattered.clone()
+    };
+    let shirt = Scene::builtin("shirt").unwrap().sewn().unwrap();
+    let garment = shirt.cloth.mesh.unwrap();
+    for (name, spec, sewing) in [
+        ("row order", square, 0.0),
+        ("scattered", scattered, 0.0),
+        ("isometric bending", bending, 0.0),
+        ("garment", garment, 0.4),
+    ] {
+        let mesh = MeshCloth::new(&spec).unwrap();
+        let mut topology = rustcloth::mesh_cloth::MeshTopology::new(mesh);
+        for cut in [false, true] {
+            if cut {
+                let springs = topology.mesh.springs.len() as u32;
+                assert!(topology.sever((0..springs).step_by(37)) > 0);
+            }
+            let mesh = &topology.mesh;
+            assert_spring_sums_bitwise(mesh, sewing, &format!("{name}, cut {cut}"));
+        }
+    }
+}
+
+/// Compares [`MeshCloth::add_spring_forces`] with a per-spring table summed vertex by vertex.
+fn assert_spring_sums_bitwise(mesh: &MeshCloth, sewing: f32, name: &str) {
+    let m = mesh.len();
+    let pos = Vec3s::from_fn(m, |v| {
+        let [x, y, z] = mesh.rest[v].map(|c| c as f32);
+        Vec3::new(
+            1.05 * x,
+            y + 0.02 * (9.0 * x).sin(),
+            z + 0.03 * (7.0 * y).cos(),
+        )
+    });
+    let vel = Vec3s::from_fn(m, |v| {
+        Vec3::new((v % 7) as f32 * 0.1, -0.2, (v % 3) as f32 * 0.05)
+    });
+    let start = |v: usize| Vec3::new(0.0, -9.81 * mesh.masses[v] as f32, 0.0);
+    let mut out = Vec3s::from_fn(m, start);
+    let over = mesh.add_spring_forces(
+        (&pos, &vel),
+        sewing,
+        &mut out,
+        &mut Vec::new(),
+        64,
+        Some(1.02),
+    );
+    let s = &mesh.springs;
+    let linear = mesh.bending.as_ref().map(|b| &b.linear);
+    let coordinate = |x: &Vec3s, v: u32| x.get(v as usize).to_array();
+    let mut any_over = false;
+    let table: Vec<[f32; 3]> = (0..s.len())
+        .map(|e| {
+            let (a, b) = (s.a[e], s.b[e]);
+            let (xa, xb) = (coordinate(&pos, a), coordinate(&pos, b));
+            let (va, vb) = (coordinate(&vel, a), coordinate(&vel, b));
+            let d: [f32; 3] = std::array::from_fn(|c| xb[c] - xa[c]);
+            let w: [f32; 3] = std::array::from_fn(|c| vb[c] - va[c]);
+            let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            let seam = s.kind[e] == EdgeKind::Seam;
+            let rest = if seam { s.rest[e] * sewing } else { s.rest[e] };
+            any_over |= !seam && s.active[e] && l > 1.02 * rest;
+            let u: [f32; 3] = std::array::from_fn(|c| if l > 0.0 { d[c] / l } else { d[c] * 0.0 });
+            let closing = w[0] * u[0] + w[1] * u[1] + w[2] * u[2];
+            let magnitude = s.k[e] * (l - rest) + s.c[e] * closing;
+            let f: [f32; 3] = match seam && l <= rest {
+                true => [0.0; 3],
+                false => u.map(|u| magnitude * u),
+            };
+            match linear {
+                Some(linear) => std::array::from_fn(|c| f[c] + linear[e] * d[c]),
+                None => f,
+            }
+        })
+        .collect();
+    assert_eq!(over, any_over, "{name}: the stretch watch");
+    for v in 0..m {
+        let mut sum = start(v).to_array();
+        for &e in &mesh.incident[mesh.offsets[v] as usize..mesh.offsets[v + 1] as usize] {
+            let sign = 1.0 - 2.0 * (e & 1) as f32;
+            for c in 0..3 {
+                sum[c] += table[(e >> 1) as usize][c] * sign;
+            }
+        }
+        assert_eq!(
+            out.get(v).to_array().map(f32::to_bits),
+            sum.map(f32::to_bits),
+            "{name}: vertex {v}"
+        );
     }
 }

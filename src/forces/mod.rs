@@ -136,7 +136,7 @@ pub struct ForceModel {
     /// Makes the next evaluation panic on a worker thread, to test that a panic anywhere in a
     /// step is caught and rolled back (see [`ForceModel::inject_panic`]).
     panic_next: bool,
-    /// A mesh cloth's per-spring forces, scratch for [`MeshCloth::add_spring_forces`].
+    /// Scratch for [`MeshCloth::add_spring_forces`] (the state in a local numbering).
     mesh_table: Vec<[f32; 3]>,
     /// A mesh cloth's per-triangle forces, scratch for
     /// [`crate::mesh_cloth::membrane::Membrane::add_forces`].

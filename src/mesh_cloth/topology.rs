@@ -172,7 +172,7 @@ impl MeshTopology {
             }
         }
         if severed > 0 {
-            Arc::make_mut(mesh).refresh_bending();
+            Arc::make_mut(mesh).refresh_cut_springs();
         }
         severed
     }
@@ -191,7 +191,7 @@ impl MeshTopology {
         for (e, _) in active.iter().enumerate().filter(|(_, &live)| !live) {
             cut_spring(s, e as u32);
         }
-        Arc::make_mut(&mut self.mesh).refresh_bending();
+        Arc::make_mut(&mut self.mesh).refresh_cut_springs();
     }
 
     /// The piece each vertex belongs to, named by the smallest vertex index in it; `u32::MAX`

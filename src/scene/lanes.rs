@@ -6,9 +6,9 @@
 //! of [`LANES`], and a group's lists are stored row by row, one entry per lane (a sliced ELLPACK
 //! layout): row `r` holds each lane's `r`-th spring. One vector addition per row then advances
 //! all the group's sums, each lane still in its own vertex's order. A list shorter than its
-//! group's longest is padded with [`IncidenceLanes::pad`], a spring one past the last whose
-//! force table entry is `-0.0`: `x + -0.0` is `x` for every `x`, so the padding leaves every
-//! sum bitwise what the list alone gives.
+//! group's longest is padded with [`IncidenceLanes::pad`], a spring one past the last, whose
+//! slot adds `-0.0` ([`SpringSlots::PADDING`]): `x + -0.0` is `x` for every `x`, so the
+//! padding leaves every sum bitwise what the list alone gives.
 
 /// Vertices per group: the `f32` lanes of an AVX-512 register.
 pub const LANES: usize = 16;
@@ -61,17 +61,149 @@ impl IncidenceLanes {
 
     /// The rows of group `g` (vertices `g * LANES..`), [`LANES`] entries each.
     pub fn group(&self, g: usize) -> &[u32] {
-        &self.slots[self.starts[g] as usize..self.starts[g + 1] as usize]
+        &self.slots[self.group_slots(g)]
     }
 
-    /// The padding spring, whose entry in a force table must be `-0.0`: the number of springs,
-    /// so a table holds one entry more than there are springs.
+    /// The slots of group `g`, as a range of the layout (and of its [`SpringSlots`]).
+    pub fn group_slots(&self, g: usize) -> std::ops::Range<usize> {
+        self.starts[g] as usize..self.starts[g + 1] as usize
+    }
+
+    /// The padding spring, which must add `-0.0`: the number of springs.
     pub fn pad(&self) -> usize {
         self.pad as usize
     }
 
     pub fn heap_bytes(&self) -> usize {
         (self.starts.capacity() + self.slots.capacity()) * 4
+    }
+}
+
+/// What the single force pass reads per slot of an [`IncidenceLanes`] layout, in the same
+/// order: the spring's other end and a copy of the spring's parameters, so that a group's row
+/// loads them as contiguous vectors and only gathers the other end's position and velocity.
+/// Each spring is computed at both of its ends (twice the arithmetic, no per-spring table and
+/// no second pass). The copies follow the spring list only through [`SpringSlots::refresh`],
+/// which whatever changes a spring's parameters calls ([`super::MeshCloth::refresh_cut_springs`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SpringSlots {
+    /// Per slot, the vertex at the spring's other end; a padding slot's is its own vertex.
+    other: Vec<u32>,
+    /// Per slot, the spring's index (the padding spring's for padding), for the refresh.
+    spring: Vec<u32>,
+    /// Per slot, the spring's rest length (m), stiffness (N/m), damping (N s/m) and flags
+    /// ([`SpringSlots::SECOND_END`], [`SpringSlots::SEAM`], [`SpringSlots::ACTIVE`], [`SpringSlots::PADDING`]).
+    pub rest: Vec<f32>,
+    pub k: Vec<f32>,
+    pub c: Vec<f32>,
+    pub flags: Vec<u8>,
+    /// Per slot, isometric bending's linear stiffness of the spring (N/m); empty without it.
+    pub linear: Vec<f32>,
+    /// The vertices of the numbering: every `other` is below it.
+    vertices: usize,
+    /// Whether the lanes are a [`super::LocalNumbering`]'s (else the user's numbering).
+    pub local: bool,
+}
+
+impl SpringSlots {
+    /// A slot's flag: the vertex is the spring's second end (`b`).
+    pub const SECOND_END: u8 = 1;
+    /// A slot's flag: its spring is a seam.
+    pub const SEAM: u8 = 2;
+    /// A slot's flag: its spring holds (not severed).
+    pub const ACTIVE: u8 = 4;
+    /// A slot's flag: padding, which adds `-0.0`.
+    pub const PADDING: u8 = 8;
+
+    /// The slots of `lanes` over `vertices` vertices, whose springs `springs` have their ends
+    /// `ends` in the lanes' numbering (a local numbering's with `local`), with isometric
+    /// bending's per-spring `linear` where the cloth has it.
+    pub fn new(
+        (lanes, local): (&IncidenceLanes, bool),
+        ends: (&[u32], &[u32]),
+        springs: &super::EdgeSprings,
+        linear: Option<&[f32]>,
+        vertices: usize,
+    ) -> Self {
+        let mut other = Vec::with_capacity(lanes.slots.len());
+        let mut flags = Vec::with_capacity(lanes.slots.len());
+        for g in 0..lanes.starts.len() - 1 {
+            for row in lanes.group(g).chunks_exact(LANES) {
+                for (lane, &e) in row.iter().enumerate() {
+                    let (spring, end) = ((e >> 1) as usize, e & 1);
+                    if spring == lanes.pad() {
+                        // Inside the numbering, so that its loads stay in bounds.
+                        other.push((g * LANES + lane).min(vertices.saturating_sub(1)) as u32);
+                        flags.push(Self::PADDING);
+                    } else {
+                        let (a, b) = (ends.0[spring], ends.1[spring]);
+                        other.push(if end == 0 { b } else { a });
+                        flags.push(end as u8 * Self::SECOND_END);
+                    }
+                }
+            }
+        }
+        assert!(
+            other.iter().all(|&v| (v as usize) < vertices.max(1)) && vertices <= i32::MAX as usize,
+            "a spring's end beyond the {vertices} vertices"
+        );
+        let n = other.len();
+        let mut slots = SpringSlots {
+            other,
+            spring: lanes.slots.iter().map(|&e| e >> 1).collect(),
+            rest: vec![0.0; n],
+            k: vec![0.0; n],
+            c: vec![0.0; n],
+            flags,
+            linear: Vec::new(),
+            vertices,
+            local,
+        };
+        slots.refresh(springs, linear);
+        slots
+    }
+
+    /// Copies each slot's spring's parameters from `springs` (and `linear`) again: after a
+    /// cut, a tear or isometric bending's refresh.
+    pub fn refresh(&mut self, springs: &super::EdgeSprings, linear: Option<&[f32]>) {
+        let pad = springs.len();
+        for (slot, &e) in self.spring.iter().enumerate() {
+            let e = e as usize;
+            let kept = self.flags[slot] & (Self::SECOND_END | Self::PADDING);
+            if e == pad {
+                (self.rest[slot], self.k[slot], self.c[slot]) = (0.0, 0.0, 0.0);
+                self.flags[slot] = kept;
+                continue;
+            }
+            (self.rest[slot], self.k[slot], self.c[slot]) =
+                (springs.rest[e], springs.k[e], springs.c[e]);
+            let seam = springs.kind[e] == super::EdgeKind::Seam;
+            self.flags[slot] =
+                kept | (seam as u8 * Self::SEAM) | (springs.active[e] as u8 * Self::ACTIVE);
+        }
+        self.linear = match linear {
+            Some(linear) => (self.spring.iter())
+                .map(|&e| linear.get(e as usize).copied().unwrap_or(0.0))
+                .collect(),
+            None => Vec::new(),
+        };
+    }
+
+    /// The other ends of the slots `range`, each below [`SpringSlots::vertices`].
+    pub fn other(&self, range: std::ops::Range<usize>) -> &[u32] {
+        &self.other[range]
+    }
+
+    /// The number of vertices of the numbering.
+    pub fn vertices(&self) -> usize {
+        self.vertices
+    }
+
+    pub fn heap_bytes(&self) -> usize {
+        (self.other.capacity() + self.spring.capacity()) * 4
+            + (self.rest.capacity() + self.k.capacity() + self.c.capacity()) * 4
+            + self.linear.capacity() * 4
+            + self.flags.capacity()
     }
 }
 

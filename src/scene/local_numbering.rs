@@ -40,7 +40,7 @@ pub(super) fn local_order(n: usize, springs: &EdgeSprings) -> Option<Vec<u32>> {
 
 /// A local numbering of a mesh cloth's vertices, in which the force pass works where the
 /// user's numbering is scattered: it gathers the positions and velocities into it, runs its
-/// two passes there ([`crate::mesh_cloth::forces`]) and scatters the forces back. Each
+/// pass there ([`crate::mesh_cloth::forces`]) and scatters the forces back. Each
 /// vertex's springs are the same, summed in the same order, so the forces are bitwise those of
 /// the passes in the user's numbering; only the gathers come from a few cache lines instead
 /// of the whole state.

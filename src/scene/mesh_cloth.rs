@@ -11,7 +11,7 @@ use super::edge_springs::{EdgeKind, EdgeSprings};
 use super::local_numbering::{incidence, local_order, LocalNumbering};
 use super::mesh_checks::{check_material, check_triangles, check_uvs, edge_uses, AT};
 use super::Membrane;
-use super::{ClothSpec, FlatPanels, IncidenceLanes, MeshSpec, SeamsSpec};
+use super::{ClothSpec, FlatPanels, IncidenceLanes, MeshSpec, SeamsSpec, SpringSlots};
 use crate::error::{check_scalar, check_vector, Bound, Error, Result};
 
 /// Two vertices closer than this (m) are one point.
@@ -37,6 +37,9 @@ pub struct MeshCloth {
     pub lanes: IncidenceLanes,
     /// The force pass's own numbering where the vertices' is scattered ([`LocalNumbering`]).
     pub local: Option<LocalNumbering>,
+    /// What the force pass reads per slot of the lanes it runs on (`local`'s where there is
+    /// one, else `lanes`), kept in step with `springs` by [`MeshCloth::refresh_cut_springs`].
+    pub slots: SpringSlots,
     /// The mean length of the mesh's edges at rest (m): its spacing, where the grid has one.
     pub mean_edge: f64,
     /// Seconds over which the seams close (0 without seams).
@@ -173,6 +176,8 @@ impl MeshCloth {
             }
         }
         let panels = spec.panels.clone();
+        let linear = bending.as_ref().map(|b| &b.linear[..]);
+        let slots = slots_of(&lanes, local.as_ref(), &springs, linear, n);
         Ok(MeshCloth {
             panels,
             membrane,
@@ -187,16 +192,29 @@ impl MeshCloth {
             incident,
             lanes,
             local,
+            slots,
             sew_time,
         })
     }
 
-    /// Recomputes the isometric bending's per-spring terms from the springs that hold (after a
-    /// cut or a tear: an element goes with any of its six springs).
-    pub fn refresh_bending(&mut self) {
+    /// Sets the numbering the force pass works in (None: the user's), with its
+    /// [`MeshCloth::slots`].
+    pub fn set_local(&mut self, local: Option<LocalNumbering>) {
+        let linear = self.bending.as_ref().map(|b| &b.linear[..]);
+        let n = self.len();
+        self.slots = slots_of(&self.lanes, local.as_ref(), &self.springs, linear, n);
+        self.local = local;
+    }
+
+    /// Recomputes what follows the springs' parameters after a cut or a tear: the isometric
+    /// bending's per-spring terms from the springs that hold (an element goes with any of its
+    /// six springs), then the force pass's copies of them ([`SpringSlots::refresh`]).
+    pub fn refresh_cut_springs(&mut self) {
         if let Some(bending) = &mut self.bending {
             bending.refresh(&self.springs.active);
         }
+        let linear = self.bending.as_ref().map(|b| &b.linear[..]);
+        self.slots.refresh(&self.springs, linear);
     }
 
     /// The fraction of its starting length a seam spring's rest length has at `time` (s):
@@ -297,6 +315,7 @@ impl MeshCloth {
             + self.springs.heap_bytes()
             + (self.offsets.capacity() + self.incident.capacity()) * 4
             + self.lanes.heap_bytes()
+            + self.slots.heap_bytes()
             + self.local.as_ref().map_or(0, LocalNumbering::heap_bytes)
             + self.membrane.as_ref().map_or(0, Membrane::heap_bytes)
             + self
@@ -465,5 +484,20 @@ impl ClothSpec {
             ..material
         });
         Ok(())
+    }
+}
+
+/// The force pass's slots ([`SpringSlots`]) of a cloth's springs over `n` vertices, in `local`
+/// where it has one, else in the user's numbering (`lanes`).
+fn slots_of(
+    lanes: &IncidenceLanes,
+    local: Option<&LocalNumbering>,
+    springs: &EdgeSprings,
+    linear: Option<&[f32]>,
+    n: usize,
+) -> SpringSlots {
+    match local {
+        Some(l) => SpringSlots::new((&l.lanes, true), (&l.a, &l.b), springs, linear, n),
+        None => SpringSlots::new((lanes, false), (&springs.a, &springs.b), springs, linear, n),
     }
 }
