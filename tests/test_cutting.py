@@ -431,7 +431,12 @@ def test_a_cut_whose_sides_have_not_parted_is_drawn_closed_on_a_bent_cloth():
 def _folded(gap: float) -> Simulation:
     """``hanging`` at 16 x 16 (flat at rest, at y = 1.5), its half at x > 0 folded over onto
     the other half, ``gap`` m above it."""
-    sim = Simulation(Simulation("hanging").scene.replace(cloth={"nx": 16, "ny": 16}))
+    return _fold(Simulation(Simulation("hanging").scene.replace(cloth={"nx": 16, "ny": 16})), gap)
+
+
+def _fold(sim: Simulation, gap: float) -> Simulation:
+    """``sim``'s cloth, flat at rest, with its half at x > 0 turned over onto the other half,
+    ``gap`` m above it."""
     folded = np.array(sim.positions, dtype=np.float32)
     over = folded[:, 0] > 0.0
     folded[over, 0] *= -1.0
@@ -468,13 +473,7 @@ def _folded_mesh(gap: float) -> Simulation:
         bench = pytest.importorskip("cut_moving")
     finally:
         sys.path.pop(0)
-    sim = Simulation(bench.mesh_hanging(16))
-    folded = np.array(sim.positions, dtype=np.float32)
-    over = folded[:, 0] > 0.0
-    folded[over, 0] *= -1.0
-    folded[over, 1] += gap
-    sim.set_positions(folded)
-    return sim
+    return _fold(Simulation(bench.mesh_hanging(16)), gap)
 
 
 @pytest.mark.parametrize("x", [-0.23, -0.31, -0.4])

@@ -350,16 +350,17 @@ impl Simulation {
     /// it is now ([`Simulation::sever_stroke`]).
     ///
     /// A mesh cloth whose rest shape is flat has a rest sheet too ([`MeshSheet`]): the plane
-    /// fitted to its rest positions, or a garment's flat panels, one chart each. The stroke is
-    /// held there as on the grid; two consecutive points on different panels (the stroke
-    /// crossed a seam) are cut by the surface their rays sweep, as a jump is. On a mesh whose
-    /// rest shape is curved every pair of rays is cut by its swept surface, the last frame's
-    /// last ray joined to this frame's first.
+    /// fitted to its rest positions, or a garment's flat panels, one chart each. There every
+    /// layer a ray passes through is followed on the sheet, each on its own line
+    /// ([`LayeredStroke`]: on one layer it cuts what the grid's stroke cuts); two consecutive
+    /// front points on different panels (the stroke crossed a seam) are cut by the surface
+    /// their rays sweep, as a jump is. On a mesh whose rest shape is curved every pair of rays
+    /// is cut by its swept surface, the last frame's last ray joined to this frame's first.
     ///
-    /// On the grid the layers hidden behind the first one a ray meets are cut too, by the
-    /// surface the frame's rays sweep, on those layers only
-    /// ([`HIDDEN_LAYER_SPACINGS`], [`HIDDEN_LAYER_MIN_PIECE`]); a mesh cloth's are not (every
-    /// variant measured left slivers on a mesh scene, docs/cutting.md).
+    /// On the grid the layers hidden behind the first one a ray meets are cut by the surface
+    /// the frame's rays sweep, on those layers only ([`HIDDEN_LAYER_SPACINGS`]). The cuts
+    /// behind the front, on either, are dropped where they would cut out a piece of fewer than
+    /// [`HIDDEN_LAYER_MIN_PIECE`] particles.
     ///
     /// Every ray is checked before anything changes, as in [`Simulation::sever_stroke`].
     pub fn sever_live_stroke(&mut self, rays: &[(Vec3, Vec3)]) -> Result<usize> {
