@@ -976,35 +976,6 @@ fn every_step_holding_self_contact_ends_on_a_solve_at_the_scenes_tolerance() {
     assert!(holding > 10 && free > 10, "{holding} holding, {free} not");
 }
 
-/// Implicit Euler settled the contacts of a rerun holding the self-collision pass's particles
-/// in up to three rounds, each a whole implicit step of two solves (the loose pair-finding one
-/// and its finish): newton's wound twist spent 8 solves on most of its steps. Where the solve
-/// holds the pairs ahead, the rerun solves once: a step of one substep and its rerun takes at
-/// most 4 solves (a twist has no collider whose contacts the first solve settles in rounds).
-#[test]
-fn a_rerun_of_an_implicit_euler_step_holding_self_contact_pairs_solves_once() {
-    let scene = long_step_twist(30.0);
-    let mut sim = Simulation::new(scene).unwrap();
-    let turner = EdgeTurner::new(&sim, 2.0 * std::f64::consts::TAU / 3.0);
-    let (mut reruns, mut most) = (0, 0);
-    for step in 1..=120 {
-        let (before, passes) = (
-            sim.solver_stats().unwrap(),
-            sim.self_collision_stats().unwrap(),
-        );
-        turner.turn(&mut sim, step);
-        sim.step(1).unwrap();
-        let after = sim.solver_stats().unwrap();
-        let rerun = sim.self_collision_stats().unwrap().substeps - passes.substeps == 2;
-        if rerun && after.halved == before.halved {
-            reruns += 1;
-            most = most.max(after.solves - before.solves);
-        }
-    }
-    assert!(reruns > 10, "{reruns} reruns: the case tests little");
-    assert!(most <= 4, "a step and its rerun took {most} solves");
-}
-
 // ----- a thin cloth's twist: the cap holding back a wound cloth ----------------------------------
 
 /// The shipped twist (implicit Euler, four steps a 1/60 s frame) at 64 x 64 with a 0.8 mm

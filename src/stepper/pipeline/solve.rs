@@ -13,9 +13,8 @@
 //!    judged the same way, down to `1 / 2^SPLITS` of the substep ([`Pipeline::solve_judged`]);
 //! 4. after the passes that follow the integrator, where the self-collision pass moved particles
 //!    and the substep gained energy, the passes once more, the solve holding each particle where
-//!    the pass left it ([`Pipeline::hold_self_contacts`]); in one round where the solve holds
-//!    self-contact pairs ahead or only pushes, the first solve's rounds having settled the
-//!    colliders' contacts ([`contact_rounds`]).
+//!    the pass left it ([`Pipeline::hold_self_contacts`]); for projective dynamics in one
+//!    round, the first solve's rounds having settled the colliders' contacts ([`contact_rounds`]).
 
 use std::time::Instant;
 
@@ -56,19 +55,13 @@ const ENERGY_SLACK: f64 = 1e-6;
 const SELF_ROUNDS: u32 = 2;
 
 /// How many times at most the solve of a rerun holding the self-collision pass's particles runs
-/// while its contacts change ([`contact_rounds`]). Its contact set is the one the first solve's
-/// rounds settled, plus those holds; further rounds mostly release holds the solve left ahead of
-/// their planes and take them again, at a whole solve each (implicit Euler's, given pairs ahead,
-/// is two: the loose pair-finding one and its finish). Projective dynamics: 1.7 of its 4.6
-/// solves a step on the `pile` dropped 10 cm at 1/60 s, and with 3 one such rerun (the pile
-/// dropped 40 cm at 1/60 s) ended 8 % above its substep's start energy; with 1, every rerun of
-/// `tests/test_contact_energy.py`'s landings ends below it. Implicit Euler: on newton's 50 x 50
-/// twist at 2 steps a frame (`solve_stiffness` about 30, first 3 s) one round took 0.86
-/// of the CPU time and two thirds of the solves, with as many cascades caught and no crossing
-/// (`docs/contact.md`, "one contact round on implicit Euler's rerun"), where its solve holds
-/// the pairs ahead ([`contact_rounds`]). Trade-off: a hold the rerun left ahead of its plane
-/// stays held to the substep's end, where further rounds would let its vertex move off; the
-/// wound twist then runs more steps at held substeps after a cascade.
+/// with an integrator whose contacts only push ([`contact_rounds`]). Its contact set is the one
+/// the first solve's rounds settled, plus those holds; further rounds mostly release holds the
+/// solve left ahead of their planes, which changes nothing the solve converges to, at a whole
+/// solve each: 1.7 of projective dynamics' 4.6 solves a step on the `pile` dropped 10 cm at
+/// 1/60 s. With 3, one such rerun (the pile dropped 40 cm at 1/60 s) ended 8 % above its
+/// substep's start energy; with 1, every rerun of `tests/test_contact_energy.py`'s landings
+/// ends below it.
 const RERUN_ROUNDS: u32 = 1;
 
 /// The fraction of a substep's motion below which a substep that does work and that the energy
@@ -77,19 +70,16 @@ const RERUN_ROUNDS: u32 = 1;
 const RERUN_KEPT: f32 = 0.5;
 
 /// How many times at most the solve of round `round` (from 0) of a substep's passes runs while
-/// its contacts change. The first settles the colliders' contacts in rounds. A rerun holding
-/// the self-collision pass's particles solves once ([`RERUN_ROUNDS`]) where the solve holds
-/// the pairs ahead too (`held_pairs`: implicit Euler with `solve_stiffness`) or where its
-/// contacts only push (projective dynamics: a hold ahead of its plane exerts nothing where the
-/// iteration converges). Implicit Euler without the pairs ahead settles a rerun in rounds: its
-/// holds are all that keep the pass's vertices apart there, and one that pulls its vertex back
-/// from ahead of its plane must be let go (one round: the long-step twist without the term
-/// stretched past 0.7, `tests/self_collision.rs`).
-fn contact_rounds(kind: IntegratorKind, round: u32, held_pairs: bool) -> u32 {
+/// its contacts change. A rerun holding the self-collision pass's particles settles its
+/// contacts in rounds only where a contact pulls as well as pushes inside the solve (implicit
+/// Euler's stiff spring onto the plane): there releasing a hold the solve left ahead of its
+/// plane lets the vertex move off. A projective-dynamics contact is the term
+/// `w_c/2 |x - P(x)|^2`, zero on the plane's outer side: a hold ahead of its plane exerts
+/// nothing where the iteration converges, and releasing it changes nothing but the cost.
+fn contact_rounds(kind: IntegratorKind, round: u32) -> u32 {
     match (round, kind) {
         (0, _) => CONTACT_ROUNDS,
         (_, IntegratorKind::ProjectiveDynamics) => RERUN_ROUNDS,
-        _ if held_pairs => RERUN_ROUNDS,
         _ => CONTACT_ROUNDS,
     }
 }
@@ -233,7 +223,6 @@ impl Pipeline {
     pub fn integrate(&mut self, s: &mut Substep, force: &mut Vec3s, round: u32) -> bool {
         let started = Instant::now();
         let forces_before = s.profile.force_time;
-        let held_pairs = (self.self_collision.as_ref()).is_some_and(|p| p.in_solve());
         let mut job = Solve {
             model: s.model,
             h: s.h,
@@ -241,7 +230,7 @@ impl Pipeline {
             chunk: s.chunk,
             profile: &mut *s.profile,
             force,
-            rounds: contact_rounds(self.integrator.kind(), round, held_pairs),
+            rounds: contact_rounds(self.integrator.kind(), round),
         };
         // The watch judges the state the substep starts from: the first force evaluation of
         // this solve, not a later round's or a half's, which start elsewhere.
