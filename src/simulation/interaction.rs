@@ -448,10 +448,10 @@ impl Simulation {
             step: sheet.spacing,
             jump: REST_JUMP_SPACINGS * sheet.spacing,
         };
-        // The front layer's cuts go ray by ray, as on the grid; the layers' behind are cut
-        // once the frame's are known, less any that would cut out a sliver.
-        let (mut severed, mut behind) = (0, Vec::new());
-        let (mut cuts, mut out) = (Vec::new(), Vec::new());
+        // The frame's cuts are severed together, each spring at the first crossing listed (a
+        // mesh cloth's severing refreshes what the force pass keeps of its springs, `O(n)`):
+        // the front layer's, then the layers' behind less any that would cut out a sliver.
+        let (mut cuts, mut front, mut behind) = (Vec::new(), Vec::new(), Vec::new());
         for (&ray, hits) in rays.iter().zip(&layers) {
             cuts.clear();
             self.layers
@@ -459,11 +459,10 @@ impl Simulation {
             let Some(mesh) = self.model.mesh() else {
                 break;
             };
-            out.clear();
             let at = (&self.state.kin.pos, &self.model.particles.alive[..]);
             for &(cut, layer) in &cuts {
                 let out = match layer {
-                    Layer::Front => &mut out,
+                    Layer::Front => &mut front,
                     Layer::Behind => &mut behind,
                 };
                 match cut {
@@ -476,8 +475,8 @@ impl Simulation {
                     }
                 }
             }
-            severed += MeshCrossing::sever(&mut self.model, &out);
         }
+        let mut severed = MeshCrossing::sever(&mut self.model, &front);
         let behind = self.without_slivers(behind);
         severed += MeshCrossing::sever(&mut self.model, &behind);
         self.mesh_sheet = Some(Some(sheet));
@@ -523,8 +522,9 @@ impl Simulation {
     /// two, which no one meant to cut out.
     fn without_slivers<C: Sliver>(&self, mut hidden: Vec<C>) -> Vec<C> {
         let alive = &self.model.particles.alive;
-        // Dropping crossings only joins pieces, so a few rounds settle it.
-        for _ in 0..4 {
+        // Dropping crossings only joins pieces, so a few rounds settle it; none to weigh (a
+        // stroke over one layer), no `O(n)` labelling.
+        for _ in 0..if hidden.is_empty() { 0 } else { 4 } {
             let label = C::pieces_without(self, &hidden);
             let mut size = vec![0usize; alive.len()];
             for p in (0..alive.len()).filter(|&p| alive[p]) {
