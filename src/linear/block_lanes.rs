@@ -569,11 +569,18 @@ macro_rules! packed_kernel {
             if first == end && diagonal.is_none() {
                 return;
             }
-            // Every live column, and a dead slot's (its group's base), is in `low..low + len`.
+            // Every live column, and a dead slot's (its group's base), is in `low..low + len`;
+            // a group with no slot (its rows' diagonal terms only) reads no column, and its
+            // base may lie outside: no pointer is made from it.
             debug_assert!(
-                base[g] as usize >= low && lanes.spans[g][1] as usize <= low + packed.len()
+                first == end
+                    || base[g] as usize >= low
+                        && lanes.spans[g][1] as usize <= low + packed.len()
             );
-            let origin = packed.as_ptr().add(base[g] as usize - low) as *const f32;
+            let origin = match first == end {
+                true => packed.as_ptr(),
+                false => packed.as_ptr().add(base[g] as usize - low),
+            } as *const f32;
             let negative_zero = _mm256_set1_ps(-0.0);
             for $half in [0, 8] {
                 let lengths = lanes.lengths[g][$half..].as_ptr() as *const __m256i;
