@@ -119,6 +119,16 @@ impl Vec3s {
         self.z.copy_from_slice(&other.z);
     }
 
+    /// Makes this a copy of `other`, of any length, keeping its buffers where the lengths
+    /// already match (a copy kept from step to step allocates once).
+    pub fn assign(&mut self, other: &Vec3s) {
+        if self.len() == other.len() {
+            self.copy_from(other);
+        } else {
+            *self = other.clone();
+        }
+    }
+
     /// Interleaves into `out` as `[x0, y0, z0, x1, ...]`, the layout of an `(N, 3)` array.
     pub fn write_interleaved(&self, out: &mut [f32]) {
         for (i, p) in out.chunks_exact_mut(3).enumerate() {

@@ -75,8 +75,8 @@ impl SelfCollision {
         if self.ahead_apart.is_none() {
             // Kept for a solve from the same start along the same paths: its pairs are these.
             self.ahead_again = true;
-            copy_into(&mut self.again_from, &from.pos);
-            copy_into(&mut self.again_ahead, &self.ahead);
+            self.again_from.assign(&from.pos);
+            self.again_ahead.assign(&self.ahead);
         }
         &self.ahead_pairs
     }
@@ -219,11 +219,7 @@ impl SelfCollision {
         self.ahead_pairs = pairs;
         // The pass after the solve searches from the same start and takes over the closest
         // points this search took.
-        if self.ahead_from.len() == x0.len() {
-            self.ahead_from.copy_from(x0);
-        } else {
-            self.ahead_from = x0.clone();
-        }
+        self.ahead_from.assign(x0);
         self.ahead_kept = true;
     }
 
@@ -350,15 +346,6 @@ impl SelfCollision {
         let path = |p: usize| h * vel.get(p).as_dvec3();
         let (common, most) = Apart::spread((0..vel.len()).map(path));
         (2.0 * most <= 0.5 * room).then_some(Apart { least, common })
-    }
-}
-
-/// `into` made a copy of `from`, its buffer kept.
-fn copy_into(into: &mut Vec3s, from: &Vec3s) {
-    if into.len() == from.len() {
-        into.copy_from(from);
-    } else {
-        *into = from.clone();
     }
 }
 

@@ -229,7 +229,7 @@ impl PairList {
         found: impl Iterator<Item = (Candidate, f64)>,
     ) {
         match &mut self.anchor {
-            Some(a) if a.len() == x.len() => a.copy_from(x),
+            Some(a) => a.assign(x),
             anchor => *anchor = Some(x.clone()),
         }
         self.reach = reach;

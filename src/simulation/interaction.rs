@@ -382,43 +382,14 @@ impl Simulation {
                 .map(|hit| hit.map(|hit| (0, sheet.at(hit.index, hit.barycentric))))
                 .collect();
             let exit = |_: u32, from: DVec2, dir: DVec2| sheet.exit_distance(from, dir);
-            let hidden = self.hidden_layer_crossings(
-                (&rays, &hits),
-                (HIDDEN_LAYER_SPACINGS * step) as f32,
-                |sim, stroke| {
-                    let (model, pos) = (&sim.model, &sim.state.kin.pos);
-                    let alive = &model.particles.alive;
-                    (sim.cutter)
-                        .crossings(model.grid, &model.springs, alive, pos, stroke, &mut || {
-                            false
-                        })
-                        .unwrap_or_default()
-                        .to_vec()
-                },
-                |sim, ((kind, anchor), t)| {
-                    let pos = &sim.state.kin.pos;
-                    let partner = sim.model.grid.partner(anchor, kind).unwrap_or(anchor);
-                    pos.get(anchor).lerp(pos.get(partner), t)
-                },
-            );
+            let margin = (HIDDEN_LAYER_SPACINGS * step) as f32;
+            let hidden = self.hidden_layer_crossings((&rays, &hits), margin);
             let severed = self.live_cuts(&rays, &points, step, exit, |sim, cut, out| match cut {
                 Cut::Rest(_, a, b) => {
                     let alive = &sim.model.particles.alive;
                     sheet.crossings(&sim.model.springs, alive, (a, b), out);
                 }
-                Cut::Swept(r0, r1) => {
-                    let (model, pos) = (&sim.model, &sim.state.kin.pos);
-                    let alive = &model.particles.alive;
-                    let swept = (sim.cutter).crossings(
-                        model.grid,
-                        &model.springs,
-                        alive,
-                        pos,
-                        &[r0, r1],
-                        &mut || false,
-                    );
-                    out.extend_from_slice(swept.unwrap_or_default());
-                }
+                Cut::Swept(r0, r1) => out.extend_from_slice(sim.grid_swept_crossings(&[r0, r1])),
             });
             let hidden = self.without_slivers(hidden);
             return Ok(severed + Crossing::sever(&mut self.model, &hidden));
@@ -565,6 +536,18 @@ impl Simulation {
         hidden
     }
 
+    /// The live springs of a grid cloth the surface `stroke` sweeps through it as it is now
+    /// crosses ([`crate::cutting::StrokeCutter::crossings`]).
+    fn grid_swept_crossings(&mut self, stroke: &[Ray]) -> &[Crossing] {
+        let (model, pos) = (&self.model, &self.state.kin.pos);
+        let alive = &model.particles.alive;
+        (self.cutter)
+            .crossings(model.grid, &model.springs, alive, pos, stroke, &mut || {
+                false
+            })
+            .unwrap_or_default()
+    }
+
     /// The crossings of the surface this frame's stroke sweeps through the cloth as it is now
     /// (`rays`, after the last frame's last ray) that lie on layers hidden behind the first
     /// one each ray meets: farther along the line of sight from the nearest ray's origin than
@@ -572,17 +555,15 @@ impl Simulation {
     /// the mouse; a crumpled or folded cloth has layers behind it that the mouse passed over
     /// too, and cutting those by the swept surface leaves the first layer to the sheet alone:
     /// the two cuts never run side by side on one layer, which would isolate slivers between
-    /// them. `swept` lists the swept surface's crossings, `point` where one is.
+    /// them. A grid cloth's: a mesh cloth follows its layers on the sheet ([`LayeredStroke`]).
     ///
     /// `hits` are the first hits of `rays`. Nothing is swept when no ray meets a second layer
     /// past its first hit (a flat or gently draped cloth): one more scan a ray.
-    fn hidden_layer_crossings<C: Copy>(
+    fn hidden_layer_crossings(
         &mut self,
         (rays, hits): (&[Ray], &[Option<TriangleHit>]),
         margin: f32,
-        swept: impl FnOnce(&mut Simulation, &[Ray]) -> Vec<C>,
-        point: impl Fn(&Simulation, C) -> Vec3,
-    ) -> Vec<C> {
+    ) -> Vec<Crossing> {
         let stroke: Vec<Ray> = (self.live.last_ray.into_iter())
             .chain(rays.iter().copied())
             .collect();
@@ -604,11 +585,14 @@ impl Simulation {
         if !layer_behind {
             return Vec::new();
         }
-        let crossings = swept(self, &stroke);
+        let crossings = self.grid_swept_crossings(&stroke).to_vec();
         // The line of sight to each crossing, from the origin of the ray nearest it.
         let sights: Vec<Option<(Ray, f32)>> = (crossings.iter())
             .map(|&c| {
-                let x = point(self, c);
+                let ((kind, anchor), t) = c;
+                let partner = self.model.grid.partner(anchor, kind).unwrap_or(anchor);
+                let pos = &self.state.kin.pos;
+                let x = pos.get(anchor).lerp(pos.get(partner), t);
                 let off = |r: &Ray| {
                     (x - r.origin)
                         .reject_from_normalized(r.dir)
