@@ -235,6 +235,32 @@ fn a_cut_across_a_hanging_mesh_parts_it_under_implicit_euler_and_projective_dyna
     }
 }
 
+/// Whether the force pass's per-slot copies of the springs are what copying every slot again
+/// gives: a cut or a tear refreshes only the slots of the springs it severed.
+fn slots_follow_the_springs(sim: &Simulation) -> bool {
+    let mesh = sim.model().mesh().unwrap();
+    let mut full = mesh.slots.clone();
+    full.refresh(&mesh.springs, None);
+    full == mesh.slots
+}
+
+#[test]
+fn the_force_pass_follows_every_spring_a_cut_or_a_tear_severs() {
+    let mut sim = Simulation::new(hanging(16, Some(TearingSpec::default()))).unwrap();
+    sim.cut(100).unwrap();
+    // A stroke that stops in the middle: a slit, the cloth still one piece.
+    let slit: Vec<(Vec3, Vec3)> = across(1.2).into_iter().take(10).collect();
+    assert!(sim.sever_stroke(&slit).unwrap() > 0);
+    assert!(slots_follow_the_springs(&sim));
+    let mut steps_checked = 0;
+    pull_apart(&mut sim, 1500, |sim| {
+        assert!(slots_follow_the_springs(sim), "at step {}", sim.steps());
+        steps_checked += 1;
+    });
+    assert!(sim.pieces() > 1, "the cloth never tore apart");
+    assert_eq!(steps_checked, 1500);
+}
+
 #[test]
 fn cutting_a_vertex_severs_every_spring_touching_it() {
     let mut sim = Simulation::new(hanging(8, None)).unwrap();

@@ -156,23 +156,24 @@ impl MeshTopology {
         } = self;
         let s = &mut Arc::make_mut(mesh).springs;
         let mut severed = 0;
+        let mut changed = Vec::new();
         for (e, t) in cuts {
             if !s.active[e as usize] {
                 continue;
             }
             severed += 1;
-            cut_spring(s, e);
+            cut_spring(s, e, &mut changed);
             if let Some(t) = t {
                 crossings.insert(e, t);
             }
             for t in faces[e as usize].into_iter().filter(|&t| t != NONE) {
                 for b in bends[t as usize].into_iter().filter(|&b| b != NONE) {
-                    cut_spring(s, b);
+                    cut_spring(s, b, &mut changed);
                 }
             }
         }
         if severed > 0 {
-            Arc::make_mut(mesh).refresh_cut_springs();
+            Arc::make_mut(mesh).refresh_cut_springs(&changed);
         }
         severed
     }
@@ -188,10 +189,11 @@ impl MeshTopology {
     /// each spring `active[e]` false is severed alone (what went with it is listed too).
     pub fn sever_as_saved(&mut self, active: &[bool]) {
         let s = &mut Arc::make_mut(&mut self.mesh).springs;
+        let mut changed = Vec::new();
         for (e, _) in active.iter().enumerate().filter(|(_, &live)| !live) {
-            cut_spring(s, e as u32);
+            cut_spring(s, e as u32, &mut changed);
         }
-        Arc::make_mut(&mut self.mesh).refresh_cut_springs();
+        Arc::make_mut(&mut self.mesh).refresh_cut_springs(&changed);
     }
 
     /// The piece each vertex belongs to, named by the smallest vertex index in it; `u32::MAX`
@@ -253,9 +255,11 @@ impl MeshTopology {
 }
 
 /// A severed spring holds nothing: no stiffness, no damping.
-fn cut_spring(s: &mut EdgeSprings, e: u32) {
-    let e = e as usize;
-    s.active[e] = false;
-    s.k[e] = 0.0;
-    s.c[e] = 0.0;
+/// Severs spring `e` and lists it in `changed` (for [`MeshCloth::refresh_cut_springs`]).
+fn cut_spring(s: &mut EdgeSprings, e: u32, changed: &mut Vec<u32>) {
+    let i = e as usize;
+    s.active[i] = false;
+    s.k[i] = 0.0;
+    s.c[i] = 0.0;
+    changed.push(e);
 }

@@ -83,14 +83,17 @@ impl IncidenceLanes {
 /// order: the spring's other end and a copy of the spring's parameters, so that a group's row
 /// loads them as contiguous vectors and only gathers the other end's position and velocity.
 /// Each spring is computed at both of its ends (twice the arithmetic, no per-spring table and
-/// no second pass). The copies follow the spring list only through [`SpringSlots::refresh`],
-/// which whatever changes a spring's parameters calls ([`super::MeshCloth::refresh_cut_springs`]).
+/// no second pass). The copies follow the spring list only through [`SpringSlots::refresh`]
+/// or [`SpringSlots::refresh_springs`], which whatever changes a spring's parameters calls
+/// ([`super::MeshCloth::refresh_cut_springs`]).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct SpringSlots {
     /// Per slot, the vertex at the spring's other end; a padding slot's is its own vertex.
     other: Vec<u32>,
     /// Per slot, the spring's index (the padding spring's for padding), for the refresh.
     spring: Vec<u32>,
+    /// Per spring, its slots at its ends `a` and `b`: a severing refreshes only its springs'.
+    slots_of: Vec<[u32; 2]>,
     /// Per slot, the spring's rest length (m), stiffness (N/m), damping (N s/m) and flags
     /// ([`SpringSlots::SECOND_END`], [`SpringSlots::SEAM`], [`SpringSlots::ACTIVE`], [`SpringSlots::PADDING`]).
     pub rest: Vec<f32>,
@@ -148,9 +151,16 @@ impl SpringSlots {
             "a spring's end beyond the {vertices} vertices"
         );
         let n = other.len();
+        let mut slots_of = vec![[u32::MAX; 2]; springs.len()];
+        for (slot, &e) in lanes.slots.iter().enumerate() {
+            if let Some(ends) = slots_of.get_mut((e >> 1) as usize) {
+                ends[(e & 1) as usize] = slot as u32;
+            }
+        }
         let mut slots = SpringSlots {
             other,
             spring: lanes.slots.iter().map(|&e| e >> 1).collect(),
+            slots_of,
             rest: vec![0.0; n],
             k: vec![0.0; n],
             c: vec![0.0; n],
@@ -163,23 +173,11 @@ impl SpringSlots {
         slots
     }
 
-    /// Copies each slot's spring's parameters from `springs` (and `linear`) again: after a
-    /// cut, a tear or isometric bending's refresh.
+    /// Copies each slot's spring's parameters from `springs` (and `linear`) again: after
+    /// isometric bending's refresh, which changes the springs of every element a cut ends.
     pub fn refresh(&mut self, springs: &super::EdgeSprings, linear: Option<&[f32]>) {
-        let pad = springs.len();
-        for (slot, &e) in self.spring.iter().enumerate() {
-            let e = e as usize;
-            let kept = self.flags[slot] & (Self::SECOND_END | Self::PADDING);
-            if e == pad {
-                (self.rest[slot], self.k[slot], self.c[slot]) = (0.0, 0.0, 0.0);
-                self.flags[slot] = kept;
-                continue;
-            }
-            (self.rest[slot], self.k[slot], self.c[slot]) =
-                (springs.rest[e], springs.k[e], springs.c[e]);
-            let seam = springs.kind[e] == super::EdgeKind::Seam;
-            self.flags[slot] =
-                kept | (seam as u8 * Self::SEAM) | (springs.active[e] as u8 * Self::ACTIVE);
+        for slot in 0..self.spring.len() {
+            self.copy_spring(slot, springs);
         }
         self.linear = match linear {
             Some(linear) => (self.spring.iter())
@@ -187,6 +185,34 @@ impl SpringSlots {
                 .collect(),
             None => Vec::new(),
         };
+    }
+
+    /// Copies the parameters of `changed` springs (indices into `springs`, repeats allowed)
+    /// into their two slots: after a cut or a tear, `O(changed)` where [`SpringSlots::refresh`]
+    /// is `O(slots)`, which at 16k vertices costs more than the step a tear happens in.
+    pub fn refresh_springs(&mut self, springs: &super::EdgeSprings, changed: &[u32]) {
+        for &e in changed {
+            for slot in self.slots_of[e as usize] {
+                self.copy_spring(slot as usize, springs);
+            }
+        }
+    }
+
+    /// Copies `slot`'s spring's rest length, stiffness, damping and flags from `springs`
+    /// (zeros for padding), keeping which end the slot is.
+    fn copy_spring(&mut self, slot: usize, springs: &super::EdgeSprings) {
+        let e = self.spring[slot] as usize;
+        let kept = self.flags[slot] & (Self::SECOND_END | Self::PADDING);
+        if e == springs.len() {
+            (self.rest[slot], self.k[slot], self.c[slot]) = (0.0, 0.0, 0.0);
+            self.flags[slot] = kept;
+            return;
+        }
+        (self.rest[slot], self.k[slot], self.c[slot]) =
+            (springs.rest[e], springs.k[e], springs.c[e]);
+        let seam = springs.kind[e] == super::EdgeKind::Seam;
+        self.flags[slot] =
+            kept | (seam as u8 * Self::SEAM) | (springs.active[e] as u8 * Self::ACTIVE);
     }
 
     /// The other ends of the slots `range`, each below [`SpringSlots::vertices`].
@@ -201,6 +227,7 @@ impl SpringSlots {
 
     pub fn heap_bytes(&self) -> usize {
         (self.other.capacity() + self.spring.capacity()) * 4
+            + self.slots_of.capacity() * 8
             + (self.rest.capacity() + self.k.capacity() + self.c.capacity()) * 4
             + self.linear.capacity() * 4
             + self.flags.capacity()

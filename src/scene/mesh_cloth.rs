@@ -206,15 +206,18 @@ impl MeshCloth {
         self.local = local;
     }
 
-    /// Recomputes what follows the springs' parameters after a cut or a tear: the isometric
-    /// bending's per-spring terms from the springs that hold (an element goes with any of its
-    /// six springs), then the force pass's copies of them ([`SpringSlots::refresh`]).
-    pub fn refresh_cut_springs(&mut self) {
-        if let Some(bending) = &mut self.bending {
-            bending.refresh(&self.springs.active);
+    /// Recomputes what follows the parameters of the `changed` springs after a cut or a tear:
+    /// the isometric bending's per-spring terms from the springs that hold (an element goes
+    /// with any of its six springs, which changes its other springs' terms, so every slot is
+    /// copied again), else only the changed springs' slots ([`SpringSlots::refresh_springs`]).
+    pub fn refresh_cut_springs(&mut self, changed: &[u32]) {
+        match &mut self.bending {
+            Some(bending) => {
+                bending.refresh(&self.springs.active);
+                self.slots.refresh(&self.springs, Some(&bending.linear));
+            }
+            None => self.slots.refresh_springs(&self.springs, changed),
         }
-        let linear = self.bending.as_ref().map(|b| &b.linear[..]);
-        self.slots.refresh(&self.springs, linear);
     }
 
     /// The fraction of its starting length a seam spring's rest length has at `time` (s):
