@@ -96,38 +96,73 @@ impl LayeredStroke {
         exit: impl Fn(u32, DVec2, DVec2) -> f64,
         mut cut: impl FnMut(Cut, Layer),
     ) {
-        let Reach { step, jump } = reach;
-        let before = self.last_ray.replace(ray);
-        let tracks = std::mem::take(&mut self.tracks);
-        let fresh = |(c, b): SheetPoint, front: bool| Track {
-            chart: c,
-            at: b,
-            tail: b,
-            heading: None,
-            entry: None,
-            front,
-        };
-        let Some(before) = before else {
+        let Some(before) = self.last_ray.replace(ray) else {
             // A stroke's first sample: it starts where the mouse was pressed.
             self.tracks = (hits.iter().enumerate())
-                .map(|(k, &h)| fresh(h, k == 0))
+                .map(|(k, &h)| Track::fresh(h, k == 0))
                 .collect();
             return;
         };
-        // Carried out of `from` along `dir` through the edge: `None` where `Near` and the
-        // edge is farther than about a spacing.
-        let out = |c: u32, from: DVec2, dir: DVec2, carry: Carry| {
-            let d = exit(c, from, dir);
-            match carry {
-                Carry::Far => Some(from + d.min(jump) * dir),
-                Carry::Near => (d <= 2.0 * step).then(|| from + d * dir),
-            }
+        let tracks = std::mem::take(&mut self.tracks);
+        let sample = Sample {
+            before,
+            ray,
+            hits,
+            reach,
+            exit,
         };
-        let (was_on, now_on) = (!tracks.is_empty(), !hits.is_empty());
-        let (track_of, hit_of) = match_nearest(&tracks, hits, jump);
+        let (track_of, hit_of) = match_nearest(&tracks, hits, reach.jump);
+        self.tracks = sample.go_on(&tracks, &track_of, &mut cut);
+        sample.end(&tracks, &hit_of, &mut cut);
+        (self.tracks).extend(sample.start(&tracks, &track_of, &mut cut));
+    }
+}
 
-        // Tracks that go on: joined to their new point on the sheet.
-        for (k, &(c, b)) in hits.iter().enumerate() {
+impl Track {
+    /// A track starting at `point`, met first by its ray where `front`.
+    fn fresh((chart, at): SheetPoint, front: bool) -> Track {
+        Track {
+            chart,
+            at,
+            tail: at,
+            heading: None,
+            entry: None,
+            front,
+        }
+    }
+}
+
+/// One ray of a stroke after the last, `before`: its hits, and the sheet's edge through `exit`.
+struct Sample<'a, E> {
+    before: Ray,
+    ray: Ray,
+    hits: &'a [SheetPoint],
+    reach: Reach,
+    exit: E,
+}
+
+impl<E: Fn(u32, DVec2, DVec2) -> f64> Sample<'_, E> {
+    /// Carried out of `from` along `dir` through the edge: `None` where `Near` and the edge is
+    /// farther than about a spacing.
+    fn out(&self, c: u32, from: DVec2, dir: DVec2, carry: Carry) -> Option<DVec2> {
+        let d = (self.exit)(c, from, dir);
+        match carry {
+            Carry::Far => Some(from + d.min(self.reach.jump) * dir),
+            Carry::Near => (d <= 2.0 * self.reach.step).then(|| from + d * dir),
+        }
+    }
+
+    /// Tracks that go on (`track_of`: each hit's track), joined to their new point on the
+    /// sheet; returns them, moved on.
+    fn go_on(
+        &self,
+        tracks: &[Track],
+        track_of: &[Option<usize>],
+        cut: &mut impl FnMut(Cut, Layer),
+    ) -> Vec<Track> {
+        let step = self.reach.step;
+        let mut moved = Vec::with_capacity(self.hits.len());
+        for (k, &(c, b)) in self.hits.iter().enumerate() {
             let Some(i) = track_of[k] else { continue };
             let t = tracks[i];
             let layer = if t.front && k == 0 {
@@ -147,7 +182,7 @@ impl LayeredStroke {
             if let Some(dir) = heading.filter(|_| b.distance(t.tail) >= step) {
                 if let Some((entry, carry, layer)) = t.entry {
                     let back = (entry - b).try_normalize().unwrap_or(-dir);
-                    if let Some(edge) = out(c, entry, back, carry) {
+                    if let Some(edge) = self.out(c, entry, back, carry) {
                         cut(Cut::Rest(c, entry, edge), layer);
                     }
                     next.entry = None;
@@ -155,14 +190,18 @@ impl LayeredStroke {
                 next.tail = b - step * dir;
             }
             next.heading = heading.or(t.heading);
-            self.tracks.push(next);
+            moved.push(next);
         }
+        moved
+    }
 
-        // Tracks that end: this ray passed their layer's edge, a fold's silhouette, or left
-        // the cloth. A fold's silhouette: the layer goes on as the fold's other side, which
-        // this ray meets near it on the sheet or which ends with it.
-        let radius = FOLD_SPACINGS * step;
-        let ended: Vec<Track> = (tracks.iter().zip(&hit_of))
+    /// Tracks that end (`hit_of`: each track's hit): this ray passed their layer's edge, a
+    /// fold's silhouette, or left the cloth. A fold's silhouette: the layer goes on as the
+    /// fold's other side, which this ray meets near it on the sheet or which ends with it.
+    fn end(&self, tracks: &[Track], hit_of: &[Option<usize>], cut: &mut impl FnMut(Cut, Layer)) {
+        let (hits, now_on) = (self.hits, !self.hits.is_empty());
+        let radius = FOLD_SPACINGS * self.reach.step;
+        let ended: Vec<Track> = (tracks.iter().zip(hit_of))
             .filter(|(_, hit)| hit.is_none())
             .map(|(&t, _)| t)
             .collect();
@@ -174,11 +213,11 @@ impl LayeredStroke {
                 // that is near on the same chart (what lies between is the fold's turn, seen
                 // edge on), else cut by the surface the two rays sweep.
                 match hits[0] {
-                    (hc, b) if hc == c && a.distance(b) <= jump => {
+                    (hc, b) if hc == c && a.distance(b) <= self.reach.jump => {
                         // Beside the layers' own cuts there: not to cut out a sliver.
                         cut(Cut::Rest(c, a, b), Layer::Behind);
                     }
-                    _ => cut(Cut::Swept(before, ray), Layer::Front),
+                    _ => cut(Cut::Swept(self.before, self.ray), Layer::Front),
                 }
                 continue;
             }
@@ -186,7 +225,7 @@ impl LayeredStroke {
                 // On the cloth for less than a spacing: in and out the same way.
                 Some((entry, entry_carry, layer)) => {
                     let dir = (a - entry).try_normalize();
-                    if let Some(edge) = dir.and_then(|d| out(c, entry, -d, entry_carry)) {
+                    if let Some(edge) = dir.and_then(|d| self.out(c, entry, -d, entry_carry)) {
                         cut(Cut::Rest(c, entry, edge), layer);
                     }
                     dir
@@ -209,18 +248,28 @@ impl LayeredStroke {
             } else {
                 Carry::Near
             };
-            if let Some(edge) = dir.and_then(|d| out(c, a, d, carry)) {
+            if let Some(edge) = dir.and_then(|d| self.out(c, a, d, carry)) {
                 cut(Cut::Rest(c, a, edge), carry.layer_beside(joined));
             }
         }
+    }
 
-        // Points with no track: a layer the ray has just come over, at the cloth's edge, or
-        // as a fold's other side, which the last ray met near it on the sheet or which starts
-        // with it.
+    /// Points with no track (`track_of`: each hit's track): a layer the ray has just come
+    /// over, at the cloth's edge, or as a fold's other side, which the last ray met near it on
+    /// the sheet or which starts with it; returns their new tracks.
+    fn start(
+        &self,
+        tracks: &[Track],
+        track_of: &[Option<usize>],
+        cut: &mut impl FnMut(Cut, Layer),
+    ) -> Vec<Track> {
+        let (hits, was_on) = (self.hits, !tracks.is_empty());
+        let radius = FOLD_SPACINGS * self.reach.step;
         let started: Vec<usize> = (0..hits.len()).filter(|&k| track_of[k].is_none()).collect();
+        let mut new = Vec::with_capacity(started.len());
         for &k in &started {
             let (c, b) = hits[k];
-            let mut t = fresh((c, b), k == 0);
+            let mut t = Track::fresh((c, b), k == 0);
             let others = (started.iter())
                 .filter(|&&o| o != k)
                 .map(|&o| hits[o])
@@ -237,8 +286,9 @@ impl LayeredStroke {
                 Carry::Near
             };
             t.entry = Some((b, carry, carry.layer_beside(joined)));
-            self.tracks.push(t);
+            new.push(t);
         }
+        new
     }
 }
 
