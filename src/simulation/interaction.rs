@@ -391,7 +391,8 @@ impl Simulation {
                 }
                 Cut::Swept(r0, r1) => out.extend_from_slice(sim.grid_swept_crossings(&[r0, r1])),
             });
-            let hidden = self.without_slivers(hidden);
+            // The hidden layers' crossings are one swept cut's.
+            let hidden = self.without_slivers(hidden.into_iter().map(|c| (c, 0)).collect());
             return Ok(severed + Crossing::sever(&mut self.model, &hidden));
         };
         let sheet = self
@@ -423,6 +424,8 @@ impl Simulation {
         // mesh cloth's severing refreshes what the force pass keeps of its springs, `O(n)`):
         // the front layer's, then the layers' behind less any that would cut out a sliver.
         let (mut cuts, mut front, mut behind) = (Vec::new(), Vec::new(), Vec::new());
+        // Each crossing behind with the cut it came from (numbered through the frame).
+        let (mut crossings, mut cut_id) = (Vec::new(), 0u32);
         for (&ray, hits) in rays.iter().zip(&layers) {
             cuts.clear();
             self.layers
@@ -432,19 +435,23 @@ impl Simulation {
             };
             let at = (&self.state.kin.pos, &self.model.particles.alive[..]);
             for &(cut, layer) in &cuts {
-                let out = match layer {
-                    Layer::Front => &mut front,
-                    Layer::Behind => &mut behind,
-                };
+                crossings.clear();
                 match cut {
-                    Cut::Rest(c, a, b) => sheet.crossings(c, (&mesh.springs, at.1), (a, b), out),
+                    Cut::Rest(c, a, b) => {
+                        sheet.crossings(c, (&mesh.springs, at.1), (a, b), &mut crossings)
+                    }
                     Cut::Swept(r0, r1) => {
                         let swept =
                             (self.cutter)
                                 .mesh_crossings(&mesh.springs, at, &[r0, r1], &mut || false);
-                        out.extend_from_slice(swept.unwrap_or_default());
+                        crossings.extend_from_slice(swept.unwrap_or_default());
                     }
                 }
+                match layer {
+                    Layer::Front => front.extend_from_slice(&crossings),
+                    Layer::Behind => behind.extend(crossings.iter().map(|&c| (c, cut_id))),
+                }
+                cut_id += 1;
             }
         }
         let mut severed = MeshCrossing::sever(&mut self.model, &front);
@@ -486,46 +493,51 @@ impl Simulation {
         layers
     }
 
-    /// `hidden` (crossings on layers behind the first) less those that would leave a piece
-    /// of fewer than [`HIDDEN_LAYER_MIN_PIECE`] particles once severed with the springs
-    /// already gone: where a layer behind is cut at a grazing angle, or its cut runs beside
-    /// the first layer's where a layer turns into the first one, it isolates a particle or
-    /// two, which no one meant to cut out.
-    fn without_slivers<C: Sliver>(&self, mut hidden: Vec<C>) -> Vec<C> {
+    /// `hidden` (crossings on layers behind the first, each with the cut it came from) less
+    /// those that would leave a piece of fewer than [`HIDDEN_LAYER_MIN_PIECE`] particles once
+    /// severed with the springs already gone: where a layer behind is cut at a grazing angle,
+    /// or its cut runs beside the first layer's where a layer turns into the first one, it
+    /// isolates a particle or two, which no one meant to cut out.
+    fn without_slivers<C: Sliver>(&self, mut hidden: Vec<(C, u32)>) -> Vec<C> {
         let alive = &self.model.particles.alive;
         // Dropping crossings only joins pieces, so a few rounds settle it; none to weigh (a
         // stroke over one layer), no `O(n)` labelling.
         for _ in 0..if hidden.is_empty() { 0 } else { 4 } {
-            let label = C::pieces_without(self, &hidden);
+            let cut: Vec<C> = hidden.iter().map(|h| h.0).collect();
+            let label = C::pieces_without(self, &cut);
             let mut size = vec![0usize; alive.len()];
             for p in (0..alive.len()).filter(|&p| alive[p]) {
                 size[label[p] as usize] += 1;
             }
             let small = |p: usize| size[label[p] as usize] < HIDDEN_LAYER_MIN_PIECE;
-            // A sliver between two cuts goes back to one side only, the one the most of its
-            // crossings lead to (the lower label on a tie): given back to both, it would join
-            // the two sides the cuts separate.
-            let mut sides: std::collections::BTreeMap<(u32, u32), usize> = Default::default();
-            for &c in &hidden {
+            // A sliver goes back to one side only, and only through one cut's crossings: the
+            // (side, cut) most of its crossings lead through (the lower on a tie). Given back
+            // to both sides, it would join the two sides the cuts separate; given back through
+            // both of two cuts that run either side of it, it would join them too once the
+            // stroke separates them further on, though this frame they are one piece.
+            let mut sides: std::collections::BTreeMap<(u32, u32, u32), usize> = Default::default();
+            for &(c, from) in &hidden {
                 let (a, b) = c.ends(self);
                 for (p, q) in [(a, b), (b, a)] {
                     if small(p) && !small(q) {
-                        *sides.entry((label[p], label[q])).or_default() += 1;
+                        *sides.entry((label[p], label[q], from)).or_default() += 1;
                     }
                 }
             }
-            let mut side: std::collections::BTreeMap<u32, (usize, u32)> = Default::default();
-            for (&(sliver, to), &n) in &sides {
-                let best = side.entry(sliver).or_insert((n, to));
+            let mut side: std::collections::BTreeMap<u32, (usize, (u32, u32))> = Default::default();
+            for (&(sliver, to, from), &n) in &sides {
+                let best = side.entry(sliver).or_insert((n, (to, from)));
                 if n > best.0 {
-                    *best = (n, to);
+                    *best = (n, (to, from));
                 }
             }
             let before = hidden.len();
-            hidden.retain(|&c| {
+            hidden.retain(|&(c, from)| {
                 let (a, b) = c.ends(self);
                 let back = |p: usize, q: usize| {
-                    small(p) && (small(q) || side.get(&label[p]).is_some_and(|s| s.1 == label[q]))
+                    small(p)
+                        && (small(q)
+                            || side.get(&label[p]).is_some_and(|s| s.1 == (label[q], from)))
                 };
                 !back(a, b) && !back(b, a)
             });
@@ -533,7 +545,7 @@ impl Simulation {
                 break;
             }
         }
-        hidden
+        hidden.into_iter().map(|h| h.0).collect()
     }
 
     /// The live springs of a grid cloth the surface `stroke` sweeps through it as it is now
