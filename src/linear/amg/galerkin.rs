@@ -7,13 +7,15 @@
 //! step ([`Galerkin::apply`]) then sums each entry's list in a register and stores it once.
 //! Each entry's terms are listed in the order a row-by-row product visits them (the entries of
 //! `A`'s row, then `P`'s row; for `A_c`, the rows of `P^T`, then `AP`'s row), so every sum is
-//! bitwise the one that product's scattered adds give. Summing entry by entry keeps each sum
-//! in registers, where scattering each term into its row loads and stores the entry a term
-//! and waits on the store before (docs/mesh_cloth.md, "Speed", 2026-12-06: the coarse levels'
-//! products a third shorter, the fine level's `AP` a seventh, its `P^T (AP)` unchanged); the
-//! lists take 8 bytes a term (a block's id and a weight) where the scattered plan took 4. The
-//! rows are split among threads, so the products are bitwise the same for any number of
-//! threads.
+//! bitwise the one that product's scattered adds give. `A_c` is symmetric, so only its entries
+//! on and above the diagonal are summed, and each one below is a copy of its mirror: about
+//! half of `P^T (AP)`'s terms, and an operator exactly symmetric. Summing entry by entry keeps
+//! each sum in registers, where scattering each term into its row loads and stores the entry a
+//! term and waits on the store before (docs/mesh_cloth.md, "Speed", 2026-12-06: the coarse
+//! levels' products a third shorter, the fine level's `AP` a seventh, its `P^T (AP)`
+//! unchanged); the lists take 8 bytes a term (a block's id and a weight) where the scattered
+//! plan took 4. The rows are split among threads, so the products are bitwise the same for
+//! any number of threads.
 
 use super::csr::{for_each_row, BlockCsr, BlockRows, Transfer};
 use crate::linear::Sym3;
@@ -45,11 +47,17 @@ pub struct Galerkin {
     ap_diagonal: Vec<f32>,
     ap_term_offsets: Vec<u32>,
     ap_terms: Vec<Term>,
-    /// Entry `k` of `A_c` (in its storage order) is the sum of
+    /// Entry `k` of `A_c` (in its storage order) on or above the diagonal is the sum of
     /// `ac_terms[ac_term_offsets[k]..ac_term_offsets[k + 1]]`, each naming an entry of `AP` and
-    /// an entry of `P^T`'s weight.
+    /// an entry of `P^T`'s weight; an entry below it whose mirror is in the pattern has no
+    /// terms and is a copy of that mirror (`ac_mirrors`).
     ac_term_offsets: Vec<u32>,
     ac_terms: Vec<Term>,
+    /// `(k, m)`: entry `k` of `A_c`, at `(c, J)` with `J < c`, is entry `m`, at `(J, c)`.
+    /// `A_c` is symmetric and its blocks are (every block of `A` is, and `P` is scalar), so
+    /// half its sums give all of it, and the copy makes it exactly symmetric, which summing
+    /// `(c, J)` and `(J, c)` in their own orders does not.
+    ac_mirrors: Vec<(u32, u32)>,
 }
 
 impl Galerkin {
@@ -115,6 +123,23 @@ impl Galerkin {
             ac_columns.extend(row.iter().map(|&(j, _)| j).filter(|&j| j as usize != c));
             ac_columns[start + 1..].sort_unstable();
             dedup_tail(&mut ac_columns, start + 1);
+            // Below the diagonal, each entry whose mirror is in the pattern (every one, for
+            // a symmetric pattern) is copied from it rather than summed.
+            let mut mirrored = start + 1;
+            for k in start + 1..ac_columns.len() {
+                let j = ac_columns[k] as usize;
+                if j >= c {
+                    break;
+                }
+                let above = ac_offsets[j] as usize + 1..ac_offsets[j + 1] as usize;
+                match ac_columns[above.clone()].binary_search(&(c as u32)) {
+                    Ok(m) => g.ac_mirrors.push((k as u32, (above.start + m) as u32)),
+                    Err(_) => break,
+                }
+                mirrored = k + 1;
+            }
+            let copied = &ac_columns[start + 1..mirrored];
+            row.retain(|(j, _)| copied.binary_search(j).is_err());
             let lists = (&mut g.ac_term_offsets, &mut g.ac_terms);
             list_by_entry(&row, &ac_columns[start..], &mut slot, lists);
             ac_offsets.push(ac_columns.len() as u32);
@@ -133,6 +158,7 @@ impl Galerkin {
             ap_terms,
             ac_term_offsets,
             ac_terms,
+            ac_mirrors,
         } = self;
         let (ap_term_offsets, ap_terms) = (&ap_term_offsets[..], &ap_terms[..]);
         let ap_diagonal = &ap_diagonal[..];
@@ -158,6 +184,9 @@ impl Galerkin {
                 *out = sum(Sym3::ZERO, &ac_terms[terms], |id| &ap[id as usize]);
             }
         });
+        for &(k, m) in ac_mirrors.iter() {
+            values[k as usize] = values[m as usize];
+        }
         out.lay_out();
     }
 }
