@@ -13,8 +13,9 @@
 //!    judged the same way, down to `1 / 2^SPLITS` of the substep ([`Pipeline::solve_judged`]);
 //! 4. after the passes that follow the integrator, where the self-collision pass moved particles
 //!    and the substep gained energy, the passes once more, the solve holding each particle where
-//!    the pass left it ([`Pipeline::hold_self_contacts`]); for projective dynamics in one
-//!    round, the first solve's rounds having settled the colliders' contacts ([`contact_rounds`]).
+//!    the pass left it ([`Pipeline::hold_self_contacts`]); for projective dynamics, and for
+//!    implicit Euler holding the self-contact pairs inside its solve, in one round, the first
+//!    solve's rounds having settled the colliders' contacts ([`contact_rounds`]).
 
 use std::time::Instant;
 
@@ -55,13 +56,16 @@ const ENERGY_SLACK: f64 = 1e-6;
 const SELF_ROUNDS: u32 = 2;
 
 /// How many times at most the solve of a rerun holding the self-collision pass's particles runs
-/// with an integrator whose contacts only push ([`contact_rounds`]). Its contact set is the one
-/// the first solve's rounds settled, plus those holds; further rounds mostly release holds the
-/// solve left ahead of their planes, which changes nothing the solve converges to, at a whole
-/// solve each: 1.7 of projective dynamics' 4.6 solves a step on the `pile` dropped 10 cm at
-/// 1/60 s. With 3, one such rerun (the pile dropped 40 cm at 1/60 s) ended 8 % above its
-/// substep's start energy; with 1, every rerun of `tests/test_contact_energy.py`'s landings
-/// ends below it.
+/// with an integrator whose contacts only push, or whose solve holds the self-contact pairs
+/// apart as well ([`contact_rounds`]). Its contact set is the one the first solve's rounds
+/// settled, plus those holds; further rounds mostly release holds the solve left ahead of their
+/// planes, which changes nothing the solve converges to, at a whole solve each: 1.7 of
+/// projective dynamics' 4.6 solves a step on the `pile` dropped 10 cm at 1/60 s. With 3, one
+/// such rerun (the pile dropped 40 cm at 1/60 s) ended 8 % above its substep's start energy;
+/// with 1, every rerun of `tests/test_contact_energy.py`'s landings ends below it. Implicit
+/// Euler's rerun is an implicit step of two solves (the loose pair-finding one and its finish):
+/// newton's wound twist at two steps a frame takes up to 8 solves a step with 3 rounds, 4 with
+/// 1, for 0.83 of the CPU time over its first 3 s (`docs/contact.md`, "rerunkeep").
 const RERUN_ROUNDS: u32 = 1;
 
 /// The fraction of a substep's motion below which a substep that does work and that the energy
@@ -70,16 +74,24 @@ const RERUN_ROUNDS: u32 = 1;
 const RERUN_KEPT: f32 = 0.5;
 
 /// How many times at most the solve of round `round` (from 0) of a substep's passes runs while
-/// its contacts change. A rerun holding the self-collision pass's particles settles its
-/// contacts in rounds only where a contact pulls as well as pushes inside the solve (implicit
-/// Euler's stiff spring onto the plane): there releasing a hold the solve left ahead of its
-/// plane lets the vertex move off. A projective-dynamics contact is the term
-/// `w_c/2 |x - P(x)|^2`, zero on the plane's outer side: a hold ahead of its plane exerts
-/// nothing where the iteration converges, and releasing it changes nothing but the cost.
-fn contact_rounds(kind: IntegratorKind, round: u32) -> u32 {
+/// its contacts change, for an integrator of `kind` whose solve holds the self-contact pairs
+/// ahead of it apart where `pairs_in_solve`.
+///
+/// A projective-dynamics contact is the term `w_c/2 |x - P(x)|^2`, zero on the plane's outer
+/// side: a hold ahead of its plane exerts nothing where the iteration converges, and releasing
+/// it changes nothing but the cost. Implicit Euler holds a contact exactly, pulling as well as
+/// pushing, so a hold its rerun left ahead of its plane keeps its vertex there to the
+/// substep's end. Where its solve holds the pairs apart too, that vertex is not all that keeps
+/// the layers apart, and one round is kept (what it costs and what it changes is measured in
+/// `docs/contact.md`, "rerunkeep"). Without the pairs the holds are all that keep the pass's
+/// vertices apart in the solve, and the rerun settles them in rounds: with one,
+/// `a_long_step_twist_without_the_in_solve_term_does_not_tear_itself_apart`
+/// (`tests/self_collision.rs`) stretched past its bound.
+fn contact_rounds(kind: IntegratorKind, round: u32, pairs_in_solve: bool) -> u32 {
     match (round, kind) {
         (0, _) => CONTACT_ROUNDS,
         (_, IntegratorKind::ProjectiveDynamics) => RERUN_ROUNDS,
+        (_, IntegratorKind::ImplicitEuler) if pairs_in_solve => RERUN_ROUNDS,
         _ => CONTACT_ROUNDS,
     }
 }
@@ -223,6 +235,7 @@ impl Pipeline {
     pub fn integrate(&mut self, s: &mut Substep, force: &mut Vec3s, round: u32) -> bool {
         let started = Instant::now();
         let forces_before = s.profile.force_time;
+        let pairs_in_solve = self.self_collision.as_ref().is_some_and(|p| p.in_solve());
         let mut job = Solve {
             model: s.model,
             h: s.h,
@@ -230,7 +243,7 @@ impl Pipeline {
             chunk: s.chunk,
             profile: &mut *s.profile,
             force,
-            rounds: contact_rounds(self.integrator.kind(), round),
+            rounds: contact_rounds(self.integrator.kind(), round, pairs_in_solve),
         };
         // The watch judges the state the substep starts from: the first force evaluation of
         // this solve, not a later round's or a half's, which start elsewhere.
