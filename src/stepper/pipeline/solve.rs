@@ -6,7 +6,9 @@
 //! 1. the contacts each particle's free motion would make ([`Pipeline::predict_contacts`]);
 //! 2. the solve, in rounds while the contacts change: after each, the contacts it pulled in are
 //!    released and the particles it carried into a collider are held, at most
-//!    [`CONTACT_ROUNDS`] times ([`Pipeline::solve`]);
+//!    [`CONTACT_ROUNDS`] times ([`Pipeline::solve`]); a round that may be followed by another
+//!    stops at implicit Euler's loose pair-finding solve, finished only where the contacts
+//!    stayed ([`crate::integrators::StepContext::may_stop_loose`]);
 //! 3. where nothing does work on the cloth ([`Pipeline::judge_work`]) and the solve ended with
 //!    more energy than it started with (for projective dynamics, also as the colliders' passes
 //!    after it would leave it, [`Pipeline::put_out_gains`]), the same again as two halves, each
@@ -412,7 +414,12 @@ impl Pipeline {
         let kind = self.integrator.kind();
         let mut self_pairs = pairs_ahead(&mut self.self_collision, kind, job, from);
         let mut round = 0;
+        // Set once a round's loose step found its contacts unchanged: that step is finished.
+        let mut finishing = false;
         let finite = loop {
+            // A round whose contacts are corrected after it, and solved again where they
+            // changed, needs only to show where the step goes.
+            let may_stop_loose = holds && !finishing && round + 1 < job.rounds;
             let mut ctx = StepContext {
                 grid: job.model.grid,
                 current: from,
@@ -426,13 +433,22 @@ impl Pipeline {
                 profile: job.profile,
                 contacts: self.contacts.as_ref().filter(|_| holds),
                 self_pairs,
+                may_stop_loose,
             };
-            let finite = self.integrator.step(job.h, &mut ctx);
+            let finite = if finishing {
+                self.integrator.finish_loose(job.h, &mut ctx)
+            } else {
+                self.integrator.step(job.h, &mut ctx)
+            };
             if self_pairs.is_some_and(|p| p.asked()) {
                 // The solve moved farther than the pairs left out allowed for: the same step
                 // again with them, as if they had been given.
                 self_pairs = given_pairs_ahead(&mut self.self_collision, job, from);
+                finishing = false;
                 continue;
+            }
+            if finishing {
+                break finite;
             }
             round += 1;
             let Some(contacts) = self.contacts.as_mut().filter(|_| holds) else {
@@ -452,6 +468,10 @@ impl Pipeline {
             );
             job.profile.add(PredictedContacts::NAME, t.elapsed());
             if changed == 0 {
+                if self.integrator.stopped_loose() {
+                    finishing = true;
+                    continue;
+                }
                 break finite;
             }
         };
