@@ -418,8 +418,11 @@ impl Pipeline {
         let mut finishing = false;
         let finite = loop {
             // A round whose contacts are corrected after it, and solved again where they
-            // changed, needs only to show where the step goes.
-            let may_stop_loose = holds && !finishing && round + 1 < job.rounds;
+            // changed, needs only to show where the step goes; without a collider or a hold
+            // there is nothing to correct.
+            let correctable =
+                (self.contacts.as_ref()).is_some_and(|c| c.count > 0 || !self.colliders.is_empty());
+            let may_stop_loose = holds && correctable && !finishing && round + 1 < job.rounds;
             let mut ctx = StepContext {
                 grid: job.model.grid,
                 current: from,
