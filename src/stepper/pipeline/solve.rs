@@ -40,7 +40,7 @@ use crate::state::{Kinematics, State};
 /// pile's set changes in every round (a few particles released, then held again), so this is
 /// what most of its solves cost: 3 keeps every case of `benches/contact_energy.py` from
 /// gaining energy, 2 let projective dynamics gain 5 % on the pile dropped 40 cm at 1/60 s.
-const CONTACT_ROUNDS: u32 = 3;
+pub(super) const CONTACT_ROUNDS: u32 = 3;
 
 /// How many times at most a solve holding contacts that gained energy is halved
 /// ([`Pipeline::integrate`]): down to an eighth of the substep.
