@@ -61,6 +61,12 @@ pub struct StepContext<'a> {
     /// solve (`self_contact.rs`); `None` without `[self_collision]`, with the term off, and
     /// for the other integrators.
     pub self_pairs: Option<SelfPairs<'a>>,
+    /// Whether the caller corrects `contacts` from this step's result and steps again where
+    /// they changed: implicit Euler may then stop a step holding self-contact pairs at its
+    /// loose pair-finding solve, which shows where the step goes at about half the cost, and
+    /// finish it ([`Integrator::finish_loose`]) only where the contacts stayed. The correction
+    /// then judges a `dv` to the pair-finding tolerance (3e-2) instead of `cg_tolerance`.
+    pub may_stop_loose: bool,
 }
 
 impl StepContext<'_> {
@@ -139,6 +145,26 @@ impl Integrator {
             Integrator::Rk4(r) => r.step(h, ctx),
             Integrator::ImplicitEuler(i) => i.step(h, ctx),
             Integrator::ProjectiveDynamics(p) => p.step(h, ctx),
+        }
+    }
+
+    /// Whether the last [`Integrator::step`] stopped at its loose pair-finding solve
+    /// ([`StepContext::may_stop_loose`]).
+    pub fn stopped_loose(&self) -> bool {
+        match self {
+            Integrator::ImplicitEuler(i) => i.stopped_loose(),
+            _ => false,
+        }
+    }
+
+    /// Finishes a step that stopped at its loose pair-finding solve, writing the step's result
+    /// into `ctx.next`; `ctx` carries the same state, contacts and pairs as that step. Returns
+    /// whether every written value is finite.
+    pub fn finish_loose(&mut self, h: f32, ctx: &mut StepContext) -> bool {
+        match self {
+            Integrator::ImplicitEuler(i) => i.finish_loose(h, ctx),
+            // Their steps are whole: `ctx.next` already holds the result.
+            _ => true,
         }
     }
 

@@ -6,7 +6,9 @@
 //! 1. the contacts each particle's free motion would make ([`Pipeline::predict_contacts`]);
 //! 2. the solve, in rounds while the contacts change: after each, the contacts it pulled in are
 //!    released and the particles it carried into a collider are held, at most
-//!    [`CONTACT_ROUNDS`] times ([`Pipeline::solve`]);
+//!    [`CONTACT_ROUNDS`] times ([`Pipeline::solve`]); a round that may be followed by another
+//!    stops at implicit Euler's loose pair-finding solve, finished only where the contacts
+//!    stayed ([`crate::integrators::StepContext::may_stop_loose`]);
 //! 3. where nothing does work on the cloth ([`Pipeline::judge_work`]) and the solve ended with
 //!    more energy than it started with (for projective dynamics, also as the colliders' passes
 //!    after it would leave it, [`Pipeline::put_out_gains`]), the same again as two halves, each
@@ -39,7 +41,7 @@ use crate::state::{Kinematics, State};
 /// pile's set changes in every round (a few particles released, then held again), so this is
 /// what most of its solves cost: 3 keeps every case of `benches/contact_energy.py` from
 /// gaining energy, 2 let projective dynamics gain 5 % on the pile dropped 40 cm at 1/60 s.
-const CONTACT_ROUNDS: u32 = 3;
+pub(super) const CONTACT_ROUNDS: u32 = 3;
 
 /// How many times at most a solve holding contacts that gained energy is halved
 /// ([`Pipeline::integrate`]): down to an eighth of the substep.
@@ -425,7 +427,15 @@ impl Pipeline {
         let kind = self.integrator.kind();
         let mut self_pairs = pairs_ahead(&mut self.self_collision, kind, job, from);
         let mut round = 0;
+        // Set once a round's loose step found its contacts unchanged: that step is finished.
+        let mut finishing = false;
         let finite = loop {
+            // A round whose contacts are corrected after it, and solved again where they
+            // changed, needs only to show where the step goes; without a collider or a hold
+            // there is nothing to correct.
+            let correctable =
+                (self.contacts.as_ref()).is_some_and(|c| c.count > 0 || !self.colliders.is_empty());
+            let may_stop_loose = holds && correctable && !finishing && round + 1 < job.rounds;
             let mut ctx = StepContext {
                 grid: job.model.grid,
                 current: from,
@@ -439,13 +449,22 @@ impl Pipeline {
                 profile: job.profile,
                 contacts: self.contacts.as_ref().filter(|_| holds),
                 self_pairs,
+                may_stop_loose,
             };
-            let finite = self.integrator.step(job.h, &mut ctx);
+            let finite = if finishing {
+                self.integrator.finish_loose(job.h, &mut ctx)
+            } else {
+                self.integrator.step(job.h, &mut ctx)
+            };
             if self_pairs.is_some_and(|p| p.asked()) {
                 // The solve moved farther than the pairs left out allowed for: the same step
                 // again with them, as if they had been given.
                 self_pairs = given_pairs_ahead(&mut self.self_collision, job, from);
+                finishing = false;
                 continue;
+            }
+            if finishing {
+                break finite;
             }
             round += 1;
             let Some(contacts) = self.contacts.as_mut().filter(|_| holds) else {
@@ -465,6 +484,10 @@ impl Pipeline {
             );
             job.profile.add(PredictedContacts::NAME, t.elapsed());
             if changed == 0 {
+                if self.integrator.stopped_loose() {
+                    finishing = true;
+                    continue;
+                }
                 break finite;
             }
         };
