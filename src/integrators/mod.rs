@@ -65,7 +65,8 @@ pub struct StepContext<'a> {
     /// they changed: implicit Euler may then stop a step holding self-contact pairs at its
     /// loose pair-finding solve, which shows where the step goes at about half the cost, and
     /// finish it ([`Integrator::finish_loose`]) only where the contacts stayed. The correction
-    /// then judges a `dv` to the pair-finding tolerance (3e-2) instead of `cg_tolerance`.
+    /// then judges a `dv` solved to the contact-finding tolerance (3e-3, `implicit_euler.rs`)
+    /// instead of `cg_tolerance`.
     pub may_stop_loose: bool,
 }
 

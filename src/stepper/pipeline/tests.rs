@@ -117,11 +117,11 @@ fn in_a_pile_at_rest_on_the_floor_the_self_collision_pass_moves_no_vertex_a_thic
 }
 
 /// Each contact round of a pile's substep is corrected from the round before's solve, and a
-/// resting pile's contacts change in nearly every round. A round followed by another was
-/// solved as the whole step (a loose solve finding the self-contact pairs and one holding
-/// them) only for its result to be corrected and solved again: six solves such a substep.
-/// Stopped at its loose solve, a round that another follows costs one, and the substep still
-/// ends on a solve at the scene's `cg_tolerance`.
+/// resting pile's contacts change in nearly every round. Solved as a whole step (a loose solve
+/// finding the self-contact pairs and one holding them), each round would cost two solves only
+/// for its result to be corrected and solved again. Stopped at its loose solve, a round that
+/// another follows costs one, and the substep still ends on a solve at the scene's
+/// `cg_tolerance`.
 #[test]
 fn a_pile_s_contact_round_followed_by_another_takes_one_solve() {
     let scene = Scene::builtin("pile").unwrap();
