@@ -420,9 +420,9 @@ impl Simulation {
             step: sheet.spacing,
             jump: REST_JUMP_SPACINGS * sheet.spacing,
         };
-        // The frame's cuts are severed together, each spring at the first crossing listed (a
-        // mesh cloth's severing refreshes what the force pass keeps of its springs, `O(n)`):
-        // the front layer's, then the layers' behind less any that would cut out a sliver.
+        // The frame's cuts are severed together, each spring at the first crossing listed: the
+        // front layer's, then the layers' behind less any that would cut out a sliver, which
+        // the filter weighs against the whole frame's cut.
         let (mut cuts, mut front, mut behind) = (Vec::new(), Vec::new(), Vec::new());
         // Each crossing behind with the cut it came from (numbered through the frame).
         let (mut crossings, mut cut_id) = (Vec::new(), 0u32);
@@ -503,8 +503,7 @@ impl Simulation {
         // Dropping crossings only joins pieces, so a few rounds settle it; none to weigh (a
         // stroke over one layer), no `O(n)` labelling.
         for _ in 0..if hidden.is_empty() { 0 } else { 4 } {
-            let cut: Vec<C> = hidden.iter().map(|h| h.0).collect();
-            let label = C::pieces_without(self, &cut);
+            let label = C::pieces_without(self, hidden.iter().map(|h| h.0));
             let mut size = vec![0usize; alive.len()];
             for p in (0..alive.len()).filter(|&p| alive[p]) {
                 size[label[p] as usize] += 1;
@@ -775,7 +774,7 @@ pub const HIDDEN_LAYER_SPACINGS: f64 = 1.0;
 /// pieces the cloth would be in with some crossings' springs severed too.
 trait Sliver: Copy {
     fn ends(self, sim: &Simulation) -> (usize, usize);
-    fn pieces_without(sim: &Simulation, cut: &[Self]) -> Vec<u32>;
+    fn pieces_without(sim: &Simulation, cut: impl Iterator<Item = Self>) -> Vec<u32>;
 }
 
 impl Sliver for Crossing {
@@ -785,10 +784,9 @@ impl Sliver for Crossing {
         (anchor.min(partner), anchor.max(partner))
     }
 
-    fn pieces_without(sim: &Simulation, cut: &[Self]) -> Vec<u32> {
+    fn pieces_without(sim: &Simulation, cut: impl Iterator<Item = Self>) -> Vec<u32> {
         let model = &sim.model;
-        let cut: std::collections::HashSet<(usize, usize)> =
-            cut.iter().map(|&c| c.ends(sim)).collect();
+        let cut: std::collections::HashSet<(usize, usize)> = cut.map(|c| c.ends(sim)).collect();
         let joins = |a: usize, b: usize| !cut.contains(&(a.min(b), a.max(b)));
         piece_labels_joined_by(model.grid, &model.springs, &model.particles.alive, joins)
     }
@@ -802,11 +800,11 @@ impl Sliver for MeshCrossing {
         })
     }
 
-    fn pieces_without(sim: &Simulation, cut: &[Self]) -> Vec<u32> {
+    fn pieces_without(sim: &Simulation, cut: impl Iterator<Item = Self>) -> Vec<u32> {
         let Some(topology) = sim.model.mesh_topology() else {
             return sim.piece_labels();
         };
-        let cut: std::collections::HashSet<u32> = cut.iter().map(|c| c.0).collect();
+        let cut: std::collections::HashSet<u32> = cut.map(|c| c.0).collect();
         topology.piece_labels_joined_by(&sim.model.particles.alive, |e| !cut.contains(&e))
     }
 }
