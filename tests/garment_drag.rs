@@ -155,7 +155,7 @@ fn a_grip_held_short_of_its_target_steps_the_same_after_a_restore() {
 /// the grip's work). A frame's kinetic, gravitational and elastic energy may rise only by the
 /// work the grip does on its particles (the potential's gradient there, trapezoidal over the
 /// frame), plus a margin for that estimate, for the pass after the solve and for the springs'
-/// linearisation (docs/garments.md gives the measured excesses). At 299, where the grip's
+/// linearisation (docs/notes/garments.md gives the measured excesses). At 299, where the grip's
 /// target stops 0.2 m past where the pass lets it be, the grip jumped onto its target and was
 /// pulled back every step, gaining 0.2-0.35 J a frame (2.2 J in one) while it was held
 /// (`CATCH_UP` in `src/pins.rs`).

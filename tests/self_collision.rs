@@ -1035,7 +1035,7 @@ fn thin_twist_stretches() -> (Vec<f64>, usize, WatchdogStats) {
 /// (0.72 mm here), so the cap, which scales each displacement toward `x0`, stops clusters of
 /// vertices at the substep's start while the rest and the pinned edges go on turning (up to 90
 /// in one substep): without the cascade trouble, which retries such a step with more substeps,
-/// the stretch grew in the interior to 2.46 at frame 60, with 0 crossings (docs/contact.md,
+/// the stretch grew in the interior to 2.46 at frame 60, with 0 crossings (docs/notes/contact.md,
 /// "the 256 x 256 twist"). Without the pass this twist stays below 0.82 to frame 80, and with
 /// the shipped 3 mm below 0.96. The scene raises on trouble (the default), and the cascade is
 /// retried all the same, never past `CASCADE_MOST` (4) times its one substep.
@@ -1063,7 +1063,7 @@ fn a_thin_twist_never_stretches_its_cloth_past_one_and_a_half_with_self_collisio
 /// its cap acts on thousands of vertices in those 2 s. Whether it stops any of them outright
 /// by 2 s is not asked: that turns on the wound rope's chaos (turned by Python's
 /// `TwistDriver`, the twist has stopped none by 2 s at `solve_stiffness` 299.9 and 42 at 300
-/// on one build; `docs/contact.md`, "Cost").
+/// on one build; `docs/notes/contact.md`, "Cost").
 #[test]
 fn the_shipped_pile_fold_and_twist_are_never_retried_for_a_cascade() {
     for name in ["pile", "fold", "twist"] {

@@ -89,8 +89,8 @@ def test_the_built_in_pile_comes_to_rest_and_never_gains_energy_once_it_has_land
         before = now
     # The pass after the solve still pushes the pairs the in-solve penalty leaves a little inside
     # `thickness` back out to it: about a millijoule a frame at most (of about 1 J), where the
-    # solve holding none of the pairs its springs close gave up to 27 mJ (docs/contact.md, "Why
-    # the pile shivered").
+    # solve holding none of the pairs its springs close gave up to 27 mJ
+    # (docs/notes/contact.md, "Why the pile shivered").
     assert worst < 2.5e-3, worst
     speed = np.linalg.norm(sim.velocities, axis=1)
     # At rest by 5 s: a handful of particles above 0.1 m/s at most (20-90 and up to 0.45 m/s

@@ -333,7 +333,7 @@ const SELF_ROUNDS: u32 = 2;
 /// meets `cg_tolerance`. A step whose first solve brings no new pair finishes that solve to
 /// `cg_tolerance` from where it stopped. Trade-off: looser takes fewer iterations but finds the
 /// pairs from a rougher `dv`, and the step's result moves with the pairs found (measured in
-/// `docs/contact.md`, "Where a frame goes"); at `cg_tolerance` it is two full solves.
+/// `docs/notes/contact.md`, "Where a frame goes"); at `cg_tolerance` it is two full solves.
 const PAIR_FINDING_TOLERANCE: f32 = 3e-2;
 
 /// The relative residual at which the first solve of a step holding self-contact pairs stops

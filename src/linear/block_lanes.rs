@@ -401,7 +401,7 @@ impl<const C: usize> Lanes<C> {
 /// slots' lanes by more than this: packing a row costs less than the gather of an element it
 /// saves, so packing pays even where every range reads every row (a numbering at random: a
 /// range of 1,024 rows of the 129 x 129 mesh reads its 16,641 rows through 14,500 lanes, and
-/// the stiff step was 12 % shorter packed in two rounds, docs/mesh_cloth.md, "Speed",
+/// the stiff step was 12 % shorter packed in two rounds, docs/notes/mesh_cloth.md, "Speed",
 /// 2026-12-06), but a short range of a large scattered matrix would pack far more rows than
 /// it multiplies.
 #[cfg(target_arch = "x86_64")]
@@ -753,7 +753,7 @@ impl BlockLanes {
     /// operand's rows are first packed as `[x, y, z, 0]`, and each slot's sixteen operands
     /// read as sixteen 16-byte loads turned into x, y and z vectors by shuffles, not by three
     /// 16-wide gathers, which cost about a load an element: 16 loads a slot against 48
-    /// (docs/mesh_cloth.md, "Speed", 2026-12-06). Each lane adds the same terms in the same
+    /// (docs/notes/mesh_cloth.md, "Speed", 2026-12-06). Each lane adds the same terms in the same
     /// order either way, so the product is bitwise the same.
     #[inline(always)]
     pub fn apply_blocks(

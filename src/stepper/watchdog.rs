@@ -396,7 +396,7 @@ impl Watchdog {
 /// lets a pair close, every pair touching a stopped vertex is then too fast as well, and the stop
 /// spreads through the contacts (9,926 vertices of the 256 x 256 twist in one substep) while the
 /// pins and the cloth around move on, tearing it. The shipped scenes stop at most a few at a
-/// time (docs/contact.md, "the cascade"): more, and the step is retried with more substeps,
+/// time (docs/notes/contact.md, "the cascade"): more, and the step is retried with more substeps,
 /// each moving the cloth half as far.
 pub const CASCADE_STOPPED: u64 = 32;
 

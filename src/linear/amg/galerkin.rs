@@ -11,8 +11,8 @@
 //! on and above the diagonal are summed, and each one below is a copy of its mirror: about
 //! half of `P^T (AP)`'s terms, and an operator exactly symmetric. Summing entry by entry keeps
 //! each sum in registers, where scattering each term into its row loads and stores the entry a
-//! term and waits on the store before (docs/mesh_cloth.md, "Speed", 2026-12-06: the coarse
-//! levels' products a third shorter, the fine level's `AP` a seventh, its `P^T (AP)`
+//! term and waits on the store before (docs/notes/mesh_cloth.md, "Speed", 2026-12-06: the
+//! coarse levels' products a third shorter, the fine level's `AP` a seventh, its `P^T (AP)`
 //! unchanged); the lists take 8 bytes a term (a block's id and a weight) where the scattered
 //! plan took 4. The rows are split among threads, so the products are bitwise the same for
 //! any number of threads.

@@ -123,7 +123,7 @@ impl Pipeline {
     /// mixes vertices near their start with vertices where the solve sent them, and the springs
     /// between the two can end stretched more than in either. Solved and capped again, a cloth
     /// held by a grip climbed from 5.6 J to 45.6 J in twelve frames with no work done on it
-    /// (docs/garments.md). The pass's result `x` lies on straight paths from the substep's
+    /// (docs/notes/garments.md). The pass's result `x` lies on straight paths from the substep's
     /// start `x0` that it checked, so every `x0 + s (x - x0)`, `0 <= s <= 1`, is as uncrossed.
     ///
     /// The held particles (inverse mass 0: pins, a grip) are where the substep puts them, so

@@ -67,7 +67,7 @@ const SELF_ROUNDS: u32 = 2;
 /// with 1, every rerun of `tests/test_contact_energy.py`'s landings ends below it. Implicit
 /// Euler's rerun is an implicit step of two solves (the loose pair-finding one and its finish):
 /// newton's wound twist at two steps a frame takes up to 8 solves a step with 3 rounds, 4 with
-/// 1, for 0.83 of the CPU time over its first 3 s (`docs/contact.md`, "rerunkeep").
+/// 1, for 0.83 of the CPU time over its first 3 s (`docs/notes/contact.md`, "rerunkeep").
 const RERUN_ROUNDS: u32 = 1;
 
 /// The fraction of a substep's motion below which a substep that does work and that the energy
@@ -85,7 +85,7 @@ const RERUN_KEPT: f32 = 0.5;
 /// pushing, so a hold its rerun left ahead of its plane keeps its vertex there to the
 /// substep's end. Where its solve holds the pairs apart too, that vertex is not all that keeps
 /// the layers apart, and one round is kept (what it costs and what it changes is measured in
-/// `docs/contact.md`, "rerunkeep"). Without the pairs the holds are all that keep the pass's
+/// `docs/notes/contact.md`, "rerunkeep"). Without the pairs the holds are all that keep the pass's
 /// vertices apart in the solve, and the rerun settles them in rounds: with one,
 /// `a_long_step_twist_without_the_in_solve_term_does_not_tear_itself_apart`
 /// (`tests/self_collision.rs`) stretched past its bound.
