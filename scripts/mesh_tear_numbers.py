@@ -5,7 +5,8 @@ the same on a grid cloth of as many particles, timed in the same process. Timing
 machine are noisy: read the ratios, not the milliseconds.
 
 Run ``PYTHONPATH=python python scripts/mesh_tear_numbers.py`` (under a minute; ``--steps`` for
-more steps per size). Prints a Markdown table (the one in docs/mesh_cloth.md)."""
+more steps per size). Prints a Markdown table (the one in docs/notes/mesh_cloth.md, "Tearing
+and cuts: measurements")."""
 
 from __future__ import annotations
 

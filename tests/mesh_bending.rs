@@ -121,7 +121,7 @@ fn a_sheet_rolled_into_a_cylinder_stores_the_continuum_bending_energy_at_any_res
 }
 
 /// The cylinder's energy against the continuum's on other families of meshes (a measurement
-/// for docs/mesh_cloth.md: `cargo test --release --test integration
+/// for docs/notes/mesh_cloth.md: `cargo test --release --test integration
 /// mesh_bending::bending_energy_by_mesh_family -- --ignored --nocapture`).
 #[test]
 #[ignore]
@@ -416,8 +416,8 @@ fn the_multigrid_converges_on_a_cloth_whose_bending_dominates() {
 }
 
 /// The springs' cantilever beside the isometric one, at three resolutions (a measurement for
-/// docs/mesh_cloth.md: `cargo test --release --test integration mesh_bending::cantilever_study
-/// -- --ignored --nocapture`).
+/// docs/notes/mesh_cloth.md: `cargo test --release --test integration
+/// mesh_bending::cantilever_study -- --ignored --nocapture`).
 #[test]
 #[ignore]
 fn cantilever_study() {

@@ -15,7 +15,7 @@
 //! `ProjectiveDynamics`: a projection onto the plane's outer side, weighted in its global
 //! matrix), so the springs around it feel the contact within the same step. What the filtered
 //! solve costs against a stiff spring onto the plane is measured by `benches/ab_contact.py`
-//! (`docs/contact.md`).
+//! (`docs/notes/contact.md`, "Collider contact inside implicit Euler's solve").
 //!
 //! The free motion follows gravity alone, so the prediction is corrected after the solve
 //! ([`PredictedContacts::correct`], run by the stepper until nothing changes, a few rounds at

@@ -342,7 +342,8 @@ const PAIR_FINDING_TOLERANCE: f32 = 3e-2;
 /// it carries into a collider, and the last round's solve holds what it decided: at
 /// [`PAIR_FINDING_TOLERANCE`] the built-in `pile` never came to rest (at 5 s 18 particles above
 /// 0.1 m/s, up to 0.29 m/s), at 1e-2 not in one run of four, at 3e-3 in all four
-/// (docs/contact.md). Trade-off: tighter costs iterations in every such round.
+/// (docs/notes/contact.md, "2026-12-06 (pilesettle)"). Trade-off: tighter costs iterations in
+/// every such round.
 const CONTACT_FINDING_TOLERANCE: f32 = 3e-3;
 
 /// `v' = v + dv`, `x' = x + h v'` for free particles; held ones keep their state bitwise.

@@ -9,7 +9,8 @@
 //! bitwise as it is.
 //!
 //! A product streams the blocks once and gathers its operand by column [`LANES`] rows at a
-//! time, which row by row it could not (measured in docs/mesh_cloth.md, "Implicit solvers").
+//! time, which row by row it could not (measured in docs/notes/mesh_cloth.md, "How the multigrid
+//! was chosen and tuned").
 //! The copy is laid out once per pattern and refilled when the values change.
 //!
 //! A group is as long as its longest row, and a product streams its padding too: on an

@@ -18,10 +18,10 @@
 //! curvature does not fall with the spacing as the bend springs' does. The paper writes
 //! `3 / (A0 + A1)`; measured on a cylinder, that stores 2.9 to 3.5 times the continuum's
 //! energy on regular, jittered and Delaunay meshes, so the factor here is 1 and `B` is the
-//! continuum's modulus to within the mesh's own departure (docs/mesh_cloth.md, "Isometric
-//! bending": 0.98 regular, 1.01 to 1.08 jittered by 0.3 of the spacing, 1.16 Delaunay). The
-//! weights are those of the rest shape and the energy is exact for isometric deformations of a
-//! flat rest shape, which is why a curved rest shape is refused.
+//! continuum's modulus to within the mesh's own departure (docs/notes/mesh_cloth.md,
+//! "Isometric bending, measured": 0.98 regular, 1.01 to 1.08 jittered by 0.3 of the spacing,
+//! 1.16 Delaunay). The weights are those of the rest shape and the energy is exact for isometric
+//! deformations of a flat rest shape, which is why a curved rest shape is refused.
 //!
 //! `K` sums to zero, so the energy is a sum over the element's six vertex pairs,
 //! `E_e = sum_{i<j} w_ij / 2 |x_j - x_i|^2` with `w_ij = -B q_i q_j` (`q = K / sqrt(A0 + A1)`):

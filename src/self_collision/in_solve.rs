@@ -384,8 +384,9 @@ fn mark_outside(
 /// path, around where that move would take it again (gravity's `h^2 g` and the springs' pull
 /// change little from step to step). A larger budget widens the search every step; a smaller
 /// one leaves more vertices outside to be looked up on their own after the solve. Chosen by
-/// newton's 50 x 50 twist (docs/contact.md): 0.05 to 0.5 of `thickness` all within a tenth of
-/// each other, 0.2 the least work; 28.6 vertices of 2 500 outside a step there.
+/// newton's 50 x 50 twist (docs/notes/contact.md, "2026-12-06: one swept search a step on the
+/// twist"): 0.05 to 0.5 of `thickness` all within a tenth of each other, 0.2 the least work;
+/// 28.6 vertices of 2 500 outside a step there.
 const BUDGET: f32 = 0.2;
 const OFF_BUDGET: f32 = 0.5;
 

@@ -80,7 +80,8 @@ const PUSH: f64 = 0.25;
 /// How much farther than a substep needs the pair list reaches, as a fraction of `thickness`:
 /// the relative motion the cloth may make before some of its vertices are queried again. More
 /// keeps the list longer, at more pairs found by each search and filtered in every substep
-/// (chosen by the settling pile's cost at 64 x 64 and 128 x 128, docs/contact.md).
+/// (chosen by the settling pile's cost at 64 x 64 and 128 x 128, docs/notes/contact.md,
+/// "Before the scenes moved to display-frame steps").
 const SKIN: f64 = 0.75;
 
 /// The farthest, as a multiple of `thickness`, that a substep may need to look for the pair list
@@ -96,7 +97,7 @@ const REQUERY_AT: f64 = 0.5;
 
 /// The largest share of the mesh's vertices queried again on their own; with more, the whole
 /// list is built again, which then costs about as much (chosen by the pile's cost,
-/// docs/contact.md).
+/// docs/notes/contact.md, "Before the scenes moved to display-frame steps").
 const REQUERY_MOST: f64 = 0.1;
 
 /// How near, beyond `thickness` and as a fraction of it, a pair must be able to come in a
@@ -105,8 +106,9 @@ const REQUERY_MOST: f64 = 0.1;
 /// the repulsion moves a vertex more than half of this, or the cap acts at all; the substep
 /// then looks at them too (and first lists them). More lists and looks at more pairs in every
 /// substep, less looks at all of them more often (0.1 did so in every substep of the settling
-/// 64 x 64 pile; chosen by the piles' and freefall's cost, docs/contact.md). At most
-/// `2 PUSH`, what the substep needs.
+/// 64 x 64 pile; chosen by the piles' and freefall's cost, docs/notes/contact.md, "2026-12-05:
+/// the pile's substeps look only at the pairs their motion can bring near"). At most `2 PUSH`,
+/// what the substep needs.
 const HOT: f64 = 0.25;
 
 /// What the pass did, summed since the simulation was built.

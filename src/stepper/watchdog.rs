@@ -396,8 +396,8 @@ impl Watchdog {
 /// lets a pair close, every pair touching a stopped vertex is then too fast as well, and the stop
 /// spreads through the contacts (9,926 vertices of the 256 x 256 twist in one substep) while the
 /// pins and the cloth around move on, tearing it. The shipped scenes stop at most a few at a
-/// time (docs/notes/contact.md, "the cascade"): more, and the step is retried with more substeps,
-/// each moving the cloth half as far.
+/// time (docs/notes/contact.md, "The cascade retried with more substeps"): more, and the step is
+/// retried with more substeps, each moving the cloth half as far.
 pub const CASCADE_STOPPED: u64 = 32;
 
 /// Most substeps a step retried for a cascade may take, as a multiple of the scene's: each

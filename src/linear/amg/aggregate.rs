@@ -14,8 +14,8 @@
 //!   where the numbering is local (row by row); a mesh numbered at random grew ragged
 //!   aggregates and took a third more CG iterations. So the visits follow the numbering where
 //!   it is local and a breadth-first order of the strong connections where it is scattered
-//!   (measured in docs/mesh_cloth.md); the aggregates are numbered in that order, so the
-//!   coarse levels are numbered locally too.
+//!   (measured in docs/notes/mesh_cloth.md, "Speed, as first measured, and vertex order"); the
+//!   aggregates are numbered in that order, so the coarse levels are numbered locally too.
 //! - **Tentative prolongator** `T`: the indicator of each aggregate (one column per aggregate,
 //!   standing for a 3 x 3 identity block: the three translations are the near-null space).
 //! - **Smoothed prolongator** `P = (I - omega D^-1 A) T`, `omega = 4/3 / rho(D^-1 A)`, with

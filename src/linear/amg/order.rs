@@ -36,7 +36,7 @@ pub fn local_order(free: &[bool], offsets: &[usize], neighbours: &[u32]) -> Vec<
 /// after another, each from a pseudo-peripheral node (the last node a first search from its
 /// lowest-numbered node reaches), so that the front crosses the component from one side
 /// rather than spreading from wherever the numbering begins it (both choices measured in
-/// docs/mesh_cloth.md).
+/// docs/notes/mesh_cloth.md, "Speed, as first measured, and vertex order").
 fn breadth_first(free: &[bool], offsets: &[usize], neighbours: &[u32]) -> Vec<u32> {
     const UNSEEN: u8 = 0;
     const PROBED: u8 = 1;
