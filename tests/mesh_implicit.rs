@@ -493,9 +493,10 @@ fn a_restored_mesh_run_reusing_earlier_solves_continues_bitwise() {
 
 /// A cut changes which springs hold, so the multigrid's hierarchy is rebuilt with its coarse
 /// operators, however recently the old ones were computed: coarse operators kept from before
-/// the cut (or the new hierarchy's reference ones) would cost CG far more iterations. The run
-/// stays finite, every solve converges, and the solves after the cut take about as many
-/// iterations as those before.
+/// the cut (or the new hierarchy's reference ones) would cost CG more iterations. The first
+/// solve after the cut takes no more iterations than the most any before it took, the run stays
+/// finite, every solve converges, and the solves after the cut take about as many iterations as
+/// those before.
 #[test]
 fn a_cut_through_a_mesh_whose_solves_reuse_coarse_operators_rebuilds_them() {
     let n = 30;
@@ -506,7 +507,16 @@ fn a_cut_through_a_mesh_whose_solves_reuse_coarse_operators_rebuilds_them() {
     for i in 5..n - 5 {
         sim.cut((n * (n / 2) + i) as i64).unwrap();
     }
-    sim.step(12).unwrap();
+    sim.step(1).unwrap();
+    // The new hierarchy's reference coarse operators, kept, took this solve from 16 to 26
+    // iterations (the most before the cut: 18).
+    let first = sim.solver_stats().unwrap().last_iterations;
+    assert!(
+        first <= before.most_iterations,
+        "{first} iterations after the cut, at most {} before",
+        before.most_iterations
+    );
+    sim.step(11).unwrap();
     finite_and_bounded(&sim, 3.0);
     let after = sim.solver_stats().unwrap();
     assert_eq!(after.not_converged, 0, "{after:?}");
