@@ -42,9 +42,11 @@ use crate::springs::{anchored_run, neighbour_runs};
 /// the right-hand side, through `h^2 df/dx v`, with the pin's velocity: that is how the cloth
 /// follows a dragged pin.
 ///
-/// **State between steps.** None: the solve starts from `dv = 0`, the matrix and the multigrid
-/// hierarchy are rebuilt from the step's own state. A refused step therefore needs no rollback
-/// here, and [`super::Integrator::reset_history`] has nothing to do.
+/// **State between steps.** On the grid none: the solve starts from `dv = 0`, the matrix and
+/// the multigrid hierarchy are rebuilt from the step's own state. A mesh's solve reuses earlier
+/// solves' work (its coarse operators, the last accepted `dv` as CG's start,
+/// [`super::implicit_mesh`]), which changes the result only within CG's tolerance, and which
+/// [`ImplicitEuler::restart`] drops wherever a run and its restored copy must agree.
 ///
 /// Unconditionally stable and first order: it damps, strongly at large steps. Cost per step:
 /// one force evaluation, one assembly of the matrix, the preconditioner's setup, and per CG
@@ -136,6 +138,22 @@ impl ImplicitEuler {
     /// positive where it pushed) and a sticking contact's tangential one; zero without one.
     pub fn contact_impulses(&self) -> Impulses<'_> {
         self.filter.impulses()
+    }
+
+    /// The last step became the state: a mesh's next solve may start from its `dv`.
+    pub fn accept(&mut self) {
+        if let Some(mesh) = &mut self.mesh {
+            mesh.accept();
+        }
+    }
+
+    /// The next step reuses nothing from earlier solves (a mesh's coarse operators, its CG
+    /// start), as a new integrator would not: a snapshot was taken, or the state or the
+    /// history was set from outside.
+    pub fn restart(&self) {
+        if let Some(mesh) = &self.mesh {
+            mesh.restart();
+        }
     }
 
     pub fn step(&mut self, h: f32, ctx: &mut StepContext) -> bool {

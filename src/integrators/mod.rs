@@ -172,8 +172,19 @@ impl Integrator {
     /// Called when the state was changed from outside (new positions or velocities, a new
     /// step size): an integrator that keeps history must start afresh.
     pub fn reset_history(&mut self) {
-        if let Integrator::Verlet(v) = self {
-            v.reset_history();
+        match self {
+            Integrator::Verlet(v) => v.reset_history(),
+            Integrator::ImplicitEuler(i) => i.restart(),
+            _ => {}
+        }
+    }
+
+    /// Called when a snapshot is taken: an integrator that reuses earlier solves' work, which
+    /// a snapshot does not hold, starts afresh at the next step, as one restored from that
+    /// snapshot does, so that both go on bitwise alike.
+    pub fn restart_point(&self) {
+        if let Integrator::ImplicitEuler(i) = self {
+            i.restart();
         }
     }
 
@@ -181,8 +192,10 @@ impl Integrator {
     /// Verlet's start-up) is committed here, never in [`Integrator::step`]: a step that is
     /// refused must leave the integrator as it was.
     pub fn accept(&mut self) {
-        if let Integrator::Verlet(v) = self {
-            v.accept();
+        match self {
+            Integrator::Verlet(v) => v.accept(),
+            Integrator::ImplicitEuler(i) => i.accept(),
+            _ => {}
         }
     }
 
@@ -197,8 +210,11 @@ impl Integrator {
 
     /// Restores what [`Integrator::history`] returned.
     pub fn set_history(&mut self, history: History) {
-        if let Integrator::Verlet(v) = self {
-            v.set_history(history);
+        match self {
+            Integrator::Verlet(v) => v.set_history(history),
+            // The state goes back to where another run (or attempt) may also start from.
+            Integrator::ImplicitEuler(i) => i.restart(),
+            _ => {}
         }
     }
 

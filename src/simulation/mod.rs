@@ -439,6 +439,9 @@ impl Simulation {
     /// The whole state, to save or send elsewhere; [`Simulation::restore`] continues it bit for
     /// bit.
     pub fn snapshot(&self) -> Snapshot {
+        // Work the integrator reuses between steps is not in a snapshot: this run drops it at
+        // its next step, as the restored run (which never had it) does.
+        self.stepper.integrator_scheme().restart_point();
         Snapshot::capture(
             &self.model,
             &self.state,
