@@ -591,10 +591,7 @@ fn solve_once(
             }
         }
         Preconditioner::BlockJacobi => work.matrix.diagonal_inverse(&mut work.jacobi, chunk),
-        Preconditioner::Multigrid => {
-            let pairs = term.map_or(&[][..], SelfContactTerm::couplings);
-            work.multigrid.build_coupled(&work.matrix, pairs, chunk)
-        }
+        Preconditioner::Multigrid => work.multigrid.build(&work.matrix, chunk),
     }
     let solving = Instant::now();
     stats.setup_seconds += (solving - started).as_secs_f64();

@@ -42,7 +42,6 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::linear::cg::BlockOperator;
-use crate::linear::multigrid::Coupling;
 use crate::linear::stencil::SlotArrays;
 use crate::linear::Sym3;
 use crate::self_collision::{Apart, Pair, SelfCollision};
@@ -120,15 +119,25 @@ struct Held {
     short: f32,
 }
 
+/// What CG's product reads of one held pair, 48 bytes: the product streams these once and
+/// reads nothing else of the pair.
+#[derive(Clone, Copy, Debug)]
+struct Coupling {
+    verts: [u32; 4],
+    /// Closest-point weights, zero at held particles (which get no row).
+    c: [f32; 4],
+    n: Vec3,
+    /// `h^2 k`, kg.
+    s: f32,
+}
+
 /// The pairs of one solve, kept between steps so that their buffers are reused.
 #[derive(Default)]
 pub(super) struct SelfContactTerm {
     /// Where its pairs rest.
     rest: Rest,
     held: Vec<Held>,
-    /// The held pairs as the product reads them (48 bytes each: the product streams these once
-    /// and reads nothing else of a pair), in the same order; `c` is the closest-point weights,
-    /// zero at held particles, and `s` is `h^2 k`.
+    /// The held pairs as the product reads them, in the same order.
     couplings: Vec<Coupling>,
     /// Per pair handed in, whether it was held in this step (a released pair is not held again).
     taken: Vec<bool>,
@@ -269,11 +278,6 @@ impl SelfContactTerm {
     /// Pairs held in the last solve.
     pub(super) fn len(&self) -> usize {
         self.held.len()
-    }
-
-    /// The held pairs' rank-one terms, for a preconditioner that takes them.
-    pub(super) fn couplings(&self) -> &[Coupling] {
-        &self.couplings
     }
 
     /// `h^2 k c_i^2 n n^T` of the held pairs from the `from`-th on, onto each free vertex's

@@ -325,29 +325,25 @@ impl BlockStencil {
 
     /// The inverse of every diagonal block ([`Sym3::inverse_or_zero`]) into `out`.
     pub fn diagonal_inverse(&self, out: &mut SlotArrays, chunk: usize) {
-        invert_blocks(&self.blocks[0], out, chunk);
-    }
-}
-
-/// The inverse of every block of `d0` ([`Sym3::inverse_or_zero`]) into `out`.
-pub fn invert_blocks(d0: &SlotArrays, out: &mut SlotArrays, chunk: usize) {
-    let n = d0[0].len();
-    for c in out.iter_mut() {
-        if c.len() != n {
-            *c = Floats::zeros(n);
-        }
-    }
-    par_chunks6(out, chunk)
-        .enumerate()
-        .for_each(|(ci, mut out)| {
-            for i in 0..out[0].len() {
-                let p = ci * chunk + i;
-                let inv = Sym3(std::array::from_fn(|k| d0[k][p])).inverse_or_zero().0;
-                for (o, v) in out.iter_mut().zip(inv) {
-                    o[i] = v;
-                }
+        let n = self.len();
+        for c in out.iter_mut() {
+            if c.len() != n {
+                *c = Floats::zeros(n);
             }
-        });
+        }
+        let d0 = &self.blocks[0];
+        par_chunks6(out, chunk)
+            .enumerate()
+            .for_each(|(ci, mut out)| {
+                for i in 0..out[0].len() {
+                    let p = ci * chunk + i;
+                    let inv = Sym3(std::array::from_fn(|k| d0[k][p])).inverse_or_zero().0;
+                    for (o, v) in out.iter_mut().zip(inv) {
+                        o[i] = v;
+                    }
+                }
+            });
+    }
 }
 
 /// Rows per strip of [`BlockStencil::apply_range`]: three accumulators of 64 floats, twelve

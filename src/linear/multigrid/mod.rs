@@ -18,26 +18,17 @@
 //! the smooth error, which block Jacobi alone needs the more iterations for the larger the grid
 //! and the stiffer the springs. So CG's iteration count barely grows with either.
 //!
-//! **Self-contact pairs.** [`Multigrid::build_coupled`] takes the rank-one couplings of the
-//! pairs a solve holds, which the stencil cannot store: the finest level's residuals include
-//! them and its smoother is bounded for them (`couplings.rs`).
-//!
 //! Every pass is parallel over fixed chunks of nodes and writes only its own chunk, so the
 //! result is bitwise the same for any number of threads.
 
-mod couplings;
 mod galerkin;
 mod transfer;
 
 use rayon::prelude::*;
 
 use super::dense::DenseCholesky;
-use super::stencil::{
-    add_product, invert_blocks, set_product, BlockStencil, SlotArrays, Sym3, SLOTS,
-};
+use super::stencil::{add_product, set_product, BlockStencil, SlotArrays, Sym3, SLOTS};
 use crate::soa::{Floats, Vec3s};
-pub use couplings::Coupling;
-use couplings::Couplings;
 use galerkin::{galerkin, interior_table, Term};
 use transfer::{prolong, restrict, Transfer1d, COARSEST_SIDE};
 
@@ -150,10 +141,6 @@ pub struct Multigrid {
     /// two 1-D passes of restriction and prolongation.
     halves: Vec<Vec3s>,
     fine_shape: (usize, usize),
-    /// The self-contact pairs of the operator the hierarchy was built for (none without).
-    pairs: Couplings,
-    /// The finest level's diagonal blocks raised by the pairs' bound, inverted for its smoother.
-    bounded: SlotArrays,
 }
 
 impl Multigrid {
@@ -201,16 +188,7 @@ impl Multigrid {
     /// Builds the hierarchy for the matrix `fine` (filtered: zero rows and columns for held
     /// nodes). Allocates only when the grid's shape or the stored slots change.
     pub fn build(&mut self, fine: &BlockStencil, chunk: usize) {
-        self.build_coupled(fine, &[], chunk);
-    }
-
-    /// [`Multigrid::build`] for the operator `fine + sum of pairs' s (c c^T) (x) n n^T`, where
-    /// `fine` already holds the pairs' diagonal blocks `s c_i^2 n n^T` and their couplings
-    /// between vertices are applied apart from it (as the self-contact term does). Without
-    /// pairs it is [`Multigrid::build`], to the bit.
-    pub fn build_coupled(&mut self, fine: &BlockStencil, pairs: &[Coupling], chunk: usize) {
         self.shape(fine);
-        self.pairs.set(pairs, fine.len());
         let Multigrid {
             levels,
             transfers,
@@ -219,8 +197,6 @@ impl Multigrid {
             coarsest,
             dense,
             split,
-            pairs,
-            bounded,
             ..
         } = self;
         let depth = levels.len();
@@ -233,15 +209,7 @@ impl Multigrid {
                 ..
             } = &mut head[l];
             let matrix = if l == 0 { fine } else { &*own };
-            if l == 0 && !pairs.is_empty() {
-                for (b, d) in bounded.iter_mut().zip(matrix.slot(0)) {
-                    b.clone_from(d);
-                }
-                pairs.add_smoother_bound(bounded);
-                invert_blocks(bounded, dinv, chunk);
-            } else {
-                matrix.diagonal_inverse(dinv, chunk);
-            }
+            matrix.diagonal_inverse(dinv, chunk);
             for c in dinv.iter_mut() {
                 c.iter_mut().for_each(|w| *w *= OMEGA);
             }
@@ -279,9 +247,6 @@ impl Multigrid {
             let level = head[l].system(l, fine, r, z);
             smooth::<false>(level.dinv, level.b, level.x, chunk);
             residual(level.matrix, level.x, level.b, level.r, chunk);
-            if l == 0 && !self.pairs.is_empty() {
-                self.pairs.subtract(level.x, level.r, chunk);
-            }
             restrict(
                 &self.transfers[l],
                 level.r,
@@ -302,9 +267,6 @@ impl Multigrid {
                 level.x,
             );
             residual(level.matrix, level.x, level.b, level.r, chunk);
-            if l == 0 && !self.pairs.is_empty() {
-                self.pairs.subtract(level.x, level.r, chunk);
-            }
             smooth::<true>(level.dinv, level.r, level.x, chunk);
         }
     }
@@ -382,7 +344,7 @@ fn dense_of(a: &BlockStencil, out: &mut Vec<f64>) {
 
 #[cfg(test)]
 mod tests {
-    use super::super::cg::{BlockOperator, ConjugateGradient};
+    use super::super::cg::BlockOperator;
     use super::super::stencil::{BlockStencil, OFFSETS};
     use super::*;
     use glam::Vec3;
@@ -478,246 +440,6 @@ mod tests {
         }
         let iterations = pcg_iterations(&a, &mut mg, &b, 1e-5);
         assert!(iterations <= 12, "{iterations} iterations");
-    }
-
-    /// Stiff contact pairs across a cloth folded onto itself along `j`: each vertex of the
-    /// lower half held against the triangle of the mirrored upper row, at `beta` times its
-    /// effective mass, as the self-contact term holds them; their diagonal blocks go into `a`.
-    fn folded_pairs(a: &mut BlockStencil, held: &[usize], beta: f32) -> Vec<Coupling> {
-        let (nx, ny) = (a.nx, a.ny);
-        let mut pairs = Vec::new();
-        for j in 0..ny / 2 - 1 {
-            for i in 0..nx - 1 {
-                let mirror = ny - 2 - j;
-                let verts = [
-                    j * nx + i,
-                    mirror * nx + i,
-                    mirror * nx + i + 1,
-                    (mirror + 1) * nx + i,
-                ];
-                let (a0, a1) = (0.2 + 0.05 * (i % 3) as f32, 0.3);
-                let mut c = [1.0, -(1.0 - a0 - a1), -a0, -a1];
-                for (c, v) in c.iter_mut().zip(verts) {
-                    if held.contains(&v) {
-                        *c = 0.0;
-                    }
-                }
-                let n = Vec3::new(0.3 * (i as f32).sin(), 1.0, 0.2).normalize();
-                // Unit masses: m_eff = 1 / sum c^2.
-                let s = beta / c.iter().map(|c| c * c).sum::<f32>();
-                pairs.push(Coupling {
-                    verts: verts.map(|v| v as u32),
-                    c,
-                    n,
-                    s,
-                });
-            }
-        }
-        let mut d = a.slot(0).clone();
-        for pair in &pairs {
-            for (&v, &c) in pair.verts.iter().zip(&pair.c) {
-                let block = Sym3::outer(pair.s * c * c, pair.n, 0.0);
-                for (column, x) in d.iter_mut().zip(block.0) {
-                    column[v as usize] += x;
-                }
-            }
-        }
-        *a.slot_mut(0) = d;
-        pairs
-    }
-
-    /// `A x` plus the pairs' couplings: the operator CG solves with the self-contact term.
-    fn coupled_product(a: &BlockStencil, pairs: &[Coupling], x: &Vec3s, y: &mut Vec3s) {
-        a.apply(x, y, 64);
-        add_couplings(pairs, x, y);
-    }
-
-    /// `y_i += s c_i c_j n (n . x_j)` over each pair's vertices `i != j`, written plainly.
-    fn add_couplings(pairs: &[Coupling], x: &Vec3s, y: &mut Vec3s) {
-        for pair in pairs {
-            for i in 0..4 {
-                for j in (0..4).filter(|&j| j != i) {
-                    let (vi, vj) = (pair.verts[i] as usize, pair.verts[j] as usize);
-                    let w = pair.s * pair.c[i] * pair.c[j];
-                    y.set(vi, y.get(vi) + w * pair.n.dot(x.get(vj)) * pair.n);
-                }
-            }
-        }
-    }
-
-    /// Whether the dense symmetric `m x m` matrix `a` (row-major) is positive definite: its
-    /// Cholesky factorisation in f64 meets no pivot at or below zero.
-    fn positive_definite(mut a: Vec<f64>, m: usize) -> bool {
-        for k in 0..m {
-            let pivot = a[k * m + k] - (0..k).map(|j| a[k * m + j].powi(2)).sum::<f64>();
-            if pivot <= 0.0 {
-                return false;
-            }
-            let pivot = pivot.sqrt();
-            a[k * m + k] = pivot;
-            for i in k + 1..m {
-                let sum: f64 = (0..k).map(|j| a[i * m + j] * a[k * m + j]).sum();
-                a[i * m + k] = (a[i * m + k] - sum) / pivot;
-            }
-        }
-        true
-    }
-
-    /// Pairs far stiffer than the springs: plain block Jacobi on a pair's rank-one term over
-    /// four vertices amplifies its mode fourfold, and the damped smoother would diverge there.
-    #[test]
-    fn the_v_cycle_with_contact_couplings_is_a_symmetric_positive_definite_preconditioner() {
-        let (nx, ny) = (9, 12);
-        let held = [0, nx - 1];
-        let mut a = cloth_like(nx, ny, &held);
-        let pairs = folded_pairs(&mut a, &held, 30_000.0);
-        let mut mg = Multigrid::new();
-        mg.build_coupled(&a, &pairs, 32);
-        assert!(mg.depth() >= 3);
-        // M^-1 column by column, on the free unknowns.
-        let n = nx * ny;
-        let free: Vec<usize> = (0..3 * n).filter(|u| !held.contains(&(u / 3))).collect();
-        let m = free.len();
-        let mut dense = vec![0.0f64; m * m];
-        for (col, &u) in free.iter().enumerate() {
-            let mut e = Vec3s::zeros(n);
-            let mut unit = Vec3::ZERO;
-            unit[u % 3] = 1.0;
-            e.set(u / 3, unit);
-            let mut z = Vec3s::zeros(n);
-            mg.apply(&a, &e, &mut z, 32);
-            for &h in &held {
-                assert_eq!(z.get(h), Vec3::ZERO, "held node {h} moved");
-            }
-            for (row, &v) in free.iter().enumerate() {
-                dense[row * m + col] = z.get(v / 3)[v % 3] as f64;
-            }
-        }
-        let scale = dense.iter().fold(0.0f64, |s, x| s.max(x.abs()));
-        for r in 0..m {
-            for c in 0..r {
-                let (x, y) = (dense[r * m + c], dense[c * m + r]);
-                assert!((x - y).abs() <= 1e-4 * scale, "M[{r},{c}] {x} against {y}");
-            }
-        }
-        let symmetric: Vec<f64> = (0..m * m)
-            .map(|k| 0.5 * (dense[k] + dense[(k % m) * m + k / m]))
-            .collect();
-        assert!(positive_definite(symmetric, m));
-    }
-
-    /// The smoother's diagonal raised by the pairs' bound damps a stiff pair's own mode (its
-    /// vertices moving apart along `n` by their weights) in the energy norm; plain block Jacobi
-    /// would amplify it, about `|1 - 4 omega|` = 1.8 a sweep.
-    #[test]
-    fn the_smoother_damps_a_stiff_pairs_own_mode() {
-        let (nx, ny) = (9, 12);
-        let plain = cloth_like(nx, ny, &[]);
-        let mut a = plain.clone();
-        // One pair alone: its diagonal blocks in `a`, nothing else stiffening its vertices.
-        let pair = folded_pairs(&mut a, &[], 30_000.0)[nx + 2];
-        let pairs = [pair];
-        let mut a = plain;
-        for (&v, &c) in pair.verts.iter().zip(&pair.c) {
-            let mut block = a.block(0, v as usize);
-            block.add_scaled(pair.s * c * c, &Sym3::outer(1.0, pair.n, 0.0));
-            a.set_block(0, v as usize, block);
-        }
-        let mut mg = Multigrid::new();
-        mg.build_coupled(&a, &pairs, 32);
-        let n = nx * ny;
-        let mut e = Vec3s::zeros(n);
-        for (&v, &c) in pair.verts.iter().zip(&pair.c) {
-            e.set(v as usize, c * pair.n);
-        }
-        let energy = |e: &Vec3s| {
-            let mut ae = Vec3s::zeros(n);
-            coupled_product(&a, &pairs, e, &mut ae);
-            (0..n).map(|p| e.get(p).dot(ae.get(p)) as f64).sum::<f64>()
-        };
-        // One sweep on `A e = 0` from `e`: `e - W A e`.
-        let mut ae = Vec3s::zeros(n);
-        coupled_product(&a, &pairs, &e, &mut ae);
-        let mut step = Vec3s::zeros(n);
-        smooth::<false>(&mg.levels[0].dinv, &ae, &mut step, 32);
-        let after = Vec3s::from_fn(n, |p| e.get(p) - step.get(p));
-        let (before, after) = (energy(&e), energy(&after));
-        assert!(after < before, "energy {before} -> {after}");
-    }
-
-    #[test]
-    fn the_contact_couplings_in_the_v_cycle_cut_cgs_iterations() {
-        let (nx, ny) = (33, 33);
-        let held = [nx * (ny - 1), nx * ny - 1];
-        let mut a = cloth_like(nx, ny, &held);
-        let pairs = folded_pairs(&mut a, &held, 300.0);
-        let n = nx * ny;
-        let mut b = Vec3s::from_fn(n, |p| {
-            Vec3::new((p as f32 * 0.37).sin(), 1.0, (p as f32 * 0.11).cos())
-        });
-        for &p in &held {
-            b.set(p, Vec3::ZERO);
-        }
-        let iterations = |coupled: bool| {
-            let mut mg = Multigrid::new();
-            mg.build_coupled(&a, if coupled { &pairs } else { &[] }, 64);
-            let mut cg = ConjugateGradient::new(n);
-            let mut x = Vec3s::zeros(n);
-            let operator = Coupled {
-                a: &a,
-                pairs: &pairs,
-            };
-            let (iterations, _) = cg.solve_filtered(
-                &operator,
-                &b,
-                &mut x,
-                (1e-5, 1000),
-                |r: &Vec3s, z: &mut Vec3s| mg.apply(&a, r, z, 64),
-                |_: &mut Vec3s| {},
-                crate::linear::cg::Start::Zero,
-            );
-            let mut ax = Vec3s::zeros(n);
-            coupled_product(&a, &pairs, &x, &mut ax);
-            let (mut err, mut norm) = (0.0f64, 0.0f64);
-            for p in 0..n {
-                err += (ax.get(p) - b.get(p)).length_squared() as f64;
-                norm += b.get(p).length_squared() as f64;
-            }
-            assert!(
-                err.sqrt() <= 1e-4 * norm.sqrt(),
-                "residual {}",
-                (err / norm).sqrt()
-            );
-            iterations
-        };
-        let (plain, coupled) = (iterations(false), iterations(true));
-        eprintln!("CG iterations, pairs' diagonal only: {plain}, with their couplings: {coupled}");
-        assert!(3 * coupled <= 2 * plain, "{coupled} against {plain}");
-    }
-
-    /// [`coupled_product`] as CG's operator.
-    struct Coupled<'a> {
-        a: &'a BlockStencil,
-        pairs: &'a [Coupling],
-    }
-
-    impl BlockOperator for Coupled<'_> {
-        fn apply_range(
-            &self,
-            x: &Vec3s,
-            range: std::ops::Range<usize>,
-            out: &mut crate::soa::Vec3SliceMut,
-        ) {
-            self.a.apply_range(x, range, out);
-        }
-
-        fn adds_after(&self) -> bool {
-            true
-        }
-
-        fn add_after(&self, x: &Vec3s, y: &mut Vec3s) {
-            add_couplings(self.pairs, x, y);
-        }
     }
 
     #[test]
