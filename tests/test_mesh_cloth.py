@@ -94,19 +94,26 @@ def test_tearing_and_cuts_once_refused_on_a_mesh_cloth_now_run() -> None:
     assert sim.pieces() == 1
 
 
-def test_a_mesh_cloth_restores_and_unpickles_bitwise() -> None:
-    scene = hanging(8).replace(floor={"height": 0.8})
-    sim = rustcloth.Simulation(scene)
-    sim.step(100)
+def _goes_on_alike_restored_and_unpickled(sim: rustcloth.Simulation, before: int,
+                                          after: int) -> None:
+    # A state saved after `before` steps, pickled and set back, steps `after` more bitwise as
+    # the run that saved it.
+    sim.step(before)
     state = sim.get_state()
     copy = pickle.loads(pickle.dumps(sim))
-    sim.step(200)
-    copy.step(200)
+    sim.step(after)
+    copy.step(after)
     assert np.array_equal(copy.positions, sim.positions)
     assert np.array_equal(copy.velocities, sim.velocities)
     sim.set_state(state)
-    sim.step(200)
+    sim.step(after)
     assert np.array_equal(copy.positions, sim.positions)
+    assert np.array_equal(copy.velocities, sim.velocities)
+
+
+def test_a_mesh_cloth_restores_and_unpickles_bitwise() -> None:
+    sim = rustcloth.Simulation(hanging(8).replace(floor={"height": 0.8}))
+    _goes_on_alike_restored_and_unpickled(sim, 100, 200)
     assert (sim.positions[:, 1] >= 0.8).all()
 
 
@@ -118,17 +125,7 @@ def test_a_stiff_implicit_mesh_cloth_reusing_its_solves_unpickles_bitwise() -> N
         dt=1 / 60, integrator="implicit_euler", preconditioner="multigrid"
     )
     sim = rustcloth.Simulation(scene)
-    sim.step(11)
-    state = sim.get_state()
-    copy = pickle.loads(pickle.dumps(sim))
-    sim.step(13)
-    copy.step(13)
-    assert np.array_equal(copy.positions, sim.positions)
-    assert np.array_equal(copy.velocities, sim.velocities)
-    sim.set_state(state)
-    sim.step(13)
-    assert np.array_equal(copy.positions, sim.positions)
-    assert np.array_equal(copy.velocities, sim.velocities)
+    _goes_on_alike_restored_and_unpickled(sim, 11, 13)
     x = sim.positions
     assert np.isfinite(x).all() and (np.abs(x) < 3).all()
 
