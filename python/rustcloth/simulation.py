@@ -369,7 +369,11 @@ class Simulation:
         remainder, the integrator's history, the watchdog's memory and the picking settings;
         a mesh cloth's severed springs as ``mesh_springs`` (a bool per spring, empty on the
         grid).
-        :meth:`set_state` or :meth:`from_state` continue it bit for bit; it pickles."""
+        :meth:`set_state` or :meth:`from_state` continue it bit for bit; it pickles.
+        A mesh cloth's implicit Euler reuses earlier solves' work (coarse operators, CG's
+        start) that the state does not hold, so the run that takes it drops that work at its
+        next step too, to go on exactly as the restored one: its result after this call can
+        differ, within CG's tolerance, from the same run never asked for its state."""
         return self._core.get_state()
 
     def set_state(self, state: Mapping[str, Any]) -> None:
