@@ -36,8 +36,10 @@
 //! vertices' factor `s c_i (n . sum_{k != i} c_k x_k)`; then over the rows, each row adding its
 //! pairs' factors times their normals in pair order, through an index of each row's pairs built
 //! once a solve ([`RowIndex`]). Both passes split freely over threads and neither depends on the
-//! split, so the product is the same for any thread count; each pair is read once a product,
-//! from one compact record ([`Coupling`]), and each row reads only its own pairs.
+//! split; each pair is read once a product, from one compact record ([`Coupling`]), and each
+//! row reads only its own pairs. On one thread, where nothing is read twice anyway, one pass
+//! pair by pair writes each pair's part straight into its rows, with the same roundings in the
+//! same order: the product is the same to the bit for any thread count.
 
 use std::sync::{Mutex, PoisonError};
 
@@ -426,7 +428,7 @@ impl SelfContactTerm {
     }
 
     /// The couplings over all of `y`'s rows. On one thread, pair by pair: each pair is read once
-    /// and written straight into its rows, which the two passes below only add to. On more,
+    /// and written straight into its rows, with no workspace to write and read back. On more,
     /// the pairs' factors in parallel over the pairs, then each row's sum in parallel over the
     /// rows through the index, so that no thread reads pairs outside its rows; neither pass
     /// depends on the split.
