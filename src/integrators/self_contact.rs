@@ -308,8 +308,10 @@ impl SelfContactTerm {
         for (v, _) in free_slots() {
             index.start[v + 1] += 1;
         }
-        for v in 0..rows {
-            index.start[v + 1] += index.start[v];
+        let mut total = 0;
+        for start in &mut index.start {
+            total += *start;
+            *start = total;
         }
         index.next.clear();
         index.next.extend_from_slice(&index.start[..rows]);
@@ -373,9 +375,9 @@ impl SelfContactTerm {
                             all += *own;
                         }
                     }
-                    for k in 0..4 {
+                    for ((factor, &c), own) in factor.iter_mut().zip(&pair.c).zip(own) {
                         // `s c (..)` is `(s c) (..)`, rounded as the pair's own first product.
-                        factor[k] = (pair.s * pair.c[k]) * (all - own[k]);
+                        *factor = (pair.s * c) * (all - own);
                     }
                 }
             });
