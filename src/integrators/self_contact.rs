@@ -31,12 +31,17 @@
 //!
 //! The diagonal blocks go into the assembled matrix, where the preconditioner sees them (the
 //! grid's six slot columns or a mesh's blocks, [`DiagonalBlocks`]); the couplings between a
-//! pair's vertices are applied matrix-free after the matrix's rows in CG's product, pair by
-//! pair: each pair's `n . sum_k c_k x_k` once, then its part of each of its vertices' rows. Each
-//! row so adds its pairs in pair order, for any number of threads (a thread takes the rows of
-//! its own range and passes over the pairs with no vertex in it), so the product is the same
-//! for any thread count. The pairs are read once a product by each thread, from one compact
-//! record each ([`Coupling`]).
+//! pair's vertices are applied matrix-free after the matrix's rows in CG's product, in two
+//! passes: over the pairs, each pair's `n . sum_k c_k x_k` once and from it each of its
+//! vertices' factor `s c_i (n . sum_{k != i} c_k x_k)`; then over the rows, each row adding its
+//! pairs' factors times their normals in pair order, through an index of each row's pairs built
+//! once a solve ([`RowIndex`]). Both passes split freely over threads and neither depends on the
+//! split; each pair is read once a product, from one compact record ([`Coupling`]), and each
+//! row reads only its own pairs. On one thread, where nothing is read twice anyway, one pass
+//! pair by pair writes each pair's part straight into its rows, with the same roundings in the
+//! same order: the product is the same to the bit for any thread count.
+
+use std::sync::{Mutex, PoisonError};
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -131,6 +136,25 @@ struct Coupling {
     s: f32,
 }
 
+/// Each row's held pairs, in pair order: a compressed row index over the pairs' slots, so that
+/// a row of the product reads its own pairs and no other.
+#[derive(Default)]
+struct RowIndex {
+    /// Row `i`'s entries are `entries[start[i]..start[i + 1]]`; rows past `start.len() - 1`
+    /// (beyond every held pair's vertices) have none.
+    start: Vec<u32>,
+    /// `4 pair + slot` of each free slot (`c != 0`), grouped by row, in pair order in a row.
+    entries: Vec<u32>,
+    /// The next free entry of each row while the index is filled.
+    next: Vec<u32>,
+}
+
+/// Pairs a task in the product's pass over the pairs: enough to outweigh a task's cost.
+const PAIRS_A_TASK: usize = 512;
+
+/// Rows a task in the product's pass over the rows.
+const ROWS_A_TASK: usize = 1024;
+
 /// The pairs of one solve, kept between steps so that their buffers are reused.
 #[derive(Default)]
 pub(super) struct SelfContactTerm {
@@ -139,6 +163,12 @@ pub(super) struct SelfContactTerm {
     held: Vec<Held>,
     /// The held pairs as the product reads them, in the same order.
     couplings: Vec<Coupling>,
+    /// The rows' pairs of `couplings`.
+    rows: RowIndex,
+    /// The product's workspace, one entry a held pair: per slot `k`, `s c_k` times the pair's
+    /// `n . sum_{j != k} c_j x_j`. Behind a lock because the product is taken through `&self`;
+    /// one product holds it at a time.
+    factors: Mutex<Vec<[f32; 4]>>,
     /// Per pair handed in, whether it was held in this step (a released pair is not held again).
     taken: Vec<bool>,
 }
@@ -255,7 +285,7 @@ impl SelfContactTerm {
         added + released
     }
 
-    /// The held pairs' records for the product.
+    /// The held pairs' records for the product, each row's pairs and the product's workspace.
     fn index_couplings(&mut self) {
         self.couplings.clear();
         self.couplings.extend(self.held.iter().map(|held| Coupling {
@@ -264,6 +294,39 @@ impl SelfContactTerm {
             n: held.n,
             s: held.s,
         }));
+        let free_slots = || {
+            self.couplings.iter().enumerate().flat_map(|(p, pair)| {
+                (0..4)
+                    .filter(move |&k| pair.c[k] != 0.0)
+                    .map(move |k| (pair.verts[k] as usize, (4 * p + k) as u32))
+            })
+        };
+        let rows = free_slots().map(|(v, _)| v + 1).max().unwrap_or(0);
+        let index = &mut self.rows;
+        index.start.clear();
+        index.start.resize(rows + 1, 0);
+        for (v, _) in free_slots() {
+            index.start[v + 1] += 1;
+        }
+        let mut total = 0;
+        for start in &mut index.start {
+            total += *start;
+            *start = total;
+        }
+        index.next.clear();
+        index.next.extend_from_slice(&index.start[..rows]);
+        index.entries.clear();
+        index.entries.resize(index.start[rows] as usize, 0);
+        for (v, entry) in free_slots() {
+            index.entries[index.next[v] as usize] = entry;
+            index.next[v] += 1;
+        }
+        let factors = self
+            .factors
+            .get_mut()
+            .unwrap_or_else(PoisonError::into_inner);
+        factors.clear();
+        factors.resize(self.couplings.len(), [0.0; 4]);
     }
 
     /// No pair held: the solve is the plain one.
@@ -296,17 +359,60 @@ impl SelfContactTerm {
         }
     }
 
-    /// `out_i += sum over i's pairs of h^2 k c_i n (n . sum_{j != i} c_j x_j)` for the rows
-    /// `range` (`out` covers exactly `range`), each row's pairs in pair order: the couplings
-    /// the diagonal leaves out. A pair with no vertex in `range` is passed over unread but
-    /// for its vertices.
-    fn couple_range(&self, x: &Vec3s, range: std::ops::Range<usize>, out: &mut Vec3SliceMut) {
-        let (lo, hi) = (range.start as u32, range.end as u32);
-        for pair in &self.couplings {
-            if !pair.verts.iter().any(|v| (lo..hi).contains(v)) {
+    /// Per held pair and slot `i`, `h^2 k c_i (n . sum_{j != i} c_j x_j)` into `factors`: the
+    /// pair's sum once from each vertex's `c_j n . x_j` in slot order, its own part taken out
+    /// for each slot (slots with `c = 0` get no row and are left unread).
+    fn pair_factors(&self, x: &Vec3s, factors: &mut [[f32; 4]]) {
+        factors
+            .par_chunks_mut(PAIRS_A_TASK)
+            .zip(self.couplings.par_chunks(PAIRS_A_TASK))
+            .for_each(|(factors, pairs)| {
+                for (factor, pair) in factors.iter_mut().zip(pairs) {
+                    let (mut own, mut all) = ([0.0f32; 4], 0.0);
+                    for (k, own) in own.iter_mut().enumerate() {
+                        if pair.c[k] != 0.0 {
+                            *own = pair.c[k] * pair.n.dot(x.get(pair.verts[k] as usize));
+                            all += *own;
+                        }
+                    }
+                    for ((factor, &c), own) in factor.iter_mut().zip(&pair.c).zip(own) {
+                        // `s c (..)` is `(s c) (..)`, rounded as the pair's own first product.
+                        *factor = (pair.s * c) * (all - own);
+                    }
+                }
+            });
+    }
+
+    /// `out_i += sum over i's pairs of factor n` for the rows `range` (`out` covers exactly
+    /// `range`), each row's pairs in pair order: the couplings the diagonal leaves out.
+    fn gather_range(
+        &self,
+        factors: &[[f32; 4]],
+        range: std::ops::Range<usize>,
+        out: &mut Vec3SliceMut,
+    ) {
+        let index = &self.rows;
+        let indexed = index.start.len().saturating_sub(1);
+        for (i, row) in (range.start..range.end.min(indexed)).enumerate() {
+            let entries = &index.entries[index.start[row] as usize..index.start[row + 1] as usize];
+            if entries.is_empty() {
                 continue;
             }
-            // Each vertex's `c_k n . x_k`, the pair's `n . sum_k c_k x_k` summed from them.
+            let mut sum = out.get(i);
+            for &entry in entries {
+                let (p, k) = (entry as usize / 4, entry as usize % 4);
+                sum += factors[p][k] * self.couplings[p].n;
+            }
+            out.set(i, sum);
+        }
+    }
+
+    /// The couplings over all of `y`'s rows in one pass over the pairs: each pair's sum, then
+    /// its part of each of its vertices' rows, every row adding its pairs in pair order. The
+    /// same roundings in the same order as [`SelfContactTerm::pair_factors`] and
+    /// [`SelfContactTerm::gather_range`], so the same to the bit.
+    fn pair_by_pair(&self, x: &Vec3s, y: &mut Vec3s) {
+        for pair in &self.couplings {
             let (mut own, mut all) = ([0.0f32; 4], 0.0);
             for (k, own) in own.iter_mut().enumerate() {
                 if pair.c[k] != 0.0 {
@@ -315,28 +421,33 @@ impl SelfContactTerm {
                 }
             }
             for ((&v, &c), own) in pair.verts.iter().zip(&pair.c).zip(own) {
-                if c == 0.0 || !(lo..hi).contains(&v) {
-                    continue;
+                if c != 0.0 {
+                    let sc = pair.s * c;
+                    y.set(v as usize, y.get(v as usize) + sc * (all - own) * pair.n);
                 }
-                let i = (v - lo) as usize;
-                // `s c (..)` is `(s c) (..)`, rounded as the pair's own first product.
-                let sc = pair.s * c;
-                out.set(i, out.get(i) + sc * (all - own) * pair.n);
             }
         }
     }
 
-    /// [`SelfContactTerm::couple_range`] over all of `y`'s rows, split into one contiguous
-    /// range a thread: every thread reads every pair's vertices, and a row's sum does not
-    /// depend on the split.
+    /// The couplings over all of `y`'s rows. On one thread, pair by pair: each pair is read once
+    /// and written straight into its rows, with no workspace to write and read back. On more,
+    /// the pairs' factors in parallel over the pairs, then each row's sum in parallel over the
+    /// rows through the index, so that no thread reads pairs outside its rows; neither pass
+    /// depends on the split.
     fn couple(&self, x: &Vec3s, y: &mut Vec3s) {
-        let n = y.len();
-        let threads = rayon::current_num_threads().max(1);
-        let per = n.div_ceil(threads).max(1);
-        y.par_chunks_mut(per).enumerate().for_each(|(c, mut out)| {
-            let range = c * per..c * per + out.len();
-            self.couple_range(x, range, &mut out);
-        });
+        if rayon::current_num_threads() == 1 {
+            self.pair_by_pair(x, y);
+            return;
+        }
+        let mut factors = self.factors.lock().unwrap_or_else(PoisonError::into_inner);
+        self.pair_factors(x, &mut factors);
+        let factors = &*factors;
+        y.par_chunks_mut(ROWS_A_TASK)
+            .enumerate()
+            .for_each(|(c, mut out)| {
+                let range = c * ROWS_A_TASK..c * ROWS_A_TASK + out.len();
+                self.gather_range(factors, range, &mut out);
+            });
     }
 }
 
@@ -531,8 +642,7 @@ mod tests {
         for p in 0..8 {
             y.set(p, block_times(&d, p, x.get(p)));
         }
-        let mut out = y.slices_mut(0..8);
-        term.couple_range(&x, 0..8, &mut out);
+        term.couple(&x, &mut y);
         let total: DVec3 = (0..8).map(|p| y.get(p).as_dvec3()).sum();
         let scale: f64 = (0..8).map(|p| y.get(p).as_dvec3().length()).sum();
         assert!(scale > 0.0);
@@ -569,8 +679,7 @@ mod tests {
             Vec3::new(v as f32 * 0.7 - 2.0, 1.0 / (1.0 + v as f32), 0.3)
         });
         let mut y = Vec3s::zeros(8);
-        let mut out = y.slices_mut(0..8);
-        term.couple_range(&x, 0..8, &mut out);
+        term.couple(&x, &mut y);
         let mut plain = [DVec3::ZERO; 8];
         for held in &term.held {
             let nn = held.n.as_dvec3();
@@ -594,9 +703,10 @@ mod tests {
         assert_eq!(y.get(2), Vec3::ZERO, "the pinned vertex gets nothing");
     }
 
-    /// The product's couplings taken over the rows split into ranges (one a thread) are the
-    /// ones taken over all rows at once, to the bit: each row adds its pairs in pair order
-    /// whatever range it falls in.
+    /// The product's couplings, taken through the rows' index over the rows split into ranges
+    /// (one a task) and by [`SelfContactTerm::couple`] on three threads, are the pair by pair
+    /// sums (the one thread's product) to the bit: each row adds its pairs in pair order whatever range it falls
+    /// in, with the same roundings.
     #[test]
     fn the_couplings_are_the_same_to_the_bit_however_the_rows_are_split() {
         let (mut pairs, pos, vel) = pairs();
@@ -614,27 +724,58 @@ mod tests {
                 d0: 0.0005,
             });
         }
-        let inv_mass = vec![1.0f32; 8];
+        let mut inv_mass = vec![1.0f32; 9];
+        inv_mass[4] = 0.0;
         let mut vel = vel;
         vel.set(0, Vec3::new(0.0, -3.0, 0.0));
+        let (pos, vel) = (
+            Vec3s::from_fn(9, |v| if v < 8 { pos.get(v) } else { Vec3::ONE }),
+            Vec3s::from_fn(9, |v| if v < 8 { vel.get(v) } else { Vec3::ZERO }),
+        );
         let term = held(&pairs, (&pos, &vel, &inv_mass));
-        let x = Vec3s::from_fn(8, |v| {
+        assert!(term.len() > 2);
+        assert!(
+            term.couplings.iter().any(|pair| pair.c.contains(&0.0)),
+            "a held pair has a pinned vertex"
+        );
+        // Row 8 lies beyond every pair's vertices, row 4 is pinned: both are left as they are.
+        let x = Vec3s::from_fn(9, |v| {
             Vec3::new(0.3 * v as f32, -1.0 / (2.0 + v as f32), 0.7)
         });
-        let start = Vec3s::from_fn(8, |v| Vec3::new(1.0, v as f32, -0.5));
+        let start = Vec3s::from_fn(9, |v| Vec3::new(1.0, v as f32, -0.5));
         let mut whole = start.clone();
-        term.couple_range(&x, 0..8, &mut whole.slices_mut(0..8));
-        for cuts in [vec![0, 3, 8], vec![0, 1, 2, 5, 7, 8], vec![0, 4, 8]] {
+        term.pair_by_pair(&x, &mut whole);
+        let mut factors = vec![[0.0; 4]; term.len()];
+        term.pair_factors(&x, &mut factors);
+        for cuts in [
+            vec![0, 9],
+            vec![0, 3, 9],
+            vec![0, 1, 2, 5, 7, 8, 9],
+            vec![0, 4, 9],
+        ] {
             let mut split = start.clone();
             for range in cuts.windows(2) {
                 let mut out = split.slices_mut(range[0]..range[1]);
-                term.couple_range(&x, range[0]..range[1], &mut out);
+                term.gather_range(&factors, range[0]..range[1], &mut out);
             }
-            for p in 0..8 {
+            for p in 0..9 {
                 assert_eq!(split.get(p), whole.get(p), "vertex {p}, cuts {cuts:?}");
             }
         }
+        for threads in [2, 3] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let mut y = start.clone();
+            pool.install(|| term.couple(&x, &mut y));
+            for p in 0..9 {
+                assert_eq!(y.get(p), whole.get(p), "vertex {p}, {threads} threads");
+            }
+        }
         assert_ne!(whole.get(0), start.get(0));
+        assert_eq!(whole.get(4), start.get(4), "the pinned vertex gets nothing");
+        assert_eq!(whole.get(8), start.get(8));
     }
 
     /// A mesh's diagonal blocks get what the grid's six columns get, entry for entry.
