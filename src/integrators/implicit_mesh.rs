@@ -554,9 +554,8 @@ impl MeshSystem {
         stats.self_pairs += self.self_contact.len() as u64;
         filter.gather(h, ctx.contacts, state, |p| CONTACT_STIFFNESS * mass[p]);
         let mut setup = started;
-        let held = ctx.contacts.is_some_and(|c| c.count > 0) || !self.self_contact.is_empty();
         for solve in 1..=SOLVES {
-            let start = match solve == 1 && !held {
+            let start = match solve == 1 && !self.holds_contacts(ctx) {
                 true => self.first_guess(h, w),
                 false => Start::Zero,
             };
@@ -593,6 +592,12 @@ impl MeshSystem {
             }
             self.rhs.copy_from(&self.assembled);
         }
+    }
+
+    /// Whether the solve holds predicted contacts or self-contact pairs: such a solve reuses
+    /// nothing from earlier ones and leaves nothing for later ones to reuse.
+    fn holds_contacts(&self, ctx: &StepContext) -> bool {
+        ctx.contacts.is_some_and(|c| c.count > 0) || !self.self_contact.is_empty()
     }
 
     /// CG's start for the step's first solve: the last accepted step's `dv` (zero at held
@@ -672,7 +677,7 @@ impl MeshSystem {
                     }
                 }
                 let fine = self.membrane.as_ref().map_or(&self.matrix, |m| &m.proxy);
-                let held = ctx.contacts.is_some_and(|c| c.count > 0) || term.is_some();
+                let held = self.holds_contacts(ctx);
                 let reuse = &mut self.reuse;
                 if reuse.keeps_coarse(found == Some(0), held) {
                     self.amg[0].1.update_smoother(fine);

@@ -136,6 +136,25 @@ struct Coupling {
     s: f32,
 }
 
+impl Coupling {
+    /// Per slot `k`, `h^2 k c_k (n . sum_{j != k} c_j x_j)`: the pair's sum once from each
+    /// vertex's `c_j n . x_j` in slot order, each slot's own part taken out. Slots with `c = 0`
+    /// add nothing to the sum and have no row. Both forms of the product take their factors
+    /// here, so they round alike.
+    #[inline]
+    fn factors(&self, x: &Vec3s) -> [f32; 4] {
+        let (mut own, mut all) = ([0.0f32; 4], 0.0);
+        for (k, own) in own.iter_mut().enumerate() {
+            if self.c[k] != 0.0 {
+                *own = self.c[k] * self.n.dot(x.get(self.verts[k] as usize));
+                all += *own;
+            }
+        }
+        // `s c (..)` is `(s c) (..)`, rounded as the pair's own first product.
+        std::array::from_fn(|k| (self.s * self.c[k]) * (all - own[k]))
+    }
+}
+
 /// Each row's held pairs, in pair order: a compressed row index over the pairs' slots, so that
 /// a row of the product reads its own pairs and no other.
 #[derive(Default)]
@@ -359,26 +378,14 @@ impl SelfContactTerm {
         }
     }
 
-    /// Per held pair and slot `i`, `h^2 k c_i (n . sum_{j != i} c_j x_j)` into `factors`: the
-    /// pair's sum once from each vertex's `c_j n . x_j` in slot order, its own part taken out
-    /// for each slot (slots with `c = 0` get no row and are left unread).
+    /// Every held pair's [`Coupling::factors`] into `factors`, in parallel over the pairs.
     fn pair_factors(&self, x: &Vec3s, factors: &mut [[f32; 4]]) {
         factors
             .par_chunks_mut(PAIRS_A_TASK)
             .zip(self.couplings.par_chunks(PAIRS_A_TASK))
             .for_each(|(factors, pairs)| {
                 for (factor, pair) in factors.iter_mut().zip(pairs) {
-                    let (mut own, mut all) = ([0.0f32; 4], 0.0);
-                    for (k, own) in own.iter_mut().enumerate() {
-                        if pair.c[k] != 0.0 {
-                            *own = pair.c[k] * pair.n.dot(x.get(pair.verts[k] as usize));
-                            all += *own;
-                        }
-                    }
-                    for ((factor, &c), own) in factor.iter_mut().zip(&pair.c).zip(own) {
-                        // `s c (..)` is `(s c) (..)`, rounded as the pair's own first product.
-                        *factor = (pair.s * c) * (all - own);
-                    }
+                    *factor = pair.factors(x);
                 }
             });
     }
@@ -407,23 +414,16 @@ impl SelfContactTerm {
         }
     }
 
-    /// The couplings over all of `y`'s rows in one pass over the pairs: each pair's sum, then
-    /// its part of each of its vertices' rows, every row adding its pairs in pair order. The
-    /// same roundings in the same order as [`SelfContactTerm::pair_factors`] and
+    /// The couplings over all of `y`'s rows in one pass over the pairs: each pair's
+    /// [`Coupling::factors`], then its part of each of its vertices' rows, every row adding
+    /// its pairs in pair order: the same factors in the same order as
     /// [`SelfContactTerm::gather_range`], so the same to the bit.
     fn pair_by_pair(&self, x: &Vec3s, y: &mut Vec3s) {
         for pair in &self.couplings {
-            let (mut own, mut all) = ([0.0f32; 4], 0.0);
-            for (k, own) in own.iter_mut().enumerate() {
-                if pair.c[k] != 0.0 {
-                    *own = pair.c[k] * pair.n.dot(x.get(pair.verts[k] as usize));
-                    all += *own;
-                }
-            }
-            for ((&v, &c), own) in pair.verts.iter().zip(&pair.c).zip(own) {
+            let factors = pair.factors(x);
+            for ((&v, &c), factor) in pair.verts.iter().zip(&pair.c).zip(factors) {
                 if c != 0.0 {
-                    let sc = pair.s * c;
-                    y.set(v as usize, y.get(v as usize) + sc * (all - own) * pair.n);
+                    y.set(v as usize, y.get(v as usize) + factor * pair.n);
                 }
             }
         }
