@@ -147,7 +147,11 @@ struct LocalSolve {
     /// `vertices[k]` is the vertex at place `k`, `place[v]` vertex `v`'s place.
     vertices: Vec<u32>,
     place: Vec<u32>,
-    /// The step's positions, velocities, inverse masses and masses, gathered into it.
+    /// The springs touching the vertex at each place, as [`MeshCloth::incident`] lists them.
+    offsets: Vec<u32>,
+    incident: Vec<u32>,
+    /// The step's forces, positions, velocities, inverse masses and masses, gathered into it.
+    force: Vec3s,
     pos: Vec3s,
     vel: Vec3s,
     inv_mass: Vec<f32>,
@@ -162,9 +166,17 @@ impl LocalSolve {
     fn of(mesh: &MeshCloth) -> Option<Self> {
         let local = mesh.local.as_ref().filter(|_| mesh.membrane.is_none())?;
         let n = mesh.len();
+        let (mut offsets, mut incident) = (vec![0u32], Vec::with_capacity(mesh.incident.len()));
+        for &v in &local.vertices {
+            incident.extend_from_slice(mesh.springs_at(v as usize));
+            offsets.push(incident.len() as u32);
+        }
         Some(LocalSolve {
             vertices: local.vertices.clone(),
             place: local.place.clone(),
+            offsets,
+            incident,
+            force: Vec3s::zeros(n),
             pos: Vec3s::zeros(n),
             vel: Vec3s::zeros(n),
             inv_mass: vec![0.0; n],
@@ -177,15 +189,9 @@ impl LocalSolve {
     /// The matrix of the mesh's springs with its rows and columns in this numbering, each
     /// row's springs in the order of the user's row.
     fn matrix(&self, mesh: &MeshCloth) -> SpringMatrix {
-        let (mut offsets, mut incident) = (vec![0u32], Vec::with_capacity(mesh.incident.len()));
-        for &v in &self.vertices {
-            let v = v as usize;
-            let row = mesh.offsets[v] as usize..mesh.offsets[v + 1] as usize;
-            incident.extend_from_slice(&mesh.incident[row]);
-            offsets.push(incident.len() as u32);
-        }
         let ends = |e: &[u32]| -> Vec<u32> { e.iter().map(|&v| self.place[v as usize]).collect() };
-        SpringMatrix::new(&ends(&mesh.springs.a), &ends(&mesh.springs.b), &offsets, &incident)
+        let (a, b) = (ends(&mesh.springs.a), ends(&mesh.springs.b));
+        SpringMatrix::new(&a, &b, &self.offsets, &self.incident)
     }
 
     /// Gathers the step's state, and the pairs ahead with their vertices renumbered.
@@ -193,6 +199,7 @@ impl LocalSolve {
         let (cur, particles) = (ctx.current, ctx.particles);
         for (k, &v) in self.vertices.iter().enumerate() {
             let v = v as usize;
+            self.force.set(k, ctx.force.get(v));
             self.pos.set(k, cur.pos.get(v));
             self.vel.set(k, cur.vel.get(v));
             self.inv_mass[k] = particles.inv_mass[v];
@@ -260,10 +267,13 @@ impl Reuse {
 }
 
 /// How one solve numbers the vertices: `place[v]` is vertex `v`'s row and `vertices[k]` row
-/// `k`'s vertex (None: the user's numbering), with the inverse masses and masses by row.
+/// `k`'s vertex (None: the user's numbering), with each row's springs (offsets and entries as
+/// [`MeshCloth::incident`]), forces, inverse masses and masses.
 struct Numbering<'a> {
     place: Option<&'a [u32]>,
     vertices: Option<&'a [u32]>,
+    incidence: (&'a [u32], &'a [u32]),
+    force: &'a Vec3s,
     inv_mass: &'a [f32],
     mass: &'a [f32],
 }
@@ -635,11 +645,23 @@ impl MeshSystem {
             Some(l) => (&l.pos, &l.vel, &l.inv_mass[..]),
             None => (&cur.pos, &cur.vel, &particles.inv_mass[..]),
         };
-        let numbering = Numbering {
-            place: local.as_ref().map(|l| &l.place[..]),
-            vertices: local.as_ref().map(|l| &l.vertices[..]),
-            inv_mass: w,
-            mass: local.as_ref().map_or(&particles.mass[..], |l| &l.mass[..]),
+        let numbering = match &local {
+            Some(l) => Numbering {
+                place: Some(&l.place),
+                vertices: Some(&l.vertices),
+                incidence: (&l.offsets, &l.incident),
+                force: &l.force,
+                inv_mass: &l.inv_mass,
+                mass: &l.mass,
+            },
+            None => Numbering {
+                place: None,
+                vertices: None,
+                incidence: (&mesh.offsets, &mesh.incident),
+                force: ctx.force,
+                inv_mass: &particles.inv_mass,
+                mass: &particles.mass,
+            },
         };
         let self_pairs = match (&local, ctx.self_pairs) {
             (Some(l), Some(pairs)) => Some(SelfPairs {
@@ -654,7 +676,7 @@ impl MeshSystem {
             let blocks = &mut elements.blocks;
             element_blocks(membrane, &mesh.springs.active, h, &ctx.current.pos, blocks);
         }
-        self.assemble_diagonal_and_rhs(mesh, h, drag, ctx, numbering.vertices);
+        self.assemble_diagonal_and_rhs(mesh, (h, drag), ctx, &numbering);
         if let (Some(membrane), Some(elements)) = (&mesh.membrane, &mut self.membrane) {
             let w = &ctx.particles.inv_mass[..];
             build_proxy(elements, (&self.matrix, &self.blocks), mesh, membrane, w);
@@ -925,13 +947,14 @@ impl MeshSystem {
     fn assemble_diagonal_and_rhs(
         &mut self,
         mesh: &MeshCloth,
-        h: f32,
-        drag: f32,
+        (h, drag): (f32, f32),
         ctx: &StepContext,
-        vertices: Option<&[u32]>,
+        numbering: &Numbering,
     ) {
         let chunk = ctx.chunk;
-        let (force, mass, w) = (&*ctx.force, &ctx.particles.mass, &ctx.particles.inv_mass);
+        let (force, mass, w) = (numbering.force, numbering.mass, numbering.inv_mass);
+        let (offsets, incident) = numbering.incidence;
+        let vertices = numbering.vertices;
         let (blocks, kv) = (&self.blocks, &self.kv);
         let elements = mesh
             .membrane
@@ -946,23 +969,22 @@ impl MeshSystem {
             .for_each(|(ci, (d, mut b))| {
                 for (i, di) in d.iter_mut().enumerate() {
                     let row = ci * chunk + i;
-                    let v = vertices.map_or(row, |vertices| vertices[row] as usize);
-                    if w[v] == 0.0 {
+                    if w[row] == 0.0 {
                         *di = Sym3::ZERO;
                         b.set(i, Vec3::ZERO);
                         continue;
                     }
-                    let m = mass[v] + h * drag;
+                    let m = mass[row] + h * drag;
                     let mut block = Sym3([m, m, m, 0.0, 0.0, 0.0]);
-                    let mut r = h * force.get(v);
-                    for &e in &mesh.incident[mesh.offsets[v] as usize..mesh.offsets[v + 1] as usize]
-                    {
+                    let mut r = h * force.get(row);
+                    for &e in &incident[offsets[row] as usize..offsets[row + 1] as usize] {
                         let s = (e >> 1) as usize;
                         block.add_scaled(1.0, &blocks[s]);
                         r = if e & 1 == 0 { r - kv[s] } else { r + kv[s] };
                     }
                     // The elements' diagonal blocks and `- h^2 K_t v` from each triangle.
                     if let Some((m, k)) = elements {
+                        let v = vertices.map_or(row, |vertices| vertices[row] as usize);
                         for &e in &m.incident[m.offsets[v] as usize..m.offsets[v + 1] as usize] {
                             let (t, corner) = (e as usize / 3, e as usize % 3);
                             block.add_scaled(1.0, &sym(k[t][corner][corner]));
