@@ -826,7 +826,7 @@ impl MeshSystem {
                     Some(kept) => self.amg[..=kept].rotate_right(1),
                     None => {
                         let reference = self.isotropic_matrix(mesh, h, drag, numbering);
-                        let mut amg = Amg::new(&reference);
+                        let mut amg = Amg::renumbered(&reference, numbering.vertices);
                         // Isometric bending couples the second ring with the wrong sign for
                         // a sweep damped by `OMEGA` alone.
                         amg.bound_damping(mesh.bending.is_some());

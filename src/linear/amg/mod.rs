@@ -80,8 +80,8 @@ struct Level {
 impl Level {
     /// The level that coarsens `a` by aggregation, with the Galerkin product of `a`; None when
     /// `a` does not coarsen (no aggregate, or more than [`STALLED`] of its nodes kept).
-    fn below<A: BlockRows>(a: &A) -> Option<Level> {
-        let (agg, count) = aggregate::aggregate(a);
+    fn below<A: BlockRows>(a: &A, numbering: Option<&[u32]>) -> Option<Level> {
+        let (agg, count) = aggregate::aggregate(a, numbering);
         if count == 0 || count as f64 > STALLED * a.rows() as f64 {
             return None;
         }
@@ -120,11 +120,20 @@ impl Amg {
     /// The hierarchy of `reference` (a [`SpringMatrix`] with the pattern of the matrices it
     /// will precondition), with its Galerkin coarse operators.
     pub fn new(reference: &SpringMatrix) -> Self {
+        Amg::renumbered(reference, None)
+    }
+
+    /// The hierarchy of `reference` whose rows are a renumbering of a matrix's (row `k` is
+    /// that matrix's row `vertices[k]`): its aggregates are those of that matrix, renumbered
+    /// (the visiting order is chosen on the matrix as first numbered, [`aggregate::aggregate`]),
+    /// so that solving in another numbering changes the order of the sums and not the
+    /// preconditioner.
+    pub fn renumbered(reference: &SpringMatrix, vertices: Option<&[u32]>) -> Self {
         let mut amg = Amg::default();
-        amg.levels.extend(Level::below(reference));
+        amg.levels.extend(Level::below(reference, vertices));
         while let Some(level) = (amg.levels.last())
             .filter(|above| above.coarse.rows() > COARSEST)
-            .and_then(|above| Level::below(&above.coarse))
+            .and_then(|above| Level::below(&above.coarse, None))
         {
             amg.levels.push(level);
         }
