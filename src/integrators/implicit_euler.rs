@@ -209,7 +209,13 @@ impl ImplicitEuler {
         let mass = &ctx.particles.mass;
         let filter = &mut self.filter;
         let state = (&cur.pos, &cur.vel, w);
-        filter.gather(h, ctx.contacts, state, |p| CONTACT_STIFFNESS * mass[p], None);
+        filter.gather(
+            h,
+            ctx.contacts,
+            state,
+            |p| CONTACT_STIFFNESS * mass[p],
+            None,
+        );
         let term = (!self.self_contact.is_empty()).then_some(&self.self_contact);
         // Rounds after the first add their pairs to the unreduced right-hand side.
         let filtered = !filter.is_empty();

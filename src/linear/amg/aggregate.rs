@@ -190,13 +190,21 @@ pub fn smoothed_prolongator<A: BlockRows>(a: &A, agg: &[u32], count: usize) -> T
 /// The local order ([`local_order`]) of a graph whose node `k` is node `vertices[k]` of the
 /// graph as first numbered, chosen on that graph (its ties are broken and its search starts
 /// by the first numbers) and given in this numbering's nodes.
-fn renumbered_order(free: &[bool], (offsets, neighbours): (&[usize], &[u32]), vertices: &[u32]) -> Vec<u32> {
+fn renumbered_order(
+    free: &[bool],
+    (offsets, neighbours): (&[usize], &[u32]),
+    vertices: &[u32],
+) -> Vec<u32> {
     let n = free.len();
     let mut place = vec![0u32; n];
     for (k, &v) in vertices.iter().enumerate() {
         place[v as usize] = k as u32;
     }
-    let mut first = (vec![false; n], vec![0usize], Vec::with_capacity(neighbours.len()));
+    let mut first = (
+        vec![false; n],
+        vec![0usize],
+        Vec::with_capacity(neighbours.len()),
+    );
     for (v, &k) in place.iter().enumerate() {
         let k = k as usize;
         first.0[v] = free[k];
