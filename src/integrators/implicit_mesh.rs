@@ -58,6 +58,12 @@
 //! colliders' contacts held the right-hand side is kept as assembled, so that the filter
 //! reduces the one with the added and released pairs anew.
 //!
+//! **Numbering** ([`LocalSolve`]): where the mesh's own numbering is scattered (it has a
+//! [`crate::mesh_cloth::MeshCloth::local`]) and its membrane is the springs, the system is
+//! assembled and solved in the local numbering, so that products and smoothing sweeps gather
+//! from nearby rows; the multigrid's aggregates are still chosen as the user's numbering gives
+//! them ([`Amg::renumbered`]), so the preconditioner is the same, renumbered.
+//!
 //! Every sum has a fixed order (per spring, then per vertex over its springs in spring order;
 //! the multigrid's as its module says), so a step is bitwise the same for any number of threads.
 
