@@ -50,7 +50,10 @@ use crate::soa::Vec3s;
 /// One particle held on its plane.
 #[derive(Clone, Copy, Debug)]
 struct Held {
+    /// The particle, and its place in the solve's vectors (the particle's index, or its place
+    /// in the mesh solve's local numbering).
     p: usize,
+    at: usize,
     /// Outward unit normal of its contact plane.
     n: Vec3,
     /// Whether it sticks: held in all three directions.
@@ -88,13 +91,15 @@ pub(super) struct ContactFilter {
 impl ContactFilter {
     /// The held particles of a step of length `h` from `(pos, vel)`: the free particles
     /// (`inv_mass > 0`) with a contact in `contacts`; `stiffness(p)` is the `k` of the
-    /// `k n n^T` the caller adds to particle `p`'s diagonal block.
+    /// `k n n^T` the caller adds to particle `p`'s diagonal block. The solve's vectors hold
+    /// particle `p` at `place[p]` (at `p` without `place`); the impulses stay by particle.
     pub(super) fn gather(
         &mut self,
         h: f32,
         contacts: Option<&PredictedContacts>,
         (pos, vel, inv_mass): (&Vec3s, &Vec3s, &[f32]),
         stiffness: impl Fn(usize) -> f32,
+        place: Option<&[u32]>,
     ) {
         let n = pos.len();
         self.held.clear();
@@ -125,6 +130,7 @@ impl ContactFilter {
             let c = contacts.slide_damping[p];
             self.held.push(Held {
                 p,
+                at: place.map_or(p, |place| place[p] as usize),
                 n: normal,
                 stuck,
                 z_n,
@@ -145,13 +151,13 @@ impl ContactFilter {
     /// sticks.
     pub(super) fn project(&self, v: &mut Vec3s) {
         for h in &self.held {
-            let x = v.get(h.p);
+            let x = v.get(h.at);
             let free = if h.stuck {
                 Vec3::ZERO
             } else {
                 x - h.n.dot(x) * h.n
             };
-            v.set(h.p, free);
+            v.set(h.at, free);
         }
     }
 
@@ -160,11 +166,11 @@ impl ContactFilter {
     pub(super) fn reduce(&mut self, b: &mut Vec3s, apply: impl FnOnce(&Vec3s, &mut Vec3s)) {
         self.prescribed.fill(Vec3::ZERO);
         for h in &mut self.held {
-            h.b = b.get(h.p);
+            h.b = b.get(h.at);
             if h.friction != Vec3::ZERO {
-                b.set(h.p, h.b + h.friction);
+                b.set(h.at, h.b + h.friction);
             }
-            self.prescribed.set(h.p, h.z);
+            self.prescribed.set(h.at, h.z);
         }
         apply(&self.prescribed, &mut self.product);
         for i in 0..b.len() {
@@ -178,13 +184,13 @@ impl ContactFilter {
     pub(super) fn finish(&mut self, dv: &mut Vec3s, apply: impl FnOnce(&Vec3s, &mut Vec3s)) {
         self.project(dv);
         for h in &self.held {
-            dv.set(h.p, dv.get(h.p) + h.z);
+            dv.set(h.at, dv.get(h.at) + h.z);
         }
         apply(dv, &mut self.product);
         for h in &self.held {
             // The diagonal's `k n n^T` (`k I`) is not part of the contact-free system; it acts
             // on `z` alone, which lies in the held directions.
-            let product = self.product.get(h.p);
+            let product = self.product.get(h.at);
             self.impulse[h.p] = h.n.dot(product) - h.k * h.z_n - h.n.dot(h.b);
             if h.stuck {
                 let impulse = product - h.k * h.z - h.b;

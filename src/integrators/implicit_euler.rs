@@ -175,7 +175,7 @@ impl ImplicitEuler {
             let system = self.mesh.get_or_insert_with(|| MeshSystem::new(mesh));
             let (settings, stats) = (self.settings, &mut self.stats);
             system.solve(mesh, (h, drag), (settings, stats), &mut self.filter, ctx);
-            return update(h, ctx, &system.dv);
+            return update(h, ctx, system.solution());
         }
         let work = self.work.get_or_insert_with(|| {
             let kinds = families
@@ -208,9 +208,14 @@ impl ImplicitEuler {
         self.stats.self_pairs += self_contact.len() as u64;
         let mass = &ctx.particles.mass;
         let filter = &mut self.filter;
-        filter.gather(h, ctx.contacts, (&cur.pos, &cur.vel, w), |p| {
-            CONTACT_STIFFNESS * mass[p]
-        });
+        let state = (&cur.pos, &cur.vel, w);
+        filter.gather(
+            h,
+            ctx.contacts,
+            state,
+            |p| CONTACT_STIFFNESS * mass[p],
+            None,
+        );
         let term = (!self.self_contact.is_empty()).then_some(&self.self_contact);
         // Rounds after the first add their pairs to the unreduced right-hand side.
         let filtered = !filter.is_empty();

@@ -58,6 +58,12 @@
 //! colliders' contacts held the right-hand side is kept as assembled, so that the filter
 //! reduces the one with the added and released pairs anew.
 //!
+//! **Numbering** ([`LocalSolve`]): where the mesh's own numbering is scattered (it has a
+//! [`crate::mesh_cloth::MeshCloth::local`]) and its membrane is the springs, the system is
+//! assembled and solved in the local numbering, so that products and smoothing sweeps gather
+//! from nearby rows; the multigrid's aggregates are still chosen as the user's numbering gives
+//! them ([`Amg::renumbered`]), so the preconditioner is the same, renumbered.
+//!
 //! Every sum has a fixed order (per spring, then per vertex over its springs in spring order;
 //! the multigrid's as its module says), so a step is bitwise the same for any number of threads.
 
@@ -68,7 +74,9 @@ use glam::{Mat3, Vec3};
 use rayon::prelude::*;
 
 use super::contact_filter::ContactFilter;
-use super::self_contact::{DiagonalBlocks, Rest, SelfContactTerm, WithSelfContacts, SOLVES};
+use super::self_contact::{
+    DiagonalBlocks, Rest, SelfContactTerm, SelfPairs, WithSelfContacts, SOLVES,
+};
 use super::solver::{live_or_zero, Preconditioner, SolverSettings, SolverStats, CONTACT_STIFFNESS};
 use super::StepContext;
 use crate::collisions::PredictedContacts;
@@ -79,6 +87,7 @@ use crate::linear::stencil::SlotArrays;
 use crate::linear::{Amg, SpringMatrix, Sym3};
 use crate::mesh_cloth::membrane::Membrane;
 use crate::mesh_cloth::MeshCloth;
+use crate::self_collision::Pair;
 use crate::soa::{Floats, Vec3SliceMut, Vec3s};
 
 /// How many multigrid hierarchies a system keeps, the latest first: a step's and those of the
@@ -126,6 +135,98 @@ pub(super) struct MeshSystem {
     assembled: Vec3s,
     /// What a solve reuses from earlier ones.
     reuse: Reuse,
+    /// The numbering the system is assembled and solved in where the mesh's is scattered
+    /// (None: the user's).
+    local: Option<LocalSolve>,
+}
+
+/// A mesh solve in the mesh's local numbering ([`crate::mesh_cloth::MeshCloth::local`]): the
+/// matrix's rows and columns, the right-hand side, CG's vectors, the multigrid's levels, the
+/// held contacts and self-contact pairs are all in it, so that a product's gathers and the
+/// smoother's read nearby vertices; the state is gathered into it before the solve and `dv`
+/// scattered back after. Each vertex sums the same springs in the same order, so the matrix
+/// and right-hand side are bitwise those of the user's numbering, rows permuted; the solve's
+/// sums then run in another order, which changes the result within CG's tolerance only.
+/// Under the triangle membrane the solve keeps the user's numbering (its elements' products
+/// read the user's triangles).
+struct LocalSolve {
+    /// `vertices[k]` is the vertex at place `k`, `place[v]` vertex `v`'s place.
+    vertices: Vec<u32>,
+    place: Vec<u32>,
+    /// The springs touching the vertex at each place, as [`MeshCloth::incident`] lists them.
+    offsets: Vec<u32>,
+    incident: Vec<u32>,
+    /// The step's forces, positions, velocities, inverse masses and masses, gathered into it.
+    force: Vec3s,
+    pos: Vec3s,
+    vel: Vec3s,
+    inv_mass: Vec<f32>,
+    mass: Vec<f32>,
+    /// The self-contact pairs ahead of the step, their vertices renumbered.
+    pairs: Vec<Pair>,
+    /// The solution in the user's numbering.
+    dv: Vec3s,
+}
+
+impl LocalSolve {
+    fn of(mesh: &MeshCloth) -> Option<Self> {
+        let local = mesh.local.as_ref().filter(|_| mesh.membrane.is_none())?;
+        let n = mesh.len();
+        let (mut offsets, mut incident) = (vec![0u32], Vec::with_capacity(mesh.incident.len()));
+        for &v in &local.vertices {
+            incident.extend_from_slice(mesh.springs_at(v as usize));
+            offsets.push(incident.len() as u32);
+        }
+        Some(LocalSolve {
+            vertices: local.vertices.clone(),
+            place: local.place.clone(),
+            offsets,
+            incident,
+            force: Vec3s::zeros(n),
+            pos: Vec3s::zeros(n),
+            vel: Vec3s::zeros(n),
+            inv_mass: vec![0.0; n],
+            mass: vec![0.0; n],
+            pairs: Vec::new(),
+            dv: Vec3s::zeros(n),
+        })
+    }
+
+    /// The matrix of the mesh's springs with its rows and columns in this numbering, each
+    /// row's springs in the order of the user's row.
+    fn matrix(&self, mesh: &MeshCloth) -> SpringMatrix {
+        let ends = |e: &[u32]| -> Vec<u32> { e.iter().map(|&v| self.place[v as usize]).collect() };
+        let (a, b) = (ends(&mesh.springs.a), ends(&mesh.springs.b));
+        SpringMatrix::new(&a, &b, &self.offsets, &self.incident)
+    }
+
+    /// Gathers the step's state, and the pairs ahead with their vertices renumbered.
+    fn gather(&mut self, ctx: &StepContext) {
+        let (cur, particles) = (ctx.current, ctx.particles);
+        for (k, &v) in self.vertices.iter().enumerate() {
+            let v = v as usize;
+            self.force.set(k, ctx.force.get(v));
+            self.pos.set(k, cur.pos.get(v));
+            self.vel.set(k, cur.vel.get(v));
+            self.inv_mass[k] = particles.inv_mass[v];
+            self.mass[k] = particles.mass[v];
+        }
+        self.pairs.clear();
+        if let Some(pairs) = ctx.self_pairs {
+            let place = &self.place;
+            self.pairs.extend(pairs.pairs.iter().map(|pair| Pair {
+                verts: pair.verts.map(|v| place[v as usize]),
+                ..*pair
+            }));
+        }
+    }
+
+    /// `dv` in the user's numbering.
+    fn scatter(&mut self, dv: &Vec3s) {
+        for (k, &v) in self.vertices.iter().enumerate() {
+            self.dv.set(v as usize, dv.get(k));
+        }
+    }
 }
 
 /// What a solve reuses from those before it (see the module docs): every field is decided by
@@ -169,6 +270,18 @@ impl Reuse {
             && self.solves < LAG_SOLVES
             && self.last_iterations <= self.fresh_iterations + LAG_MARGIN
     }
+}
+
+/// How one solve numbers the vertices: `place[v]` is vertex `v`'s row and `vertices[k]` row
+/// `k`'s vertex (None: the user's numbering), with each row's springs (offsets and entries as
+/// [`MeshCloth::incident`]), forces, inverse masses and masses.
+struct Numbering<'a> {
+    place: Option<&'a [u32]>,
+    vertices: Option<&'a [u32]>,
+    incidence: (&'a [u32], &'a [u32]),
+    force: &'a Vec3s,
+    inv_mass: &'a [f32],
+    mass: &'a [f32],
 }
 
 /// The diagonal blocks the self-contact term adds to: the system's, and the multigrid's proxy
@@ -468,8 +581,12 @@ impl MeshSystem {
     pub(super) fn new(mesh: &MeshCloth) -> Self {
         let n = mesh.len();
         let s = &mesh.springs;
+        let local = LocalSolve::of(mesh);
         MeshSystem {
-            matrix: SpringMatrix::new(&s.a, &s.b, &mesh.offsets, &mesh.incident),
+            matrix: match &local {
+                Some(local) => local.matrix(mesh),
+                None => SpringMatrix::new(&s.a, &s.b, &mesh.offsets, &mesh.incident),
+            },
             blocks: vec![Sym3::ZERO; s.len()],
             kv: vec![Vec3::ZERO; s.len()],
             rhs: Vec3s::zeros(n),
@@ -489,6 +606,7 @@ impl MeshSystem {
                 guess: Vec3s::zeros(n),
                 ..Reuse::default()
             },
+            local,
         }
     }
 
@@ -522,23 +640,58 @@ impl MeshSystem {
         if self.reuse.restart.swap(false, Ordering::Relaxed) {
             self.reuse.forget();
         }
+        // The state as the solve numbers it ([`LocalSolve`]); the contact filter reads the
+        // user's and places its particles by `place`.
+        let mut local = self.local.take();
+        if let Some(local) = &mut local {
+            local.gather(ctx);
+        }
+        let (cur, particles) = (ctx.current, ctx.particles);
+        let (pos, vel, w) = match &local {
+            Some(l) => (&l.pos, &l.vel, &l.inv_mass[..]),
+            None => (&cur.pos, &cur.vel, &particles.inv_mass[..]),
+        };
+        let numbering = match &local {
+            Some(l) => Numbering {
+                place: Some(&l.place),
+                vertices: Some(&l.vertices),
+                incidence: (&l.offsets, &l.incident),
+                force: &l.force,
+                inv_mass: &l.inv_mass,
+                mass: &l.mass,
+            },
+            None => Numbering {
+                place: None,
+                vertices: None,
+                incidence: (&mesh.offsets, &mesh.incident),
+                force: ctx.force,
+                inv_mass: &particles.inv_mass,
+                mass: &particles.mass,
+            },
+        };
+        let self_pairs = match (&local, ctx.self_pairs) {
+            (Some(l), Some(pairs)) => Some(SelfPairs {
+                pairs: &l.pairs,
+                ..pairs
+            }),
+            (_, pairs) => pairs,
+        };
         self.build_blocks(mesh, h, ctx);
         self.matrix.gather();
         if let (Some(membrane), Some(elements)) = (&mesh.membrane, &mut self.membrane) {
             let blocks = &mut elements.blocks;
             element_blocks(membrane, &mesh.springs.active, h, &ctx.current.pos, blocks);
         }
-        self.assemble_diagonal_and_rhs(mesh, h, drag, ctx);
+        self.assemble_diagonal_and_rhs(mesh, (h, drag), ctx, &numbering);
         if let (Some(membrane), Some(elements)) = (&mesh.membrane, &mut self.membrane) {
             let w = &ctx.particles.inv_mass[..];
             build_proxy(elements, (&self.matrix, &self.blocks), mesh, membrane, w);
         }
         if let Some(contacts) = ctx.contacts.filter(|c| c.count > 0) {
-            self.stiffen_contacts(contacts, ctx);
+            self.stiffen_contacts(contacts, ctx, numbering.place);
         }
-        let (cur, w, mass) = (ctx.current, &ctx.particles.inv_mass, &ctx.particles.mass);
-        let state = (&cur.pos, &cur.vel, &w[..]);
-        match ctx.self_pairs {
+        let state = (pos, vel, w);
+        match self_pairs {
             Some(pairs) => {
                 let term = &mut self.self_contact;
                 term.gather(h, pairs, state);
@@ -552,7 +705,10 @@ impl MeshSystem {
             None => self.self_contact.clear(),
         }
         stats.self_pairs += self.self_contact.len() as u64;
-        filter.gather(h, ctx.contacts, state, |p| CONTACT_STIFFNESS * mass[p]);
+        let mass = &particles.mass;
+        let users = (&cur.pos, &cur.vel, &particles.inv_mass[..]);
+        let stiffness = |p: usize| CONTACT_STIFFNESS * mass[p];
+        filter.gather(h, ctx.contacts, users, stiffness, numbering.place);
         let mut setup = started;
         for solve in 1..=SOLVES {
             let start = match solve == 1 && !self.holds_contacts(ctx) {
@@ -563,11 +719,11 @@ impl MeshSystem {
                 mesh,
                 (h, drag),
                 (settings, stats),
-                filter,
+                (filter, &numbering),
                 ctx,
                 (setup, start),
             );
-            let Some(pairs) = ctx.self_pairs.filter(|_| solve < SOLVES) else {
+            let Some(pairs) = self_pairs.filter(|_| solve < SOLVES) else {
                 break;
             };
             setup = Instant::now();
@@ -583,7 +739,7 @@ impl MeshSystem {
             let changed = self_contact.extend(
                 h,
                 pairs,
-                (&cur.pos, &cur.vel, dv, &w[..]),
+                (pos, vel, dv, w),
                 (&mut Diagonals::of(matrix, membrane), assembled),
             );
             stats.self_pairs += self_contact.len().saturating_sub(before) as u64;
@@ -592,6 +748,15 @@ impl MeshSystem {
             }
             self.rhs.copy_from(&self.assembled);
         }
+        if let Some(local) = &mut local {
+            local.scatter(&self.dv);
+        }
+        self.local = local;
+    }
+
+    /// The last solve's `dv`, in the user's numbering.
+    pub(super) fn solution(&self) -> &Vec3s {
+        self.local.as_ref().map_or(&self.dv, |local| &local.dv)
     }
 
     /// Whether the solve holds predicted contacts or self-contact pairs: such a solve reuses
@@ -627,11 +792,11 @@ impl MeshSystem {
         mesh: &MeshCloth,
         (h, drag): (f32, f32),
         (settings, stats): (SolverSettings, &mut SolverStats),
-        filter: &mut ContactFilter,
+        (filter, numbering): (&mut ContactFilter, &Numbering),
         ctx: &StepContext,
         (started, start): (Instant, Start),
     ) {
-        let w = &ctx.particles.inv_mass[..];
+        let w = numbering.inv_mass;
         let term = (!self.self_contact.is_empty()).then_some(&self.self_contact);
         if !filter.is_empty() {
             let matrix = &Operator::of(&self.matrix, &self.membrane, mesh, w);
@@ -666,8 +831,8 @@ impl MeshSystem {
                 match found {
                     Some(kept) => self.amg[..=kept].rotate_right(1),
                     None => {
-                        let reference = self.isotropic_matrix(mesh, h, drag, ctx);
-                        let mut amg = Amg::new(&reference);
+                        let reference = self.isotropic_matrix(mesh, h, drag, numbering);
+                        let mut amg = Amg::renumbered(&reference, numbering.vertices);
                         // Isometric bending couples the second ring with the wrong sign for
                         // a sweep damped by `OMEGA` alone.
                         amg.bound_damping(mesh.bending.is_some());
@@ -788,12 +953,14 @@ impl MeshSystem {
     fn assemble_diagonal_and_rhs(
         &mut self,
         mesh: &MeshCloth,
-        h: f32,
-        drag: f32,
+        (h, drag): (f32, f32),
         ctx: &StepContext,
+        numbering: &Numbering,
     ) {
         let chunk = ctx.chunk;
-        let (force, mass, w) = (&*ctx.force, &ctx.particles.mass, &ctx.particles.inv_mass);
+        let (force, mass, w) = (numbering.force, numbering.mass, numbering.inv_mass);
+        let (offsets, incident) = numbering.incidence;
+        let vertices = numbering.vertices;
         let (blocks, kv) = (&self.blocks, &self.kv);
         let elements = mesh
             .membrane
@@ -807,23 +974,23 @@ impl MeshSystem {
             .enumerate()
             .for_each(|(ci, (d, mut b))| {
                 for (i, di) in d.iter_mut().enumerate() {
-                    let v = ci * chunk + i;
-                    if w[v] == 0.0 {
+                    let row = ci * chunk + i;
+                    if w[row] == 0.0 {
                         *di = Sym3::ZERO;
                         b.set(i, Vec3::ZERO);
                         continue;
                     }
-                    let m = mass[v] + h * drag;
+                    let m = mass[row] + h * drag;
                     let mut block = Sym3([m, m, m, 0.0, 0.0, 0.0]);
-                    let mut r = h * force.get(v);
-                    for &e in &mesh.incident[mesh.offsets[v] as usize..mesh.offsets[v + 1] as usize]
-                    {
+                    let mut r = h * force.get(row);
+                    for &e in &incident[offsets[row] as usize..offsets[row + 1] as usize] {
                         let s = (e >> 1) as usize;
                         block.add_scaled(1.0, &blocks[s]);
                         r = if e & 1 == 0 { r - kv[s] } else { r + kv[s] };
                     }
                     // The elements' diagonal blocks and `- h^2 K_t v` from each triangle.
                     if let Some((m, k)) = elements {
+                        let v = vertices.map_or(row, |vertices| vertices[row] as usize);
                         for &e in &m.incident[m.offsets[v] as usize..m.offsets[v + 1] as usize] {
                             let (t, corner) = (e as usize / 3, e as usize % 3);
                             block.add_scaled(1.0, &sym(k[t][corner][corner]));
@@ -842,21 +1009,27 @@ impl MeshSystem {
     /// block of each free vertex with a predicted contact, and a sliding contact's friction
     /// damper (part of the system), for the preconditioner (the grid's `stiffen_contacts`), in the proxy
     /// too under the triangle membrane.
-    fn stiffen_contacts(&mut self, contacts: &PredictedContacts, ctx: &StepContext) {
+    fn stiffen_contacts(
+        &mut self,
+        contacts: &PredictedContacts,
+        ctx: &StepContext,
+        place: Option<&[u32]>,
+    ) {
         let (mass, w) = (&ctx.particles.mass, &ctx.particles.inv_mass);
         for p in 0..self.matrix.len() {
             if contacts.normal.get(p) == Vec3::ZERO || w[p] == 0.0 {
                 continue;
             }
+            let at = place.map_or(p, |place| place[p] as usize);
             let (s, held) = (CONTACT_STIFFNESS * mass[p], contacts.held_directions(p));
-            self.matrix.diagonal[p].add_scaled(s, &held);
+            self.matrix.diagonal[at].add_scaled(s, &held);
             if let Some(Elements { proxy, .. }) = &mut self.membrane {
-                proxy.diagonal[p].add_scaled(s, &held);
+                proxy.diagonal[at].add_scaled(s, &held);
             }
             if let Some(damper) = contacts.slide_block(p) {
-                self.matrix.diagonal[p].add_scaled(1.0, &damper);
+                self.matrix.diagonal[at].add_scaled(1.0, &damper);
                 if let Some(Elements { proxy, .. }) = &mut self.membrane {
-                    proxy.diagonal[p].add_scaled(1.0, &damper);
+                    proxy.diagonal[at].add_scaled(1.0, &damper);
                 }
             }
         }
@@ -869,10 +1042,11 @@ impl MeshSystem {
         mesh: &MeshCloth,
         h: f32,
         drag: f32,
-        ctx: &StepContext,
+        numbering: &Numbering,
     ) -> SpringMatrix {
         let s = &mesh.springs;
-        let (mass, w) = (&ctx.particles.mass, &ctx.particles.inv_mass);
+        let (mass, w) = (numbering.mass, numbering.inv_mass);
+        let at = |v: u32| numbering.place.map_or(v, |place| place[v as usize]) as usize;
         let mut p = self.matrix.clone();
         let proxy = |e: usize| mesh.membrane.as_ref().map_or(0.0, |m| m.proxy_k[e]);
         let linear = |e: usize| mesh.bending.as_ref().map_or(0.0, |b| b.linear[e]);
@@ -882,7 +1056,7 @@ impl MeshSystem {
             *d = Sym3([m, m, m, 0.0, 0.0, 0.0]);
         }
         for e in 0..s.len() {
-            let (a, b) = (s.a[e] as usize, s.b[e] as usize);
+            let (a, b) = (at(s.a[e]), at(s.b[e]));
             let we = weight(e);
             p.diagonal[a].add_scaled(1.0, &Sym3::outer(0.0, Vec3::ZERO, we));
             p.diagonal[b].add_scaled(1.0, &Sym3::outer(0.0, Vec3::ZERO, we));

@@ -49,7 +49,7 @@ fn scalar(b: &Sym3) -> f64 {
 }
 
 /// Each node's aggregate (`u32::MAX` for a held node) and the number of aggregates.
-pub fn aggregate<A: BlockRows>(a: &A) -> (Vec<u32>, usize) {
+pub fn aggregate<A: BlockRows>(a: &A, numbering: Option<&[u32]>) -> (Vec<u32>, usize) {
     let n = a.rows();
     let free: Vec<bool> = (0..n).map(|v| scalar(&a.diagonal(v)) > 0.0).collect();
     let mut largest = vec![0.0f32; n];
@@ -81,7 +81,10 @@ pub fn aggregate<A: BlockRows>(a: &A) -> (Vec<u32>, usize) {
         offsets.push(strong.len());
     }
     let neighbours = |v: usize| &strong[offsets[v]..offsets[v + 1]];
-    let order = local_order(&free, &offsets, &strong);
+    let order = match numbering {
+        Some(vertices) => renumbered_order(&free, (&offsets, &strong), vertices),
+        None => local_order(&free, &offsets, &strong),
+    };
     const NONE: u32 = u32::MAX;
     let mut agg = vec![NONE; n];
     let mut count = 0u32;
@@ -182,4 +185,33 @@ pub fn smoothed_prolongator<A: BlockRows>(a: &A, agg: &[u32], count: usize) -> T
         })
         .collect();
     Transfer::from_rows(&rows, count)
+}
+
+/// The local order ([`local_order`]) of a graph whose node `k` is node `vertices[k]` of the
+/// graph as first numbered, chosen on that graph (its ties are broken and its search starts
+/// by the first numbers) and given in this numbering's nodes.
+fn renumbered_order(
+    free: &[bool],
+    (offsets, neighbours): (&[usize], &[u32]),
+    vertices: &[u32],
+) -> Vec<u32> {
+    let n = free.len();
+    let mut place = vec![0u32; n];
+    for (k, &v) in vertices.iter().enumerate() {
+        place[v as usize] = k as u32;
+    }
+    let mut first = (
+        vec![false; n],
+        vec![0usize],
+        Vec::with_capacity(neighbours.len()),
+    );
+    for (v, &k) in place.iter().enumerate() {
+        let k = k as usize;
+        first.0[v] = free[k];
+        let row = &neighbours[offsets[k]..offsets[k + 1]];
+        first.2.extend(row.iter().map(|&c| vertices[c as usize]));
+        first.1.push(first.2.len());
+    }
+    let order = local_order(&first.0, &first.1, &first.2);
+    order.into_iter().map(|v| place[v as usize]).collect()
 }
