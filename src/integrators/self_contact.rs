@@ -132,18 +132,15 @@ struct Held {
 /// scatters a vertex at a time.
 type Lanes = [f32; 4];
 
-/// What CG's product reads of one held pair, 64 bytes: the product streams these once and
-/// reads nothing else of the pair.
+/// What CG's product reads of one held pair, 48 bytes: the product streams these once and
+/// reads nothing else of the pair (on a large cloth, more than the caches hold).
 #[derive(Clone, Copy, Debug)]
 struct Coupling {
     verts: [u32; 4],
     /// Closest-point weights, zero at held particles (which get no row).
     c: [f32; 4],
-    /// Per slot `k`, `h^2 k c_k`, kg: the factor's first product, the same every product of a
-    /// solve.
-    sc: [f32; 4],
-    /// The normal, its fourth lane zero.
-    n: Lanes,
+    /// The normal, then `h^2 k` (kg).
+    ns: Lanes,
 }
 
 impl Coupling {
@@ -154,7 +151,7 @@ impl Coupling {
     #[inline]
     fn factors(&self, x: &[Lanes]) -> [f32; 4] {
         let (mut own, mut all) = ([0.0f32; 4], 0.0);
-        let n = self.n;
+        let n = self.ns;
         for (k, own) in own.iter_mut().enumerate() {
             if self.c[k] != 0.0 {
                 let p = x[self.verts[k] as usize];
@@ -163,11 +160,17 @@ impl Coupling {
                 all += *own;
             }
         }
-        std::array::from_fn(|k| self.sc[k] * (all - own[k]))
+        // `s c (..)` is `(s c) (..)`, rounded as the pair's own first product.
+        std::array::from_fn(|k| (self.ns[3] * self.c[k]) * (all - own[k]))
     }
 
     fn normal(&self) -> Vec3 {
-        Vec3::new(self.n[0], self.n[1], self.n[2])
+        Vec3::new(self.ns[0], self.ns[1], self.ns[2])
+    }
+
+    /// The normal with a zero fourth lane, to add into a packed row.
+    fn normal_lanes(&self) -> Lanes {
+        [self.ns[0], self.ns[1], self.ns[2], 0.0]
     }
 }
 
@@ -351,9 +354,7 @@ impl SelfContactTerm {
         self.couplings.extend(self.held.iter().map(|held| Coupling {
             verts: held.verts,
             c: held.c,
-            // `s c (..)` is `(s c) (..)`, rounded as the pair's own first product.
-            sc: held.c.map(|c| held.s * c),
-            n: [held.n.x, held.n.y, held.n.z, 0.0],
+            ns: [held.n.x, held.n.y, held.n.z, held.s],
         }));
         let free_slots = || {
             self.couplings.iter().enumerate().flat_map(|(p, pair)| {
@@ -460,12 +461,12 @@ impl SelfContactTerm {
     fn pair_by_pair(&self, x: &[Lanes], y: &mut [Lanes]) {
         for pair in &self.couplings {
             let factors = pair.factors(x);
+            let n = pair.normal_lanes();
             for ((&v, &c), factor) in pair.verts.iter().zip(&pair.c).zip(factors) {
                 if c != 0.0 {
-                    // `y + factor n` a component at a time, as `Vec3`'s; the fourth lane is
-                    // never read back.
+                    // `y + factor n` a component at a time, as `Vec3`'s.
                     let row = &mut y[v as usize];
-                    for (y, n) in row.iter_mut().zip(pair.n) {
+                    for (y, n) in row.iter_mut().zip(n) {
                         *y += factor * n;
                     }
                 }
