@@ -474,11 +474,11 @@ impl SelfContactTerm {
         }
     }
 
-    /// The couplings over all of `y`'s rows. On one thread, pair by pair: each pair is read once
-    /// and written straight into its rows, with no workspace to write and read back. On more,
-    /// the pairs' factors in parallel over the pairs, then each row's sum in parallel over the
-    /// rows through the index, so that no thread reads pairs outside its rows; neither pass
-    /// depends on the split.
+    /// The couplings over all of `y`'s rows, the operand read through its packed rows. On one
+    /// thread, pair by pair: each pair is read once and its part added straight into the packed
+    /// rows, with no factors to write and read back. On more, the pairs' factors in parallel
+    /// over the pairs, then each row's sum in parallel over the rows through the index, so that
+    /// no thread reads pairs outside its rows; neither pass depends on the split.
     fn couple(&self, x: &Vec3s, y: &mut Vec3s) {
         let mut work = self.work.lock().unwrap_or_else(PoisonError::into_inner);
         let work = &mut *work;
@@ -892,19 +892,16 @@ mod tests {
         let mut want = start.clone();
         for held in &term.held {
             let (mut own, mut all) = ([0.0f32; 4], 0.0f32);
-            for k in 0..4 {
-                if held.c[k] != 0.0 {
-                    own[k] = held.c[k] * held.n.dot(x.get(held.verts[k] as usize));
-                    all += own[k];
+            for ((&v, &c), own) in held.verts.iter().zip(&held.c).zip(&mut own) {
+                if c != 0.0 {
+                    *own = c * held.n.dot(x.get(v as usize));
+                    all += *own;
                 }
             }
-            for k in 0..4 {
-                let v = held.verts[k] as usize;
-                if held.c[k] != 0.0 {
-                    want.set(
-                        v,
-                        want.get(v) + ((held.s * held.c[k]) * (all - own[k])) * held.n,
-                    );
+            for ((&v, &c), own) in held.verts.iter().zip(&held.c).zip(own) {
+                let v = v as usize;
+                if c != 0.0 {
+                    want.set(v, want.get(v) + ((held.s * c) * (all - own)) * held.n);
                 }
             }
         }
