@@ -43,7 +43,8 @@
 //! (and the one pass adds into the rows) through a copy of the rows with a vertex's three
 //! components side by side ([`Lanes`]): a pair's vertices lie anywhere in the arrays, and a
 //! vertex's components in three arrays cost three loads, three bounds checks and three stores
-//! where one of each serves; the copy costs one pass over the pairs' rows.
+//! where one of each serves; the copies cost a pass over the rows up to the last pair's vertex
+//! each (the operand's; on one thread also the rows' in and out).
 
 use std::sync::{Mutex, PoisonError};
 
