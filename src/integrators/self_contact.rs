@@ -39,7 +39,12 @@
 //! split; each pair is read once a product, from one compact record ([`Coupling`]), and each
 //! row reads only its own pairs. On one thread, where nothing is read twice anyway, one pass
 //! pair by pair writes each pair's part straight into its rows, with the same roundings in the
-//! same order: the product is the same to the bit for any thread count.
+//! same order: the product is the same to the bit for any thread count. Both read the operand
+//! (and the one pass adds into the rows) through a copy of the rows with a vertex's three
+//! components side by side ([`Lanes`]): a pair's vertices lie anywhere in the arrays, and a
+//! vertex's components in three arrays cost three loads, three bounds checks and three stores
+//! where one of each serves; the copies cost a pass over the rows up to the last pair's vertex
+//! each (the operand's; on one thread also the rows' in and out).
 
 use std::sync::{Mutex, PoisonError};
 
@@ -124,16 +129,19 @@ struct Held {
     short: f32,
 }
 
+/// A vertex's three components side by side and a zero: what the product gathers and
+/// scatters a vertex at a time.
+type Lanes = [f32; 4];
+
 /// What CG's product reads of one held pair, 48 bytes: the product streams these once and
-/// reads nothing else of the pair.
+/// reads nothing else of the pair (on a large cloth, more than the caches hold).
 #[derive(Clone, Copy, Debug)]
 struct Coupling {
     verts: [u32; 4],
     /// Closest-point weights, zero at held particles (which get no row).
     c: [f32; 4],
-    n: Vec3,
-    /// `h^2 k`, kg.
-    s: f32,
+    /// The normal, then `h^2 k` (kg).
+    ns: Lanes,
 }
 
 impl Coupling {
@@ -142,17 +150,55 @@ impl Coupling {
     /// add nothing to the sum and have no row. Both forms of the product take their factors
     /// here, so they round alike.
     #[inline]
-    fn factors(&self, x: &Vec3s) -> [f32; 4] {
+    fn factors(&self, x: &[Lanes]) -> [f32; 4] {
         let (mut own, mut all) = ([0.0f32; 4], 0.0);
+        let n = self.ns;
         for (k, own) in own.iter_mut().enumerate() {
             if self.c[k] != 0.0 {
-                *own = self.c[k] * self.n.dot(x.get(self.verts[k] as usize));
+                let p = x[self.verts[k] as usize];
+                // `Vec3::dot`'s order of sums, so that every rounding is the vectors' own.
+                *own = self.c[k] * ((n[0] * p[0] + n[1] * p[1]) + n[2] * p[2]);
                 all += *own;
             }
         }
         // `s c (..)` is `(s c) (..)`, rounded as the pair's own first product.
-        std::array::from_fn(|k| (self.s * self.c[k]) * (all - own[k]))
+        std::array::from_fn(|k| (self.ns[3] * self.c[k]) * (all - own[k]))
     }
+
+    fn normal(&self) -> Vec3 {
+        Vec3::new(self.ns[0], self.ns[1], self.ns[2])
+    }
+
+    /// The normal with a zero fourth lane, to add into a packed row.
+    fn normal_lanes(&self) -> Lanes {
+        [self.ns[0], self.ns[1], self.ns[2], 0.0]
+    }
+}
+
+/// Rows `..rows` of `v` into `out`, a vertex's components side by side.
+fn pack(v: &Vec3s, rows: usize, out: &mut Vec<Lanes>) {
+    out.clear();
+    out.extend((0..rows).map(|i| [v.x[i], v.y[i], v.z[i], 0.0]));
+}
+
+/// `packed`'s rows back into the first rows of `v`.
+fn unpack(packed: &[Lanes], v: &mut Vec3s) {
+    for (i, p) in packed.iter().enumerate() {
+        v.x[i] = p[0];
+        v.y[i] = p[1];
+        v.z[i] = p[2];
+    }
+}
+
+/// The product's workspace, kept between products so that it is allocated once.
+#[derive(Default)]
+struct Workspace {
+    /// One entry a held pair: per slot `k`, `s c_k` times the pair's `n . sum_{j != k} c_j x_j`.
+    factors: Vec<[f32; 4]>,
+    /// The operand's rows up to the last held pair's, packed.
+    x: Vec<Lanes>,
+    /// On one thread, the product's rows up to the last held pair's, packed.
+    y: Vec<Lanes>,
 }
 
 /// Each row's held pairs, in pair order: a compressed row index over the pairs' slots, so that
@@ -184,10 +230,9 @@ pub(super) struct SelfContactTerm {
     couplings: Vec<Coupling>,
     /// The rows' pairs of `couplings`.
     rows: RowIndex,
-    /// The product's workspace, one entry a held pair: per slot `k`, `s c_k` times the pair's
-    /// `n . sum_{j != k} c_j x_j`. Behind a lock because the product is taken through `&self`;
+    /// The product's workspace. Behind a lock because the product is taken through `&self`;
     /// one product holds it at a time.
-    factors: Mutex<Vec<[f32; 4]>>,
+    work: Mutex<Workspace>,
     /// Per pair handed in, whether it was held in this step (a released pair is not held again).
     taken: Vec<bool>,
 }
@@ -310,8 +355,7 @@ impl SelfContactTerm {
         self.couplings.extend(self.held.iter().map(|held| Coupling {
             verts: held.verts,
             c: held.c,
-            n: held.n,
-            s: held.s,
+            ns: [held.n.x, held.n.y, held.n.z, held.s],
         }));
         let free_slots = || {
             self.couplings.iter().enumerate().flat_map(|(p, pair)| {
@@ -340,12 +384,9 @@ impl SelfContactTerm {
             index.entries[index.next[v] as usize] = entry;
             index.next[v] += 1;
         }
-        let factors = self
-            .factors
-            .get_mut()
-            .unwrap_or_else(PoisonError::into_inner);
-        factors.clear();
-        factors.resize(self.couplings.len(), [0.0; 4]);
+        let work = self.work.get_mut().unwrap_or_else(PoisonError::into_inner);
+        work.factors.clear();
+        work.factors.resize(self.couplings.len(), [0.0; 4]);
     }
 
     /// No pair held: the solve is the plain one.
@@ -379,7 +420,7 @@ impl SelfContactTerm {
     }
 
     /// Every held pair's [`Coupling::factors`] into `factors`, in parallel over the pairs.
-    fn pair_factors(&self, x: &Vec3s, factors: &mut [[f32; 4]]) {
+    fn pair_factors(&self, x: &[Lanes], factors: &mut [[f32; 4]]) {
         factors
             .par_chunks_mut(PAIRS_A_TASK)
             .zip(self.couplings.par_chunks(PAIRS_A_TASK))
@@ -408,7 +449,7 @@ impl SelfContactTerm {
             let mut sum = out.get(i);
             for &entry in entries {
                 let (p, k) = (entry as usize / 4, entry as usize % 4);
-                sum += factors[p][k] * self.couplings[p].n;
+                sum += factors[p][k] * self.couplings[p].normal();
             }
             out.set(i, sum);
         }
@@ -418,30 +459,40 @@ impl SelfContactTerm {
     /// [`Coupling::factors`], then its part of each of its vertices' rows, every row adding
     /// its pairs in pair order: the same factors in the same order as
     /// [`SelfContactTerm::gather_range`], so the same to the bit.
-    fn pair_by_pair(&self, x: &Vec3s, y: &mut Vec3s) {
+    fn pair_by_pair(&self, x: &[Lanes], y: &mut [Lanes]) {
         for pair in &self.couplings {
             let factors = pair.factors(x);
+            let n = pair.normal_lanes();
             for ((&v, &c), factor) in pair.verts.iter().zip(&pair.c).zip(factors) {
                 if c != 0.0 {
-                    y.set(v as usize, y.get(v as usize) + factor * pair.n);
+                    // `y + factor n` a component at a time, as `Vec3`'s.
+                    let row = &mut y[v as usize];
+                    for (y, n) in row.iter_mut().zip(n) {
+                        *y += factor * n;
+                    }
                 }
             }
         }
     }
 
-    /// The couplings over all of `y`'s rows. On one thread, pair by pair: each pair is read once
-    /// and written straight into its rows, with no workspace to write and read back. On more,
-    /// the pairs' factors in parallel over the pairs, then each row's sum in parallel over the
-    /// rows through the index, so that no thread reads pairs outside its rows; neither pass
-    /// depends on the split.
+    /// The couplings over all of `y`'s rows, the operand read through its packed rows. On one
+    /// thread, pair by pair: each pair is read once and its part added straight into the packed
+    /// rows, with no factors to write and read back. On more, the pairs' factors in parallel
+    /// over the pairs, then each row's sum in parallel over the rows through the index, so that
+    /// no thread reads pairs outside its rows; neither pass depends on the split.
     fn couple(&self, x: &Vec3s, y: &mut Vec3s) {
+        let mut work = self.work.lock().unwrap_or_else(PoisonError::into_inner);
+        let work = &mut *work;
+        let rows = self.rows.start.len().saturating_sub(1);
+        pack(x, rows, &mut work.x);
         if rayon::current_num_threads() == 1 {
-            self.pair_by_pair(x, y);
+            pack(y, rows, &mut work.y);
+            self.pair_by_pair(&work.x, &mut work.y);
+            unpack(&work.y, y);
             return;
         }
-        let mut factors = self.factors.lock().unwrap_or_else(PoisonError::into_inner);
-        self.pair_factors(x, &mut factors);
-        let factors = &*factors;
+        self.pair_factors(&work.x, &mut work.factors);
+        let factors = &work.factors;
         y.par_chunks_mut(ROWS_A_TASK)
             .enumerate()
             .for_each(|(c, mut out)| {
@@ -743,10 +794,15 @@ mod tests {
             Vec3::new(0.3 * v as f32, -1.0 / (2.0 + v as f32), 0.7)
         });
         let start = Vec3s::from_fn(9, |v| Vec3::new(1.0, v as f32, -0.5));
+        let rows = term.rows.start.len() - 1;
+        let (mut packed_x, mut packed_y) = (Vec::new(), Vec::new());
+        pack(&x, rows, &mut packed_x);
+        pack(&start, rows, &mut packed_y);
+        term.pair_by_pair(&packed_x, &mut packed_y);
         let mut whole = start.clone();
-        term.pair_by_pair(&x, &mut whole);
+        unpack(&packed_y, &mut whole);
         let mut factors = vec![[0.0; 4]; term.len()];
-        term.pair_factors(&x, &mut factors);
+        term.pair_factors(&packed_x, &mut factors);
         for cuts in [
             vec![0, 9],
             vec![0, 3, 9],
@@ -776,6 +832,115 @@ mod tests {
         assert_ne!(whole.get(0), start.get(0));
         assert_eq!(whole.get(4), start.get(4), "the pinned vertex gets nothing");
         assert_eq!(whole.get(8), start.get(8));
+    }
+
+    /// The product gathers and scatters each vertex's three components side by side; that must
+    /// change no rounding: on one thread and on two it is, to the bit, the product taken on
+    /// the vectors' own three arrays (each pair's `c_k n . x_k` as `Vec3::dot`, their sum in
+    /// slot order, `(s c_k) (all - own_k)` times `n` added to the row), with operands of
+    /// mixed magnitudes and signs, a pinned vertex, and rows beyond every pair left as they are.
+    #[test]
+    fn the_product_through_packed_rows_rounds_as_on_the_three_arrays() {
+        let (mut pairs, pos, vel) = pairs();
+        for (verts, split, c, n) in [
+            (
+                [0, 4, 5, 6],
+                1,
+                [1.0, -0.3, -0.3, -0.4],
+                DVec3::new(0.0, 0.6, 0.8),
+            ),
+            (
+                [7, 6, 2, 3],
+                2,
+                [-0.5, -0.5, 0.25, 0.75],
+                DVec3::new(0.48, 0.6, 0.64),
+            ),
+            (
+                [1, 7, 3, 5],
+                1,
+                [0.9, -0.2, -0.1, -0.6],
+                DVec3::new(-0.6, 0.0, 0.8),
+            ),
+        ] {
+            pairs.push(Pair {
+                verts,
+                split,
+                c,
+                n,
+                d0: 0.0005,
+            });
+        }
+        let mut inv_mass = vec![1.0f32; 10];
+        inv_mass[3] = 0.0;
+        let mut vel = vel;
+        vel.set(0, Vec3::new(0.0, -3.0, 0.0));
+        let grown =
+            |v: &Vec3s, rest: Vec3| Vec3s::from_fn(10, |p| if p < 8 { v.get(p) } else { rest });
+        let (pos, vel) = (grown(&pos, Vec3::ONE), grown(&vel, Vec3::ZERO));
+        let term = held(&pairs, (&pos, &vel, &inv_mass));
+        assert!(term.len() >= 3, "{} pairs held", term.len());
+        assert!(
+            term.couplings.iter().any(|pair| pair.c.contains(&0.0)),
+            "a held pair has a pinned vertex"
+        );
+        // Operands of mixed magnitudes and signs, many draws, so that any other order of the
+        // roundings shows in some last bit.
+        let draw = |trial: u32, v: usize, k: u32| {
+            let h = (trial.wrapping_mul(40503)
+                ^ (v as u32).wrapping_mul(2654435761)
+                ^ k.wrapping_mul(97))
+            .wrapping_mul(2246822519)
+            .rotate_left(13)
+            .wrapping_mul(3266489917);
+            ((h >> 8) as f32 / (1u32 << 24) as f32 - 0.5) * 10f32.powi((h % 7) as i32 - 3)
+        };
+        let mut moved = 0;
+        for trial in 0..200 {
+            let x = Vec3s::from_fn(10, |v| {
+                Vec3::new(draw(trial, v, 0), draw(trial, v, 1), draw(trial, v, 2))
+            });
+            let start = Vec3s::from_fn(10, |v| {
+                Vec3::new(draw(trial, v, 3), draw(trial, v, 4), draw(trial, v, 5))
+            });
+            let mut want = start.clone();
+            for held in &term.held {
+                let (mut own, mut all) = ([0.0f32; 4], 0.0f32);
+                for ((&v, &c), own) in held.verts.iter().zip(&held.c).zip(&mut own) {
+                    if c != 0.0 {
+                        *own = c * held.n.dot(x.get(v as usize));
+                        all += *own;
+                    }
+                }
+                for ((&v, &c), own) in held.verts.iter().zip(&held.c).zip(own) {
+                    let v = v as usize;
+                    if c != 0.0 {
+                        want.set(v, want.get(v) + ((held.s * c) * (all - own)) * held.n);
+                    }
+                }
+            }
+            for threads in [1, 2] {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                let mut y = start.clone();
+                pool.install(|| term.couple(&x, &mut y));
+                for p in 0..10 {
+                    assert_eq!(
+                        y.get(p).to_array().map(f32::to_bits),
+                        want.get(p).to_array().map(f32::to_bits),
+                        "vertex {p}, {threads} threads, draw {trial}"
+                    );
+                }
+            }
+            assert_eq!(want.get(3), start.get(3), "the pinned vertex gets nothing");
+            assert_eq!(want.get(9), start.get(9));
+            moved += usize::from(want.get(0) != start.get(0));
+        }
+        assert!(
+            moved > 100,
+            "the couplings moved vertex 0 in {moved} of 200 draws"
+        );
     }
 
     /// A mesh's diagonal blocks get what the grid's six columns get, entry for entry.
