@@ -754,19 +754,28 @@ mod tests {
         assert_eq!(y.get(2), Vec3::ZERO, "the pinned vertex gets nothing");
     }
 
-    /// The product's couplings, taken through the rows' index over the rows split into ranges
-    /// (one a task) and by [`SelfContactTerm::couple`] on three threads, are the pair by pair
-    /// sums (the one thread's product) to the bit: each row adds its pairs in pair order whatever range it falls
-    /// in, with the same roundings.
-    #[test]
-    fn the_couplings_are_the_same_to_the_bit_however_the_rows_are_split() {
+    /// `start` plus the term's couplings of `x`, taken on `threads` threads.
+    fn coupled_on(threads: usize, term: &SelfContactTerm, x: &Vec3s, start: &Vec3s) -> Vec3s {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let mut y = start.clone();
+        pool.install(|| term.couple(x, &mut y));
+        y
+    }
+
+    /// [`pairs`] and three more pairs (normals `normals`) across its vertices, on a cloth of
+    /// `rows` vertices (those past the eighth at rest at (1, 1, 1)) whose vertex `pinned` is
+    /// held, held in one term; one of the held pairs has the pinned vertex.
+    fn three_more_pairs_held(normals: [DVec3; 3], rows: usize, pinned: usize) -> SelfContactTerm {
         let (mut pairs, pos, vel) = pairs();
-        let n = glam::DVec3::new(0.0, 0.6, 0.8);
-        for (verts, split, c) in [
+        let slots = [
             ([0, 4, 5, 6], 1, [1.0, -0.3, -0.3, -0.4]),
             ([7, 6, 2, 3], 2, [-0.5, -0.5, 0.25, 0.75]),
             ([1, 7, 3, 5], 1, [0.9, -0.2, -0.1, -0.6]),
-        ] {
+        ];
+        for ((verts, split, c), n) in slots.into_iter().zip(normals) {
             pairs.push(Pair {
                 verts,
                 split,
@@ -775,20 +784,30 @@ mod tests {
                 d0: 0.0005,
             });
         }
-        let mut inv_mass = vec![1.0f32; 9];
-        inv_mass[4] = 0.0;
+        let mut inv_mass = vec![1.0f32; rows];
+        inv_mass[pinned] = 0.0;
         let mut vel = vel;
         vel.set(0, Vec3::new(0.0, -3.0, 0.0));
-        let (pos, vel) = (
-            Vec3s::from_fn(9, |v| if v < 8 { pos.get(v) } else { Vec3::ONE }),
-            Vec3s::from_fn(9, |v| if v < 8 { vel.get(v) } else { Vec3::ZERO }),
-        );
+        let grown =
+            |v: &Vec3s, rest: Vec3| Vec3s::from_fn(rows, |p| if p < 8 { v.get(p) } else { rest });
+        let (pos, vel) = (grown(&pos, Vec3::ONE), grown(&vel, Vec3::ZERO));
         let term = held(&pairs, (&pos, &vel, &inv_mass));
-        assert!(term.len() > 2);
         assert!(
             term.couplings.iter().any(|pair| pair.c.contains(&0.0)),
             "a held pair has a pinned vertex"
         );
+        term
+    }
+
+    /// The product's couplings, taken through the rows' index over the rows split into ranges
+    /// (one a task) and by [`SelfContactTerm::couple`] on three threads, are the pair by pair
+    /// sums (the one thread's product) to the bit: each row adds its pairs in pair order whatever range it falls
+    /// in, with the same roundings.
+    #[test]
+    fn the_couplings_are_the_same_to_the_bit_however_the_rows_are_split() {
+        let n = glam::DVec3::new(0.0, 0.6, 0.8);
+        let term = three_more_pairs_held([n; 3], 9, 4);
+        assert!(term.len() > 2);
         // Row 8 lies beyond every pair's vertices, row 4 is pinned: both are left as they are.
         let x = Vec3s::from_fn(9, |v| {
             Vec3::new(0.3 * v as f32, -1.0 / (2.0 + v as f32), 0.7)
@@ -819,12 +838,7 @@ mod tests {
             }
         }
         for threads in [2, 3] {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            let mut y = start.clone();
-            pool.install(|| term.couple(&x, &mut y));
+            let y = coupled_on(threads, &term, &x, &start);
             for p in 0..9 {
                 assert_eq!(y.get(p), whole.get(p), "vertex {p}, {threads} threads");
             }
@@ -841,48 +855,13 @@ mod tests {
     /// mixed magnitudes and signs, a pinned vertex, and rows beyond every pair left as they are.
     #[test]
     fn the_product_through_packed_rows_rounds_as_on_the_three_arrays() {
-        let (mut pairs, pos, vel) = pairs();
-        for (verts, split, c, n) in [
-            (
-                [0, 4, 5, 6],
-                1,
-                [1.0, -0.3, -0.3, -0.4],
-                DVec3::new(0.0, 0.6, 0.8),
-            ),
-            (
-                [7, 6, 2, 3],
-                2,
-                [-0.5, -0.5, 0.25, 0.75],
-                DVec3::new(0.48, 0.6, 0.64),
-            ),
-            (
-                [1, 7, 3, 5],
-                1,
-                [0.9, -0.2, -0.1, -0.6],
-                DVec3::new(-0.6, 0.0, 0.8),
-            ),
-        ] {
-            pairs.push(Pair {
-                verts,
-                split,
-                c,
-                n,
-                d0: 0.0005,
-            });
-        }
-        let mut inv_mass = vec![1.0f32; 10];
-        inv_mass[3] = 0.0;
-        let mut vel = vel;
-        vel.set(0, Vec3::new(0.0, -3.0, 0.0));
-        let grown =
-            |v: &Vec3s, rest: Vec3| Vec3s::from_fn(10, |p| if p < 8 { v.get(p) } else { rest });
-        let (pos, vel) = (grown(&pos, Vec3::ONE), grown(&vel, Vec3::ZERO));
-        let term = held(&pairs, (&pos, &vel, &inv_mass));
+        let normals = [
+            DVec3::new(0.0, 0.6, 0.8),
+            DVec3::new(0.48, 0.6, 0.64),
+            DVec3::new(-0.6, 0.0, 0.8),
+        ];
+        let term = three_more_pairs_held(normals, 10, 3);
         assert!(term.len() >= 3, "{} pairs held", term.len());
-        assert!(
-            term.couplings.iter().any(|pair| pair.c.contains(&0.0)),
-            "a held pair has a pinned vertex"
-        );
         // Operands of mixed magnitudes and signs, many draws, so that any other order of the
         // roundings shows in some last bit.
         let draw = |trial: u32, v: usize, k: u32| {
@@ -919,12 +898,7 @@ mod tests {
                 }
             }
             for threads in [1, 2] {
-                let pool = rayon::ThreadPoolBuilder::new()
-                    .num_threads(threads)
-                    .build()
-                    .unwrap();
-                let mut y = start.clone();
-                pool.install(|| term.couple(&x, &mut y));
+                let y = coupled_on(threads, &term, &x, &start);
                 for p in 0..10 {
                     assert_eq!(
                         y.get(p).to_array().map(f32::to_bits),
