@@ -87,6 +87,7 @@ use crate::linear::stencil::SlotArrays;
 use crate::linear::{Amg, SpringMatrix, Sym3};
 use crate::mesh_cloth::membrane::Membrane;
 use crate::mesh_cloth::MeshCloth;
+use crate::scene::LocalNumbering;
 use crate::self_collision::Pair;
 use crate::soa::{Floats, Vec3SliceMut, Vec3s};
 
@@ -148,14 +149,9 @@ pub(super) struct MeshSystem {
 /// and right-hand side are bitwise those of the user's numbering, rows permuted; the solve's
 /// sums then run in another order, which changes the result within CG's tolerance only.
 /// Under the triangle membrane the solve keeps the user's numbering (its elements' products
-/// read the user's triangles).
+/// read the user's triangles). The numbering itself is the mesh's ([`LocalNumbering`]); this
+/// holds what the solve gathers into it.
 struct LocalSolve {
-    /// `vertices[k]` is the vertex at place `k`, `place[v]` vertex `v`'s place.
-    vertices: Vec<u32>,
-    place: Vec<u32>,
-    /// The springs touching the vertex at each place, as [`MeshCloth::incident`] lists them.
-    offsets: Vec<u32>,
-    incident: Vec<u32>,
     /// The step's forces, positions, velocities, inverse masses and masses, gathered into it.
     force: Vec3s,
     pos: Vec3s,
@@ -170,18 +166,9 @@ struct LocalSolve {
 
 impl LocalSolve {
     fn of(mesh: &MeshCloth) -> Option<Self> {
-        let local = mesh.local.as_ref().filter(|_| mesh.membrane.is_none())?;
+        mesh.local.as_ref().filter(|_| mesh.membrane.is_none())?;
         let n = mesh.len();
-        let (mut offsets, mut incident) = (vec![0u32], Vec::with_capacity(mesh.incident.len()));
-        for &v in &local.vertices {
-            incident.extend_from_slice(mesh.springs_at(v as usize));
-            offsets.push(incident.len() as u32);
-        }
         Some(LocalSolve {
-            vertices: local.vertices.clone(),
-            place: local.place.clone(),
-            offsets,
-            incident,
             force: Vec3s::zeros(n),
             pos: Vec3s::zeros(n),
             vel: Vec3s::zeros(n),
@@ -192,18 +179,17 @@ impl LocalSolve {
         })
     }
 
-    /// The matrix of the mesh's springs with its rows and columns in this numbering, each
-    /// row's springs in the order of the user's row.
-    fn matrix(&self, mesh: &MeshCloth) -> SpringMatrix {
-        let ends = |e: &[u32]| -> Vec<u32> { e.iter().map(|&v| self.place[v as usize]).collect() };
-        let (a, b) = (ends(&mesh.springs.a), ends(&mesh.springs.b));
-        SpringMatrix::new(&a, &b, &self.offsets, &self.incident)
+    /// The matrix of the mesh's springs with its rows and columns in `local`, each row's
+    /// springs in the order of the user's row.
+    fn matrix(local: &LocalNumbering) -> SpringMatrix {
+        SpringMatrix::new(&local.a, &local.b, &local.offsets, &local.incident)
     }
 
-    /// Gathers the step's state, and the pairs ahead with their vertices renumbered.
-    fn gather(&mut self, ctx: &StepContext) {
+    /// Gathers the step's state into `local`, and the pairs ahead with their vertices
+    /// renumbered.
+    fn gather(&mut self, ctx: &StepContext, local: &LocalNumbering) {
         let (cur, particles) = (ctx.current, ctx.particles);
-        for (k, &v) in self.vertices.iter().enumerate() {
+        for (k, &v) in local.vertices.iter().enumerate() {
             let v = v as usize;
             self.force.set(k, ctx.force.get(v));
             self.pos.set(k, cur.pos.get(v));
@@ -213,7 +199,7 @@ impl LocalSolve {
         }
         self.pairs.clear();
         if let Some(pairs) = ctx.self_pairs {
-            let place = &self.place;
+            let place = &local.place;
             self.pairs.extend(pairs.pairs.iter().map(|pair| Pair {
                 verts: pair.verts.map(|v| place[v as usize]),
                 ..*pair
@@ -221,9 +207,9 @@ impl LocalSolve {
         }
     }
 
-    /// `dv` in the user's numbering.
-    fn scatter(&mut self, dv: &Vec3s) {
-        for (k, &v) in self.vertices.iter().enumerate() {
+    /// `dv`, in `local`, into the user's numbering.
+    fn scatter(&mut self, dv: &Vec3s, local: &LocalNumbering) {
+        for (k, &v) in local.vertices.iter().enumerate() {
             self.dv.set(v as usize, dv.get(k));
         }
     }
@@ -274,14 +260,53 @@ impl Reuse {
 
 /// How one solve numbers the vertices: `place[v]` is vertex `v`'s row and `vertices[k]` row
 /// `k`'s vertex (None: the user's numbering), with each row's springs (offsets and entries as
-/// [`MeshCloth::incident`]), forces, inverse masses and masses.
+/// [`MeshCloth::incident`]), forces, positions, velocities, inverse masses and masses, and the
+/// self-contact pairs ahead, all in that numbering.
 struct Numbering<'a> {
     place: Option<&'a [u32]>,
     vertices: Option<&'a [u32]>,
     incidence: (&'a [u32], &'a [u32]),
     force: &'a Vec3s,
+    pos: &'a Vec3s,
+    vel: &'a Vec3s,
     inv_mass: &'a [f32],
     mass: &'a [f32],
+    self_pairs: Option<SelfPairs<'a>>,
+}
+
+impl<'a> Numbering<'a> {
+    /// The local numbering's, where the solve has one (its state gathered for this step), else
+    /// the user's.
+    fn of(local: Option<&'a LocalSolve>, mesh: &'a MeshCloth, ctx: &'a StepContext) -> Self {
+        let (cur, particles) = (ctx.current, ctx.particles);
+        match local.zip(mesh.local.as_ref()) {
+            Some((l, numbering)) => Numbering {
+                place: Some(&numbering.place),
+                vertices: Some(&numbering.vertices),
+                incidence: (&numbering.offsets, &numbering.incident),
+                force: &l.force,
+                pos: &l.pos,
+                vel: &l.vel,
+                inv_mass: &l.inv_mass,
+                mass: &l.mass,
+                self_pairs: ctx.self_pairs.map(|pairs| SelfPairs {
+                    pairs: &l.pairs,
+                    ..pairs
+                }),
+            },
+            None => Numbering {
+                place: None,
+                vertices: None,
+                incidence: (&mesh.offsets, &mesh.incident),
+                force: ctx.force,
+                pos: &cur.pos,
+                vel: &cur.vel,
+                inv_mass: &particles.inv_mass,
+                mass: &particles.mass,
+                self_pairs: ctx.self_pairs,
+            },
+        }
+    }
 }
 
 /// The diagonal blocks the self-contact term adds to: the system's, and the multigrid's proxy
@@ -583,8 +608,8 @@ impl MeshSystem {
         let s = &mesh.springs;
         let local = LocalSolve::of(mesh);
         MeshSystem {
-            matrix: match &local {
-                Some(local) => local.matrix(mesh),
+            matrix: match local.as_ref().and(mesh.local.as_ref()) {
+                Some(numbering) => LocalSolve::matrix(numbering),
                 None => SpringMatrix::new(&s.a, &s.b, &mesh.offsets, &mesh.incident),
             },
             blocks: vec![Sym3::ZERO; s.len()],
@@ -643,39 +668,12 @@ impl MeshSystem {
         // The state as the solve numbers it ([`LocalSolve`]); the contact filter reads the
         // user's and places its particles by `place`.
         let mut local = self.local.take();
-        if let Some(local) = &mut local {
-            local.gather(ctx);
+        if let (Some(local), Some(numbering)) = (&mut local, &mesh.local) {
+            local.gather(ctx, numbering);
         }
-        let (cur, particles) = (ctx.current, ctx.particles);
-        let (pos, vel, w) = match &local {
-            Some(l) => (&l.pos, &l.vel, &l.inv_mass[..]),
-            None => (&cur.pos, &cur.vel, &particles.inv_mass[..]),
-        };
-        let numbering = match &local {
-            Some(l) => Numbering {
-                place: Some(&l.place),
-                vertices: Some(&l.vertices),
-                incidence: (&l.offsets, &l.incident),
-                force: &l.force,
-                inv_mass: &l.inv_mass,
-                mass: &l.mass,
-            },
-            None => Numbering {
-                place: None,
-                vertices: None,
-                incidence: (&mesh.offsets, &mesh.incident),
-                force: ctx.force,
-                inv_mass: &particles.inv_mass,
-                mass: &particles.mass,
-            },
-        };
-        let self_pairs = match (&local, ctx.self_pairs) {
-            (Some(l), Some(pairs)) => Some(SelfPairs {
-                pairs: &l.pairs,
-                ..pairs
-            }),
-            (_, pairs) => pairs,
-        };
+        let numbering = Numbering::of(local.as_ref(), mesh, ctx);
+        let (pos, vel, w) = (numbering.pos, numbering.vel, numbering.inv_mass);
+        let self_pairs = numbering.self_pairs;
         self.build_blocks(mesh, h, ctx);
         self.matrix.gather();
         if let (Some(membrane), Some(elements)) = (&mesh.membrane, &mut self.membrane) {
@@ -705,6 +703,7 @@ impl MeshSystem {
             None => self.self_contact.clear(),
         }
         stats.self_pairs += self.self_contact.len() as u64;
+        let (cur, particles) = (ctx.current, ctx.particles);
         let mass = &particles.mass;
         let users = (&cur.pos, &cur.vel, &particles.inv_mass[..]);
         let stiffness = |p: usize| CONTACT_STIFFNESS * mass[p];
@@ -748,8 +747,8 @@ impl MeshSystem {
             }
             self.rhs.copy_from(&self.assembled);
         }
-        if let Some(local) = &mut local {
-            local.scatter(&self.dv);
+        if let (Some(local), Some(numbering)) = (&mut local, &mesh.local) {
+            local.scatter(&self.dv, numbering);
         }
         self.local = local;
     }

@@ -813,13 +813,9 @@ mod tests {
             Vec3::new(0.3 * v as f32, -1.0 / (2.0 + v as f32), 0.7)
         });
         let start = Vec3s::from_fn(9, |v| Vec3::new(1.0, v as f32, -0.5));
-        let rows = term.rows.start.len() - 1;
-        let (mut packed_x, mut packed_y) = (Vec::new(), Vec::new());
-        pack(&x, rows, &mut packed_x);
-        pack(&start, rows, &mut packed_y);
-        term.pair_by_pair(&packed_x, &mut packed_y);
-        let mut whole = start.clone();
-        unpack(&packed_y, &mut whole);
+        let whole = coupled_on(1, &term, &x, &start);
+        let mut packed_x = Vec::new();
+        pack(&x, term.rows.start.len() - 1, &mut packed_x);
         let mut factors = vec![[0.0; 4]; term.len()];
         term.pair_factors(&packed_x, &mut factors);
         for cuts in [

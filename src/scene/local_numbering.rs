@@ -31,11 +31,7 @@ pub(super) fn local_order(n: usize, springs: &EdgeSprings) -> Option<Vec<u32>> {
     if order.iter().enumerate().all(|(k, &v)| k == v as usize) {
         return None;
     }
-    let mut place = vec![0u32; n];
-    for (k, &v) in order.iter().enumerate() {
-        place[v as usize] = k as u32;
-    }
-    Some(place)
+    Some(crate::linear::amg::places(&order, n))
 }
 
 /// A local numbering of a mesh cloth's vertices, in which the force pass works where the
@@ -52,8 +48,10 @@ pub struct LocalNumbering {
     /// Each spring's ends in this numbering (the lower vertex index first, as in the list).
     pub a: Vec<u32>,
     pub b: Vec<u32>,
-    /// The springs touching each vertex of this numbering, laid out as
-    /// [`super::MeshCloth::lanes`].
+    /// The springs touching each vertex of this numbering, as [`super::MeshCloth::incident`]
+    /// lists them (offsets and entries), and laid out as [`super::MeshCloth::lanes`].
+    pub offsets: Vec<u32>,
+    pub incident: Vec<u32>,
     pub lanes: IncidenceLanes,
 }
 
@@ -64,10 +62,7 @@ impl LocalNumbering {
         offsets: &[u32],
         incident: &[u32],
     ) -> Self {
-        let mut vertices = vec![0u32; place.len()];
-        for (v, &k) in place.iter().enumerate() {
-            vertices[k as usize] = v as u32;
-        }
+        let vertices = crate::linear::amg::places(&place, place.len());
         let mut local_offsets = vec![0u32];
         let mut local_incident = Vec::with_capacity(incident.len());
         for &v in &vertices {
@@ -82,6 +77,8 @@ impl LocalNumbering {
             b: springs.b.iter().map(|&v| place[v as usize]).collect(),
             vertices,
             place,
+            offsets: local_offsets,
+            incident: local_incident,
             lanes,
         }
     }
@@ -89,6 +86,7 @@ impl LocalNumbering {
     pub fn heap_bytes(&self) -> usize {
         (self.vertices.capacity() + self.place.capacity()) * 4
             + (self.a.capacity() + self.b.capacity()) * 4
+            + (self.offsets.capacity() + self.incident.capacity()) * 4
             + self.lanes.heap_bytes()
     }
 }

@@ -26,7 +26,7 @@
 //!   took CG from 12.1 to 16.9 iterations a solve on the 4k stiff drape.
 
 use super::csr::{BlockRows, Transfer};
-use super::order::local_order;
+use super::order::{local_order, places};
 use crate::linear::Sym3;
 
 /// Strength threshold, relative to the row's strongest connection (0 to 1): lower aggregates
@@ -196,10 +196,7 @@ fn renumbered_order(
     vertices: &[u32],
 ) -> Vec<u32> {
     let n = free.len();
-    let mut place = vec![0u32; n];
-    for (k, &v) in vertices.iter().enumerate() {
-        place[v as usize] = k as u32;
-    }
+    let place = places(vertices, n);
     let mut first = (
         vec![false; n],
         vec![0usize],

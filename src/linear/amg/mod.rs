@@ -40,7 +40,7 @@ use super::{SpringMatrix, Sym3};
 use crate::soa::Vec3s;
 pub use csr::{BlockCsr, BlockRows, Transfer};
 use galerkin::Galerkin;
-pub use order::local_order;
+pub use order::{local_order, places};
 
 /// Coarsening stops at this many nodes (3 unknowns each), solved by a dense Cholesky factor
 /// refactored every update: a larger coarsest level costs `(3n)^3 / 3` flops a step, a smaller
@@ -646,11 +646,7 @@ mod tests {
     /// `matrix` with row and column `vertices[k]` moved to `k` (each row's entries in their
     /// order), and the permutation's inverse.
     fn renumber(matrix: &SpringMatrix, vertices: &[u32]) -> (SpringMatrix, Vec<u32>) {
-        let n = matrix.len();
-        let mut place = vec![0u32; n];
-        for (k, &v) in vertices.iter().enumerate() {
-            place[v as usize] = k as u32;
-        }
+        let place = places(vertices, matrix.len());
         let springs = matrix.off.len();
         let (mut a, mut b) = (vec![u32::MAX; springs], vec![0u32; springs]);
         let (mut offsets, mut incident) = (vec![0u32], Vec::new());

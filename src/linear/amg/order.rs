@@ -2,6 +2,15 @@
 //! (`aggregate.rs`), and the order a mesh cloth's force pass numbers its vertices in where the
 //! user's numbering is scattered ([`crate::scene::MeshCloth`]).
 
+/// Each node's place in `order` (`place[order[k]] = k`; nodes not in it at 0), for `n` nodes.
+pub fn places(order: &[u32], n: usize) -> Vec<u32> {
+    let mut place = vec![0u32; n];
+    for (k, &v) in order.iter().enumerate() {
+        place[v as usize] = k as u32;
+    }
+    place
+}
+
 /// The `free` nodes of a graph (node `v`'s neighbours `neighbours[offsets[v]..offsets[v + 1]]`,
 /// all free, each edge listed at both ends) in a local order: their numbering, or where that
 /// is scattered ([`breadth_first`] puts the edges' ends closer together: the sum over the
@@ -11,10 +20,7 @@ pub fn local_order(free: &[bool], offsets: &[usize], neighbours: &[u32]) -> Vec<
     let numbering: Vec<u32> = (0..n as u32).filter(|&v| free[v as usize]).collect();
     let bfs = breadth_first(free, offsets, neighbours);
     let spread = |order: &[u32]| {
-        let mut place = vec![0u32; n];
-        for (k, &v) in order.iter().enumerate() {
-            place[v as usize] = k as u32;
-        }
+        let place = places(order, n);
         (0..n)
             .flat_map(|v| {
                 neighbours[offsets[v]..offsets[v + 1]]
