@@ -17,7 +17,7 @@
 use rayon::prelude::*;
 
 use super::{EdgeKind, MeshCloth};
-use crate::scene::{IncidenceLanes, SpringSlots, LANES};
+use crate::scene::{IncidenceLanes, SpringSlots, LANES, WINDOW};
 use crate::soa::{Vec3SliceMut, Vec3s};
 use crate::springs::overstretched;
 
@@ -37,8 +37,9 @@ impl MeshCloth {
         watch: Option<f32>,
     ) -> bool {
         let limit = watch.unwrap_or(f32::INFINITY);
-        // Whole groups of vertices per work item; each vertex's sum is the same in any split.
-        let per_item = chunk.next_multiple_of(LANES);
+        // Whole windows of vertices per work item, so that each group's vertices are in one;
+        // each vertex's sum is the same in any split.
+        let per_item = chunk.next_multiple_of(WINDOW);
         let slots = &self.slots;
         assert_eq!(
             slots.local,
@@ -220,7 +221,8 @@ struct Pass<'a> {
 
 /// Adds to `f` (the forces of the vertices from group `first` on, component by component) the
 /// forces of each vertex's springs ([`group_forces`]); whether one of them other than a seam is
-/// longer than `limit` times its rest length.
+/// longer than `limit` times its rest length. `f` holds whole windows ([`WINDOW`]) but at the
+/// end, so each group's vertices ([`IncidenceLanes::members`]) are inside it.
 #[inline(always)]
 fn vertex_forces<const LINEAR: bool>(pass: Pass<'_>, first: usize, f: Vec3SliceMut<'_>) -> bool {
     let Pass {
@@ -231,26 +233,27 @@ fn vertex_forces<const LINEAR: bool>(pass: Pass<'_>, first: usize, f: Vec3SliceM
     } = pass;
     check_coordinates(slots, coordinates);
     let mut over = false;
-    let groups =
-        f.x.chunks_mut(LANES)
-            .zip(f.y.chunks_mut(LANES))
-            .zip(f.z.chunks_mut(LANES));
-    for (g, ((x, y), z)) in groups.enumerate() {
-        let (m, start) = (x.len(), (first + g) * LANES);
+    let base = first * LANES;
+    let mut f = [f.x, f.y, f.z];
+    for g in first..first + f[0].len().div_ceil(LANES) {
+        let members = lanes.members(g);
         let mut sum = [[0.0f32; LANES]; 3];
         let mut own = [[0.0f32; LANES]; 6];
-        for (sum, f) in sum.iter_mut().zip([&*x, &*y, &*z]) {
-            sum[..m].copy_from_slice(f);
-        }
-        for (own, x) in own.iter_mut().zip(coordinates) {
-            for (lane, own) in own[..m].iter_mut().enumerate() {
-                *own = x[start + lane];
+        for (lane, &v) in members.iter().enumerate() {
+            let v = v as usize;
+            for (sum, f) in sum.iter_mut().zip(&f) {
+                sum[lane] = f[v - base];
+            }
+            for (own, x) in own.iter_mut().zip(coordinates) {
+                own[lane] = x[v];
             }
         }
-        let range = lanes.group_slots(first + g);
+        let range = lanes.group_slots(g);
         over |= group_forces::<LINEAR>(slots, range, coordinates, &own, law, &mut sum);
-        for (f, sum) in [x, y, z].into_iter().zip(&sum) {
-            f.copy_from_slice(&sum[..m]);
+        for (lane, &v) in members.iter().enumerate() {
+            for (f, sum) in f.iter_mut().zip(&sum) {
+                f[v as usize - base] = sum[lane];
+            }
         }
     }
     over
