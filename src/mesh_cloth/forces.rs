@@ -87,12 +87,12 @@ impl MeshCloth {
             .enumerate()
             .for_each(|(c, (((x0, x1, x2), (v0, v1, v2)), (f0, f1, f2)))| {
                 let from = &vertices[c * p..c * p + x0.len()];
-                for (k, &i) in from.iter().enumerate() {
-                    let i = i as usize;
-                    (x0[k], x1[k], x2[k]) = (pos.x[i], pos.y[i], pos.z[i]);
-                    (v0[k], v1[k], v2[k]) = (vel.x[i], vel.y[i], vel.z[i]);
-                    (f0[k], f1[k], f2[k]) = (now.x[i], now.y[i], now.z[i]);
-                }
+                let into = [x0, x1, x2, v0, v1, v2, f0, f1, f2];
+                let state = [&pos.x, &pos.y, &pos.z, &vel.x, &vel.y, &vel.z];
+                let state = state.map(|x| &x[..]);
+                let now = [&now.x[..], &now.y[..], &now.z[..]];
+                let sources = std::array::from_fn(|a| if a < 6 { state[a] } else { now[a - 6] });
+                crate::simd::dispatch!(gather(into, sources, from));
             });
         let coordinates = [&*x0, &*x1, &*x2, &*v0, &*v1, &*v2];
         let pass = Pass {
@@ -116,10 +116,8 @@ impl MeshCloth {
             .reduce(|| false, |x, y| x | y);
         let (f, place) = ([&*f0, &*f1, &*f2], &local.place);
         out.par_chunks_mut(p).enumerate().for_each(|(c, out)| {
-            for k in 0..out.x.len() {
-                let i = place[c * p + k] as usize;
-                (out.x[k], out.y[k], out.z[k]) = (f[0][i], f[1][i], f[2][i]);
-            }
+            let from = &place[c * p..c * p + out.x.len()];
+            crate::simd::dispatch!(gather([out.x, out.y, out.z], f, from));
         });
         watch.is_some() && over
     }
@@ -257,6 +255,27 @@ fn vertex_forces<const LINEAR: bool>(pass: Pass<'_>, first: usize, f: Vec3SliceM
         }
     }
     over
+}
+
+/// Sets `into[a][k]` to `from[a][index[k]]` for each array `a` and each `k` of `index`: the
+/// state gathered into a local numbering, or the forces scattered back from it. Unchecked
+/// inside, so that it compiles to the vector unit's gathers (16 indices at a time with
+/// AVX-512); a plain copy, so bitwise the same on every instruction set.
+#[inline(always)]
+fn gather<const N: usize>(into: [&mut [f32]; N], from: [&[f32]; N], index: &[u32]) {
+    let top = index.iter().map(|&i| i as usize + 1).max().unwrap_or(0);
+    for (into, from) in into.into_iter().zip(from) {
+        assert!(
+            top <= from.len() && index.len() <= into.len(),
+            "a gather's index beyond its {} values",
+            from.len()
+        );
+        for (k, &i) in index.iter().enumerate() {
+            // SAFETY: `k` is below `into.len()` and every index below `from.len()`
+            // (checked above).
+            unsafe { *into.get_unchecked_mut(k) = *from.get_unchecked(i as usize) };
+        }
+    }
 }
 
 /// Checks once per pass what lets [`group_forces`] load the other ends unchecked: every
