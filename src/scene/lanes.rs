@@ -321,7 +321,7 @@ mod tests {
         let mut offsets = vec![0u32];
         let mut incident = Vec::new();
         for v in 0..n {
-            incident.extend((0..length(v)).map(|k| (v as u32 + k) % springs << 1));
+            incident.extend((0..length(v)).map(|k| ((v as u32 + k) % springs) << 1));
             offsets.push(incident.len() as u32);
         }
         let lanes = IncidenceLanes::new(&offsets, &incident, springs as usize);
