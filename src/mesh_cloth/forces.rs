@@ -17,7 +17,7 @@
 use rayon::prelude::*;
 
 use super::{EdgeKind, MeshCloth};
-use crate::scene::{IncidenceLanes, SpringSlots, LANES};
+use crate::scene::{IncidenceLanes, SpringSlots, LANES, WINDOW};
 use crate::soa::{Vec3SliceMut, Vec3s};
 use crate::springs::overstretched;
 
@@ -37,8 +37,9 @@ impl MeshCloth {
         watch: Option<f32>,
     ) -> bool {
         let limit = watch.unwrap_or(f32::INFINITY);
-        // Whole groups of vertices per work item; each vertex's sum is the same in any split.
-        let per_item = chunk.next_multiple_of(LANES);
+        // Whole windows of vertices per work item, so that each group's vertices are in one;
+        // each vertex's sum is the same in any split.
+        let per_item = chunk.next_multiple_of(WINDOW);
         let slots = &self.slots;
         assert_eq!(
             slots.local,
@@ -86,12 +87,12 @@ impl MeshCloth {
             .enumerate()
             .for_each(|(c, (((x0, x1, x2), (v0, v1, v2)), (f0, f1, f2)))| {
                 let from = &vertices[c * p..c * p + x0.len()];
-                for (k, &i) in from.iter().enumerate() {
-                    let i = i as usize;
-                    (x0[k], x1[k], x2[k]) = (pos.x[i], pos.y[i], pos.z[i]);
-                    (v0[k], v1[k], v2[k]) = (vel.x[i], vel.y[i], vel.z[i]);
-                    (f0[k], f1[k], f2[k]) = (now.x[i], now.y[i], now.z[i]);
-                }
+                let into = [x0, x1, x2, v0, v1, v2, f0, f1, f2];
+                let state = [&pos.x, &pos.y, &pos.z, &vel.x, &vel.y, &vel.z];
+                let state = state.map(|x| &x[..]);
+                let now = [&now.x[..], &now.y[..], &now.z[..]];
+                let sources = std::array::from_fn(|a| if a < 6 { state[a] } else { now[a - 6] });
+                crate::simd::dispatch!(gather(into, sources, from));
             });
         let coordinates = [&*x0, &*x1, &*x2, &*v0, &*v1, &*v2];
         let pass = Pass {
@@ -115,10 +116,8 @@ impl MeshCloth {
             .reduce(|| false, |x, y| x | y);
         let (f, place) = ([&*f0, &*f1, &*f2], &local.place);
         out.par_chunks_mut(p).enumerate().for_each(|(c, out)| {
-            for k in 0..out.x.len() {
-                let i = place[c * p + k] as usize;
-                (out.x[k], out.y[k], out.z[k]) = (f[0][i], f[1][i], f[2][i]);
-            }
+            let from = &place[c * p..c * p + out.x.len()];
+            crate::simd::dispatch!(gather([out.x, out.y, out.z], f, from));
         });
         watch.is_some() && over
     }
@@ -220,7 +219,8 @@ struct Pass<'a> {
 
 /// Adds to `f` (the forces of the vertices from group `first` on, component by component) the
 /// forces of each vertex's springs ([`group_forces`]); whether one of them other than a seam is
-/// longer than `limit` times its rest length.
+/// longer than `limit` times its rest length. `f` holds whole windows ([`WINDOW`]) but at the
+/// end, so each group's vertices ([`IncidenceLanes::members`]) are inside it.
 #[inline(always)]
 fn vertex_forces<const LINEAR: bool>(pass: Pass<'_>, first: usize, f: Vec3SliceMut<'_>) -> bool {
     let Pass {
@@ -231,29 +231,51 @@ fn vertex_forces<const LINEAR: bool>(pass: Pass<'_>, first: usize, f: Vec3SliceM
     } = pass;
     check_coordinates(slots, coordinates);
     let mut over = false;
-    let groups =
-        f.x.chunks_mut(LANES)
-            .zip(f.y.chunks_mut(LANES))
-            .zip(f.z.chunks_mut(LANES));
-    for (g, ((x, y), z)) in groups.enumerate() {
-        let (m, start) = (x.len(), (first + g) * LANES);
+    let base = first * LANES;
+    let mut f = [f.x, f.y, f.z];
+    for g in first..first + f[0].len().div_ceil(LANES) {
+        let members = lanes.members(g);
         let mut sum = [[0.0f32; LANES]; 3];
         let mut own = [[0.0f32; LANES]; 6];
-        for (sum, f) in sum.iter_mut().zip([&*x, &*y, &*z]) {
-            sum[..m].copy_from_slice(f);
-        }
-        for (own, x) in own.iter_mut().zip(coordinates) {
-            for (lane, own) in own[..m].iter_mut().enumerate() {
-                *own = x[start + lane];
+        for (lane, &v) in members.iter().enumerate() {
+            let v = v as usize;
+            for (sum, f) in sum.iter_mut().zip(&f) {
+                sum[lane] = f[v - base];
+            }
+            for (own, x) in own.iter_mut().zip(coordinates) {
+                own[lane] = x[v];
             }
         }
-        let range = lanes.group_slots(first + g);
+        let range = lanes.group_slots(g);
         over |= group_forces::<LINEAR>(slots, range, coordinates, &own, law, &mut sum);
-        for (f, sum) in [x, y, z].into_iter().zip(&sum) {
-            f.copy_from_slice(&sum[..m]);
+        for (lane, &v) in members.iter().enumerate() {
+            for (f, sum) in f.iter_mut().zip(&sum) {
+                f[v as usize - base] = sum[lane];
+            }
         }
     }
     over
+}
+
+/// Sets `into[a][k]` to `from[a][index[k]]` for each array `a` and each `k` of `index`: the
+/// state gathered into a local numbering, or the forces scattered back from it. Unchecked
+/// inside, so that it compiles to the vector unit's gathers (16 indices at a time with
+/// AVX-512); a plain copy, so bitwise the same on every instruction set.
+#[inline(always)]
+fn gather<const N: usize>(into: [&mut [f32]; N], from: [&[f32]; N], index: &[u32]) {
+    let top = index.iter().map(|&i| i as usize + 1).max().unwrap_or(0);
+    for (into, from) in into.into_iter().zip(from) {
+        assert!(
+            top <= from.len() && index.len() <= into.len(),
+            "a gather's index beyond its {} values",
+            from.len()
+        );
+        for (k, &i) in index.iter().enumerate() {
+            // SAFETY: `k` is below `into.len()` and every index below `from.len()`
+            // (checked above).
+            unsafe { *into.get_unchecked_mut(k) = *from.get_unchecked(i as usize) };
+        }
+    }
 }
 
 /// Checks once per pass what lets [`group_forces`] load the other ends unchecked: every

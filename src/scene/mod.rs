@@ -26,7 +26,7 @@ use serde::{Deserialize, Serialize};
 pub use bending::IsometricBending;
 pub use cuts::CutSpec;
 pub use edge_springs::{EdgeKind, EdgeSprings};
-pub use lanes::{IncidenceLanes, SpringSlots, LANES};
+pub use lanes::{IncidenceLanes, SpringSlots, LANES, WINDOW};
 pub use local_numbering::LocalNumbering;
 pub use membrane::Membrane;
 pub use mesh::{is_closed, merged_indices};
