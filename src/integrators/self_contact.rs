@@ -919,6 +919,13 @@ mod tests {
         assert_eq!(whole.get(8), start.get(8));
     }
 
+    /// The normals of [`three_more_pairs_held`]'s pairs in the rounding tests.
+    const NORMALS: [DVec3; 3] = [
+        DVec3::new(0.0, 0.6, 0.8),
+        DVec3::new(0.48, 0.6, 0.64),
+        DVec3::new(-0.6, 0.0, 0.8),
+    ];
+
     /// The product gathers and scatters each vertex's three components side by side; that must
     /// change no rounding: on one thread and on two it is, to the bit, the product taken on
     /// the vectors' own three arrays (each pair's `c_k n . x_k` as `Vec3::dot`, their sum in
@@ -926,12 +933,24 @@ mod tests {
     /// mixed magnitudes and signs, a pinned vertex, and rows beyond every pair left as they are.
     #[test]
     fn the_product_through_packed_rows_rounds_as_on_the_three_arrays() {
-        let normals = [
-            DVec3::new(0.0, 0.6, 0.8),
-            DVec3::new(0.48, 0.6, 0.64),
-            DVec3::new(-0.6, 0.0, 0.8),
-        ];
-        let term = three_more_pairs_held(normals, 10, 3);
+        rounds_as_on_the_three_arrays(3);
+    }
+
+    /// A held particle's slot has no row, and the packed operand covers only the rows up to
+    /// the last free slot's vertex: a pair whose held vertex lies past all of them must still
+    /// be coupled as the plain loop couples it (its slot reads a free vertex of the pair,
+    /// masked out), not read past the packed rows.
+    #[test]
+    fn a_held_vertex_past_every_free_row_is_coupled_as_on_the_three_arrays() {
+        let term = three_more_pairs_held(NORMALS, 10, 7);
+        assert_eq!(term.rows.start.len() - 1, 7, "rows up to vertex 6 only");
+        rounds_as_on_the_three_arrays(7);
+    }
+
+    /// [`SelfContactTerm::couple`] on one and two threads against the plain loop over the three
+    /// arrays, to the bit, over 200 drawn operands, with vertex `pinned` held.
+    fn rounds_as_on_the_three_arrays(pinned: usize) {
+        let term = three_more_pairs_held(NORMALS, 10, pinned);
         assert!(term.len() >= 3, "{} pairs held", term.len());
         // Operands of mixed magnitudes and signs, many draws, so that any other order of the
         // roundings shows in some last bit.
@@ -978,7 +997,11 @@ mod tests {
                     );
                 }
             }
-            assert_eq!(want.get(3), start.get(3), "the pinned vertex gets nothing");
+            assert_eq!(
+                want.get(pinned),
+                start.get(pinned),
+                "the pinned vertex gets nothing"
+            );
             assert_eq!(want.get(9), start.get(9));
             moved += usize::from(want.get(0) != start.get(0));
         }
