@@ -159,8 +159,8 @@ impl Coupling {
     /// contracts no multiply-add). A held particle's slot reads a free vertex of the pair
     /// ([`Coupling::verts`]) and is masked to `+0.0`, which the sum from `+0.0` takes as the
     /// scalar form's skip: adding `+0.0` changes only `-0.0`, and a sum from `+0.0` is never
-    /// `-0.0`. The product is a quarter of a wound twist's frame; this form measured (CPU ms a
-    /// frame) in docs/notes_twistcg.md.
+    /// `-0.0`. The product is a fifth of a wound twist's frame; this form and the scalar one
+    /// measured in the contact notebook, "2026-12-07 (twistcg)".
     #[cfg(target_arch = "x86_64")]
     #[inline]
     fn factors(&self, x: &[Lanes]) -> [f32; 4] {
