@@ -290,7 +290,7 @@ impl ImplicitEuler {
         let Some(work) = self.work.as_mut() else {
             return;
         };
-        let (cur, w) = (ctx.current, &ctx.particles.inv_mass[..]);
+        let cur = ctx.current;
         let mut round = 1;
         while round < SELF_ROUNDS {
             let filtered = !self.filter.is_empty();
@@ -305,7 +305,7 @@ impl ImplicitEuler {
             let added = self.self_contact.extend(
                 h,
                 pairs,
-                (&cur.pos, &cur.vel, dv, w),
+                (&cur.pos, &cur.vel, dv),
                 (matrix.slot_mut(0), loads),
             );
             self.stats.self_pairs += added as u64;

@@ -738,7 +738,7 @@ impl MeshSystem {
             let changed = self_contact.extend(
                 h,
                 pairs,
-                (pos, vel, dv, w),
+                (pos, vel, dv),
                 (&mut Diagonals::of(matrix, membrane), assembled),
             );
             stats.self_pairs += self_contact.len().saturating_sub(before) as u64;

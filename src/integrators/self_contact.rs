@@ -137,6 +137,8 @@ type Lanes = [f32; 4];
 /// reads nothing else of the pair (on a large cloth, more than the caches hold).
 #[derive(Clone, Copy, Debug)]
 struct Coupling {
+    /// The pair's vertices; a held particle's slot (which has no row) names a free vertex of
+    /// the pair instead, so that every slot is a row the product may read.
     verts: [u32; 4],
     /// Closest-point weights, zero at held particles (which get no row).
     c: [f32; 4],
@@ -149,6 +151,69 @@ impl Coupling {
     /// vertex's `c_j n . x_j` in slot order, each slot's own part taken out. Slots with `c = 0`
     /// add nothing to the sum and have no row. Both forms of the product take their factors
     /// here, so they round alike.
+    ///
+    /// On x86-64 the four slots' dot products are taken as the four lanes of one vector: the
+    /// gathered vertices transposed to their x, y and z across the slots, then each lane's
+    /// `(n_x x + n_y y) + n_z z`, the rounding and order of [`Vec3::dot`] and of the scalar
+    /// form below, lane by lane (the vector unit rounds each lane as the scalar one, and Rust
+    /// contracts no multiply-add). A held particle's slot reads a free vertex of the pair
+    /// ([`Coupling::verts`]) and is masked to `+0.0`, which the sum from `+0.0` takes as the
+    /// scalar form's skip: adding `+0.0` changes only `-0.0`, and a sum from `+0.0` is never
+    /// `-0.0`. The product is a fifth of a wound twist's frame; this form and the scalar one
+    /// measured in the contact notebook, "2026-12-07 (twistcg)".
+    #[cfg(target_arch = "x86_64")]
+    #[inline]
+    fn factors(&self, x: &[Lanes]) -> [f32; 4] {
+        use std::arch::x86_64::*;
+        // SAFETY: SSE is part of x86-64's baseline, so every x86-64 CPU runs these
+        // instructions; they read and write no memory but their operands.
+        unsafe {
+            let vertex = |k: usize| {
+                let p = x[self.verts[k] as usize];
+                _mm_set_ps(p[3], p[2], p[1], p[0])
+            };
+            let (p0, p1, p2, p3) = (vertex(0), vertex(1), vertex(2), vertex(3));
+            let (low01, low23) = (_mm_unpacklo_ps(p0, p1), _mm_unpacklo_ps(p2, p3));
+            let (high01, high23) = (_mm_unpackhi_ps(p0, p1), _mm_unpackhi_ps(p2, p3));
+            let (xs, ys) = (_mm_movelh_ps(low01, low23), _mm_movehl_ps(low23, low01));
+            let zs = _mm_movelh_ps(high01, high23);
+            let n = self.ns;
+            let dots = _mm_add_ps(
+                _mm_add_ps(
+                    _mm_mul_ps(_mm_set1_ps(n[0]), xs),
+                    _mm_mul_ps(_mm_set1_ps(n[1]), ys),
+                ),
+                _mm_mul_ps(_mm_set1_ps(n[2]), zs),
+            );
+            let c = _mm_set_ps(self.c[3], self.c[2], self.c[1], self.c[0]);
+            let own = _mm_and_ps(_mm_cmpneq_ps(c, _mm_setzero_ps()), _mm_mul_ps(c, dots));
+            let lane = |k: usize| {
+                _mm_cvtss_f32(match k {
+                    0 => own,
+                    1 => _mm_shuffle_ps::<0b01_01_01_01>(own, own),
+                    2 => _mm_shuffle_ps::<0b10_10_10_10>(own, own),
+                    _ => _mm_shuffle_ps::<0b11_11_11_11>(own, own),
+                })
+            };
+            let all = (((0.0 + lane(0)) + lane(1)) + lane(2)) + lane(3);
+            // `s c (..)` is `(s c) (..)`, rounded as the pair's own first product.
+            let factors = _mm_mul_ps(
+                _mm_mul_ps(_mm_set1_ps(n[3]), c),
+                _mm_sub_ps(_mm_set1_ps(all), own),
+            );
+            std::array::from_fn(|k| {
+                _mm_cvtss_f32(match k {
+                    0 => factors,
+                    1 => _mm_shuffle_ps::<0b01_01_01_01>(factors, factors),
+                    2 => _mm_shuffle_ps::<0b10_10_10_10>(factors, factors),
+                    _ => _mm_shuffle_ps::<0b11_11_11_11>(factors, factors),
+                })
+            })
+        }
+    }
+
+    /// [`Coupling::factors`] a slot at a time, where no vector form is written.
+    #[cfg(not(target_arch = "x86_64"))]
     #[inline]
     fn factors(&self, x: &[Lanes]) -> [f32; 4] {
         let (mut own, mut all) = ([0.0f32; 4], 0.0);
@@ -233,8 +298,12 @@ pub(super) struct SelfContactTerm {
     /// The product's workspace. Behind a lock because the product is taken through `&self`;
     /// one product holds it at a time.
     work: Mutex<Workspace>,
-    /// Per pair handed in, whether it was held in this step (a released pair is not held again).
-    taken: Vec<bool>,
+    /// The pairs handed in that the inertial motion leaves beyond their rest, as [`hold`] made
+    /// them at the step's start, in pair order: what [`SelfContactTerm::extend`] may still
+    /// hold. Kept from the step's start because their records are a function of that state
+    /// alone, which no later solve of the step changes (a held pair leaves the list, and a
+    /// released one is not held again).
+    waiting: Vec<Held>,
 }
 
 /// What the pipeline hands the solve: the pairs ahead of it and the pass's settings.
@@ -274,12 +343,15 @@ impl SelfContactTerm {
         (pos, vel, inv_mass): (&Vec3s, &Vec3s, &[f32]),
     ) {
         self.held.clear();
-        self.taken.clear();
+        self.waiting.clear();
         for (i, pair) in pairs.pairs.iter().enumerate() {
-            let held = hold(h, pairs, (i, pair), self.rest, (pos, vel, inv_mass));
-            let ahead = held.filter(|held| held.short > 0.0);
-            self.taken.push(ahead.is_some());
-            self.held.extend(ahead);
+            let Some(held) = hold(h, pairs, (i, pair), self.rest, (pos, vel, inv_mass)) else {
+                continue;
+            };
+            match held.short > 0.0 {
+                true => self.held.push(held),
+                false => self.waiting.push(held),
+            }
         }
         self.index_couplings();
     }
@@ -293,7 +365,7 @@ impl SelfContactTerm {
         &mut self,
         h: f32,
         pairs: SelfPairs,
-        (pos, vel, dv, inv_mass): (&Vec3s, &Vec3s, &Vec3s, &[f32]),
+        (pos, vel, dv): (&Vec3s, &Vec3s, &Vec3s),
         (d, b): (&mut D, &mut Vec3s),
     ) -> usize {
         let end_gap = |pair: &Pair, n: Vec3| {
@@ -326,18 +398,14 @@ impl SelfContactTerm {
             }
         }
         let before = self.held.len();
-        for (i, (pair, taken)) in pairs.pairs.iter().zip(&mut self.taken).enumerate() {
-            if *taken {
-                continue;
+        let held = &mut self.held;
+        self.waiting.retain(|waiting| {
+            let brought = end_gap(&pairs.pairs[waiting.of as usize], waiting.n) < waiting.rest;
+            if brought {
+                held.push(*waiting);
             }
-            let Some(held) = hold(h, pairs, (i, pair), self.rest, (pos, vel, inv_mass)) else {
-                continue;
-            };
-            if end_gap(pair, held.n) < held.rest {
-                *taken = true;
-                self.held.push(held);
-            }
-        }
+            !brought
+        });
         let added = self.held.len() - before;
         if added > 0 {
             self.add_diagonal(before, d);
@@ -352,10 +420,17 @@ impl SelfContactTerm {
     /// The held pairs' records for the product, each row's pairs and the product's workspace.
     fn index_couplings(&mut self) {
         self.couplings.clear();
-        self.couplings.extend(self.held.iter().map(|held| Coupling {
-            verts: held.verts,
-            c: held.c,
-            ns: [held.n.x, held.n.y, held.n.z, held.s],
+        self.couplings.extend(self.held.iter().map(|held| {
+            // A held pair has a free vertex: its effective mass is finite.
+            let free = held.c.iter().position(|&c| c != 0.0).unwrap_or(0);
+            Coupling {
+                verts: std::array::from_fn(|k| match held.c[k] != 0.0 {
+                    true => held.verts[k],
+                    false => held.verts[free],
+                }),
+                c: held.c,
+                ns: [held.n.x, held.n.y, held.n.z, held.s],
+            }
         }));
         let free_slots = || {
             self.couplings.iter().enumerate().flat_map(|(p, pair)| {
@@ -844,6 +919,13 @@ mod tests {
         assert_eq!(whole.get(8), start.get(8));
     }
 
+    /// The normals of [`three_more_pairs_held`]'s pairs in the rounding tests.
+    const NORMALS: [DVec3; 3] = [
+        DVec3::new(0.0, 0.6, 0.8),
+        DVec3::new(0.48, 0.6, 0.64),
+        DVec3::new(-0.6, 0.0, 0.8),
+    ];
+
     /// The product gathers and scatters each vertex's three components side by side; that must
     /// change no rounding: on one thread and on two it is, to the bit, the product taken on
     /// the vectors' own three arrays (each pair's `c_k n . x_k` as `Vec3::dot`, their sum in
@@ -851,12 +933,24 @@ mod tests {
     /// mixed magnitudes and signs, a pinned vertex, and rows beyond every pair left as they are.
     #[test]
     fn the_product_through_packed_rows_rounds_as_on_the_three_arrays() {
-        let normals = [
-            DVec3::new(0.0, 0.6, 0.8),
-            DVec3::new(0.48, 0.6, 0.64),
-            DVec3::new(-0.6, 0.0, 0.8),
-        ];
-        let term = three_more_pairs_held(normals, 10, 3);
+        rounds_as_on_the_three_arrays(3);
+    }
+
+    /// A held particle's slot has no row, and the packed operand covers only the rows up to
+    /// the last free slot's vertex: a pair whose held vertex lies past all of them must still
+    /// be coupled as the plain loop couples it (its slot reads a free vertex of the pair,
+    /// masked out), not read past the packed rows.
+    #[test]
+    fn a_held_vertex_past_every_free_row_is_coupled_as_on_the_three_arrays() {
+        let term = three_more_pairs_held(NORMALS, 10, 7);
+        assert_eq!(term.rows.start.len() - 1, 7, "rows up to vertex 6 only");
+        rounds_as_on_the_three_arrays(7);
+    }
+
+    /// [`SelfContactTerm::couple`] on one and two threads against the plain loop over the three
+    /// arrays, to the bit, over 200 drawn operands, with vertex `pinned` held.
+    fn rounds_as_on_the_three_arrays(pinned: usize) {
+        let term = three_more_pairs_held(NORMALS, 10, pinned);
         assert!(term.len() >= 3, "{} pairs held", term.len());
         // Operands of mixed magnitudes and signs, many draws, so that any other order of the
         // roundings shows in some last bit.
@@ -903,7 +997,11 @@ mod tests {
                     );
                 }
             }
-            assert_eq!(want.get(3), start.get(3), "the pinned vertex gets nothing");
+            assert_eq!(
+                want.get(pinned),
+                start.get(pinned),
+                "the pinned vertex gets nothing"
+            );
             assert_eq!(want.get(9), start.get(9));
             moved += usize::from(want.get(0) != start.get(0));
         }
@@ -1015,7 +1113,7 @@ mod tests {
                 Vec3::ZERO
             }
         });
-        let state = (&pos, &vel, &dv, &inv_mass[..]);
+        let state = (&pos, &vel, &dv);
         assert_eq!(term.extend(h, given(pairs), state, (&mut d[..], &mut b)), 1);
         assert!(term.is_empty());
         for (p, block) in d.iter().enumerate() {
@@ -1027,7 +1125,7 @@ mod tests {
         }
         // Held again in no later round of the step.
         let still = Vec3s::zeros(8);
-        let state = (&pos, &vel, &still, &inv_mass[..]);
+        let state = (&pos, &vel, &still);
         assert_eq!(term.extend(h, given(pairs), state, (&mut d[..], &mut b)), 0);
     }
 }
