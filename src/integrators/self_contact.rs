@@ -187,28 +187,22 @@ impl Coupling {
             );
             let c = _mm_set_ps(self.c[3], self.c[2], self.c[1], self.c[0]);
             let own = _mm_and_ps(_mm_cmpneq_ps(c, _mm_setzero_ps()), _mm_mul_ps(c, dots));
-            let lane = |k: usize| {
+            // Lane `k` of `v`, by a shuffle: a copy through memory measured slower.
+            let lane = |v: __m128, k: usize| {
                 _mm_cvtss_f32(match k {
-                    0 => own,
-                    1 => _mm_shuffle_ps::<0b01_01_01_01>(own, own),
-                    2 => _mm_shuffle_ps::<0b10_10_10_10>(own, own),
-                    _ => _mm_shuffle_ps::<0b11_11_11_11>(own, own),
+                    0 => v,
+                    1 => _mm_shuffle_ps::<0b01_01_01_01>(v, v),
+                    2 => _mm_shuffle_ps::<0b10_10_10_10>(v, v),
+                    _ => _mm_shuffle_ps::<0b11_11_11_11>(v, v),
                 })
             };
-            let all = (((0.0 + lane(0)) + lane(1)) + lane(2)) + lane(3);
+            let all = (((0.0 + lane(own, 0)) + lane(own, 1)) + lane(own, 2)) + lane(own, 3);
             // `s c (..)` is `(s c) (..)`, rounded as the pair's own first product.
             let factors = _mm_mul_ps(
                 _mm_mul_ps(_mm_set1_ps(n[3]), c),
                 _mm_sub_ps(_mm_set1_ps(all), own),
             );
-            std::array::from_fn(|k| {
-                _mm_cvtss_f32(match k {
-                    0 => factors,
-                    1 => _mm_shuffle_ps::<0b01_01_01_01>(factors, factors),
-                    2 => _mm_shuffle_ps::<0b10_10_10_10>(factors, factors),
-                    _ => _mm_shuffle_ps::<0b11_11_11_11>(factors, factors),
-                })
-            })
+            std::array::from_fn(|k| lane(factors, k))
         }
     }
 

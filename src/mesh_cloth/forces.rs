@@ -88,11 +88,10 @@ impl MeshCloth {
             .for_each(|(c, (((x0, x1, x2), (v0, v1, v2)), (f0, f1, f2)))| {
                 let from = &vertices[c * p..c * p + x0.len()];
                 let into = [x0, x1, x2, v0, v1, v2, f0, f1, f2];
-                let state = [&pos.x, &pos.y, &pos.z, &vel.x, &vel.y, &vel.z];
-                let state = state.map(|x| &x[..]);
-                let now = [&now.x[..], &now.y[..], &now.z[..]];
-                let sources = std::array::from_fn(|a| if a < 6 { state[a] } else { now[a - 6] });
-                crate::simd::dispatch!(gather(into, sources, from));
+                let sources = [
+                    &pos.x, &pos.y, &pos.z, &vel.x, &vel.y, &vel.z, &now.x, &now.y, &now.z,
+                ];
+                crate::simd::dispatch!(gather(into, sources.map(|x| &x[..]), from));
             });
         let coordinates = [&*x0, &*x1, &*x2, &*v0, &*v1, &*v2];
         let pass = Pass {
