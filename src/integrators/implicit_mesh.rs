@@ -87,7 +87,7 @@ use crate::linear::stencil::SlotArrays;
 use crate::linear::{Amg, SpringMatrix, Sym3};
 use crate::mesh_cloth::membrane::Membrane;
 use crate::mesh_cloth::MeshCloth;
-use crate::scene::LocalNumbering;
+use crate::scene::{gather_by, LocalNumbering};
 use crate::self_collision::Pair;
 use crate::soa::{Floats, Vec3SliceMut, Vec3s};
 
@@ -189,14 +189,35 @@ impl LocalSolve {
     /// renumbered.
     fn gather(&mut self, ctx: &StepContext, local: &LocalNumbering) {
         let (cur, particles) = (ctx.current, ctx.particles);
-        for (k, &v) in local.vertices.iter().enumerate() {
-            let v = v as usize;
-            self.force.set(k, ctx.force.get(v));
-            self.pos.set(k, cur.pos.get(v));
-            self.vel.set(k, cur.vel.get(v));
-            self.inv_mass[k] = particles.inv_mass[v];
-            self.mass[k] = particles.mass[v];
-        }
+        let (f, x, v) = (&mut self.force, &mut self.pos, &mut self.vel);
+        let into = [
+            &mut f.x[..],
+            &mut f.y[..],
+            &mut f.z[..],
+            &mut x.x[..],
+            &mut x.y[..],
+            &mut x.z[..],
+            &mut v.x[..],
+            &mut v.y[..],
+            &mut v.z[..],
+            &mut self.inv_mass[..],
+            &mut self.mass[..],
+        ];
+        let (f, x, v) = (&*ctx.force, &cur.pos, &cur.vel);
+        let from = [
+            &f.x[..],
+            &f.y[..],
+            &f.z[..],
+            &x.x[..],
+            &x.y[..],
+            &x.z[..],
+            &v.x[..],
+            &v.y[..],
+            &v.z[..],
+            &particles.inv_mass[..],
+            &particles.mass[..],
+        ];
+        crate::simd::dispatch!(gather_by(into, from, &local.vertices));
         self.pairs.clear();
         if let Some(pairs) = ctx.self_pairs {
             let place = &local.place;
@@ -209,9 +230,9 @@ impl LocalSolve {
 
     /// `dv`, in `local`, into the user's numbering.
     fn scatter(&mut self, dv: &Vec3s, local: &LocalNumbering) {
-        for (k, &v) in local.vertices.iter().enumerate() {
-            self.dv.set(v as usize, dv.get(k));
-        }
+        let into = [&mut self.dv.x[..], &mut self.dv.y[..], &mut self.dv.z[..]];
+        let from = [&dv.x[..], &dv.y[..], &dv.z[..]];
+        crate::simd::dispatch!(gather_by(into, from, &local.place));
     }
 }
 

@@ -17,7 +17,7 @@
 use rayon::prelude::*;
 
 use super::{EdgeKind, MeshCloth};
-use crate::scene::{IncidenceLanes, SpringSlots, LANES, WINDOW};
+use crate::scene::{gather_by, IncidenceLanes, SpringSlots, LANES, WINDOW};
 use crate::soa::{Vec3SliceMut, Vec3s};
 use crate::springs::overstretched;
 
@@ -91,7 +91,7 @@ impl MeshCloth {
                 let sources = [
                     &pos.x, &pos.y, &pos.z, &vel.x, &vel.y, &vel.z, &now.x, &now.y, &now.z,
                 ];
-                crate::simd::dispatch!(gather(into, sources.map(|x| &x[..]), from));
+                crate::simd::dispatch!(gather_by(into, sources.map(|x| &x[..]), from));
             });
         let coordinates = [&*x0, &*x1, &*x2, &*v0, &*v1, &*v2];
         let pass = Pass {
@@ -116,7 +116,7 @@ impl MeshCloth {
         let (f, place) = ([&*f0, &*f1, &*f2], &local.place);
         out.par_chunks_mut(p).enumerate().for_each(|(c, out)| {
             let from = &place[c * p..c * p + out.x.len()];
-            crate::simd::dispatch!(gather([out.x, out.y, out.z], f, from));
+            crate::simd::dispatch!(gather_by([out.x, out.y, out.z], f, from));
         });
         watch.is_some() && over
     }
@@ -254,27 +254,6 @@ fn vertex_forces<const LINEAR: bool>(pass: Pass<'_>, first: usize, f: Vec3SliceM
         }
     }
     over
-}
-
-/// Sets `into[a][k]` to `from[a][index[k]]` for each array `a` and each `k` of `index`: the
-/// state gathered into a local numbering, or the forces scattered back from it. Unchecked
-/// inside, so that it compiles to the vector unit's gathers (16 indices at a time with
-/// AVX-512); a plain copy, so bitwise the same on every instruction set.
-#[inline(always)]
-fn gather<const N: usize>(into: [&mut [f32]; N], from: [&[f32]; N], index: &[u32]) {
-    let top = index.iter().map(|&i| i as usize + 1).max().unwrap_or(0);
-    for (into, from) in into.into_iter().zip(from) {
-        assert!(
-            top <= from.len() && index.len() <= into.len(),
-            "a gather's index beyond its {} values",
-            from.len()
-        );
-        for (k, &i) in index.iter().enumerate() {
-            // SAFETY: `k` is below `into.len()` and every index below `from.len()`
-            // (checked above).
-            unsafe { *into.get_unchecked_mut(k) = *from.get_unchecked(i as usize) };
-        }
-    }
 }
 
 /// Checks once per pass what lets [`group_forces`] load the other ends unchecked: every

@@ -27,7 +27,7 @@ pub use bending::IsometricBending;
 pub use cuts::CutSpec;
 pub use edge_springs::{EdgeKind, EdgeSprings};
 pub use lanes::{IncidenceLanes, SpringSlots, LANES, WINDOW};
-pub use local_numbering::LocalNumbering;
+pub use local_numbering::{gather_by, LocalNumbering};
 pub use membrane::Membrane;
 pub use mesh::{is_closed, merged_indices};
 pub use mesh_cloth::MeshCloth;
