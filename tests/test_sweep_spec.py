@@ -252,9 +252,11 @@ def test_runs_are_built_one_at_a_time():
         finally:
             tracemalloc.stop()
 
-    small, large = held(20), held(2000)
+    # A scene held per run is about 5 KB: 500 runs would hold 2.5 MB against the 0.2 MB allowed.
+    runs = 500
+    small, large = held(20), held(runs)
     # The bookkeeping of run ids grows (about 100 bytes a run); the scenes must not.
-    assert small > 0 and large < small + 2000 * 400, (small, large)
+    assert small > 0 and large < small + runs * 400, (small, large)
 
 
 @pytest.mark.parametrize("device", ["/dev/zero", "/dev/full"])
