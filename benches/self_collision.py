@@ -360,41 +360,51 @@ def main() -> None:
                         help="where the measurements go as JSON")
     parser.add_argument("--replot", action="store_true",
                         help="only draw docs/contact.png again from --results")
+    parser.add_argument("--reuse", action="store_true",
+                        help="take a thread count's rows from its saved file (--results with "
+                             "the thread count before the suffix) where there is one, instead "
+                             "of measuring them again")
     parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.full and args.before_sizes is None:
         args.before_sizes = [32, 64]
     if args.worker:
-        args.results.write_text(json.dumps(run_cases(args)))
+        load0, began = os.getloadavg(), time.perf_counter()
+        records = run_cases(args)
+        args.results.write_text(json.dumps({
+            "records": records, "load_start": load0, "load_end": os.getloadavg(),
+            "minutes": (time.perf_counter() - began) / 60,
+            "measured": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}))
         return
     if args.replot:
         plot([tuple(rec) for rec in json.loads(args.results.read_text())],
              DOCS / "contact.png")
         return
-    began = time.perf_counter()
     records: list[Record] = []
     loads: list[str] = []
+    minutes = 0.0
     args.results.parent.mkdir(parents=True, exist_ok=True)
     for threads in args.threads:
         part = args.results.with_suffix(f".{threads}.json")
-        load0 = os.getloadavg()
-        forwarded = [a for a in sys.argv[1:] if a != "--no-write"]
-        subprocess.run([sys.executable, __file__, *forwarded, "--worker", "--results", str(part)],
-                       env={**os.environ, "RAYON_NUM_THREADS": str(threads)}, check=True)
-        load1 = os.getloadavg()
-        records += [tuple(rec) for rec in json.loads(part.read_text())]
-        loads.append(f"{threads} thread{'s' if threads > 1 else ''}: "
-                     f"{' / '.join(f'{x:.1f}' for x in load0)} at the start, "
-                     f"{' / '.join(f'{x:.1f}' for x in load1)} at the end")
+        if not (args.reuse and part.exists()):
+            forwarded = [a for a in sys.argv[1:] if a not in ("--no-write", "--reuse")]
+            subprocess.run([sys.executable, __file__, *forwarded, "--worker", "--results",
+                            str(part)],
+                           env={**os.environ, "RAYON_NUM_THREADS": str(threads)}, check=True)
+        saved = json.loads(part.read_text())
+        records += [tuple(rec) for rec in saved["records"]]
+        minutes += saved["minutes"]
+        loads.append(f"{threads} thread{'s' if threads > 1 else ''} ({saved['measured']}): "
+                     f"{' / '.join(f'{x:.1f}' for x in saved['load_start'])} at the start, "
+                     f"{' / '.join(f'{x:.1f}' for x in saved['load_end'])} at the end")
     args.results.write_text(json.dumps(records))
-    minutes = (time.perf_counter() - began) / 60
     command = " ".join(["python", SCRIPT, *sys.argv[1:]])
     rows = [row(case if kind == "now" else f"{case} (before)", cloth, settings, r)
             for case, kind, _, cloth, settings, r in records]
     table = "\n".join([
-        f"Measured {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())} on {cpu_model()} "
-        f"({cpu_family_model()}), {os.cpu_count()} cores shared with other work; load average "
-        f"(1 / 5 / 15 min) {'; '.join(loads)}; {minutes:.0f} minutes (`{command}`). Times per "
+        f"Measured on {cpu_model()} ({cpu_family_model()}), {os.cpu_count()} cores shared with "
+        f"other work; load average (1 / 5 / 15 min) {'; '.join(loads)}; {minutes:.0f} minutes "
+        f"(`{command}`). Times per "
         f"1/60 s frame: the mean over {args.frames} frames of each frame's best of "
         f"{args.rounds} rounds. Each round builds the simulation with the pass and the one "
         "without it (`self_collision` turned off) from the same saved state, steps each one "
