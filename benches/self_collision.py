@@ -26,12 +26,18 @@ flat cloth's own neighbours are not in contact at rest: 1.57 mm at 256 x 256):
 steps (``scene()``: symplectic Euler at 1 ms steps, no in-solve term), timed over the same
 simulated time, so that their frame is 16.7 steps.
 
-Each case steps with the pass to its start, keeps that state, times ``--frames`` frames with
-the pass, then restores the state, turns ``self_collision`` off and times the same frames
-without it: one process, the same frames. Times are the wall time (``time.perf_counter``) and
-the process's CPU time (``time.process_time``, every thread's) of ``Simulation.step`` alone (the
-driver's Python not counted), per frame. The end state with the pass is checked for crossings
-by the independent checker (``benches/peers/tri_check.py``). Writes the table into the generated
+Each case steps with the pass to its start and keeps that state. Then, ``--rounds`` times, the
+simulation with the pass and the one without it (``self_collision`` turned off) are both built
+again from that state, each steps one untimed frame, and their next ``--frames`` frames are
+timed alternated: a frame with the pass, a frame without, and so on (odd rounds start without).
+Both columns so share a shared machine's drift (timed one after the other they would not); each
+frame's best over the rounds is kept (the rounds repeat one trajectory bit for bit, which the
+script checks), and a row is the mean of those bests. Times are the wall time
+(``time.perf_counter``) and the process's CPU time (``time.process_time``, every thread's) of
+``Simulation.step`` alone (the driver's Python not counted), per frame; each thread count of
+``--threads`` (2 and 1) runs in its own process, the pool's size being fixed per process. The
+end state with the pass is checked for crossings by the independent checker
+(``benches/peers/tri_check.py``). Writes the table into the generated
 section of docs/contact.md and the plot to docs/contact.png.
 """
 
@@ -374,6 +380,8 @@ def main() -> None:
         args.results.write_text(json.dumps({
             "records": records, "load_start": load0, "load_end": os.getloadavg(),
             "minutes": (time.perf_counter() - began) / 60,
+            "command": " ".join(["python", SCRIPT, *sys.argv[1:]]).replace(
+                " --worker", "").replace(f" --results {args.results}", ""),
             "measured": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}))
         return
     if args.replot:
@@ -382,7 +390,6 @@ def main() -> None:
         return
     records: list[Record] = []
     loads: list[str] = []
-    minutes = 0.0
     args.results.parent.mkdir(parents=True, exist_ok=True)
     for threads in args.threads:
         part = args.results.with_suffix(f".{threads}.json")
@@ -393,18 +400,16 @@ def main() -> None:
                            env={**os.environ, "RAYON_NUM_THREADS": str(threads)}, check=True)
         saved = json.loads(part.read_text())
         records += [tuple(rec) for rec in saved["records"]]
-        minutes += saved["minutes"]
-        loads.append(f"{threads} thread{'s' if threads > 1 else ''} ({saved['measured']}): "
+        loads.append(f"{threads} thread{'s' if threads > 1 else ''} ({saved['measured']}, "
+                     f"`{saved['command']}`, {saved['minutes']:.0f} minutes): "
                      f"{' / '.join(f'{x:.1f}' for x in saved['load_start'])} at the start, "
                      f"{' / '.join(f'{x:.1f}' for x in saved['load_end'])} at the end")
     args.results.write_text(json.dumps(records))
-    command = " ".join(["python", SCRIPT, *sys.argv[1:]])
     rows = [row(case if kind == "now" else f"{case} (before)", cloth, settings, r)
             for case, kind, _, cloth, settings, r in records]
     table = "\n".join([
         f"Measured on {cpu_model()} ({cpu_family_model()}), {os.cpu_count()} cores shared with "
-        f"other work; load average (1 / 5 / 15 min) {'; '.join(loads)}; {minutes:.0f} minutes "
-        f"(`{command}`). Times per "
+        f"other work; load average (1 / 5 / 15 min) {'; '.join(loads)}. Times per "
         f"1/60 s frame: the mean over {args.frames} frames of each frame's best of "
         f"{args.rounds} rounds. Each round builds the simulation with the pass and the one "
         "without it (`self_collision` turned off) from the same saved state, steps each one "
