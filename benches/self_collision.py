@@ -336,6 +336,23 @@ def cpu_family_model() -> str:
     return f"family {fields.get('cpu family', '?')} model {fields.get('model', '?')}"
 
 
+def command(argv: list[str]) -> str:
+    """The command that measures what ``argv`` measured: without where the results went, and
+    with ``--threads`` the thread count that ran it."""
+    kept: list[str] = []
+    dropping = False
+    for arg in argv:
+        if arg.startswith("--"):
+            dropping = arg in ("--results", "--threads")
+            if dropping or arg in ("--worker", "--no-write", "--reuse"):
+                continue
+        elif dropping:
+            continue
+        kept.append(arg)
+    threads = os.environ.get("RAYON_NUM_THREADS")
+    return " ".join(["python", SCRIPT, *kept, *(["--threads", threads] if threads else [])])
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__.splitlines()[0],
@@ -380,8 +397,7 @@ def main() -> None:
         args.results.write_text(json.dumps({
             "records": records, "load_start": load0, "load_end": os.getloadavg(),
             "minutes": (time.perf_counter() - began) / 60,
-            "command": " ".join(["python", SCRIPT, *sys.argv[1:]]).replace(
-                " --worker", "").replace(f" --results {args.results}", ""),
+            "command": command(sys.argv[1:]),
             "measured": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}))
         return
     if args.replot:
@@ -400,7 +416,7 @@ def main() -> None:
                            env={**os.environ, "RAYON_NUM_THREADS": str(threads)}, check=True)
         saved = json.loads(part.read_text())
         records += [tuple(rec) for rec in saved["records"]]
-        loads.append(f"{threads} thread{'s' if threads > 1 else ''} ({saved['measured']}, "
+        loads.append(f"{threads} thread{'s' if threads > 1 else ''} (finished {saved['measured']}, "
                      f"`{saved['command']}`, {saved['minutes']:.0f} minutes): "
                      f"{' / '.join(f'{x:.1f}' for x in saved['load_start'])} at the start, "
                      f"{' / '.join(f'{x:.1f}' for x in saved['load_end'])} at the end")
@@ -415,10 +431,14 @@ def main() -> None:
         "without it (`self_collision` turned off) from the same saved state, steps each one "
         "untimed frame, then times a frame with the pass, a frame without, and so on, "
         "alternated, so both columns share the machine's drift. Wall time and the process's "
-        "CPU time (every thread's), each thread count in its own process. The stages "
+        "CPU time (every thread's), each thread count in its own process; at a load average "
+        "above the cores a frame's wall time includes waiting for a core, which a long frame "
+        "(with the pass) pays more of than a short one, so the CPU ratio is the fairer one "
+        "then. The stages "
         "(in-solve search: the pass's profiled time outside its own stages, the search at each "
         "step's start for the in-solve term; and the pass after the solve: search, repulsion, "
-        "cap, redo) are wall ms per frame inside the step of the first round; boxes tested, "
+        "cap, redo) are wall ms per frame inside the step of the first round (not a best: under "
+        "load they can add up past the frame's best wall time); boxes tested, "
         "candidates, pairs, contacts and swept per substep of the pass; crossings by "
         "`tri_check` at the end of the first round with the pass. \"before\": the scene at "
         "symplectic Euler's 1 ms steps (its frame is 16.7 steps)."
