@@ -1,8 +1,8 @@
 """What self-collision costs per 1/60 s frame, against the same frames without it, at 32^2 to
 256^2 particles, for the scenes as they ship.
 
-    PYTHONPATH=python python benches/self_collision.py          # quick: 32-128, 9 min at load 3-4
-    PYTHONPATH=python python benches/self_collision.py --full   # adds 256 and 1 ms at 64
+    PYTHONPATH=python python benches/self_collision.py          # quick: 32, 64; --help: how long
+    PYTHONPATH=python python benches/self_collision.py --full   # adds 128, 256 and 1 ms at 64
 
 Run it with ``PYTHONPATH`` pointing at another build (``--no-write``) to compare two builds in
 one session; stages and counters a build does not report print as 0.
@@ -356,10 +356,14 @@ def command(argv: list[str]) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__.splitlines()[0],
-        epilog="Run times on the 2-core Xeon (family 6 model 167) with two other jobs on it: the "
-               "quick default (32 and 64, the 50 x 50 twist, 3 frames, 3 rounds, 2 threads "
-               "then 1) about 4 minutes; --full (adds 128 and 256: the twist reaching its "
-               "wound window at 128 x 128 alone takes minutes a thread count) about 25-30.")
+        epilog="Run times measured on the 2-core Xeon (family 6 model 167) at load average "
+               "8-11 (other jobs on it, each process getting about a quarter of a core): the "
+               "quick default (32 and 64, the 50 x 50 twist, 3 frames, 3 rounds) 13 minutes on "
+               "2 threads and 14 on 1 (about 4 times less on a free machine, by that quarter "
+               "core: an estimate). --full adds 128 "
+               "and 256: not run through here (the 128 x 128 twist's 2 s to its window alone "
+               "took about 5 minutes a thread count on a free machine, docs/notes/contact.md; "
+               "at this load it had not reached it in 45 minutes).")
     parser.add_argument("--full", action="store_true",
                         help="sizes 32-256 (the 256 x 256 twist left out: it tears itself apart "
                              "and runs out of memory, docs/notes/contact.md, \"the 256 x 256 "
@@ -401,8 +405,8 @@ def main() -> None:
             "measured": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}))
         return
     if args.replot:
-        plot([tuple(rec) for rec in json.loads(args.results.read_text())],
-             DOCS / "contact.png")
+        plot([tuple(rec) for rec in json.loads(args.results.read_text())
+              if rec[5]["threads"] == args.threads[0]], DOCS / "contact.png")
         return
     records: list[Record] = []
     loads: list[str] = []
