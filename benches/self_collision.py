@@ -363,7 +363,7 @@ def main() -> None:
                "core: an estimate). --full adds 128 "
                "and 256: not run through here (the 128 x 128 twist's 2 s to its window alone "
                "took about 5 minutes a thread count on a free machine, docs/notes/contact.md; "
-               "at this load it had not reached it in 45 minutes).")
+               "at load 7-12 about 25).")
     parser.add_argument("--full", action="store_true",
                         help="sizes 32-256 (the 256 x 256 twist left out: it tears itself apart "
                              "and runs out of memory, docs/notes/contact.md, \"the 256 x 256 "
