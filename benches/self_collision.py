@@ -195,9 +195,10 @@ def alternated(state: dict[str, Any], driver: TwistDriver | None, frames: int,
     pass first, so that neither side always runs right after the other. A shared machine's
     speed drifts over minutes: alternating puts both sides under the same drift, and the best
     of the rounds for each frame (the same work each round, the trajectory being bitwise
-    repeatable) drops the frames another process slowed. Returns per side the wall and CPU
-    seconds of each frame (best over the rounds) and the with-pass simulation of the first
-    round's stats over its timed frames."""
+    repeatable) drops the frames another process slowed. Returns each side's wall and CPU
+    seconds per frame (best over the rounds) and, from the first round, the simulated window,
+    the pass's stats over its timed frames and the simulation with the pass (for the
+    crossings)."""
     best: dict[bool, dict[str, list[float]]] = {
         side: {"wall": [math.inf] * frames, "cpu": [math.inf] * frames} for side in (True, False)}
     ends: dict[bool, set[str]] = {True: set(), False: set()}
