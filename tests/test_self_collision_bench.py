@@ -42,12 +42,33 @@ def test_the_contact_thickness_stays_under_half_the_grid_spacing_of_a_fine_cloth
 
 
 def test_the_frames_without_the_pass_cover_the_same_simulated_time_from_the_same_state() -> None:
-    r = bench.measure(bench.shipped("pile", 12), None, 0.05, 2)
+    r = bench.measure(bench.shipped("pile", 12), None, 0.05, 2, rounds=2)
     assert (r["without_from"], r["without_to"]) == (r["from"], r["to"])
     assert r["to"] - r["from"] == pytest.approx(2 / 60)
     assert r["crossings"] == 0
     assert r["wall"] > 0 and r["without_wall"] > 0 and r["cpu"] >= 0
     assert r["ratio_wall"] == pytest.approx(r["wall"] / r["without_wall"])
+
+
+def test_the_frames_with_and_without_the_pass_alternate_in_one_window(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    # Timed one after the other, the two columns would take a shared machine's drift between
+    # them: each round warms both from one state, then times them in turn, the side that goes
+    # first swapping from round to round.
+    order: list[bool] = []
+    frame = bench.frame
+
+    def logged(sim: rustcloth.Simulation, driver: object) -> tuple[float, float]:
+        order.append(sim.self_collision is not None)
+        return frame(sim, None)
+
+    monkeypatch.setattr(bench, "frame", logged)
+    sim = rustcloth.Simulation(bench.shipped("pile", 12))
+    runs = bench.alternated(sim.get_state(), None, frames=2, rounds=2)
+    warm = [True, False]
+    assert order == [*warm, True, False, True, False, *warm, False, True, False, True]
+    assert all(len(runs["best"][side][key]) == 2 for side in (True, False)
+               for key in ("wall", "cpu"))
 
 
 def test_set_reads_numbers_fractions_and_names_into_nested_tables() -> None:
