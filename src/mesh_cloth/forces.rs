@@ -253,33 +253,46 @@ fn vertex_forces<const LINEAR: bool, const GATHER: bool>(
     let mut over = false;
     let base = first * LANES;
     let mut f = [f.x, f.y, f.z];
-    for g in first..first + f[0].len().div_ceil(LANES) {
-        let members = lanes.members(g);
-        let whole = <&[u32; LANES]>::try_from(members).ok().filter(|_| GATHER);
-        let mut sum = [[0.0f32; LANES]; 3];
-        let mut own = [[0.0f32; LANES]; 6];
-        match whole {
+    let groups = first..first + f[0].len().div_ceil(LANES);
+    let whole = |g: usize| match GATHER && groups.contains(&g) {
+        true => <&[u32; LANES]>::try_from(lanes.members(g)).ok(),
+        false => None,
+    };
+    // With `GATHER`, the next group's gathers are issued before this group's rows, so that
+    // their latency overlaps the rows' arithmetic; its vertices are not this group's, so this
+    // group's stores do not change what they load.
+    let mut ahead = ([[0.0f32; LANES]; 3], [[0.0f32; LANES]; 6]);
+    let gather =
+        |g: usize, f: &[&mut [f32]; 3], into: &mut ([[f32; LANES]; 3], [[f32; LANES]; 6])| {
             #[cfg(target_arch = "x86_64")]
-            // SAFETY: `GATHER` is only set inside a function compiled for AVX-512.
-            Some(members) => unsafe {
+            if let Some(members) = whole(g) {
                 let sums = [&*f[0], &*f[1], &*f[2]];
-                avx512::load_group(members, base, sums, coordinates, &mut sum, &mut own);
-            },
-            _ => {
-                for (lane, &v) in members.iter().enumerate() {
-                    let v = v as usize;
-                    for (sum, f) in sum.iter_mut().zip(&f) {
-                        sum[lane] = f[v - base];
-                    }
-                    for (own, x) in own.iter_mut().zip(coordinates) {
-                        own[lane] = x[v];
-                    }
+                // SAFETY: `GATHER` is only set inside a function compiled for AVX-512.
+                unsafe {
+                    avx512::load_group(members, base, sums, coordinates, &mut into.0, &mut into.1)
+                };
+            }
+        };
+    gather(groups.start, &f, &mut ahead);
+    for g in groups.clone() {
+        let members = lanes.members(g);
+        let (mut sum, mut own) = ahead;
+        gather(g + 1, &f, &mut ahead);
+        if whole(g).is_none() {
+            (sum, own) = ([[0.0; LANES]; 3], [[0.0; LANES]; 6]);
+            for (lane, &v) in members.iter().enumerate() {
+                let v = v as usize;
+                for (sum, f) in sum.iter_mut().zip(&f) {
+                    sum[lane] = f[v - base];
+                }
+                for (own, x) in own.iter_mut().zip(coordinates) {
+                    own[lane] = x[v];
                 }
             }
         }
         let range = lanes.group_slots(g);
         over |= group_forces::<LINEAR>(slots, range, coordinates, &own, law, &mut sum);
-        match whole {
+        match whole(g) {
             #[cfg(target_arch = "x86_64")]
             // SAFETY: as for the load; `load_group` checked the same members against `f`.
             Some(members) => unsafe { avx512::store_group(members, base, &sum, &mut f) },
