@@ -294,7 +294,7 @@ fn vertex_forces<const LINEAR: bool, const GATHER: bool>(
         over |= group_forces::<LINEAR>(slots, range, coordinates, &own, law, &mut sum);
         match whole(g) {
             #[cfg(target_arch = "x86_64")]
-            // SAFETY: as for the load; `load_group` checked the same members against `f`.
+            // SAFETY: as for the loads (`store_group` checks its places against `f` itself).
             Some(members) => unsafe { avx512::store_group(members, base, &sum, &mut f) },
             _ => {
                 for (lane, &v) in members.iter().enumerate() {
