@@ -417,7 +417,11 @@ fn group_forces<const LINEAR: bool>(
 /// loads and inserts per array (nine of them a group); LLVM does not turn those into gathers
 /// itself, and written as unchecked loads in plain Rust they made it leave the rows' loop
 /// scalar, so they are written here with the intrinsics.
+///
+/// The AVX-512 intrinsics are stable since Rust 1.89, above the crate's `rust-version`: this
+/// module needs 1.89 to build.
 #[cfg(target_arch = "x86_64")]
+#[allow(clippy::incompatible_msrv)]
 mod avx512 {
     use std::arch::x86_64::*;
 
