@@ -197,11 +197,24 @@ impl MeshCloth {
 }
 
 /// [`vertex_forces`] in the build for the cloth (with isometric bending's term or without) and
-/// the processor's instruction set.
+/// the processor's instruction set. With AVX-512 each group's start and end are the vector
+/// unit's gathers and scatters ([`avx512`]); the other instruction sets load and store them lane
+/// by lane.
 fn cloth_forces(pass: Pass<'_>, first: usize, f: Vec3SliceMut<'_>) -> bool {
-    match pass.slots.linear.is_empty() {
-        true => crate::simd::dispatch!(vertex_forces::<false>(pass, first, f)),
-        false => crate::simd::dispatch!(vertex_forces::<true>(pass, first, f)),
+    let linear = !pass.slots.linear.is_empty();
+    #[cfg(target_arch = "x86_64")]
+    if crate::simd::isa() == crate::simd::Isa::Avx512 {
+        // SAFETY: `isa()` only returns an instruction set the CPU reported.
+        return unsafe {
+            match linear {
+                false => avx512::vertex_forces::<false>(pass, first, f),
+                true => avx512::vertex_forces::<true>(pass, first, f),
+            }
+        };
+    }
+    match linear {
+        false => crate::simd::dispatch!(vertex_forces::<false, false>(pass, first, f)),
+        true => crate::simd::dispatch!(vertex_forces::<true, false>(pass, first, f)),
     }
 }
 
@@ -219,9 +232,17 @@ struct Pass<'a> {
 /// Adds to `f` (the forces of the vertices from group `first` on, component by component) the
 /// forces of each vertex's springs ([`group_forces`]); whether one of them other than a seam is
 /// longer than `limit` times its rest length. `f` holds whole windows ([`WINDOW`]) but at the
-/// end, so each group's vertices ([`IncidenceLanes::members`]) are inside it.
+/// end, so each group's vertices ([`IncidenceLanes::members`]) are inside it. With `GATHER`
+/// (only inside [`avx512::vertex_forces`]), a whole group's own coordinates and sums are loaded
+/// by the vector unit's gathers and its sums stored by its scatters; else lane by lane, which is
+/// what the narrower instruction sets do best. Plain loads and stores either way, so the bits
+/// are the same.
 #[inline(always)]
-fn vertex_forces<const LINEAR: bool>(pass: Pass<'_>, first: usize, f: Vec3SliceMut<'_>) -> bool {
+fn vertex_forces<const LINEAR: bool, const GATHER: bool>(
+    pass: Pass<'_>,
+    first: usize,
+    f: Vec3SliceMut<'_>,
+) -> bool {
     let Pass {
         lanes,
         slots,
@@ -232,24 +253,55 @@ fn vertex_forces<const LINEAR: bool>(pass: Pass<'_>, first: usize, f: Vec3SliceM
     let mut over = false;
     let base = first * LANES;
     let mut f = [f.x, f.y, f.z];
-    for g in first..first + f[0].len().div_ceil(LANES) {
-        let members = lanes.members(g);
-        let mut sum = [[0.0f32; LANES]; 3];
-        let mut own = [[0.0f32; LANES]; 6];
-        for (lane, &v) in members.iter().enumerate() {
-            let v = v as usize;
-            for (sum, f) in sum.iter_mut().zip(&f) {
-                sum[lane] = f[v - base];
+    let groups = first..first + f[0].len().div_ceil(LANES);
+    let whole = |g: usize| match GATHER && groups.contains(&g) {
+        true => <&[u32; LANES]>::try_from(lanes.members(g)).ok(),
+        false => None,
+    };
+    // With `GATHER`, the next group's gathers are issued before this group's rows, so that
+    // their latency overlaps the rows' arithmetic; its vertices are not this group's, so this
+    // group's stores do not change what they load.
+    let mut ahead = ([[0.0f32; LANES]; 3], [[0.0f32; LANES]; 6]);
+    let gather =
+        |g: usize, f: &[&mut [f32]; 3], into: &mut ([[f32; LANES]; 3], [[f32; LANES]; 6])| {
+            #[cfg(target_arch = "x86_64")]
+            if let Some(members) = whole(g) {
+                let sums = [&*f[0], &*f[1], &*f[2]];
+                // SAFETY: `GATHER` is only set inside a function compiled for AVX-512.
+                unsafe {
+                    avx512::load_group(members, base, sums, coordinates, &mut into.0, &mut into.1)
+                };
             }
-            for (own, x) in own.iter_mut().zip(coordinates) {
-                own[lane] = x[v];
+        };
+    gather(groups.start, &f, &mut ahead);
+    for g in groups.clone() {
+        let members = lanes.members(g);
+        let (mut sum, mut own) = ahead;
+        gather(g + 1, &f, &mut ahead);
+        if whole(g).is_none() {
+            (sum, own) = ([[0.0; LANES]; 3], [[0.0; LANES]; 6]);
+            for (lane, &v) in members.iter().enumerate() {
+                let v = v as usize;
+                for (sum, f) in sum.iter_mut().zip(&f) {
+                    sum[lane] = f[v - base];
+                }
+                for (own, x) in own.iter_mut().zip(coordinates) {
+                    own[lane] = x[v];
+                }
             }
         }
         let range = lanes.group_slots(g);
         over |= group_forces::<LINEAR>(slots, range, coordinates, &own, law, &mut sum);
-        for (lane, &v) in members.iter().enumerate() {
-            for (f, sum) in f.iter_mut().zip(&sum) {
-                f[v as usize - base] = sum[lane];
+        match whole(g) {
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: as for the loads (`store_group` checks its places against `f` itself).
+            Some(members) => unsafe { avx512::store_group(members, base, &sum, &mut f) },
+            _ => {
+                for (lane, &v) in members.iter().enumerate() {
+                    for (f, sum) in f.iter_mut().zip(&sum) {
+                        f[v as usize - base] = sum[lane];
+                    }
+                }
             }
         }
     }
@@ -358,4 +410,105 @@ fn group_forces<const LINEAR: bool>(
         }
     }
     over
+}
+
+/// The force pass's AVX-512 build, whose groups' starts and ends are gathers and scatters. A
+/// group's 16 vertices are scattered over a window ([`WINDOW`]), so lane by lane they cost 16
+/// loads and inserts per array (nine of them a group); LLVM does not turn those into gathers
+/// itself, and written as unchecked loads in plain Rust they made it leave the rows' loop
+/// scalar, so they are written here with the intrinsics.
+///
+/// The AVX-512 intrinsics are stable since Rust 1.89, above the crate's `rust-version`: this
+/// module needs 1.89 to build.
+#[cfg(target_arch = "x86_64")]
+#[allow(clippy::incompatible_msrv)]
+mod avx512 {
+    use std::arch::x86_64::*;
+
+    use super::{Pass, LANES};
+    use crate::soa::Vec3SliceMut;
+
+    /// [`super::vertex_forces`] compiled for AVX-512, with the groups' gathers.
+    #[target_feature(enable = "avx512f,avx512vl,avx2")]
+    pub(super) unsafe fn vertex_forces<const LINEAR: bool>(
+        pass: Pass<'_>,
+        first: usize,
+        f: Vec3SliceMut<'_>,
+    ) -> bool {
+        super::vertex_forces::<LINEAR, true>(pass, first, f)
+    }
+
+    /// Gathers the group `members`' sums so far (vertex `v`'s at `sums[c][v - base]`) into
+    /// `sum` and their coordinates (at `coordinates[c][v]`) into `own`. Panics where a member
+    /// is outside either, which the lane-by-lane loads' bounds checks would also have caught.
+    #[inline]
+    #[target_feature(enable = "avx512f,avx512vl,avx2")]
+    pub(super) fn load_group(
+        members: &[u32; LANES],
+        base: usize,
+        sums: [&[f32]; 3],
+        coordinates: [&[f32]; 6],
+        sum: &mut [[f32; LANES]; 3],
+        own: &mut [[f32; LANES]; 6],
+    ) {
+        let (vertices, places) = offsets(members, base);
+        let len = coordinates.iter().map(|x| x.len()).min().unwrap_or(0);
+        // Unsigned compares, so that an offset that wrapped below zero is caught too.
+        let outside = _mm512_cmpge_epu32_mask(vertices, _mm512_set1_epi32(clamp(len)))
+            | _mm512_cmpge_epu32_mask(places, _mm512_set1_epi32(clamp(sums[0].len())));
+        assert!(
+            outside == 0 && sums.iter().all(|s| s.len() == sums[0].len()),
+            "a group's vertex outside the state or its work item"
+        );
+        for (sum, from) in sum.iter_mut().zip(sums) {
+            // SAFETY: every offset is inside `from` (checked above).
+            let x = unsafe { _mm512_i32gather_ps::<4>(places, from.as_ptr()) };
+            // SAFETY: `sum` holds `LANES` floats.
+            unsafe { _mm512_storeu_ps(sum.as_mut_ptr(), x) };
+        }
+        for (own, from) in own.iter_mut().zip(coordinates) {
+            // SAFETY: every vertex is inside `from` (checked above).
+            let x = unsafe { _mm512_i32gather_ps::<4>(vertices, from.as_ptr()) };
+            // SAFETY: `own` holds `LANES` floats.
+            unsafe { _mm512_storeu_ps(own.as_mut_ptr(), x) };
+        }
+    }
+
+    /// Scatters `sum` back to the group `members`' places in `f` (vertex `v`'s at
+    /// `f[c][v - base]`); the members are distinct, so no lane overwrites another's.
+    #[inline]
+    #[target_feature(enable = "avx512f,avx512vl,avx2")]
+    pub(super) fn store_group(
+        members: &[u32; LANES],
+        base: usize,
+        sum: &[[f32; LANES]; 3],
+        f: &mut [&mut [f32]; 3],
+    ) {
+        let len = f.iter().map(|f| f.len()).min().unwrap_or(0);
+        let (_, places) = offsets(members, base);
+        let outside = _mm512_cmpge_epu32_mask(places, _mm512_set1_epi32(clamp(len)));
+        assert!(outside == 0, "a group's vertex outside its work item");
+        for (f, sum) in f.iter_mut().zip(sum) {
+            // SAFETY: `sum` holds `LANES` floats.
+            let x = unsafe { _mm512_loadu_ps(sum.as_ptr()) };
+            // SAFETY: every offset is inside `f` (checked above).
+            unsafe { _mm512_i32scatter_ps::<4>(f.as_mut_ptr(), places, x) };
+        }
+    }
+
+    /// The members as 32-bit vertices, and their places in a work item starting at `base`.
+    #[inline]
+    #[target_feature(enable = "avx512f,avx512vl,avx2")]
+    fn offsets(members: &[u32; LANES], base: usize) -> (__m512i, __m512i) {
+        // SAFETY: `members` holds `LANES` 32-bit integers.
+        let vertices = unsafe { _mm512_loadu_si512(members.as_ptr().cast()) };
+        let places = _mm512_sub_epi32(vertices, _mm512_set1_epi32(base as u32 as i32));
+        (vertices, places)
+    }
+
+    /// A length as the bound of a 32-bit unsigned compare (a longer array bounds every offset).
+    #[inline]
+    fn clamp(len: usize) -> i32 {
+        len.min(u32::MAX as usize) as u32 as i32
+    }
 }
