@@ -200,7 +200,7 @@ pub fn cell_triangle(grid: Grid, id: usize) -> [usize; 3] {
     let a = grid.index(i, j);
     let (b, c) = (a + 1, a + grid.nx);
     let d = c + 1;
-    if id % 2 == 0 {
+    if id.is_multiple_of(2) {
         [a, b, d]
     } else {
         [a, d, c]

@@ -417,11 +417,8 @@ fn group_forces<const LINEAR: bool>(
 /// loads and inserts per array (nine of them a group); LLVM does not turn those into gathers
 /// itself, and written as unchecked loads in plain Rust they made it leave the rows' loop
 /// scalar, so they are written here with the intrinsics.
-///
-/// The AVX-512 intrinsics are stable since Rust 1.89, above the crate's `rust-version`: this
-/// module needs 1.89 to build.
+/// (The AVX-512 intrinsics need Rust 1.89, the crate's `rust-version`.)
 #[cfg(target_arch = "x86_64")]
-#[allow(clippy::incompatible_msrv)]
 mod avx512 {
     use std::arch::x86_64::*;
 
@@ -506,9 +503,11 @@ mod avx512 {
         (vertices, places)
     }
 
-    /// A length as the bound of a 32-bit unsigned compare (a longer array bounds every offset).
+    /// A length as the bound of a 32-bit unsigned compare. The gathers read their offsets as
+    /// signed, so the bound is at most `i32::MAX`: an offset at or above 2^31 is refused, not
+    /// read below the array.
     #[inline]
     fn clamp(len: usize) -> i32 {
-        len.min(u32::MAX as usize) as u32 as i32
+        len.min(i32::MAX as usize) as i32
     }
 }
