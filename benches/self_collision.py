@@ -48,7 +48,6 @@ import hashlib
 import json
 import math
 import os
-import platform
 import subprocess
 import sys
 import time
@@ -64,6 +63,7 @@ import numpy as np  # noqa: E402
 import rustcloth  # noqa: E402
 import tri_check  # noqa: E402
 from generated import write_between_markers  # noqa: E402
+from run import machine_info  # noqa: E402
 from rustcloth.drivers import TwistDriver  # noqa: E402
 
 DOCS = Path(__file__).resolve().parent.parent / "docs"
@@ -313,28 +313,11 @@ def run_cases(args: argparse.Namespace) -> list[Record]:
     return records
 
 
-def cpu_model() -> str:
-    """The CPU's model name as the kernel reports it (``platform.processor()`` is empty on
-    Linux)."""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
-
-
-def cpu_family_model() -> str:
-    """``family F model M`` from /proc/cpuinfo (the model name alone does not tell Xeons
-    apart), or empty."""
-    try:
-        fields = dict(line.split(":", 1) for line in Path("/proc/cpuinfo").read_text()
-                      .split("\n\n")[0].splitlines() if ":" in line)
-    except OSError:
-        return ""
-    fields = {k.strip(): v.strip() for k, v in fields.items()}
-    return f"family {fields.get('cpu family', '?')} model {fields.get('model', '?')}"
+def cpu() -> str:
+    """The CPU's model name and ``family F model M`` (the name alone does not tell Xeons
+    apart), as the peers' run reads them from /proc/cpuinfo."""
+    m = machine_info()
+    return f"{m['cpu']} (family {m['cpu_family']} model {m['cpu_model']})"
 
 
 def command(argv: list[str]) -> str:
@@ -429,7 +412,7 @@ def main() -> None:
     rows = [row(case if kind == "now" else f"{case} (before)", cloth, settings, r)
             for case, kind, _, cloth, settings, r in records]
     table = "\n".join([
-        f"Measured on {cpu_model()} ({cpu_family_model()}), {os.cpu_count()} cores shared with "
+        f"Measured on {cpu()}, {os.cpu_count()} cores shared with "
         f"other work; load average (1 / 5 / 15 min) {'; '.join(loads)}. Times per "
         f"1/60 s frame: the mean over {args.frames} frames of each frame's best of "
         f"{args.rounds} rounds. Each round builds the simulation with the pass and the one "

@@ -194,7 +194,7 @@ def machine_info() -> dict:
     cpu = "unknown"
     mhz = None
     flags: set[str] = set()
-    family = None
+    family = model = None
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():
             key, _, value = line.partition(":")
@@ -207,6 +207,8 @@ def machine_info() -> dict:
                 flags = set(value.split())
             elif key == "cpu family" and family is None:
                 family = int(value)
+            elif key == "model" and model is None:
+                model = int(value)
     except OSError:
         pass
     if "avx512f" in flags:
@@ -223,6 +225,7 @@ def machine_info() -> dict:
     return {
         "cpu": cpu,
         "cpu_family": family,
+        "cpu_model": model,
         "cores": os.cpu_count(),
         "mhz": mhz,
         "simd": simd,

@@ -276,9 +276,10 @@ fn vertex_forces<const LINEAR: bool, const GATHER: bool>(
     gather(groups.start, &f, &mut ahead);
     for g in groups.clone() {
         let members = lanes.members(g);
+        let gathered = whole(g);
         let (mut sum, mut own) = ahead;
         gather(g + 1, &f, &mut ahead);
-        if whole(g).is_none() {
+        if gathered.is_none() {
             (sum, own) = ([[0.0; LANES]; 3], [[0.0; LANES]; 6]);
             for (lane, &v) in members.iter().enumerate() {
                 let v = v as usize;
@@ -292,7 +293,7 @@ fn vertex_forces<const LINEAR: bool, const GATHER: bool>(
         }
         let range = lanes.group_slots(g);
         over |= group_forces::<LINEAR>(slots, range, coordinates, &own, law, &mut sum);
-        match whole(g) {
+        match gathered {
             #[cfg(target_arch = "x86_64")]
             // SAFETY: as for the loads (`store_group` checks its places against `f` itself).
             Some(members) => unsafe { avx512::store_group(members, base, &sum, &mut f) },
