@@ -25,7 +25,8 @@
 //! One trouble is retried whatever `on_trouble` says: a [`Trouble::Cascade`], the
 //! self-collision cap stopping a whole cluster of contacts in one substep. It is no divergence
 //! but motion the cap cannot pass in one substep, and at most [`CASCADE_MOST`] times the
-//! scene's substeps it is accepted as the cap left it, so it never raises.
+//! scene's substeps it is accepted as the cap left it, so it never raises; the steps after
+//! it hold at most [`CASCADE_HELD`] times the scene's substeps.
 
 use rayon::prelude::*;
 
