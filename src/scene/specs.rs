@@ -37,7 +37,8 @@ pub struct WatchdogSpec {
     /// With `on_trouble = "substep"`: steps after a rescued step that keep its substeps before
     /// the scene's own are tried again. Default 100. A stiff scene whose every step needs more
     /// substeps then fails once per `hold_steps` rather than every other step; 0 retries each
-    /// step on its own.
+    /// step on its own. After a self-collision cascade the hold is at most twice the scene's
+    /// substeps (`CASCADE_HELD`, `stepper/watchdog.rs`).
     pub hold_steps: u32,
 }
 

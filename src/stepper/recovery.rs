@@ -134,7 +134,9 @@ impl Stepper {
                 // The substep length changes again after a rescue.
                 self.pipeline.integrator.reset_history();
                 let history = self.pipeline.integrator.history();
-                self.watchdog.rescued(step, substeps, &mut start, history);
+                let counts = (substeps, model.scene.substeps);
+                self.watchdog
+                    .rescued(step, counts, failure.reason, &mut start, history);
                 state.clock.steps = step;
                 self.profile.steps += 1;
                 Ok(())

@@ -25,7 +25,8 @@
 //! One trouble is retried whatever `on_trouble` says: a [`Trouble::Cascade`], the
 //! self-collision cap stopping a whole cluster of contacts in one substep. It is no divergence
 //! but motion the cap cannot pass in one substep, and at most [`CASCADE_MOST`] times the
-//! scene's substeps it is accepted as the cap left it, so it never raises.
+//! scene's substeps it is accepted as the cap left it, so it never raises; the steps after
+//! it hold at most [`CASCADE_HELD`] times the scene's substeps.
 
 use rayon::prelude::*;
 
@@ -257,14 +258,28 @@ impl Watchdog {
         self.retry_start = Some(start);
     }
 
-    /// Step number `step`, started from `start` with the integrator's `history`, was saved by
-    /// a retry with `substeps` substeps: those are held for the next `hold_steps` steps, since
-    /// what made it fail usually persists.
-    pub fn rescued(&mut self, step: u64, substeps: u32, start: &mut Kinematics, history: History) {
+    /// Step number `step` of a scene of `scene_substeps`, started from `start` with the
+    /// integrator's `history`, was saved from a failure for `reason` by a retry with `substeps`
+    /// substeps: those are held for the next `hold_steps` steps, since what made it fail
+    /// usually persists; after a [`Trouble::Cascade`], at most [`CASCADE_HELD`] times the
+    /// scene's.
+    pub fn rescued(
+        &mut self,
+        step: u64,
+        (substeps, scene_substeps): (u32, u32),
+        reason: Trouble,
+        start: &mut Kinematics,
+        history: History,
+    ) {
         self.stats.retried += 1;
         self.stats.max_substeps_used = self.stats.max_substeps_used.max(substeps);
+        let held = if reason.is_cascade() {
+            substeps.min(scene_substeps.saturating_mul(CASCADE_HELD))
+        } else {
+            substeps
+        };
         let hold = self.spec.hold_steps as u64;
-        self.hold = (hold > 0).then_some((substeps, step + 1 + hold));
+        self.hold = (hold > 0).then_some((held, step + 1 + hold));
         self.step_completed(start, history, substeps);
     }
 
@@ -405,6 +420,17 @@ pub const CASCADE_STOPPED: u64 = 32;
 /// back as the cap leaves it rather than frozen at 64 substeps (an interactive scene's frame
 /// would take 16 times as long for `hold_steps` steps).
 pub const CASCADE_MOST: u32 = 4;
+
+/// Most substeps the steps after a step saved from a cascade are held at, as a multiple of the
+/// scene's, whatever the retry needed. The hold is what a cascade costs: newton's 50 x 50 twist
+/// (2 steps a frame, `solve_stiffness` 30) cascades twice near 1.9 s, and held at the 4 times
+/// that saved the second it ran its whole wound window from 2.0 s at 4 substeps a step; held at
+/// 2 its frame there takes about a fifth less CPU. The hold itself stays: retried step by step
+/// without one, the thin 64 x 64 twist, whose cap at one substep stops up to 32 vertices a
+/// substep uncaught every few steps, stretches past 1.5 by frame 60
+/// (`a_thin_twist_never_stretches_its_cloth_past_one_and_a_half_with_self_collision`, and
+/// docs/notes_twistwound.md).
+pub const CASCADE_HELD: u32 = 2;
 
 /// Particles per parallel work item of [`any_overstretched`].
 const SCAN_CHUNK: usize = 8192;
@@ -558,4 +584,41 @@ fn displacement_diagonal(x0: &Vec3s, x1: &Vec3s) -> f32 {
     };
     let (dx, dy, dz) = (axis(&x0.x, &x1.x), axis(&x0.y, &x1.y), axis(&x0.z, &x1.z));
     (dx * dx + dy * dy + dz * dz).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// After step 10 of a scene of `scene` substeps is saved by a retry at `substeps` from
+    /// `reason`: the substeps steps 11 and 110 run with (the default hold is 100 steps).
+    fn substeps_after_rescue(reason: Trouble, substeps: u32, scene: u32) -> [u32; 2] {
+        let spec = WatchdogSpec {
+            on_trouble: OnTrouble::Substep,
+            ..WatchdogSpec::default()
+        };
+        let mut watchdog = Watchdog::new(&spec, 4);
+        let mut start = Kinematics::zeros(4);
+        watchdog.rescued(
+            10,
+            (substeps, scene),
+            reason,
+            &mut start,
+            History::default(),
+        );
+        [11, 110].map(|step| watchdog.substeps_for(step, scene).0)
+    }
+
+    /// A step saved from a cascade at 4 times the scene's substeps held those 4 for 100 steps,
+    /// and newton's wound 50 x 50 twist, which cascades a few steps in a hundred, ran its whole
+    /// wound window at four times the substeps. Held at twice the scene's since; a rescue at
+    /// twice, and any other trouble's, holds what saved it.
+    #[test]
+    fn a_step_saved_from_a_cascade_holds_at_most_twice_the_scenes_substeps() {
+        let cascade = Trouble::Cascade { stopped: 40 };
+        assert_eq!(substeps_after_rescue(cascade, 4, 1), [2, 2]);
+        assert_eq!(substeps_after_rescue(cascade, 8, 2), [4, 4]);
+        assert_eq!(substeps_after_rescue(cascade, 2, 1), [2, 2]);
+        assert_eq!(substeps_after_rescue(Trouble::NonFinite, 4, 1), [4, 4]);
+    }
 }
