@@ -423,13 +423,13 @@ pub const CASCADE_MOST: u32 = 4;
 
 /// Most substeps the steps after a step saved from a cascade are held at, as a multiple of the
 /// scene's, whatever the retry needed. The hold is what a cascade costs: newton's 50 x 50 twist
-/// (2 steps a frame, `solve_stiffness` 30) cascades twice near 1.9 s, and held at the 4 times
-/// that saved the second it ran its whole wound window from 2.0 s at 4 substeps a step; held at
-/// 2 its frame there takes about a fifth less CPU. The hold itself stays: retried step by step
-/// without one, the thin 64 x 64 twist, whose cap at one substep stops up to 32 vertices a
-/// substep uncaught every few steps, stretches past 1.5 by frame 60
-/// (`a_thin_twist_never_stretches_its_cloth_past_one_and_a_half_with_self_collision`, and
-/// docs/notes_twistwound.md).
+/// (2 steps a frame, `solve_stiffness` 30) cascades twice near 1.9 s, the second time saved
+/// only at 4 times its substeps, and its wound window from 2.0 s, where no substep stops a
+/// vertex, takes about a quarter less CPU a frame held at 2 than at 4. The hold itself stays:
+/// retried step by step without one, the thin 64 x 64 twist, whose cap at one substep stops up
+/// to 32 vertices a substep uncaught every few steps, stretches past 1.5 by frame 60
+/// (`a_thin_twist_never_stretches_its_cloth_past_one_and_a_half_with_self_collision`; the
+/// contact notebook, "2026-12-07 (twistwound)").
 pub const CASCADE_HELD: u32 = 2;
 
 /// Particles per parallel work item of [`any_overstretched`].
@@ -609,10 +609,10 @@ mod tests {
         [11, 110].map(|step| watchdog.substeps_for(step, scene).0)
     }
 
-    /// A step saved from a cascade at 4 times the scene's substeps held those 4 for 100 steps,
-    /// and newton's wound 50 x 50 twist, which cascades a few steps in a hundred, ran its whole
-    /// wound window at four times the substeps. Held at twice the scene's since; a rescue at
-    /// twice, and any other trouble's, holds what saved it.
+    /// A step saved from a cascade at more than twice the scene's substeps holds twice the
+    /// scene's (what a wound cloth that cascades a few steps in a hundred needs, not what one
+    /// cluster's retry needed); a rescue at twice, and any other trouble's, holds what saved
+    /// it.
     #[test]
     fn a_step_saved_from_a_cascade_holds_at_most_twice_the_scenes_substeps() {
         let cascade = Trouble::Cascade { stopped: 40 };
