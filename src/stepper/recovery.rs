@@ -134,9 +134,14 @@ impl Stepper {
                 // The substep length changes again after a rescue.
                 self.pipeline.integrator.reset_history();
                 let history = self.pipeline.integrator.history();
-                let counts = (substeps, model.scene.substeps);
-                self.watchdog
-                    .rescued(step, counts, failure.reason, &mut start, history);
+                self.watchdog.rescued(
+                    step,
+                    substeps,
+                    model.scene.substeps,
+                    failure.reason,
+                    &mut start,
+                    history,
+                );
                 state.clock.steps = step;
                 self.profile.steps += 1;
                 Ok(())

@@ -266,7 +266,8 @@ impl Watchdog {
     pub fn rescued(
         &mut self,
         step: u64,
-        (substeps, scene_substeps): (u32, u32),
+        substeps: u32,
+        scene_substeps: u32,
         reason: Trouble,
         start: &mut Kinematics,
         history: History,
@@ -599,13 +600,7 @@ mod tests {
         };
         let mut watchdog = Watchdog::new(&spec, 4);
         let mut start = Kinematics::zeros(4);
-        watchdog.rescued(
-            10,
-            (substeps, scene),
-            reason,
-            &mut start,
-            History::default(),
-        );
+        watchdog.rescued(10, substeps, scene, reason, &mut start, History::default());
         [11, 110].map(|step| watchdog.substeps_for(step, scene).0)
     }
 
