@@ -20,6 +20,14 @@ use crate::state::State;
 /// particles across, some 13 to 21 particles on an even grid.
 pub const GRIP_SPACINGS: f64 = 2.5;
 
+/// How many times a drag's move is slid along a collider's surface, each time along the
+/// contact of the grip's deepest particle (`Simulation::drag_to`). One is enough against one
+/// flat face; a curved face or two faces meeting (a table's rim, the floor beside a shape)
+/// take a few more. A grip still touching after the last round is pushed out particle by
+/// particle, which changes its shape, so more rounds keep it rigid in deeper corners at a few
+/// contact tests of the grip's particles each (once a frame).
+pub const GRIP_SLIDE_ROUNDS: usize = 8;
+
 /// The default drag time in s: one frame of a 60 Hz display, the rate a demo calls
 /// `drag_to` at. A grip that reaches each frame's target one frame later moves continuously at
 /// the hand's speed; a shorter time moves it in bursts (a frame's travel, then a stop), each

@@ -130,6 +130,19 @@ impl Collider {
         }
     }
 
+    /// The contact this collider, posed at `time` (s), makes with a particle that moved from
+    /// `from` to `to`: its outward normal there and where [`Collider::push_out`] puts the
+    /// particle; `None` where it leaves the particle at `to`.
+    pub fn contact(&self, from: Vec3, to: Vec3, time: f64) -> Option<(Vec3, Vec3)> {
+        match self {
+            Collider::Spheres(s) | Collider::Shapes(s) => s.contact_at(from, to, time),
+            Collider::Floor(f) => {
+                let at = f.push_out(to);
+                (at != to).then_some((Vec3::Y, at))
+            }
+        }
+    }
+
     /// Moves every dynamic particle of `next` that ended inside the collider out of it.
     /// `start` holds the positions at the start of the step, `h` is its length and `time` the
     /// simulated time at its end (s), where moving colliders are posed. Returns whether every

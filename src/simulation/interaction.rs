@@ -10,7 +10,7 @@ use crate::cutting_rest::{
     Cut, Layer, LayeredStroke, LiveStroke, MeshSheet, Reach, RestSheet, SheetPoint, MAX_LAYERS,
 };
 use crate::error::{Error, Result};
-use crate::interaction::{Grab, DRAG_TIME, GRIP_SPACINGS};
+use crate::interaction::{Grab, DRAG_TIME, GRIP_SLIDE_ROUNDS, GRIP_SPACINGS};
 use crate::model::Model;
 use crate::picking::pick_triangle_scan;
 use crate::picking::STROKE_TREE_MIN_RAYS;
@@ -116,14 +116,18 @@ impl Simulation {
     /// particle of the grip moves by the same displacement from where it was grabbed. The
     /// grip glides there from where it is now at a constant velocity, arriving
     /// [`Simulation::drag_time`] later, and the cloth follows through its springs. A hand cannot
-    /// push cloth into a solid: the grip is raised as a whole above the floor, and stopped as a
-    /// whole where the grabbed particle's path (from where it is now to its target) enters a
-    /// collider posed at the arrival time; then each particle of the grip goes where that
-    /// collider would put a particle taking its own path, by the contact test the step runs.
-    /// Colliders skip pinned particles, so a target left inside one would hold the grip there
-    /// while the collider pushed the cloth round it out, tearing the grip's rim. Without a grab
-    /// (or once the grabbed particle was cut) this does nothing; particles of the grip cut since
-    /// are skipped. Errors on a non-finite target.
+    /// push cloth into a solid: the grip is raised as a whole above the floor, and where its
+    /// move would take a particle into a collider posed at the arrival time (by the contact
+    /// test the step runs) the whole grip slides along that collider instead: the move loses
+    /// its part into the surface where the deepest particle meets it and keeps the part along
+    /// it, repeated for the next deepest ([`GRIP_SLIDE_ROUNDS`] at most). So the patch keeps
+    /// its shape round a collider, as a hand's grip does, and a pair of the grip's own
+    /// particles never closes for the self-collision pass to stop. A particle still touching
+    /// after that goes where the collider puts a particle taking its own path. Colliders skip
+    /// pinned particles, so a target left inside one would hold the grip there while the
+    /// collider pushed the cloth round it out, tearing the grip's rim. Without a grab (or once
+    /// the grabbed particle was cut) this does nothing; particles of the grip cut since are
+    /// skipped. Errors on a non-finite target.
     pub fn drag_to(&mut self, target: Vec3) -> Result<()> {
         if !target.is_finite() {
             return Err(Error::value(
@@ -139,10 +143,8 @@ impl Simulation {
         let now = self.state.clock.time(self.model.scene.dt);
         let here = (self.state.targets.at(first, now)).unwrap_or(self.state.kin.pos.get(first));
         let over = self.drag_time();
-        // The grip as a whole stops where the grabbed particle's path enters a collider; then
-        // each of its particles where its own path does (round a curved surface, say).
         let target = self.above_floor(target);
-        let target = self.stepper.push_out(here, target, now + over);
+        let target = self.slid_along_colliders(target, now, now + over);
         let Some(grab) = self.grab.as_ref() else {
             return Ok(());
         };
@@ -158,6 +160,36 @@ impl Simulation {
         }
         self.state.targets.glide_to(&moves, here, now, over);
         Ok(())
+    }
+
+    /// `target` for the grabbed particle such that the grip, moved as one from where its
+    /// targets are at `now`, ends clear of the colliders posed at `arrival` (s). Each round
+    /// shifts the whole move along the normal of the deepest particle's contact by that
+    /// particle's depth, which puts it on the contact's tangent plane: the move's part into
+    /// the surface goes, its part along the surface stays, so the grip slides round a collider
+    /// rather than stopping where it meets it or changing shape. `target` itself, bit for bit,
+    /// where no particle touches.
+    fn slid_along_colliders(&self, target: Vec3, now: f64, arrival: f64) -> Vec3 {
+        let Some(grab) = self.grab.as_ref() else {
+            return target;
+        };
+        let alive = &self.model.particles.alive;
+        let mut slid = target;
+        for _ in 0..GRIP_SLIDE_ROUNDS {
+            let deepest = (grab.targets(slid))
+                .filter(|&(p, to)| alive[p] && to.is_finite())
+                .filter_map(|(p, to)| {
+                    let from = (self.state.targets.at(p, now)).unwrap_or(self.state.kin.pos.get(p));
+                    let (n, at) = self.stepper.contact(from, to, arrival)?;
+                    Some(((at - to).dot(n), n))
+                })
+                .max_by(|a, b| a.0.total_cmp(&b.0));
+            match deepest {
+                Some((depth, n)) if depth > 0.0 => slid += depth * n,
+                _ => break,
+            }
+        }
+        slid
     }
 
     /// `target` for the grabbed particle, raised as far as it takes to keep every particle of

@@ -484,6 +484,12 @@ impl Stepper {
         self.pipeline.push_out(from, to, time)
     }
 
+    /// The deepest contact the colliders posed at `time` (s) make with a particle that moved
+    /// from `from` to `to`: the outward normal and where that collider puts it.
+    pub fn contact(&self, from: Vec3, to: Vec3, time: f64) -> Option<(Vec3, Vec3)> {
+        self.pipeline.contact(from, to, time)
+    }
+
     /// The scene's `[[colliders]]` (None without any), with the poses set between steps.
     pub fn shapes(&self) -> Option<&Shapes> {
         self.pipeline.shapes()

@@ -181,6 +181,17 @@ impl Pipeline {
             .fold(to, |to, c| c.push_out(from, to, time))
     }
 
+    /// The deepest contact the colliders posed at `time` (s) make with a particle that moved
+    /// from `from` to `to`, each tested on that path alone: the outward normal and where that
+    /// collider puts the particle, of the one that puts it farthest along its normal.
+    pub fn contact(&self, from: Vec3, to: Vec3, time: f64) -> Option<(Vec3, Vec3)> {
+        let depth = |&(n, at): &(Vec3, Vec3)| (at - to).dot(n);
+        self.colliders
+            .iter()
+            .filter_map(|c| c.contact(from, to, time))
+            .max_by(|a, b| depth(a).total_cmp(&depth(b)))
+    }
+
     /// The `[[colliders]]`, when the scene has any.
     pub fn shapes(&self) -> Option<&Shapes> {
         self.colliders.iter().find_map(|c| match c {
