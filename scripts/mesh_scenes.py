@@ -227,6 +227,10 @@ radius = 0.05
 half_height = 0.365
 center = [0.0, 0.365, 0.0]
 thickness = 0.008
+
+# A drag can fold the cloth over itself on the table: the layers are kept apart.
+[self_collision]
+thickness = 0.003
 """, "pins = []", (0.4, 1200.0, 80.0, 0.12))
 
 HEAD_FLAG = scene_toml(
@@ -243,6 +247,10 @@ half_height = 1.2
 center = [0.02, 1.2, 0.0]
 friction = 0.3
 thickness = 0.005
+
+# A drag can fold the flag over itself or through its hole: the layers are kept apart.
+[self_collision]
+thickness = 0.003
 """, """\
 # The vertices along the pole (the flag's left edge, x = 0.05 m).
 pins = [{ box = [[0.049, 1.5, -0.01], [0.051, 2.5, 0.01]] }]""", (0.15, 480.0, 16.0, 0.03))

@@ -269,10 +269,10 @@ def test_a_grip_dragged_into_a_sphere_stays_outside_it_and_keeps_the_cloth_whole
 
 
 def test_a_grip_dragged_through_a_sphere_slides_round_it_as_one_patch():
-    # Each particle of a grip used to be pushed round a collider on its own path, so a drag
-    # into a ball bent the patch out of its shape (69 mm off it in this drag) frame after
-    # frame: pairs inside the grip then closed, and the self-collision pass stopped the whole
-    # grip on them. The grip now slides as one along the surface its deepest particle meets.
+    # A grip whose particles are each pushed round a collider on their own paths bends out of
+    # its shape in a drag into a ball (69 mm in this one), frame after frame: pairs inside the
+    # grip then close, and the self-collision pass stops the whole grip on them. The grip
+    # slides as one along the surface its deepest particle meets.
     sim = Simulation(rustcloth.load_scene("drape"))
     ball = sim.scene.spheres[0]
     center, reach = np.asarray(ball["center"]), ball["radius"] + ball["thickness"]

@@ -479,7 +479,8 @@ class Simulation:
 
     def drag_to(self, target: Vector) -> None:
         """Move the grabbed particle's target (m), the rest of the grip keeping its offsets
-        from it; they glide there over :attr:`drag_time`. Does nothing without a grab."""
+        from it; they glide there over :attr:`drag_time`. A move into a collider slides the
+        whole grip along its surface instead. Does nothing without a grab."""
         self._core.drag_to(_args.floats(target, "target", 3))
 
     def release(self) -> None:
