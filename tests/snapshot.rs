@@ -97,6 +97,11 @@ fn a_bad_snapshot_is_refused_naming_the_part() {
         ("targets", Box::new(|s| s.targets.push((7, Vec3::ONE)))),
         ("grab", Box::new(|s| s.grab = Some((10_000, false, None)))),
         ("accumulator", Box::new(|s| s.accumulator = -1.0)),
+        // A cascade's hold longer than the scene's hold_steps (7).
+        (
+            "watchdog.cascade_hold",
+            Box::new(|s| s.watchdog.cascade_hold = 8),
+        ),
         ("dt", Box::new(|s| s.scene.dt = 0.0)),
     ];
     for (name, spoil) in cases {

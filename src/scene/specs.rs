@@ -38,7 +38,9 @@ pub struct WatchdogSpec {
     /// the scene's own are tried again. Default 100. A stiff scene whose every step needs more
     /// substeps then fails once per `hold_steps` rather than every other step; 0 retries each
     /// step on its own. After a self-collision cascade the hold is at most twice the scene's
-    /// substeps (`CASCADE_HELD`, `stepper/watchdog.rs`).
+    /// substeps (`CASCADE_HELD`, `stepper/watchdog.rs`) and at first shorter: 8 steps
+    /// (`CASCADE_HOLD_FIRST`), doubled each time the cluster cascades again while held, up to
+    /// `hold_steps`.
     pub hold_steps: u32,
 }
 

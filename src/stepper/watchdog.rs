@@ -26,7 +26,9 @@
 //! self-collision cap stopping a whole cluster of contacts in one substep. It is no divergence
 //! but motion the cap cannot pass in one substep, and at most [`CASCADE_MOST`] times the
 //! scene's substeps it is accepted as the cap left it, so it never raises; the steps after
-//! it hold at most [`CASCADE_HELD`] times the scene's substeps.
+//! it hold at most [`CASCADE_HELD`] times the scene's substeps, for a hold that adapts: short
+//! ([`CASCADE_HOLD_FIRST`] steps) after a lone cascade, twice as long each time the cluster
+//! cascades again while held, up to `hold_steps`.
 
 use rayon::prelude::*;
 
@@ -78,6 +80,10 @@ pub struct WatchdogSnapshot {
     pub last_substeps: u32,
     /// After a rescue: `(substeps, until)`.
     pub hold: Option<(u32, u64)>,
+    /// Steps the hold lasts when a cascade set it, 0 otherwise (absent in a state saved
+    /// without it: 0).
+    #[serde(default)]
+    pub cascade_hold: u64,
     pub stats: WatchdogStats,
 }
 
@@ -85,6 +91,7 @@ pub struct WatchdogSnapshot {
 #[derive(Clone, Copy, Debug, Default)]
 pub(super) struct HoldMark {
     hold: Option<(u32, u64)>,
+    cascade_hold: u64,
     held_steps: u64,
 }
 
@@ -103,6 +110,9 @@ pub(super) struct Watchdog {
     last_substeps: u32,
     /// After a rescue: `(substeps, until)`, the substeps steps before number `until` use.
     hold: Option<(u32, u64)>,
+    /// Steps the hold lasts when a cascade set it, 0 otherwise: what a cascade while held
+    /// doubles.
+    cascade_hold: u64,
     /// The start of a step being retried (made once, so that a retry never allocates).
     retry_start: Option<Kinematics>,
     stats: WatchdogStats,
@@ -118,6 +128,7 @@ impl Watchdog {
             previous_valid: false,
             unjudged: false,
             hold: None,
+            cascade_hold: 0,
             last_substeps: 1,
             retry_start: retries.then(|| Kinematics::zeros(particles)),
             stats: WatchdogStats::default(),
@@ -160,12 +171,14 @@ impl Watchdog {
     pub fn mark(&self) -> HoldMark {
         HoldMark {
             hold: self.hold,
+            cascade_hold: self.cascade_hold,
             held_steps: self.stats.held_steps,
         }
     }
 
     pub fn rewind(&mut self, mark: HoldMark) {
-        (self.hold, self.stats.held_steps) = (mark.hold, mark.held_steps);
+        (self.hold, self.cascade_hold) = (mark.hold, mark.cascade_hold);
+        self.stats.held_steps = mark.held_steps;
     }
 
     /// Records that a step starting from the state in `start` and the integrator `history`
@@ -262,7 +275,7 @@ impl Watchdog {
     /// integrator's `history`, was saved from a failure for `reason` by a retry with `substeps`
     /// substeps: those are held for the next `hold_steps` steps, since what made it fail
     /// usually persists; after a [`Trouble::Cascade`], at most [`CASCADE_HELD`] times the
-    /// scene's.
+    /// scene's, for as long as [`Watchdog::cascade_hold_after`] says.
     pub fn rescued(
         &mut self,
         step: u64,
@@ -274,14 +287,32 @@ impl Watchdog {
     ) {
         self.stats.retried += 1;
         self.stats.max_substeps_used = self.stats.max_substeps_used.max(substeps);
-        let held = if reason.is_cascade() {
-            substeps.min(scene_substeps.saturating_mul(CASCADE_HELD))
+        let (held, hold) = if reason.is_cascade() {
+            let hold = self.cascade_hold_after(step);
+            self.cascade_hold = hold;
+            (
+                substeps.min(scene_substeps.saturating_mul(CASCADE_HELD)),
+                hold,
+            )
         } else {
-            substeps
+            self.cascade_hold = 0;
+            (substeps, self.spec.hold_steps as u64)
         };
-        let hold = self.spec.hold_steps as u64;
         self.hold = (hold > 0).then_some((held, step + 1 + hold));
         self.step_completed(start, history, substeps);
+    }
+
+    /// Steps the hold after a cascade in step number `step` lasts: [`CASCADE_HOLD_FIRST`], or,
+    /// when the step was held after an earlier cascade (the cluster cascaded again within its
+    /// hold), twice that hold; never more than `hold_steps`.
+    fn cascade_hold_after(&self, step: u64) -> u64 {
+        let most = self.spec.hold_steps as u64;
+        let within = self.hold.is_some_and(|(_, until)| step < until);
+        let hold = match self.cascade_hold {
+            last if within && last > 0 => last.saturating_mul(2),
+            _ => CASCADE_HOLD_FIRST,
+        };
+        hold.min(most)
     }
 
     // ----- saving and restoring -----------------------------------------------------------------
@@ -296,6 +327,7 @@ impl Watchdog {
             unjudged: self.unjudged,
             last_substeps: self.last_substeps,
             hold: self.hold,
+            cascade_hold: self.cascade_hold,
             stats: self.stats,
         }
     }
@@ -304,8 +336,9 @@ impl Watchdog {
     /// `substeps` substeps; the error names what does not fit.
     ///
     /// Only what such a simulation can have written is taken: a step's substeps between 1 and
-    /// the most the watchdog retries with, and a hold that ends within `hold_steps` of `steps`,
-    /// so that no crafted state makes the next step run for hours.
+    /// the most the watchdog retries with, and a hold that ends within `hold_steps` of `steps`
+    /// and, after a cascade, lasts at most `hold_steps`, so that no crafted state makes the next
+    /// step run for hours.
     pub fn restore(
         &mut self,
         saved: WatchdogSnapshot,
@@ -335,6 +368,15 @@ impl Watchdog {
                 ));
             }
         }
+        if saved.cascade_hold > self.spec.hold_steps as u64 {
+            return Err(Error::value(
+                "watchdog.cascade_hold",
+                format!(
+                    "must be a number of steps from 0 to hold_steps ({}), got {}",
+                    self.spec.hold_steps, saved.cascade_hold
+                ),
+            ));
+        }
         match (saved.previous, self.previous.as_mut()) {
             (None, _) => {}
             (Some(_), None) => {
@@ -362,6 +404,7 @@ impl Watchdog {
         self.unjudged = saved.unjudged;
         self.last_substeps = saved.last_substeps;
         self.hold = saved.hold;
+        self.cascade_hold = saved.cascade_hold;
         self.stats = saved.stats;
         Ok(())
     }
@@ -432,6 +475,19 @@ pub const CASCADE_MOST: u32 = 4;
 /// (`a_thin_twist_never_stretches_its_cloth_past_one_and_a_half_with_self_collision`; the
 /// contact notebook, "2026-12-07 (twistwound)").
 pub const CASCADE_HELD: u32 = 2;
+
+/// Steps the hold after a lone cascade lasts; each cascade in a held step (the cluster
+/// cascading again within its hold) doubles the hold, up to the scene's `hold_steps`. A
+/// cluster that cascades once, as newton's 50 x 50 twist (2 steps a frame, `solve_stiffness`
+/// 30) does in its wound window from 2.0 s, pays 8 held steps instead of 100: 126.5 against
+/// 191.5 CPU ms a frame there (one thread), about 103 with no hold at all. The thin 64 x 64
+/// twist cascades again within every hold, so its holds grow and it stays held as with a fixed
+/// 100-step hold (bit for bit; largest stretch 0.91 at frame 60). The length is a measured
+/// choice, not a bound: a fixed hold of 2 or 8 steps lets the thin twist pass 1.5; starting at
+/// 4, newton's twist cascades again within the short holds and pays more than with the fixed
+/// 100 steps; starting at 16 covers its second cascade and holds as long as that
+/// (docs/notes_twisthold.md).
+pub const CASCADE_HOLD_FIRST: u64 = 8;
 
 /// Particles per parallel work item of [`any_overstretched`].
 const SCAN_CHUNK: usize = 8192;
@@ -591,17 +647,97 @@ fn displacement_diagonal(x0: &Vec3s, x1: &Vec3s) -> f32 {
 mod tests {
     use super::*;
 
-    /// After step 10 of a scene of `scene` substeps is saved by a retry at `substeps` from
-    /// `reason`: the substeps steps 11 and 110 run with (the default hold is 100 steps).
-    fn substeps_after_rescue(reason: Trouble, substeps: u32, scene: u32) -> [u32; 2] {
+    fn retrying_watchdog() -> Watchdog {
         let spec = WatchdogSpec {
             on_trouble: OnTrouble::Substep,
             ..WatchdogSpec::default()
         };
-        let mut watchdog = Watchdog::new(&spec, 4);
+        Watchdog::new(&spec, 4)
+    }
+
+    /// After step 10 of a scene of `scene` substeps is saved by a retry at `substeps` from
+    /// `reason`: the substeps steps 11 and 18 run with (held by every hold).
+    fn substeps_after_rescue(reason: Trouble, substeps: u32, scene: u32) -> [u32; 2] {
+        let mut watchdog = retrying_watchdog();
         let mut start = Kinematics::zeros(4);
         watchdog.rescued(10, substeps, scene, reason, &mut start, History::default());
-        [11, 110].map(|step| watchdog.substeps_for(step, scene).0)
+        [11, 18].map(|step| watchdog.substeps_for(step, scene).0)
+    }
+
+    /// Steps a one-substep scene from step `from` to `to` (both included), saving the steps in
+    /// `cascades` from a cascade at 4 substeps: for each step, whether it ran held.
+    fn held_steps(watchdog: &mut Watchdog, from: u64, to: u64, cascades: &[u64]) -> Vec<bool> {
+        let mut start = Kinematics::zeros(4);
+        (from..=to)
+            .map(|step| {
+                let held = watchdog.substeps_for(step, 1).0 > 1;
+                if cascades.contains(&step) {
+                    let cascade = Trouble::Cascade { stopped: 40 };
+                    watchdog.rescued(step, 4, 1, cascade, &mut start, History::default());
+                }
+                held
+            })
+            .collect()
+    }
+
+    /// The steps among `held` (numbered from `from`) that ran held, as runs `(first, last)`.
+    fn runs(from: u64, held: &[bool]) -> Vec<(u64, u64)> {
+        let mut runs: Vec<(u64, u64)> = Vec::new();
+        for (step, _) in (from..).zip(held).filter(|(_, &h)| h) {
+            match runs.last_mut() {
+                Some((_, last)) if *last + 1 == step => *last = step,
+                _ => runs.push((step, step)),
+            }
+        }
+        runs
+    }
+
+    /// A cluster that cascades once is held for `CASCADE_HOLD_FIRST` steps, not for the scene's
+    /// whole `hold_steps` (100); one that cascades again within its hold is held twice as long
+    /// each time, up to `hold_steps`; once a hold ran out, the next cascade starts short again.
+    #[test]
+    fn a_lone_cascades_hold_ends_early_and_a_recurring_one_holds_longer() {
+        let mut watchdog = retrying_watchdog();
+        let lone = held_steps(&mut watchdog, 10, 200, &[10]);
+        assert_eq!(runs(10, &lone), [(11, 18)]);
+        // Cascades again in held steps 15, 30 and 60, and in each hold after: 16, 32, 64,
+        // then 100 steps (the scene's hold_steps) held.
+        let mut watchdog = retrying_watchdog();
+        let again = [10, 15, 30, 60, 120];
+        let recurring = held_steps(&mut watchdog, 10, 400, &again);
+        assert_eq!(runs(10, &recurring), [(11, 220)]);
+        assert_eq!(watchdog.cascade_hold, 100);
+        // The hold after 120 ended at 220: a cascade after it is held short again.
+        assert_eq!(
+            runs(300, &held_steps(&mut watchdog, 300, 320, &[300])),
+            [(301, 308)]
+        );
+    }
+
+    /// A failed attempt puts the cascade's hold back as it found it, and a restored watchdog
+    /// doubles the hold it was saved with.
+    #[test]
+    fn the_cascades_hold_is_rewound_with_a_failed_attempt_and_kept_in_a_snapshot() {
+        let mut watchdog = retrying_watchdog();
+        held_steps(&mut watchdog, 10, 12, &[10]);
+        let mark = watchdog.mark();
+        held_steps(&mut watchdog, 13, 13, &[13]);
+        assert_eq!(watchdog.cascade_hold, 2 * CASCADE_HOLD_FIRST);
+        watchdog.rewind(mark);
+        assert_eq!(watchdog.cascade_hold, CASCADE_HOLD_FIRST);
+        let mut restored = retrying_watchdog();
+        restored.restore(watchdog.snapshot(), 4, 13, 1).unwrap();
+        let mut longer = watchdog.snapshot();
+        longer.cascade_hold = 101;
+        let refused = retrying_watchdog().restore(longer, 4, 13, 1);
+        assert!(
+            matches!(&refused, Err(Error::InvalidValue { name, .. }) if name == "watchdog.cascade_hold"),
+            "{refused:?}"
+        );
+        // Held from 10 to 18, cascading again in held step 13: held to 13 + 16.
+        let after = |w: &mut Watchdog| runs(13, &held_steps(w, 13, 60, &[13]));
+        assert_eq!(after(&mut restored), [(13, 29)]);
+        assert_eq!(after(&mut watchdog), [(13, 29)]);
     }
 
     /// A step saved from a cascade at more than twice the scene's substeps holds twice the
