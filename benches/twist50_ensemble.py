@@ -10,10 +10,12 @@ by ``-/+ --perturb`` (relative), so that each build is measured on several traje
 Why an ensemble: the wound rope is chaotic, and what a frame costs there is set mostly by the
 watchdog's cascade retries (each one the step again at 2 or 4 times the substeps). Moving
 ``cg_tolerance`` by 0.3 % moved the retries in the 20 frames from 3.0 s from 6 to 11 and their
-mean frame by 11 % on the same build (docs/notes/contact.md, "2026-12-07 (twistsolves)"), so a change that is not bitwise
-cannot be judged from one window: compare the ensemble means, and the CPU a pass run, which
-the retries move far less. ``--packages`` runs each package's ``python/`` folder (its
-``PYTHONPATH``) in a process of its own, alternated, the states made once for all of them.
+mean frame by 11 % on the same build (docs/notes/contact.md, "2026-12-07 (twistsolves)"), so a
+change that is not bitwise cannot be judged from one window: compare the ensemble means, and
+the CPU a pass run, which the retries move far less. ``--packages`` runs each package's
+``python/`` folder (its ``PYTHONPATH``) in a process of its own, alternated, the states made
+once for all of them. A saved state carries the watchdog's hold of the build that made it, so
+for a change to the watchdog make states with each build and compare both ensembles.
 """
 from __future__ import annotations
 
