@@ -479,8 +479,8 @@ pub const CASCADE_HELD: u32 = 2;
 /// Steps the hold after a lone cascade lasts; each cascade in a held step (the cluster
 /// cascading again within its hold) doubles the hold, up to the scene's `hold_steps`. A
 /// cluster that cascades once, as newton's 50 x 50 twist (2 steps a frame, `solve_stiffness`
-/// 30) does in its wound window, pays a few held steps instead of `hold_steps`, about a third
-/// less CPU a frame there. The thin 64 x 64 twist cascades again within every hold, so its
+/// 30) does in its wound window, pays a few held steps instead of `hold_steps`. The thin 64 x
+/// 64 twist cascades again within every hold, so its
 /// holds grow and it stays held as with a fixed 100-step hold. The length is a measured choice,
 /// not a bound: a fixed hold of 2 or 8 steps lets the thin twist stretch past 1.5; starting at
 /// 4, newton's twist cascades again within the short holds and pays more than with the fixed
