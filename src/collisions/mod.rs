@@ -173,6 +173,13 @@ impl Collider {
     }
 }
 
+/// Of the contacts `(outward normal, where the particle is put)` a particle that ended at `to`
+/// makes, the deepest: the one that puts it farthest along its normal.
+pub fn deepest(to: Vec3, contacts: impl Iterator<Item = (Vec3, Vec3)>) -> Option<(Vec3, Vec3)> {
+    let depth = |&(n, at): &(Vec3, Vec3)| (at - to).dot(n);
+    contacts.max_by(|a, b| depth(a).total_cmp(&depth(b)))
+}
+
 /// Velocity after contact with a surface of outward unit normal `n` and friction `mu`.
 #[inline]
 pub fn contact_velocity(v: Vec3, n: Vec3, mu: f32) -> Vec3 {

@@ -141,7 +141,7 @@ impl Simulation {
         };
         let first = grab.index();
         let now = self.state.clock.time(self.model.scene.dt);
-        let here = (self.state.targets.at(first, now)).unwrap_or(self.state.kin.pos.get(first));
+        let here = self.glide_start(first, now);
         let over = self.drag_time();
         let target = self.above_floor(target);
         let target = self.slid_along_colliders(target, now, now + over);
@@ -155,11 +155,17 @@ impl Simulation {
             }
             // Pinned again in case `unpin` was called during the drag.
             self.model.particles.set_pinned(p, true);
-            let from = (self.state.targets.at(p, now)).unwrap_or(self.state.kin.pos.get(p));
+            let from = self.glide_start(p, now);
             moves.push((p, self.stepper.push_out(from, to, now + over)));
         }
         self.state.targets.glide_to(&moves, here, now, over);
         Ok(())
+    }
+
+    /// Where particle `p`'s glide starts at time `now` (s): on its glide's path where it has
+    /// one, else where it is.
+    fn glide_start(&self, p: usize, now: f64) -> Vec3 {
+        (self.state.targets.at(p, now)).unwrap_or(self.state.kin.pos.get(p))
     }
 
     /// `target` for the grabbed particle such that the grip, moved as one from where its
@@ -179,8 +185,9 @@ impl Simulation {
             let deepest = (grab.targets(slid))
                 .filter(|&(p, to)| alive[p] && to.is_finite())
                 .filter_map(|(p, to)| {
-                    let from = (self.state.targets.at(p, now)).unwrap_or(self.state.kin.pos.get(p));
-                    let (n, at) = self.stepper.contact(from, to, arrival)?;
+                    let (n, at) = self
+                        .stepper
+                        .contact(self.glide_start(p, now), to, arrival)?;
                     Some(((at - to).dot(n), n))
                 })
                 .max_by(|a, b| a.0.total_cmp(&b.0));

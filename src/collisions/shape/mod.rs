@@ -198,15 +198,15 @@ impl Shapes {
     /// `from` to `to`: the outward normal and the point [`Shapes::push_out`]'s shape would put
     /// it at, of the shape that puts it farthest along its normal; `None` where none touches.
     pub fn contact_at(&self, from: Vec3, to: Vec3, time: f64) -> Option<(Vec3, Vec3)> {
-        let depth = |&(n, at): &(Vec3, Vec3)| (at - to).dot(n);
-        self.shapes
+        let contacts = self
+            .shapes
             .iter()
             .zip(&self.keys)
             .filter_map(|(shape, key)| {
                 let posed = shape.posed(time, key.as_ref());
                 shape.contact(&posed, &posed, from, to)
-            })
-            .max_by(|a, b| depth(a).total_cmp(&depth(b)))
+            });
+        super::deepest(to, contacts)
     }
 
     /// Moves every dynamic particle of `next` that ended inside a shape (posed at `time`, the

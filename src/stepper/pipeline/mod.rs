@@ -185,11 +185,11 @@ impl Pipeline {
     /// from `from` to `to`, each tested on that path alone: the outward normal and where that
     /// collider puts the particle, of the one that puts it farthest along its normal.
     pub fn contact(&self, from: Vec3, to: Vec3, time: f64) -> Option<(Vec3, Vec3)> {
-        let depth = |&(n, at): &(Vec3, Vec3)| (at - to).dot(n);
-        self.colliders
+        let contacts = self
+            .colliders
             .iter()
-            .filter_map(|c| c.contact(from, to, time))
-            .max_by(|a, b| depth(a).total_cmp(&depth(b)))
+            .filter_map(|c| c.contact(from, to, time));
+        crate::collisions::deepest(to, contacts)
     }
 
     /// The `[[colliders]]`, when the scene has any.
