@@ -7,7 +7,7 @@ use crate::common;
 
 use common::{assert_bitwise_on_1_2_3_threads, momentum, state_hash};
 use glam::{DMat2, DQuat, DVec2, DVec3};
-use rustcloth::mesh_cloth::{jittered_square, MeshCloth};
+use rustcloth::mesh_cloth::{graded_square, jittered_square, Grading, MeshCloth};
 use rustcloth::scene::{MembraneKind, MeshSpec, PinSpec, Preconditioner};
 use rustcloth::soa::Vec3s;
 use rustcloth::{IntegratorKind, Scene, Simulation};
@@ -387,6 +387,45 @@ fn a_membrane_sheet_clamped_along_its_whole_top_edge_sags_alike_at_every_resolut
     assert!(
         spread(whole) < spread(clamps) / 4.0,
         "whole edge {whole:?}, two clamps {clamps:?}"
+    );
+}
+
+/// A mesh graded toward the clamps' inner ends and the top corners, where the membrane's
+/// strain is singular, converges in sag faster than a uniform mesh of as many vertices: from
+/// 17 x 17 to 33 x 33 vertices its sag moves less than half as much (measured: 1.9 % graded,
+/// 5.1 % uniform). From 1k to 16k vertices: 1.2 % graded against 3.3 % uniform
+/// (docs/mesh_cloth.md, "A mesh graded toward the clamps' ends").
+#[test]
+fn a_mesh_graded_toward_the_clamp_ends_sags_alike_at_two_resolutions_sooner_than_a_uniform_one() {
+    let sag = |n: usize, graded: bool| {
+        let (vertices, triangles) = if graded {
+            graded_square(n * n, 1.0, [0.0, 1.0, 0.0], 0.125, Grading::default(), 1)
+        } else {
+            let (mut vertices, triangles) = jittered_square(n, 1.0, [0.0, 1.0, 0.0], 0.3, 1);
+            for (i, v) in vertices[n * (n - 1)..].iter_mut().enumerate() {
+                v[0] = i as f64 / (n - 1) as f64 - 0.5;
+            }
+            (vertices, triangles)
+        };
+        let count = vertices.len();
+        let mut scene: Scene = common::mesh_cloth_scene(vertices, triangles, vec![]);
+        scene.cloth.mesh.as_mut().unwrap().membrane = MembraneKind::Triangle;
+        // Implicit Euler at a large step settles to the same equilibrium as the explicit study
+        // in a few hundred steps; the graded mesh's smallest triangles would hold an explicit
+        // step to a fifth of the uniform mesh's, and its heavier far vertices settle slower
+        // under the same drag per particle.
+        scene.integrator = IntegratorKind::ImplicitEuler;
+        scene.dt = 0.01;
+        common::settle_clamped_implicit(scene, count)
+    };
+    let graded = [sag(17, true), sag(33, true)];
+    let uniform = [sag(17, false), sag(33, false)];
+    eprintln!("graded {graded:?}, uniform {uniform:?}");
+    let spread = |[a, b]: [f64; 2]| (b / a - 1.0).abs();
+    assert!((0.05..0.1).contains(&graded[1]), "it hangs: {graded:?}");
+    assert!(
+        spread(graded) < spread(uniform) / 2.0,
+        "graded {graded:?}, uniform {uniform:?}"
     );
 }
 

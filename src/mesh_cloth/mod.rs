@@ -76,9 +76,11 @@ pub mod bending {
     pub use crate::scene::IsometricBending;
 }
 pub mod forces;
+pub mod graded;
 pub mod membrane;
 pub mod topology;
 
+pub use graded::{graded_square, Grading};
 pub use topology::MeshTopology;
 
 // The compiled mesh (its checks, masses and springs) lives with the scene that validates it,
@@ -99,15 +101,7 @@ pub fn jittered_square(
     seed: u64,
 ) -> (Vec<[f64; 3]>, Vec<[i64; 3]>) {
     assert!(n >= 2, "a square needs at least 2 x 2 points");
-    // splitmix64: a seeded stream with no dependency.
-    let mut state = seed;
-    let mut uniform = move || {
-        state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        (z ^ (z >> 31)) as f64 / u64::MAX as f64 * 2.0 - 1.0
-    };
+    let mut uniform = graded::uniform_stream(seed);
     let h = size / (n - 1) as f64;
     let mut vertices = Vec::with_capacity(n * n);
     for j in 0..n {

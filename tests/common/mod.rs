@@ -549,6 +549,29 @@ pub fn settle_clamped_over(mut scene: Scene, n: usize, clamp: f64) -> (f64, f64)
     (1.0 - centroid, away as f64)
 }
 
+/// The sag (m) of `scene`'s mesh, of `vertices` vertices, hung by two 12.5 cm clamps as
+/// [`settle_clamped`] hangs it, settled 4 s under the scene's own integrator and step.
+pub fn settle_clamped_implicit(mut scene: Scene, vertices: usize) -> f64 {
+    scene.cloth.pins = [[-0.5, -0.375], [0.375, 0.5]]
+        .map(|[x0, x1]| {
+            PinSpec::Region(rustcloth::scene::PinBox {
+                corners: [[x0, 1.5 - 1e-9, -0.1], [x1, 1.5, 0.1]],
+            })
+        })
+        .to_vec();
+    let spec = scene.cloth.mesh.as_mut().unwrap();
+    (spec.stretch, spec.bend, spec.damping) = (60.0, 0.8, 0.01);
+    scene.air_drag = 4.0 * 0.2 / vertices as f64;
+    let mut sim = Simulation::new(scene).unwrap();
+    sim.advance(4.0).unwrap();
+    let kinetic = sim.energy().kinetic;
+    assert!(kinetic < 1e-5, "not settled: kinetic energy {kinetic} J");
+    let (y, m) = (&sim.positions().y, &sim.particles().mass);
+    let centroid: f64 = (0..m.len()).map(|p| m[p] as f64 * y[p] as f64).sum::<f64>()
+        / m.iter().map(|&m| m as f64).sum::<f64>();
+    1.0 - centroid
+}
+
 /// Steps `sim` one step a frame for `frames` frames, asserting that its total energy never
 /// rises from one frame to the next (beyond 1e-6 of where it started) and that it ends below
 /// where it started; `label` names the case.
