@@ -218,14 +218,22 @@ fn measure(label: &str, scene: Scene, seconds: f64, clamp: f64) {
     );
 }
 
+/// A comma-separated argument (or `default` where it is absent), each item parsed; `what`
+/// names the argument in the message of a bad item.
+fn list<T: std::str::FromStr>(arg: Option<&String>, default: &str, what: &str) -> Vec<T> {
+    arg.map_or(default, String::as_str)
+        .split(',')
+        .map(|s| s.parse().unwrap_or_else(|_| panic!("{what}: {s}")))
+        .collect()
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
-    let sizes: Vec<usize> = args
-        .get(1)
-        .map_or("17,33", String::as_str)
-        .split(',')
-        .map(|s| s.parse().expect("SIZES: points per side, comma separated"))
-        .collect();
+    let sizes: Vec<usize> = list(
+        args.get(1),
+        "17,33",
+        "SIZES: points per side, comma separated",
+    );
     let seconds: f64 = args.get(2).map_or(3.0, |s| s.parse().expect("SECONDS"));
     let cloths: Vec<&str> = args
         .get(3)
@@ -233,20 +241,10 @@ fn main() {
         .split(',')
         .collect();
     let top_name = args.get(4).map_or("jittered", String::as_str);
-    let seeds: Vec<u64> = args
-        .get(5)
-        .map_or("1", String::as_str)
-        .split(',')
-        .map(|s| s.parse().expect("SEEDS: comma separated"))
-        .collect();
+    let seeds: Vec<u64> = list(args.get(5), "1", "SEEDS: comma separated");
     let bend: f64 = args.get(6).map_or(0.8, |s| s.parse().expect("BEND: N/m"));
     let clamp: f64 = args.get(7).map_or(CLAMP, |s| s.parse().expect("CLAMP: m"));
-    let grading: Vec<f64> = args
-        .get(8)
-        .map_or("0.3,1,0.15", String::as_str)
-        .split(',')
-        .map(|s| s.parse().expect("GRADING: radius,exponent,floor"))
-        .collect();
+    let grading: Vec<f64> = list(args.get(8), "0.3,1,0.15", "GRADING: radius,exponent,floor");
     let implicit_dt: Option<f64> = match args.get(9).map_or("symplectic", String::as_str) {
         "symplectic" => None,
         other => Some(

@@ -524,6 +524,29 @@ pub fn settle_clamped(scene: Scene, n: usize) -> (f64, f64) {
 
 /// [`settle_clamped`] with clamps `clamp` m long from each top corner (0.5: the whole edge).
 pub fn settle_clamped_over(mut scene: Scene, n: usize, clamp: f64) -> (f64, f64) {
+    hang_by_clamps(&mut scene, clamp, n * n);
+    scene.dt = 0.7 * scene.stable_dt(IntegratorKind::SymplecticEuler).unwrap();
+    let sim = settled(scene, 3.0);
+    let y = &sim.positions().y;
+    let strain = sim.spring_strain();
+    let away = (0..y.len())
+        .filter(|&p| y[p] < 1.25)
+        .map(|p| strain[p])
+        .fold(0.0f32, f32::max);
+    (centroid_drop(&sim), away as f64)
+}
+
+/// The sag (m) of `scene`'s mesh, of `vertices` vertices, hung by two 12.5 cm clamps as
+/// [`settle_clamped`] hangs it, settled 4 s under the scene's own integrator and step.
+pub fn settle_clamped_implicit(mut scene: Scene, vertices: usize) -> f64 {
+    hang_by_clamps(&mut scene, 0.125, vertices);
+    centroid_drop(&settled(scene, 4.0))
+}
+
+/// Pins the first and last `clamp` m of the top edge (y = 1.5) of a 1 m mesh square of
+/// `vertices` vertices, with the material and the drag (proportional to mass) of
+/// [`settle_clamped`].
+fn hang_by_clamps(scene: &mut Scene, clamp: f64, vertices: usize) {
     scene.cloth.pins = [[-0.5, -0.5 + clamp], [0.5 - clamp, 0.5]]
         .map(|[x0, x1]| {
             PinSpec::Region(rustcloth::scene::PinBox {
@@ -533,39 +556,20 @@ pub fn settle_clamped_over(mut scene: Scene, n: usize, clamp: f64) -> (f64, f64)
         .to_vec();
     let spec = scene.cloth.mesh.as_mut().unwrap();
     (spec.stretch, spec.bend, spec.damping) = (60.0, 0.8, 0.01);
-    scene.air_drag = 4.0 * 0.2 / (n * n) as f64;
-    scene.dt = 0.7 * scene.stable_dt(IntegratorKind::SymplecticEuler).unwrap();
-    let mut sim = Simulation::new(scene).unwrap();
-    sim.advance(3.0).unwrap();
-    assert!(sim.energy().kinetic < 1e-5, "not settled");
-    let (y, m) = (&sim.positions().y, &sim.particles().mass);
-    let centroid: f64 = (0..m.len()).map(|p| m[p] as f64 * y[p] as f64).sum::<f64>()
-        / m.iter().map(|&m| m as f64).sum::<f64>();
-    let strain = sim.spring_strain();
-    let away = (0..m.len())
-        .filter(|&p| y[p] < 1.25)
-        .map(|p| strain[p])
-        .fold(0.0f32, f32::max);
-    (1.0 - centroid, away as f64)
+    scene.air_drag = 4.0 * 0.2 / vertices as f64;
 }
 
-/// The sag (m) of `scene`'s mesh, of `vertices` vertices, hung by two 12.5 cm clamps as
-/// [`settle_clamped`] hangs it, settled 4 s under the scene's own integrator and step.
-pub fn settle_clamped_implicit(mut scene: Scene, vertices: usize) -> f64 {
-    scene.cloth.pins = [[-0.5, -0.375], [0.375, 0.5]]
-        .map(|[x0, x1]| {
-            PinSpec::Region(rustcloth::scene::PinBox {
-                corners: [[x0, 1.5 - 1e-9, -0.1], [x1, 1.5, 0.1]],
-            })
-        })
-        .to_vec();
-    let spec = scene.cloth.mesh.as_mut().unwrap();
-    (spec.stretch, spec.bend, spec.damping) = (60.0, 0.8, 0.01);
-    scene.air_drag = 4.0 * 0.2 / vertices as f64;
+/// `scene` stepped for `seconds`, asserting it has come to rest.
+fn settled(scene: Scene, seconds: f64) -> Simulation {
     let mut sim = Simulation::new(scene).unwrap();
-    sim.advance(4.0).unwrap();
+    sim.advance(seconds).unwrap();
     let kinetic = sim.energy().kinetic;
     assert!(kinetic < 1e-5, "not settled: kinetic energy {kinetic} J");
+    sim
+}
+
+/// How far the centre of mass lies below y = 1 (the hung square's rest centre), m.
+fn centroid_drop(sim: &Simulation) -> f64 {
     let (y, m) = (&sim.positions().y, &sim.particles().mass);
     let centroid: f64 = (0..m.len()).map(|p| m[p] as f64 * y[p] as f64).sum::<f64>()
         / m.iter().map(|&m| m as f64).sum::<f64>();
