@@ -318,19 +318,27 @@ fn a_membrane_cloth_steps_bitwise_alike_on_any_thread_count() {
     }
 }
 
+/// The jittered 1 m `n` x `n` square hanging in xy (centre at y = 1) with its top row evenly
+/// spaced, so that both clamps hold the same length of edge on every triangulation (a top
+/// vertex jittered across a clamp's end moves the end by up to a spacing, a quarter of the
+/// clamp at 33 x 33).
+fn even_top_square(n: usize, seed: u64) -> (Vec<[f64; 3]>, Vec<[i64; 3]>) {
+    let (mut vertices, triangles) = jittered_square(n, 1.0, [0.0, 1.0, 0.0], 0.3, seed);
+    for (i, v) in vertices[n * (n - 1)..].iter_mut().enumerate() {
+        v[0] = i as f64 / (n - 1) as f64 - 0.5;
+    }
+    (vertices, triangles)
+}
+
 /// The jittered `n` x `n` square hung by its clamps ([`common::settle_clamped`], as the springs'
 /// `irregular_meshes_of_the_same_square_hang_alike`): its sag (m) and its largest edge strain
 /// below the clamps.
 fn settle(n: usize, seed: u64, membrane: MembraneKind, regular_top: bool) -> (f64, f64) {
-    let (mut vertices, triangles) = jittered_square(n, 1.0, [0.0, 1.0, 0.0], 0.3, seed);
-    // The top row evenly spaced, so that both clamps hold the same length of edge on every
-    // triangulation (a top vertex jittered across a clamp's end moves the end by up to a
-    // spacing, a quarter of the clamp at 33 x 33).
-    if regular_top {
-        for (i, v) in vertices[n * (n - 1)..].iter_mut().enumerate() {
-            v[0] = i as f64 / (n - 1) as f64 - 0.5;
-        }
-    }
+    let (vertices, triangles) = if regular_top {
+        even_top_square(n, seed)
+    } else {
+        jittered_square(n, 1.0, [0.0, 1.0, 0.0], 0.3, seed)
+    };
     let mut scene: Scene = common::mesh_cloth_scene(vertices, triangles, vec![]);
     scene.cloth.mesh.as_mut().unwrap().membrane = membrane;
     common::settle_clamped(scene, n)
@@ -366,10 +374,7 @@ fn two_triangulations_of_the_same_square_hang_alike_under_the_membrane() {
 #[test]
 fn a_membrane_sheet_clamped_along_its_whole_top_edge_sags_alike_at_every_resolution() {
     let sag = |n, clamp| {
-        let (mut vertices, triangles) = jittered_square(n, 1.0, [0.0, 1.0, 0.0], 0.3, 1);
-        for (i, v) in vertices[n * (n - 1)..].iter_mut().enumerate() {
-            v[0] = i as f64 / (n - 1) as f64 - 0.5;
-        }
+        let (vertices, triangles) = even_top_square(n, 1);
         let mut scene: Scene = common::mesh_cloth_scene(vertices, triangles, vec![]);
         scene.cloth.mesh.as_mut().unwrap().membrane = MembraneKind::Triangle;
         common::settle_clamped_over(scene, n, clamp).0
@@ -401,11 +406,7 @@ fn a_mesh_graded_toward_the_clamp_ends_sags_alike_at_two_resolutions_sooner_than
         let (vertices, triangles) = if graded {
             graded_square(n * n, 1.0, [0.0, 1.0, 0.0], 0.125, Grading::default(), 1)
         } else {
-            let (mut vertices, triangles) = jittered_square(n, 1.0, [0.0, 1.0, 0.0], 0.3, 1);
-            for (i, v) in vertices[n * (n - 1)..].iter_mut().enumerate() {
-                v[0] = i as f64 / (n - 1) as f64 - 0.5;
-            }
-            (vertices, triangles)
+            even_top_square(n, 1)
         };
         let count = vertices.len();
         let mut scene: Scene = common::mesh_cloth_scene(vertices, triangles, vec![]);

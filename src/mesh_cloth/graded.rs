@@ -14,6 +14,8 @@
 
 use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
 
+use super::uniform_stream;
+
 /// How a [`graded_square`]'s spacing shrinks toward the clamps' ends and the top corners:
 /// `h(d) = h0 clamp((d / radius)^exponent, floor, 1)`, `d` the distance to the nearest of them.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -47,18 +49,6 @@ impl Default for Grading {
 const RADIUS_PER_SPACING: f64 = 0.8;
 /// Candidates tried around each active point before it retires (Bridson's `k`).
 const CANDIDATES: usize = 30;
-
-/// A seeded stream of uniform numbers in `[-1, 1]` (splitmix64: no dependency).
-pub(super) fn uniform_stream(seed: u64) -> impl FnMut() -> f64 {
-    let mut state = seed;
-    move || {
-        state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        (z ^ (z >> 31)) as f64 / u64::MAX as f64 * 2.0 - 1.0
-    }
-}
 
 /// An irregular triangulation of a `size` x `size` square in the plane through `center` along
 /// `+x` and `+y` (a hanging sheet, top edge at `+y`), of about `vertices` vertices (within a

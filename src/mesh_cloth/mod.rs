@@ -87,6 +87,18 @@ pub use topology::MeshTopology;
 // so that the scene's checks and stability estimate need nothing from here.
 pub use crate::scene::{EdgeKind, EdgeSprings, MeshCloth};
 
+/// A seeded stream of uniform numbers in `[-1, 1]` (splitmix64: no dependency).
+fn uniform_stream(seed: u64) -> impl FnMut() -> f64 {
+    let mut state = seed;
+    move || {
+        state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        (z ^ (z >> 31)) as f64 / u64::MAX as f64 * 2.0 - 1.0
+    }
+}
+
 /// An irregular triangulation of a `size` x `size` square in the plane through `center` along
 /// `+x` and `+y` (a hanging sheet): `n` x `n` points on a grid, the interior ones moved by up
 /// to `jitter` grid spacings in x and y (boundary points slide along their edge only, corners
@@ -101,7 +113,7 @@ pub fn jittered_square(
     seed: u64,
 ) -> (Vec<[f64; 3]>, Vec<[i64; 3]>) {
     assert!(n >= 2, "a square needs at least 2 x 2 points");
-    let mut uniform = graded::uniform_stream(seed);
+    let mut uniform = uniform_stream(seed);
     let h = size / (n - 1) as f64;
     let mut vertices = Vec::with_capacity(n * n);
     for j in 0..n {
