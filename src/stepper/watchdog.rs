@@ -501,15 +501,18 @@ pub const CASCADE_HELD: u32 = 2;
 /// notebook, "2026-12-07 (twisthold)").
 pub const CASCADE_HOLD_FIRST: u64 = 8;
 
-/// Vertices a cascade must stop in one substep for the long hold: at most [`CASCADE_MOST`]
-/// times the scene's substeps for the scene's whole `hold_steps`, instead of the short hold
-/// ([`CASCADE_HELD`], [`CASCADE_HOLD_FIRST`]). A count of vertices rather than a share of the
-/// cloth: what tears is the stopped region lagging the cloth and pins around it, and its size
-/// in spacings, not the cloth's, sets how far that stretches. The cascades of newton's 50 x
-/// 50 twist stop tens of vertices and the thin 64 x 64 twist's at most 90, and both are
-/// cheaper or as calm with the short hold; the 256 x 256 twist's stop thousands (9,926 in
-/// one substep), and on it only the long hold at four times kept the largest stretch under
-/// 1.5 to frame 60 (the contact notebook, "2026-12-07 (twistsize)").
+/// Vertices a cascade must stop in one substep (the most of any attempt at the step) for the
+/// long hold: at most [`CASCADE_MOST`] times the scene's substeps for the scene's whole
+/// `hold_steps`, instead of the short hold ([`CASCADE_HELD`], [`CASCADE_HOLD_FIRST`]). A count
+/// of vertices rather than a share of the cloth: what tears is the stopped region lagging the
+/// cloth and pins around it, and its size in spacings, not the cloth's, sets how far that
+/// stretches; a share small enough for the 256 x 256 twist (65,536 vertices) would be under
+/// [`CASCADE_STOPPED`] on newton's 50 x 50 twist. Measured: newton's twist's cascades stop
+/// 33-184 vertices over the windows of `benches/twist50_ensemble.py`, the thin 64 x 64 twist's
+/// 33-215, and both are as cheap or as calm with the short hold; the 256 x 256 twist's first
+/// two stop 4,294 and 7,605, and on it only a long hold at four times (for every cascade)
+/// kept the largest stretch under 1.5 to frame 60 (docs/notes_twistsize.md). 512 lies more
+/// than twice above the small ones and eight times under the large.
 pub const CASCADE_LARGE: u64 = 512;
 
 /// Particles per parallel work item of [`any_overstretched`].
