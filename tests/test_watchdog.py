@@ -43,6 +43,7 @@ def test_divergence_reports_reason_step_and_substeps():
     assert np.isfinite(sim.positions).all()
     assert sim.watchdog_stats() == {
         "caught": 1, "retried": 0, "retry_substeps": 0, "max_substeps_used": 0, "held_steps": 0,
+        "largest_cascade": 0,
     }
 
 

@@ -776,7 +776,9 @@ class Simulation:
     def watchdog_stats(self) -> dict[str, int]:
         """What the watchdog caught (``caught``), saved by retrying (``retried``), the
         substeps those retries cost (``retry_substeps``), the most a saved step needed
-        (``max_substeps_used``) and the steps run with held substeps (``held_steps``)."""
+        (``max_substeps_used``), the steps run with held substeps (``held_steps``) and the
+        most vertices the self-collision cap stopped in one substep of a step saved from a
+        cascade (``largest_cascade``, what chooses its hold; 0 without one)."""
         return self._core.watchdog_stats()
 
     def memory_bytes(self) -> int:

@@ -94,6 +94,9 @@ impl Stepper {
         let mut start = self.watchdog.take_retry_start(model.grid.len());
         start.copy_from(&state.kin);
         let mut last = failure;
+        // The failure a rescue is saved from, a cascade's with the most vertices any attempt's
+        // cap stopped: its hold is chosen by that size.
+        let mut reason = failure.reason;
         let mut rescued = None;
         // The history the step starts from, for a failed retry to hand back.
         let start_history = self.pipeline.integrator.history();
@@ -120,6 +123,13 @@ impl Stepper {
                 }
                 Err(f) => {
                     last = f;
+                    if let (Trouble::Cascade { stopped }, Trouble::Cascade { stopped: again }) =
+                        (reason, f.reason)
+                    {
+                        reason = Trouble::Cascade {
+                            stopped: stopped.max(again),
+                        };
+                    }
                     state.kin.copy_from(&start);
                     // A scene that raises on trouble retries a cascade, and nothing else.
                     if !self.watchdog.retries() && !f.reason.is_cascade() {
@@ -138,7 +148,7 @@ impl Stepper {
                     step,
                     substeps,
                     model.scene.substeps,
-                    failure.reason,
+                    reason,
                     &mut start,
                     history,
                 );

@@ -54,6 +54,11 @@ pub struct WatchdogStats {
     pub max_substeps_used: u32,
     /// Steps run with a rescued step's substeps held (`hold_steps`).
     pub held_steps: u64,
+    /// Most vertices the self-collision cap stopped in one substep of a step saved from a
+    /// cascade: what chose its hold ([`CASCADE_LARGE`]); 0 without a cascade (absent in a state
+    /// saved without it: 0).
+    #[serde(default)]
+    pub largest_cascade: u64,
 }
 
 /// A step that went wrong, before recovery.
@@ -274,8 +279,11 @@ impl Watchdog {
     /// Step number `step` of a scene of `scene_substeps`, started from `start` with the
     /// integrator's `history`, was saved from a failure for `reason` by a retry with `substeps`
     /// substeps: those are held for the next `hold_steps` steps, since what made it fail
-    /// usually persists; after a [`Trouble::Cascade`], at most [`CASCADE_HELD`] times the
-    /// scene's, for as long as [`Watchdog::cascade_hold_after`] says.
+    /// usually persists. After a [`Trouble::Cascade`] (its `stopped` the most vertices any
+    /// attempt's cap stopped in a substep) the hold is chosen by the cascade's size: one that
+    /// stopped more than [`CASCADE_LARGE`] holds at most [`CASCADE_MOST`] times the scene's
+    /// substeps for `hold_steps`; a smaller one at most [`CASCADE_HELD`] times, for as long as
+    /// [`Watchdog::cascade_hold_after`] says.
     pub fn rescued(
         &mut self,
         step: u64,
@@ -287,16 +295,21 @@ impl Watchdog {
     ) {
         self.stats.retried += 1;
         self.stats.max_substeps_used = self.stats.max_substeps_used.max(substeps);
-        let (held, hold) = if reason.is_cascade() {
-            let hold = self.cascade_hold_after(step);
-            self.cascade_hold = hold;
-            (
-                substeps.min(scene_substeps.saturating_mul(CASCADE_HELD)),
-                hold,
-            )
-        } else {
-            self.cascade_hold = 0;
-            (substeps, self.spec.hold_steps as u64)
+        let (held, hold) = match reason {
+            Trouble::Cascade { stopped } => {
+                self.stats.largest_cascade = self.stats.largest_cascade.max(stopped);
+                let (most, hold) = if stopped > CASCADE_LARGE {
+                    (CASCADE_MOST, self.spec.hold_steps as u64)
+                } else {
+                    (CASCADE_HELD, self.cascade_hold_after(step))
+                };
+                self.cascade_hold = hold;
+                (substeps.min(scene_substeps.saturating_mul(most)), hold)
+            }
+            _ => {
+                self.cascade_hold = 0;
+                (substeps, self.spec.hold_steps as u64)
+            }
         };
         self.hold = (hold > 0).then_some((held, step + 1 + hold));
         self.step_completed(start, history, substeps);
@@ -487,6 +500,20 @@ pub const CASCADE_HELD: u32 = 2;
 /// 100 steps; starting at 16 covers its second cascade and holds as long as that (the contact
 /// notebook, "2026-12-07 (twisthold)").
 pub const CASCADE_HOLD_FIRST: u64 = 8;
+
+/// Vertices a cascade must stop in one substep (the most of any attempt at the step) for the
+/// long hold: at most [`CASCADE_MOST`] times the scene's substeps for the scene's whole
+/// `hold_steps`, instead of the short hold ([`CASCADE_HELD`], [`CASCADE_HOLD_FIRST`]). A count
+/// of vertices rather than a share of the cloth: what tears is the stopped region lagging the
+/// cloth and pins around it, and its size in spacings, not the cloth's, sets how far that
+/// stretches; a share small enough for the 256 x 256 twist (65,536 vertices) would be under
+/// [`CASCADE_STOPPED`] on newton's 50 x 50 twist. Measured: newton's twist's cascades stop
+/// 33-184 vertices over the windows of `benches/twist50_ensemble.py`, the thin 64 x 64 twist's
+/// 33-215, and both are as cheap or as calm with the short hold; the 256 x 256 twist's first
+/// two stop 4,294 and 7,605, and on it only a long hold at four times (for every cascade)
+/// kept the largest stretch under 1.5 to frame 60 (docs/notes_twistsize.md). 512 lies more
+/// than twice above the small ones and eight times under the large.
+pub const CASCADE_LARGE: u64 = 512;
 
 /// Particles per parallel work item of [`any_overstretched`].
 const SCAN_CHUNK: usize = 8192;
@@ -750,5 +777,54 @@ mod tests {
         assert_eq!(substeps_after_rescue(cascade, 8, 2), [4, 4]);
         assert_eq!(substeps_after_rescue(cascade, 2, 1), [2, 2]);
         assert_eq!(substeps_after_rescue(Trouble::NonFinite, 4, 1), [4, 4]);
+    }
+
+    /// A cascade that stopped more than `CASCADE_LARGE` vertices in a substep (the 256 x 256
+    /// twist's stop thousands) holds up to `CASCADE_MOST` times the scene's substeps for the
+    /// scene's whole `hold_steps`; one that stopped fewer (newton's 50 x 50 twist's stop tens)
+    /// holds at most `CASCADE_HELD` times for `CASCADE_HOLD_FIRST` steps. A snapshot in the
+    /// long hold restores it.
+    #[test]
+    fn a_large_cascade_is_held_long_at_four_times_and_a_small_one_short_at_twice() {
+        // Step 10 of a 2-substep scene saved at 8 substeps from a cascade that stopped
+        // `stopped`: the substeps of steps 11 to 120, and the watchdog after step 60.
+        let held_after = |stopped: u64| {
+            let mut watchdog = retrying_watchdog();
+            let mut start = Kinematics::zeros(4);
+            let cascade = Trouble::Cascade { stopped };
+            watchdog.rescued(10, 8, 2, cascade, &mut start, History::default());
+            let mut saved = None;
+            let substeps: Vec<u32> = (11..=120)
+                .map(|step| {
+                    if step == 60 {
+                        saved = Some(watchdog.snapshot());
+                    }
+                    watchdog.substeps_for(step, 2).0
+                })
+                .collect();
+            assert_eq!(watchdog.stats().largest_cascade, stopped);
+            (substeps, saved.unwrap())
+        };
+        // Steps 11 to 120 as runs: `(substeps, steps)`.
+        let runs = |substeps: &[u32]| {
+            let mut runs: Vec<(u32, usize)> = Vec::new();
+            for &s in substeps {
+                match runs.last_mut() {
+                    Some((last, count)) if *last == s => *count += 1,
+                    _ => runs.push((s, 1)),
+                }
+            }
+            runs
+        };
+        let (large, saved) = held_after(CASCADE_LARGE + 1);
+        assert_eq!(runs(&large), [(8, 100), (2, 10)]);
+        let (small, _) = held_after(CASCADE_LARGE);
+        assert_eq!(runs(&small), [(4, CASCADE_HOLD_FIRST as usize), (2, 102)]);
+        // Restored at step 59 (the snapshot was taken before step 60 ran), the long hold goes
+        // on at 8 substeps to step 110.
+        let mut restored = retrying_watchdog();
+        restored.restore(saved, 4, 59, 2).unwrap();
+        let rest: Vec<u32> = (60..=120).map(|s| restored.substeps_for(s, 2).0).collect();
+        assert_eq!(runs(&rest), [(8, 51), (2, 10)]);
     }
 }
