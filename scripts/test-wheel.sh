@@ -23,8 +23,14 @@
 #      lacks a dependency its feature imports fails here, where installing the extras together
 #      would hide it (as it hid that trimesh needs Pillow for UVs). The rest ran in 1.
 #
+# The runs are independent (a venv and a log each; the copy of the suite is only read), so up
+# to JOBS of them (default: the number of CPUs) go at once: most of a run's time is pip
+# downloading and unpacking, which overlaps with another run's tests. Each run's lines are
+# printed together, in the order below, once it ends.
+#
 # Usage: scripts/test-wheel.sh WHEEL
 #        ONLY="export usd" scripts/test-wheel.sh WHEEL   # only the runs with these labels
+#        JOBS=1 scripts/test-wheel.sh WHEEL              # one run at a time
 set -euo pipefail
 
 wheel=$(realpath "$1")
@@ -63,9 +69,6 @@ newer_python() {
 run() {
     local label=$1 py=$2 extras=$3 venv="$work/venv-$1" start
     shift 3
-    if [ -n "${ONLY:-}" ] && [[ " $ONLY " != *" $label "* ]]; then
-        return
-    fi
     local tests=("${@:-tests}")
     "$py" -m venv "$venv"
     "$venv/bin/python" -m pip install -q --upgrade pip
@@ -92,6 +95,33 @@ EOF
     )
 }
 
+# start LABEL PYTHON EXTRAS [PYTEST ARGS...]: `run` in the background, its output kept for
+# `finish`, once fewer than JOBS runs are going.
+jobs_max=${JOBS:-$(nproc)}
+labels=() pids=()
+start() {
+    if [ -n "${ONLY:-}" ] && [[ " $ONLY " != *" $1 "* ]]; then
+        return
+    fi
+    while (( $(jobs -rp | wc -l) >= jobs_max )); do
+        sleep 0.2
+    done
+    ( run "$@" ) > "$work/$1.out" 2>&1 &
+    labels+=("$1") pids+=($!)
+}
+
+# finish: waits for every run, prints what each printed, and fails if one failed.
+finish() {
+    local i failed=0
+    for i in "${!pids[@]}"; do
+        if ! wait "${pids[i]}"; then
+            failed=1
+        fi
+        cat "$work/${labels[i]}.out"
+    done
+    return "$failed"
+}
+
 # The binding and the package on another interpreter (see 1. above for why these files).
 CORE_TESTS=(
     tests/test_packaging.py tests/test_typing.py tests/test_core_arguments.py
@@ -111,18 +141,19 @@ CORE_TESTS=(
 )
 newer=${NEWER_PYTHON:-$(newer_python)}
 if [ -n "$newer" ]; then
-    run "py$("$newer" -c 'import sys; print(*sys.version_info[:2], sep="")')-core" "$newer" "" \
+    start "py$("$newer" -c 'import sys; print(*sys.version_info[:2], sep="")')-core" "$newer" "" \
         "${CORE_TESTS[@]}"
 else
     echo "wheel: no CPython 3.12 or newer on this machine; the core tests on $("$python" -V)"
-    run py311-core "$python" "" "${CORE_TESTS[@]}"
+    start py311-core "$python" "" "${CORE_TESTS[@]}"
 fi
 
 # Each extra alone, and the tests of what it is for (those of another extra skip themselves).
-run export "$python" "[export]" tests/test_export.py tests/test_cli.py tests/test_packaging.py \
+start export "$python" "[export]" tests/test_export.py tests/test_cli.py tests/test_packaging.py \
     tests/test_colliders.py -k "export or obj or ply or glb or mesh_file or meshes or extra"
-run usd "$python" "[usd]" tests/test_export.py tests/test_cli.py -k "usd or fps"
-run viewer "$python" "[viewer]" tests/render tests/test_camera.py
-run study "$python" "[study]" tests/test_accuracy.py
+start usd "$python" "[usd]" tests/test_export.py tests/test_cli.py -k "usd or fps"
+start viewer "$python" "[viewer]" tests/render tests/test_camera.py
+start study "$python" "[study]" tests/test_accuracy.py
 # One small sweep on a local Ray cluster started by the test (two CPUs).
-run ray "$python" "[ray]" tests/test_sweep_ray.py -k bitwise
+start ray "$python" "[ray]" tests/test_sweep_ray.py -k bitwise
+finish

@@ -186,6 +186,22 @@ HOSTILE_COUNTS: collections.Counter[str] = collections.Counter()
 values ``tried``, ``refused`` by name, ``accepted``."""
 
 
+def pytest_sessionfinish(session: Any) -> None:
+    # Under pytest-xdist each worker counts its own tests' inputs: it hands its counts to the
+    # controller, which adds them up (pytest_testnodedown) for the summary below.
+    workeroutput = getattr(session.config, "workeroutput", None)
+    if workeroutput is not None:
+        workeroutput["input_counts"] = dict(INPUT_COUNTS)
+        workeroutput["hostile_counts"] = dict(HOSTILE_COUNTS)
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_testnodedown(node: Any, error: Any) -> None:
+    workeroutput = getattr(node, "workeroutput", {})
+    INPUT_COUNTS.update(workeroutput.get("input_counts", {}))
+    HOSTILE_COUNTS.update(workeroutput.get("hostile_counts", {}))
+
+
 def pytest_terminal_summary(terminalreporter: Any) -> None:
     if HOSTILE_COUNTS["tried"]:
         c = HOSTILE_COUNTS

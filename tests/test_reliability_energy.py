@@ -158,6 +158,7 @@ def test_energy_is_bitwise_the_same_on_every_call():
         assert [x.hex() for x in sim.energy()] == first
 
 
+@pytest.mark.xdist_group("reliability_worker")  # the worker's runs are cached per process
 def test_energy_is_bitwise_the_same_at_every_thread_count():
     # The worker (tests/reliability_worker.py) computes energies of many-chunk states at 1, 2
     # and 7 threads in subprocesses; the bits agree with each other and with this process.

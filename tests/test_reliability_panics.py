@@ -35,6 +35,8 @@ def test_wide_cloths_step_and_stay_bounded(nx, ny):
     assert sim.steps == 20
 
 
+# The worker's runs are cached per process: in one group, pytest-xdist runs them once.
+@pytest.mark.xdist_group("reliability_worker")
 def test_grid_shapes_step_alike_at_every_thread_count():
     # Every shape of the worker's list (wide and tall grids on both sides of the
     # 2,048-particle chunk, 1500 x 64, and a seeded sample)
@@ -50,6 +52,7 @@ def test_grid_shapes_step_alike_at_every_thread_count():
         assert all(runs[t]["integrators"][name] == digest for t in THREAD_COUNTS), name
 
 
+@pytest.mark.xdist_group("reliability_worker")
 def test_in_process_pool_agrees_with_the_subprocesses():
     # The worker's results are not an artefact of the subprocess: this process's pool (of
     # whatever size) gets the same bits for the reported shape.

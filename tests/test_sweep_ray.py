@@ -13,6 +13,10 @@ from sweep_helpers import FUNCTIONS, assert_matches_serial, failing_sweep, small
 
 ray = pytest.importorskip("ray", reason="Ray is not installed (pip install 'rustcloth[ray]')")
 
+# One process runs the whole module under pytest-xdist, so one local cluster serves it, as
+# without xdist: a cluster per worker would cost its start-up twice and share two CPUs.
+pytestmark = pytest.mark.xdist_group("ray")
+
 
 @pytest.fixture(scope="module")
 def local_ray():

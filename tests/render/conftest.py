@@ -7,7 +7,6 @@ from __future__ import annotations
 import os
 import shutil
 import subprocess
-import time
 from collections.abc import Iterator
 from typing import Any
 
@@ -180,15 +179,19 @@ def xdisplay() -> Iterator[str]:
     xvfb = shutil.which("Xvfb")
     if xvfb is None:
         pytest.skip("no DISPLAY and no Xvfb (Debian package xvfb) for the glfw demo test")
-    for num in range(99, 120):
-        if not any(os.path.exists(f) for f in (f"/tmp/.X11-unix/X{num}", f"/tmp/.X{num}-lock")):
-            break
-    proc = subprocess.Popen([xvfb, f":{num}", "-screen", "0", "640x480x24", "-nolisten", "tcp"],
+    # Xvfb picks a free display itself and writes its number once it accepts clients: two
+    # pytest-xdist workers, or two suites on one machine, each get their own, with no race
+    # between looking for a free number and taking it.
+    ready, write_end = os.pipe()
+    proc = subprocess.Popen([xvfb, "-displayfd", str(write_end), "-screen", "0", "640x480x24",
+                             "-nolisten", "tcp"], pass_fds=(write_end,),
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    for _ in range(100):
-        if os.path.exists(f"/tmp/.X11-unix/X{num}"):
-            break
-        time.sleep(0.05)
+    os.close(write_end)
+    with os.fdopen(ready) as f:
+        num = f.readline().strip()
+    if not num:
+        proc.wait(timeout=10)
+        pytest.skip(f"Xvfb exited with {proc.returncode} before it opened a display")
     try:
         yield f":{num}"
     finally:
