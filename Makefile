@@ -46,7 +46,7 @@ demo: setup
 	$(PY) -m rustcloth demo
 
 test: setup lint
-	cargo test -q
+	cargo test -q --profile fast-tests
 	$(PY) -m pytest -q -m "not long"
 	$(MAKE) --no-print-directory test-wheel
 
