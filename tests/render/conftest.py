@@ -191,7 +191,7 @@ def xdisplay() -> Iterator[str]:
         num = f.readline().strip()
     if not num:
         proc.wait(timeout=10)
-        pytest.skip(f"Xvfb exited with {proc.returncode} before it opened a display")
+        pytest.fail(f"Xvfb exited with {proc.returncode} before it opened a display")
     try:
         yield f":{num}"
     finally:
