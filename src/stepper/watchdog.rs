@@ -511,8 +511,9 @@ pub const CASCADE_HOLD_FIRST: u64 = 8;
 /// 33-184 vertices over the windows of `benches/twist50_ensemble.py`, the thin 64 x 64 twist's
 /// 33-215, and both are as cheap or as calm with the short hold; the 256 x 256 twist's first
 /// two stop 4,294 and 7,605, and on it only a long hold at four times (for every cascade)
-/// kept the largest stretch under 1.5 to frame 60 (docs/notes_twistsize.md). 512 lies more
-/// than twice above the small ones and eight times under the large.
+/// kept the largest stretch under 1.5 to frame 60 (the contact notebook, "2026-12-07
+/// (twistsize)"). 512 lies more than twice above the small ones and eight times under the
+/// large.
 pub const CASCADE_LARGE: u64 = 512;
 
 /// Particles per parallel work item of [`any_overstretched`].
