@@ -45,9 +45,12 @@ setup: system-deps $(VENV)/.built
 demo: setup
 	$(PY) -m rustcloth demo
 
+# The Rust tests optimised (Cargo.toml's `fast-tests` profile says why); the Python suite in
+# two processes (pytest-xdist): much of it waits on subprocesses, Ray and Xvfb, or runs Python
+# on one core, so two workers overlap that (the testing notebook, docs/notes/testing.md).
 test: setup lint
 	cargo test -q --profile fast-tests
-	$(PY) -m pytest -q -m "not long"
+	$(PY) -m pytest -q -m "not long" -n 2 --dist loadgroup
 	$(MAKE) --no-print-directory test-wheel
 
 # The documentation site: docs/*.md and the API reference from the docstrings (mkdocs.yml), in
