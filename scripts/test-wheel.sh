@@ -95,11 +95,11 @@ EOF
     )
 }
 
-# start LABEL PYTHON EXTRAS [PYTEST ARGS...]: `run` in the background, its output kept for
+# launch LABEL PYTHON EXTRAS [PYTEST ARGS...]: `run` in the background, its output kept for
 # `finish`, once fewer than JOBS runs are going.
 jobs_max=${JOBS:-$(nproc)}
 labels=() pids=()
-start() {
+launch() {
     if [ -n "${ONLY:-}" ] && [[ " $ONLY " != *" $1 "* ]]; then
         return
     fi
@@ -141,19 +141,19 @@ CORE_TESTS=(
 )
 newer=${NEWER_PYTHON:-$(newer_python)}
 if [ -n "$newer" ]; then
-    start "py$("$newer" -c 'import sys; print(*sys.version_info[:2], sep="")')-core" "$newer" "" \
+    launch "py$("$newer" -c 'import sys; print(*sys.version_info[:2], sep="")')-core" "$newer" "" \
         "${CORE_TESTS[@]}"
 else
     echo "wheel: no CPython 3.12 or newer on this machine; the core tests on $("$python" -V)"
-    start py311-core "$python" "" "${CORE_TESTS[@]}"
+    launch py311-core "$python" "" "${CORE_TESTS[@]}"
 fi
 
 # Each extra alone, and the tests of what it is for (those of another extra skip themselves).
-start export "$python" "[export]" tests/test_export.py tests/test_cli.py tests/test_packaging.py \
+launch export "$python" "[export]" tests/test_export.py tests/test_cli.py tests/test_packaging.py \
     tests/test_colliders.py -k "export or obj or ply or glb or mesh_file or meshes or extra"
-start usd "$python" "[usd]" tests/test_export.py tests/test_cli.py -k "usd or fps"
-start viewer "$python" "[viewer]" tests/render tests/test_camera.py
-start study "$python" "[study]" tests/test_accuracy.py
+launch usd "$python" "[usd]" tests/test_export.py tests/test_cli.py -k "usd or fps"
+launch viewer "$python" "[viewer]" tests/render tests/test_camera.py
+launch study "$python" "[study]" tests/test_accuracy.py
 # One small sweep on a local Ray cluster started by the test (two CPUs).
-start ray "$python" "[ray]" tests/test_sweep_ray.py -k bitwise
+launch ray "$python" "[ray]" tests/test_sweep_ray.py -k bitwise
 finish
