@@ -10,6 +10,7 @@ use rustcloth::scene::{
     ClothSpec, ColliderSpec, FloorSpec, MeshSpec, PinBoundary, PinBox, PinSpec, PinTop, ShapeKind,
     TearingSpec,
 };
+use rustcloth::simd::Isa;
 use rustcloth::soa::Vec3s;
 use rustcloth::{IntegratorKind, Scene, Simulation};
 
@@ -685,7 +686,9 @@ fn the_force_pass_in_a_local_numbering_gives_bitwise_the_forces_of_the_users() {
     let forces = |mesh: &MeshCloth| {
         let mut out = Vec3s::from_fn(m, |v| Vec3::new(0.0, -9.81 * mesh.masses[v] as f32, 0.0));
         let mut table = Vec::new();
-        let over = mesh.add_spring_forces((&pos, &vel), 0.0, &mut out, &mut table, 64, Some(1.5));
+        let isa = rustcloth::simd::isa();
+        let over =
+            mesh.add_spring_forces(isa, (&pos, &vel), 0.0, &mut out, &mut table, 64, Some(1.5));
         (out, over)
     };
     let ((local, over_local), (user, over_user)) = (forces(&scattered), forces(&plain));
@@ -701,7 +704,8 @@ fn the_force_pass_in_a_local_numbering_gives_bitwise_the_forces_of_the_users() {
 /// force on the first end `F`, added as `+F` there and `-1 * F` at the second end, in the
 /// vertex's incidence order), computed here apart: on a mesh in row order, the same mesh
 /// renumbered (the local numbering), a sewn garment (seams, some slack) and isometric bending,
-/// each before and after cuts, which the lanes' copies must follow.
+/// each before and after cuts, which the lanes' copies must follow; on every instruction set
+/// the CPU has.
 #[test]
 fn computing_each_spring_at_both_ends_gives_bitwise_the_sums_of_a_per_spring_table() {
     let n = 20;
@@ -749,8 +753,18 @@ fn computing_each_spring_at_both_ends_gives_bitwise_the_sums_of_a_per_spring_tab
     }
 }
 
-/// Compares [`MeshCloth::add_spring_forces`] with a per-spring table summed vertex by vertex.
+/// Compares [`MeshCloth::add_spring_forces`] on every instruction set this CPU has (a
+/// simulation times two and keeps the faster, so they must agree bit for bit in one process)
+/// with a per-spring table summed vertex by vertex.
 fn assert_spring_sums_bitwise(mesh: &MeshCloth, sewing: f32, name: &str) {
+    for isa in [Isa::Baseline, Isa::Avx2, Isa::Avx512] {
+        if rustcloth::simd::has(isa) {
+            assert_spring_sums_bitwise_on(isa, mesh, sewing, &format!("{name}, {isa:?}"));
+        }
+    }
+}
+
+fn assert_spring_sums_bitwise_on(isa: Isa, mesh: &MeshCloth, sewing: f32, name: &str) {
     let m = mesh.len();
     let pos = Vec3s::from_fn(m, |v| {
         let [x, y, z] = mesh.rest[v].map(|c| c as f32);
@@ -766,6 +780,7 @@ fn assert_spring_sums_bitwise(mesh: &MeshCloth, sewing: f32, name: &str) {
     let start = |v: usize| Vec3::new(0.0, -9.81 * mesh.masses[v] as f32, 0.0);
     let mut out = Vec3s::from_fn(m, start);
     let over = mesh.add_spring_forces(
+        isa,
         (&pos, &vel),
         sewing,
         &mut out,

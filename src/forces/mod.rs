@@ -25,6 +25,7 @@ use rayon::prelude::*;
 use crate::grid::{Family, Grid, SpringKind};
 use crate::mesh_cloth::MeshCloth;
 use crate::profile::Profile;
+use crate::simd::Timed;
 use crate::soa::{Vec3SliceMut, Vec3s};
 use crate::springs::Springs;
 
@@ -138,6 +139,8 @@ pub struct ForceModel {
     panic_next: bool,
     /// Scratch for [`MeshCloth::add_spring_forces`] (the state in a local numbering).
     mesh_table: Vec<[f32; 3]>,
+    /// The instruction set of a mesh cloth's spring pass, chosen by timing its first calls.
+    mesh_isa: Timed,
     /// A mesh cloth's per-triangle forces, scratch for
     /// [`crate::mesh_cloth::membrane::Membrane::add_forces`].
     membrane_table: Vec<[glam::Vec3; 3]>,
@@ -185,6 +188,7 @@ impl ForceModel {
             overstretched: AtomicBool::new(false),
             panic_next: false,
             mesh_table: Vec::new(),
+            mesh_isa: Timed::default(),
             membrane_table: Vec::new(),
             time: 0.0,
         }
@@ -307,6 +311,7 @@ impl ForceModel {
             cpu_nanos,
             overstretched,
             mesh_table,
+            mesh_isa,
             membrane_table,
             ..
         } = self;
@@ -382,8 +387,9 @@ impl ForceModel {
         // The sweep's time is split among its forces; the mesh's springs are booked apart.
         let swept = start.elapsed();
         if let Some(mesh) = state.mesh {
-            let clock = Instant::now();
+            let (clock, isa) = (Instant::now(), mesh_isa.next());
             let over = mesh.add_spring_forces(
+                isa,
                 (state.pos, state.vel),
                 mesh.sewing(self.time),
                 out,
@@ -394,7 +400,9 @@ impl ForceModel {
             if over {
                 overstretched.store(true, Ordering::Relaxed);
             }
-            profile.add(MESH_SPRINGS, clock.elapsed());
+            let took = clock.elapsed();
+            mesh_isa.record(isa, took);
+            profile.add(MESH_SPRINGS, took);
             if let Some(membrane) = &mesh.membrane {
                 let clock = Instant::now();
                 let active = &mesh.springs.active;

@@ -18,6 +18,7 @@ use rayon::prelude::*;
 
 use super::{EdgeKind, MeshCloth};
 use crate::scene::{gather_by, IncidenceLanes, SpringSlots, LANES, WINDOW};
+use crate::simd::Isa;
 use crate::soa::{Vec3SliceMut, Vec3s};
 use crate::springs::overstretched;
 
@@ -27,8 +28,12 @@ impl MeshCloth {
     /// `sewing` ([`MeshCloth::sewing`]). With a `watch` limit, also returns whether a spring
     /// other than a seam (whose rest length goes to zero) is longer than that many times its
     /// rest length (the watchdog's stretch check). A seam shorter than its rest length is slack.
+    /// The pass runs on `isa` (one the CPU has, [`crate::simd::has`]; a simulation's
+    /// [`crate::simd::Timed`] chooses it), with the same bits on any.
+    #[allow(clippy::too_many_arguments)]
     pub fn add_spring_forces(
         &self,
+        isa: Isa,
         (pos, vel): (&Vec3s, &Vec3s),
         sewing: f32,
         out: &mut Vec3s,
@@ -36,6 +41,10 @@ impl MeshCloth {
         chunk: usize,
         watch: Option<f32>,
     ) -> bool {
+        assert!(
+            crate::simd::has(isa),
+            "{isa:?} is not an instruction set this CPU has"
+        );
         let limit = watch.unwrap_or(f32::INFINITY);
         // Whole windows of vertices per work item, so that each group's vertices are in one;
         // each vertex's sum is the same in any split.
@@ -54,6 +63,7 @@ impl MeshCloth {
                 slots,
                 coordinates,
                 law,
+                isa,
             };
             let over = out
                 .par_chunks_mut(per_item)
@@ -91,7 +101,7 @@ impl MeshCloth {
                 let sources = [
                     &pos.x, &pos.y, &pos.z, &vel.x, &vel.y, &vel.z, &now.x, &now.y, &now.z,
                 ];
-                crate::simd::dispatch!(gather_by(into, sources.map(|x| &x[..]), from));
+                crate::simd::dispatch!(@isa isa, gather_by(into, sources.map(|x| &x[..]), from));
             });
         let coordinates = [&*x0, &*x1, &*x2, &*v0, &*v1, &*v2];
         let pass = Pass {
@@ -99,6 +109,7 @@ impl MeshCloth {
             slots,
             coordinates,
             law,
+            isa,
         };
         let over = (
             f0.par_chunks_mut(p),
@@ -116,7 +127,7 @@ impl MeshCloth {
         let (f, place) = ([&*f0, &*f1, &*f2], &local.place);
         out.par_chunks_mut(p).enumerate().for_each(|(c, out)| {
             let from = &place[c * p..c * p + out.x.len()];
-            crate::simd::dispatch!(gather_by([out.x, out.y, out.z], f, from));
+            crate::simd::dispatch!(@isa isa, gather_by([out.x, out.y, out.z], f, from));
         });
         watch.is_some() && over
     }
@@ -197,14 +208,14 @@ impl MeshCloth {
 }
 
 /// [`vertex_forces`] in the build for the cloth (with isometric bending's term or without) and
-/// the processor's instruction set. With AVX-512 each group's start and end are the vector
-/// unit's gathers and scatters ([`avx512`]); the other instruction sets load and store them lane
-/// by lane.
+/// the pass's instruction set. With AVX-512 each group's start and end are the vector unit's
+/// gathers and scatters ([`avx512`]); the other instruction sets load and store them lane by
+/// lane.
 fn cloth_forces(pass: Pass<'_>, first: usize, f: Vec3SliceMut<'_>) -> bool {
     let linear = !pass.slots.linear.is_empty();
     #[cfg(target_arch = "x86_64")]
-    if crate::simd::isa() == crate::simd::Isa::Avx512 {
-        // SAFETY: `isa()` only returns an instruction set the CPU reported.
+    if pass.isa == Isa::Avx512 {
+        // SAFETY: the pass's instruction set is one the CPU has (`add_spring_forces` asserts it).
         return unsafe {
             match linear {
                 false => avx512::vertex_forces::<false>(pass, first, f),
@@ -212,21 +223,24 @@ fn cloth_forces(pass: Pass<'_>, first: usize, f: Vec3SliceMut<'_>) -> bool {
             }
         };
     }
+    let isa = pass.isa;
     match linear {
-        false => crate::simd::dispatch!(vertex_forces::<false, false>(pass, first, f)),
-        true => crate::simd::dispatch!(vertex_forces::<true, false>(pass, first, f)),
+        false => crate::simd::dispatch!(@isa isa, vertex_forces::<false, false>(pass, first, f)),
+        true => crate::simd::dispatch!(@isa isa, vertex_forces::<true, false>(pass, first, f)),
     }
 }
 
 /// What every work item of the pass reads: the lanes and their slots, each vertex's
 /// coordinates (x, y, z of the position, then of the velocity, vertex `i`'s coordinate `c` at
-/// `coordinates[c][i]`), and the seams' `sewing` and the watch's `limit`.
+/// `coordinates[c][i]`), the seams' `sewing` and the watch's `limit`, and the instruction set
+/// it runs on.
 #[derive(Clone, Copy)]
 struct Pass<'a> {
     lanes: &'a IncidenceLanes,
     slots: &'a SpringSlots,
     coordinates: [&'a [f32]; 6],
     law: (f32, f32),
+    isa: Isa,
 }
 
 /// Adds to `f` (the forces of the vertices from group `first` on, component by component) the
@@ -248,6 +262,7 @@ fn vertex_forces<const LINEAR: bool, const GATHER: bool>(
         slots,
         coordinates,
         law,
+        ..
     } = pass;
     check_coordinates(slots, coordinates);
     let mut over = false;
