@@ -38,13 +38,15 @@ $(VENV)/.ready: pyproject.toml
 # second time (a release build with LTO, about 4 minutes on two cores). A profile of the
 # installed module has no symbols: build one with `cargo build --release --lib --features python`.
 ZIG_BUILD := --strip --zig --compatibility $(MANYLINUX)
+# The venv's bin first on PATH: maturin finds zig through the venv's python.
+VENV_PATH := PATH="$(CURDIR)/$(VENV)/bin:$$PATH"
 
 # The extension module, built in release mode (pyproject.toml's [tool.maturin] profile) into the
 # package (an editable install: python/ is the package, the module copied into it), with the
 # package's dependencies, the `dev` dependency group (tests, linters, docs: pyproject.toml) and
 # the `ray` extra, so the sweep's Ray tests run in CI.
 $(VENV)/.built: $(VENV)/.ready $(RUST_SOURCES) pyproject.toml
-	PATH="$(CURDIR)/$(VENV)/bin:$$PATH" MATURIN_PEP517_ARGS="$(ZIG_BUILD)" \
+	$(VENV_PATH) MATURIN_PEP517_ARGS="$(ZIG_BUILD)" \
 		$(PY) -m pip install -q --no-build-isolation -e '.[ray]' --group dev
 	touch $@
 
@@ -76,7 +78,7 @@ wheel: dist/.built
 
 dist/.built: $(VENV)/.ready $(WHEEL_INPUTS)
 	rm -rf dist
-	PATH="$(CURDIR)/$(VENV)/bin:$$PATH" $(VENV)/bin/maturin build -q --release $(ZIG_BUILD) -o dist
+	$(VENV_PATH) $(VENV)/bin/maturin build -q --release $(ZIG_BUILD) -o dist
 	$(VENV)/bin/maturin sdist -o dist
 	$(VENV)/bin/auditwheel show dist/*.whl
 	touch $@

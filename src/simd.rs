@@ -20,7 +20,9 @@
 use std::sync::OnceLock;
 use std::time::Duration;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// The instruction sets, narrowest first: a CPU with one has every narrower one (the AVX-512
+/// build is compiled with AVX2 enabled too).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Isa {
     Baseline,
     Avx2,
@@ -132,16 +134,15 @@ pub struct Timed {
     candidates: &'static [Isa],
     /// Each candidate's fastest call so far.
     fastest: [Duration; 2],
-    /// Calls recorded.
+    /// Calls recorded during the trials.
     calls: u32,
-    chosen: Option<Isa>,
 }
 
 impl Default for Timed {
     fn default() -> Self {
         let forced = std::env::var_os("RUSTCLOTH_SIMD").is_some();
         Self::among(match isa() {
-            Isa::Avx512 if !forced && has_avx2() => &[Isa::Avx512, Isa::Avx2],
+            Isa::Avx512 if !forced => &[Isa::Avx512, Isa::Avx2],
             Isa::Avx512 => &[Isa::Avx512],
             Isa::Avx2 => &[Isa::Avx2],
             Isa::Baseline => &[Isa::Baseline],
@@ -157,57 +158,41 @@ impl Timed {
             candidates,
             fastest: [Duration::MAX; 2],
             calls: 0,
-            chosen: (candidates.len() == 1).then_some(candidates[0]),
         }
     }
 
     /// The instruction set the next call runs on.
     pub fn next(&self) -> Isa {
-        self.chosen
+        self.chosen()
             .unwrap_or(self.candidates[self.calls as usize % self.candidates.len()])
     }
 
-    /// Books a call on `isa` (what [`Timed::next`] gave) that took `took`; chooses once every
+    /// Books a call on `isa` (what [`Timed::next`] gave) that took `took`, until every
     /// candidate has had its [`TRIALS`].
     pub fn record(&mut self, isa: Isa, took: Duration) {
-        if self.chosen.is_some() {
+        if self.chosen().is_some() {
             return;
         }
-        let Some(k) = self.candidates.iter().position(|&c| c == isa) else {
-            return;
-        };
-        self.fastest[k] = self.fastest[k].min(took);
-        self.calls += 1;
-        if self.calls >= TRIALS * self.candidates.len() as u32 {
-            let faster = usize::from(self.fastest[1] < self.fastest[0]);
-            self.chosen = Some(self.candidates[faster]);
+        if let Some(k) = self.candidates.iter().position(|&c| c == isa) {
+            self.fastest[k] = self.fastest[k].min(took);
+            self.calls += 1;
         }
     }
 
-    /// The instruction set chosen, once the trials are over (at once where there is no choice).
+    /// The instruction set chosen, once the trials are over (at once where there is no
+    /// choice): the candidate whose fastest call was faster, the first on a tie.
     pub fn chosen(&self) -> Option<Isa> {
-        self.chosen
+        match self.candidates {
+            [only] => Some(*only),
+            _ if self.calls < TRIALS * self.candidates.len() as u32 => None,
+            _ => Some(self.candidates[usize::from(self.fastest[1] < self.fastest[0])]),
+        }
     }
 }
 
 /// Whether this CPU has `isa` (whatever `RUSTCLOTH_SIMD` asks for).
 pub fn has(isa: Isa) -> bool {
-    match isa {
-        Isa::Baseline => true,
-        Isa::Avx2 => has_avx2(),
-        Isa::Avx512 => detect() == Isa::Avx512,
-    }
-}
-
-fn has_avx2() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        is_x86_feature_detected!("avx2")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
+    isa <= detect()
 }
 
 #[cfg(test)]
