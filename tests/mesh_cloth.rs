@@ -685,10 +685,17 @@ fn the_force_pass_in_a_local_numbering_gives_bitwise_the_forces_of_the_users() {
     });
     let forces = |mesh: &MeshCloth| {
         let mut out = Vec3s::from_fn(m, |v| Vec3::new(0.0, -9.81 * mesh.masses[v] as f32, 0.0));
-        let mut table = Vec::new();
+        let mut scratch = Default::default();
         let isa = rustcloth::simd::isa();
-        let over =
-            mesh.add_spring_forces(isa, (&pos, &vel), 0.0, &mut out, &mut table, 64, Some(1.5));
+        let over = mesh.add_spring_forces(
+            isa,
+            (&pos, &vel),
+            0.0,
+            &mut out,
+            &mut scratch,
+            64,
+            Some(1.5),
+        );
         (out, over)
     };
     let ((local, over_local), (user, over_user)) = (forces(&scattered), forces(&plain));
@@ -784,7 +791,7 @@ fn assert_spring_sums_bitwise_on(isa: Isa, mesh: &MeshCloth, sewing: f32, name: 
         (&pos, &vel),
         sewing,
         &mut out,
-        &mut Vec::new(),
+        &mut Default::default(),
         64,
         Some(1.02),
     );

@@ -23,6 +23,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::grid::{Family, Grid, SpringKind};
+use crate::mesh_cloth::forces::PassScratch;
 use crate::mesh_cloth::MeshCloth;
 use crate::profile::Profile;
 use crate::simd::Timed;
@@ -137,8 +138,8 @@ pub struct ForceModel {
     /// Makes the next evaluation panic on a worker thread, to test that a panic anywhere in a
     /// step is caught and rolled back (see [`ForceModel::inject_panic`]).
     panic_next: bool,
-    /// Scratch for [`MeshCloth::add_spring_forces`] (the state in a local numbering).
-    mesh_table: Vec<[f32; 3]>,
+    /// Scratch for [`MeshCloth::add_spring_forces`].
+    mesh_table: PassScratch,
     /// The instruction set of a mesh cloth's spring pass, chosen by timing its first calls.
     mesh_isa: Timed,
     /// A mesh cloth's per-triangle forces, scratch for
@@ -187,7 +188,7 @@ impl ForceModel {
             watch_armed: false,
             overstretched: AtomicBool::new(false),
             panic_next: false,
-            mesh_table: Vec::new(),
+            mesh_table: PassScratch::default(),
             mesh_isa: Timed::default(),
             membrane_table: Vec::new(),
             time: 0.0,
@@ -259,7 +260,7 @@ impl ForceModel {
             .iter()
             .map(SpringTable::heap_bytes)
             .sum::<usize>()
-            + self.mesh_table.capacity() * size_of::<[f32; 3]>()
+            + self.mesh_table.heap_bytes()
             + self.membrane_table.capacity() * size_of::<[glam::Vec3; 3]>()
     }
 

@@ -78,6 +78,7 @@ pub mod bending {
 pub mod forces;
 pub mod graded;
 pub mod membrane;
+pub mod packed;
 pub mod topology;
 
 pub use graded::{graded_square, Grading};
