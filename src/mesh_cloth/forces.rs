@@ -42,7 +42,8 @@ impl MeshCloth {
     /// Adds the force of every spring at `(pos, vel)` into `out`, using `scratch` (resized
     /// here), the seams' rest lengths scaled by `sewing` ([`MeshCloth::sewing`]). With a
     /// `watch` limit, also returns whether a spring other than a seam (whose rest length goes
-    /// to zero) is longer than that many times its rest length (the watchdog's stretch check). A seam shorter than its rest length is slack.
+    /// to zero) is longer than that many times its rest length (the watchdog's stretch check).
+    /// A seam shorter than its rest length is slack.
     /// The pass runs on `isa` (one the CPU has, [`crate::simd::has`]; a simulation's
     /// [`crate::simd::Timed`] chooses it), with the same bits on any.
     #[allow(clippy::too_many_arguments)]

@@ -109,7 +109,8 @@ impl IncidenceLanes {
 
 /// What the single force pass reads per slot of an [`IncidenceLanes`] layout, in the same
 /// order: the spring's other end and a copy of the spring's parameters, so that a group's row
-/// loads them as contiguous vectors and only gathers the other end's position and velocity.
+/// loads them as contiguous vectors and only looks up the other end's position and velocity
+/// (from the packed state, [`crate::mesh_cloth::packed`]).
 /// Each spring is computed at both of its ends (twice the arithmetic, no per-spring table and
 /// no second pass). The copies follow the spring list only through [`SpringSlots::refresh`]
 /// or [`SpringSlots::refresh_springs`], which whatever changes a spring's parameters calls

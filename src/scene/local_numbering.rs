@@ -114,9 +114,8 @@ pub(super) fn incidence(n: usize, springs: &EdgeSprings) -> (Vec<u32>, Vec<u32>)
 }
 
 /// Sets `into[a][k]` to `from[a][index[k]]` for each array `a` and each `k` of `index`: the
-/// state gathered into a local numbering, or the forces scattered back from it. Unchecked
-/// inside, so that it compiles to the vector unit's gathers (16 indices at a time with
-/// AVX-512); a plain copy, so bitwise the same on every instruction set.
+/// state or the forces copied into a local numbering, or back from it. Checked once per array,
+/// unchecked inside; a plain copy, so bitwise the same on every instruction set.
 #[inline(always)]
 pub fn gather_by<const N: usize>(into: [&mut [f32]; N], from: [&[f32]; N], index: &[u32]) {
     let top = index.iter().map(|&i| i as usize + 1).max().unwrap_or(0);
