@@ -285,7 +285,8 @@ pub fn pick_triangle_brute_force_where(
 }
 
 /// The nearest live triangle, with `index` its stable id ([`cell_triangle`]): the same
-/// answer as [`TriangleBvh::cast`] and as testing every triangle, without a tree.
+/// answer as [`crate::picking::bvh::TriangleBvh::cast`] and as testing every triangle, without
+/// a tree.
 ///
 /// One pass over the positions bounds each row of particles; the strip of cells between two
 /// rows lies in the union of their bounds (widened like a triangle's box). Strips are visited

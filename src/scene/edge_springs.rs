@@ -14,7 +14,8 @@ pub enum EdgeKind {
 }
 
 /// The springs of a mesh cloth as an explicit list, sorted by kind, then by their ends in the
-/// mesh's local order (the vertex numbering, or [`LocalNumbering`]'s where that is scattered).
+/// mesh's local order (the vertex numbering, or [`super::LocalNumbering`]'s where that is
+/// scattered).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct EdgeSprings {
     /// First end (the lower vertex index).

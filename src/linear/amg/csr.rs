@@ -29,7 +29,7 @@ pub trait BlockRows: BlockOperator {
     /// while the pattern stays.
     fn for_each_off_diagonal_id(&self, v: usize, f: impl FnMut(usize, u32));
 
-    /// The block of the entry [`BlockRows::for_each_entry_id`] named `id`.
+    /// The block of the entry [`BlockRows::for_each_off_diagonal_id`] named `id`.
     fn block(&self, id: u32) -> &Sym3;
 }
 
