@@ -3,12 +3,12 @@
 //! it transposed, one array a coordinate.
 //!
 //! The pass reads, for every slot, the six coordinates of the spring's other end. Kept as six
-//! arrays, those are six gathers a row; on a CPU whose gather instructions are microcoded slow
-//! (the Intel parts with the Gather Data Sampling mitigation measured about 30 cycles for one
-//! 8- or 16-wide gather, against about 5 unmitigated) they were most of the pass, and compiled
-//! for AVX2 LLVM loads them element by element instead, which is no faster. Packed, a lane's
-//! six coordinates are two aligned 16-byte loads, and a row is transposed by a dozen shuffles.
-//! The values loaded are the same, so the force is bitwise the same on every instruction set.
+//! arrays, those are six gathers a row, and a gather can be slow: on an Ice Lake Xeon one 8- or
+//! 16-wide gather measured about 30 cycles (`benches/gather_cost.c`; Intel's Gather Data
+//! Sampling microcode is the likely cause), and the gathers were most of the pass. Compiled for
+//! AVX2, LLVM loads them element by element instead, which is no faster. Packed, a lane's six
+//! coordinates are two aligned 16-byte loads, and a row is transposed by a dozen shuffles. The
+//! values loaded are the same, so the force is bitwise the same on every instruction set.
 
 use crate::scene::LANES;
 use crate::soa::Vec3s;
@@ -29,9 +29,9 @@ impl Packed {
 }
 
 /// Sets `into[k]` to vertex `from + k`'s position and velocity, or with an `index`, to vertex
-/// `index[k]`'s (the state in a local numbering). Compiled for the baseline instruction set on
-/// purpose: with AVX-512 LLVM turns the indexed loads into gathers, the slow instruction this
-/// layout exists to avoid.
+/// `index[k]`'s (the state in a local numbering). Compiled for the baseline instruction set: a
+/// copy gains nothing from wider registers, and SSE2 has no gathers for LLVM to make of the
+/// indexed loads.
 pub fn pack(into: &mut [Packed], (pos, vel): (&Vec3s, &Vec3s), from: usize, index: Option<&[u32]>) {
     match index {
         None => {
