@@ -4,8 +4,8 @@
 //!
 //! The pass reads, for every slot, the six coordinates of the spring's other end. Kept as six
 //! arrays, those are six gathers a row, and a gather can be slow: on an Ice Lake Xeon one 8- or
-//! 16-wide gather measured about 30 cycles (`benches/gather_cost.c`; Intel's Gather Data
-//! Sampling microcode is the likely cause), and the gathers were most of the pass. Compiled for
+//! 16-wide gather measured 8 to 12 ns, 25 to 35 cycles (`benches/gather_cost.c`; Intel's
+//! Gather Data Sampling microcode is the likely cause), and the gathers were most of the pass. Compiled for
 //! AVX2, LLVM loads them element by element instead, which is no faster. Packed, a lane's six
 //! coordinates are two aligned 16-byte loads, and a row is transposed by a dozen shuffles. The
 //! values loaded are the same, so the force is bitwise the same on every instruction set.
