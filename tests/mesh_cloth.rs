@@ -760,9 +760,8 @@ fn computing_each_spring_at_both_ends_gives_bitwise_the_sums_of_a_per_spring_tab
     }
 }
 
-/// Compares [`MeshCloth::add_spring_forces`] on every instruction set this CPU has (a
-/// simulation times two and keeps the faster, so they must agree bit for bit in one process)
-/// with a per-spring table summed vertex by vertex.
+/// Compares [`MeshCloth::add_spring_forces`] on every instruction set this CPU has, in one
+/// process, with a per-spring table summed vertex by vertex.
 fn assert_spring_sums_bitwise(mesh: &MeshCloth, sewing: f32, name: &str) {
     for isa in [Isa::Baseline, Isa::Avx2, Isa::Avx512] {
         if rustcloth::simd::has(isa) {

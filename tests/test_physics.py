@@ -166,9 +166,8 @@ def test_state_is_bitwise_identical_across_vector_instruction_sets(integrator):
 
 def test_mesh_cloth_state_is_bitwise_identical_across_instruction_sets_and_threads():
     # The mesh's spring pass gathers its ends and vectorises the arithmetic per block; the
-    # shirt has stretch, bend and seam springs, the seams closing. Unforced, a CPU with
-    # AVX-512 runs the pass's first calls on AVX-512 and AVX2 in turn and keeps the faster
-    # (rustcloth::simd::Timed): the same bits as every forced run.
+    # shirt has stretch, bend and seam springs, the seams closing. The unforced run (the
+    # widest set, every thread) gives the same bits as every forced one.
     auto = digest_with({}, scene="shirt")
     best = auto[1]
     runs = {

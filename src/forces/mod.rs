@@ -26,7 +26,6 @@ use crate::grid::{Family, Grid, SpringKind};
 use crate::mesh_cloth::forces::PassScratch;
 use crate::mesh_cloth::MeshCloth;
 use crate::profile::Profile;
-use crate::simd::Timed;
 use crate::soa::{Vec3SliceMut, Vec3s};
 use crate::springs::Springs;
 
@@ -139,9 +138,7 @@ pub struct ForceModel {
     /// step is caught and rolled back (see [`ForceModel::inject_panic`]).
     panic_next: bool,
     /// Scratch for [`MeshCloth::add_spring_forces`].
-    mesh_table: PassScratch,
-    /// The instruction set of a mesh cloth's spring pass, chosen by timing its first calls.
-    mesh_isa: Timed,
+    mesh_scratch: PassScratch,
     /// A mesh cloth's per-triangle forces, scratch for
     /// [`crate::mesh_cloth::membrane::Membrane::add_forces`].
     membrane_table: Vec<[glam::Vec3; 3]>,
@@ -188,8 +185,7 @@ impl ForceModel {
             watch_armed: false,
             overstretched: AtomicBool::new(false),
             panic_next: false,
-            mesh_table: PassScratch::default(),
-            mesh_isa: Timed::default(),
+            mesh_scratch: PassScratch::default(),
             membrane_table: Vec::new(),
             time: 0.0,
         }
@@ -260,7 +256,7 @@ impl ForceModel {
             .iter()
             .map(SpringTable::heap_bytes)
             .sum::<usize>()
-            + self.mesh_table.heap_bytes()
+            + self.mesh_scratch.heap_bytes()
             + self.membrane_table.capacity() * size_of::<[glam::Vec3; 3]>()
     }
 
@@ -311,8 +307,7 @@ impl ForceModel {
             tables,
             cpu_nanos,
             overstretched,
-            mesh_table,
-            mesh_isa,
+            mesh_scratch,
             membrane_table,
             ..
         } = self;
@@ -388,22 +383,20 @@ impl ForceModel {
         // The sweep's time is split among its forces; the mesh's springs are booked apart.
         let swept = start.elapsed();
         if let Some(mesh) = state.mesh {
-            let (clock, isa) = (Instant::now(), mesh_isa.next());
+            let clock = Instant::now();
             let over = mesh.add_spring_forces(
-                isa,
+                crate::simd::isa(),
                 (state.pos, state.vel),
                 mesh.sewing(self.time),
                 out,
-                mesh_table,
+                mesh_scratch,
                 chunk,
                 watch,
             );
             if over {
                 overstretched.store(true, Ordering::Relaxed);
             }
-            let took = clock.elapsed();
-            mesh_isa.record(isa, took);
-            profile.add(MESH_SPRINGS, took);
+            profile.add(MESH_SPRINGS, clock.elapsed());
             if let Some(membrane) = &mesh.membrane {
                 let clock = Instant::now();
                 let active = &mesh.springs.active;

@@ -44,8 +44,8 @@ impl MeshCloth {
     /// `watch` limit, also returns whether a spring other than a seam (whose rest length goes
     /// to zero) is longer than that many times its rest length (the watchdog's stretch check).
     /// A seam shorter than its rest length is slack.
-    /// The pass runs on `isa` (one the CPU has, [`crate::simd::has`]; a simulation's
-    /// [`crate::simd::Timed`] chooses it), with the same bits on any.
+    /// The pass runs on `isa` (one the CPU has, [`crate::simd::has`]; a simulation gives
+    /// [`crate::simd::isa`]), with the same bits on any.
     #[allow(clippy::too_many_arguments)]
     pub fn add_spring_forces(
         &self,
@@ -73,18 +73,18 @@ impl MeshCloth {
         );
         let n = self.len();
         let law = (sewing, limit);
+        let (lanes, index) = match &self.local {
+            Some(local) => (&local.lanes, Some(&local.vertices[..])),
+            None => (&self.lanes, None),
+        };
         let PassScratch { packed, forces } = scratch;
         packed.resize(n, Packed::default());
-        let index = self.local.as_ref().map(|local| &local.vertices[..]);
         packed.par_chunks_mut(p).enumerate().for_each(|(c, into)| {
             let index = index.map(|index| &index[c * p..c * p + into.len()]);
             pack(into, (pos, vel), c * p, index);
         });
         let pass = Pass {
-            lanes: self
-                .local
-                .as_ref()
-                .map_or(&self.lanes, |local| &local.lanes),
+            lanes,
             slots,
             packed,
             law,
@@ -103,7 +103,7 @@ impl MeshCloth {
         forces.resize(3 * n, 0.0);
         let (f0, f12) = forces.split_at_mut(n);
         let (f1, f2) = f12.split_at_mut(n);
-        let (vertices, now) = (&local.vertices, &*out);
+        let now = &*out;
         let over = (
             f0.par_chunks_mut(p),
             f1.par_chunks_mut(p),
@@ -112,7 +112,7 @@ impl MeshCloth {
             .into_par_iter()
             .enumerate()
             .map(|(c, (x, y, z))| {
-                let from = &vertices[c * p..c * p + x.len()];
+                let from = &local.vertices[c * p..c * p + x.len()];
                 let sources = [&now.x, &now.y, &now.z].map(|x| &x[..]);
                 dispatch!(@isa isa, gather_by([&mut *x, &mut *y, &mut *z], sources, from));
                 cloth_forces(pass, c * p / LANES, Vec3SliceMut { x, y, z })
@@ -206,15 +206,17 @@ impl MeshCloth {
 /// shuffles ([`LoadRow`]).
 #[cfg(target_arch = "x86_64")]
 fn cloth_forces(pass: Pass<'_>, first: usize, f: Vec3SliceMut<'_>) -> bool {
-    use super::packed::{Avx2, Avx512, Sse2};
+    use super::packed::{Avx2, Sse2};
     let (isa, linear) = (pass.isa, !pass.slots.linear.is_empty());
-    // Each arm runs on its loader's instruction set, one the CPU has (`add_spring_forces`
-    // asserts it).
+    // The AVX-512 build loads its rows with AVX2's shuffles: a 512-bit loader measured the
+    // same. Each arm runs on an instruction set the CPU has (`add_spring_forces` asserts it).
     match (isa, linear) {
-        (Isa::Avx512, false) => dispatch!(@isa isa, vertex_forces::<false, Avx512>(pass, first, f)),
-        (Isa::Avx512, true) => dispatch!(@isa isa, vertex_forces::<true, Avx512>(pass, first, f)),
-        (Isa::Avx2, false) => dispatch!(@isa isa, vertex_forces::<false, Avx2>(pass, first, f)),
-        (Isa::Avx2, true) => dispatch!(@isa isa, vertex_forces::<true, Avx2>(pass, first, f)),
+        (Isa::Avx512 | Isa::Avx2, false) => {
+            dispatch!(@isa isa, vertex_forces::<false, Avx2>(pass, first, f))
+        }
+        (Isa::Avx512 | Isa::Avx2, true) => {
+            dispatch!(@isa isa, vertex_forces::<true, Avx2>(pass, first, f))
+        }
         (Isa::Baseline, false) => vertex_forces::<false, Sse2>(pass, first, f),
         (Isa::Baseline, true) => vertex_forces::<true, Sse2>(pass, first, f),
     }

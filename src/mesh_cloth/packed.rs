@@ -5,9 +5,10 @@
 //! The pass reads, for every slot, the six coordinates of the spring's other end. Kept as six
 //! arrays, those are six gathers a row, and a gather can be slow: on an Ice Lake Xeon one 8- or
 //! 16-wide gather measured 8 to 12 ns, 25 to 35 cycles (`benches/gather_cost.c`; Intel's
-//! Gather Data Sampling microcode is the likely cause), and the gathers were most of the pass. Compiled for
-//! AVX2, LLVM loads them element by element instead, which is no faster. Packed, a lane's six
-//! coordinates are two aligned 16-byte loads, and a row is transposed by a dozen shuffles. The
+//! Gather Data Sampling microcode is the likely cause), and the gathers were most of the pass.
+//! Compiled for AVX2, LLVM loads them element by element instead, which is no faster. Packed, a
+//! lane's six coordinates are two aligned 16-byte loads, and eight lanes are transposed by a
+//! dozen shuffles (AVX2's, in the AVX-512 build too: a 512-bit loader measured the same). The
 //! values loaded are the same, so the force is bitwise the same on every instruction set.
 
 use crate::scene::LANES;
@@ -81,7 +82,7 @@ impl LoadRow for Scalar {
 }
 
 #[cfg(target_arch = "x86_64")]
-pub use x86::{Avx2, Avx512, Sse2};
+pub use x86::{Avx2, Sse2};
 
 #[cfg(target_arch = "x86_64")]
 mod x86 {
@@ -196,68 +197,6 @@ mod x86 {
         }
         row
     }
-
-    /// AVX-512: one row of sixteen lanes.
-    pub struct Avx512;
-
-    impl LoadRow for Avx512 {
-        #[inline(always)]
-        unsafe fn load(packed: &[Packed], at: &[u32; LANES]) -> Row {
-            // SAFETY: the caller keeps the indices inside `packed` and has AVX-512.
-            unsafe { load_avx512(packed, at) }
-        }
-    }
-
-    #[inline]
-    #[target_feature(enable = "avx512f,avx512vl,avx2")]
-    unsafe fn load_avx512(packed: &[Packed], at: &[u32; LANES]) -> Row {
-        let mut a = [_mm512_setzero_ps(); 4];
-        let mut b = [_mm512_setzero_ps(); 4];
-        for i in 0..4 {
-            // SAFETY: every index is inside `packed` (the caller's promise), each half 16
-            // aligned bytes.
-            unsafe {
-                let (a0, b0) = halves(packed, at[i]);
-                let (a1, b1) = halves(packed, at[i + 4]);
-                let (a2, b2) = halves(packed, at[i + 8]);
-                let (a3, b3) = halves(packed, at[i + 12]);
-                let x = _mm512_castps128_ps512(_mm_load_ps(a0));
-                let x = _mm512_insertf32x4::<1>(x, _mm_load_ps(a1));
-                let x = _mm512_insertf32x4::<2>(x, _mm_load_ps(a2));
-                a[i] = _mm512_insertf32x4::<3>(x, _mm_load_ps(a3));
-                let x = _mm512_castps128_ps512(_mm_load_ps(b0));
-                let x = _mm512_insertf32x4::<1>(x, _mm_load_ps(b1));
-                let x = _mm512_insertf32x4::<2>(x, _mm_load_ps(b2));
-                b[i] = _mm512_insertf32x4::<3>(x, _mm_load_ps(b3));
-            }
-        }
-        let (lo01, hi01) = (
-            _mm512_unpacklo_ps(a[0], a[1]),
-            _mm512_unpackhi_ps(a[0], a[1]),
-        );
-        let (lo23, hi23) = (
-            _mm512_unpacklo_ps(a[2], a[3]),
-            _mm512_unpackhi_ps(a[2], a[3]),
-        );
-        let (v01, v23) = (
-            _mm512_unpacklo_ps(b[0], b[1]),
-            _mm512_unpacklo_ps(b[2], b[3]),
-        );
-        let coordinates = [
-            _mm512_shuffle_ps::<0x44>(lo01, lo23),
-            _mm512_shuffle_ps::<0xEE>(lo01, lo23),
-            _mm512_shuffle_ps::<0x44>(hi01, hi23),
-            _mm512_shuffle_ps::<0xEE>(hi01, hi23),
-            _mm512_shuffle_ps::<0x44>(v01, v23),
-            _mm512_shuffle_ps::<0xEE>(v01, v23),
-        ];
-        let mut row = [[0.0f32; LANES]; 6];
-        for (row, x) in row.iter_mut().zip(coordinates) {
-            // SAFETY: `row` holds `LANES` (16) floats.
-            unsafe { _mm512_storeu_ps(row.as_mut_ptr(), x) };
-        }
-        row
-    }
 }
 
 #[cfg(test)]
@@ -293,10 +232,6 @@ mod tests {
             if has(Isa::Avx2) {
                 // SAFETY: as above, and the CPU has AVX2.
                 assert_eq!(unsafe { Avx2::load(&packed, &at) }, want);
-            }
-            if has(Isa::Avx512) {
-                // SAFETY: as above, and the CPU has AVX-512.
-                assert_eq!(unsafe { Avx512::load(&packed, &at) }, want);
             }
         }
     }
